@@ -1,0 +1,240 @@
+"""Measurement files: the CSV contract of INTERFACE.md section 2.
+
+One row per pose, in measurement order: ``q1_deg..qN_deg``, optionally
+``x_mm, y_mm, z_mm`` (a file without them is a list of poses to predict or
+plan with), and optional ``payload_kg``, ``temperature_c``, ``time_s``.
+Other columns are kept as they are.
+"""
+
+from __future__ import annotations
+
+import csv
+import math
+import re
+import warnings
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from .errors import DataFileError, DataWarning, InputError
+
+_Q = re.compile(r"^q(\d+)_deg$")
+XYZ = ("x_mm", "y_mm", "z_mm")
+NUMERIC_OPTIONAL = ("payload_kg", "temperature_c", "time_s")
+
+
+@dataclass
+class Measurements:
+    """Measured (or to-be-predicted) poses.
+
+    Attributes
+    ----------
+    columns : dict of str to ndarray
+        Every column in file order; numeric columns as float arrays, other
+        columns as arrays of strings.
+    path : str
+        Where the data came from (for error messages).
+    """
+
+    columns: dict[str, np.ndarray]
+    path: str = "<memory>"
+    _n_joints: int = field(init=False)
+
+    def __post_init__(self) -> None:
+        qs = sorted(int(m.group(1)) for c in self.columns if (m := _Q.match(c)))
+        self._n_joints = len(qs)
+
+    # --- views ------------------------------------------------------------------
+
+    def __len__(self) -> int:
+        return len(next(iter(self.columns.values()))) if self.columns else 0
+
+    @property
+    def n_joints(self) -> int:
+        return self._n_joints
+
+    @property
+    def q_deg(self) -> np.ndarray:
+        return np.column_stack([self.columns[f"q{i}_deg"] for i in range(1, self._n_joints + 1)])
+
+    @property
+    def q(self) -> np.ndarray:
+        """Joint readings in radians, shape (N, n)."""
+        return np.radians(self.q_deg)
+
+    @property
+    def has_positions(self) -> bool:
+        return all(c in self.columns for c in XYZ)
+
+    @property
+    def xyz(self) -> np.ndarray:
+        """Measured positions in metres, shape (N, 3)."""
+        if not self.has_positions:
+            raise DataFileError("has no measured positions (columns x_mm, y_mm, z_mm)", file=self.path)
+        return np.column_stack([self.columns[c] for c in XYZ]) / 1000.0
+
+    def get(self, name: str) -> np.ndarray | None:
+        """A numeric column, or None if absent."""
+        col = self.columns.get(name)
+        if col is None or col.dtype.kind not in "fiu":
+            return None
+        return col
+
+    def subset(self, index) -> "Measurements":
+        """Rows ``index`` (mask or integer array), order kept as given."""
+        return Measurements({k: v[index] for k, v in self.columns.items()}, self.path)
+
+    def with_positions(self, xyz_m: np.ndarray, prefix_existing: str = "measured_") -> "Measurements":
+        """A copy whose ``x_mm, y_mm, z_mm`` are ``xyz_m``; existing ones are renamed."""
+        cols: dict[str, np.ndarray] = {}
+        for k, v in self.columns.items():
+            cols[prefix_existing + k if k in XYZ else k] = v
+        for i, c in enumerate(XYZ):
+            cols[c] = np.asarray(xyz_m)[:, i] * 1000.0
+        return Measurements(cols, self.path)
+
+    # --- I/O --------------------------------------------------------------------
+
+    @classmethod
+    def read_csv(cls, path: str | Path, n_joints: int | None = None,
+                 require_positions: bool = False) -> "Measurements":
+        """Read and validate a measurement file.
+
+        Parameters
+        ----------
+        path : str or Path
+        n_joints : int, optional
+            The robot's joint count: the file must have exactly
+            ``q1_deg..q<n_joints>_deg``.
+        require_positions : bool
+            The file must contain measured positions.
+
+        Raises
+        ------
+        DataFileError
+            Naming file, row (1-based line; the header is row 1) and column.
+        """
+        path = str(path)
+        try:
+            with open(path, newline="", encoding="utf-8-sig") as fh:
+                rows = list(csv.reader(fh))
+        except FileNotFoundError:
+            raise DataFileError("no such file", file=path) from None
+        except (OSError, UnicodeDecodeError, csv.Error) as e:
+            raise DataFileError(f"cannot read: {e}", file=path) from e
+        if not rows or not any(h.strip() for h in rows[0]):
+            raise DataFileError("is empty: expected a header row (q1_deg, ..., x_mm, y_mm, z_mm)",
+                                file=path, row=1)
+        header = [h.strip() for h in rows[0]]
+        seen: dict[str, int] = {}
+        for i, h in enumerate(header):
+            if not h:
+                raise DataFileError(f"header field {i + 1} is empty", file=path, row=1)
+            if h in seen:
+                raise DataFileError(f"duplicated header name (fields {seen[h] + 1} and {i + 1})",
+                                    file=path, row=1, column=h)
+            seen[h] = i
+        qs = sorted(int(m.group(1)) for h in header if (m := _Q.match(h)))
+        if not qs:
+            raise DataFileError("has no joint columns: expected q1_deg, q2_deg, ...", file=path, row=1)
+        if qs != list(range(1, len(qs) + 1)):
+            missing = sorted(set(range(1, max(qs) + 1)) - set(qs))
+            raise DataFileError(f"joint columns are not consecutive: missing q{missing[0]}_deg",
+                                file=path, row=1, column=f"q{missing[0]}_deg")
+        if n_joints is not None and len(qs) != n_joints:
+            col = f"q{n_joints + 1}_deg" if len(qs) > n_joints else f"q{len(qs) + 1}_deg"
+            raise DataFileError(f"has {len(qs)} joint columns but the robot has {n_joints} joints",
+                                file=path, row=1, column=col)
+        present = [c for c in XYZ if c in seen]
+        if present and len(present) < 3:
+            missing = [c for c in XYZ if c not in seen][0]
+            raise DataFileError("has only some of x_mm, y_mm, z_mm", file=path, row=1, column=missing)
+        if require_positions and not present:
+            raise DataFileError("has no measured positions: columns x_mm, y_mm, z_mm are required here",
+                                file=path, row=1, column="x_mm")
+        body = [(k, r) for k, r in enumerate(rows[1:], start=2) if any(x.strip() for x in r)]
+        if not body:
+            raise DataFileError("has a header but no data rows", file=path, row=2)
+        numeric = {f"q{i}_deg" for i in qs} | set(present) | {c for c in NUMERIC_OPTIONAL if c in seen}
+        raw: dict[str, list[str]] = {h: [] for h in header}
+        for line, r in body:
+            if len(r) != len(header):
+                raise DataFileError(f"has {len(r)} fields, the header has {len(header)}",
+                                    file=path, row=line)
+            for h, x in zip(header, r):
+                raw[h].append(x.strip())
+        columns: dict[str, np.ndarray] = {}
+        lines = [k for k, _ in body]
+        for h in header:
+            if h in numeric:
+                columns[h] = _numeric(raw[h], h, path, lines)
+            else:
+                columns[h] = _maybe_numeric(raw[h])
+        data = cls(columns, path)
+        _check_units(data)
+        return data
+
+    def write_csv(self, path: str | Path, overwrite: bool = False) -> None:
+        """Write the contract CSV; refuses to replace a file unless ``overwrite``."""
+        path = Path(path)
+        if path.exists() and not overwrite:
+            raise InputError("exists already; choose another name or pass --force to replace it",
+                             file=str(path))
+        header = list(self.columns)
+        with open(path, "w", newline="") as fh:
+            w = csv.writer(fh)
+            w.writerow(header)
+            for i in range(len(self)):
+                w.writerow([_fmt(self.columns[h][i]) for h in header])
+
+    @classmethod
+    def from_arrays(cls, q_rad: np.ndarray, xyz_m: np.ndarray | None = None,
+                    **extra: np.ndarray) -> "Measurements":
+        """Build from arrays (radians, metres); ``extra`` columns are added as given."""
+        q_rad = np.atleast_2d(q_rad)
+        cols = {f"q{i + 1}_deg": np.degrees(q_rad[:, i]) for i in range(q_rad.shape[1])}
+        if xyz_m is not None:
+            for i, c in enumerate(XYZ):
+                cols[c] = np.asarray(xyz_m)[:, i] * 1000.0
+        for k, v in extra.items():
+            cols[k] = np.asarray(v)
+        return cls(cols)
+
+
+def _numeric(values: list[str], column: str, path: str, lines: list[int]) -> np.ndarray:
+    out = np.empty(len(values))
+    for i, x in enumerate(values):
+        try:
+            v = float(x)
+        except ValueError:
+            what = "is empty" if x == "" else f"is not a number: {x!r}"
+            hint = " (decimal comma? use a point)" if re.fullmatch(r"-?\d+,\d+", x) else ""
+            raise DataFileError(f"value {what}{hint}", file=path, row=lines[i], column=column) from None
+        if not math.isfinite(v):
+            raise DataFileError(f"value is {x!r}: every value must be finite", file=path,
+                                row=lines[i], column=column)
+        out[i] = v
+    return out
+
+
+def _maybe_numeric(values: list[str]) -> np.ndarray:
+    try:
+        return np.array([float(x) for x in values])
+    except ValueError:
+        return np.array(values, dtype=object)
+
+
+def _check_units(data: Measurements) -> None:
+    q = np.abs(data.q_deg)
+    # readings in degrees span tens of degrees; all within +-2 pi over many rows suggests radians
+    if len(data) >= 5 and q.max() <= 2 * math.pi + 1e-9 and q.max() > 0:
+        warnings.warn(f"{data.path}: every joint reading is within +-6.3: "
+                      "these look like radians, but _deg columns must hold degrees", DataWarning,
+                      stacklevel=3)
+
+
+def _fmt(x) -> str:
+    if isinstance(x, (float, np.floating)):
+        return format(float(x), ".12g")
+    return str(x)

@@ -1,0 +1,86 @@
+"""Exceptions and warnings raised by casadical.
+
+Every error a user can cause by bad input derives from :class:`CasadicalError`;
+the command line prints such errors as one line and exits non-zero.
+"""
+
+from __future__ import annotations
+
+
+class CasadicalError(Exception):
+    """Base class of every error casadical raises on purpose."""
+
+
+class InputError(CasadicalError, ValueError):
+    """Bad user input located in a file.
+
+    Parameters
+    ----------
+    message : str
+        What is wrong, and ideally how to fix it.
+    file : str, optional
+        The file at fault.
+    row : int, optional
+        1-based line number in the file (the header is line 1 of a CSV).
+    column : str, optional
+        Column (CSV) or ``table.key`` (TOML) at fault.
+    """
+
+    def __init__(self, message: str, file: str | None = None,
+                 row: int | None = None, column: str | None = None):
+        self.message = message
+        self.file = file
+        self.row = row
+        self.column = column
+        super().__init__(self._format())
+
+    def _format(self) -> str:
+        where = []
+        if self.file is not None:
+            where.append(str(self.file))
+        if self.row is not None:
+            where.append(f"row {self.row}")
+        if self.column is not None:
+            where.append(f"column {self.column!r}")
+        prefix = ", ".join(where)
+        return f"{prefix}: {self.message}" if prefix else self.message
+
+
+class RobotFileError(InputError):
+    """A robot description (TOML) is malformed; ``column`` holds ``table.key``."""
+
+
+class DataFileError(InputError):
+    """A measurement CSV is malformed."""
+
+
+class ModelError(CasadicalError):
+    """A model cannot be built from the given robot and error terms."""
+
+
+class IdentifiabilityError(CasadicalError):
+    """The poses cannot identify the requested parameters (too few, degenerate)."""
+
+
+class SolverError(CasadicalError):
+    """A solver failed in a way that leaves no usable result."""
+
+
+class CalibrationFileError(InputError):
+    """A calibration JSON written by ``calibrate`` cannot be read back."""
+
+
+class CasadicalWarning(UserWarning):
+    """Base class of casadical's warnings."""
+
+
+class DataWarning(CasadicalWarning):
+    """Suspicious but usable input data (e.g. angles that look like radians)."""
+
+
+class ConvergenceWarning(CasadicalWarning):
+    """A solver stopped before meeting its convergence test."""
+
+
+class CorrelationWarning(CasadicalWarning):
+    """Identified parameters are strongly correlated or sit at a bound."""

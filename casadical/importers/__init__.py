@@ -1,0 +1,1 @@
+"""Readers that convert third-party measurement files to the casadical CSV contract."""

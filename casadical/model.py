@@ -1,0 +1,330 @@
+"""The symbolic calibration model: robot + error terms -> CasADi Functions.
+
+A :class:`Model` is built once (its size does not depend on the number of
+poses); data enter as function inputs and batches are evaluated with
+``casadi.Function.map``.
+
+Inputs of every model function, per pose:
+
+- ``q``: joint readings (rad), ``n``;
+- ``p``: the full parameter vector (SI), in :attr:`Model.parameters` order;
+- ``cov``: covariates (:attr:`Model.covariate_names`, e.g. payload, temperature);
+- ``base0``: the reference base pose, 12 numbers (rotation row-major, then
+  translation, metres); the ``base_*`` parameters are small deviations from
+  it, so a tracker metres away at any rotation is no difficulty.
+"""
+
+from __future__ import annotations
+
+import os
+import re
+import shutil
+from dataclasses import dataclass
+from functools import cache
+
+import casadi as ca
+import numpy as np
+
+from .errors import ModelError
+from .kinematics import Geometry, base_pose_matrix, chain_angles, compose, forward, rpy_pose
+from .parameters import Parameters
+from .robot import Robot
+from .terms import REGISTRY, Context, ErrorTerm, make_term
+
+JIT_MIN_POSES = 300
+_SPEC_ITEM = re.compile(r"^\s*([a-z_]+)\s*(?:\[([^\]]*)\])?\s*$")
+
+
+def parse_spec(spec: str) -> list[ErrorTerm]:
+    """Terms of a model specification such as ``kinematic+compliance[2,3]+periodic[2:1]``.
+
+    ``nominal`` (or ``base``) means the nominal geometry with only the base
+    pose estimated. ``kinematic`` (alias ``geometric``) frees every
+    geometric parameter. Per-joint terms take ``[j,...]``; ``periodic``
+    takes ``[joint:harmonic,...]``.
+    """
+    terms: list[ErrorTerm] = []
+    for item in spec.split("+"):
+        m = _SPEC_ITEM.match(item)
+        if not m:
+            raise ModelError(f"cannot read model item {item!r} in {spec!r}; "
+                             "expected e.g. kinematic+compliance[2,3]+periodic[2:1]")
+        name, args = m.group(1), m.group(2)
+        if name in ("nominal", "base"):
+            continue
+        if name not in REGISTRY:
+            raise ModelError(f"unknown model item {name!r} in {spec!r}; known: nominal, "
+                             + ", ".join(sorted(REGISTRY)))
+        kwargs: dict = {}
+        if args is not None and args.strip():
+            try:
+                if REGISTRY[name].name == "joint_periodic":
+                    kwargs["harmonics"] = [tuple(int(x) for x in a.split(":")) for a in args.split(",")]
+                else:
+                    kwargs["joints"] = [int(a) for a in args.split(",")]
+            except ValueError as e:
+                raise ModelError(f"cannot read the arguments of {item!r}: {e}") from e
+        terms.append(make_term(name, **kwargs))
+    return terms
+
+
+@dataclass
+class ExpressionSize:
+    """Sizes of the symbolic expressions (for ``inspect``)."""
+
+    n_parameters: int
+    fk_instructions: int
+    jacobian_instructions: int
+    fk_nodes: int
+
+
+class Model:
+    """Robot plus error terms, as CasADi Functions of (q, p, cov, base0).
+
+    Parameters
+    ----------
+    robot : Robot
+    terms : list of ErrorTerm or str
+        Terms beyond the geometric one, or a specification string
+        (:func:`parse_spec`). The geometric term is always present; it is
+        free only if listed (``kinematic``), otherwise only the base pose is.
+    jit : bool, optional
+        Compile the model to machine code with the system C compiler (about
+        1 s once, then ~8x faster). Default: for batches of
+        ``JIT_MIN_POSES`` poses or more, when a compiler is available.
+    """
+
+    def __init__(self, robot: Robot, terms: list[ErrorTerm] | str = "kinematic",
+                 jit: bool | None = None):
+        if isinstance(terms, str):
+            terms = parse_spec(terms)
+        self.robot = robot
+        geo = [t for t in terms if t.name == "geometric"]
+        self.geometric_free = bool(geo)
+        self.terms: list[ErrorTerm] = (geo[:1] or [make_term("geometric")]) + [
+            t for t in terms if t.name != "geometric"]
+        seen = set()
+        for t in self.terms:
+            if t.spec() in seen:
+                raise ModelError(f"term {t.spec()} given twice")
+            seen.add(t.spec())
+            t.bind(robot)
+        items = [p for t in self.terms for p in t.parameters(robot)]
+        self.parameters = Parameters(items)
+        if not self.geometric_free:
+            for p in self.parameters:
+                if p.term == "geometric" and p.group != "base":
+                    p.fixed, p.reason = True, "nominal model"
+        cov: list[str] = []
+        for t in self.terms:
+            for c in t.covariates:
+                if c not in cov:
+                    cov.append(c)
+        if "payload_kg" not in cov:
+            cov.insert(0, "payload_kg")
+        self.covariate_names: list[str] = cov
+        self.jit = jit
+        self._maps: dict = {}
+        self._compiled: dict = {}
+        self._build()
+
+    # --- construction -------------------------------------------------------------
+
+    @property
+    def spec(self) -> str:
+        """Specification string that rebuilds this model."""
+        parts = [t.spec() for t in self.terms[1:]]
+        return "+".join(["kinematic" if self.geometric_free else "nominal"] + parts)
+
+    @property
+    def n_joints(self) -> int:
+        return self.robot.n
+
+    def _build(self) -> None:
+        robot = self.robot
+        n, npar = robot.n, len(self.parameters)
+        q = ca.SX.sym("q", n)
+        p = ca.SX.sym("p", npar)
+        c = ca.SX.sym("cov", len(self.covariate_names))
+        b0 = ca.SX.sym("base0", 12)
+        psym = {name: p[i] for i, name in enumerate(self.parameters.names)}
+        csym = {name: c[i] for i, name in enumerate(self.covariate_names)}
+        ctx = Context(robot, q, psym, csym)
+        geom = Geometry.nominal(robot)
+        for t in self.terms:
+            geom = t.geometry(ctx, geom)
+        ctx.geom = geom
+        angles = chain_angles(robot, q, geom)
+        offsets = [0] * n
+        for t in self.terms:
+            for j, off in t.joint_offsets(ctx).items():
+                offsets[j - 1] = offsets[j - 1] + off
+        frames = forward(robot, [a + o for a, o in zip(angles, offsets)], geom)
+        R0 = ca.reshape(b0[:9], 3, 3).T  # row-major input
+        base = compose((R0, b0[9:12]), rpy_pose(*geom.base))
+        xyz = base[1] + ca.mtimes(base[0], frames.tool[1])
+        tau = ca.vertcat(*ctx.torques()) if robot.n else ca.SX.zeros(0)
+        dq = ca.vertcat(*[ca.SX(o) if not isinstance(o, ca.SX) else o for o in offsets])
+        J = ca.densify(ca.jacobian(xyz, p))
+        ins = [q, p, c, b0]
+        self._graphs = {
+            "fk": (ins, [xyz], (1, 3)),
+            "fk_jac": (ins, [xyz, J], (1, 3)),
+            "tau": ([q, p, c], [tau], (1,)),
+            "dq": ([q, p, c], [dq], (1,)),
+        }
+        self.fk = ca.Function("fk", ins, [xyz], ["q", "p", "cov", "base0"], ["xyz"])
+        self.fk_jac = ca.Function("fk_jac", ins, [xyz, J], ["q", "p", "cov", "base0"], ["xyz", "J"])
+
+    def expression_size(self) -> ExpressionSize:
+        return ExpressionSize(len(self.parameters), self.fk.n_instructions(),
+                              self.fk_jac.n_instructions(), self.fk.n_nodes())
+
+    # --- numeric evaluation -------------------------------------------------------
+
+    def _batch(self, which: str, N: int) -> "_Batch":
+        jit = self.jit if self.jit is not None else (N >= JIT_MIN_POSES and compiler_available())
+        key = (which, N, jit)
+        b = self._maps.get(key)
+        if b is None:
+            fun = self._compiled.get((which, jit))
+            if fun is None:
+                ins, outs, _ = self._graphs[which]
+                opts = {"jit": True, "compiler": "shell",
+                        "jit_options": {"flags": ["-O2"], "verbose": False}} if jit else {}
+                fun = ca.Function(which, ins, outs, opts)
+                self._compiled[(which, jit)] = fun
+            if len(self._maps) > 32:  # many distinct batch sizes: keep memory bounded
+                self._maps.clear()
+            b = self._maps[key] = _Batch(fun, N, self._graphs[which][2])
+        return b
+
+    def _inputs(self, q, params, cov, base0):
+        q = np.atleast_2d(np.asarray(q, dtype=float))
+        N = q.shape[0]
+        if q.ndim != 2 or q.shape[1] != self.robot.n:
+            raise ModelError(f"expected {self.robot.n} joint values per pose, got shape {q.shape}")
+        p = self.parameters.values if params is None else np.asarray(params, dtype=float)
+        if p.shape != (len(self.parameters),):
+            raise ModelError(f"expected {len(self.parameters)} parameter values, got shape {p.shape}")
+        if cov is None:
+            cov = self.default_covariates(N)
+        cov = np.asarray(cov, dtype=float).reshape(N, len(self.covariate_names))
+        b0 = self.base0_nominal() if base0 is None else np.asarray(base0, dtype=float)
+        return N, q, p, cov, b0
+
+    def predict(self, q, params=None, cov=None, base0=None) -> np.ndarray:
+        """Tool point positions (m), shape (N, 3), for readings ``q`` (rad, (N, n))."""
+        N, q, p, cov, b0 = self._inputs(q, params, cov, base0)
+        return self._batch("fk", N)(q, p, cov, b0)[0]
+
+    def predict_jacobian(self, q, params=None, cov=None, base0=None) -> tuple[np.ndarray, np.ndarray]:
+        """Positions (N, 3) and their Jacobian w.r.t. the full parameter vector (N, 3, P)."""
+        N, q, p, cov, b0 = self._inputs(q, params, cov, base0)
+        xyz, J = self._batch("fk_jac", N)(q, p, cov, b0)
+        # CasADi is column-major: each pose's 3 x P block arrives transposed
+        return xyz, J.reshape(N, len(self.parameters), 3).transpose(0, 2, 1)
+
+    def torques(self, q, params=None, cov=None) -> np.ndarray:
+        """Gravity torques (N m) at every joint, shape (N, n)."""
+        N, q, p, cov, _ = self._inputs(q, params, cov, None)
+        return self._batch("tau", N)(q, p, cov)[0]
+
+    def joint_offsets(self, q, params=None, cov=None) -> np.ndarray:
+        """Sum of the terms' joint-angle offsets (rad), shape (N, n)."""
+        N, q, p, cov, _ = self._inputs(q, params, cov, None)
+        return self._batch("dq", N)(q, p, cov)[0]
+
+    # --- defaults -----------------------------------------------------------------
+
+    def base0_nominal(self) -> np.ndarray:
+        """The robot file's base pose as the 12-number ``base0`` input."""
+        return pose_to_base0(base_pose_matrix(self.robot.base_xyz, self.robot.base_rpy))
+
+    def default_covariates(self, N: int) -> np.ndarray:
+        """Covariates when the data give none: robot payload, reference temperature, ..."""
+        cols = []
+        for name in self.covariate_names:
+            if name == "payload_kg":
+                cols.append(np.full(N, self.robot.payload_mass))
+            elif name == "temperature_c":
+                t_ref = next((t.t_ref for t in self.terms if hasattr(t, "t_ref")), 20.0)
+                cols.append(np.full(N, t_ref))
+            else:
+                cols.append(np.zeros(N))
+        return np.column_stack(cols) if cols else np.zeros((N, 0))
+
+    def covariates(self, data) -> np.ndarray:
+        """Covariate matrix (N, n_cov) of a :class:`~casadical.data.Measurements`.
+
+        Missing columns take defaults: the robot's payload, the thermal
+        reference temperature; ``move<j>`` is the sign of joint j's last move
+        in row order (0 for the first row).
+        """
+        N = len(data)
+        out = self.default_covariates(N)
+        for k, name in enumerate(self.covariate_names):
+            col = data.get(name)
+            if col is not None:
+                out[:, k] = col
+            elif name.startswith("move"):
+                j = int(name[4:])
+                out[1:, k] = np.sign(np.diff(data.q[:, j - 1]))
+        return out
+
+    def term(self, name: str) -> ErrorTerm | None:
+        """The model's term called ``name`` (or alias), if any."""
+        cls = REGISTRY.get(name)
+        return next((t for t in self.terms if cls is not None and isinstance(t, cls)), None)
+
+
+def pose_to_base0(T: np.ndarray) -> np.ndarray:
+    """4x4 pose -> the 12-number ``base0`` input (rotation row-major, translation)."""
+    return np.concatenate([T[:3, :3].ravel(), T[:3, 3]])
+
+
+def base0_to_pose(b0: np.ndarray) -> np.ndarray:
+    T = np.eye(4)
+    T[:3, :3] = np.asarray(b0[:9]).reshape(3, 3)
+    T[:3, 3] = b0[9:12]
+    return T
+
+
+@cache
+def compiler_available() -> bool:
+    """True if CasADi's JIT can find a C compiler (``CASADICAL_JIT=0`` disables it)."""
+    if os.environ.get("CASADICAL_JIT", "1") == "0":
+        return False
+    return shutil.which("gcc") is not None or shutil.which("cc") is not None
+
+
+class _Batch:
+    """A mapped Function evaluated in place on preallocated numpy buffers.
+
+    The parameter vector and ``base0`` are broadcast to every pose
+    (``reduce_in``), and results are written straight into numpy memory:
+    converting large CasADi matrices costs more than evaluating them.
+    """
+
+    def __init__(self, fun: ca.Function, N: int, broadcast: tuple[int, ...]):
+        self.F = fun.map(f"{fun.name()}_{N}", "serial", N, list(broadcast), [])
+        self.buf, self.trigger = self.F.buffer()
+        self.args = []
+        for i in range(self.F.n_in()):
+            sp = self.F.sparsity_in(i)
+            shape = (sp.size2(), sp.size1())  # column-major storage = row-major transpose
+            a = np.zeros(shape)
+            self.args.append(a)
+            self.buf.set_arg(i, memoryview(a))
+        self.res = []
+        for i in range(self.F.n_out()):
+            sp = self.F.sparsity_out(i)
+            r = np.zeros((N, sp.size1() * sp.size2() // N))
+            self.res.append(r)
+            self.buf.set_res(i, memoryview(r))
+
+    def __call__(self, *inputs) -> list[np.ndarray]:
+        for a, x in zip(self.args, inputs):
+            a.reshape(-1)[:] = np.asarray(x, dtype=float).reshape(-1)
+        self.trigger()
+        return [r.copy() for r in self.res]

@@ -1,0 +1,259 @@
+"""Robot descriptions: the TOML contract (INTERFACE.md section 1) and built-ins.
+
+A :class:`Robot` holds nominal values only, in SI units (m, rad, kg). The
+symbolic model (:mod:`casadical.model`) turns it into CasADi expressions.
+"""
+
+from __future__ import annotations
+
+import math
+import tomllib
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .errors import RobotFileError
+
+GRAVITY = 9.81
+PROBLEMS = Path(__file__).resolve().parent.parent / "problems"
+BUILTIN_DIR = PROBLEMS / "robots"
+BUILTINS = ("ys100", "hh800", "ur10")
+
+
+@dataclass
+class Joint:
+    """Nominal link and joint data of one revolute joint (SI units)."""
+
+    alpha: float
+    a: float
+    d: float
+    theta: float = 0.0
+    beta: float | None = None
+    b: float | None = None
+    min: float = -math.pi
+    max: float = math.pi
+    mass: float = 0.0
+    com: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    coupling: np.ndarray | None = None
+    coupling_offset: float = 0.0
+
+
+@dataclass
+class Loop:
+    """A four-bar (parallelogram) drive of one joint (casadical extension).
+
+    The crank sits on the axis of the previous joint and is driven by the
+    reading of ``joint`` as an absolute angle; the rocker is rigid with link
+    ``joint``. With crank == rocker and coupler == the link length between
+    the two axes the loop is a parallelogram and reduces to the linear
+    coupling ``theta = q_joint - q_(joint-1) + coupling_offset``.
+    """
+
+    joint: int
+    crank: float
+    coupler: float
+    rocker: float
+
+
+@dataclass
+class Robot:
+    """Nominal description of a serial (or parallelogram-driven) arm."""
+
+    name: str
+    joints: list[Joint]
+    convention: str = "mdh"
+    base_xyz: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    base_rpy: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    tool: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    payload_mass: float = 0.0
+    payload_com: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    gravity: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, -GRAVITY]))
+    loop: Loop | None = None
+    source: str = ""
+
+    @property
+    def n(self) -> int:
+        """Number of joints."""
+        return len(self.joints)
+
+    @property
+    def limits(self) -> np.ndarray:
+        """Joint limits of the readings, shape (n, 2), radians."""
+        return np.array([[j.min, j.max] for j in self.joints])
+
+    @classmethod
+    def load(cls, spec: str | Path) -> "Robot":
+        """Load a built-in robot by name (``ys100``, ``hh800``, ``ur10``) or a TOML file."""
+        return load_robot(spec)
+
+
+# --- TOML loading -----------------------------------------------------------------
+
+_TOP_KEYS = {"name", "convention", "base", "joint", "tool", "payload", "gravity", "loop"}
+_JOINT_KEYS = {"alpha_deg", "a_m", "beta_deg", "b_m", "d_m", "theta_deg", "min_deg", "max_deg",
+               "mass_kg", "com_m", "coupling", "coupling_offset_deg"}
+_TABLE_KEYS = {
+    "base": {"xyz_m", "rpy_deg"},
+    "tool": {"a_m", "b_m", "d_m"},
+    "payload": {"mass_kg", "com_m"},
+    "gravity": {"direction"},
+    "loop": {"joint", "crank_m", "coupler_m", "rocker_m"},
+}
+
+
+def load_robot(spec: str | Path) -> Robot:
+    """Load a robot from a built-in name or a TOML path.
+
+    Raises
+    ------
+    RobotFileError
+        Unknown name, unreadable file, or any invalid field (the message
+        names the file, the table and the key).
+    """
+    text_spec = str(spec)
+    if text_spec.lower() in BUILTINS and not Path(text_spec).exists():
+        path = BUILTIN_DIR / f"{text_spec.lower()}.toml"
+    else:
+        path = Path(text_spec)
+        if not path.exists():
+            raise RobotFileError(
+                f"no such robot file, and not a built-in robot (built-ins: {', '.join(BUILTINS)})",
+                file=text_spec)
+    try:
+        with open(path, "rb") as fh:
+            data = tomllib.load(fh)
+    except tomllib.TOMLDecodeError as e:
+        raise RobotFileError(f"not valid TOML: {e}", file=str(path)) from e
+    except OSError as e:
+        raise RobotFileError(f"cannot read: {e.strerror}", file=str(path)) from e
+    return robot_from_dict(data, str(path))
+
+
+def robot_from_dict(data: dict[str, Any], file: str = "<dict>") -> Robot:
+    """Validate a parsed TOML document and build a :class:`Robot`."""
+    v = _Validator(file)
+    v.keys(data, _TOP_KEYS, "")
+    name = v.string(data, "name", "", required=True)
+    convention = v.string(data, "convention", "", default="mdh")
+    if convention not in ("mdh", "dh"):
+        raise RobotFileError(f"convention must be \"mdh\" or \"dh\", got {convention!r}",
+                             file=file, column="convention")
+    joints_raw = data.get("joint")
+    if not isinstance(joints_raw, list) or not joints_raw:
+        raise RobotFileError("needs at least one [[joint]] table", file=file, column="joint")
+    n = len(joints_raw)
+    joints = []
+    for i, jt in enumerate(joints_raw, start=1):
+        t = f"joint[{i}]"
+        if not isinstance(jt, dict):
+            raise RobotFileError("must be a table", file=file, column=t)
+        v.keys(jt, _JOINT_KEYS, t)
+        lo = v.number(jt, "min_deg", t, default=-180.0)
+        hi = v.number(jt, "max_deg", t, default=180.0)
+        if not lo < hi:
+            raise RobotFileError(f"min_deg ({lo}) must be below max_deg ({hi})", file=file,
+                                 column=f"{t}.min_deg")
+        mass = v.number(jt, "mass_kg", t, default=0.0)
+        if mass < 0:
+            raise RobotFileError(f"mass must not be negative, got {mass}", file=file,
+                                 column=f"{t}.mass_kg")
+        coupling = None
+        if "coupling" in jt:
+            coupling = v.vector(jt, "coupling", t, n)
+        beta = v.number(jt, "beta_deg", t, default=None)
+        joints.append(Joint(
+            alpha=math.radians(v.number(jt, "alpha_deg", t, required=True)),
+            a=v.number(jt, "a_m", t, required=True),
+            d=v.number(jt, "d_m", t, required=True),
+            theta=math.radians(v.number(jt, "theta_deg", t, default=0.0)),
+            beta=None if beta is None else math.radians(beta),
+            b=v.number(jt, "b_m", t, default=None),
+            min=math.radians(lo), max=math.radians(hi), mass=mass,
+            com=v.vector(jt, "com_m", t, 3, default=np.zeros(3)),
+            coupling=coupling,
+            coupling_offset=math.radians(v.number(jt, "coupling_offset_deg", t, default=0.0)),
+        ))
+    tables = {}
+    for tname, allowed in _TABLE_KEYS.items():
+        tab = data.get(tname, {})
+        if not isinstance(tab, dict):
+            raise RobotFileError("must be a table", file=file, column=tname)
+        v.keys(tab, allowed, tname)
+        tables[tname] = tab
+    base, tool, payload, grav = (tables[k] for k in ("base", "tool", "payload", "gravity"))
+    direction = v.vector(grav, "direction", "gravity", 3, default=np.array([0.0, 0.0, -1.0]))
+    norm = float(np.linalg.norm(direction))
+    if norm == 0:
+        raise RobotFileError("gravity direction must not be zero", file=file,
+                             column="gravity.direction")
+    pmass = v.number(payload, "mass_kg", "payload", default=0.0)
+    if pmass < 0:
+        raise RobotFileError(f"mass must not be negative, got {pmass}", file=file,
+                             column="payload.mass_kg")
+    loop = None
+    if tables["loop"]:
+        lt = tables["loop"]
+        j = v.number(lt, "joint", "loop", required=True)
+        if j != int(j) or not 2 <= j <= n:
+            raise RobotFileError(f"loop joint must be a joint number from 2 to {n}, got {j}",
+                                 file=file, column="loop.joint")
+        lengths = [v.number(lt, k, "loop", required=True) for k in ("crank_m", "coupler_m", "rocker_m")]
+        for k, x in zip(("crank_m", "coupler_m", "rocker_m"), lengths):
+            if x <= 0:
+                raise RobotFileError(f"length must be positive, got {x}", file=file, column=f"loop.{k}")
+        loop = Loop(int(j), *lengths)
+    return Robot(
+        name=name, joints=joints, convention=convention,
+        base_xyz=v.vector(base, "xyz_m", "base", 3, default=np.zeros(3)),
+        base_rpy=np.radians(v.vector(base, "rpy_deg", "base", 3, default=np.zeros(3))),
+        tool=np.array([v.number(tool, k, "tool", default=0.0) for k in ("a_m", "b_m", "d_m")]),
+        payload_mass=pmass,
+        payload_com=v.vector(payload, "com_m", "payload", 3, default=np.zeros(3)),
+        gravity=GRAVITY * direction / norm, loop=loop, source=file)
+
+
+class _Validator:
+    """Typed look-ups that raise :class:`RobotFileError` naming table and key."""
+
+    def __init__(self, file: str):
+        self.file = file
+
+    def _err(self, msg: str, table: str, key: str) -> RobotFileError:
+        return RobotFileError(msg, file=self.file, column=f"{table}.{key}" if table else key)
+
+    def keys(self, tab: dict, allowed: set[str], table: str) -> None:
+        for k in tab:
+            if k not in allowed:
+                raise self._err(f"unknown key (allowed: {', '.join(sorted(allowed))})", table, k)
+
+    def string(self, tab, key, table, required=False, default=None):
+        if key not in tab:
+            if required:
+                raise self._err("missing required key", table, key)
+            return default
+        if not isinstance(tab[key], str):
+            raise self._err(f"must be a string, got {tab[key]!r}", table, key)
+        return tab[key]
+
+    def number(self, tab, key, table, required=False, default=None):
+        if key not in tab:
+            if required:
+                raise self._err("missing required key", table, key)
+            return default
+        x = tab[key]
+        if isinstance(x, bool) or not isinstance(x, (int, float)):
+            raise self._err(f"must be a number, got {x!r}", table, key)
+        if not math.isfinite(x):
+            raise self._err(f"must be finite, got {x!r}", table, key)
+        return float(x)
+
+    def vector(self, tab, key, table, length, default=None):
+        if key not in tab:
+            return default
+        x = tab[key]
+        if not isinstance(x, list) or len(x) != length or any(
+                isinstance(e, bool) or not isinstance(e, (int, float)) or not math.isfinite(e) for e in x):
+            raise self._err(f"must be a list of {length} finite numbers, got {x!r}", table, key)
+        return np.array(x, dtype=float)

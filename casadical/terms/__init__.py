@@ -1,0 +1,22 @@
+"""Error terms of the calibration model, one module each, found by name.
+
+``make_term("joint_compliance", joints=[2, 3])`` or a model specification
+such as ``"kinematic+compliance[2,3]+periodic[2:1]"`` (see
+:func:`casadical.model.parse_spec`).
+"""
+
+from . import backlash, compliance, encoder_scale, geometric, periodic, thermal  # noqa: F401  (registration)
+from .base import REGISTRY, Context, ErrorTerm, register
+
+
+def make_term(name: str, **kwargs) -> ErrorTerm:
+    """Instantiate a registered term by name or alias."""
+    from ..errors import ModelError
+    try:
+        cls = REGISTRY[name]
+    except KeyError:
+        raise ModelError(f"unknown error term {name!r}; known: {', '.join(sorted(REGISTRY))}") from None
+    return cls(**kwargs)
+
+
+__all__ = ["REGISTRY", "Context", "ErrorTerm", "make_term", "register"]

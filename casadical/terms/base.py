@@ -1,0 +1,112 @@
+"""The error-term interface and its registry.
+
+An error term is one physical cause of position error. It declares its
+parameters and the per-pose covariates it needs, and adds its effect to the
+symbolic model: as offsets of the joint angles (compliance, gear error,
+encoder scale, backlash) or as a change of the geometry (thermal expansion).
+Adding a term means writing one module in this folder that subclasses
+:class:`ErrorTerm` and decorates it with :func:`register`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, ClassVar
+
+from ..errors import ModelError
+from ..kinematics import Frames, Geometry, chain_angles, forward, gravity_torques
+from ..parameters import Parameter
+from ..robot import Robot
+
+REGISTRY: dict[str, type["ErrorTerm"]] = {}
+
+
+def register(cls: type["ErrorTerm"]) -> type["ErrorTerm"]:
+    """Class decorator: make a term available by its ``name`` and ``aliases``."""
+    for key in (cls.name, *cls.aliases):
+        REGISTRY[key] = cls
+    return cls
+
+
+@dataclass
+class Context:
+    """Symbols shared by the terms while a model is being built."""
+
+    robot: Robot
+    q: Any                       # joint readings, rad (SX n x 1)
+    p: dict[str, Any]            # parameter symbols by name
+    cov: dict[str, Any]          # covariate symbols by name
+    geom: Geometry | None = None
+    _frames: Frames | None = field(default=None, repr=False)
+    _torques: list | None = field(default=None, repr=False)
+
+    def frames(self) -> Frames:
+        """Frames of the undeflected configuration (current geometry)."""
+        if self._frames is None:
+            self._frames = forward(self.robot, chain_angles(self.robot, self.q, self.geom), self.geom)
+        return self._frames
+
+    def torques(self) -> list:
+        """Gravity torque at each joint, undeflected configuration, row payload."""
+        if self._torques is None:
+            self._torques = gravity_torques(self.robot, self.frames(), self.cov["payload_kg"])
+        return self._torques
+
+
+class ErrorTerm:
+    """Base class of the error terms.
+
+    Parameters
+    ----------
+    joints : list of int, optional
+        1-based joints the term applies to (terms that act per joint).
+    """
+
+    #: registry key, also used in model specifications ("kinematic+compliance")
+    name: ClassVar[str] = ""
+    aliases: ClassVar[tuple[str, ...]] = ()
+    #: cause name of INTERFACE.md section 4
+    cause: ClassVar[str] = ""
+    #: covariates read per pose (columns of the measurement file)
+    covariates: ClassVar[tuple[str, ...]] = ()
+
+    def __init__(self, joints: list[int] | None = None):
+        self.joints = None if joints is None else sorted({int(j) for j in joints})
+
+    def bind(self, robot: Robot) -> None:
+        """Check the term against the robot; resolve default joints."""
+        if self.joints is None:
+            self.joints = list(range(1, robot.n + 1))
+        bad = [j for j in self.joints if not 1 <= j <= robot.n]
+        if bad:
+            raise ModelError(f"term {self.name}: joints {bad} do not exist on {robot.name} "
+                             f"(joints 1..{robot.n})")
+
+    def parameters(self, robot: Robot) -> list[Parameter]:
+        """Parameters this term adds to the model."""
+        return []
+
+    def geometry(self, ctx: Context, geom: Geometry) -> Geometry:
+        """Change the geometry (default: unchanged)."""
+        return geom
+
+    def joint_offsets(self, ctx: Context) -> dict[int, Any]:
+        """Offsets added to chain angles, by 1-based joint (default: none)."""
+        return {}
+
+    def spec(self) -> str:
+        """The text that re-creates this term in a model specification."""
+        if self.joints is None:
+            return self.name
+        return f"{self.name}[{','.join(str(j) for j in self.joints)}]"
+
+    def settings(self) -> dict:
+        """Settings that must be saved with a calibration to rebuild the term."""
+        return {"joints": self.joints}
+
+
+def reach(robot: Robot, first: int = 1) -> float:
+    """Upper bound of the distance from joint ``first`` to the tool point (m)."""
+    links = sum(abs(j.a) + abs(j.d) + abs(j.b or 0.0) for j in robot.joints[first - 1:])
+    loop = robot.loop.crank if robot.loop else 0.0
+    return links + loop + float(sum(abs(robot.tool)))

@@ -1,0 +1,91 @@
+"""Geometric (kinematic) parameters: links, base pose and tool offset."""
+
+from __future__ import annotations
+
+import math
+
+from ..kinematics import Geometry
+from ..parameters import Parameter
+from ..robot import Robot
+from .base import Context, ErrorTerm, register
+
+LENGTH_SCALE = 1e-3   # 1 mm
+ANGLE_SCALE = 1e-3    # 1 mrad
+
+
+@register
+class Geometric(ErrorTerm):
+    """Every link parameter, the base pose deviation and the tool offset.
+
+    This term is part of every model. In the ``nominal`` model only the base
+    pose is free (the measurement frame is never known in advance).
+
+    Parameters
+    ----------
+    length_box : float
+        Bound on the deviation of a link length from nominal (m).
+    angle_box : float
+        Bound on the deviation of a link angle from nominal (rad).
+    """
+
+    name = "geometric"
+    aliases = ("kinematic",)
+    cause = "geometric"
+
+    def __init__(self, joints=None, length_box: float = 0.05, angle_box: float = math.radians(5.0)):
+        super().__init__(joints)
+        self.length_box = length_box
+        self.angle_box = angle_box
+
+    def spec(self) -> str:
+        return "kinematic"
+
+    def settings(self) -> dict:
+        return {"length_box": self.length_box, "angle_box": self.angle_box}
+
+    def parameters(self, robot: Robot) -> list[Parameter]:
+        L, A = self.length_box, self.angle_box
+
+        def length(name, nominal, joint=None, group="link"):
+            return Parameter(name, nominal, "m", LENGTH_SCALE, "geometric", joint, group,
+                             lower=nominal - L, upper=nominal + L)
+
+        def angle(name, nominal, joint=None, group="link"):
+            return Parameter(name, nominal, "rad", ANGLE_SCALE, "geometric", joint, group,
+                             lower=nominal - A, upper=nominal + A)
+
+        ps = [Parameter(f"base_{k}", 0.0, "m", LENGTH_SCALE, "geometric", group="base") for k in "xyz"]
+        ps += [Parameter(f"base_{k}", 0.0, "rad", ANGLE_SCALE, "geometric", group="base")
+               for k in ("roll", "pitch", "yaw")]
+        for i, j in enumerate(robot.joints, start=1):
+            ps.append(angle(f"alpha{i}", j.alpha, i))
+            ps.append(length(f"a{i}", j.a, i))
+            if j.beta is not None:
+                ps.append(angle(f"beta{i}", j.beta, i))
+            if j.b is not None:
+                ps.append(length(f"b{i}", j.b, i))
+            ps.append(length(f"d{i}", j.d, i))
+            ps.append(angle(f"theta{i}", j.theta, i))
+        ps += [length(f"tool_{k}", v, None, "tool") for k, v in zip("xyz", robot.tool)]
+        if robot.loop is not None:
+            lp = robot.loop
+            # crank last: to first order only rocker - crank is seen, and the
+            # identifiability analysis keeps the earlier of confounded parameters
+            ps += [length(f"loop_{k}", v, lp.joint, "loop")
+                   for k, v in (("coupler", lp.coupler), ("rocker", lp.rocker), ("crank", lp.crank))]
+        return ps
+
+    def geometry(self, ctx: Context, geom: Geometry) -> Geometry:
+        p, robot = ctx.p, ctx.robot
+        rng = range(1, robot.n + 1)
+        return Geometry(
+            alpha=[p[f"alpha{i}"] for i in rng],
+            a=[p[f"a{i}"] for i in rng],
+            beta=[p.get(f"beta{i}", 0.0) for i in rng],
+            b=[p.get(f"b{i}", 0.0) for i in rng],
+            d=[p[f"d{i}"] for i in rng],
+            theta=[p[f"theta{i}"] for i in rng],
+            tool=[p[f"tool_{k}"] for k in "xyz"],
+            base=[p[f"base_{k}"] for k in ("x", "y", "z", "roll", "pitch", "yaw")],
+            loop=[p[f"loop_{k}"] for k in ("crank", "coupler", "rocker")] if robot.loop else [],
+        )

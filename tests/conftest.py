@@ -1,0 +1,17 @@
+import os
+import textwrap
+
+import pytest
+
+# unit tests evaluate small batches; JIT compilation would only add start-up time
+os.environ.setdefault("CASADICAL_JIT", "0")
+
+
+@pytest.fixture
+def write(tmp_path):
+    """Write a text file (dedented) into tmp_path and return its path."""
+    def _write(name: str, text: str) -> str:
+        p = tmp_path / name
+        p.write_text(textwrap.dedent(text).lstrip())
+        return str(p)
+    return _write

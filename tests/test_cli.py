@@ -1,0 +1,61 @@
+"""The command line: every command's help, inspect, predict, and one-line errors."""
+
+import subprocess
+import sys
+
+import numpy as np
+import pytest
+
+from casadical.cli import main
+from casadical.data import Measurements
+
+
+def run(*args):
+    """Run the real entry point in a subprocess (checks exit code and stderr as a user sees them)."""
+    return subprocess.run([sys.executable, "-m", "casadical", *args], capture_output=True, text=True)
+
+
+@pytest.mark.parametrize("cmd", ["inspect", "predict", "simulate", "import-ur10"])
+def test_help(cmd, capsys):
+    with pytest.raises(SystemExit) as e:
+        main([cmd, "--help"])
+    assert e.value.code == 0
+    assert "usage: casadical" in capsys.readouterr().out
+
+
+def test_inspect_shows_identifiability(capsys):
+    assert main(["inspect", "ys100", "--poses", "60"]) == 0
+    out = capsys.readouterr().out
+    assert "identifiable" in out and "d6" in out and "combination of tool_z" in out
+    assert "instructions" in out
+
+
+def test_predict_nominal(tmp_path, write):
+    poses = write("poses.csv", "q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg,tag\n0,90,0,0,0,0,home\n10,80,5,0,20,0,b\n")
+    out = tmp_path / "out.csv"
+    assert main(["predict", "ys100", poses, "--out", str(out)]) == 0
+    d = Measurements.read_csv(out)
+    assert list(d.columns)[:7] == ["q1_deg", "q2_deg", "q3_deg", "q4_deg", "q5_deg", "q6_deg", "tag"]
+    assert d.has_positions and np.isfinite(d.xyz).all()
+    # refuses to overwrite without --force, keeps the file
+    before = out.read_text()
+    r = run("predict", "ys100", poses, "--out", str(out))
+    assert r.returncode == 2 and "exists already" in r.stderr and out.read_text() == before
+    assert main(["predict", "ys100", poses, "--out", str(out), "--force"]) == 0
+
+
+def test_bad_input_is_one_line(write, tmp_path):
+    poses = write("poses.csv", "q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\n0,90,x,0,0,0\n")
+    r = run("predict", "ys100", poses, "--out", str(tmp_path / "o.csv"))
+    assert r.returncode == 2
+    lines = r.stderr.strip().splitlines()
+    assert len(lines) == 1 and "row 2" in lines[0] and "'q3_deg'" in lines[0] and poses in lines[0]
+    assert "Traceback" not in r.stderr
+    r = run("inspect", "nosuchrobot")
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
+
+
+def test_simulate_protocol(tmp_path):
+    assert main(["simulate", "ca-ys100", "--out-dir", str(tmp_path)]) == 0
+    cal = Measurements.read_csv(tmp_path / "calibration.csv", n_joints=6, require_positions=True)
+    assert len(cal) == 25 and (tmp_path / "truth.json").exists()

@@ -1,0 +1,74 @@
+"""Measurement CSV contract: round trip and every bad input."""
+
+import numpy as np
+import pytest
+
+from casadical.data import Measurements
+from casadical.errors import DataFileError, DataWarning, InputError
+
+HEAD = "q1_deg,q2_deg,q3_deg,x_mm,y_mm,z_mm,payload_kg,note\n"
+ROWS = "10,20,30,1000.5,-2.25,300,5,a\n-15.5,40,-60,900,10,250.125,0,b\n"
+
+
+def test_round_trip(tmp_path, write):
+    path = write("m.csv", HEAD + ROWS)
+    d = Measurements.read_csv(path, n_joints=3, require_positions=True)
+    assert len(d) == 2 and d.n_joints == 3
+    np.testing.assert_allclose(d.q_deg[1], [-15.5, 40, -60])
+    np.testing.assert_allclose(d.xyz[0], [1.0005, -0.00225, 0.3])
+    assert list(d.columns["note"]) == ["a", "b"]
+    out = tmp_path / "out.csv"
+    d.write_csv(out)
+    d2 = Measurements.read_csv(out, n_joints=3)
+    assert list(d2.columns) == list(d.columns)
+    for k in d.columns:
+        assert list(d2.columns[k]) == list(d.columns[k])
+    with pytest.raises(InputError, match="exists already"):
+        d.write_csv(out)
+
+
+def test_poses_without_positions(write):
+    d = Measurements.read_csv(write("p.csv", "q1_deg,q2_deg\n1,2\n3,4\n"), n_joints=2)
+    assert not d.has_positions
+
+
+@pytest.mark.parametrize("text,row,column,what", [
+    ("", 1, None, "empty"),
+    (HEAD, 2, None, "no data rows"),
+    (HEAD.replace("x_mm,", ""), 1, "x_mm", "only some"),
+    ("x_mm,y_mm,z_mm\n1,2,3\n", 1, None, "no joint columns"),
+    (HEAD.replace("q2_deg", "q4_deg"), 1, "q2_deg", "not consecutive"),
+    (HEAD.replace("q3_deg,", "q3_deg,q4_deg,") + "1,2,3,4,5,6,7,8,a\n", 1, "q4_deg", "robot has 3"),
+    ("q1_deg,q2_deg,x_mm,y_mm,z_mm\n1,2,3,4,5\n", 1, "q3_deg", "robot has 3"),
+    (HEAD + "10,20,abc,1,2,3,4,c\n", 2, "q3_deg", "not a number"),
+    (HEAD + "10,20,30,1,nan,3,4,c\n", 2, "y_mm", "finite"),
+    (HEAD + ROWS + "10,20,30,1,2,inf,4,c\n", 4, "z_mm", "finite"),
+    (HEAD + "10,20,30,1,2,3,,c\n", 2, "payload_kg", "empty"),
+    (HEAD + "10,20,30,1,2,3\n", 2, None, "fields"),
+    ("q1_deg,q2_deg,q3_deg,x_mm,y_mm,z_mm,x_mm\n1,2,3,4,5,6,7\n", 1, "x_mm", "duplicated"),
+    (HEAD + "10,20,\"30,5\",1,2,3,4,c\n", 2, "q3_deg", "decimal comma"),
+])
+def test_bad_input_names_file_row_column(write, text, row, column, what):
+    path = write("bad.csv", text)
+    with pytest.raises(DataFileError) as e:
+        Measurements.read_csv(path, n_joints=3)
+    msg = str(e.value)
+    assert path in msg and f"row {row}" in msg and what in msg and "\n" not in msg
+    if column:
+        assert repr(column) in msg
+
+
+def test_missing_positions_when_required(write):
+    with pytest.raises(DataFileError, match="x_mm"):
+        Measurements.read_csv(write("p.csv", "q1_deg\n1\n"), require_positions=True)
+
+
+def test_radians_warning(write):
+    rows = "".join(f"{0.1 * i},{-0.2 * i},{0.3}\n" for i in range(10))
+    with pytest.warns(DataWarning, match="radians"):
+        Measurements.read_csv(write("r.csv", "q1_deg,q2_deg,q3_deg\n" + rows))
+
+
+def test_no_file():
+    with pytest.raises(DataFileError, match="no such file"):
+        Measurements.read_csv("/nonexistent/m.csv")
