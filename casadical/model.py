@@ -124,6 +124,7 @@ class Model:
             cov.insert(0, "payload_kg")
         self.covariate_names: list[str] = cov
         self.jit = jit
+        self._base0: np.ndarray | None = None
         self._maps: dict = {}
         self._compiled: dict = {}
         self._build()
@@ -239,7 +240,9 @@ class Model:
 
     def base0_nominal(self) -> np.ndarray:
         """The robot file's base pose as the 12-number ``base0`` input."""
-        return pose_to_base0(base_pose_matrix(self.robot.base_xyz, self.robot.base_rpy))
+        if self._base0 is None:
+            self._base0 = pose_to_base0(base_pose_matrix(self.robot.base_xyz, self.robot.base_rpy))
+        return self._base0
 
     def default_covariates(self, N: int) -> np.ndarray:
         """Covariates when the data give none: robot payload, reference temperature, ..."""
