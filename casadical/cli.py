@@ -109,6 +109,23 @@ def cmd_predict(args) -> int:
     return 0
 
 
+def cmd_calibrate(args) -> int:
+    from .calibration import calibrate
+    from .data import Measurements
+    from .robot import load_robot
+
+    _check_out(args.out, args.force, [args.data])
+    robot = load_robot(args.robot)
+    data = Measurements.read_csv(args.data, n_joints=robot.n, require_positions=True)
+    opts = {"max_iter": args.max_iter} if args.max_iter else {}
+    result = calibrate(robot, data, args.model, args.solver, solver_options=opts,
+                       fix=tuple(args.fix.split(",")) if args.fix else ())
+    result.save(args.out, overwrite=args.force)
+    print(result.summary())
+    print(f"\ncalibration -> {args.out}")
+    return 0
+
+
 def cmd_simulate(args) -> int:
     from .simulate import load_protocol
 
@@ -172,6 +189,24 @@ def build_parser() -> argparse.ArgumentParser:
     _add_out(p, help="output CSV")
     p.add_argument("--force", action="store_true", help="replace OUT if it exists")
     p.set_defaults(func=cmd_predict)
+
+    p = sub.add_parser("calibrate", help="identify a calibrated model from measured poses",
+                       description="Identify the parameters of MODEL (kinematic, kinematic+compliance, or more "
+                                   "terms joined by '+') from DATA.csv; the base pose is always estimated. "
+                                   "Writes CAL.json (INTERFACE.md section 4) and prints a summary.")
+    p.add_argument("robot", metavar="ROBOT")
+    p.add_argument("data", metavar="DATA.csv")
+    p.add_argument("--model", default="kinematic+compliance",
+                   help="error model, e.g. kinematic, kinematic+compliance, "
+                        "kinematic+compliance[2,3]+periodic[2:1] (default: %(default)s)")
+    _add_out(p, help="calibration JSON to write")
+    p.add_argument("--solver", default="ipopt", choices=["ipopt", "lm", "gn", "auto"],
+                   help="ipopt (bounded), lm (Levenberg-Marquardt), gn (Gauss-Newton), auto (lm, then "
+                        "ipopt if a bound is crossed); default %(default)s")
+    p.add_argument("--max-iter", type=int, default=None, help="solver iteration limit")
+    p.add_argument("--fix", default="", help="comma-separated parameters to hold at nominal")
+    p.add_argument("--force", action="store_true", help="replace OUT if it exists")
+    p.set_defaults(func=cmd_calibrate)
 
     p = sub.add_parser("simulate", help="simulate the pose sets of an experiment protocol",
                        description="Simulate measurements from a protocol of problems/protocols "

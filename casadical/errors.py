@@ -82,5 +82,9 @@ class ConvergenceWarning(CasadicalWarning):
     """A solver stopped before meeting its convergence test."""
 
 
+class IdentifiabilityWarning(CasadicalWarning):
+    """The poses leave parameters unidentified that better poses could identify."""
+
+
 class CorrelationWarning(CasadicalWarning):
     """Identified parameters are strongly correlated or sit at a bound."""

@@ -257,3 +257,34 @@ class _Validator:
                 isinstance(e, bool) or not isinstance(e, (int, float)) or not math.isfinite(e) for e in x):
             raise self._err(f"must be a list of {length} finite numbers, got {x!r}", table, key)
         return np.array(x, dtype=float)
+
+
+def robot_to_dict(robot: Robot) -> dict[str, Any]:
+    """The TOML document (as a dict) that :func:`robot_from_dict` reads back to ``robot``."""
+    joints = []
+    for j in robot.joints:
+        d: dict[str, Any] = {"alpha_deg": math.degrees(j.alpha), "a_m": j.a}
+        if j.beta is not None:
+            d["beta_deg"] = math.degrees(j.beta)
+        if j.b is not None:
+            d["b_m"] = j.b
+        d.update(d_m=j.d, theta_deg=math.degrees(j.theta), min_deg=math.degrees(j.min),
+                 max_deg=math.degrees(j.max), mass_kg=j.mass, com_m=[float(x) for x in j.com])
+        if j.coupling is not None:
+            d["coupling"] = [float(x) for x in j.coupling]
+            d["coupling_offset_deg"] = math.degrees(j.coupling_offset)
+        joints.append(d)
+    g = float(np.linalg.norm(robot.gravity))
+    doc: dict[str, Any] = {
+        "name": robot.name, "convention": robot.convention,
+        "base": {"xyz_m": [float(x) for x in robot.base_xyz],
+                 "rpy_deg": [math.degrees(x) for x in robot.base_rpy]},
+        "joint": joints,
+        "tool": {"a_m": float(robot.tool[0]), "b_m": float(robot.tool[1]), "d_m": float(robot.tool[2])},
+        "payload": {"mass_kg": robot.payload_mass, "com_m": [float(x) for x in robot.payload_com]},
+        "gravity": {"direction": [float(x) / g for x in robot.gravity]},
+    }
+    if robot.loop is not None:
+        doc["loop"] = {"joint": robot.loop.joint, "crank_m": robot.loop.crank,
+                       "coupler_m": robot.loop.coupler, "rocker_m": robot.loop.rocker}
+    return doc

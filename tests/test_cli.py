@@ -15,7 +15,7 @@ def run(*args):
     return subprocess.run([sys.executable, "-m", "casadical", *args], capture_output=True, text=True)
 
 
-@pytest.mark.parametrize("cmd", ["inspect", "predict", "simulate", "import-ur10"])
+@pytest.mark.parametrize("cmd", ["inspect", "predict", "simulate", "import-ur10", "calibrate"])
 def test_help(cmd, capsys):
     with pytest.raises(SystemExit) as e:
         main([cmd, "--help"])

@@ -1,0 +1,171 @@
+"""Identification: recovery within reported uncertainty, real data, bounds, bad input."""
+
+import math
+import warnings
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from casadical import Measurements, calibrate, load_calibration, load_robot
+from casadical.errors import (ConvergenceWarning, CorrelationWarning, IdentifiabilityError,
+                              IdentifiabilityWarning)
+from casadical.simulate import Effects, simulate
+
+UR10_B = Path(__file__).resolve().parent.parent / "problems" / "datasets" / "ur10-ipa" / "series_b.csv"
+STIFF = {2: 1.7e6, 3: 1.2e6, 4: 0.3e6, 5: 0.57e6}
+
+
+def _truth_without_unidentifiable(robot, effects, seed, n):
+    """Simulate; parameters that no pose set can identify get no error in the truth."""
+    data, truth = simulate(robot, n, effects, seed=seed)
+    probe = calibrate(robot, data, "kinematic+compliance[2,3,4,5]", "lm", warn=False)
+    structural = [p.name for p in probe.parameters if p.identifiable is False]
+    for name in structural:
+        i = truth.model.parameters.index(name)
+        truth.values[i] = truth.model.parameters.nominal[i]
+    data, _ = simulate(robot, data.q, truth=truth, seed=seed + 1000)
+    return data, truth
+
+
+def test_parameters_recovered_within_reported_uncertainty():
+    """Normalised errors follow chi-square(p) and residual RMS matches the noise, over 20 seeds."""
+    robot = load_robot("ys100")
+    noise = 50e-6
+    eff = Effects(stiffness=STIFF, noise=noise, base_xyz=(3.0, 1.0, -0.4), base_rpy=(0.02, -0.03, 2.0))
+    d2s, rms_ratio, dims = [], [], []
+    for seed in range(20):
+        data, truth = _truth_without_unidentifiable(robot, eff, seed, 60)
+        res = calibrate(robot, data, "kinematic+compliance[2,3,4,5]", "lm", warn=False)
+        names = [n for n in res.uncertainty.names if not n.startswith("base_")]
+        idx = [res.uncertainty.names.index(n) for n in names]
+        err = np.array([res.parameters[n].value - truth.value(n) for n in names])
+        cov = res.uncertainty.covariance[np.ix_(idx, idx)]
+        d2s.append(err @ np.linalg.solve(cov, err))
+        dims.append(len(names))
+        m3 = 3 * len(data)
+        p = len(res.uncertainty.names)
+        rms = math.sqrt(2 * res.solver.cost / m3)
+        rms_ratio.append(rms / (noise * math.sqrt((m3 - p) / m3)))
+    ratio = np.mean(np.array(d2s) / np.array(dims))
+    # mean of chi2(p)/p over 20 draws with p ~ 30: 1 +- 0.06
+    assert 0.75 < ratio < 1.3, ratio
+    assert abs(np.mean(rms_ratio) - 1) < 0.05, np.mean(rms_ratio)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_stiffness_found_and_kinematic_model_misses_it(seed):
+    robot = load_robot("ys100")
+    eff = Effects(stiffness=STIFF, noise=20e-6)
+    cal, truth = simulate(robot, 40, eff, seed=seed)
+    val, _ = simulate(robot, 60, truth=truth, seed=seed + 100)
+    kin = calibrate(robot, cal, "kinematic", "lm", warn=False)
+    kc = calibrate(robot, cal, "kinematic+compliance", "ipopt", warn=False)
+    for j, k in STIFF.items():
+        kj, sk = kc.stiffness()[j]
+        assert abs(kj - k) < 5 * sk + 0.02 * k, (j, kj, k, sk)
+    assert kc.stats(val).mean_mm < 0.1 < kin.stats(val).mean_mm
+
+
+def test_lm_and_ipopt_agree_without_active_bounds():
+    robot = load_robot("ys100")
+    data, _ = simulate(robot, 40, Effects(stiffness=STIFF), seed=8)
+    a = calibrate(robot, data, "kinematic+compliance[2,3,4,5]", "lm", warn=False)
+    b = calibrate(robot, data, "kinematic+compliance[2,3,4,5]", "ipopt", warn=False)
+    assert a.solver.success and b.solver.success
+    dv = (a.parameters.values - b.parameters.values) / a.parameters.scales
+    assert np.abs(dv).max() < 1e-3
+    assert b.solver.iterations > 0 and b.solver.solve_time_s > 0
+
+
+def test_ipopt_keeps_stiffness_inside_bounds():
+    robot = load_robot("ys100")
+    data, _ = simulate(robot, 40, Effects(stiffness={2: 1e6}), seed=4)
+    from casadical.model import Model
+    from casadical.terms import make_term
+    model = Model(robot, [make_term("kinematic"), make_term("joint_compliance", joints=[2], k_min=2e6)])
+    with pytest.warns(CorrelationWarning, match="c2 is at or beyond its upper bound"):
+        res = calibrate(robot, data, model, "ipopt")
+    c2 = res.parameters["c2"]
+    assert c2.value <= 1 / 2e6 * (1 + 1e-6)
+    lm = calibrate(robot, data, model, "lm", warn=False)
+    assert lm.parameters["c2"].value > 1 / 2e6  # unbounded LM crosses it: the reason for IPOPT
+    auto = calibrate(robot, data, model, "auto", warn=False)
+    assert auto.solver_name == "levenberg-marquardt+ipopt"
+    assert auto.parameters["c2"].value <= 1 / 2e6 * (1 + 1e-6)
+
+
+def test_payload_column_is_used():
+    robot = load_robot("ys100")
+    rng = np.random.default_rng(0)
+    payload = rng.uniform(0, 150, 50)
+    data, truth = simulate(robot, 50, Effects(stiffness=STIFF), seed=5, payload_kg=payload)
+    res = calibrate(robot, data, "kinematic+compliance", "lm", warn=False)
+    assert res.calibration.rms_mm < 0.05
+    # ignoring the rows' payload (robot default 110 kg for every row) fits much worse
+    no_payload = Measurements({k: v for k, v in data.columns.items() if k != "payload_kg"})
+    assert calibrate(robot, no_payload, "kinematic+compliance", "lm", warn=False).calibration.rms_mm > 0.1
+
+
+def test_json_round_trip_and_predict(tmp_path):
+    robot = load_robot("ys100")
+    data, truth = simulate(robot, 30, Effects(stiffness=STIFF), seed=6)
+    res = calibrate(robot, data, "kinematic+compliance", "lm", warn=False)
+    path = tmp_path / "cal.json"
+    res.save(path)
+    back = load_calibration(path)
+    np.testing.assert_allclose(back.predict(data), res.predict(data), atol=1e-12)
+    assert back.model.spec == res.model.spec
+    import json
+    doc = json.loads(path.read_text())
+    assert {"robot", "model", "parameters", "calibration", "solver"} <= set(doc)
+    assert {"name", "value", "std", "identifiable", "unit"} <= set(doc["parameters"][0])
+    assert {"n_poses", "mean_mm", "max_mm", "rms_mm"} <= set(doc["calibration"])
+    assert {"name", "status", "iterations", "solve_time_s"} <= set(doc["solver"])
+
+
+def test_real_ur10_series_b_held_out():
+    """Kinematic calibration on 300 real poses leaves about 0.4 mm on the held-out ones."""
+    robot = load_robot("ur10")
+    data = Measurements.read_csv(UR10_B, n_joints=6, require_positions=True)
+    rng = np.random.default_rng(0)
+    idx = rng.permutation(len(data))
+    cal, val = data.subset(np.sort(idx[:300])), data.subset(np.sort(idx[300:]))
+    nominal = calibrate(robot, cal, "nominal", "lm", warn=False).stats(val)
+    kin = calibrate(robot, cal, "kinematic", "lm", warn=False)
+    held = kin.stats(val)
+    assert 0.25 < held.mean_mm < 0.6, held
+    assert held.mean_mm < 0.6 * nominal.mean_mm
+
+
+def test_too_few_poses_says_how_many():
+    robot = load_robot("ys100")
+    data, _ = simulate(robot, 8, Effects(), seed=1)
+    with pytest.raises(IdentifiabilityError, match=r"at least \d+ poses are needed"):
+        calibrate(robot, data, "kinematic+compliance")
+
+
+def test_degenerate_poses_warn_and_fix():
+    robot = load_robot("ys100")
+    rng = np.random.default_rng(2)
+    q = np.tile(np.radians([0, 60, 10, 20, 30, 40]), (40, 1))
+    q[:, 0] = rng.uniform(-2, 2, 40)   # only joint 1 moves
+    data, _ = simulate(robot, q, Effects(), seed=2)
+    with pytest.warns(IdentifiabilityWarning, match="cannot identify"):
+        res = calibrate(robot, data, "kinematic", "lm")
+    assert any(p.identifiable is False and p.term == "geometric" and p.joint and p.joint > 1
+               for p in res.parameters)
+    line = np.zeros((10, 6))
+    line[:, 0] = np.linspace(0, 1, 10)
+    flat = Measurements.from_arrays(line, np.column_stack([np.linspace(0, 1, 10), np.zeros(10), np.zeros(10)]))
+    with pytest.raises(IdentifiabilityError, match="line"):
+        calibrate(robot, flat, "kinematic")
+
+
+def test_non_convergence_is_reported():
+    robot = load_robot("ys100")
+    data, _ = simulate(robot, 40, Effects(stiffness=STIFF), seed=3)
+    with pytest.warns(ConvergenceWarning, match="did not converge"):
+        res = calibrate(robot, data, "kinematic+compliance", "ipopt", solver_options={"max_iter": 1})
+    assert not res.solver.success and "did not converge" in " ".join(res.notes)
