@@ -168,11 +168,21 @@ class Model:
         dq = ca.vertcat(*[ca.SX(o) if not isinstance(o, ca.SX) else o for o in offsets])
         J = ca.densify(ca.jacobian(xyz, p))
         ins = [q, p, c, b0]
+        y = ca.SX.sym("y", 3)
+        r = xyz - y
+        # per-pose least-squares pieces, summed over poses by map's reduce_out: the cost, its
+        # gradient by reverse mode, and the upper triangle of J^T J with J's sparsity
+        cost = 0.5 * ca.dot(r, r)
+        Js = ca.jacobian(xyz, p)
+        # name: (inputs, outputs, broadcast inputs, summed outputs)
         self._graphs = {
-            "fk": (ins, [xyz], (1, 3)),
-            "fk_jac": (ins, [xyz, J], (1, 3)),
-            "tau": ([q, p, c], [tau], (1,)),
-            "dq": ([q, p, c], [dq], (1,)),
+            "fk": (ins, [xyz], (1, 3), ()),
+            "fk_jac": (ins, [xyz, J], (1, 3), ()),
+            "cost": (ins + [y], [cost], (1, 3), (0,)),
+            "grad": (ins + [y], [cost, ca.gradient(cost, p)], (1, 3), (0, 1)),
+            "gn_hess": (ins + [y], [ca.triu(ca.mtimes(Js.T, Js))], (1, 3), (0,)),
+            "tau": ([q, p, c], [tau], (1,), ()),
+            "dq": ([q, p, c], [dq], (1,), ()),
         }
         self.fk = ca.Function("fk", ins, [xyz], ["q", "p", "cov", "base0"], ["xyz"])
         self.fk_jac = ca.Function("fk_jac", ins, [xyz, J], ["q", "p", "cov", "base0"], ["xyz", "J"])
@@ -183,21 +193,32 @@ class Model:
 
     # --- numeric evaluation -------------------------------------------------------
 
+    def _use_jit(self, N: int) -> bool:
+        return self.jit if self.jit is not None else (N >= JIT_MIN_POSES and compiler_available())
+
+    def per_pose_function(self, which: str, jit: bool = False) -> ca.Function:
+        """One of the per-pose Functions (``fk``, ``fk_jac``, ``cost``, ``grad``, ``gn_hess``, ``tau``, ``dq``)."""
+        fun = self._compiled.get((which, jit))
+        if fun is None:
+            ins, outs, _, _ = self._graphs[which]
+            opts = {"jit": True, "compiler": "shell",
+                    "jit_options": {"flags": ["-O2"], "verbose": False}} if jit else {}
+            fun = self._compiled[(which, jit)] = ca.Function(which, ins, outs, opts)
+        return fun
+
+    def batch_function(self, which: str, N: int) -> ca.Function:
+        """``which`` mapped over N poses: parameters and base0 broadcast, sums reduced."""
+        _, _, bcast, reduce = self._graphs[which]
+        fun = self.per_pose_function(which, self._use_jit(N))
+        return fun.map(f"{which}_{N}", "serial", N, list(bcast), list(reduce))
+
     def _batch(self, which: str, N: int) -> "_Batch":
-        jit = self.jit if self.jit is not None else (N >= JIT_MIN_POSES and compiler_available())
-        key = (which, N, jit)
+        key = (which, N, self._use_jit(N))
         b = self._maps.get(key)
         if b is None:
-            fun = self._compiled.get((which, jit))
-            if fun is None:
-                ins, outs, _ = self._graphs[which]
-                opts = {"jit": True, "compiler": "shell",
-                        "jit_options": {"flags": ["-O2"], "verbose": False}} if jit else {}
-                fun = ca.Function(which, ins, outs, opts)
-                self._compiled[(which, jit)] = fun
             if len(self._maps) > 32:  # many distinct batch sizes: keep memory bounded
                 self._maps.clear()
-            b = self._maps[key] = _Batch(fun, N, self._graphs[which][2])
+            b = self._maps[key] = _Batch(self.batch_function(which, N), N)
         return b
 
     def _inputs(self, q, params, cov, base0):
@@ -309,8 +330,8 @@ class _Batch:
     converting large CasADi matrices costs more than evaluating them.
     """
 
-    def __init__(self, fun: ca.Function, N: int, broadcast: tuple[int, ...]):
-        self.F = fun.map(f"{fun.name()}_{N}", "serial", N, list(broadcast), [])
+    def __init__(self, F: ca.Function, N: int):
+        self.F = F
         self.buf, self.trigger = self.F.buffer()
         self.args = []
         for i in range(self.F.n_in()):
@@ -322,7 +343,7 @@ class _Batch:
         self.res = []
         for i in range(self.F.n_out()):
             sp = self.F.sparsity_out(i)
-            r = np.zeros((N, sp.size1() * sp.size2() // N))
+            r = np.zeros((sp.size2(), sp.size1()))
             self.res.append(r)
             self.buf.set_res(i, memoryview(r))
 

@@ -44,7 +44,7 @@ class Ipopt(Solver):
     def _build(self, problem: CalibrationProblem):
         model = problem.model
         N, nf = problem.n_poses, len(problem.free)
-        key = (id(model), N, tuple(problem.free))
+        key = (model, N, tuple(problem.free))  # holds the model: an id could be reused
         if key in self._cache:
             return self._cache[key]
         P, nc = len(problem.params), len(model.covariate_names)
@@ -59,18 +59,23 @@ class Ipopt(Solver):
         E[problem.free, np.arange(nf)] = 1.0
         # p = fixed values (zeros at free entries) + nominal + scale * x at free entries
         p = pfix + sel_scale * ca.mtimes(ca.DM(E), x)
-        F = model.fk.map(N, "serial")
-        r = ca.vec(F(Q, p, C, base0) - XYZ)
-        f = 0.5 * ca.dot(r, r)
+        # grad_f and hess_lag come from the per-pose Gauss-Newton Function summed over poses
+        # (compiled for large batches): no AD through the map inside IPOPT
+        S = ca.diag(sel_scale) @ ca.DM(E)  # d p / d x
+        f = model.batch_function("cost", N)(Q, p, C, base0, XYZ)
         nlp = {"x": x, "p": data, "f": f}
         opts = {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes", "max_iter": self.max_iter,
                                                "tol": self.tol, **self.options}}
         if self.hessian == "gauss-newton":
-            Jx = ca.jacobian(r, x)  # AD through the map: block structured, size independent of N
+            fv, g = model.batch_function("grad", N)(Q, p, C, base0, XYZ)
+            H = model.batch_function("gn_hess", N)(Q, p, C, base0, XYZ)
             lam_f = ca.MX.sym("lam_f")
             lam_g = ca.MX.sym("lam_g", 0)
-            H = lam_f * ca.mtimes(Jx.T, Jx)
-            opts["hess_lag"] = ca.Function("nlp_hess_l", [x, data, lam_f, lam_g], [ca.triu(H)],
+            opts["grad_f"] = ca.Function("nlp_grad_f", [x, data], [fv, ca.mtimes(S.T, g)],
+                                         ["x", "p"], ["f", "grad_f_x"])
+            opts["hess_lag"] = ca.Function("nlp_hess_l", [x, data, lam_f, lam_g],
+                                           # S selects free entries in order: triu(H) stays triu
+                                           [ca.triu(lam_f * ca.mtimes([S.T, H, S]))],
                                            ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
         elif self.hessian != "exact":
             raise SolverError(f"unknown Hessian option {self.hessian!r}: use 'gauss-newton' or 'exact'")

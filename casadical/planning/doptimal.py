@@ -1,0 +1,632 @@
+"""Certified D-optimal selection of M distinct poses from a candidate pool.
+
+Pose ``i`` of the pool contributes the rank-3 block ``H_i = A_i^T A_i`` to
+the information matrix, with ``A_i`` its ``3 x p`` scaled Jacobian block
+(:mod:`casadical.planning.observability`). Choosing ``M`` distinct poses to
+maximise ``log det(sum_{i in S} H_i)`` is combinatorial; its continuous
+relaxation
+
+    maximise  f(w) = log det M(w),  M(w) = sum_i w_i H_i,
+    subject to 0 <= w_i <= 1,  sum_i w_i = M
+
+is concave and gives both a starting point and a bound.
+
+The bound
+---------
+For any weights ``w`` with ``M(w)`` positive definite, let
+``d_i(w) = trace(A_i M(w)^-1 A_i^T)`` (the variance function) and ``S(w)``
+the sum of the ``M`` largest ``d_i``. Concavity of log det gives, for every
+``Y > 0``, ``log det X <= -log det Y - p + trace(Y X)``; with
+``Y = (p / S) M(w)^-1`` and the box constraints,
+
+    f(w') <= f(w) + p log(S(w) / p)    for every feasible w',
+
+so ``U(w) = f(w) + p log(S(w)/p)`` bounds the relaxation and hence every
+exact ``M``-pose design. It is the Kiefer-Wolfowitz bound of approximate
+design theory (``D-efficiency >= p / max_i d_i``) adapted to the weight
+caps: the largest single variance becomes the sum of the ``M`` largest.
+``log(S/p)`` is the certified gap per parameter, zero exactly at the
+optimum (``d_i`` equal on fractional weights, larger on weights at 1,
+smaller on weights at 0). The D-efficiency of any set ``S`` against it is
+``exp((log det M_S - U) / p) <= 1``.
+
+Solvers
+-------
+:func:`relax_multiplicative`
+    First-order: the multiplicative algorithm ``w_i <- w_i d_i^gamma``
+    projected onto the capped simplex (Kullback-Leibler projection: scale,
+    then clip at 1), with an exact line search along the segment (a
+    ``p``-dimensional eigenvalue problem) and active-set pruning. It needs
+    one pass over the pool per iteration and no ``N x N`` or ``N x p^2``
+    storage; 10^5 candidates fit in a few hundred MB.
+:func:`relax_cvxpy`
+    The same relaxation as a conic program (``cvxpy.log_det``), columns
+    scaled so that the information matrix of the uniform design has a unit
+    diagonal (otherwise entries of 1e-6 m^2 defeat the solvers' tolerances).
+    Accurate but its size grows as ``N p^2``.
+:func:`exchange`
+    Rounding (the ``M`` largest weights) then Fedorov exchange: swap the
+    selected/unselected pair with the largest determinant ratio,
+    ``det(I_6 + D U^T M^-1 U)``, ``U = [A_in^T, A_out^T]``,
+    ``D = diag(I_3, -I_3)``, until no swap improves.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from ..errors import IdentifiabilityError, InputError, SolverError
+
+
+@dataclass
+class RelaxationSettings:
+    """Settings of the first-order relaxation solver.
+
+    Parameters
+    ----------
+    tol : float
+        Stop when the certified gap per parameter, ``log(S/p)``, is at most
+        this (log det units; 1e-3 = 0.1 % D-efficiency).
+    max_iter : int
+        Iteration limit.
+    time_limit_s : float
+        Wall-clock limit; the result is still certified (with a larger gap).
+    exponent : float
+        ``gamma`` of the multiplicative update ``w_i d_i^gamma``; 1 is the
+        classical algorithm, larger values converge faster and the line
+        search keeps them monotone.
+    prune : float
+        Weights below this leave the active set (checked back against the
+        whole pool before the result is certified).
+    check_every : int
+        Iterations between full-pool variance checks.
+    chunk : int
+        Poses per block when sweeping the pool (bounds temporary memory).
+    """
+
+    tol: float = 1e-4
+    max_iter: int = 20000
+    time_limit_s: float = 600.0
+    exponent: float = 3.0
+    prune: float = 1e-12
+    check_every: int = 25
+    chunk: int = 16384
+
+    def __post_init__(self) -> None:
+        if not self.tol > 0:
+            raise InputError(f"tol must be positive, got {self.tol}")
+        if not self.exponent > 0:
+            raise InputError(f"exponent must be positive, got {self.exponent}")
+        if self.max_iter < 1 or self.check_every < 1 or self.chunk < 1:
+            raise InputError("max_iter, check_every and chunk must be at least 1")
+
+
+@dataclass
+class Relaxation:
+    """Solution of the continuous relaxation.
+
+    Attributes
+    ----------
+    weights : ndarray, shape (N,)
+        In [0, 1], summing to M.
+    log_det : float
+        ``log det M(w)`` (scaled Jacobian, SI).
+    upper_bound : float
+        Certified bound ``U(w)`` on the log det of every M-pose design.
+    gap_per_parameter : float
+        ``(upper_bound - log_det) / p``.
+    method : str
+        ``"multiplicative"`` or ``"cvxpy:<SOLVER>"``.
+    status : str
+        Why the solver stopped.
+    iterations : int
+    time_s : float
+    """
+
+    weights: np.ndarray = field(repr=False)
+    log_det: float
+    upper_bound: float
+    gap_per_parameter: float
+    method: str
+    status: str
+    iterations: int
+    time_s: float
+
+    @property
+    def n_support(self) -> int:
+        """Candidates with a weight above 1e-6."""
+        return int(np.sum(self.weights > 1e-6))
+
+    @property
+    def n_at_one(self) -> int:
+        """Candidates with a weight of (almost) 1."""
+        return int(np.sum(self.weights > 1 - 1e-6))
+
+
+@dataclass
+class ExactDesign:
+    """An exact design of M distinct poses.
+
+    Attributes
+    ----------
+    indices : ndarray of int
+        Sorted pool rows.
+    log_det : float
+        ``log det`` of its information matrix.
+    swaps : int
+        Exchanges made after rounding.
+    time_s : float
+    """
+
+    indices: np.ndarray
+    log_det: float
+    swaps: int
+    time_s: float
+
+
+@dataclass
+class DOptimalDesign:
+    """Result of :func:`d_optimal_design`.
+
+    Attributes
+    ----------
+    indices : ndarray of int
+        The M selected pool rows, sorted.
+    log_det : float
+        ``log det(J_S^T J_S)`` of the selection.
+    upper_bound : float
+        Best certified bound on the log det of any M-pose subset of the pool.
+    d_efficiency : float
+        ``exp((log_det - upper_bound) / p)``: the selection is at least this
+        D-efficient relative to the (unknown) best subset.
+    relaxation : Relaxation
+    exchange : ExactDesign
+    time_s : float
+        Relaxation, rounding and exchange.
+    """
+
+    indices: np.ndarray
+    log_det: float
+    upper_bound: float
+    d_efficiency: float
+    relaxation: Relaxation
+    exchange: ExactDesign
+    time_s: float
+
+
+# --- the pool -------------------------------------------------------------------------
+
+
+class _Pool:
+    """Per-pose blocks with a column scaling for well-conditioned linear algebra.
+
+    Work is in scaled coordinates ``A_i C`` with ``C = diag(c)`` chosen so
+    that the uniform design ``w = M/N`` has a unit-diagonal information
+    matrix; log dets are converted back by ``- 2 sum log c``.
+    """
+
+    def __init__(self, A: np.ndarray, m: int, chunk: int = 16384):
+        A = np.asarray(A, dtype=float)
+        if A.ndim != 3:
+            raise InputError(f"expected per-pose Jacobian blocks of shape (N, r, p), got shape {A.shape}")
+        self.A = A
+        self.N, self.r, self.p = A.shape
+        self.m = int(m)
+        self.chunk = int(chunk)
+        sq = np.zeros(self.p)
+        for s in range(0, self.N, self.chunk):
+            sq += np.einsum("nij,nij->j", A[s:s + self.chunk], A[s:s + self.chunk])
+        with np.errstate(divide="ignore"):
+            c = 1.0 / np.sqrt(sq / self.N * self.m)
+        c[~np.isfinite(c)] = 1.0  # a column without effect anywhere: leave it (M will be singular)
+        self.c = c
+        self.log_c = float(np.sum(np.log(c)))
+
+    def info(self, idx: np.ndarray, w: np.ndarray) -> np.ndarray:
+        """Scaled ``sum_k w_k H_idx[k]`` (weights may be negative: a difference of designs)."""
+        p = self.p
+        out = np.zeros((p, p))
+        for s in range(0, len(idx), self.chunk):
+            B = self.A[idx[s:s + self.chunk]].reshape(-1, p) * self.c
+            out += (B * np.repeat(w[s:s + self.chunk], self.r)[:, None]).T @ B
+        return 0.5 * (out + out.T)
+
+    def variances(self, T: np.ndarray, idx: np.ndarray | None = None) -> np.ndarray:
+        """``d_i = ||T C A_i^T||_F^2`` for ``T = L^-1`` (scaled Cholesky factor of M)."""
+        TC = (T * self.c).T  # (p, p): rows of A times C T^T
+        n = self.N if idx is None else len(idx)
+        d = np.empty(n)
+        for s in range(0, n, self.chunk):
+            blk = self.A[s:s + self.chunk] if idx is None else self.A[idx[s:s + self.chunk]]
+            G = blk.reshape(-1, self.p) @ TC
+            d[s:s + len(blk)] = np.einsum("ij,ij->i", G, G).reshape(len(blk), self.r).sum(axis=1)
+        return d
+
+    def factor(self, Ms: np.ndarray) -> tuple[np.ndarray, float]:
+        """Cholesky factor of a scaled information matrix and its log det in original units."""
+        try:
+            L = np.linalg.cholesky(Ms)
+        except np.linalg.LinAlgError:
+            raise IdentifiabilityError("the information matrix is singular: the weighted poses do "
+                                       "not identify every parameter") from None
+        return L, 2.0 * float(np.sum(np.log(np.diag(L)))) - 2.0 * self.log_c
+
+    def bound_from(self, log_det: float, d: np.ndarray) -> float:
+        """``U = log det + p log(S / p)``, ``S`` the sum of the M largest variances."""
+        S = float(np.sum(_top(d, self.m)))
+        return log_det + self.p * math.log(max(S, self.p) / self.p)
+
+
+def _top(x: np.ndarray, k: int) -> np.ndarray:
+    """The k largest entries (unordered)."""
+    if k >= len(x):
+        return x
+    return np.partition(x, len(x) - k)[len(x) - k:]
+
+
+def _check_m(A: np.ndarray, m: int) -> None:
+    N, r, p = A.shape
+    if not isinstance(m, (int, np.integer)) or m < 1:
+        raise InputError(f"the number of poses M must be a positive integer, got {m!r}")
+    if m > N:
+        raise InputError(f"cannot choose M={m} distinct poses from a pool of {N}")
+    need = -(-p // r)
+    if m < need:
+        raise IdentifiabilityError(f"M={m} poses give {m * r} equations, fewer than the {p} "
+                                   f"identifiable parameters; choose M >= {need}")
+
+
+# --- the bound ------------------------------------------------------------------------
+
+
+def upper_bound(A: np.ndarray, m: int, weights: np.ndarray) -> float:
+    """Certified upper bound on the log det of every M-pose subset of the pool.
+
+    Parameters
+    ----------
+    A : ndarray, shape (N, r, p)
+        Scaled Jacobian blocks of the pool.
+    m : int
+        Design size M.
+    weights : ndarray, shape (N,)
+        Any non-negative weights with ``M(w)`` positive definite (a relaxed
+        solution, or a 0/1 exact design); the closer to optimal, the tighter.
+
+    Returns
+    -------
+    float
+        ``log det M(w) + p log(S(w)/p)``.
+    """
+    A = np.asarray(A, dtype=float)
+    _check_m(A, m)
+    pool = _Pool(A, m)
+    w = np.asarray(weights, dtype=float)
+    idx = np.flatnonzero(w > 0)
+    L, ld = pool.factor(pool.info(idx, w[idx]))
+    return pool.bound_from(ld, pool.variances(np.linalg.inv(L)))
+
+
+def d_efficiency(log_det: float, bound: float, p: int) -> float:
+    """``exp((log_det - bound) / p)``, 0 for a singular design."""
+    if not math.isfinite(log_det):
+        return 0.0
+    return float(math.exp(min(0.0, (log_det - bound) / p)))
+
+
+# --- first-order relaxation -------------------------------------------------------------
+
+
+def _cap_project(u: np.ndarray, m: int) -> np.ndarray:
+    """``v = min(1, t u)`` with ``sum v = m`` (KL projection onto the capped simplex)."""
+    o = np.sort(u)[::-1]
+    tail = np.cumsum(o[::-1])[::-1]  # tail[k] = sum of o[k:]
+    k = np.arange(min(m, len(o)))
+    with np.errstate(divide="ignore", invalid="ignore"):
+        t = (m - k) / tail[k]
+        ok = (t * o[k] <= 1.0 + 1e-12) & (tail[k] > 0)
+    if not ok.any():
+        raise SolverError("cannot spread the weights: fewer than M candidates carry information")
+    kk = int(k[np.argmax(ok)])
+    return np.minimum(1.0, t[kk] * u)
+
+
+def _line_search(lam: np.ndarray) -> float:
+    """argmax over s in [0, 1] of sum log(1 + s lam) (concave; lam from the step's eigenproblem)."""
+    lo, hi = 0.0, 1.0
+    if lam.min() < 0:
+        hi = min(1.0, (1.0 - 1e-12) / -lam.min())
+    if np.sum(lam / (1.0 + hi * lam)) >= 0:
+        return hi
+    for _ in range(60):
+        mid = 0.5 * (lo + hi)
+        if np.sum(lam / (1.0 + mid * lam)) > 0:
+            lo = mid
+        else:
+            hi = mid
+    return lo
+
+
+def relax_multiplicative(A: np.ndarray, m: int, settings: RelaxationSettings | None = None,
+                         w0: np.ndarray | None = None) -> Relaxation:
+    """Solve the relaxation with the capped multiplicative algorithm (first-order).
+
+    Parameters
+    ----------
+    A : ndarray, shape (N, r, p)
+        Scaled Jacobian blocks of the pool.
+    m : int
+        Design size M.
+    settings : RelaxationSettings, optional
+    w0 : ndarray, optional
+        Starting weights (default uniform ``M/N``).
+
+    Returns
+    -------
+    Relaxation
+        Certified: ``upper_bound`` holds whatever the stopping reason.
+
+    Raises
+    ------
+    IdentifiabilityError
+        The pool cannot identify every parameter, or M is too small.
+    """
+    A = np.asarray(A, dtype=float)
+    _check_m(A, m)
+    st = settings or RelaxationSettings()
+    t0 = time.perf_counter()
+    pool = _Pool(A, m, st.chunk)
+    N, p = pool.N, pool.p
+    w = np.full(N, m / N) if w0 is None else _cap_project(np.maximum(np.asarray(w0, float), 1e-300), m)
+    act = np.flatnonzero(w > 0)
+    Ms = pool.info(act, w[act])
+    status = f"iteration limit ({st.max_iter})"
+    best_ub, ld, it = math.inf, -math.inf, 0
+    for it in range(1, st.max_iter + 1):
+        if it % st.check_every == 0:
+            Ms = pool.info(act, w[act])  # drop the rounding drift of the incremental updates
+        L, ld = pool.factor(Ms)
+        T = np.linalg.inv(L)
+        d = pool.variances(T, act)
+        gap_act = math.log(max(float(np.sum(_top(d, m))), p) / p)
+        timeout = time.perf_counter() - t0 > st.time_limit_s
+        if gap_act <= st.tol or it % st.check_every == 0 or timeout or it == st.max_iter:
+            # certify against the whole pool; pruned candidates that now matter come back
+            d_all = pool.variances(T)
+            ub = pool.bound_from(ld, d_all)
+            best_ub = min(best_ub, ub)
+            if (ub - ld) / p <= st.tol:
+                status = "converged"
+                break
+            if timeout:
+                status = f"time limit ({st.time_limit_s:g} s)"
+                break
+            thresh = np.partition(d_all, N - m)[N - m]
+            back = np.setdiff1d(np.flatnonzero(d_all >= thresh), act, assume_unique=True)
+            if len(back):
+                w[back] = m / N
+                act = np.union1d(act, back)
+                w[act] = _cap_project(w[act], m)
+                Ms = pool.info(act, w[act])
+                continue
+            d_act = d
+        else:
+            d_act = d
+        wa = w[act]
+        # the update direction: KL projection of w d^gamma; d scaled by its mean to avoid overflow
+        ds = d_act / (p / m)
+        v = None
+        for gamma in (st.exponent, 1.0):
+            cand = _cap_project(wa * ds ** gamma, m)
+            if float(np.dot(d_act, cand - wa)) > 1e-14 * p:
+                v = cand
+                break
+        if v is None:
+            status = "no ascent direction (at the optimum to machine precision)"
+            break
+        Dm = pool.info(act, v - wa)
+        lam = np.linalg.eigvalsh(T @ Dm @ T.T)
+        s = _line_search(lam)
+        w[act] = wa + s * (v - wa)
+        Ms = Ms + s * Dm
+        keep = w[act] > st.prune
+        if not keep.all():
+            w[act[~keep]] = 0.0
+            act = act[keep]
+            w[act] = _cap_project(w[act], m)
+            Ms = pool.info(act, w[act])
+    L, ld = pool.factor(pool.info(act, w[act]))
+    best_ub = min(best_ub, pool.bound_from(ld, pool.variances(np.linalg.inv(L))))
+    return Relaxation(w, ld, best_ub, (best_ub - ld) / p, "multiplicative", status, it,
+                      time.perf_counter() - t0)
+
+
+# --- conic relaxation -----------------------------------------------------------------
+
+
+def relax_cvxpy(A: np.ndarray, m: int, solver: str | None = None, verbose: bool = False,
+                **solver_options) -> Relaxation:
+    """Solve the relaxation as a conic program with cvxpy's ``log_det``.
+
+    Parameters
+    ----------
+    A : ndarray, shape (N, r, p)
+    m : int
+    solver : str, optional
+        A cvxpy solver supporting the exponential and PSD cones (default
+        CLARABEL, else SCS).
+    verbose : bool
+    **solver_options
+        Passed to ``Problem.solve``.
+
+    Returns
+    -------
+    Relaxation
+        Weights clipped to [0, 1]; the bound is recomputed from them with
+        :func:`upper_bound` so the two solvers are certified the same way.
+    """
+    import cvxpy as cp
+
+    A = np.asarray(A, dtype=float)
+    _check_m(A, m)
+    t0 = time.perf_counter()
+    pool = _Pool(A, m)
+    N, p = pool.N, pool.p
+    if solver is None:
+        solver = "CLARABEL" if "CLARABEL" in cp.installed_solvers() else "SCS"
+    As = A * pool.c
+    H = np.einsum("nri,nrj->nij", As, As).reshape(N, p * p)
+    w = cp.Variable(N)
+    Mx = cp.reshape(H.T @ w, (p, p), order="F")
+    prob = cp.Problem(cp.Maximize(cp.log_det((Mx + Mx.T) / 2)),
+                      [w >= 0, w <= 1, cp.sum(w) == m])
+    try:
+        prob.solve(solver=solver, verbose=verbose, **solver_options)
+    except cp.error.SolverError as e:
+        raise SolverError(f"cvxpy/{solver} failed on the relaxation: {e}") from e
+    if w.value is None:
+        raise SolverError(f"cvxpy/{solver} returned no solution (status {prob.status})")
+    wv = np.clip(np.asarray(w.value, dtype=float), 0.0, 1.0)
+    idx = np.flatnonzero(wv > 0)
+    L, ld = pool.factor(pool.info(idx, wv[idx]))
+    ub = pool.bound_from(ld, pool.variances(np.linalg.inv(L)))
+    stats = prob.solver_stats
+    its = int(stats.num_iters) if stats is not None and stats.num_iters is not None else 0
+    return Relaxation(wv, ld, ub, (ub - ld) / p, f"cvxpy:{solver}", str(prob.status), its,
+                      time.perf_counter() - t0)
+
+
+# --- rounding and exchange ------------------------------------------------------------
+
+
+def exchange(A: np.ndarray, m: int, start, *, n_candidates: int | None = None,
+             max_swaps: int | None = None, weights: np.ndarray | None = None) -> ExactDesign:
+    """Fedorov exchange from a starting set of M distinct poses.
+
+    Parameters
+    ----------
+    A : ndarray, shape (N, r, p)
+    m : int
+    start : array_like of int
+        M distinct pool rows.
+    n_candidates : int, optional
+        Unselected poses considered per swap: those of largest variance
+        ``d_i`` under the current set (a swap-in gains at most
+        ``det(I + A_i M^-1 A_i^T)``, so low-variance poses cannot help much);
+        default ``max(100, 2 M)``, capped by the pool.
+    max_swaps : int, optional
+        Default ``10 M``.
+    weights : ndarray, optional
+        Relaxed weights: candidates with positive weight are always considered.
+
+    Returns
+    -------
+    ExactDesign
+    """
+    A = np.asarray(A, dtype=float)
+    _check_m(A, m)
+    t0 = time.perf_counter()
+    pool = _Pool(A, m)
+    N, r, p = pool.N, pool.r, pool.p
+    X = np.array(start, dtype=int).ravel()
+    if len(X) != m or len(np.unique(X)) != m or X.min() < 0 or X.max() >= N:
+        raise InputError(f"the starting design must hold {m} distinct pool rows")
+    nc = min(N - m, n_candidates or max(100, 2 * m))
+    max_swaps = 10 * m if max_swaps is None else max_swaps
+    support = np.flatnonzero(weights > 1e-6) if weights is not None else np.zeros(0, int)
+    # a tiny ridge keeps the criterion finite for a rank-deficient start; swaps that
+    # restore the rank then have huge ratios
+    ridge = 1e-10 * np.eye(p)
+    swaps = 0
+    I = np.eye(r)
+    while nc > 0 and swaps < max_swaps:
+        Ms = pool.info(X, np.ones(m)) + ridge
+        Minv = np.linalg.inv(Ms)
+        L = np.linalg.cholesky(Ms)
+        d = pool.variances(np.linalg.inv(L))
+        d[X] = -np.inf
+        cand = np.argpartition(-d, nc - 1)[:nc] if nc < N - m else np.flatnonzero(np.isfinite(d))
+        if len(support):
+            extra = np.setdiff1d(support, np.concatenate([cand, X]))
+            cand = np.concatenate([cand, extra])
+        best = (1.0 + 1e-10, -1, -1)
+        AX = A[X] * pool.c
+        BX = AX @ Minv  # (m, r, p)
+        Boo = np.einsum("oip,ojp->oij", BX, AX)
+        step = max(1, 2_000_000 // (m * (2 * r) ** 2))
+        for s in range(0, len(cand), step):
+            AC = A[cand[s:s + step]] * pool.c
+            GC = AC @ Minv
+            Bcc = np.einsum("cip,cjp->cij", GC, AC)
+            Bco = np.einsum("cip,ojp->coij", GC, AX)
+            K = np.empty((len(AC), m, 2 * r, 2 * r))
+            K[:, :, :r, :r] = (I + Bcc)[:, None]
+            K[:, :, :r, r:] = Bco
+            K[:, :, r:, :r] = -Bco.transpose(0, 1, 3, 2)
+            K[:, :, r:, r:] = (I - Boo)[None]
+            ratio = np.linalg.det(K)
+            c, o = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
+            if ratio[c, o] > best[0]:
+                best = (float(ratio[c, o]), int(cand[s + c]), int(o))
+        if best[1] < 0:
+            break
+        X[best[2]] = best[1]
+        swaps += 1
+    X = np.sort(X)
+    sign, ld = np.linalg.slogdet(pool.info(X, np.ones(m)))
+    ld = float(ld) - 2.0 * pool.log_c if sign > 0 else -math.inf
+    return ExactDesign(X, ld, swaps, time.perf_counter() - t0)
+
+
+def round_weights(weights: np.ndarray, m: int, tiebreak: np.ndarray | None = None) -> np.ndarray:
+    """The M candidates of largest weight (ties broken by ``tiebreak``, e.g. the variances)."""
+    w = np.asarray(weights, dtype=float)
+    key = w if tiebreak is None else w + 1e-9 * tiebreak / max(float(np.max(np.abs(tiebreak))), 1e-300)
+    return np.sort(np.argsort(-key, kind="stable")[:m])
+
+
+def d_optimal_design(A: np.ndarray, m: int, *, relaxation: str = "first-order",
+                     settings: RelaxationSettings | None = None,
+                     n_candidates: int | None = None) -> DOptimalDesign:
+    """Certified D-optimal choice of M distinct poses.
+
+    Parameters
+    ----------
+    A : ndarray, shape (N, r, p)
+        Scaled Jacobian blocks of the identifiable parameters over the pool.
+    m : int
+        Number of poses M.
+    relaxation : {"first-order", "cvxpy"}
+        Relaxation solver.
+    settings : RelaxationSettings, optional
+        For the first-order solver.
+    n_candidates : int, optional
+        See :func:`exchange`.
+
+    Returns
+    -------
+    DOptimalDesign
+    """
+    A = np.asarray(A, dtype=float)
+    _check_m(A, m)
+    t0 = time.perf_counter()
+    if relaxation == "first-order":
+        rel = relax_multiplicative(A, m, settings)
+    elif relaxation == "cvxpy":
+        rel = relax_cvxpy(A, m)
+    else:
+        raise InputError(f"relaxation must be 'first-order' or 'cvxpy', got {relaxation!r}")
+    ex = exchange(A, m, round_weights(rel.weights, m), n_candidates=n_candidates,
+                  weights=rel.weights)
+    p = A.shape[2]
+    ub = rel.upper_bound
+    if math.isfinite(ex.log_det):
+        # the exact design is itself a feasible point of the relaxation: its bound holds too
+        w = np.zeros(A.shape[0])
+        w[ex.indices] = 1.0
+        ub = min(ub, upper_bound(A, m, w))
+    return DOptimalDesign(ex.indices, ex.log_det, ub, d_efficiency(ex.log_det, ub, p), rel, ex,
+                          time.perf_counter() - t0)
