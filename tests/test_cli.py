@@ -15,7 +15,7 @@ def run(*args):
     return subprocess.run([sys.executable, "-m", "casadical", *args], capture_output=True, text=True)
 
 
-@pytest.mark.parametrize("cmd", ["inspect", "predict", "simulate", "import-ur10", "calibrate"])
+@pytest.mark.parametrize("cmd", ["inspect", "predict", "simulate", "import-ur10", "calibrate", "diagnose", "split"])
 def test_help(cmd, capsys):
     with pytest.raises(SystemExit) as e:
         main([cmd, "--help"])

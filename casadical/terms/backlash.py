@@ -46,15 +46,20 @@ class Backlash(ErrorTerm):
     def settings(self) -> dict:
         return {"joints": self.joints, "source": self.source}
 
+    @property
+    def prefix(self) -> str:
+        """Parameter name prefix: both kinds can sit in one model."""
+        return "backlash" if self.source == "torque" else "backlash_m"
+
     def parameters(self, robot: Robot) -> list[Parameter]:
-        return [Parameter(f"backlash{j}", 0.0, "rad", 1e-4, self.name, j,
+        return [Parameter(f"{self.prefix}{j}", 0.0, "rad", 1e-4, self.name, j,
                           lower=0.0, upper=math.radians(1.0)) for j in self.joints]
 
     def joint_offsets(self, ctx: Context) -> dict:
         if self.source == "torque":
             tau = ctx.torques()
             return {j: ctx.p[f"backlash{j}"] * ca.sign(tau[j - 1]) for j in self.joints}
-        return {j: ctx.p[f"backlash{j}"] * ctx.cov[f"move{j}"] for j in self.joints}
+        return {j: ctx.p[f"backlash_m{j}"] * ctx.cov[f"move{j}"] for j in self.joints}
 
 
 @register

@@ -1,0 +1,103 @@
+"""Candidate extensions of the model, and how to compose them into a model specification."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+
+@dataclass(frozen=True)
+class Candidate:
+    """One possible cause of the remaining error.
+
+    Attributes
+    ----------
+    cause : str
+        Cause name of INTERFACE.md section 4.
+    joint, harmonic : int or None
+    source : str or None
+        For backlash: ``torque`` or ``motion``.
+    """
+
+    cause: str
+    joint: int | None = None
+    harmonic: int | None = None
+    source: str | None = None
+
+    def label(self) -> str:
+        parts = [self.cause]
+        if self.joint is not None:
+            parts.append(f"joint {self.joint}")
+        if self.harmonic is not None:
+            parts.append(f"harmonic {self.harmonic}")
+        if self.source == "motion":
+            parts.append("(direction of motion)")
+        return " ".join(parts)
+
+    def to_dict(self) -> dict:
+        d: dict = {"cause": self.cause}
+        if self.joint is not None:
+            d["joint"] = self.joint
+        if self.harmonic is not None:
+            d["harmonic"] = self.harmonic
+        if self.source is not None:
+            d["source"] = self.source
+        return d
+
+    def parameter_names(self) -> list[str]:
+        """Names of the parameters this candidate adds to a model."""
+        j, h = self.joint, self.harmonic
+        return {
+            "joint_compliance": [f"c{j}"],
+            "joint_periodic": [f"gear{j}_s{h}", f"gear{j}_c{h}"],
+            "encoder_scale": [f"escale{j}"],
+            "backlash": [f"backlash{j}" if self.source != "motion" else f"backlash_m{j}"],
+            "thermal_expansion": ["thermal_alpha"],
+        }[self.cause]
+
+
+def compose_spec(candidates: list[Candidate], geometric: bool = True) -> str:
+    """Model specification holding every candidate (same terms merged)."""
+    comp = sorted({c.joint for c in candidates if c.cause == "joint_compliance"})
+    per = sorted({(c.joint, c.harmonic) for c in candidates if c.cause == "joint_periodic"})
+    enc = sorted({c.joint for c in candidates if c.cause == "encoder_scale"})
+    blt = sorted({c.joint for c in candidates if c.cause == "backlash" and c.source != "motion"})
+    blm = sorted({c.joint for c in candidates if c.cause == "backlash" and c.source == "motion"})
+    parts = ["kinematic" if geometric else "nominal"]
+    if comp:
+        parts.append(f"joint_compliance[{','.join(map(str, comp))}]")
+    if per:
+        parts.append(f"joint_periodic[{','.join(f'{j}:{h}' for j, h in per)}]")
+    if enc:
+        parts.append(f"encoder_scale[{','.join(map(str, enc))}]")
+    if blt:
+        parts.append(f"backlash[{','.join(map(str, blt))}]")
+    if blm:
+        parts.append(f"backlash_motion[{','.join(map(str, blm))}]")
+    if any(c.cause == "thermal_expansion" for c in candidates):
+        parts.append("thermal_expansion")
+    return "+".join(parts)
+
+
+#: How to tell apart two causes that explain the same residual on the data at hand.
+TELL_APART = {
+    frozenset({"encoder_scale", "joint_periodic"}):
+        "measure joint {j} over a wider range (more than half a turn): a scale error grows with the "
+        "angle while a first harmonic turns back",
+    frozenset({"joint_compliance", "backlash"}):
+        "measure the same poses with two payloads: a compliant joint deflects in proportion to the load, "
+        "backlash does not",
+    frozenset({"joint_compliance", "encoder_scale"}):
+        "measure the same poses with two payloads, or with joint {j} at mirrored angles",
+    frozenset({"backlash"}):
+        "approach the same poses from both directions of joint {j}: play that follows the motion changes "
+        "sign, play that follows gravity does not",
+    frozenset({"thermal_expansion", "joint_compliance"}):
+        "repeat poses at another temperature in random order",
+}
+
+
+def tell_apart(a: Candidate, b: Candidate) -> str:
+    key = frozenset({a.cause, b.cause})
+    text = TELL_APART.get(key, "measure poses where the two candidates predict different errors "
+                               "(wider joint ranges, other loads or temperatures)")
+    return text.format(j=a.joint if a.joint is not None else b.joint)

@@ -1,0 +1,68 @@
+"""Periodicity of the residuals in each joint angle.
+
+The residual of each pose is projected on the direction the tool point moves
+when joint j turns (the model's Jacobian column of ``theta<j>``), which
+estimates joint j's angle error at that pose. A least-squares periodogram
+over harmonics 1..H of that error against the joint reading finds periodic
+transmission errors (gear errors of tens of cycles per turn included);
+irregular sampling of the angles makes it free of the aliasing of an FFT.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class Periodogram:
+    """Weighted least-squares periodogram of one joint's projected residual.
+
+    Attributes
+    ----------
+    joint : int
+    harmonics : ndarray of int
+    power : ndarray
+        Fraction of the projected residual's weighted sum of squares that
+        ``a sin(h q) + b cos(h q)`` removes, per harmonic.
+    amplitude : ndarray
+        Fitted amplitude (rad) per harmonic.
+    """
+
+    joint: int
+    harmonics: np.ndarray
+    power: np.ndarray
+    amplitude: np.ndarray
+
+    def peaks(self, k: int = 2) -> list[int]:
+        """The ``k`` harmonics of highest power."""
+        return [int(h) for h in self.harmonics[np.argsort(-self.power)[:k]]]
+
+
+def joint_errors(residual: np.ndarray, direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Angle error estimate per pose and its weight, from residuals (N, 3) and d xyz / d theta_j (N, 3)."""
+    w = np.einsum("ij,ij->i", direction, direction)
+    s = np.einsum("ij,ij->i", residual, direction) / np.where(w > 0, w, np.inf)
+    return s, w
+
+
+def periodogram(q: np.ndarray, s: np.ndarray, w: np.ndarray, joint: int, max_harmonic: int) -> Periodogram:
+    """Weighted periodogram of angle errors ``s`` against readings ``q`` (rad)."""
+    hs = np.arange(1, max_harmonic + 1)
+    sw = np.sqrt(w)
+    y = s * sw
+    # remove the weighted mean and linear trend (offset and scale are fitted by the model already)
+    base = np.column_stack([sw, sw * q])
+    y = y - base @ np.linalg.lstsq(base, y, rcond=None)[0]
+    total = float(y @ y)
+    power, amp = np.zeros(len(hs)), np.zeros(len(hs))
+    if total <= 0:
+        return Periodogram(joint, hs, power, amp)
+    for k, h in enumerate(hs):
+        A = np.column_stack([sw * np.sin(h * q), sw * np.cos(h * q), base])
+        coef = np.linalg.lstsq(A, y, rcond=None)[0]
+        fit = A @ coef
+        power[k] = float(fit @ fit) / total
+        amp[k] = float(np.hypot(coef[0], coef[1]))
+    return Periodogram(joint, hs, power, amp)

@@ -1,0 +1,52 @@
+"""Statistical tests that decide whether an extension of the model is supported."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+
+@dataclass
+class NestedTest:
+    """F-test and BIC of a model with ``k`` more parameters than the reference.
+
+    Attributes
+    ----------
+    f : float
+        F statistic.
+    dof : (int, int)
+    log10_p : float
+        log10 of the p-value (p itself underflows for strong effects).
+    delta_bic : float
+        BIC(extended) - BIC(reference); negative favours the extension.
+    """
+
+    f: float
+    dof: tuple[int, int]
+    log10_p: float
+    delta_bic: float
+
+    def text(self) -> str:
+        p = f"p = {10 ** self.log10_p:.2g}" if self.log10_p > -300 else "p < 1e-300"
+        return f"F = {self.f:.4g} ({self.dof[0]} and {self.dof[1]} dof, {p}), BIC change {self.delta_bic:+.1f}"
+
+
+def nested_test(ssr0: float, p0: int, ssr1: float, p1: int, n: int) -> NestedTest:
+    """Compare nested least-squares fits: SSR and parameter counts, ``n`` equations."""
+    k = max(p1 - p0, 1)
+    dof2 = max(n - p1, 1)
+    f = ((ssr0 - ssr1) / k) / (ssr1 / dof2) if ssr1 > 0 else math.inf
+    log10_p = float(stats.f.logsf(max(f, 0.0), k, dof2) / math.log(10)) if math.isfinite(f) else -math.inf
+    bic = n * (math.log(ssr1 / n) - math.log(ssr0 / n)) + (p1 - p0) * math.log(n)
+    return NestedTest(float(f), (k, dof2), log10_p, float(bic))
+
+
+def paired_gain(before: np.ndarray, after: np.ndarray) -> float:
+    """One-sided Wilcoxon signed-rank p-value that ``after`` errors are smaller."""
+    d = np.asarray(before) - np.asarray(after)
+    if np.allclose(d, 0):
+        return 1.0
+    return float(stats.wilcoxon(d, alternative="greater").pvalue)

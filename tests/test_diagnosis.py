@@ -1,0 +1,115 @@
+"""Diagnosis: a hidden effect must be named with its joint; noise alone must give no finding."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from casadical import load_robot
+from casadical.cli import main
+from casadical.diagnosis import DiagnosisSettings, diagnose
+from casadical.robot import robot_from_dict
+from casadical.simulate import Effects, simulate
+
+SEEDS = [0, 1, 2]
+
+
+def run(robot, effects, seed, n_cal=80, n_val=200, **kw):
+    cal, truth = simulate(robot, n_cal, effects, seed=seed, **kw)
+    val, _ = simulate(robot, n_val, truth=truth, seed=seed + 500, **kw)
+    return diagnose(robot, cal, val, DiagnosisSettings(seed=seed))
+
+
+def causes(report):
+    return [(f.candidate.cause, f.candidate.joint, f.candidate.harmonic) for f in report.findings]
+
+
+def assert_found(report, cause, joint=None, harmonic=None):
+    named = causes(report)
+    extra = [c for c in named if c[0] not in ("geometric", cause)]
+    assert any(c[0] == cause and (joint is None or c[1] == joint) and (harmonic is None or c[2] == harmonic)
+               for c in named), named
+    assert not extra, f"spurious findings {extra} in {named}"
+    f = next(f for f in report.findings if f.candidate.cause == cause)
+    assert f.gain_mm > 0 and "F =" in f.evidence
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_compliant_joint(seed):
+    rep = run(load_robot("ys100"), Effects(stiffness={3: 1.2e6}), seed)
+    assert_found(rep, "joint_compliance", 3)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_periodic_gear_error(seed):
+    rep = run(load_robot("ys100"), Effects(periodic=[(2, 23, math.radians(0.008), 1.0)]), seed)
+    assert_found(rep, "joint_periodic", 2, 23)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_encoder_scale(seed):
+    rep = run(load_robot("ys100"), Effects(encoder_scale={4: 4e-4}), seed)
+    assert_found(rep, "encoder_scale", 4)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_backlash(seed):
+    rep = run(load_robot("ys100"), Effects(backlash={2: math.radians(0.01)}), seed)
+    assert_found(rep, "backlash", 2)
+    assert rep.findings[-1].candidate.source == "torque"
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_thermal_expansion(seed):
+    rep = run(load_robot("ys100"), Effects(thermal_alpha=15e-6, temperature=(15.0, 35.0)), seed)
+    assert_found(rep, "thermal_expansion")
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_noise_only_gives_no_further_finding(seed):
+    rep = run(load_robot("ys100"), Effects(), seed)
+    assert causes(rep) == [("geometric", None, None)]
+    assert rep.final_model == "kinematic"
+
+
+PLANAR_ARM = {
+    "name": "three-axis test arm", "convention": "dh",
+    "joint": [
+        {"alpha_deg": 90, "a_m": 0.15, "d_m": 0.4, "min_deg": -170, "max_deg": 170, "mass_kg": 30,
+         "com_m": [0, -0.1, 0]},
+        {"alpha_deg": 0, "a_m": 0.8, "d_m": 0.0, "beta_deg": 0.0, "min_deg": -10, "max_deg": 170,
+         "mass_kg": 25, "com_m": [-0.4, 0, 0]},
+        {"alpha_deg": 0, "a_m": 0.6, "d_m": 0.0, "min_deg": -150, "max_deg": 150, "mass_kg": 12,
+         "com_m": [-0.3, 0, 0]},
+    ],
+    "tool": {"a_m": 0.1, "b_m": 0.02, "d_m": 0.05},
+    "payload": {"mass_kg": 20},
+}
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_other_robot_compliance(seed):
+    robot = robot_from_dict(PLANAR_ARM)
+    rep = run(robot, Effects(stiffness={2: 4e5}), seed, n_cal=60, n_val=120, floor_z=None)
+    assert_found(rep, "joint_compliance", 2)
+
+
+def test_cli_json_contract_and_html(tmp_path):
+    robot = load_robot("ys100")
+    cal, truth = simulate(robot, 60, Effects(stiffness={2: 1.5e6}), seed=9)
+    val, _ = simulate(robot, 80, truth=truth, seed=10)
+    cal.write_csv(tmp_path / "cal.csv")
+    val.write_csv(tmp_path / "val.csv")
+    args = ["diagnose", "ys100", str(tmp_path / "cal.csv"), "--validate", str(tmp_path / "val.csv"),
+            "--json", str(tmp_path / "r.json"), "--html", str(tmp_path / "r.html"), "--quiet"]
+    assert main(args) == 0
+    doc = json.loads((tmp_path / "r.json").read_text())
+    assert doc["steps"][0]["model"] == "nominal" and doc["steps"][1]["model"] == "kinematic"
+    assert {"mean_mm", "max_mm", "rms_mm"} <= set(doc["steps"][0]["validation"])
+    f = [f for f in doc["findings"] if f["cause"] == "joint_compliance"][0]
+    assert f["joint"] == 2 and f["gain_mm"] > 0 and f["evidence"]
+    assert {"model", "validation"} <= set(doc["final"])
+    page = (tmp_path / "r.html").read_text()
+    assert page.startswith("<!DOCTYPE html>") and page.count("<svg") >= 3
+    assert main(args) == 2  # refuses to overwrite the reports
