@@ -138,7 +138,7 @@ def cmd_diagnose(args) -> int:
     cal = Measurements.read_csv(args.data, n_joints=robot.n, require_positions=True)
     val = Measurements.read_csv(args.validate, n_joints=robot.n, require_positions=True)
     settings = DiagnosisSettings(alpha=args.alpha, max_harmonic=args.max_harmonic,
-                                 blackbox=not args.no_blackbox, seed=args.seed)
+                                 max_rounds=args.max_rounds, blackbox=not args.no_blackbox, seed=args.seed)
     report = diagnose(robot, cal, val, settings,
                       progress=None if args.quiet else (lambda line: print(line, file=sys.stderr)))
     print(report.text())
@@ -263,6 +263,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--html", metavar="REPORT.html", help="also write a self-contained HTML report")
     p.add_argument("--alpha", type=float, default=0.01, help="family-wise significance level (default 0.01)")
     p.add_argument("--max-harmonic", type=int, default=60, help="highest harmonic scanned (default 60)")
+    p.add_argument("--max-rounds", type=int, default=8, help="most extensions accepted (default 8)")
     p.add_argument("--no-blackbox", action="store_true", help="skip the black-box compensator step")
     p.add_argument("--seed", type=int, default=0)
     p.add_argument("--quiet", action="store_true", help="no progress lines")

@@ -9,7 +9,7 @@ import numpy as np
 
 from .run import DiagnosisReport
 
-W, H, PAD = 560, 300, 48
+W, H, PAD, TOP = 560, 300, 58, 34
 
 
 def _scale(v, lo, hi, a, b):
@@ -27,20 +27,20 @@ def _ticks(lo: float, hi: float, n: int = 5) -> list[float]:
     return list(np.arange(math.ceil(lo / step) * step, hi + step * 1e-9, step))
 
 
-def _axes(xlo, xhi, ylo, yhi, xlabel, ylabel, title) -> list[str]:
+def _axes(xlo, xhi, ylo, yhi, xlabel, ylabel, title, xticks: bool = True) -> list[str]:
     out = [f'<svg xmlns="http://www.w3.org/2000/svg" width="{W}" height="{H}" font-family="sans-serif" '
            f'font-size="11"><rect width="{W}" height="{H}" fill="white"/>',
            f'<text x="{W / 2}" y="14" text-anchor="middle" font-weight="bold">{html.escape(title)}</text>',
            f'<line x1="{PAD}" y1="{H - PAD}" x2="{W - 10}" y2="{H - PAD}" stroke="black"/>',
-           f'<line x1="{PAD}" y1="{H - PAD}" x2="{PAD}" y2="24" stroke="black"/>',
+           f'<line x1="{PAD}" y1="{H - PAD}" x2="{PAD}" y2="{TOP}" stroke="black"/>',
            f'<text x="{W / 2}" y="{H - 10}" text-anchor="middle">{html.escape(xlabel)}</text>',
            f'<text x="12" y="{H / 2}" text-anchor="middle" transform="rotate(-90 12 {H / 2})">'
            f'{html.escape(ylabel)}</text>']
-    for t in _ticks(xlo, xhi):
+    for t in _ticks(xlo, xhi) if xticks else []:
         x = _scale(t, xlo, xhi, PAD, W - 10)
         out.append(f'<text x="{x:.1f}" y="{H - PAD + 14}" text-anchor="middle">{t:.4g}</text>')
     for t in _ticks(ylo, yhi):
-        y = _scale(t, ylo, yhi, H - PAD, 24)
+        y = _scale(t, ylo, yhi, H - PAD, TOP)
         out.append(f'<text x="{PAD - 4}" y="{y + 4:.1f}" text-anchor="end">{t:.4g}</text>'
                    f'<line x1="{PAD}" y1="{y:.1f}" x2="{W - 10}" y2="{y:.1f}" stroke="#eee"/>')
     return out
@@ -57,7 +57,7 @@ def scatter(series: list[tuple[list, list, str, str]], xlabel: str, ylabel: str,
         xlo, xhi = xlo - 1, xhi + 1
     out = _axes(xlo, xhi, ylo, yhi, xlabel, ylabel, title)
     for k, (x, y, colour, legend) in enumerate(series):
-        pts = [(_scale(a, xlo, xhi, PAD, W - 10), _scale(b, ylo, yhi, H - PAD, 24)) for a, b in zip(x, y)]
+        pts = [(_scale(a, xlo, xhi, PAD, W - 10), _scale(b, ylo, yhi, H - PAD, TOP)) for a, b in zip(x, y)]
         if lines:
             out.append(f'<polyline fill="none" stroke="{colour}" stroke-width="1.5" points="'
                        + " ".join(f"{a:.1f},{b:.1f}" for a, b in pts) + '"/>')
@@ -71,16 +71,27 @@ def scatter(series: list[tuple[list, list, str, str]], xlabel: str, ylabel: str,
 
 def bars(labels: list[str], values: list[float], ylabel: str, title: str, colours: list[str]) -> str:
     hi = max(values) if values else 1.0
-    out = _axes(0, len(values), 0, hi, "", ylabel, title)
+    out = _axes(0, len(values), 0, hi, "", ylabel, title, xticks=False)
     bw = (W - 10 - PAD) / max(len(values), 1)
     for k, (lab, v, c) in enumerate(zip(labels, values, colours)):
         x = PAD + k * bw + 4
-        y = _scale(v, 0, hi, H - PAD, 24)
+        y = _scale(v, 0, hi, H - PAD, TOP)
         out.append(f'<rect x="{x:.1f}" y="{y:.1f}" width="{bw - 8:.1f}" height="{H - PAD - y:.1f}" fill="{c}"/>'
                    f'<text x="{x + (bw - 8) / 2:.1f}" y="{y - 3:.1f}" text-anchor="middle">{v:.3f}</text>'
-                   f'<text x="{x + (bw - 8) / 2:.1f}" y="{H - PAD + 26}" text-anchor="middle" font-size="9">'
-                   f'{html.escape(lab[:22])}</text>')
+                   f'<text x="{x + (bw - 8) / 2:.1f}" y="{H - PAD + 12}" text-anchor="end" font-size="9" '
+                   f'transform="rotate(-35 {x + (bw - 8) / 2:.1f} {H - PAD + 12})">{html.escape(lab[:24])}</text>')
     return "\n".join(out + ["</svg>"])
+
+
+def _short(step) -> str:
+    """Bar label: what the step added."""
+    c = step.candidate
+    if c is None or c.cause == "geometric":
+        return step.model
+    abbrev = {"joint_compliance": "compliance", "joint_periodic": "periodic", "encoder_scale": "encoder",
+              "backlash": "backlash", "thermal_expansion": "thermal", "unexplained": "black box"}[c.cause]
+    parts = [abbrev] + ([f"j{c.joint}"] if c.joint else []) + ([f"h{c.harmonic}"] if c.harmonic else [])
+    return "+" + " ".join(parts)
 
 
 def render(report: DiagnosisReport) -> str:
@@ -106,7 +117,7 @@ def render(report: DiagnosisReport) -> str:
                      f"<td style='text-align:left'>{esc(s.reason)}</td></tr>")
     parts.append("</table>")
     acc = [s for s in report.steps if s.accepted]
-    parts.append("<div class='fig'>" + bars([s.model.split("+")[-1] for s in acc],
+    parts.append("<div class='fig'>" + bars([_short(s) for s in acc],
                                            [s.validation.mean_mm for s in acc], "validation mean (mm)",
                                            "validation mean error along the accepted steps",
                                            ["#4477aa"] * len(acc)) + "</div>")

@@ -243,6 +243,9 @@ class _Diagnosis:
                 break
             current, cand = new
             accepted.append(cand)
+        else:
+            self.notes.append(f"stopped after {self.s.max_rounds} accepted extensions (max_rounds): further "
+                              "causes may still be significant; raise the limit to look for them")
         return current, compose_spec(accepted, geometric)
 
     def candidates(self, current: CalibrationResult, accepted: list[Candidate]) -> list[Candidate]:
