@@ -16,9 +16,11 @@ Inputs of every model function, per pose:
 
 from __future__ import annotations
 
+import atexit
 import os
 import re
 import shutil
+import tempfile
 from dataclasses import dataclass
 from functools import cache
 
@@ -201,8 +203,9 @@ class Model:
         fun = self._compiled.get((which, jit))
         if fun is None:
             ins, outs, _, _ = self._graphs[which]
-            opts = {"jit": True, "compiler": "shell",
-                    "jit_options": {"flags": ["-O2"], "verbose": False}} if jit else {}
+            opts = {"jit": True, "compiler": "shell", "jit_cleanup": False, "jit_name": f"casadical_{which}",
+                    "jit_options": {"flags": ["-O2"], "verbose": False, "directory": _jit_dir(),
+                                    "cleanup": False}} if jit else {}  # the folder goes at exit
             fun = self._compiled[(which, jit)] = ca.Function(which, ins, outs, opts)
         return fun
 
@@ -312,6 +315,17 @@ def base0_to_pose(b0: np.ndarray) -> np.ndarray:
     T[:3, :3] = np.asarray(b0[:9]).reshape(3, 3)
     T[:3, 3] = b0[9:12]
     return T
+
+
+@cache
+def _jit_dir() -> str:
+    """A private folder for the JIT's C sources and libraries, removed when Python exits.
+
+    Without it CasADi writes them to the working directory, i.e. into the user's files.
+    """
+    d = tempfile.mkdtemp(prefix="casadical-jit-")
+    atexit.register(shutil.rmtree, d, ignore_errors=True)
+    return d
 
 
 @cache
