@@ -21,13 +21,14 @@ import os
 import re
 import shutil
 import tempfile
+import warnings
 from dataclasses import dataclass
 from functools import cache
 
 import casadi as ca
 import numpy as np
 
-from .errors import ModelError
+from .errors import CasadicalWarning, ModelError
 from .kinematics import Geometry, base_pose_matrix, chain_angles, compose, forward, rpy_pose
 from .parameters import Parameters
 from .robot import Robot
@@ -206,7 +207,17 @@ class Model:
             opts = {"jit": True, "compiler": "shell", "jit_cleanup": False, "jit_name": f"casadical_{which}",
                     "jit_options": {"flags": ["-O2"], "verbose": False, "directory": _jit_dir(),
                                     "cleanup": False}} if jit else {}  # the folder goes at exit
-            fun = self._compiled[(which, jit)] = ca.Function(which, ins, outs, opts)
+            try:
+                fun = ca.Function(which, ins, outs, opts)
+            except RuntimeError as e:
+                if not jit:
+                    raise
+                # a broken compiler must not stop a calibration: the VM gives the same numbers
+                warnings.warn(f"JIT compilation failed, using CasADi's virtual machine ({str(e)[-200:]})",
+                              CasadicalWarning, stacklevel=3)
+                self.jit = False
+                fun = ca.Function(which, ins, outs)
+            self._compiled[(which, jit)] = fun
         return fun
 
     def batch_function(self, which: str, N: int) -> ca.Function:

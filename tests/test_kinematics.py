@@ -182,3 +182,22 @@ def test_model_rejects_bad_inputs():
         Model(load_robot("ys100"), "kinematic+stiffnesss")
     with pytest.raises(ModelError, match="do not exist"):
         Model(load_robot("ys100"), "kinematic+compliance[7]")
+
+
+def test_jit_falls_back_without_compiler(tmp_path):
+    """No C compiler: same numbers from CasADi's VM, one warning, no files in the working folder."""
+    import subprocess
+    import sys
+    code = ("import numpy as np, warnings\n"
+            "from casadical import Model, load_robot\n"
+            "q = np.linspace(-1, 1, 12).reshape(2, 6)\n"
+            "ref = Model(load_robot('ys100'), 'kinematic', jit=False).predict(q)\n"
+            "with warnings.catch_warnings(record=True) as w:\n"
+            "    warnings.simplefilter('always')\n"
+            "    got = Model(load_robot('ys100'), 'kinematic', jit=True).predict(q)\n"
+            "assert np.allclose(got, ref, atol=1e-14)\n"
+            "assert any('JIT compilation failed' in str(x.message) for x in w)\n")
+    env = {"PATH": str(tmp_path), "HOME": str(tmp_path)}
+    r = subprocess.run([sys.executable, "-c", code], cwd=tmp_path, env=env, capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert list(tmp_path.iterdir()) == []
