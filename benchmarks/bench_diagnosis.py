@@ -1,0 +1,66 @@
+"""Diagnosis speed: the score-test screening against fitting every candidate, same data, same run.
+
+    python benchmarks/bench_diagnosis.py            # 80 + 200 poses and 300 + 1,200 poses
+
+Targets (issue "Diagnosis"): 80 calibration + 200 validation poses within
+30 s; 1,500 poses within 2 minutes, on 2 cores. The baseline is what a
+diagnosis without the score test would do in its first round: calibrate the
+model extended by each candidate, one by one.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import time
+
+from casadical import calibrate, load_robot
+from casadical.diagnosis import DiagnosisSettings, diagnose
+from casadical.diagnosis.candidates import compose_spec
+from casadical.diagnosis.run import _Diagnosis
+from casadical.simulate import Effects, simulate
+
+
+def case(n_cal: int, n_val: int, seed: int = 0):
+    robot = load_robot("ys100")
+    eff = Effects(stiffness={2: 1.7e6, 3: 1.2e6}, periodic=[(2, 17, math.radians(0.01), 0.5)],
+                  backlash={4: math.radians(0.01)})
+    cal, truth = simulate(robot, n_cal, eff, seed=seed)
+    val, _ = simulate(robot, n_val, truth=truth, seed=seed + 1)
+    return robot, cal, val
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--quick", action="store_true", help="only the small case")
+    args = ap.parse_args()
+    sizes = [(80, 200)] + ([] if args.quick else [(300, 1200)])
+    print(f"{'poses':>12} {'diagnose s':>11} {'findings':>40} {'round-1 score s':>16} "
+          f"{'round-1 fit-all s':>18} {'ratio':>6}")
+    for n_cal, n_val in sizes:
+        robot, cal, val = case(n_cal, n_val)
+        t = time.perf_counter()
+        rep = diagnose(robot, cal, val, DiagnosisSettings())
+        t_diag = time.perf_counter() - t
+        found = ", ".join(f.candidate.label().replace("joint_", "").replace(" joint ", " j")
+                          for f in rep.findings[1:])
+        # round 1 alone: score test of all candidates vs a real fit of each
+        dg = _Diagnosis(robot, cal, val, DiagnosisSettings(), lambda _: None)
+        kin = dg.fit("kinematic")
+        t = time.perf_counter()
+        cands = dg.candidates(kin, [])
+        dg.screen(kin, [], cands, True)
+        t_score = time.perf_counter() - t
+        t = time.perf_counter()
+        for c in cands:
+            calibrate(robot, cal, compose_spec([c]), "lm", warn=False)
+        t_all = time.perf_counter() - t
+        print(f"{n_cal:>5}+{n_val:<6} {t_diag:>11.1f} {found[:40]:>40} {t_score:>16.2f} {t_all:>18.2f} "
+              f"{t_all / t_score:>6.1f}")
+        target = 30 if n_cal + n_val <= 280 else 120
+        print(f"  target {target} s: {'met' if t_diag < target else 'NOT met'} ({len(cands)} candidates "
+              "in round 1)")
+
+
+if __name__ == "__main__":
+    main()
