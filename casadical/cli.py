@@ -194,7 +194,7 @@ def cmd_import_ur10(args) -> int:
     from .importers.ur10 import convert_ur10
 
     _check_out(args.out, args.force, [args.source])
-    n = convert_ur10(args.source, args.out, overwrite=args.force)
+    n = convert_ur10(args.source, args.out, overwrite=args.force, sort_by_time=not args.keep_order)
     print(f"converted {n} poses -> {args.out}")
     return 0
 
@@ -295,6 +295,8 @@ def build_parser() -> argparse.ArgumentParser:
                                    "to the measurement CSV contract.")
     p.add_argument("source")
     _add_out(p, help="output CSV")
+    p.add_argument("--keep-order", action="store_true",
+                   help="keep the file's row order where the timestamps say otherwise (default: sort by time)")
     p.add_argument("--force", action="store_true", help="replace OUT if it exists")
     p.set_defaults(func=cmd_import_ur10)
 

@@ -176,17 +176,24 @@ class Measurements:
         return data
 
     def write_csv(self, path: str | Path, overwrite: bool = False) -> None:
-        """Write the contract CSV; refuses to replace a file unless ``overwrite``."""
-        path = Path(path)
-        if path.exists() and not overwrite:
-            raise InputError("exists already; choose another name or pass --force to replace it",
-                             file=str(path))
+        """Write the contract CSV; refuses to replace a file unless ``overwrite``.
+
+        Floats are written with :func:`repr`, the shortest text that reads
+        back to the same double: nothing is lost in a round trip.
+        """
         header = list(self.columns)
-        with open(path, "w", newline="") as fh:
-            w = csv.writer(fh)
-            w.writerow(header)
-            for i in range(len(self)):
-                w.writerow([_fmt(self.columns[h][i]) for h in header])
+        try:
+            # mode "x" refuses an existing file without a check-then-write race
+            with open(path, "w" if overwrite else "x", newline="") as fh:
+                w = csv.writer(fh, lineterminator="\n")
+                w.writerow(header)
+                cols = [self.columns[h].tolist() for h in header]
+                w.writerows([_fmt(v) for v in row] for row in zip(*cols))
+        except FileExistsError:
+            raise InputError("exists already; choose another name or pass --force to replace it",
+                             file=str(path)) from None
+        except OSError as e:
+            raise InputError(f"cannot write: {e.strerror or e}", file=str(path)) from e
 
     @classmethod
     def from_arrays(cls, q_rad: np.ndarray, xyz_m: np.ndarray | None = None,
@@ -235,6 +242,4 @@ def _check_units(data: Measurements) -> None:
 
 
 def _fmt(x) -> str:
-    if isinstance(x, (float, np.floating)):
-        return format(float(x), ".12g")
-    return str(x)
+    return repr(float(x)) if isinstance(x, (float, np.floating)) else str(x)

@@ -10,7 +10,8 @@ import numpy as np
 import pytest
 
 from casadical.errors import DataFileError, DataWarning, InputError
-from casadical.importers.ur10 import convert_ur10, read_ur10, write_contract_csv
+from casadical.data import Measurements
+from casadical.importers.ur10 import convert_ur10, read_ur10
 
 DATASET = Path(__file__).resolve().parents[1] / "problems" / "datasets" / "ur10-ipa"
 RAW_A = DATASET / "raw" / "Series_A" / "measurements_grid.csv"
@@ -125,10 +126,10 @@ def test_rows_out_of_time_order_are_sorted_or_kept(tmp_path: Path) -> None:
     assert kept["time_s"].tolist() == [0.0, -46.0]
 
 
-def test_write_contract_csv_round_trips_exactly(tmp_path: Path) -> None:
+def test_write_csv_round_trips_exactly(tmp_path: Path) -> None:
     values = [0.1 + 0.2, -1.5708 * 180 / math.pi, 1e-300, 123456789.123456789]
     out = tmp_path / "out.csv"
-    write_contract_csv({"q1_deg": values, "x_mm": [0.0, 1.0, 2.0, 3.0]}, out)
+    Measurements({"q1_deg": np.array(values), "x_mm": np.array([0.0, 1.0, 2.0, 3.0])}).write_csv(out)
     header, rows = _read_csv(out)
     assert header == ["q1_deg", "x_mm"]
     assert [float(r[0]) for r in rows] == values
@@ -183,11 +184,11 @@ def test_refuses_to_overwrite(tmp_path: Path) -> None:
     src = _bad(tmp_path, HEADER + "\n" + ROW + "\n")
     dst = tmp_path / "out.csv"
     dst.write_text("keep me\n")
-    with pytest.raises(InputError, match="already exists") as info:
+    with pytest.raises(InputError, match="exists already") as info:
         convert_ur10(src, dst)
     assert info.value.file == str(dst)
-    with pytest.raises(InputError, match="already exists"):
-        write_contract_csv({"q1_deg": [1.0]}, dst)
+    with pytest.raises(InputError, match="exists already"):
+        Measurements({"q1_deg": np.array([1.0])}).write_csv(dst)
     assert dst.read_text() == "keep me\n"
     assert convert_ur10(src, dst, overwrite=True) == 1
     header, rows = _read_csv(dst)

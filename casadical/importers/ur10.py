@@ -17,13 +17,11 @@ Examples
 
 from __future__ import annotations
 
-import argparse
 import csv
 import io
 import math
 import os
 import re
-import sys
 import warnings
 from collections.abc import Mapping, Sequence
 from datetime import datetime
@@ -31,9 +29,10 @@ from pathlib import Path
 
 import numpy as np
 
-from casadical.errors import CasadicalError, DataFileError, DataWarning, InputError
+from ..data import Measurements
+from ..errors import CasadicalError, DataFileError, DataWarning, InputError
 
-__all__ = ["read_ur10", "write_contract_csv", "convert_ur10", "main"]
+__all__ = ["read_ur10", "convert_ur10"]
 
 _RAD2DEG = 180.0 / math.pi
 
@@ -311,72 +310,6 @@ def read_ur10(path: str | os.PathLike[str], sort_by_time: bool = True
     return ordered
 
 
-def write_contract_csv(columns: Mapping[str, Sequence[float] | np.ndarray],
-                       path: str | os.PathLike[str], overwrite: bool = False) -> None:
-    """Write columns as a contract measurement CSV (comma separated, header row).
-
-    Parameters
-    ----------
-    columns : mapping of str to array-like
-        Ordered column name -> 1-D numbers, all of the same length.
-    path : str or path-like
-        Output file.
-    overwrite : bool, default False
-        Replace ``path`` if it exists; otherwise an existing file is an error.
-
-    Raises
-    ------
-    InputError
-        ``path`` exists and ``overwrite`` is false, it cannot be written, or
-        the columns are empty, ragged, non-numeric or not finite.
-
-    Notes
-    -----
-    Values are written with :func:`repr`, the shortest text that reads back
-    to the same double, so nothing is lost in the round trip.
-    """
-    file = str(path)
-    if not columns:
-        raise InputError("no columns to write", file=file)
-    arrays: dict[str, np.ndarray] = {}
-    n_rows: int | None = None
-    for name, values in columns.items():
-        if not isinstance(name, str) or not name or any(c in name for c in ",\"\r\n"):
-            raise InputError("column names must be non-empty text without ',', "
-                             "quotes or line breaks", file=file, column=str(name))
-        try:
-            arr = np.asarray(values, dtype=float)
-        except (TypeError, ValueError):
-            raise InputError("values are not numbers", file=file, column=name) from None
-        if arr.ndim != 1:
-            raise InputError(f"expected a 1-D column, got shape {arr.shape}",
-                             file=file, column=name)
-        if n_rows is not None and arr.size != n_rows:
-            raise InputError(f"{arr.size} values but the first column has {n_rows}",
-                             file=file, column=name)
-        bad = np.flatnonzero(~np.isfinite(arr))
-        if bad.size:
-            # +2: the header is line 1 of the file to be written.
-            raise InputError("not a finite number (the contract has no missing values)",
-                             file=file, row=int(bad[0]) + 2, column=name)
-        n_rows = arr.size
-        arrays[name] = arr
-
-    # 'x' refuses an existing file atomically, without a check-then-write race.
-    mode = "w" if overwrite else "x"
-    data_rows = zip(*(a.tolist() for a in arrays.values()))
-    try:
-        with open(path, mode, newline="", encoding="utf-8") as handle:
-            writer = csv.writer(handle, lineterminator="\n")
-            writer.writerow(arrays)
-            writer.writerows([repr(v) for v in row] for row in data_rows)
-    except FileExistsError:
-        raise InputError("output file already exists; pass overwrite=True "
-                         "(--overwrite) to replace it", file=file) from None
-    except OSError as exc:
-        raise InputError(f"cannot write file: {exc.strerror or exc}", file=file) from None
-
-
 def convert_ur10(src: str | os.PathLike[str], dst: str | os.PathLike[str],
                  overwrite: bool = False, sort_by_time: bool = True) -> int:
     """Convert a raw UR10 measurement file to a contract measurement CSV.
@@ -386,7 +319,7 @@ def convert_ur10(src: str | os.PathLike[str], dst: str | os.PathLike[str],
     src : str or path-like
         Raw file, see :func:`read_ur10`.
     dst : str or path-like
-        Contract CSV to write, see :func:`write_contract_csv`.
+        Contract CSV to write (:meth:`casadical.data.Measurements.write_csv`).
     overwrite : bool, default False
         Replace ``dst`` if it exists.
     sort_by_time : bool, default True
@@ -407,52 +340,8 @@ def convert_ur10(src: str | os.PathLike[str], dst: str | os.PathLike[str],
     """
     # Fail before the (slow) read when the output is refused anyway.
     if not overwrite and Path(dst).exists():
-        raise InputError("output file already exists; pass overwrite=True "
-                         "(--overwrite) to replace it", file=str(dst))
+        raise InputError("exists already; choose another name or pass --force to replace it",
+                         file=str(dst))
     columns = read_ur10(src, sort_by_time=sort_by_time)
-    write_contract_csv(columns, dst, overwrite=overwrite)
+    Measurements(columns, str(src)).write_csv(dst, overwrite=overwrite)
     return len(next(iter(columns.values())))
-
-
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command line: ``python -m casadical.importers.ur10 SRC DST [--overwrite] [--keep-order]``.
-
-    Parameters
-    ----------
-    argv : sequence of str, optional
-        Arguments without the program name; default ``sys.argv[1:]``.
-
-    Returns
-    -------
-    int
-        Exit status: 0 on success, 1 on bad input (one-line message on stderr).
-    """
-    parser = argparse.ArgumentParser(
-        prog="casadical import-ur10",
-        description="Convert a raw UR10 (IPA) measurement file to a casadical "
-                    "measurement CSV.")
-    parser.add_argument("src", help="raw ';' separated, decimal-comma file")
-    parser.add_argument("dst", help="contract CSV to write")
-    parser.add_argument("--overwrite", action="store_true",
-                        help="replace DST if it exists")
-    parser.add_argument("--keep-order", action="store_true",
-                        help="keep the file's row order even where the timestamps "
-                             "say otherwise (default: sort rows by timestamp)")
-    args = parser.parse_args(argv)
-    try:
-        # Recorded, then printed as one plain line each instead of Python's format.
-        with warnings.catch_warnings(record=True) as caught:
-            warnings.simplefilter("always", DataWarning)
-            n = convert_ur10(args.src, args.dst, overwrite=args.overwrite,
-                             sort_by_time=not args.keep_order)
-    except CasadicalError as exc:
-        print(f"error: {exc}", file=sys.stderr)
-        return 1
-    for w in caught:
-        print(f"warning: {w.message}", file=sys.stderr)
-    print(f"wrote {n} rows to {args.dst}")
-    return 0
-
-
-if __name__ == "__main__":
-    sys.exit(main())
