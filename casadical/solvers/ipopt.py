@@ -28,14 +28,14 @@ class Ipopt(Solver):
     ----------
     max_iter : int
     tol : float
-        IPOPT's relative convergence tolerance.
+        IPOPT's convergence tolerance, on the objective in mm^2.
     hessian : {"gauss-newton", "exact"}
     options : dict
         Further IPOPT options (``{"print_level": 5}`` to watch it).
     """
 
     max_iter: int = 200
-    tol: float = 1e-10
+    tol: float = 1e-8
     hessian: str = "gauss-newton"
     options: dict = field(default_factory=dict)
     name = "ipopt"
@@ -64,8 +64,9 @@ class Ipopt(Solver):
         S = ca.diag(sel_scale) @ ca.DM(E)  # d p / d x
         f = model.batch_function("cost", N)(Q, p, C, base0, XYZ)
         nlp = {"x": x, "p": data, "f": f}
+        # the cost is ~1e-7 m^2: in mm^2 IPOPT's tolerances mean what they say
         opts = {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes", "max_iter": self.max_iter,
-                                               "tol": self.tol, **self.options}}
+                                               "tol": self.tol, "obj_scaling_factor": 1e6, **self.options}}
         if self.hessian == "gauss-newton":
             fv, g = model.batch_function("grad", N)(Q, p, C, base0, XYZ)
             H = model.batch_function("gn_hess", N)(Q, p, C, base0, XYZ)

@@ -34,9 +34,9 @@ class LevenbergMarquardt(Solver):
     """
 
     max_iter: int = 100
-    ftol: float = 1e-12
+    ftol: float = 1e-10
     xtol: float = 1e-10
-    lam0: float = 1e-3
+    lam0: float = 1e-5
     damping: bool = True
 
     @property
@@ -62,7 +62,9 @@ class LevenbergMarquardt(Solver):
             for k in range(30):
                 step = _solve(A + lam * np.diag(d), -g) if self.damping else gn_step * 0.5 ** k
                 x_new = x + step
-                r_new = problem.residuals(problem.values_from_x(x_new))
+                # residual and Jacobian together: an accepted step (the usual case) needs no
+                # second evaluation, a rejected one costs a little more
+                r_new, J_new = problem.residuals_jacobian(problem.values_from_x(x_new))
                 cost_new = 0.5 * r_new @ r_new
                 if cost_new <= cost:
                     accepted = True
@@ -74,11 +76,10 @@ class LevenbergMarquardt(Solver):
                 break
             small_f = (cost - cost_new) <= self.ftol * max(cost, 1e-300)
             small_x = np.linalg.norm(step) <= self.xtol * (self.xtol + np.linalg.norm(x))
-            x, cost = x_new, cost_new
+            x, cost, r, J = x_new, cost_new, r_new, J_new
             history.append(cost)
             if self.damping:
                 lam = max(lam / 3.0, 1e-12)
-            r, J = problem.residuals_jacobian(problem.values_from_x(x))
             if small_f or small_x:
                 status, success = "converged", True
                 break
