@@ -311,10 +311,13 @@ def calibrate(robot: Robot, data: Measurements, model: str | Model = "kinematic+
                          file=data.path)
     if isinstance(model, str):
         terms = parse_spec(model)
-        temp = data.get("temperature_c")
         for t in terms:
-            if hasattr(t, "t_ref") and temp is not None:
-                t.t_ref = float(np.mean(temp))  # keeps the geometric parameters at the mean temperature
+            # references at the data's mean keep the other parameters at the mean conditions
+            if t.name == "thermal_expansion" and data.get("temperature_c") is not None:
+                t.t_ref = float(np.mean(data.get("temperature_c")))
+            elif t.name == "drift":
+                time_s = data.get("time_s")
+                t.t_ref = float(np.mean(time_s if time_s is not None else data.rows))
         model = Model(robot, terms)
     notes: list[str] = []
     params = model.parameters.copy()

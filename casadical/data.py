@@ -35,15 +35,29 @@ class Measurements:
         columns as arrays of strings.
     path : str
         Where the data came from (for error messages).
+    rows : ndarray of int
+        Each pose's row in the original measurement order.
+    moves : ndarray, shape (N, n_joints)
+        Sign of each joint's last move before the pose, in the original order.
     """
 
     columns: dict[str, np.ndarray]
     path: str = "<memory>"
+    rows: np.ndarray | None = None
+    moves: np.ndarray | None = None
     _n_joints: int = field(init=False)
 
     def __post_init__(self) -> None:
         qs = sorted(int(m.group(1)) for c in self.columns if (m := _Q.match(c)))
         self._n_joints = len(qs)
+        # row order is time order: keep each pose's original position and the direction of
+        # its joints' last move, so subsets (splits, cross-validation folds) keep them
+        if self.rows is None:
+            self.rows = np.arange(len(self))
+        if self.moves is None:
+            self.moves = np.zeros((len(self), self._n_joints))
+            if len(self) > 1 and self._n_joints:
+                self.moves[1:] = np.sign(np.diff(self.q, axis=0))
 
     # --- views ------------------------------------------------------------------
 
@@ -83,7 +97,8 @@ class Measurements:
 
     def subset(self, index) -> "Measurements":
         """Rows ``index`` (mask or integer array), order kept as given."""
-        return Measurements({k: v[index] for k, v in self.columns.items()}, self.path)
+        return Measurements({k: v[index] for k, v in self.columns.items()}, self.path,
+                            self.rows[index], self.moves[index])
 
     def with_positions(self, xyz_m: np.ndarray, prefix_existing: str = "measured_") -> "Measurements":
         """A copy whose ``x_mm, y_mm, z_mm`` are ``xyz_m``; existing ones are renamed."""
@@ -92,7 +107,7 @@ class Measurements:
             cols[prefix_existing + k if k in XYZ else k] = v
         for i, c in enumerate(XYZ):
             cols[c] = np.asarray(xyz_m)[:, i] * 1000.0
-        return Measurements(cols, self.path)
+        return Measurements(cols, self.path, self.rows, self.moves)
 
     # --- I/O --------------------------------------------------------------------
 

@@ -167,6 +167,10 @@ class Model:
         R0 = ca.reshape(b0[:9], 3, 3).T  # row-major input
         base = compose((R0, b0[9:12]), rpy_pose(*geom.base))
         xyz = base[1] + ca.mtimes(base[0], frames.tool[1])
+        for t in self.terms:
+            off = t.base_offset(ctx)
+            if off is not None:
+                xyz = xyz + off
         tau = ca.vertcat(*ctx.torques()) if robot.n else ca.SX.zeros(0)
         dq = ca.vertcat(*[ca.SX(o) if not isinstance(o, ca.SX) else o for o in offsets])
         J = ca.densify(ca.jacobian(xyz, p))
@@ -285,9 +289,10 @@ class Model:
         for name in self.covariate_names:
             if name == "payload_kg":
                 cols.append(np.full(N, self.robot.payload_mass))
-            elif name == "temperature_c":
-                t_ref = next((t.t_ref for t in self.terms if hasattr(t, "t_ref")), 20.0)
-                cols.append(np.full(N, t_ref))
+            elif name in ("temperature_c", "time_s"):
+                # at the reference of the term that reads it, the term has no effect
+                owner = next(t for t in self.terms if name in t.covariates)
+                cols.append(np.full(N, owner.t_ref))
             else:
                 cols.append(np.zeros(N))
         return np.column_stack(cols) if cols else np.zeros((N, 0))
@@ -296,8 +301,8 @@ class Model:
         """Covariate matrix (N, n_cov) of a :class:`~casadical.data.Measurements`.
 
         Missing columns take defaults: the robot's payload, the thermal
-        reference temperature; ``move<j>`` is the sign of joint j's last move
-        in row order (0 for the first row).
+        reference temperature, the row index for ``time_s``; ``move<j>`` is
+        the sign of joint j's last move in row order (0 for the first row).
         """
         N = len(data)
         out = self.default_covariates(N)
@@ -305,9 +310,10 @@ class Model:
             col = data.get(name)
             if col is not None:
                 out[:, k] = col
+            elif name == "time_s":
+                out[:, k] = data.rows  # row order is time order
             elif name.startswith("move"):
-                j = int(name[4:])
-                out[1:, k] = np.sign(np.diff(data.q[:, j - 1]))
+                out[:, k] = data.moves[:, int(name[4:]) - 1]
         return out
 
     def term(self, name: str) -> ErrorTerm | None:

@@ -47,6 +47,9 @@ class Effects:
     temperature : (float, float)
         Range of the ``temperature_c`` column when ``thermal_alpha`` is set
         (a slow drift in row order).
+    drift : sequence of 3 floats
+        Velocity (m per second of ``time_s``, or per row) at which the
+        measured points drift.
     noise : float
         Std of the measurement noise per axis (m).
     base_xyz, base_rpy : sequence of 3 floats
@@ -61,6 +64,7 @@ class Effects:
     backlash: dict[int, float] = field(default_factory=dict)
     thermal_alpha: float = 0.0
     temperature: tuple[float, float] = (18.0, 28.0)
+    drift: tuple[float, float, float] = (0.0, 0.0, 0.0)
     noise: float = 20e-6
     base_xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
     base_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -99,6 +103,8 @@ def true_model(robot: Robot, effects: Effects, rng: np.random.Generator,
     if effects.thermal_alpha:
         lo, hi = effects.temperature
         terms.append(make_term("thermal_expansion", t_ref=(lo + hi) / 2 if t_ref is None else t_ref))
+    if any(effects.drift):
+        terms.append(make_term("drift"))
     model = Model(robot, terms)
     values = model.parameters.nominal.copy()
     for i, p in enumerate(model.parameters):
@@ -119,6 +125,9 @@ def true_model(robot: Robot, effects: Effects, rng: np.random.Generator,
         values[idx(f"backlash{j}")] = b
     if effects.thermal_alpha:
         values[idx("thermal_alpha")] = effects.thermal_alpha
+    for k, v in zip("xyz", effects.drift):
+        if any(effects.drift):
+            values[idx(f"drift_{k}")] = v
     base0 = pose_to_base0(base_pose_matrix(effects.base_xyz, effects.base_rpy))
     return Truth(model, values, base0, effects)
 

@@ -113,3 +113,25 @@ def test_cli_json_contract_and_html(tmp_path):
     page = (tmp_path / "r.html").read_text()
     assert page.startswith("<!DOCTYPE html>") and page.count("<svg") >= 3
     assert main(args) == 2  # refuses to overwrite the reports
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_drift_of_the_measurement_frame(seed):
+    # 0.6 um per row along x and z: 48 um over the 80 calibration rows
+    rep = run(load_robot("ys100"), Effects(drift=(0.6e-6, 0.0, -0.6e-6)), seed)
+    assert_found(rep, "drift")
+
+
+def test_ambiguous_causes_are_reported():
+    """Encoder scale over a small joint range looks like a first harmonic: both are named."""
+    robot = load_robot("ys100")
+    from dataclasses import replace
+    joints = list(robot.joints)
+    joints[1] = replace(joints[1], min=math.radians(40), max=math.radians(80))
+    narrow = replace(robot, joints=joints)
+    rep = run(narrow, Effects(encoder_scale={2: 6e-4}), 1)
+    f = [f for f in rep.findings if f.candidate.cause in ("encoder_scale", "joint_periodic")]
+    assert f and f[0].candidate.joint == 2
+    others = {(a["cause"], a.get("joint")) for a in f[0].ambiguous_with}
+    assert ("joint_periodic", 2) in others or ("encoder_scale", 2) in others, f[0].ambiguous_with
+    assert all(a["tell_apart"] for a in f[0].ambiguous_with)

@@ -52,6 +52,7 @@ class Candidate:
             "encoder_scale": [f"escale{j}"],
             "backlash": [f"backlash{j}" if self.source != "motion" else f"backlash_m{j}"],
             "thermal_expansion": ["thermal_alpha"],
+            "drift": ["drift_x", "drift_y", "drift_z"],
         }[self.cause]
 
 
@@ -75,6 +76,8 @@ def compose_spec(candidates: list[Candidate], geometric: bool = True) -> str:
         parts.append(f"backlash_motion[{','.join(map(str, blm))}]")
     if any(c.cause == "thermal_expansion" for c in candidates):
         parts.append("thermal_expansion")
+    if any(c.cause == "drift" for c in candidates):
+        parts.append("drift")
     return "+".join(parts)
 
 
@@ -93,6 +96,9 @@ TELL_APART = {
         "sign, play that follows gravity does not",
     frozenset({"thermal_expansion", "joint_compliance"}):
         "repeat poses at another temperature in random order",
+    frozenset({"thermal_expansion", "drift"}):
+        "measure in random pose order while the temperature changes: thermal growth scales with the "
+        "arm's reach, drift of the measurement frame does not",
 }
 
 

@@ -89,7 +89,8 @@ def _short(step) -> str:
     if c is None or c.cause == "geometric":
         return step.model
     abbrev = {"joint_compliance": "compliance", "joint_periodic": "periodic", "encoder_scale": "encoder",
-              "backlash": "backlash", "thermal_expansion": "thermal", "unexplained": "black box"}[c.cause]
+              "backlash": "backlash", "thermal_expansion": "thermal", "drift": "drift",
+              "unexplained": "black box"}[c.cause]
     parts = [abbrev] + ([f"j{c.joint}"] if c.joint else []) + ([f"h{c.harmonic}"] if c.harmonic else [])
     return "+" + " ".join(parts)
 

@@ -259,6 +259,7 @@ class _Diagnosis:
         temp = self.cal.get("temperature_c")
         if temp is not None and np.ptp(temp) > 0.1:
             out.append(Candidate("thermal_expansion"))
+        out.append(Candidate("drift"))  # time_s, or the row order
         # periodograms of the projected residuals
         model, p = current.model, current.parameters
         _, J = model.predict_jacobian(self.cal.q, p.values, model.covariates(self.cal), current.base0)
@@ -269,7 +270,9 @@ class _Diagnosis:
             s, w = joint_errors(resid, J[:, :, p.index(f"theta{j}")])
             pg = periodogram(self.cal.q[:, j - 1], s, w, j, H)
             self.periodograms.append(pg)
-            out += [Candidate("joint_periodic", j, h) for h in pg.peaks(2)]
+            # the first harmonic always: over a small range it mimics an encoder scale error,
+            # and the ambiguity can only be reported if both are screened
+            out += [Candidate("joint_periodic", j, h) for h in sorted(set(pg.peaks(2)) | {1})]
         return [c for c in out if c not in have and not (c.cause == "backlash" and any(
             a.cause == "backlash" and a.joint == c.joint for a in accepted))]
 
@@ -371,6 +374,13 @@ class _Diagnosis:
             x, xlabel = d.get("temperature_c"), "temperature (deg C)"
             ys = [np.linalg.norm(r.residuals(d), axis=1) * 1000 for r in (before, after)]
             ylabel = "position error (mm)"
+        elif cand.cause == "drift":
+            t = d.get("time_s")
+            x, xlabel = (t, "time (s)") if t is not None else (d.rows, "row (measurement order)")
+            v = np.array([after.parameters[n].value for n in cand.parameter_names()])
+            u = v / max(np.linalg.norm(v), 1e-300)
+            ys = [r.residuals(d) @ u * 1000 for r in (before, after)]
+            ylabel = "residual along the drift (mm)"
         else:
             j = cand.joint
             ys = []
@@ -385,7 +395,7 @@ class _Diagnosis:
                 x = m.torques(d.q, before.parameters.values, m.covariates(d))[:, j - 1]
                 xlabel = f"gravity torque at joint {j} (N m)"
             elif cand.cause == "backlash":
-                x = np.r_[0.0, np.sign(np.diff(d.q[:, j - 1]))]
+                x = d.moves[:, j - 1]
                 xlabel = f"direction of the last move of joint {j}"
             else:
                 x, xlabel = np.degrees(d.q[:, j - 1]), f"joint {j} reading (deg)"
@@ -417,6 +427,11 @@ class _Diagnosis:
                     f"arcsec, sign from the {'gravity torque' if cand.source != 'motion' else 'last move'}")
         elif cand.cause == "thermal_expansion":
             what = f"; expansion {res.parameters['thermal_alpha'].value * 1e6:.2f} ppm/K"
+        elif cand.cause == "drift":
+            v = np.array([res.parameters[n].value for n in cand.parameter_names()]) * 1e6
+            unit = "s" if self.cal.get("time_s") is not None else "row"
+            what = f"; the measured points move {np.linalg.norm(v):.3g} um per {unit} (x, y, z: " + \
+                   ", ".join(f"{c:+.3g}" for c in v) + ")"
         evidence = (f"{test.text()} on the calibration poses; {self.s.folds}-fold cross-validated rms "
                     f"{cv0:.4f} -> {cv1:.4f} mm{what}")
         # candidates whose screening fit explains the same residual are ambiguous with this one

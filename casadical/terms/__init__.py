@@ -5,7 +5,7 @@ such as ``"kinematic+compliance[2,3]+periodic[2:1]"`` (see
 :func:`casadical.model.parse_spec`).
 """
 
-from . import backlash, compliance, encoder_scale, geometric, periodic, thermal  # noqa: F401  (registration)
+from . import backlash, compliance, drift, encoder_scale, geometric, periodic, thermal  # noqa: F401  (registration)
 from .base import REGISTRY, Context, ErrorTerm, register
 
 

@@ -94,6 +94,10 @@ class ErrorTerm:
         """Offsets added to chain angles, by 1-based joint (default: none)."""
         return {}
 
+    def base_offset(self, ctx: Context):
+        """Translation (3-vector, measurement frame) added to the measured point (default: none)."""
+        return None
+
     def spec(self) -> str:
         """The text that re-creates this term in a model specification."""
         if self.joints is None:

@@ -1,0 +1,46 @@
+"""Drift: the measured points move linearly in time (tracker or robot base settling, warming up)."""
+
+from __future__ import annotations
+
+from ..parameters import Parameter
+from ..robot import Robot
+from .base import ErrorTerm, register
+
+
+@register
+class Drift(ErrorTerm):
+    """The measurement frame translates by ``v (t - t_ref)``.
+
+    The time is the ``time_s`` column, or the row index when the file has
+    none (row order is time order). Velocities are in m/s of the covariate.
+
+    Parameters
+    ----------
+    t_ref : float
+        Time at which the base pose holds; the calibration sets it to the
+        mean of its data.
+    """
+
+    name = "drift"
+    cause = "drift"
+    covariates = ("time_s",)
+
+    def __init__(self, joints=None, t_ref: float = 0.0):
+        super().__init__(None)
+        self.t_ref = float(t_ref)
+
+    def spec(self) -> str:
+        return self.name
+
+    def settings(self) -> dict:
+        return {"t_ref": self.t_ref}
+
+    def parameters(self, robot: Robot) -> list[Parameter]:
+        # scale: 1 um per unit of time; bounds generous (1 mm/s)
+        return [Parameter(f"drift_{k}", 0.0, "m/s", 1e-6, self.name, None, lower=-1e-3, upper=1e-3)
+                for k in "xyz"]
+
+    def base_offset(self, ctx):
+        import casadi as ca
+        dt = ctx.cov["time_s"] - self.t_ref
+        return ca.vertcat(*[ctx.p[f"drift_{k}"] * dt for k in "xyz"])
