@@ -300,13 +300,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--force", action="store_true", help="replace OUT if it exists")
     p.set_defaults(func=cmd_import_ur10)
 
-    for extra in _EXTRA_COMMANDS:
-        extra(sub)
+    from .methods.compare import add_commands as compare_commands
+    from .planning.cli import add_commands as planning_commands
+    planning_commands(sub)
+    compare_commands(sub)
     return ap
-
-
-#: Functions adding further sub-commands (calibrate, diagnose, ...), registered by their modules.
-_EXTRA_COMMANDS: list = []
 
 
 def main(argv: list[str] | None = None) -> int:

@@ -15,7 +15,8 @@ def run(*args):
     return subprocess.run([sys.executable, "-m", "casadical", *args], capture_output=True, text=True)
 
 
-@pytest.mark.parametrize("cmd", ["inspect", "predict", "simulate", "import-ur10", "calibrate", "diagnose", "split"])
+@pytest.mark.parametrize("cmd", ["inspect", "predict", "simulate", "import-ur10", "calibrate", "diagnose", "split",
+                                 "plan-poses", "candidates", "compare"])
 def test_help(cmd, capsys):
     with pytest.raises(SystemExit) as e:
         main([cmd, "--help"])

@@ -45,10 +45,12 @@ Solvers
     diagonal (otherwise entries of 1e-6 m^2 defeat the solvers' tolerances).
     Accurate but its size grows as ``N p^2``.
 :func:`exchange`
-    Rounding (the ``M`` largest weights) then Fedorov exchange: swap the
-    selected/unselected pair with the largest determinant ratio,
+    Rounding (the ``M`` largest weights, and random roundings with
+    probabilities proportional to the weights) then Fedorov exchange: swap
+    the selected/unselected pair with the largest determinant ratio,
     ``det(I_6 + D U^T M^-1 U)``, ``U = [A_in^T, A_out^T]``,
-    ``D = diag(I_3, -I_3)``, until no swap improves.
+    ``D = diag(I_3, -I_3)``, until no swap improves; the best of the starts
+    is kept.
 """
 
 from __future__ import annotations
@@ -158,14 +160,17 @@ class ExactDesign:
     log_det : float
         ``log det`` of its information matrix.
     swaps : int
-        Exchanges made after rounding.
+        Exchanges made after rounding (all starts).
     time_s : float
+    starts : int
+        Exchange runs (distinct starting sets) behind this design.
     """
 
     indices: np.ndarray
     log_det: float
     swaps: int
     time_s: float
+    starts: int = 1
 
 
 @dataclass
@@ -456,8 +461,10 @@ def relax_cvxpy(A: np.ndarray, m: int, solver: str | None = None, verbose: bool 
     A : ndarray, shape (N, r, p)
     m : int
     solver : str, optional
-        A cvxpy solver supporting the exponential and PSD cones (default
-        CLARABEL, else SCS).
+        A cvxpy solver supporting the exponential and PSD cones. Default:
+        CLARABEL (interior point, accurate), and SCS if CLARABEL fails (it
+        stalls on pools of ~10^4 candidates, whose constraint matrix holds
+        ``N p (p + 1) / 2`` nonzeros).
     verbose : bool
     **solver_options
         Passed to ``Problem.solve``.
@@ -476,26 +483,37 @@ def relax_cvxpy(A: np.ndarray, m: int, solver: str | None = None, verbose: bool 
     pool = _Pool(A, m)
     N, p = pool.N, pool.p
     if solver is None:
-        solver = "CLARABEL" if "CLARABEL" in cp.installed_solvers() else "SCS"
+        installed = cp.installed_solvers()
+        chain = [s for s in ("CLARABEL", "SCS") if s in installed] or [None]
+    else:
+        chain = [solver]
     As = A * pool.c
     H = np.einsum("nri,nrj->nij", As, As).reshape(N, p * p)
     w = cp.Variable(N)
     Mx = cp.reshape(H.T @ w, (p, p), order="F")
     prob = cp.Problem(cp.Maximize(cp.log_det((Mx + Mx.T) / 2)),
                       [w >= 0, w <= 1, cp.sum(w) == m])
-    try:
-        prob.solve(solver=solver, verbose=verbose, **solver_options)
-    except cp.error.SolverError as e:
-        raise SolverError(f"cvxpy/{solver} failed on the relaxation: {e}") from e
-    if w.value is None:
-        raise SolverError(f"cvxpy/{solver} returned no solution (status {prob.status})")
+    failures = []
+    for name in chain:
+        try:
+            prob.solve(solver=name, verbose=verbose, **solver_options)
+        except cp.error.SolverError as e:
+            failures.append(f"{name} failed: {str(e).splitlines()[0]}")
+            continue
+        if w.value is not None and prob.status in ("optimal", "optimal_inaccurate"):
+            solver = name
+            break
+        failures.append(f"{name} ended with status {prob.status}")
+    else:
+        raise SolverError(f"cvxpy could not solve the relaxation: {'; '.join(failures)}")
     wv = np.clip(np.asarray(w.value, dtype=float), 0.0, 1.0)
     idx = np.flatnonzero(wv > 0)
     L, ld = pool.factor(pool.info(idx, wv[idx]))
     ub = pool.bound_from(ld, pool.variances(np.linalg.inv(L)))
     stats = prob.solver_stats
     its = int(stats.num_iters) if stats is not None and stats.num_iters is not None else 0
-    return Relaxation(wv, ld, ub, (ub - ld) / p, f"cvxpy:{solver}", str(prob.status), its,
+    status = str(prob.status) + (f" (after: {'; '.join(failures)})" if failures else "")
+    return Relaxation(wv, ld, ub, (ub - ld) / p, f"cvxpy:{solver}", status, its,
                       time.perf_counter() - t0)
 
 
@@ -588,9 +606,62 @@ def round_weights(weights: np.ndarray, m: int, tiebreak: np.ndarray | None = Non
     return np.sort(np.argsort(-key, kind="stable")[:m])
 
 
+def _auto_starts(N: int) -> int:
+    # exchange costs ~N M p^2 per swap: many starts on small pools, a few on huge ones
+    return 16 if N <= 2000 else 8 if N <= 20000 else 3
+
+
+def round_and_exchange(A: np.ndarray, m: int, weights: np.ndarray, *, n_starts: int | None = None,
+                       seed: int = 0, n_candidates: int | None = None) -> ExactDesign:
+    """Exact design of M distinct poses from relaxed weights: best of several rounded starts + exchange.
+
+    Parameters
+    ----------
+    A : ndarray, shape (N, r, p)
+    m : int
+    weights : ndarray, shape (N,)
+        Relaxed weights (:class:`Relaxation` ``.weights``).
+    n_starts : int, optional
+        Exchange runs: from the M largest weights, then from random roundings
+        (M poses drawn without replacement with probabilities proportional
+        to the weights). Exchange stops at a local optimum for single swaps;
+        several starts escape poor ones, which matters when M is close to
+        ``p / 3``. Default 16 for pools up to 2,000, 8 up to 20,000, else 3.
+    seed : int
+        Seed of the random roundings.
+    n_candidates : int, optional
+        See :func:`exchange`.
+    """
+    A = np.asarray(A, dtype=float)
+    _check_m(A, m)
+    N = A.shape[0]
+    w = np.asarray(weights, dtype=float)
+    n_starts = _auto_starts(N) if n_starts is None else max(1, int(n_starts))
+    rng = np.random.default_rng(seed)
+    with np.errstate(divide="ignore"):
+        logw = np.log(np.maximum(w, 0.0))
+    best = exchange(A, m, round_weights(w, m), n_candidates=n_candidates, weights=w)
+    seen = {tuple(round_weights(w, m).tolist())}
+    t_ex, swaps = best.time_s, best.swaps
+    for _ in range(n_starts - 1):
+        # Gumbel top-M: sampling without replacement, probabilities proportional to w
+        start = np.sort(np.argsort(-(logw + rng.gumbel(size=N)))[:m])
+        key = tuple(start.tolist())
+        if key in seen:
+            continue
+        seen.add(key)
+        ex = exchange(A, m, start, n_candidates=n_candidates, weights=w)
+        t_ex += ex.time_s
+        swaps += ex.swaps
+        if ex.log_det > best.log_det:
+            best = ex
+    return ExactDesign(best.indices, best.log_det, swaps, t_ex, len(seen))
+
+
 def d_optimal_design(A: np.ndarray, m: int, *, relaxation: str = "first-order",
                      settings: RelaxationSettings | None = None,
-                     n_candidates: int | None = None) -> DOptimalDesign:
+                     n_candidates: int | None = None, n_starts: int | None = None,
+                     seed: int = 0) -> DOptimalDesign:
     """Certified D-optimal choice of M distinct poses.
 
     Parameters
@@ -605,6 +676,8 @@ def d_optimal_design(A: np.ndarray, m: int, *, relaxation: str = "first-order",
         For the first-order solver.
     n_candidates : int, optional
         See :func:`exchange`.
+    n_starts, seed : optional
+        See :func:`round_and_exchange`.
 
     Returns
     -------
@@ -619,13 +692,12 @@ def d_optimal_design(A: np.ndarray, m: int, *, relaxation: str = "first-order",
         rel = relax_cvxpy(A, m)
     else:
         raise InputError(f"relaxation must be 'first-order' or 'cvxpy', got {relaxation!r}")
-    ex = exchange(A, m, round_weights(rel.weights, m), n_candidates=n_candidates,
-                  weights=rel.weights)
-    p = A.shape[2]
+    N, _, p = A.shape
+    ex = round_and_exchange(A, m, rel.weights, n_starts=n_starts, seed=seed, n_candidates=n_candidates)
     ub = rel.upper_bound
     if math.isfinite(ex.log_det):
         # the exact design is itself a feasible point of the relaxation: its bound holds too
-        w = np.zeros(A.shape[0])
+        w = np.zeros(N)
         w[ex.indices] = 1.0
         ub = min(ub, upper_bound(A, m, w))
     return DOptimalDesign(ex.indices, ex.log_det, ub, d_efficiency(ex.log_det, ub, p), rel, ex,

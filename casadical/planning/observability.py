@@ -91,7 +91,7 @@ def indices_from_singular_values(sigma, n_poses: int, n_parameters: int | None =
         raise InputError(f"the number of poses must be at least 1, got {n_poses}")
     full = np.zeros(n)
     full[:len(s)] = s
-    smax, smin = full[0], full[-1]
+    smax, smin = float(full[0]), float(full[-1])
     if smin <= 0.0:
         o1 = o2 = o3 = o4 = o5 = 0.0
     else:

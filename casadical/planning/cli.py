@@ -1,0 +1,189 @@
+"""The ``plan-poses`` and ``candidates`` commands (INTERFACE.md section 3).
+
+Registered by the main command line through :func:`add_commands`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import csv
+import json
+import math
+import time
+
+import numpy as np
+
+from ..errors import IdentifiabilityError, InputError
+from .selectors import METHODS
+
+
+def add_commands(sub) -> None:
+    """Add ``plan-poses`` and ``candidates`` to the ``casadical`` sub-command parser."""
+    p = sub.add_parser(
+        "plan-poses", help="select M poses to measure out of a candidate file",
+        description="Select M poses out of CANDIDATES.csv (joint readings; other columns, e.g. "
+                    "payload_kg, are kept and used) that identify the model's parameters best. "
+                    "Writes the selected rows of the candidate file, in candidate order, and prints "
+                    "the criterion, the observability indices O1..O5 and a certificate: an upper "
+                    "bound on log det(J^T J) over all M-subsets and the selection's D-efficiency "
+                    "against it.")
+    p.add_argument("robot", metavar="ROBOT", help="built-in robot (ys100, hh800, ur10) or robot TOML file")
+    p.add_argument("candidates", metavar="CANDIDATES.csv", help="candidate poses (q1_deg, ..., qN_deg)")
+    p.add_argument("-m", dest="m", type=int, required=True, metavar="M", help="number of poses to select")
+    p.add_argument("--out", required=True, metavar="SELECTED.csv", help="output CSV (selected rows)")
+    p.add_argument("--method", choices=METHODS, default="d-optimal",
+                   help="d-optimal (certified relaxation + exchange), ga (the GA paper's selector, "
+                        "fitness O1) or random (default: %(default)s)")
+    p.add_argument("--model", default="kinematic+compliance",
+                   help="error model whose parameters the poses must identify (default: %(default)s)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the ga and random methods (default: 0)")
+    p.add_argument("--relaxation", choices=("first-order", "cvxpy"), default="first-order",
+                   help="solver of the continuous relaxation (default: %(default)s)")
+    p.add_argument("--json", metavar="SUMMARY.json", default=None,
+                   help="also write the summary as JSON")
+    p.add_argument("--force", action="store_true", help="replace the output files if they exist")
+    p.set_defaults(func=cmd_plan_poses)
+
+    p = sub.add_parser(
+        "candidates", help="generate candidate poses within the joint limits and a workspace",
+        description="Draw N joint-space poses uniformly within the joint limits (minus a margin), "
+                    "keeping those whose tool point lies above the floor and inside the box "
+                    "(robot base frame, metres). Writes q1_deg..qN_deg.")
+    p.add_argument("robot", metavar="ROBOT", help="built-in robot (ys100, hh800, ur10) or robot TOML file")
+    p.add_argument("-n", dest="n", type=int, required=True, metavar="N", help="number of candidates")
+    p.add_argument("--out", required=True, metavar="C.csv", help="output CSV")
+    p.add_argument("--floor-z", default="0",
+                   help="keep tool points above this height, m (default 0; 'none' disables)")
+    p.add_argument("--box", default=None, metavar="XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX",
+                   help="keep tool points inside this box, m")
+    p.add_argument("--margin-deg", type=float, default=5.0,
+                   help="keep this far from the joint limits, degrees (default 5)")
+    p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    p.add_argument("--force", action="store_true", help="replace OUT if it exists")
+    p.set_defaults(func=cmd_candidates)
+
+
+def cmd_plan_poses(args) -> int:
+    from ..cli import _check_out
+    from ..data import Measurements
+    from ..model import Model
+    from ..robot import load_robot
+    from .observability import design_problem
+    from .selectors import PlanSettings, select_poses
+
+    _check_out(args.out, args.force, [args.candidates])
+    if args.json:
+        _check_out(args.json, args.force, [args.candidates, args.out])
+    robot = load_robot(args.robot)
+    data = Measurements.read_csv(args.candidates, n_joints=robot.n)
+    N = len(data)
+    if args.m < 1:
+        raise InputError(f"-m must be at least 1, got {args.m}", file=args.candidates)
+    if args.m > N:
+        raise InputError(f"-m {args.m} asks for more poses than the {N} candidate rows", file=args.candidates)
+    model = Model(robot, args.model)
+    t0 = time.perf_counter()
+    try:
+        problem = design_problem(model, data.q, model.covariates(data))
+    except IdentifiabilityError as e:
+        raise InputError(str(e), file=args.candidates) from e
+    t_jac = time.perf_counter() - t0
+    if args.m < problem.min_poses:
+        raise InputError(f"-m {args.m} poses give {3 * args.m} equations, fewer than the "
+                         f"{problem.n_parameters} parameters of model {model.spec} these candidates "
+                         f"can identify; use -m {problem.min_poses} or more "
+                         f"(2 x {problem.n_parameters} = {2 * problem.n_parameters} is a good start)",
+                         file=args.candidates)
+    settings = PlanSettings(relaxation=args.relaxation)
+    try:
+        res = select_poses(model, None, args.m, args.method, seed=args.seed, settings=settings,
+                           problem=problem)
+    except IdentifiabilityError as e:
+        raise InputError(str(e), file=args.candidates) from e
+    res.jacobian_time_s = t_jac
+    lines = _write_rows(args.candidates, res.indices, args.out)
+    print(f"model {model.spec} on {robot.name}: {problem.n_parameters} identifiable parameters "
+          f"from {N} candidates in {args.candidates}")
+    print(res.summary())
+    print(f"selected rows -> {args.out}")
+    if args.json:
+        doc = {"robot": robot.name, "model": model.spec, "candidates": args.candidates,
+               "file_lines": lines, **res.to_dict()}
+        with open(args.json, "w") as fh:
+            json.dump(doc, fh, indent=1, default=_json_default)
+        print(f"summary -> {args.json}")
+    return 0
+
+
+def _json_default(x):
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    if isinstance(x, float) and not math.isfinite(x):
+        return None
+    raise TypeError(f"cannot write {type(x).__name__} to JSON")
+
+
+def _write_rows(source: str, indices: np.ndarray, out: str) -> list[int]:
+    """Copy the header and the selected data rows of ``source`` verbatim (field text unchanged).
+
+    Returns the file line numbers (header = 1) of the selected rows.
+    """
+    with open(source, newline="", encoding="utf-8-sig") as fh:
+        reader = csv.reader(fh)
+        header = next(reader)
+        # the same rows Measurements.read_csv counts: non-blank lines after the header
+        body = [(reader.line_num, r) for r in reader if any(x.strip() for x in r)]
+    with open(out, "w", newline="") as fh:
+        w = csv.writer(fh)
+        w.writerow(header)
+        for i in indices:
+            w.writerow(body[int(i)][1])
+    return [body[int(i)][0] for i in indices]
+
+
+def _parse_box(text: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    try:
+        v = [float(x) for x in text.split(",")]
+    except ValueError:
+        v = []
+    if len(v) != 6 or not all(math.isfinite(x) for x in v):
+        raise InputError(f"--box needs six numbers xmin,ymin,zmin,xmax,ymax,zmax (m), got {text!r}")
+    lo, hi = tuple(v[:3]), tuple(v[3:])
+    if any(a >= b for a, b in zip(lo, hi)):
+        raise InputError(f"--box: each minimum must be below its maximum, got {text!r}")
+    return lo, hi
+
+
+def cmd_candidates(args) -> int:
+    from ..cli import _check_out
+    from ..data import Measurements
+    from ..robot import load_robot
+    from ..simulate import sample_poses
+
+    _check_out(args.out, args.force, [])
+    if args.n < 1:
+        raise InputError(f"-n must be at least 1, got {args.n}")
+    floor = None if args.floor_z.strip().lower() == "none" else _float(args.floor_z, "--floor-z")
+    box = _parse_box(args.box) if args.box else None
+    robot = load_robot(args.robot)
+    q = sample_poses(robot, args.n, np.random.default_rng(args.seed), floor_z=floor, box=box,
+                     margin=math.radians(args.margin_deg))
+    Measurements.from_arrays(q).write_csv(args.out, overwrite=args.force)
+    where = []
+    if floor is not None:
+        where.append(f"tool above z = {floor:g} m")
+    if box is not None:
+        where.append(f"inside box {box[0]}..{box[1]} m")
+    print(f"{args.n} candidate poses of {robot.name} within the joint limits (margin "
+          f"{args.margin_deg:g} deg){', ' + ', '.join(where) if where else ''} -> {args.out}")
+    return 0
+
+
+def _float(text: str, option: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise InputError(f"{option} must be a number or 'none', got {text!r}") from None
+    if not math.isfinite(v):
+        raise InputError(f"{option} must be finite, got {text!r}")
+    return v
