@@ -24,7 +24,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..alignment import align
-from ..errors import InputError
+from ..errors import CasadicalError, InputError
 from ..model import Model, pose_to_base0
 from ..optim import TLBO, Box, CulturalAlgorithm, GeneticAlgorithm
 from ..parameters import Parameters
@@ -201,8 +201,8 @@ class OneStep:
         for i, z in enumerate(Z):
             try:
                 out[i] = mean_or_rms(self.norms(z), self.fitness)
-            except Exception:   # a degenerate candidate (e.g. alignment failure) never wins
-                out[i] = np.inf
+            except (CasadicalError, np.linalg.LinAlgError, FloatingPointError):
+                out[i] = np.inf  # a degenerate candidate (e.g. alignment failure) never wins
         return out
 
 
