@@ -134,7 +134,7 @@ def true_model(robot: Robot, effects: Effects, rng: np.random.Generator,
 
 def sample_poses(robot: Robot, n: int, rng: np.random.Generator, *,
                  floor_z: float | None = 0.0, box: tuple | None = None,
-                 margin: float = math.radians(5.0), max_tries: int = 200) -> np.ndarray:
+                 margin: float = math.radians(5.0), max_tries: int = 1000) -> np.ndarray:
     """Joint readings (rad, (n, n_joints)) uniform within the limits and a workspace filter.
 
     Parameters
@@ -157,7 +157,8 @@ def sample_poses(robot: Robot, n: int, rng: np.random.Generator, *,
     eye = pose_to_base0(np.eye(4))
     kept: list[np.ndarray] = []
     for _ in range(max_tries):
-        q = rng.uniform(lim[:, 0], lim[:, 1], size=(max(4 * n, 64), robot.n))
+        # chunks bound the memory of large pools (10^5 candidates)
+        q = rng.uniform(lim[:, 0], lim[:, 1], size=(min(max(4 * (n - len(kept)), 64), 20_000), robot.n))
         xyz = nominal.predict(q, base0=eye)
         ok = np.ones(len(q), dtype=bool)
         if floor_z is not None:
