@@ -47,18 +47,18 @@ def _axes(xlo, xhi, ylo, yhi, xlabel, ylabel, title, xticks: bool = True) -> lis
 
 
 def scatter(series: list[tuple[list, list, str, str]], xlabel: str, ylabel: str, title: str,
-            lines: bool = False) -> str:
-    """SVG scatter (or line) plot of ``(x, y, colour, legend)`` series."""
+            lines: bool = False, lines_for: tuple[int, ...] = ()) -> str:
+    """SVG scatter plot of ``(x, y, colour, legend)`` series; ``lines`` (or series in ``lines_for``) as lines."""
     xs = np.concatenate([np.asarray(s[0], float) for s in series])
     ys = np.concatenate([np.asarray(s[1], float) for s in series])
     xlo, xhi = float(xs.min()), float(xs.max())
-    ylo, yhi = float(min(ys.min(), 0)), float(ys.max())
+    ylo, yhi = float(min(ys.min(), 0)), float(max(ys.max(), 0))
     if xhi == xlo:
         xlo, xhi = xlo - 1, xhi + 1
     out = _axes(xlo, xhi, ylo, yhi, xlabel, ylabel, title)
     for k, (x, y, colour, legend) in enumerate(series):
         pts = [(_scale(a, xlo, xhi, PAD, W - 10), _scale(b, ylo, yhi, H - PAD, TOP)) for a, b in zip(x, y)]
-        if lines:
+        if lines or k in lines_for:
             out.append(f'<polyline fill="none" stroke="{colour}" stroke-width="1.5" points="'
                        + " ".join(f"{a:.1f},{b:.1f}" for a, b in pts) + '"/>')
         else:
@@ -138,9 +138,16 @@ def render(report: DiagnosisReport) -> str:
                          f"{a['similarity']}): {esc(a['tell_apart'])}.</p>")
         if f.plot:
             pl = f.plot
-            parts.append("<div class='fig'>" + scatter(
-                [(pl["x"], pl["before"], "#cc6677", "before"), (pl["x"], pl["after"], "#4477aa", "after")],
-                pl["xlabel"], pl["ylabel"], "calibration residual against its cause") + "</div>")
+            if "partial" in pl:
+                fig = scatter([(pl["x"], pl["partial"], "#4477aa", "partial residual"),
+                               (pl["curve_x"], pl["curve_y"], "#cc3311", "fitted effect")],
+                              pl["xlabel"], pl["ylabel"], "calibration residual against its cause",
+                              lines_for=(1,))
+            else:
+                fig = scatter([(pl["x"], pl["before"], "#cc6677", "before"),
+                               (pl["x"], pl["after"], "#4477aa", "after")],
+                              pl["xlabel"], pl["ylabel"], "calibration residual against its cause")
+            parts.append("<div class='fig'>" + fig + "</div>")
     if report.periodograms:
         parts.append("<h2>Periodograms of the last residual</h2><p>Fraction of each joint's projected "
                      "residual explained by one harmonic of its reading.</p>")

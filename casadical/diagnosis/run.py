@@ -368,39 +368,53 @@ class _Diagnosis:
         return next(s for s in reversed(self.steps) if s.accepted)
 
     def residual_plot(self, cand: Candidate, before: CalibrationResult, after: CalibrationResult) -> dict:
-        """The residual against the variable the cause depends on, before and after the extension."""
+        """The residual against the variable the cause depends on.
+
+        Joint causes: partial residual (residual after the fit plus the fitted
+        effect, as joint j's angle error) with the fitted effect as a curve.
+        Thermal expansion and drift: the residual before and after.
+        """
         d = self.cal
-        if cand.cause == "thermal_expansion":
-            x, xlabel = d.get("temperature_c"), "temperature (deg C)"
-            ys = [np.linalg.norm(r.residuals(d), axis=1) * 1000 for r in (before, after)]
-            ylabel = "position error (mm)"
-        elif cand.cause == "drift":
-            t = d.get("time_s")
-            x, xlabel = (t, "time (s)") if t is not None else (d.rows, "row (measurement order)")
-            v = np.array([after.parameters[n].value for n in cand.parameter_names()])
-            u = v / max(np.linalg.norm(v), 1e-300)
-            ys = [r.residuals(d) @ u * 1000 for r in (before, after)]
-            ylabel = "residual along the drift (mm)"
-        else:
-            j = cand.joint
-            ys = []
-            for r in (before, after):
-                m, p = r.model, r.parameters
-                _, J = m.predict_jacobian(d.q, p.values, m.covariates(d), r.base0)
-                s, _ = joint_errors(r.residuals(d), J[:, :, p.index(f"theta{j}")])
-                ys.append(np.degrees(s) * 3600)
-            ylabel = f"joint {j} angle error seen in the residual (arcsec)"
-            if cand.cause == "joint_compliance" or (cand.cause == "backlash" and cand.source != "motion"):
-                m = before.model
-                x = m.torques(d.q, before.parameters.values, m.covariates(d))[:, j - 1]
-                xlabel = f"gravity torque at joint {j} (N m)"
-            elif cand.cause == "backlash":
-                x = d.moves[:, j - 1]
-                xlabel = f"direction of the last move of joint {j}"
+        if cand.cause in ("thermal_expansion", "drift"):
+            if cand.cause == "thermal_expansion":
+                x, xlabel = d.get("temperature_c"), "temperature (deg C)"
+                ys = [np.linalg.norm(r.residuals(d), axis=1) * 1000 for r in (before, after)]
+                ylabel = "position error (mm)"
             else:
-                x, xlabel = np.degrees(d.q[:, j - 1]), f"joint {j} reading (deg)"
-        return {"x": np.asarray(x, float).tolist(), "before": ys[0].tolist(), "after": ys[1].tolist(),
-                "xlabel": xlabel, "ylabel": ylabel}
+                t = d.get("time_s")
+                x, xlabel = (t, "time (s)") if t is not None else (d.rows, "row (measurement order)")
+                v = np.array([after.parameters[n].value for n in cand.parameter_names()])
+                u = v / max(np.linalg.norm(v), 1e-300)
+                ys = [r.residuals(d) @ u * 1000 for r in (before, after)]
+                ylabel = "residual along the drift (mm)"
+            return {"x": np.asarray(x, float).tolist(), "before": ys[0].tolist(), "after": ys[1].tolist(),
+                    "xlabel": xlabel, "ylabel": ylabel}
+        j, m, p = cand.joint, after.model, after.parameters
+        cov = m.covariates(d)
+        _, J = m.predict_jacobian(d.q, p.values, cov, after.base0)
+        s, _ = joint_errors(after.residuals(d), J[:, :, p.index(f"theta{j}")])
+        q = d.q[:, j - 1]
+        value = p[cand.parameter_names()[0]].value
+        if cand.cause == "joint_periodic":
+            sn, cs = (p[n].value for n in cand.parameter_names())
+            effect = sn * np.sin(cand.harmonic * q) + cs * np.cos(cand.harmonic * q)
+            # folded by the harmonic, h cycles per turn line up into one sinusoid
+            x = np.degrees(cand.harmonic * q) % 360.0
+            xlabel = f"phase of {cand.harmonic} cycles per turn of joint {j} (deg)"
+        elif cand.cause == "encoder_scale":
+            effect, x, xlabel = value * q, np.degrees(q), f"joint {j} reading (deg)"
+        elif cand.cause == "backlash" and cand.source == "motion":
+            x = d.moves[:, j - 1]
+            effect, xlabel = value * x, f"direction of the last move of joint {j}"
+        else:
+            x = m.torques(d.q, p.values, cov)[:, j - 1]
+            xlabel = f"gravity torque at joint {j} (N m)"
+            effect = value * (x if cand.cause == "joint_compliance" else np.sign(x))
+        arcsec = np.degrees(1.0) * 3600
+        order = np.argsort(x)
+        return {"x": np.asarray(x, float).tolist(), "partial": ((s + effect) * arcsec).tolist(),
+                "curve_x": np.asarray(x, float)[order].tolist(), "curve_y": (effect[order] * arcsec).tolist(),
+                "xlabel": xlabel, "ylabel": f"joint {j} angle error: residual + fitted effect (arcsec)"}
 
     def finding(self, cand, gain, test, cv0, cv1, res, scored, fitted, level, accepted, geometric,
                 current_fit) -> Finding:
