@@ -31,6 +31,7 @@ from .problem import CalibrationProblem
 from .robot import Robot, robot_from_dict, robot_to_dict
 from .simulate import sample_poses
 from .solvers import SolverResult, make_solver
+from .terms.base import ReferencedTerm
 from .uncertainty import Uncertainty, estimate, warn_problems
 
 
@@ -312,12 +313,12 @@ def calibrate(robot: Robot, data: Measurements, model: str | Model = "kinematic+
     if isinstance(model, str):
         terms = parse_spec(model)
         for t in terms:
-            # references at the data's mean keep the other parameters at the mean conditions
-            if t.name == "thermal_expansion" and data.get("temperature_c") is not None:
-                t.t_ref = float(np.mean(data.get("temperature_c")))
-            elif t.name == "drift":
-                time_s = data.get("time_s")
-                t.t_ref = float(np.mean(time_s if time_s is not None else data.rows))
+            if isinstance(t, ReferencedTerm):
+                col = data.get(t.reference_covariate)
+                if col is None and t.reference_covariate == "time_s":
+                    col = data.rows  # row order is time order
+                if col is not None:
+                    t.t_ref = float(np.mean(col))
         model = Model(robot, terms)
     notes: list[str] = []
     params = model.parameters.copy()

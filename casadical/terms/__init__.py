@@ -6,7 +6,7 @@ such as ``"kinematic+compliance[2,3]+periodic[2:1]"`` (see
 """
 
 from . import backlash, compliance, drift, encoder_scale, geometric, periodic, thermal  # noqa: F401  (registration)
-from .base import REGISTRY, Context, ErrorTerm, register
+from .base import REGISTRY, Context, ErrorTerm, ReferencedTerm, register
 
 
 def make_term(name: str, **kwargs) -> ErrorTerm:
@@ -19,4 +19,4 @@ def make_term(name: str, **kwargs) -> ErrorTerm:
     return cls(**kwargs)
 
 
-__all__ = ["REGISTRY", "Context", "ErrorTerm", "make_term", "register"]
+__all__ = ["REGISTRY", "Context", "ErrorTerm", "ReferencedTerm", "make_term", "register"]

@@ -109,6 +109,29 @@ class ErrorTerm:
         return {"joints": self.joints}
 
 
+class ReferencedTerm(ErrorTerm):
+    """A term driven by one covariate relative to a reference value (temperature, time).
+
+    ``calibrate`` sets ``t_ref`` to the mean of that covariate over its data,
+    which keeps the other parameters at the data's mean conditions; at
+    ``t_ref`` the term has no effect.
+    """
+
+    def __init__(self, joints=None, t_ref: float = 0.0):
+        super().__init__(None)
+        self.t_ref = float(t_ref)
+
+    @property
+    def reference_covariate(self) -> str:
+        return self.covariates[0]
+
+    def spec(self) -> str:
+        return self.name
+
+    def settings(self) -> dict:
+        return {"t_ref": self.t_ref}
+
+
 def reach(robot: Robot, first: int = 1) -> float:
     """Upper bound of the distance from joint ``first`` to the tool point (m)."""
     links = sum(abs(j.a) + abs(j.d) + abs(j.b or 0.0) for j in robot.joints[first - 1:])

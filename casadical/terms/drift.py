@@ -2,13 +2,15 @@
 
 from __future__ import annotations
 
+import casadi as ca
+
 from ..parameters import Parameter
 from ..robot import Robot
-from .base import ErrorTerm, register
+from .base import ReferencedTerm, register
 
 
 @register
-class Drift(ErrorTerm):
+class Drift(ReferencedTerm):
     """The measurement frame translates by ``v (t - t_ref)``.
 
     The time is the ``time_s`` column, or the row index when the file has
@@ -25,22 +27,11 @@ class Drift(ErrorTerm):
     cause = "drift"
     covariates = ("time_s",)
 
-    def __init__(self, joints=None, t_ref: float = 0.0):
-        super().__init__(None)
-        self.t_ref = float(t_ref)
-
-    def spec(self) -> str:
-        return self.name
-
-    def settings(self) -> dict:
-        return {"t_ref": self.t_ref}
-
     def parameters(self, robot: Robot) -> list[Parameter]:
         # scale: 1 um per unit of time; bounds generous (1 mm/s)
         return [Parameter(f"drift_{k}", 0.0, "m/s", 1e-6, self.name, None, lower=-1e-3, upper=1e-3)
                 for k in "xyz"]
 
     def base_offset(self, ctx):
-        import casadi as ca
         dt = ctx.cov["time_s"] - self.t_ref
         return ca.vertcat(*[ctx.p[f"drift_{k}"] * dt for k in "xyz"])

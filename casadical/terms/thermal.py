@@ -7,11 +7,11 @@ from dataclasses import replace
 from ..kinematics import Geometry
 from ..parameters import Parameter
 from ..robot import Robot
-from .base import Context, ErrorTerm, register
+from .base import Context, ReferencedTerm, register
 
 
 @register
-class ThermalExpansion(ErrorTerm):
+class ThermalExpansion(ReferencedTerm):
     """Every length of the arm scales by ``1 + alpha (T - t_ref)``.
 
     Parameters
@@ -27,14 +27,7 @@ class ThermalExpansion(ErrorTerm):
     covariates = ("temperature_c",)
 
     def __init__(self, joints=None, t_ref: float = 20.0):
-        super().__init__(None)
-        self.t_ref = float(t_ref)
-
-    def spec(self) -> str:
-        return self.name
-
-    def settings(self) -> dict:
-        return {"t_ref": self.t_ref}
+        super().__init__(None, t_ref)
 
     def parameters(self, robot: Robot) -> list[Parameter]:
         # aluminium 23e-6/K, steel 12e-6/K: bounds allow any plausible structure
