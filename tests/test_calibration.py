@@ -1,8 +1,6 @@
 """Identification: recovery within reported uncertainty, real data, bounds, bad input."""
 
 import math
-import warnings
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np

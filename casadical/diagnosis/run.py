@@ -360,7 +360,7 @@ class _Diagnosis:
                 continue
             self.say(f"    accepted: validation mean {cur_val.mean_mm:.4f} -> {vstats.mean_mm:.4f} mm")
             self.findings.append(self.finding(cand, gain, test, cv0, cv1, res, scored, fitted, level,
-                                              accepted, geometric, current))
+                                              current))
             return res, cand
         return None
 
@@ -416,8 +416,7 @@ class _Diagnosis:
                 "curve_x": np.asarray(x, float)[order].tolist(), "curve_y": (effect[order] * arcsec).tolist(),
                 "xlabel": xlabel, "ylabel": f"joint {j} angle error: residual + fitted effect (arcsec)"}
 
-    def finding(self, cand, gain, test, cv0, cv1, res, scored, fitted, level, accepted, geometric,
-                current_fit) -> Finding:
+    def finding(self, cand, gain, test, cv0, cv1, res, scored, fitted, level, current_fit) -> Finding:
         params = {}
         for name in cand.parameter_names():
             p = res.parameters[name]

@@ -23,14 +23,13 @@ import math
 import os
 import re
 import warnings
-from collections.abc import Mapping, Sequence
 from datetime import datetime
 from pathlib import Path
 
 import numpy as np
 
 from ..data import Measurements
-from ..errors import CasadicalError, DataFileError, DataWarning, InputError
+from ..errors import DataFileError, DataWarning, InputError
 
 __all__ = ["read_ur10", "convert_ur10"]
 

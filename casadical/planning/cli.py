@@ -5,7 +5,6 @@ Registered by the main command line through :func:`add_commands`.
 
 from __future__ import annotations
 
-import argparse
 import csv
 import json
 import math
