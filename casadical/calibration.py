@@ -23,6 +23,7 @@ from .alignment import align
 from .data import Measurements
 from .errors import (CalibrationFileError, ConvergenceWarning, IdentifiabilityError, IdentifiabilityWarning,
                      InputError, SolverError)
+from .files import atomic_write
 from .identifiability import Identifiability, analyse
 from .kinematics import matrix_to_rpy
 from .model import Model, base0_to_pose, parse_spec, pose_to_base0
@@ -202,10 +203,8 @@ class CalibrationResult:
         return doc
 
     def save(self, path: str | Path, overwrite: bool = False) -> None:
-        path = Path(path)
-        if path.exists() and not overwrite:
-            raise InputError("exists already; choose another name or pass --force to replace it", file=str(path))
-        path.write_text(json.dumps(self.to_dict(), indent=1, allow_nan=False, default=_json_default))
+        atomic_write(path, json.dumps(self.to_dict(), indent=1, allow_nan=False, default=_json_default),
+                     overwrite=overwrite)
 
 
 def _json_default(o):

@@ -17,7 +17,8 @@ from pathlib import Path
 
 import numpy as np
 
-from .errors import DataFileError, DataWarning, InputError
+from .errors import DataFileError, DataWarning
+from .files import atomic_open
 
 _Q = re.compile(r"^q(\d+)_deg$")
 XYZ = ("x_mm", "y_mm", "z_mm")
@@ -191,24 +192,17 @@ class Measurements:
         return data
 
     def write_csv(self, path: str | Path, overwrite: bool = False) -> None:
-        """Write the contract CSV; refuses to replace a file unless ``overwrite``.
+        """Write the contract CSV atomically; refuses to replace a file unless ``overwrite``.
 
         Floats are written with :func:`repr`, the shortest text that reads
         back to the same double: nothing is lost in a round trip.
         """
         header = list(self.columns)
-        try:
-            # mode "x" refuses an existing file without a check-then-write race
-            with open(path, "w" if overwrite else "x", newline="") as fh:
-                w = csv.writer(fh, lineterminator="\n")
-                w.writerow(header)
-                cols = [self.columns[h].tolist() for h in header]
-                w.writerows([_fmt(v) for v in row] for row in zip(*cols))
-        except FileExistsError:
-            raise InputError("exists already; choose another name or pass --force to replace it",
-                             file=str(path)) from None
-        except OSError as e:
-            raise InputError(f"cannot write: {e.strerror or e}", file=str(path)) from e
+        with atomic_open(path, "w", overwrite=overwrite, newline="") as fh:
+            w = csv.writer(fh, lineterminator="\n")
+            w.writerow(header)
+            cols = [self.columns[h].tolist() for h in header]
+            w.writerows([_fmt(v) for v in row] for row in zip(*cols))
 
     @classmethod
     def from_arrays(cls, q_rad: np.ndarray, xyz_m: np.ndarray | None = None,

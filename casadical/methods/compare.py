@@ -7,9 +7,7 @@
 
 from __future__ import annotations
 
-import json
 import math
-import sys
 from pathlib import Path
 from typing import Callable, Iterable
 
@@ -17,7 +15,8 @@ import numpy as np
 
 from .. import __version__
 from ..data import Measurements
-from ..errors import CasadicalError, InputError
+from ..errors import CasadicalError
+from ..files import atomic_open
 from ..robot import Robot
 from . import make_method, method_names
 from .base import Inputs, MethodResult, lookup
@@ -109,7 +108,7 @@ def to_json(results: list[MethodResult], **meta) -> dict:
     return doc
 
 
-def _pyplot():
+def pyplot():
     """matplotlib.pyplot with a file backend, or a one-line error if matplotlib is missing."""
     try:
         import matplotlib
@@ -120,9 +119,10 @@ def _pyplot():
     return plt
 
 
-def plot(results: list[MethodResult], sets: dict[str, Measurements], path: str | Path, title: str = "") -> None:
+def plot(results: list[MethodResult], sets: dict[str, Measurements], path: str | Path, title: str = "",
+         overwrite: bool = False) -> None:
     """Per-pose position error bars per method (one panel per pose set), as the seeds' figures; PNG."""
-    plt = _pyplot()
+    plt = pyplot()
     sets = {k: v for k, v in sets.items() if v is not None}
     n_max = max(len(d) for d in sets.values())
     fig, axes = plt.subplots(len(sets), 1, figsize=(min(18.0, max(8.0, 0.3 * n_max + 3.0)), 3.0 * len(sets) + 0.6),
@@ -146,7 +146,8 @@ def plot(results: list[MethodResult], sets: dict[str, Measurements], path: str |
     fig.legend(handles, [lb.split(" (")[0] for lb in labels], fontsize=8, ncol=min(6, len(results)),
                loc="upper center", frameon=False)
     fig.tight_layout(rect=(0, 0, 1, 1 - 0.35 / (3.0 * len(sets) + 0.6) * (1 + (len(results) - 1) // 6)))
-    fig.savefig(path, dpi=110)
+    with atomic_open(path, "wb", overwrite=overwrite) as fh:
+        fig.savefig(fh, format="png", dpi=110)
     plt.close(fig)
 
 
@@ -154,75 +155,3 @@ def _spread(results, data) -> bool:
     """Log scale when the methods differ by more than a factor 20 (nominal next to calibrated)."""
     means = [float(np.mean(r.errors(data))) for r in results]
     return len(means) > 1 and max(means) > 20 * max(min(means), 1e-12)
-
-
-# --- command line -------------------------------------------------------------------
-
-
-def add_commands(sub) -> None:
-    """Add the ``compare`` sub-command to the casadical parser."""
-    names = ", ".join(method_names())
-    p = sub.add_parser(
-        "compare", help="run the seed papers' calibration methods side by side",
-        description="Run calibration methods on the same data and print the seeds' accuracy table "
-                    "(mean / max / std of the position error in mm, calibration and validation poses) "
-                    f"with the time per method. Methods: {names}.")
-    p.add_argument("robot", metavar="ROBOT", help="built-in robot (ys100, hh800, ur10) or robot TOML file")
-    p.add_argument("cal", metavar="CAL.csv", help="calibration poses (with x_mm, y_mm, z_mm)")
-    p.add_argument("--validate", metavar="VAL.csv", help="validation poses, never used for fitting")
-    p.add_argument("--json", metavar="OUT.json", help="write the results as JSON")
-    p.add_argument("--methods", default="", help=f"comma-separated methods (default all: {names})")
-    p.add_argument("--extra", metavar="EXTRA.csv",
-                   help="further measured poses the network methods train on (the TLBO paper's Q2)")
-    p.add_argument("--plot", metavar="OUT.png", help="per-pose error bars per method (PNG, needs matplotlib)")
-    p.add_argument("--seed", type=int, default=0, help="seed of every random choice (default 0)")
-    p.add_argument("--force", action="store_true", help="replace existing output files")
-    p.set_defaults(func=cmd_compare)
-
-
-def cmd_compare(args) -> int:
-    from ..cli import _check_out
-    from ..robot import load_robot
-
-    methods = parse_methods(args.methods)        # bad names fail before any work
-    inputs = [args.cal, args.validate, args.extra]
-    _check_out(args.json, args.force, inputs)
-    _check_out(args.plot, args.force, inputs)
-    if args.json and args.plot and Path(args.json).resolve() == Path(args.plot).resolve():
-        raise InputError("--json and --plot name the same file", file=args.json)
-    if args.plot:
-        _pyplot()                               # a missing matplotlib fails before the work, too
-    robot = load_robot(args.robot)
-
-    def read(path):
-        if path is None:
-            return None
-        return Measurements.read_csv(path, n_joints=robot.n, require_positions=True)
-
-    cal, val, extra = read(args.cal), read(args.validate), read(args.extra)
-    print(f"compare on {robot.name}: {len(cal)} calibration poses ({args.cal})"
-          + (f", {len(val)} validation poses ({args.validate})" if val is not None else "")
-          + (f", {len(extra)} extra poses ({args.extra})" if extra is not None else "")
-          + f", seed {args.seed}", flush=True)
-
-    def progress(r: MethodResult) -> None:
-        v = f", validation mean {r.validation.mean_mm:.4f} mm" if r.validation else ""
-        print(f"  {r.name}: calibration mean {r.calibration.mean_mm:.4f} mm{v} ({r.time_s:.2f} s)",
-              file=sys.stderr, flush=True)
-
-    results = compare(robot, cal, val, extra, methods, args.seed, progress=progress)
-    print()
-    print(format_table(results))
-    for r in results:
-        comp = r.info.get("compensator")
-        if isinstance(comp, dict) and not comp.get("kept", True):
-            print(f"note: {r.name}: compensator {comp.get('reason', 'dropped')}")
-    if args.json:
-        doc = to_json(results, robot=robot.name, calibration_file=args.cal, validation_file=args.validate,
-                      extra_file=args.extra, seed=args.seed)
-        Path(args.json).write_text(json.dumps(doc, indent=1, allow_nan=False))
-        print(f"\nresults -> {args.json}")
-    if args.plot:
-        plot(results, {"calibration": cal, "validation": val}, args.plot, robot.name)
-        print(f"per-pose errors -> {args.plot}")
-    return 0

@@ -6,8 +6,9 @@
   continuous relaxation (first-order multiplicative algorithm, or cvxpy),
   its upper bound, rounding and Fedorov exchange;
 - :mod:`~casadical.planning.selectors` -- :func:`select_poses` with the
-  ``d-optimal``, ``ga`` (the GA paper's selector) and ``random`` methods;
-- :mod:`~casadical.planning.cli` -- the ``plan-poses`` and ``candidates`` commands.
+  ``d-optimal``, ``ga`` (the GA paper's selector) and ``random`` methods.
+
+The ``plan-poses`` and ``candidates`` commands are in :mod:`casadical.cli.planning`.
 """
 
 from .doptimal import (DOptimalDesign, ExactDesign, Relaxation, RelaxationSettings, d_efficiency,

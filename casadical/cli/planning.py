@@ -1,23 +1,20 @@
-"""The ``plan-poses`` and ``candidates`` commands (INTERFACE.md section 3).
-
-Registered by the main command line through :func:`add_commands`.
-"""
+"""``plan-poses`` and ``candidates``: which poses to measure."""
 
 from __future__ import annotations
 
 import csv
-import json
 import math
 import time
 
 import numpy as np
 
 from ..errors import IdentifiabilityError, InputError
-from .selectors import METHODS
+from ..files import atomic_open
+from ..planning.selectors import METHODS
+from .common import add_force, check_outputs, float_in, int_at_least, write_json
 
 
-def add_commands(sub) -> None:
-    """Add ``plan-poses`` and ``candidates`` to the ``casadical`` sub-command parser."""
+def register(sub) -> None:
     p = sub.add_parser(
         "plan-poses", help="select M poses to measure out of a candidate file",
         description="Select M poses out of CANDIDATES.csv (joint readings; other columns, e.g. "
@@ -28,7 +25,7 @@ def add_commands(sub) -> None:
                     "against it.")
     p.add_argument("robot", metavar="ROBOT", help="built-in robot (ys100, hh800, ur10) or robot TOML file")
     p.add_argument("candidates", metavar="CANDIDATES.csv", help="candidate poses (q1_deg, ..., qN_deg)")
-    p.add_argument("-m", dest="m", type=int, required=True, metavar="M", help="number of poses to select")
+    p.add_argument("-m", dest="m", type=int_at_least(1), required=True, metavar="M", help="number of poses to select")
     p.add_argument("--out", required=True, metavar="SELECTED.csv", help="output CSV (selected rows)")
     p.add_argument("--method", choices=METHODS, default="d-optimal",
                    help="d-optimal (certified relaxation + exchange), ga (the GA paper's selector, "
@@ -38,10 +35,10 @@ def add_commands(sub) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the ga and random methods (default: 0)")
     p.add_argument("--relaxation", choices=("first-order", "cvxpy"), default="first-order",
                    help="solver of the continuous relaxation (default: %(default)s)")
-    p.add_argument("--json", metavar="SUMMARY.json", default=None,
-                   help="also write the summary as JSON")
-    p.add_argument("--force", action="store_true", help="replace the output files if they exist")
-    p.set_defaults(func=cmd_plan_poses)
+    p.add_argument("--json", nargs="?", const="-", default=None, metavar="SUMMARY.json",
+                   help="also write the summary as JSON to SUMMARY.json ('-' or nothing: standard output)")
+    add_force(p)
+    p.set_defaults(func=cmd_plan_poses, inputs=("robot", "candidates"))
 
     p = sub.add_parser(
         "candidates", help="generate candidate poses within the joint limits and a workspace",
@@ -49,35 +46,30 @@ def add_commands(sub) -> None:
                     "keeping those whose tool point lies above the floor and inside the box "
                     "(robot base frame, metres). Writes q1_deg..qN_deg.")
     p.add_argument("robot", metavar="ROBOT", help="built-in robot (ys100, hh800, ur10) or robot TOML file")
-    p.add_argument("-n", dest="n", type=int, required=True, metavar="N", help="number of candidates")
+    p.add_argument("-n", dest="n", type=int_at_least(1), required=True, metavar="N", help="number of candidates")
     p.add_argument("--out", required=True, metavar="C.csv", help="output CSV")
     p.add_argument("--floor-z", default="0",
                    help="keep tool points above this height, m (default 0; 'none' disables)")
     p.add_argument("--box", default=None, metavar="XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX",
                    help="keep tool points inside this box, m")
-    p.add_argument("--margin-deg", type=float, default=5.0,
+    p.add_argument("--margin-deg", type=float_in(0, 180, lo_open=False), default=5.0,
                    help="keep this far from the joint limits, degrees (default 5)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
-    p.add_argument("--force", action="store_true", help="replace OUT if it exists")
-    p.set_defaults(func=cmd_candidates)
+    add_force(p)
+    p.set_defaults(func=cmd_candidates, inputs=("robot",))
 
 
 def cmd_plan_poses(args) -> int:
-    from ..cli import _check_out
     from ..data import Measurements
     from ..model import Model
     from ..robot import load_robot
-    from .observability import design_problem
-    from .selectors import PlanSettings, select_poses
+    from ..planning.observability import design_problem
+    from ..planning.selectors import PlanSettings, select_poses
 
-    _check_out(args.out, args.force, [args.candidates])
-    if args.json:
-        _check_out(args.json, args.force, [args.candidates, args.out])
+    check_outputs({"--out": args.out, "--json": args.json}, [args.robot, args.candidates], args.force)
     robot = load_robot(args.robot)
     data = Measurements.read_csv(args.candidates, n_joints=robot.n)
     N = len(data)
-    if args.m < 1:
-        raise InputError(f"-m must be at least 1, got {args.m}", file=args.candidates)
     if args.m > N:
         raise InputError(f"-m {args.m} asks for more poses than the {N} candidate rows", file=args.candidates)
     model = Model(robot, args.model)
@@ -100,7 +92,7 @@ def cmd_plan_poses(args) -> int:
     except IdentifiabilityError as e:
         raise InputError(str(e), file=args.candidates) from e
     res.jacobian_time_s = t_jac
-    lines = _write_rows(args.candidates, res.indices, args.out)
+    lines = _write_rows(args.candidates, res.indices, args.out, args.force)
     print(f"model {model.spec} on {robot.name}: {problem.n_parameters} identifiable parameters "
           f"from {N} candidates in {args.candidates}")
     print(res.summary())
@@ -108,21 +100,12 @@ def cmd_plan_poses(args) -> int:
     if args.json:
         doc = {"robot": robot.name, "model": model.spec, "candidates": args.candidates,
                "file_lines": lines, **res.to_dict()}
-        with open(args.json, "w") as fh:
-            json.dump(doc, fh, indent=1, default=_json_default)
+        write_json(args.json, doc, args.force)
         print(f"summary -> {args.json}")
     return 0
 
 
-def _json_default(x):
-    if isinstance(x, (np.floating, np.integer)):
-        return x.item()
-    if isinstance(x, float) and not math.isfinite(x):
-        return None
-    raise TypeError(f"cannot write {type(x).__name__} to JSON")
-
-
-def _write_rows(source: str, indices: np.ndarray, out: str) -> list[int]:
+def _write_rows(source: str, indices: np.ndarray, out: str, force: bool) -> list[int]:
     """Copy the header and the selected data rows of ``source`` verbatim (field text unchanged).
 
     Returns the file line numbers (header = 1) of the selected rows.
@@ -132,7 +115,7 @@ def _write_rows(source: str, indices: np.ndarray, out: str) -> list[int]:
         header = next(reader)
         # the same rows Measurements.read_csv counts: non-blank lines after the header
         body = [(reader.line_num, r) for r in reader if any(x.strip() for x in r)]
-    with open(out, "w", newline="") as fh:
+    with atomic_open(out, "w", overwrite=force, newline="") as fh:
         w = csv.writer(fh)
         w.writerow(header)
         for i in indices:
@@ -154,17 +137,19 @@ def _parse_box(text: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
 
 
 def cmd_candidates(args) -> int:
-    from ..cli import _check_out
     from ..data import Measurements
     from ..robot import load_robot
     from ..simulate import sample_poses
 
-    _check_out(args.out, args.force, [])
-    if args.n < 1:
-        raise InputError(f"-n must be at least 1, got {args.n}")
+    check_outputs({"--out": args.out}, [args.robot], args.force)
     floor = None if args.floor_z.strip().lower() == "none" else _float(args.floor_z, "--floor-z")
     box = _parse_box(args.box) if args.box else None
     robot = load_robot(args.robot)
+    span = np.degrees(robot.limits[:, 1] - robot.limits[:, 0])
+    if 2 * args.margin_deg >= span.min():
+        j = int(np.argmin(span)) + 1
+        raise InputError(f"--margin-deg {args.margin_deg:g} leaves nothing of joint {j}'s range "
+                         f"({span[j - 1]:g} deg); use less than {span.min() / 2:g}", file=args.robot)
     q = sample_poses(robot, args.n, np.random.default_rng(args.seed), floor_z=floor, box=box,
                      margin=math.radians(args.margin_deg))
     Measurements.from_arrays(q).write_csv(args.out, overwrite=args.force)

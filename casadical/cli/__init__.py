@@ -1,0 +1,98 @@
+"""The ``casadical`` command line.
+
+Every command exits 0 on success and 2 with one line naming the file, row
+and column at fault on bad input. Anything unexpected is one line too, with
+a request to report it; ``--debug`` shows the traceback.
+
+Each command lives in a module of this package with one pattern: a
+``register(sub)`` that adds its parser and sets ``func``; shared helpers are
+in :mod:`casadical.cli.common`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import traceback
+import warnings
+
+from .. import __version__
+from ..errors import CasadicalError, CasadicalWarning
+from . import calibrate, compare, data, diagnose, model, planning
+
+#: command modules, in the order ``--help`` lists them
+COMMANDS = (model, calibrate, diagnose, planning, compare, data)
+
+class UsageError(CasadicalError):
+    """A command line that argparse rejects (unknown option, value out of its domain)."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse with one-line usage errors (the usage itself is one ``--help`` away)."""
+
+    def error(self, message: str):  # type: ignore[override]
+        raise UsageError(f"{self.prog}: {message} (see {self.prog} --help)")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = _Parser(
+        prog="casadical",
+        description="Calibration of industrial robot arms: symbolic kinematic + compliance "
+                    "models in CasADi, identification with IPOPT and Gauss-Newton, diagnosis and "
+                    "pose planning.")
+    ap.add_argument("--version", action="version", version=f"casadical {__version__}")
+    ap.add_argument("--debug", action="store_true", help="show the full traceback of unexpected errors")
+    sub = ap.add_subparsers(dest="command", metavar="COMMAND")
+    for module in COMMANDS:
+        module.register(sub)
+    for p in sub.choices.values():
+        p.add_argument("--debug", action="store_true", default=argparse.SUPPRESS,
+                       help="show the full traceback of unexpected errors")
+    return ap
+
+
+def _show_warning(message, category, filename, lineno, file=None, line=None):
+    if issubclass(category, CasadicalWarning):
+        print(f"casadical: warning: {message}", file=sys.stderr)
+    else:
+        print(f"casadical: warning: {category.__name__}: {message}", file=sys.stderr)
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = build_parser()
+    try:
+        args = ap.parse_args(argv)
+    except UsageError as e:
+        print(f"casadical: error: {e}", file=sys.stderr)
+        return 2
+    if not getattr(args, "func", None):
+        ap.print_help()
+        return 2
+    old = warnings.showwarning
+    warnings.showwarning = _show_warning
+    try:
+        return int(args.func(args) or 0)
+    except CasadicalError as e:
+        print(f"casadical: error: {e}", file=sys.stderr)
+        return 2
+    except OSError as e:
+        where = f"{e.filename}: " if e.filename else ""
+        print(f"casadical: error: {where}{e.strerror or e}", file=sys.stderr)
+        return 2
+    except MemoryError:
+        print("casadical: error: out of memory; use fewer poses or a machine with more memory",
+              file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("casadical: interrupted; no output was written in part", file=sys.stderr)
+        return 130
+    except Exception as e:  # noqa: BLE001  (the last line of defence: one line, never a traceback)
+        if args.debug:
+            traceback.print_exc()
+        text = str(e).strip().splitlines()[0] if str(e).strip() else ""
+        print(f"casadical: internal error: {type(e).__name__}{': ' + text if text else ''}. This is a bug: "
+              "please report it to the casadical developers with the command line"
+              + ("" if args.debug else " and the output of the same command with --debug"), file=sys.stderr)
+        return 3
+    finally:
+        warnings.showwarning = old

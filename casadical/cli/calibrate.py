@@ -1,0 +1,43 @@
+"""``calibrate``: identify a model from measured poses."""
+
+from __future__ import annotations
+
+from .common import add_force, check_outputs, int_at_least
+
+
+def register(sub) -> None:
+    p = sub.add_parser("calibrate", help="identify a calibrated model from measured poses",
+                       description="Identify the parameters of MODEL (kinematic, kinematic+compliance, or more "
+                                   "terms joined by '+') from DATA.csv; the base pose is always estimated. "
+                                   "Writes CAL.json and prints a summary.")
+    p.add_argument("robot", metavar="ROBOT", help="built-in robot, robot TOML or URDF file")
+    p.add_argument("data", metavar="DATA.csv", help="measured poses (q1_deg, ..., x_mm, y_mm, z_mm)")
+    p.add_argument("--model", default="kinematic+compliance",
+                   help="error model, e.g. kinematic, kinematic+compliance, "
+                        "kinematic+compliance[2,3]+periodic[2:1] (default: %(default)s)")
+    p.add_argument("--out", required=True, metavar="CAL.json", help="calibration JSON to write")
+    p.add_argument("--solver", default="ipopt", choices=["ipopt", "lm", "gn", "auto"],
+                   help="ipopt (bounded), lm (Levenberg-Marquardt), gn (Gauss-Newton), auto (lm, then "
+                        "ipopt if a bound is crossed); default %(default)s")
+    p.add_argument("--max-iter", type=int_at_least(1), default=None,
+                   help="solver iteration limit (default: the solver's own, 200 for ipopt, 100 for lm/gn)")
+    p.add_argument("--fix", default="", help="comma-separated parameters to hold at nominal (default: none)")
+    add_force(p)
+    p.set_defaults(func=run, inputs=("robot", "data"))
+
+
+def run(args) -> int:
+    from ..calibration import calibrate
+    from ..data import Measurements
+    from ..robot import load_robot
+
+    check_outputs({"--out": args.out}, [args.robot, args.data], args.force)
+    robot = load_robot(args.robot)
+    data = Measurements.read_csv(args.data, n_joints=robot.n, require_positions=True)
+    opts = {"max_iter": args.max_iter} if args.max_iter else {}
+    result = calibrate(robot, data, args.model, args.solver, solver_options=opts,
+                       fix=tuple(f.strip() for f in args.fix.split(",") if f.strip()))
+    result.save(args.out, overwrite=args.force)
+    print(result.summary())
+    print(f"\ncalibration -> {args.out}")
+    return 0

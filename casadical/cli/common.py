@@ -1,0 +1,186 @@
+"""What every command shares: output checks, option types, progress and status lines.
+
+Commands live in the modules of this package, one pattern each: a
+``register(sub)`` that adds the command's parser and sets ``func`` to the
+function that runs it. They import from here, never from each other.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import os
+import sys
+from pathlib import Path
+from typing import Any, Iterable
+
+from ..errors import InputError
+from ..files import EXISTS, atomic_write
+
+STDOUT = "-"
+
+
+# --- outputs -----------------------------------------------------------------------
+
+
+def check_outputs(outputs: dict[str, str | None], inputs: Iterable[str | None], force: bool) -> None:
+    """Refuse, before any work, outputs that would lose something the user has.
+
+    Parameters
+    ----------
+    outputs : dict
+        Option name -> path (None or ``-`` for options not given / stdout).
+    inputs : iterable of str
+        Every file the command reads (robot or calibration file included).
+    force : bool
+        Existing outputs may be replaced (never an input).
+
+    Raises
+    ------
+    InputError
+        An output is an input, two outputs are one file, an output exists
+        (without ``force``) or its folder does not exist.
+    """
+    ins = [Path(i) for i in inputs if i and i != STDOUT and Path(i).exists()]
+    seen: dict[Path, str] = {}
+    for option, path in outputs.items():
+        if path is None or path == STDOUT:
+            continue
+        out = Path(path)
+        key = out.resolve()
+        if key in seen:
+            raise InputError(f"{option} and {seen[key]} name the same file; give each output its own name",
+                             file=path)
+        seen[key] = option
+        if out.exists():
+            if any(_same(out, i) for i in ins):
+                raise InputError(f"{option} names an input file; choose another output name "
+                                 "(casadical never writes over its inputs, even with --force)", file=path)
+            if out.is_dir():
+                raise InputError(f"{option} names a folder, not a file", file=path)
+            if not force:
+                raise InputError(EXISTS, file=path)
+        if not out.parent.exists():
+            raise InputError(f"folder {str(out.parent)!r} does not exist", file=path)
+
+
+def _same(a: Path, b: Path) -> bool:
+    try:
+        return os.path.samefile(a, b)
+    except OSError:
+        return a.resolve() == b.resolve()
+
+
+def write_text(path: str, text: str, force: bool) -> None:
+    """Write a text output atomically (``-`` prints it)."""
+    if path == STDOUT:
+        sys.stdout.write(text if text.endswith("\n") else text + "\n")
+        return
+    atomic_write(path, text, overwrite=force)
+
+
+def write_json(path: str, doc: Any, force: bool) -> None:
+    """Write a JSON document atomically (``-`` prints it); NaN and infinities become null."""
+    write_text(path, json.dumps(finite(doc), indent=1, allow_nan=False, default=json_default), force)
+
+
+def finite(doc: Any) -> Any:
+    """``doc`` with every non-finite float replaced by None (JSON has no NaN or infinity)."""
+    if isinstance(doc, float):
+        return doc if math.isfinite(doc) else None
+    if isinstance(doc, dict):
+        return {k: finite(v) for k, v in doc.items()}
+    if isinstance(doc, (list, tuple)):
+        return [finite(v) for v in doc]
+    return doc
+
+
+def json_default(x):
+    """numpy scalars and arrays in JSON."""
+    import numpy as np
+    if isinstance(x, (np.floating, np.integer)):
+        return x.item()
+    if isinstance(x, np.ndarray):
+        return x.tolist()
+    raise TypeError(f"cannot write {type(x).__name__} to JSON")
+
+
+# --- option types (argparse turns their ValueError/ArgumentTypeError into a usage error) ----
+
+
+def _number(text: str) -> float:
+    try:
+        v = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"not a number: {text!r}") from None
+    if not math.isfinite(v):
+        raise argparse.ArgumentTypeError(f"must be finite, got {text!r}")
+    return v
+
+
+def int_at_least(lo: int):
+    """Option type: a whole number >= ``lo``."""
+    def parse(text: str) -> int:
+        try:
+            v = int(text)
+        except ValueError:
+            raise argparse.ArgumentTypeError(f"not a whole number: {text!r}") from None
+        if v < lo:
+            raise argparse.ArgumentTypeError(f"must be at least {lo}, got {v}")
+        return v
+    parse.__name__ = f"whole number >= {lo}"
+    return parse
+
+
+def float_in(lo: float, hi: float, lo_open: bool = True, hi_open: bool = True):
+    """Option type: a finite number within (lo, hi) (ends open or closed)."""
+    def parse(text: str) -> float:
+        v = _number(text)
+        if (v <= lo if lo_open else v < lo) or (v >= hi if hi_open else v > hi):
+            a, b = ("(" if lo_open else "["), (")" if hi_open else "]")
+            raise argparse.ArgumentTypeError(f"must be in {a}{lo:g}, {hi:g}{b}, got {v:g}")
+        return v
+    parse.__name__ = "number"
+    return parse
+
+
+def add_force(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--force", action="store_true",
+                   help="replace output files that exist (never an input file)")
+
+
+def add_quiet(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--quiet", "-q", action="store_true", help="no progress output on stderr")
+
+
+def add_json(p: argparse.ArgumentParser, what: str, required: bool = False) -> None:
+    """``--json PATH``: the command's result as JSON (``-`` or no PATH: standard output)."""
+    if required:
+        p.add_argument("--json", required=True, metavar="OUT.json", help=f"write {what} as JSON")
+    else:
+        p.add_argument("--json", nargs="?", const=STDOUT, default=None, metavar="OUT.json",
+                       help=f"write {what} as JSON to OUT.json ('-' or nothing: standard output)")
+
+
+# --- progress ------------------------------------------------------------------------
+
+
+class Status:
+    """Progress for the terminal (stderr): lines and bars with an ETA, silent with ``--quiet``.
+
+    Bars are tqdm's: a well-kept library that handles terminals, pipes and
+    rates; the library itself only calls the callbacks it is given.
+    """
+
+    def __init__(self, quiet: bool = False):
+        self.quiet = quiet
+
+    def line(self, text: str) -> None:
+        if not self.quiet:
+            print(text, file=sys.stderr, flush=True)
+
+    def bar(self, total: int | None, desc: str, unit: str = "it"):
+        from tqdm.auto import tqdm
+        return tqdm(total=total, desc=desc, unit=unit, file=sys.stderr, disable=self.quiet,
+                    leave=False, dynamic_ncols=True)

@@ -1,0 +1,80 @@
+"""``compare``: the seed papers' calibration methods side by side."""
+
+from __future__ import annotations
+
+import sys
+
+from ..data import Measurements
+from ..methods import method_names
+from ..methods.base import MethodResult
+from ..methods.compare import compare, format_table, parse_methods, plot, pyplot, to_json
+from .common import Status, add_force, add_json, add_quiet, check_outputs, write_json
+
+
+def register(sub) -> None:
+    names = ", ".join(method_names())
+    p = sub.add_parser(
+        "compare", help="run the seed papers' calibration methods side by side",
+        description="Run calibration methods on the same data and print the seeds' accuracy table "
+                    "(mean / max / std of the position error in mm, calibration and validation poses) "
+                    f"with the time per method. Methods: {names}.")
+    p.add_argument("robot", metavar="ROBOT", help="built-in robot (ys100, hh800, ur10) or robot TOML file")
+    p.add_argument("cal", metavar="CAL.csv", help="calibration poses (with x_mm, y_mm, z_mm)")
+    p.add_argument("--validate", metavar="VAL.csv", help="validation poses, never used for fitting")
+    add_json(p, "the results")
+    p.add_argument("--methods", default="", help=f"comma-separated methods (default all: {names})")
+    p.add_argument("--extra", metavar="EXTRA.csv",
+                   help="further measured poses the network methods train on (the TLBO paper's Q2)")
+    p.add_argument("--plot", metavar="OUT.png", help="per-pose error bars per method (PNG, needs matplotlib)")
+    p.add_argument("--seed", type=int, default=0, help="seed of every random choice (default: %(default)s)")
+    add_quiet(p)
+    add_force(p)
+    p.set_defaults(func=cmd_compare, inputs=("robot", "cal", "validate", "extra"))
+
+
+def cmd_compare(args) -> int:
+    from ..robot import load_robot
+
+    methods = parse_methods(args.methods)        # bad names fail before any work
+    inputs = [args.cal, args.validate, args.extra]
+    check_outputs({"--json": args.json, "--plot": args.plot}, [args.robot, *inputs], args.force)
+    if args.plot:
+        pyplot()                               # a missing matplotlib fails before the work, too
+    robot = load_robot(args.robot)
+
+    def read(path):
+        if path is None:
+            return None
+        return Measurements.read_csv(path, n_joints=robot.n, require_positions=True)
+
+    cal, val, extra = read(args.cal), read(args.validate), read(args.extra)
+    print(f"compare on {robot.name}: {len(cal)} calibration poses ({args.cal})"
+          + (f", {len(val)} validation poses ({args.validate})" if val is not None else "")
+          + (f", {len(extra)} extra poses ({args.extra})" if extra is not None else "")
+          + f", seed {args.seed}", flush=True)
+
+    status = Status(args.quiet)
+    with status.bar(len(methods), "methods", unit="method") as bar:
+        def progress(r: MethodResult) -> None:
+            v = f", validation mean {r.validation.mean_mm:.4f} mm" if r.validation else ""
+            if not args.quiet:
+                bar.write(f"  {r.name}: calibration mean {r.calibration.mean_mm:.4f} mm{v} ({r.time_s:.2f} s)",
+                          file=sys.stderr)
+            bar.update(1)
+
+        results = compare(robot, cal, val, extra, methods, args.seed, progress=progress)
+    print()
+    print(format_table(results))
+    for r in results:
+        comp = r.info.get("compensator")
+        if isinstance(comp, dict) and not comp.get("kept", True):
+            print(f"note: {r.name}: compensator {comp.get('reason', 'dropped')}")
+    if args.json:
+        doc = to_json(results, robot=robot.name, calibration_file=args.cal, validation_file=args.validate,
+                      extra_file=args.extra, seed=args.seed)
+        write_json(args.json, doc, args.force)
+        print(f"\nresults -> {args.json}")
+    if args.plot:
+        plot(results, {"calibration": cal, "validation": val}, args.plot, robot.name, overwrite=args.force)
+        print(f"per-pose errors -> {args.plot}")
+    return 0

@@ -1,0 +1,89 @@
+"""``split``, ``simulate`` and ``import-ur10``: measurement files in and out."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import InputError
+from .common import add_force, check_outputs, int_at_least, write_json
+
+
+def register(sub) -> None:
+    p = sub.add_parser("split", help="split a measurement file into calibration and validation poses",
+                       description="Random split of DATA.csv: N rows for calibration, the rest for "
+                                   "validation; both keep the original row order.")
+    p.add_argument("data", metavar="DATA.csv", help="measurement file")
+    p.add_argument("-n", type=int_at_least(1), required=True, help="number of calibration poses")
+    p.add_argument("--out-cal", required=True, metavar="CAL.csv", help="calibration poses to write")
+    p.add_argument("--out-val", required=True, metavar="VAL.csv", help="validation poses to write")
+    p.add_argument("--seed", type=int, default=0, help="seed of the random split (default: %(default)s)")
+    add_force(p)
+    p.set_defaults(func=run_split, inputs=("data",))
+
+    p = sub.add_parser("simulate", help="simulate the pose sets of an experiment protocol",
+                       description="Simulate measurements from a protocol of problems/protocols "
+                                   "(name or TOML path); writes one CSV per pose set and truth.json.")
+    p.add_argument("protocol", help="protocol name (e.g. ca-ys100) or protocol TOML file")
+    p.add_argument("--out-dir", required=True, help="folder for the CSV files and truth.json (created)")
+    p.add_argument("--seed", type=int, default=None, help="override the protocol's seed")
+    add_force(p)
+    p.set_defaults(func=run_simulate, inputs=("protocol",))
+
+    p = sub.add_parser("import-ur10", help="convert the UR10 (ipa) raw format to the measurement CSV",
+                       description="Convert a raw UR10 file (';' separated, decimal comma, radians) "
+                                   "to the measurement CSV contract.")
+    p.add_argument("source", help="raw UR10 measurement file")
+    p.add_argument("--out", required=True, metavar="OUT.csv", help="output CSV")
+    p.add_argument("--keep-order", action="store_true",
+                   help="keep the file's row order where the timestamps say otherwise (default: sort by time)")
+    add_force(p)
+    p.set_defaults(func=run_import_ur10, inputs=("source",))
+
+
+def run_split(args) -> int:
+    from ..data import Measurements
+
+    check_outputs({"--out-cal": args.out_cal, "--out-val": args.out_val}, [args.data], args.force)
+    data = Measurements.read_csv(args.data)
+    n = len(data)
+    if not args.n < n:
+        raise InputError(f"cannot take {args.n} calibration poses out of {n}: choose 1 to {n - 1}",
+                         file=args.data)
+    idx = np.sort(np.random.default_rng(args.seed).permutation(n)[: args.n])
+    rest = np.setdiff1d(np.arange(n), idx)
+    data.subset(idx).write_csv(args.out_cal, overwrite=args.force)
+    data.subset(rest).write_csv(args.out_val, overwrite=args.force)
+    print(f"{len(idx)} poses -> {args.out_cal}, {len(rest)} poses -> {args.out_val} (row order kept)")
+    return 0
+
+
+def run_simulate(args) -> int:
+    from ..simulate import load_protocol
+
+    proto = load_protocol(args.protocol)
+    out = Path(args.out_dir)
+    outputs = {f"{name}.csv": str(out / f"{name}.csv") for name in proto.sets}
+    outputs["truth.json"] = str(out / "truth.json")
+    out.mkdir(parents=True, exist_ok=True)
+    check_outputs(outputs, [args.protocol], args.force)
+    sets, truth = proto.generate(args.seed)
+    for name, data in sets.items():
+        data.write_csv(out / f"{name}.csv", overwrite=args.force)
+        print(f"{name}: {len(data)} poses -> {out / (name + '.csv')}")
+    truth_doc = {"protocol": proto.name, "robot": proto.robot.name,
+                 "parameters": {n: v for n, v in zip(truth.model.parameters.names, truth.values.tolist())},
+                 "base0": truth.base0.tolist(), "model": truth.model.spec}
+    write_json(outputs["truth.json"], truth_doc, args.force)
+    print(f"true parameters (SI units) -> {outputs['truth.json']}")
+    return 0
+
+
+def run_import_ur10(args) -> int:
+    from ..importers.ur10 import convert_ur10
+
+    check_outputs({"--out": args.out}, [args.source], args.force)
+    n = convert_ur10(args.source, args.out, overwrite=args.force, sort_by_time=not args.keep_order)
+    print(f"converted {n} poses -> {args.out}")
+    return 0

@@ -1,0 +1,104 @@
+"""``inspect`` and ``predict``: the symbolic model and what it predicts."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from .common import add_force, add_json, check_outputs, int_at_least, write_json
+
+
+def register(sub) -> None:
+    p = sub.add_parser("inspect", help="show the symbolic model, its parameters and their identifiability",
+                       description="Show the symbolic model of ROBOT: parameters with units and nominal "
+                                   "values, which are identifiable (and why not), expression sizes.")
+    p.add_argument("robot", metavar="ROBOT", help="built-in robot (ys100, hh800, ur10), robot TOML or URDF file")
+    p.add_argument("--model", default="kinematic+compliance",
+                   help="error model, terms joined by '+' (default: %(default)s)")
+    p.add_argument("--poses", type=int_at_least(1), default=200,
+                   help="random poses for the identifiability analysis (default: %(default)s)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the random poses (default: %(default)s)")
+    add_json(p, "the model description")
+    add_force(p)
+    p.set_defaults(func=run_inspect, inputs=("robot",))
+
+    p = sub.add_parser("predict", help="predict tool positions for joint readings",
+                       description="Predict tool positions. MODEL is a robot (nominal model) or a "
+                                   "calibration JSON written by 'calibrate'. OUT.csv holds the input "
+                                   "columns plus x_mm, y_mm, z_mm (measured ones are renamed measured_*).")
+    p.add_argument("model", metavar="MODEL", help="robot (nominal model) or calibration JSON")
+    p.add_argument("poses", metavar="POSES.csv", help="joint readings (q1_deg, ...)")
+    p.add_argument("--out", required=True, metavar="OUT.csv", help="output CSV")
+    add_force(p)
+    p.set_defaults(func=run_predict, inputs=("model", "poses"))
+
+
+def run_inspect(args) -> int:
+    from ..identifiability import analyse
+    from ..model import Model
+    from ..robot import load_robot
+    from ..simulate import sample_poses
+
+    check_outputs({"--json": args.json}, [args.robot], args.force)
+    robot = load_robot(args.robot)
+    model = Model(robot, args.model)
+    rng = np.random.default_rng(args.seed)
+    q = sample_poses(robot, args.poses, rng, floor_z=None)
+    _, J = model.predict_jacobian(q)
+    ident = analyse(J, model.parameters)
+    ident.apply(model.parameters)
+    size = model.expression_size()
+    if args.json:
+        doc = {
+            "robot": robot.name, "model": model.spec, "convention": robot.convention,
+            "n_joints": robot.n, "covariates": model.covariate_names,
+            "expression": {"parameters": size.n_parameters, "fk_instructions": size.fk_instructions,
+                           "jacobian_instructions": size.jacobian_instructions, "fk_nodes": size.fk_nodes},
+            "identifiability": {"poses": args.poses, "condition_number": ident.condition_number,
+                                "rank": len(ident.identifiable)},
+            "parameters": [param_json(p) for p in model.parameters],
+        }
+        write_json(args.json, doc, args.force)
+        return 0
+    print(f"robot {robot.name} ({robot.n} joints, {robot.convention.upper()} convention"
+          f"{', parallelogram loop on joint %d' % robot.loop.joint if robot.loop else ''})  source: {robot.source}")
+    print(f"model {model.spec}: {size.n_parameters} parameters; per-pose covariates: "
+          f"{', '.join(model.covariate_names)}")
+    print(f"symbolic size: forward kinematics {size.fk_instructions} instructions "
+          f"({size.fk_nodes} nodes), with Jacobian {size.jacobian_instructions} instructions")
+    print(f"identifiability from {args.poses} random poses within the joint limits (seed {args.seed}): "
+          f"{len(ident.identifiable)} of {len(ident.identifiable) + len(ident.unidentifiable)} "
+          f"free parameters identifiable, condition number {ident.condition_number:.3g}")
+    print()
+    print(model.parameters.table())
+    return 0
+
+
+def param_json(p) -> dict:
+    return {"name": p.name, "value": p.to_display(p.value), "nominal": p.to_display(p.nominal),
+            "std": p.to_display(p.std) if math.isfinite(p.std) else None,
+            "identifiable": bool(p.identifiable) if p.identifiable is not None else not p.fixed,
+            "fixed": p.fixed, "reason": p.reason, "unit": p.display_unit, "term": p.term,
+            "joint": p.joint}
+
+
+def run_predict(args) -> int:
+    from ..data import Measurements
+    from ..model import Model
+    from ..robot import load_robot
+
+    check_outputs({"--out": args.out}, [args.model, args.poses], args.force)
+    if args.model.lower().endswith(".json"):
+        from ..calibration import load_calibration
+        cal = load_calibration(args.model)
+        data = Measurements.read_csv(args.poses, n_joints=cal.model.robot.n)
+        xyz = cal.predict(data)
+    else:
+        robot = load_robot(args.model)
+        model = Model(robot, "nominal")
+        data = Measurements.read_csv(args.poses, n_joints=robot.n)
+        xyz = model.predict(data.q, cov=model.covariates(data))
+    data.with_positions(xyz).write_csv(args.out, overwrite=args.force)
+    print(f"predicted {len(data)} poses -> {args.out}")
+    return 0
