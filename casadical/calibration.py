@@ -6,250 +6,48 @@
 >>> data = Measurements.read_csv("problems/datasets/ur10-ipa/series_b.csv", n_joints=6)
 >>> result = calibrate(robot, data.subset(slice(0, 300)), "kinematic")   # doctest: +SKIP
 >>> print(result.summary())                                              # doctest: +SKIP
+
+Given a calibration instead of a robot, only what the model specification
+names is estimated again and every other value is kept: ``base`` re-fits the
+base pose alone (a new tracker set-up), ``kinematic`` the geometry (a new
+measurement series), ``kinematic+compliance`` the geometry and compliances.
+
+The parameters minimise a robust loss by default (pseudo-Huber, noise scale
+from the data, :class:`casadical.problem.RobustLoss`): a bad tracker shot is
+down-weighted and reported by its file line instead of pulling the model.
 """
 
 from __future__ import annotations
 
-import json
 import math
 import warnings
-from dataclasses import dataclass, field
-from pathlib import Path
+from dataclasses import replace
 
 import numpy as np
 
-from . import __version__
 from .alignment import align
+from .coverage import Coverage
 from .data import Measurements
-from .errors import (CalibrationFileError, ConvergenceWarning, IdentifiabilityError, IdentifiabilityWarning,
-                     InputError, SolverError)
-from .files import atomic_write
-from .identifiability import Identifiability, analyse
-from .kinematics import matrix_to_rpy
-from .model import Model, base0_to_pose, parse_spec, pose_to_base0
+from .compensators.guard import fit_guarded
+from .errors import CasadicalWarning, ConvergenceWarning, IdentifiabilityError, IdentifiabilityWarning, InputError, SolverError
+from .identifiability import analyse
+from .kinematics import base_pose_matrix
+from .model import Model, parse_spec, pose_to_base0
 from .parameters import Parameters
-from .problem import CalibrationProblem
-from .robot import Robot, robot_from_dict, robot_to_dict
+from .problem import CalibrationProblem, RobustLoss, jacobian_factor
+from .result import CalibrationResult, ErrorStats, load_calibration, restore_term
+from .robot import Robot
 from .simulate import sample_poses
-from .solvers import SolverResult, make_solver
-from .terms.base import ReferencedTerm
-from .uncertainty import Uncertainty, estimate, warn_problems
+from .solvers import make_solver
+from .terms import ErrorTerm, ReferencedTerm, make_term
+from .terms.rbf_compensator import RBFCompensator, features
+from .uncertainty import from_normal, warn_problems
 
+__all__ = ["CalibrationResult", "ErrorStats", "calibrate", "load_calibration"]
 
-@dataclass
-class ErrorStats:
-    """Position error statistics over poses (mm)."""
-
-    n_poses: int
-    mean_mm: float
-    max_mm: float
-    std_mm: float
-    rms_mm: float
-
-    @classmethod
-    def of(cls, errors_m: np.ndarray) -> "ErrorStats":
-        e = np.asarray(errors_m) * 1000.0
-        return cls(len(e), float(e.mean()), float(e.max()), float(e.std()), float(np.sqrt((e ** 2).mean())))
-
-    def to_dict(self) -> dict:
-        return {"n_poses": self.n_poses, "mean_mm": self.mean_mm, "max_mm": self.max_mm,
-                "std_mm": self.std_mm, "rms_mm": self.rms_mm}
-
-    def line(self) -> str:
-        return (f"mean {self.mean_mm:.4f}  max {self.max_mm:.4f}  std {self.std_mm:.4f}  "
-                f"rms {self.rms_mm:.4f} mm over {self.n_poses} poses")
-
-
-@dataclass
-class CalibrationResult:
-    """A calibrated model (statsmodels-style results object).
-
-    Attributes
-    ----------
-    model : Model
-    parameters : Parameters
-        Identified values, standard errors, identifiability and reasons.
-    base0 : ndarray
-        Reference base pose (12 numbers) the ``base_*`` deviations apply to.
-    solver : SolverResult
-    solver_name : str
-    identifiability : Identifiability or None
-    uncertainty : Uncertainty or None
-    calibration : ErrorStats
-        Errors on the calibration poses.
-    notes : list of str
-        Warnings raised during the calibration.
-    """
-
-    model: Model
-    parameters: Parameters
-    base0: np.ndarray
-    solver: SolverResult | None = None
-    solver_name: str = ""
-    identifiability: Identifiability | None = None
-    uncertainty: Uncertainty | None = None
-    calibration: ErrorStats | None = None
-    notes: list[str] = field(default_factory=list)
-
-    # --- using the model ------------------------------------------------------
-
-    def predict(self, data: Measurements) -> np.ndarray:
-        """Predicted tool positions (m, (N, 3)) with every term and the rows' covariates."""
-        self._check_joints(data)
-        return self.model.predict(data.q, self.parameters.values, self.model.covariates(data), self.base0)
-
-    def errors(self, data: Measurements) -> np.ndarray:
-        """Position error norm per pose (m)."""
-        return np.linalg.norm(self.predict(data) - data.xyz, axis=1)
-
-    def residuals(self, data: Measurements) -> np.ndarray:
-        """Measured minus predicted (m, (N, 3))."""
-        return data.xyz - self.predict(data)
-
-    def stats(self, data: Measurements) -> ErrorStats:
-        return ErrorStats.of(self.errors(data))
-
-    def _check_joints(self, data: Measurements) -> None:
-        if data.n_joints != self.model.robot.n:
-            raise InputError(f"has {data.n_joints} joint columns but the robot has {self.model.robot.n} "
-                             "joints", file=data.path)
-
-    # --- derived quantities ---------------------------------------------------
-
-    def base_pose(self) -> tuple[np.ndarray, np.ndarray]:
-        """Robot base in the measurement frame: translation (m) and roll-pitch-yaw (rad)."""
-        from .kinematics import base_pose_matrix
-        p = self.parameters
-        delta = base_pose_matrix([p[f"base_{k}"].value for k in "xyz"],
-                                 [p[f"base_{k}"].value for k in ("roll", "pitch", "yaw")])
-        T = base0_to_pose(self.base0) @ delta
-        return T[:3, 3], matrix_to_rpy(T[:3, :3])
-
-    def stiffness(self) -> dict[int, tuple[float, float]]:
-        """Joint stiffness k_j = 1 / c_j (N m/rad) with its standard error, compliant joints only."""
-        out = {}
-        for p in self.parameters.select(term="joint_compliance"):
-            if p.fixed and p.identifiable is False:
-                continue
-            k = 1.0 / p.value if p.value > 0 else math.inf
-            sk = p.std / p.value ** 2 if p.value > 0 and math.isfinite(p.std) else math.nan
-            out[p.joint] = (k, sk)
-        return out
-
-    # --- reports --------------------------------------------------------------
-
-    def summary(self) -> str:
-        """Text report: solver, identified parameters next to nominal, stiffness, errors."""
-        m = self.model
-        lines = [f"casadical calibration of {m.robot.name}: model {m.spec}"]
-        if self.solver is not None:
-            s = self.solver
-            lines.append(f"solver {self.solver_name}: {s.status}, {s.iterations} iterations, "
-                         f"{s.solve_time_s * 1000:.1f} ms (setup {s.setup_time_s * 1000:.1f} ms)")
-        if self.identifiability is not None:
-            lines.append(self.identifiability.report())
-        if self.uncertainty is not None:
-            lines.append(f"residual sigma {self.uncertainty.sigma * 1000:.4f} mm per axis, "
-                         f"{self.uncertainty.dof} degrees of freedom")
-        xyz, rpy = self.base_pose()
-        lines.append("base in the measurement frame: xyz [" + ", ".join(f"{v * 1000:.3f}" for v in xyz)
-                     + "] mm, rpy [" + ", ".join(f"{math.degrees(v):.4f}" for v in rpy) + "] deg")
-        lines += ["", "identified parameters (angles in deg, lengths in mm):",
-                  self.parameters.table(show_fixed=True)]
-        st = self.stiffness()
-        if st:
-            lines += ["", "joint stiffness k = 1/c:"]
-            for j, (k, sk) in st.items():
-                lines.append(f"  k{j} = {k:.4e} N m/rad" + (f"  (std {sk:.2e})" if math.isfinite(sk) else ""))
-        if self.calibration is not None:
-            lines += ["", "calibration poses: " + self.calibration.line()]
-        for n in self.notes:
-            lines.append("note: " + n)
-        return "\n".join(lines)
-
-    def to_dict(self) -> dict:
-        """The calibration JSON of INTERFACE.md section 4 (plus what rebuilds the model)."""
-        params = []
-        for p in self.parameters:
-            params.append({"name": p.name, "value": p.to_display(p.value),
-                           "std": p.to_display(p.std) if math.isfinite(p.std) else None,
-                           "identifiable": bool(p.identifiable) if p.identifiable is not None else not p.fixed,
-                           "unit": p.display_unit, "nominal": p.to_display(p.nominal), "fixed": p.fixed,
-                           "reason": p.reason, "term": p.term, "joint": p.joint})
-        for j, (k, sk) in self.stiffness().items():
-            params.append({"name": f"k{j}", "value": k, "std": sk if math.isfinite(sk) else None,
-                           "identifiable": True, "unit": "N*m/rad", "derived": f"1/c{j}", "joint": j})
-        xyz, rpy = self.base_pose()
-        doc = {
-            "casadical_version": __version__,
-            "robot": robot_to_dict(self.model.robot),
-            "model": self.model.spec,
-            "terms": {t.name: t.settings() for t in self.model.terms},
-            "parameters": params,
-            "base0": [float(x) for x in self.base0],
-            "base_pose": {"xyz_m": xyz.tolist(), "rpy_deg": np.degrees(rpy).tolist()},
-            "calibration": self.calibration.to_dict() if self.calibration else None,
-            "solver": None,
-            "notes": self.notes,
-        }
-        if self.solver is not None:
-            doc["solver"] = {"name": self.solver_name, "status": self.solver.status,
-                             "iterations": self.solver.iterations, "solve_time_s": self.solver.solve_time_s,
-                             "setup_time_s": self.solver.setup_time_s, "success": self.solver.success}
-        if self.uncertainty is not None:
-            doc["uncertainty"] = {"sigma_mm": self.uncertainty.sigma * 1000, "dof": self.uncertainty.dof,
-                                  "names": self.uncertainty.names,
-                                  "correlation": np.round(self.uncertainty.correlation, 6).tolist()}
-        return doc
-
-    def save(self, path: str | Path, overwrite: bool = False) -> None:
-        atomic_write(path, json.dumps(self.to_dict(), indent=1, allow_nan=False, default=_json_default),
-                     overwrite=overwrite)
-
-
-def _json_default(o):
-    if isinstance(o, (np.floating, np.integer)):
-        return o.item()
-    raise TypeError(type(o).__name__)
-
-
-def load_calibration(path: str | Path) -> CalibrationResult:
-    """Read a calibration JSON written by :meth:`CalibrationResult.save`."""
-    path = str(path)
-    try:
-        doc = json.loads(Path(path).read_text())
-    except FileNotFoundError:
-        raise CalibrationFileError("no such file", file=path) from None
-    except (OSError, json.JSONDecodeError) as e:
-        raise CalibrationFileError(f"not a calibration JSON: {e}", file=path) from e
-    try:
-        robot = robot_from_dict(doc["robot"], path)
-        terms = parse_spec(doc["model"])
-        for t in terms:
-            for k, v in doc.get("terms", {}).get(t.name, {}).items():
-                if k != "joints" and k != "harmonics":
-                    setattr(t, k, v)
-        model = Model(robot, terms)
-        params = model.parameters.copy()
-        for entry in doc["parameters"]:
-            if entry.get("derived"):
-                continue
-            p = params[entry["name"]]
-            p.value = p.from_display(float(entry["value"]))
-            p.std = p.from_display(float(entry["std"])) if entry.get("std") is not None else math.nan
-            p.fixed = bool(entry.get("fixed", False))
-            p.identifiable = entry.get("identifiable")
-            p.reason = entry.get("reason", "")
-        base0 = np.asarray(doc["base0"], dtype=float)
-    except (KeyError, TypeError, ValueError) as e:
-        raise CalibrationFileError(f"not a calibration JSON written by casadical ({e!r})", file=path) from e
-    model.parameters = params
-    cal = doc.get("calibration")
-    return CalibrationResult(model, params, base0,
-                             calibration=ErrorStats(**cal) if cal else None, notes=doc.get("notes", []))
-
-
-# --- the calibration itself ---------------------------------------------------------
+#: a pose whose robust weight falls below this is reported as set aside
+DOWNWEIGHT_REPORT = 0.5
+ROBUST_LOOPS = 6
 
 
 _GENERIC: dict = {}
@@ -274,19 +72,75 @@ def _generic_identifiable(model: Model, params: Parameters, cov: np.ndarray, see
     return _GENERIC[key][1]
 
 
-def calibrate(robot: Robot, data: Measurements, model: str | Model = "kinematic+compliance",
+def _loss(robust: str | RobustLoss | None) -> RobustLoss:
+    if isinstance(robust, RobustLoss):
+        return robust
+    if robust in (None, "none"):
+        return RobustLoss("none")
+    if robust == "huber":
+        return RobustLoss("huber")
+    raise InputError(f"unknown robust loss {robust!r}: use 'huber' (default) or 'none'")
+
+
+def _reference(terms: list[ErrorTerm], data: Measurements) -> None:
+    """Terms driven by a covariate take its mean over the data as their reference."""
+    for t in terms:
+        if isinstance(t, ReferencedTerm):
+            col = data.get(t.reference_covariate)
+            if col is None and t.reference_covariate == "time_s":
+                col = data.rows  # row order is time order
+            if col is not None:
+                t.t_ref = float(np.mean(col))
+
+
+def _merge(prior: list[ErrorTerm], new: list[ErrorTerm]) -> tuple[list[ErrorTerm], set[str]]:
+    """Terms of a calibration extended by a specification's terms; the names of the latter's terms.
+
+    A term of the same kind as one already there is merged (its joints or
+    harmonics joined); settings (reference temperature, network, ...) are kept.
+    """
+    out = list(prior)
+    named: set[str] = set()
+    for t in new:
+        named.add(t.name)
+        same = next((k for k, p in enumerate(out) if type(p) is type(t)), None)
+        if same is None:
+            out.append(t)
+            continue
+        p = out[same]
+        if hasattr(t, "harmonics"):
+            merged = sorted(set(p.harmonics) | set(t.harmonics))
+            out[same] = restore_term(type(t)(merged), p.settings() | {"harmonics": merged})
+        elif t.joints is not None and p.joints is not None and set(t.joints) - set(p.joints):
+            out[same] = restore_term(type(t)(sorted(set(p.joints) | set(t.joints))), p.settings())
+    return out, named
+
+
+def _named_free(params: Parameters, named: set[str], new_params: set[str]) -> list[str]:
+    """Parameters re-estimated when a calibration is taken further: base, named terms, new ones."""
+    return [p.name for p in params if p.group == "base" or p.term in named or p.name in new_params]
+
+
+def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str | Model = "kinematic+compliance",
               solver: str = "ipopt", *, solver_options: dict | None = None, fix: tuple[str, ...] = (),
               start: dict[str, float] | None = None, check_identifiability: bool = True,
-              warn: bool = True) -> CalibrationResult:
+              warn: bool = True, robust: str | RobustLoss = "huber") -> CalibrationResult:
     """Identify the parameters of ``model`` from measured poses.
 
     Parameters
     ----------
-    robot : Robot
+    robot : Robot or CalibrationResult
+        A robot (every parameter of ``model`` starts at nominal), or a
+        calibration to take further: then only the base pose and the
+        parameters of the terms ``model`` names are estimated (``base``:
+        the base pose alone; ``kinematic``: the geometry; terms the
+        calibration lacks are added), every other value is kept.
     data : Measurements
         Must contain measured positions.
     model : str or Model
         Specification such as ``"kinematic+compliance"`` or a built model.
+        ``+rbf_compensator`` fits a Gaussian RBF network to what the model
+        leaves (in the robot base frame) and adds it to the model.
     solver : {"ipopt", "lm", "gn", "auto"}
         ``auto`` runs Levenberg-Marquardt and hands over to IPOPT if the
         solution leaves the parameter bounds.
@@ -295,9 +149,13 @@ def calibrate(robot: Robot, data: Measurements, model: str | Model = "kinematic+
     fix : tuple of str
         Parameters to hold at their start values.
     start : dict, optional
-        Start values (SI) by parameter name; default nominal.
+        Start values (SI) by parameter name; default nominal (or the
+        calibration's values).
     check_identifiability : bool
         Fix parameters these poses cannot identify (recommended).
+    robust : {"huber", "none"} or RobustLoss
+        The loss: pseudo-Huber on each pose's residual with the noise scale
+        estimated from the data (default), or plain least squares.
 
     Raises
     ------
@@ -305,38 +163,71 @@ def calibrate(robot: Robot, data: Measurements, model: str | Model = "kinematic+
         Too few poses for the model, or degenerate poses.
     SolverError
         The solver failed without a usable result.
+    InputError
+        The data do not fit the robot, or an unknown parameter name.
     """
+    prior = robot if isinstance(robot, CalibrationResult) else None
+    robot = prior.model.robot if prior is not None else robot
     if data.n_joints != robot.n:
         raise InputError(f"has {data.n_joints} joint columns but robot {robot.name} has {robot.n} joints",
                          file=data.path)
-    if isinstance(model, str):
-        terms = parse_spec(model)
-        for t in terms:
-            if isinstance(t, ReferencedTerm):
-                col = data.get(t.reference_covariate)
-                if col is None and t.reference_covariate == "time_s":
-                    col = data.rows  # row order is time order
-                if col is not None:
-                    t.t_ref = float(np.mean(col))
-        model = Model(robot, terms)
+    loss = _loss(robust)
     notes: list[str] = []
-    params = model.parameters.copy()
+
+    # --- the model and the free set
+    if isinstance(model, Model):
+        terms, built = model.terms, model
+    else:
+        terms, built = parse_spec(model), None
+    want_rbf = any(isinstance(t, RBFCompensator) and t.network is None for t in terms)
+    terms = [t for t in terms if not (isinstance(t, RBFCompensator) and t.network is None)]
+    if prior is not None:
+        merged, named = _merge(list(prior.model.terms), terms)
+        geometric = prior.model.geometric_free or "geometric" in named
+        model = Model(robot, [t for t in merged if t.name != "geometric" or geometric])
+        old = {p.name for p in prior.parameters}
+        params = model.parameters.copy()
+        new_params = {p.name for p in params if p.name not in old}
+        free = set(_named_free(params, named, new_params))
+        for p in params:
+            if p.name in old:
+                src = prior.parameters[p.name]
+                p.value, p.std, p.identifiable = src.value, src.std, src.identifiable
+            p.fixed = p.name not in free
+            if p.fixed:
+                p.reason = "kept from the calibration"
+            elif p.name in old and prior.parameters[p.name].fixed and p.group != "base":
+                # what the calibration could not identify stays put unless these poses can
+                p.reason = ""
+    else:
+        if built is None:
+            _reference(terms, data)
+            model = Model(robot, terms)
+        else:
+            model = built
+        params = model.parameters.copy()
+    unknown = [n for n in list(fix) + list(start or {}) if n not in params]
+    if unknown:
+        raise InputError(f"unknown parameter(s) {', '.join(sorted(set(unknown)))} for model {model.spec}; "
+                         f"known: {', '.join(params.names)}")
     for name, v in (start or {}).items():
         params[name].value = float(v)
     params.fix(fix, reason="fixed by the user")
     q, xyz, cov = data.q, data.xyz, model.covariates(data)
 
-    # base pose: closed-form alignment of the start model's predictions to the measurements
+    # --- base pose: closed-form alignment of the start model's predictions to the measurements
+    for k in ("x", "y", "z", "roll", "pitch", "yaw"):
+        params[f"base_{k}"].value = 0.0
     eye = pose_to_base0(np.eye(4))
     T = align(model.predict(q, params.values, cov, eye), xyz)
     base0 = pose_to_base0(T)
-    for k in ("x", "y", "z", "roll", "pitch", "yaw"):
-        params[f"base_{k}"].value = 0.0
 
+    # --- identifiability
     ident = None
     if check_identifiability:
         # structural question: at a perturbed start exact redundancies only look near-exact
-        _, J = model.predict_jacobian(q, params.nominal, cov, base0)
+        at = params.values if prior is not None else params.nominal
+        R = jacobian_factor(model, q, at, cov, base0)
         generic = _generic_identifiable(model, params, cov)
         needed = len(generic)
         if 3 * len(q) <= needed:
@@ -344,7 +235,7 @@ def calibrate(robot: Robot, data: Measurements, model: str | Model = "kinematic+
                 f"{len(q)} poses give {3 * len(q)} equations for the {needed} identifiable parameters of "
                 f"model {model.spec}: at least {needed // 3 + 1} poses are needed, and 3-5 times that for a "
                 "reliable fit")
-        ident = analyse(J, params)
+        ident = analyse(R, params, n_equations=3 * len(q))
         lost = [u for u in ident.unidentifiable if u.name in generic]
         if lost:
             names = ", ".join(f"{u.name} ({u.reason})" for u in lost[:6])
@@ -358,24 +249,25 @@ def calibrate(robot: Robot, data: Measurements, model: str | Model = "kinematic+
                 u.reason = "structurally " + u.reason if not u.reason.startswith("has no") else u.reason
         ident.apply(params)
 
-    problem = CalibrationProblem(model, params, q, xyz, cov, base0)
+    problem = CalibrationProblem(model, params, q, xyz, cov, base0, loss)
     if len(problem.free) == 0:
         raise IdentifiabilityError("no free parameter left to identify")
-    x0 = problem.x_from_values(params.values)
+
+    # --- solve; with the robust loss, re-estimate the noise scale until it settles
     opts = solver_options or {}
-    if solver == "auto":
-        res = make_solver("lm", **opts).solve(problem, x0)
-        name = "levenberg-marquardt"
-        lo, hi = problem.bounds_x()
-        if np.any(res.x < lo) or np.any(res.x > hi):
-            lm_time = res.solve_time_s
-            res = make_solver("ipopt").solve(problem, res.x)
-            res.solve_time_s += lm_time
-            name = "levenberg-marquardt+ipopt"
-    else:
-        s = make_solver(solver, **opts)
-        res = s.solve(problem, x0)
-        name = s.name
+    x = problem.x_from_values(params.values)
+    res, name, solve_time = None, "", 0.0
+    for _ in range(ROBUST_LOOPS if loss.robust else 1):
+        if loss.robust:
+            norms = np.linalg.norm(problem.residuals(problem.values_from_x(x)).reshape(-1, 3), axis=1)
+            new = loss.with_sigma_from(norms)
+            if res is not None and abs(new.sigma / problem.loss.sigma - 1) < 0.05:
+                break
+            problem.loss = new
+        res, name = _solve(problem, x, solver, opts)
+        solve_time += res.solve_time_s
+        x = res.x
+    res.solve_time_s = solve_time
     if not np.isfinite(res.cost):
         raise SolverError(f"{name} ended with a non-finite cost ({res.status}); check the data for outliers "
                           "and the robot file for wrong units")
@@ -386,15 +278,110 @@ def calibrate(robot: Robot, data: Measurements, model: str | Model = "kinematic+
             warnings.warn(notes[-1], ConvergenceWarning, stacklevel=2)
     values = problem.values_from_x(res.x)
     params.values = values
-    r, Jx = problem.residuals_jacobian(values)
-    unc = estimate(r, Jx, problem.scale, [params.names[i] for i in problem.free])
+
+    # --- uncertainty, errors, the poses the loss set aside
+    lin = problem.linearize(values)
+    norms = np.linalg.norm(lin.r, axis=1)
+    unc = from_normal(lin.A, float(lin.weights @ norms ** 2), 3 * len(q), problem.scale,
+                      [params.names[i] for i in problem.free])
     for n, s in zip(unc.names, unc.std):
         params[n].std = float(s)
     for i in np.flatnonzero(~params.free):
-        params.items[i].std = 0.0 if params.items[i].identifiable is not False else math.nan
+        p = params.items[i]
+        if prior is None or p.reason != "kept from the calibration":
+            p.std = 0.0 if p.identifiable is not False else math.nan
     with warnings.catch_warnings():
         if not warn:
             warnings.simplefilter("ignore")
         notes += warn_problems(unc, params)
-    errors = np.linalg.norm(r.reshape(-1, 3), axis=1)
-    return CalibrationResult(model, params, base0, res, name, ident, unc, ErrorStats.of(errors), notes)
+    down = []
+    if loss.robust:
+        for i in np.argsort(-norms):
+            if lin.weights[i] >= DOWNWEIGHT_REPORT:
+                break
+            down.append({"line": int(data.lines[i]), "residual_mm": float(norms[i] * 1000),
+                         "weight": float(lin.weights[i])})
+        if down:
+            notes.append(f"the robust loss set aside {len(down)} pose(s) of {data.path} whose residual exceeds "
+                         f"{math.sqrt(DOWNWEIGHT_REPORT ** -2 - 1) * loss.c:.1f} times the noise scale of "
+                         f"{problem.loss.sigma * 1000:.4f} mm (lines "
+                         + ", ".join(str(d["line"]) for d in down[:10]) + (" ..." if len(down) > 10 else "")
+                         + "): likely bad measurements; check them, or pass --robust none to fit them anyway")
+    result = CalibrationResult(model, params, base0, res, name, ident, unc, ErrorStats.of(norms), notes,
+                               problem.loss, down, Coverage.of(data.q_deg))
+    if want_rbf:
+        result = fit_compensator(result, data, warn=warn)
+    return result
+
+
+def _solve(problem: CalibrationProblem, x0: np.ndarray, solver: str, opts: dict):
+    if solver == "auto":
+        res = make_solver("lm", **opts).solve(problem, x0)
+        lo, hi = problem.bounds_x()
+        if np.any(res.x < lo) or np.any(res.x > hi):
+            lm_time = res.solve_time_s
+            res = make_solver("ipopt").solve(problem, res.x)
+            res.solve_time_s += lm_time
+            return res, "levenberg-marquardt+ipopt"
+        return res, "levenberg-marquardt"
+    s = make_solver(solver, **opts)
+    return s.solve(problem, x0), s.name
+
+
+def base_rotation(result: CalibrationResult) -> np.ndarray:
+    """Rotation of the robot base frame in the measurement frame (3x3)."""
+    from .model import base0_to_pose
+    p = result.parameters
+    delta = base_pose_matrix([p[f"base_{k}"].value for k in "xyz"],
+                             [p[f"base_{k}"].value for k in ("roll", "pitch", "yaw")])
+    return (base0_to_pose(result.base0) @ delta)[:3, :3]
+
+
+def fit_compensator(result: CalibrationResult, data: Measurements, seed: int = 0,
+                    warn: bool = True) -> CalibrationResult:
+    """``result`` with an RBF network fitted to its residuals added as a ``rbf_compensator`` term.
+
+    The network maps sin q, cos q and the gravity torques to the residual in
+    the robot base frame; its size and width are chosen by cross-validation
+    on ``data``, and it is added only if it lowers the cross-validated
+    error (otherwise ``result`` comes back with a note saying so). Poses the
+    robust loss set aside do not train the network.
+    """
+    m = result.model
+    cov = m.covariates(data)
+    X = features(data.q, m.torques(data.q, result.parameters.values, cov))
+    Y = result.residuals(data) @ base_rotation(result)     # rows: R^T r, the robot base frame
+    keep = np.ones(len(X), bool)
+    for d in result.downweighted:
+        keep &= data.lines != d["line"]
+    net, info = fit_guarded(rbf_candidates(int(keep.sum()), seed), X[keep], Y[keep], seed=seed)
+    if net is None:
+        out = replace(result, notes=list(result.notes))
+        out.notes.append(f"rbf_compensator not added: {info['reason']}")
+        if warn:
+            warnings.warn(out.notes[-1], CasadicalWarning, stacklevel=3)
+        return out
+    model = Model(m.robot, list(m.terms[1:] if not m.geometric_free else m.terms)
+                  + [make_term("rbf_compensator", network=net)])
+    params = model.parameters.copy()
+    for p in params:
+        src = result.parameters[p.name]
+        p.value, p.std, p.fixed, p.identifiable, p.reason = src.value, src.std, src.fixed, src.identifiable, \
+            src.reason
+    out = CalibrationResult(model, params, result.base0, result.solver, result.solver_name,
+                            result.identifiability, result.uncertainty, None, list(result.notes), result.loss,
+                            result.downweighted, result.coverage)
+    out.calibration = out.stats(data)
+    out.notes.append(f"rbf_compensator: {net.n_centers_} Gaussian units fitted to the residuals of "
+                     f"{int(keep.sum())} poses ({info['reason']})")
+    return out
+
+
+def rbf_candidates(n: int, seed: int = 0) -> dict:
+    """RBF networks to choose from by cross-validation: 2 .. n/3 units, each with its width by CV."""
+    from .compensators import RBFNetwork
+
+    def make(k):
+        return lambda: RBFNetwork(n_centers=k, width="cv", seed=seed)
+    top = max(2, n // 3)
+    return {f"{k} units": make(k) for k in sorted({int(round(k)) for k in np.geomspace(2, top, 6)})}

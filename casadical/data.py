@@ -40,12 +40,16 @@ class Measurements:
         Each pose's row in the original measurement order.
     moves : ndarray, shape (N, n_joints)
         Sign of each joint's last move before the pose, in the original order.
+    lines : ndarray of int
+        Each pose's line in its file (the header is line 1), for messages
+        and reports; ``rows + 2`` for data made in memory.
     """
 
     columns: dict[str, np.ndarray]
     path: str = "<memory>"
     rows: np.ndarray | None = None
     moves: np.ndarray | None = None
+    lines: np.ndarray | None = None
     _n_joints: int = field(init=False)
 
     def __post_init__(self) -> None:
@@ -55,6 +59,8 @@ class Measurements:
         # its joints' last move, so subsets (splits, cross-validation folds) keep them
         if self.rows is None:
             self.rows = np.arange(len(self))
+        if self.lines is None:
+            self.lines = self.rows + 2
         if self.moves is None:
             self.moves = np.zeros((len(self), self._n_joints))
             if len(self) > 1 and self._n_joints:
@@ -99,7 +105,7 @@ class Measurements:
     def subset(self, index) -> "Measurements":
         """Rows ``index`` (mask or integer array), order kept as given."""
         return Measurements({k: v[index] for k, v in self.columns.items()}, self.path,
-                            self.rows[index], self.moves[index])
+                            self.rows[index], self.moves[index], self.lines[index])
 
     def with_positions(self, xyz_m: np.ndarray, prefix_existing: str = "measured_") -> "Measurements":
         """A copy whose ``x_mm, y_mm, z_mm`` are ``xyz_m``; existing ones are renamed."""
@@ -108,7 +114,7 @@ class Measurements:
             cols[prefix_existing + k if k in XYZ else k] = v
         for i, c in enumerate(XYZ):
             cols[c] = np.asarray(xyz_m)[:, i] * 1000.0
-        return Measurements(cols, self.path, self.rows, self.moves)
+        return Measurements(cols, self.path, self.rows, self.moves, self.lines)
 
     # --- I/O --------------------------------------------------------------------
 
@@ -187,7 +193,7 @@ class Measurements:
                 columns[h] = _numeric(raw[h], h, path, lines)
             else:
                 columns[h] = _maybe_numeric(raw[h])
-        data = cls(columns, path)
+        data = cls(columns, path, lines=np.array(lines))
         _check_units(data)
         return data
 

@@ -73,7 +73,7 @@ def _priority(params: Parameters, i: int) -> tuple[int, int]:
 
 
 def analyse(J: np.ndarray, params: Parameters, tol: float = 1e-6,
-            effect_tol: float = 1e-9) -> Identifiability:
+            effect_tol: float = 1e-9, n_equations: int | None = None) -> Identifiability:
     """Identifiability of the free parameters from an identification Jacobian.
 
     Parameters
@@ -88,16 +88,21 @@ def analyse(J: np.ndarray, params: Parameters, tol: float = 1e-6,
     effect_tol : float
         RMS position change (m) per unit of scale below which a parameter
         has no effect at these poses.
+    n_equations : int, optional
+        Rows of the Jacobian ``J`` stands for: pass it when ``J`` is a
+        triangular factor with the same ``J^T J``
+        (:func:`casadical.problem.jacobian_factor`), which answers every
+        question here the same way.
     """
     J = J.reshape(-1, J.shape[-1])
-    m = J.shape[0]
+    m = J.shape[0] if n_equations is None else int(n_equations)
     free = np.flatnonzero(params.free)
     Js = J[:, free] * params.scales[free]
     norms = np.linalg.norm(Js, axis=0)
     order = sorted(range(len(free)), key=lambda k: _priority(params, free[k]))
     names = params.names
     accepted: list[int] = []
-    basis = np.zeros((m, 0))
+    basis = np.zeros((J.shape[0], 0))
     out: list[Unidentifiable] = []
     for k in order:
         name = names[free[k]]
@@ -108,7 +113,7 @@ def analyse(J: np.ndarray, params: Parameters, tol: float = 1e-6,
         r = c - basis @ (basis.T @ c)
         r = r - basis @ (basis.T @ r)  # second Gram-Schmidt pass for accuracy
         rn = float(np.linalg.norm(r))
-        if rn < tol or len(accepted) >= m:
+        if rn < tol or len(accepted) >= min(m, J.shape[0]):
             A = Js[:, accepted] / norms[accepted]
             coef = np.linalg.lstsq(A, c, rcond=None)[0] if accepted else np.zeros(0)
             big = [names[free[accepted[i]]] for i in np.argsort(-np.abs(coef)) if abs(coef[i]) > 0.05][:6]

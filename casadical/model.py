@@ -166,7 +166,12 @@ class Model:
         frames = forward(robot, [a + o for a, o in zip(angles, offsets)], geom)
         R0 = ca.reshape(b0[:9], 3, 3).T  # row-major input
         base = compose((R0, b0[9:12]), rpy_pose(*geom.base))
-        xyz = base[1] + ca.mtimes(base[0], frames.tool[1])
+        point = frames.tool[1]
+        for t in self.terms:
+            off = t.robot_frame_offset(ctx)
+            if off is not None:
+                point = point + off
+        xyz = base[1] + ca.mtimes(base[0], point)
         for t in self.terms:
             off = t.base_offset(ctx)
             if off is not None:
@@ -176,18 +181,23 @@ class Model:
         J = ca.densify(ca.jacobian(xyz, p))
         ins = [q, p, c, b0]
         y = ca.SX.sym("y", 3)
+        delta = ca.SX.sym("delta")  # robust loss: 1 / (c sigma)^2, 0 for plain least squares
         r = xyz - y
-        # per-pose least-squares pieces, summed over poses by map's reduce_out: the cost, its
-        # gradient by reverse mode, and the upper triangle of J^T J with J's sparsity
-        cost = 0.5 * ca.dot(r, r)
+        u2 = ca.dot(r, r)
+        # per-pose loss pieces, summed over poses by map's reduce_out: the pseudo-Huber loss
+        # (u2 / 2 when delta = 0), its gradient by reverse mode, and the upper triangle of the
+        # IRLS Gauss-Newton matrix w J^T J with J's sparsity (see casadical.problem.RobustLoss)
+        root = ca.sqrt(1 + delta * u2)
+        cost = u2 / (root + 1)
         Js = ca.jacobian(xyz, p)
+        lsq = ins + [y, delta]
         # name: (inputs, outputs, broadcast inputs, summed outputs)
         self._graphs = {
             "fk": (ins, [xyz], (1, 3), ()),
             "fk_jac": (ins, [xyz, J], (1, 3), ()),
-            "cost": (ins + [y], [cost], (1, 3), (0,)),
-            "grad": (ins + [y], [cost, ca.gradient(cost, p)], (1, 3), (0, 1)),
-            "gn_hess": (ins + [y], [ca.triu(ca.mtimes(Js.T, Js))], (1, 3), (0,)),
+            "cost": (lsq, [cost], (1, 3, 5), (0,)),
+            "grad": (lsq, [cost, ca.gradient(cost, p)], (1, 3, 5), (0, 1)),
+            "gn_hess": (lsq, [ca.triu(ca.mtimes(Js.T, Js)) / root], (1, 3, 5), (0,)),
             "tau": ([q, p, c], [tau], (1,), ()),
             "dq": ([q, p, c], [dq], (1,), ()),
         }

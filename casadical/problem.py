@@ -1,18 +1,113 @@
-"""The identification problem: model + data + which parameters are free.
+"""The identification problem: model + data + which parameters are free + the loss.
 
 Solvers see scaled variables ``x = (p_free - nominal_free) / scale_free``
-and residuals ``r = predicted - measured`` (m, stacked per pose as x, y, z).
+and residuals ``r = predicted - measured`` (m, per pose x, y, z). The loss
+is a sum over poses of ``rho(|r_i|^2)``: half the squared norm for plain
+least squares, or a pseudo-Huber loss that grows only linearly beyond a few
+noise standard deviations (:class:`RobustLoss`), so that one bad tracker
+shot cannot pull the model.
+
+Large data sets are linearised in chunks of poses: the normal equations
+``sum w_i J_i^T J_i`` and ``sum w_i J_i^T r_i`` are accumulated, and the
+Jacobian of all poses is never held in memory at once.
 """
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+import math
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
 from .data import Measurements
+from .errors import CasadicalError
 from .model import Model
 from .parameters import Parameters
+
+#: median of the norm of a 3-vector of independent N(0, 1) components (sqrt of chi2(3)'s median)
+CHI3_MEDIAN = 1.5381722544550522
+#: poses per chunk when linearising (Jacobian block of 3 x chunk x P doubles)
+CHUNK = 4096
+
+
+@dataclass(frozen=True)
+class RobustLoss:
+    """Loss of one pose as a function of its squared residual norm ``u2`` (m^2).
+
+    ``kind="huber"``: the pseudo-Huber loss ``rho = u2 / (sqrt(1 + delta u2) + 1)``
+    with ``delta = 1 / (c sigma)^2``: ``u2 / 2`` for small residuals, ``c sigma |r|``
+    (linear) for large ones, smooth everywhere. ``kind="none"``: ``u2 / 2``,
+    plain least squares (``delta = 0``).
+
+    Parameters
+    ----------
+    kind : {"huber", "none"}
+    c : float
+        Transition, in noise standard deviations per axis (3: a pose
+        whose residual norm is 5 sigma keeps half its weight, one of 50
+        sigma a tenth).
+    sigma : float
+        Noise standard deviation per axis (m); estimated from the data by
+        :meth:`with_sigma_from` (median of the residual norms).
+    """
+
+    kind: str = "none"
+    c: float = 3.0
+    sigma: float = math.nan
+
+    def __post_init__(self) -> None:
+        if self.kind not in ("huber", "none"):
+            raise CasadicalError(f"unknown robust loss {self.kind!r}: use 'huber' or 'none'")
+        if not self.c > 0:
+            raise CasadicalError(f"robust loss: c must be positive, got {self.c}")
+
+    @property
+    def robust(self) -> bool:
+        return self.kind != "none"
+
+    @property
+    def delta(self) -> float:
+        """``1 / (c sigma)^2``; 0 for plain least squares (or before sigma is known)."""
+        if not self.robust or not self.sigma > 0:
+            return 0.0
+        return 1.0 / (self.c * self.sigma) ** 2
+
+    def rho(self, u2: np.ndarray) -> np.ndarray:
+        return u2 / (np.sqrt(1.0 + self.delta * u2) + 1.0)
+
+    def weight(self, u2: np.ndarray) -> np.ndarray:
+        """IRLS weight ``d rho / d(u2/2)`` of each pose (1 for plain least squares)."""
+        return 1.0 / np.sqrt(1.0 + self.delta * u2)
+
+    def with_sigma_from(self, residual_norms: np.ndarray) -> "RobustLoss":
+        """The same loss with ``sigma`` estimated robustly from residual norms (m)."""
+        med = float(np.median(residual_norms)) if len(residual_norms) else 0.0
+        return replace(self, sigma=max(med / CHI3_MEDIAN, 1e-12))
+
+
+@dataclass
+class Linearization:
+    """The problem linearised at one point (scaled free variables).
+
+    Attributes
+    ----------
+    r : ndarray, shape (N, 3)
+        Residuals, predicted minus measured (m).
+    weights : ndarray, shape (N,)
+        IRLS weight of each pose under the loss.
+    cost : float
+        Sum of the pose losses (m^2; half the SSR for plain least squares).
+    A : ndarray, shape (n_free, n_free)
+        ``sum w_i J_i^T J_i`` (Gauss-Newton matrix).
+    g : ndarray, shape (n_free,)
+        ``sum w_i J_i^T r_i``, the gradient of ``cost``.
+    """
+
+    r: np.ndarray
+    weights: np.ndarray
+    cost: float
+    A: np.ndarray
+    g: np.ndarray
 
 
 @dataclass
@@ -28,6 +123,8 @@ class CalibrationProblem:
         Readings (rad, (N, n)), measured positions (m, (N, 3)), covariates.
     base0 : ndarray
         Reference base pose (12 numbers).
+    loss : RobustLoss
+        Plain least squares by default.
     """
 
     model: Model
@@ -36,12 +133,14 @@ class CalibrationProblem:
     xyz: np.ndarray
     cov: np.ndarray
     base0: np.ndarray
+    loss: RobustLoss = field(default_factory=RobustLoss)
 
     @classmethod
     def from_data(cls, model: Model, data: Measurements, params: Parameters | None = None,
-                  base0: np.ndarray | None = None) -> "CalibrationProblem":
+                  base0: np.ndarray | None = None, loss: RobustLoss | None = None) -> "CalibrationProblem":
         return cls(model, (params or model.parameters).copy(), data.q, data.xyz,
-                   model.covariates(data), model.base0_nominal() if base0 is None else base0)
+                   model.covariates(data), model.base0_nominal() if base0 is None else base0,
+                   loss or RobustLoss())
 
     @property
     def n_poses(self) -> int:
@@ -70,12 +169,69 @@ class CalibrationProblem:
         nom, s = self.params.nominal[f], self.params.scales[f]
         return (self.params.lower[f] - nom) / s, (self.params.upper[f] - nom) / s
 
+    def _chunks(self):
+        N = self.n_poses
+        size = CHUNK if N > CHUNK else N
+        for a in range(0, N, size):
+            yield slice(a, min(a + size, N))
+
     def residuals(self, values: np.ndarray) -> np.ndarray:
         """Stacked residuals (m), shape (3N,)."""
-        return (self.model.predict(self.q, values, self.cov, self.base0) - self.xyz).ravel()
+        out = np.empty((self.n_poses, 3))
+        for s in self._chunks():
+            out[s] = self.model.predict(self.q[s], values, self.cov[s], self.base0) - self.xyz[s]
+        return out.ravel()
+
+    def cost(self, values: np.ndarray) -> float:
+        """The loss at ``values`` (no Jacobian)."""
+        r = self.residuals(values).reshape(-1, 3)
+        return float(self.loss.rho(np.einsum("ij,ij->i", r, r)).sum())
+
+    def linearize(self, values: np.ndarray) -> Linearization:
+        """Residuals, weights, loss and normal equations at ``values``, accumulated over chunks of poses."""
+        f = self.free
+        scale = self.params.scales[f]
+        nf = len(f)
+        A = np.zeros((nf, nf))
+        g = np.zeros(nf)
+        r_all = np.empty((self.n_poses, 3))
+        for s in self._chunks():
+            xyz, J = self.model.predict_jacobian(self.q[s], values, self.cov[s], self.base0)
+            r = xyz - self.xyz[s]
+            r_all[s] = r
+            Jx = J[:, :, f] * scale                       # (n, 3, nf), scaled variables
+            w = self.loss.weight(np.einsum("ij,ij->i", r, r))
+            Jw = Jx * np.sqrt(w)[:, None, None]
+            Jw2 = Jw.reshape(-1, nf)
+            A += Jw2.T @ Jw2
+            g += np.einsum("nkp,nk->p", Jx, r * w[:, None])
+        u2 = np.einsum("ij,ij->i", r_all, r_all)
+        return Linearization(r_all, self.loss.weight(u2), float(self.loss.rho(u2).sum()), A, g)
 
     def residuals_jacobian(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Residuals (3N,) and their Jacobian w.r.t. the scaled free variables (3N, n_free)."""
+        """Residuals (3N,) and their Jacobian w.r.t. the scaled free variables (3N, n_free).
+
+        Holds the whole Jacobian: for small problems (screening, global
+        search); solvers use :meth:`linearize`.
+        """
         xyz, J = self.model.predict_jacobian(self.q, values, self.cov, self.base0)
         f = self.free
         return (xyz - self.xyz).ravel(), J[:, :, f].reshape(-1, len(f)) * self.params.scales[f]
+
+
+def jacobian_factor(model: Model, q: np.ndarray, values: np.ndarray, cov: np.ndarray,
+                    base0: np.ndarray) -> np.ndarray:
+    """Triangular factor ``R`` (P x P) with ``R^T R = J^T J`` of the full identification Jacobian.
+
+    Computed chunk by chunk (a tall-skinny QR), so that any number of poses
+    fits in memory; column inner products, hence every identifiability
+    question, are those of ``J``.
+    """
+    P = len(values)
+    R = np.zeros((0, P))
+    N = len(q)
+    size = CHUNK if N > CHUNK else N
+    for a in range(0, N, size):
+        _, J = model.predict_jacobian(q[a:a + size], values, cov[a:a + size], base0)
+        R = np.linalg.qr(np.vstack([R, J.reshape(-1, P)]), mode="r")
+    return R

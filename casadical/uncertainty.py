@@ -1,7 +1,8 @@
 """Parameter uncertainty from the least-squares Jacobian at the solution.
 
-cov = sigma^2 (J^T J)^-1 with sigma^2 = SSR / (3N - p) estimated from the
-residuals; standard errors, correlations, and warnings on strong
+cov = sigma^2 (J^T W J)^-1 with sigma^2 = sum w_i |r_i|^2 / (3N - p) estimated
+from the residuals (W: the robust loss's pose weights, identity for plain
+least squares); standard errors, correlations, and warnings on strong
 correlations and on parameters at a bound (where the linearised covariance
 does not hold).
 """
@@ -46,13 +47,32 @@ class Uncertainty:
 def estimate(residuals: np.ndarray, J_scaled: np.ndarray, scale: np.ndarray,
              names: list[str]) -> Uncertainty:
     """Covariance from residuals (3N,) and the Jacobian in scaled variables (3N, p)."""
-    m, p = J_scaled.shape
+    return from_normal(J_scaled.T @ J_scaled, float(residuals @ residuals), J_scaled.shape[0], scale, names)
+
+
+def from_normal(A: np.ndarray, ssr: float, m: int, scale: np.ndarray, names: list[str]) -> Uncertainty:
+    """Covariance from the Gauss-Newton matrix of the scaled variables.
+
+    Parameters
+    ----------
+    A : ndarray, shape (p, p)
+        ``J^T W J`` in scaled variables (``W``: the robust loss's pose
+        weights, identity for plain least squares).
+    ssr : float
+        Weighted sum of squared residuals ``sum w_i |r_i|^2`` (m^2).
+    m : int
+        Number of equations (3 per pose).
+    scale, names
+        Scales and names of the free parameters.
+    """
+    p = A.shape[0]
     dof = m - p
-    sigma2 = float(residuals @ residuals) / dof if dof > 0 else float("nan")
-    # pseudo-inverse through the SVD: robust when a direction is nearly flat
-    U, s, Vt = np.linalg.svd(J_scaled, full_matrices=False)
-    keep = s > s[0] * 1e-12 if len(s) else s > 0
-    inv = (Vt[keep].T / s[keep] ** 2) @ Vt[keep]
+    sigma2 = ssr / dof if dof > 0 else float("nan")
+    # pseudo-inverse through the eigenvalues (the squared singular values of J): robust when a
+    # direction is nearly flat
+    lam, V = np.linalg.eigh((A + A.T) / 2)
+    keep = lam > (lam[-1] * 1e-24 if len(lam) else 0.0)
+    inv = (V[:, keep] / lam[keep]) @ V[:, keep].T
     cov = sigma2 * inv * np.outer(scale, scale)
     return Uncertainty(names, cov, float(np.sqrt(sigma2)) if dof > 0 else float("nan"), dof)
 

@@ -44,7 +44,8 @@ def test_parameters_recovered_within_reported_uncertainty():
         dims.append(len(names))
         m3 = 3 * len(data)
         p = len(res.uncertainty.names)
-        rms = math.sqrt(2 * res.solver.cost / m3)
+        r = res.residuals(data)
+        rms = math.sqrt(float(np.sum(r * r)) / m3)
         rms_ratio.append(rms / (noise * math.sqrt((m3 - p) / m3)))
     ratio = np.mean(np.array(d2s) / np.array(dims))
     # mean of chi2(p)/p over 20 draws with p ~ 30: 1 +- 0.06

@@ -9,8 +9,12 @@ def register(sub) -> None:
     p = sub.add_parser("calibrate", help="identify a calibrated model from measured poses",
                        description="Identify the parameters of MODEL (kinematic, kinematic+compliance, or more "
                                    "terms joined by '+') from DATA.csv; the base pose is always estimated. "
-                                   "Writes CAL.json and prints a summary.")
-    p.add_argument("robot", metavar="ROBOT", help="built-in robot, robot TOML or URDF file")
+                                   "Writes CAL.json and prints a summary. With a calibration JSON in place of "
+                                   "ROBOT, only what MODEL names is estimated again (base: the base pose "
+                                   "alone; kinematic: the geometry) and every other value is kept: how a "
+                                   "calibration is taken to a new measurement series or tracker set-up.")
+    p.add_argument("robot", metavar="ROBOT",
+                   help="built-in robot, robot TOML or URDF file, or a calibration JSON to take further")
     p.add_argument("data", metavar="DATA.csv", help="measured poses (q1_deg, ..., x_mm, y_mm, z_mm)")
     p.add_argument("--model", default="kinematic+compliance",
                    help="error model, e.g. kinematic, kinematic+compliance, "
@@ -21,22 +25,30 @@ def register(sub) -> None:
                         "ipopt if a bound is crossed); default %(default)s")
     p.add_argument("--max-iter", type=int_at_least(1), default=None,
                    help="solver iteration limit (default: the solver's own, 200 for ipopt, 100 for lm/gn)")
+    p.add_argument("--robust", default="huber", choices=["huber", "none"],
+                   help="loss: huber (pseudo-Huber with the noise scale from the data: bad measurements are "
+                        "down-weighted and reported) or none (plain least squares); default %(default)s")
     p.add_argument("--fix", default="", help="comma-separated parameters to hold at nominal (default: none)")
     add_force(p)
     p.set_defaults(func=run, inputs=("robot", "data"))
 
 
 def run(args) -> int:
-    from ..calibration import calibrate
+    from ..calibration import calibrate, load_calibration
     from ..data import Measurements
     from ..robot import load_robot
 
     check_outputs({"--out": args.out}, [args.robot, args.data], args.force)
-    robot = load_robot(args.robot)
-    data = Measurements.read_csv(args.data, n_joints=robot.n, require_positions=True)
+    if args.robot.lower().endswith(".json"):
+        robot = load_calibration(args.robot)
+        n = robot.model.robot.n
+    else:
+        robot = load_robot(args.robot)
+        n = robot.n
+    data = Measurements.read_csv(args.data, n_joints=n, require_positions=True)
     opts = {"max_iter": args.max_iter} if args.max_iter else {}
     result = calibrate(robot, data, args.model, args.solver, solver_options=opts,
-                       fix=tuple(f.strip() for f in args.fix.split(",") if f.strip()))
+                       fix=tuple(f.strip() for f in args.fix.split(",") if f.strip()), robust=args.robust)
     result.save(args.out, overwrite=args.force)
     print(result.summary())
     print(f"\ncalibration -> {args.out}")

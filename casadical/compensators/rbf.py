@@ -151,6 +151,61 @@ class RBFNetwork(Compensator):
     def _predict(self, Xs: np.ndarray) -> np.ndarray:
         return self._design(Xs, self.centers_, self.width_) @ self.weights_
 
+    # -- a fitted network as data, and as a symbolic expression -----------
+    def to_dict(self) -> dict:
+        """The fitted network as JSON-ready numbers (what :meth:`from_dict` reads back)."""
+        self._check_fitted()
+        return {"kind": "rbf", "x_mean": self.x_scaler_.mean.tolist(), "x_scale": self.x_scaler_.scale.tolist(),
+                "y_mean": self.y_scaler_.mean.tolist(), "y_scale": self.y_scaler_.scale.tolist(),
+                "centers": self.centers_.tolist(), "width": float(self.width_),
+                "weights": self.weights_.tolist(), "bias": bool(self.bias)}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "RBFNetwork":
+        """A fitted network from :meth:`to_dict`'s numbers.
+
+        Raises
+        ------
+        InputError
+            Missing or inconsistent entries.
+        """
+        from casadical.compensators import Standardizer
+        try:
+            net = cls(bias=bool(d["bias"]))
+            net.x_scaler_ = Standardizer(np.asarray(d["x_mean"], float), np.asarray(d["x_scale"], float))
+            net.y_scaler_ = Standardizer(np.asarray(d["y_mean"], float), np.asarray(d["y_scale"], float))
+            net.centers_ = np.asarray(d["centers"], float).reshape(-1, len(net.x_scaler_.mean))
+            net.width_ = float(d["width"])
+            net.weights_ = np.asarray(d["weights"], float).reshape(len(net.centers_) + net.bias,
+                                                                    len(net.y_scaler_.mean))
+        except (KeyError, TypeError, ValueError) as e:
+            raise InputError(f"not a fitted RBF network: {e!r}") from e
+        arrays = (net.x_scaler_.mean, net.x_scaler_.scale, net.y_scaler_.mean, net.y_scaler_.scale,
+                  net.centers_, net.weights_)
+        if not all(np.isfinite(a).all() for a in arrays) or not net.width_ > 0:
+            raise InputError("the RBF network holds non-finite numbers or a width <= 0")
+        net.n_centers_ = len(net.centers_)
+        net.n_features_in_ = len(net.x_scaler_.mean)
+        net.n_outputs_ = len(net.y_scaler_.mean)
+        return net
+
+    def casadi(self, x):
+        """The network's output for a symbolic feature column ``x`` (CasADi, d x 1) -> k x 1.
+
+        The same numbers as :meth:`predict`, as an expression the model can
+        differentiate (e.g. with respect to the joint angles).
+        """
+        import casadi as ca
+        self._check_fitted()
+        z = (x - ca.DM(self.x_scaler_.mean)) / ca.DM(self.x_scaler_.scale)
+        C = ca.DM(self.centers_)
+        d2 = ca.sum2((ca.repmat(z.T, C.shape[0], 1) - C) ** 2)           # k x 1
+        phi = ca.exp(-d2 / (2.0 * self.width_ ** 2))
+        if self.bias:
+            phi = ca.vertcat(phi, 1)
+        out = ca.mtimes(ca.DM(self.weights_).T, phi)
+        return out * ca.DM(self.y_scaler_.scale) + ca.DM(self.y_scaler_.mean)
+
     # -- pieces -----------------------------------------------------------
     def hidden(self, X) -> np.ndarray:
         """Hidden-layer outputs (n, k) for raw features `X` (n, d)."""

@@ -8,7 +8,7 @@ import numpy as np
 from ..calibration import calibrate
 from ..compensators import RBFNetwork
 from .base import Inputs, Method, MethodResult, compensator_features, new_result, register, to_frame
-from .compensate import fit_guarded
+from ..compensators.guard import fit_guarded
 
 
 @register
@@ -21,7 +21,7 @@ class GARBF(Method):
     number of centres and the width are chosen by cross-validation inside
     the calibration set (A8), and a further cross-validation guard drops the
     network if it does not lower the held-out error (see
-    :mod:`casadical.methods.compensate`).
+    :mod:`casadical.compensators.guard`).
 
     The "GA" of the paper's name is its pose selection (the 20 calibration
     poses chosen out of 70 by a genetic algorithm on the observability

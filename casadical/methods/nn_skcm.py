@@ -6,7 +6,7 @@ from ..calibration import calibrate
 from ..compensators import MLP
 from .base import (Inputs, Method, MethodResult, compliance_model, compliant_joints, new_result, register,
                    to_frame)
-from .compensate import fit_guarded
+from ..compensators.guard import fit_guarded
 
 
 @register
@@ -19,7 +19,7 @@ class NNSKCM(Method):
     is given (the TLBO paper's separate Q2, so that the network is not fitted
     to residuals that SKCM has already made small), else on the calibration
     poses. A cross-validation guard drops it if it does not lower the held-out
-    error (:mod:`casadical.methods.compensate`).
+    error (:mod:`casadical.compensators.guard`).
 
     Settings
     --------

@@ -49,12 +49,12 @@ class Ipopt(Solver):
             return self._cache[key]
         P, nc = len(problem.params), len(model.covariate_names)
         x = ca.MX.sym("x", nf)
-        data = ca.MX.sym("data", model.n_joints * N + 3 * N + nc * N + 12 + 2 * P)
-        parts = ca.vertsplit(data, np.cumsum([0, model.n_joints * N, 3 * N, nc * N, 12, P, P]).tolist())
+        data = ca.MX.sym("data", model.n_joints * N + 3 * N + nc * N + 12 + 2 * P + 1)
+        parts = ca.vertsplit(data, np.cumsum([0, model.n_joints * N, 3 * N, nc * N, 12, P, P, 1]).tolist())
         Q = ca.reshape(parts[0], model.n_joints, N)
         XYZ = ca.reshape(parts[1], 3, N)
         C = ca.reshape(parts[2], nc, N)
-        base0, pfix, sel_scale = parts[3], parts[4], parts[5]
+        base0, pfix, sel_scale, delta = parts[3], parts[4], parts[5], parts[6]
         E = np.zeros((P, nf))
         E[problem.free, np.arange(nf)] = 1.0
         # p = fixed values (zeros at free entries) + nominal + scale * x at free entries
@@ -62,14 +62,14 @@ class Ipopt(Solver):
         # grad_f and hess_lag come from the per-pose Gauss-Newton Function summed over poses
         # (compiled for large batches): no AD through the map inside IPOPT
         S = ca.diag(sel_scale) @ ca.DM(E)  # d p / d x
-        f = model.batch_function("cost", N)(Q, p, C, base0, XYZ)
+        f = model.batch_function("cost", N)(Q, p, C, base0, XYZ, delta)
         nlp = {"x": x, "p": data, "f": f}
         # the cost is ~1e-7 m^2: in mm^2 IPOPT's tolerances mean what they say
         opts = {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes", "max_iter": self.max_iter,
                                                "tol": self.tol, "obj_scaling_factor": 1e6, **self.options}}
         if self.hessian == "gauss-newton":
-            fv, g = model.batch_function("grad", N)(Q, p, C, base0, XYZ)
-            H = model.batch_function("gn_hess", N)(Q, p, C, base0, XYZ)
+            fv, g = model.batch_function("grad", N)(Q, p, C, base0, XYZ, delta)
+            H = model.batch_function("gn_hess", N)(Q, p, C, base0, XYZ, delta)
             lam_f = ca.MX.sym("lam_f")
             lam_g = ca.MX.sym("lam_g", 0)
             opts["grad_f"] = ca.Function("nlp_grad_f", [x, data], [fv, ca.mtimes(S.T, g)],
@@ -99,7 +99,7 @@ class Ipopt(Solver):
         pfix[f] = problem.params.nominal[f]
         sel_scale[f] = problem.params.scales[f]
         data = np.concatenate([problem.q.ravel(), problem.xyz.ravel(), problem.cov.ravel(),
-                               problem.base0, pfix, sel_scale])
+                               problem.base0, pfix, sel_scale, [problem.loss.delta]])
         t1 = time.perf_counter()
         try:
             sol = solver(x0=x0, p=data, lbx=lbx, ubx=ubx)

@@ -1,8 +1,11 @@
 """Gauss-Newton / Levenberg-Marquardt on the model's CasADi residuals and Jacobians.
 
 The iterative least squares of the seed papers, with Marquardt damping so it
-also converges from far starts. Bounds are not enforced; the calibration
-hands over to IPOPT when the solution leaves them.
+also converges from far starts. With a robust loss the same iteration is
+iteratively reweighted least squares: the Gauss-Newton matrix and gradient
+carry each pose's weight, and steps are accepted on the loss itself. Bounds
+are not enforced; the calibration hands over to IPOPT when the solution
+leaves them.
 """
 
 from __future__ import annotations
@@ -12,6 +15,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..errors import SolverError
 from ..problem import CalibrationProblem
 from .base import Solver, SolverResult
 
@@ -39,6 +43,10 @@ class LevenbergMarquardt(Solver):
     lam0: float = 1e-5
     damping: bool = True
 
+    def __post_init__(self) -> None:
+        if not (isinstance(self.max_iter, int) and self.max_iter >= 1):
+            raise SolverError(f"max_iter must be a whole number >= 1, got {self.max_iter!r}")
+
     @property
     def name(self) -> str:  # type: ignore[override]
         return "levenberg-marquardt" if self.damping else "gauss-newton"
@@ -46,15 +54,14 @@ class LevenbergMarquardt(Solver):
     def solve(self, problem: CalibrationProblem, x0: np.ndarray | None = None) -> SolverResult:
         t0 = time.perf_counter()
         x = problem.x_from_values(problem.params.values) if x0 is None else np.array(x0, float)
-        r, J = problem.residuals_jacobian(problem.values_from_x(x))
-        cost = 0.5 * r @ r
+        lin = problem.linearize(problem.values_from_x(x))
+        cost = lin.cost
         history = [cost]
         lam = self.lam0 if self.damping else 0.0
         status, success = "max_iter", False
         it = 0
         for it in range(1, self.max_iter + 1):
-            A = J.T @ J  # numpy's BLAS beats forming J^T J per pose in CasADi
-            g = J.T @ r
+            A, g = lin.A, lin.g
             d = np.diag(A).copy()
             d[d <= 0] = 1.0
             accepted = False
@@ -62,11 +69,10 @@ class LevenbergMarquardt(Solver):
             for k in range(30):
                 step = _solve(A + lam * np.diag(d), -g) if self.damping else gn_step * 0.5 ** k
                 x_new = x + step
-                # residual and Jacobian together: an accepted step (the usual case) needs no
+                # residuals and Jacobian together: an accepted step (the usual case) needs no
                 # second evaluation, a rejected one costs a little more
-                r_new, J_new = problem.residuals_jacobian(problem.values_from_x(x_new))
-                cost_new = 0.5 * r_new @ r_new
-                if cost_new <= cost:
+                new = problem.linearize(problem.values_from_x(x_new))
+                if new.cost <= cost:
                     accepted = True
                     break
                 if self.damping:
@@ -74,9 +80,9 @@ class LevenbergMarquardt(Solver):
             if not accepted:
                 status, success = "no_decrease", cost < history[0] or it > 1
                 break
-            small_f = (cost - cost_new) <= self.ftol * max(cost, 1e-300)
+            small_f = (cost - new.cost) <= self.ftol * max(cost, 1e-300)
             small_x = np.linalg.norm(step) <= self.xtol * (self.xtol + np.linalg.norm(x))
-            x, cost, r, J = x_new, cost_new, r_new, J_new
+            x, cost, lin = x_new, new.cost, new
             history.append(cost)
             if self.damping:
                 lam = max(lam / 3.0, 1e-12)

@@ -5,7 +5,8 @@ such as ``"kinematic+compliance[2,3]+periodic[2:1]"`` (see
 :func:`casadical.model.parse_spec`).
 """
 
-from . import backlash, compliance, drift, encoder_scale, geometric, periodic, thermal  # noqa: F401  (registration)
+from . import (backlash, compliance, drift, encoder_scale, geometric, periodic,  # noqa: F401  (registration)
+               rbf_compensator, thermal)
 from .base import REGISTRY, Context, ErrorTerm, ReferencedTerm, register
 
 

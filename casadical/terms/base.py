@@ -98,6 +98,14 @@ class ErrorTerm:
         """Translation (3-vector, measurement frame) added to the measured point (default: none)."""
         return None
 
+    def robot_frame_offset(self, ctx: Context):
+        """Translation (3-vector, robot base frame) added to the tool point (default: none).
+
+        Unlike :meth:`base_offset` it turns with the base pose, so it holds
+        wherever the tracker stands.
+        """
+        return None
+
     def spec(self) -> str:
         """The text that re-creates this term in a model specification."""
         if self.joints is None:
