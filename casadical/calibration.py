@@ -82,7 +82,7 @@ def _loss(robust: str | RobustLoss | None) -> RobustLoss:
     raise InputError(f"unknown robust loss {robust!r}: use 'huber' (default) or 'none'")
 
 
-def _reference(terms: list[ErrorTerm], data: Measurements) -> None:
+def set_references(terms: list[ErrorTerm], data: Measurements) -> None:
     """Terms driven by a covariate take its mean over the data as their reference."""
     for t in terms:
         if isinstance(t, ReferencedTerm):
@@ -155,7 +155,8 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         Fix parameters these poses cannot identify (recommended).
     robust : {"huber", "none"} or RobustLoss
         The loss: pseudo-Huber on each pose's residual with the noise scale
-        estimated from the data (default), or plain least squares.
+        estimated from the data (default), or plain least squares. A
+        RobustLoss with its ``sigma`` set keeps that noise scale.
 
     Raises
     ------
@@ -189,19 +190,22 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         params = model.parameters.copy()
         new_params = {p.name for p in params if p.name not in old}
         free = set(_named_free(params, named, new_params))
+        session = {t.name for t in merged if t.session}
         for p in params:
-            if p.name in old:
+            if p.name in old and not (p.term in session and p.term not in named):
                 src = prior.parameters[p.name]
                 p.value, p.std, p.identifiable = src.value, src.std, src.identifiable
             p.fixed = p.name not in free
-            if p.fixed:
+            if p.fixed and p.term in session:
+                p.reason = "belongs to the session the calibration was measured in; starts from zero here"
+            elif p.fixed:
                 p.reason = "kept from the calibration"
             elif p.name in old and prior.parameters[p.name].fixed and p.group != "base":
                 # what the calibration could not identify stays put unless these poses can
                 p.reason = ""
     else:
         if built is None:
-            _reference(terms, data)
+            set_references(terms, data)
             model = Model(robot, terms)
         else:
             model = built
@@ -257,8 +261,9 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     opts = solver_options or {}
     x = problem.x_from_values(params.values)
     res, name, solve_time = None, "", 0.0
-    for _ in range(ROBUST_LOOPS if loss.robust else 1):
-        if loss.robust:
+    estimate_scale = loss.robust and not math.isfinite(loss.sigma)
+    for _ in range(ROBUST_LOOPS if estimate_scale else 1):
+        if estimate_scale:
             norms = np.linalg.norm(problem.residuals(problem.values_from_x(x)).reshape(-1, 3), axis=1)
             new = loss.with_sigma_from(norms)
             if res is not None and abs(new.sigma / problem.loss.sigma - 1) < 0.05:
@@ -288,7 +293,7 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         params[n].std = float(s)
     for i in np.flatnonzero(~params.free):
         p = params.items[i]
-        if prior is None or p.reason != "kept from the calibration":
+        if prior is None or not (p.reason.startswith("kept") or p.reason.startswith("belongs")):
             p.std = 0.0 if p.identifiable is not False else math.nan
     with warnings.catch_warnings():
         if not warn:
@@ -337,6 +342,39 @@ def base_rotation(result: CalibrationResult) -> np.ndarray:
     return (base0_to_pose(result.base0) @ delta)[:3, :3]
 
 
+def compensator_data(result: CalibrationResult, data: Measurements) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What a residual compensator of ``result`` learns from: features, residuals, poses to train on.
+
+    Features are sin q, cos q and the gravity torques; residuals (measured
+    minus predicted) are expressed in the robot base frame; poses the robust
+    loss set aside are left out of the training (mask).
+    """
+    m = result.model
+    X = features(data.q, m.torques(data.q, result.parameters.values, m.covariates(data)))
+    Y = result.residuals(data) @ base_rotation(result)     # rows: R^T r, the robot base frame
+    keep = np.ones(len(X), bool)
+    for d in result.downweighted:
+        keep &= data.lines != d["line"]
+    return X, Y, keep
+
+
+def with_compensator(result: CalibrationResult, network, data: Measurements, note: str) -> CalibrationResult:
+    """``result`` with a fitted network added to its model as a ``rbf_compensator`` term."""
+    m = result.model
+    model = Model(m.robot, list(m.terms if m.geometric_free else m.terms[1:])
+                  + [make_term("rbf_compensator", network=network)])
+    params = model.parameters.copy()
+    for p in params:
+        src = result.parameters[p.name]
+        p.value, p.std, p.fixed, p.identifiable, p.reason = src.value, src.std, src.fixed, src.identifiable, \
+            src.reason
+    out = CalibrationResult(model, params, result.base0, result.solver, result.solver_name,
+                            result.identifiability, result.uncertainty, None, list(result.notes) + [note],
+                            result.loss, result.downweighted, result.coverage)
+    out.calibration = out.stats(data)
+    return out
+
+
 def fit_compensator(result: CalibrationResult, data: Measurements, seed: int = 0,
                     warn: bool = True) -> CalibrationResult:
     """``result`` with an RBF network fitted to its residuals added as a ``rbf_compensator`` term.
@@ -347,13 +385,7 @@ def fit_compensator(result: CalibrationResult, data: Measurements, seed: int = 0
     error (otherwise ``result`` comes back with a note saying so). Poses the
     robust loss set aside do not train the network.
     """
-    m = result.model
-    cov = m.covariates(data)
-    X = features(data.q, m.torques(data.q, result.parameters.values, cov))
-    Y = result.residuals(data) @ base_rotation(result)     # rows: R^T r, the robot base frame
-    keep = np.ones(len(X), bool)
-    for d in result.downweighted:
-        keep &= data.lines != d["line"]
+    X, Y, keep = compensator_data(result, data)
     net, info = fit_guarded(rbf_candidates(int(keep.sum()), seed), X[keep], Y[keep], seed=seed)
     if net is None:
         out = replace(result, notes=list(result.notes))
@@ -361,20 +393,8 @@ def fit_compensator(result: CalibrationResult, data: Measurements, seed: int = 0
         if warn:
             warnings.warn(out.notes[-1], CasadicalWarning, stacklevel=3)
         return out
-    model = Model(m.robot, list(m.terms[1:] if not m.geometric_free else m.terms)
-                  + [make_term("rbf_compensator", network=net)])
-    params = model.parameters.copy()
-    for p in params:
-        src = result.parameters[p.name]
-        p.value, p.std, p.fixed, p.identifiable, p.reason = src.value, src.std, src.fixed, src.identifiable, \
-            src.reason
-    out = CalibrationResult(model, params, result.base0, result.solver, result.solver_name,
-                            result.identifiability, result.uncertainty, None, list(result.notes), result.loss,
-                            result.downweighted, result.coverage)
-    out.calibration = out.stats(data)
-    out.notes.append(f"rbf_compensator: {net.n_centers_} Gaussian units fitted to the residuals of "
-                     f"{int(keep.sum())} poses ({info['reason']})")
-    return out
+    return with_compensator(result, net, data, f"rbf_compensator: {net.n_centers_} Gaussian units fitted to "
+                                               f"the residuals of {int(keep.sum())} poses ({info['reason']})")
 
 
 def rbf_candidates(n: int, seed: int = 0) -> dict:

@@ -197,7 +197,7 @@ class CalibrationResult:
             "casadical_version": __version__,
             "robot": robot_to_dict(self.model.robot),
             "model": self.model.spec,
-            "terms": {t.name: t.settings() for t in self.model.terms},
+            "terms": {t.spec(): t.settings() for t in self.model.terms},
             "parameters": params,
             "base0": [float(x) for x in self.base0],
             "base_pose": {"xyz_m": xyz.tolist(), "rpy_deg": np.degrees(rpy).tolist()},
@@ -243,7 +243,7 @@ def load_calibration(path: str | Path) -> CalibrationResult:
     try:
         robot = robot_from_dict(doc["robot"], path)
         settings = doc.get("terms", {})
-        terms = [restore_term(t, settings.get(t.name, {})) for t in parse_spec(doc["model"])]
+        terms = [restore_term(t, settings.get(t.spec(), settings.get(t.name, {}))) for t in parse_spec(doc["model"])]
         model = Model(robot, terms)
         params = model.parameters.copy()
         for entry in doc["parameters"]:

@@ -42,8 +42,13 @@ class Effects:
         Relative scale error ``s`` of joint readings (angle ``(1 + s) q``).
     backlash : dict of int to float
         Half the play (rad); the sign follows the joint's gravity torque.
+    cubic : dict of int to float
+        Progressive stiffness: a further deflection ``k3 tau^3`` (rad/(N m)^3)
+        of the joint, by 1-based joint (negative: the joint stiffens with load).
     thermal_alpha : float
         Relative growth of every length per kelvin.
+    thermal_links : dict of int to float
+        Relative growth per kelvin of the lengths of single links (by joint).
     temperature : (float, float)
         Range of the ``temperature_c`` column when ``thermal_alpha`` is set
         (a slow drift in row order).
@@ -62,7 +67,9 @@ class Effects:
     periodic: list[tuple[int, int, float, float]] = field(default_factory=list)
     encoder_scale: dict[int, float] = field(default_factory=dict)
     backlash: dict[int, float] = field(default_factory=dict)
+    cubic: dict[int, float] = field(default_factory=dict)
     thermal_alpha: float = 0.0
+    thermal_links: dict[int, float] = field(default_factory=dict)
     temperature: tuple[float, float] = (18.0, 28.0)
     drift: tuple[float, float, float] = (0.0, 0.0, 0.0)
     noise: float = 20e-6
@@ -100,9 +107,14 @@ def true_model(robot: Robot, effects: Effects, rng: np.random.Generator,
         terms.append(make_term("encoder_scale", joints=sorted(effects.encoder_scale)))
     if effects.backlash:
         terms.append(make_term("backlash", joints=sorted(effects.backlash)))
+    if effects.cubic:
+        terms.append(make_term("nonlinear_stiffness", joints=sorted(effects.cubic)))
+    lo, hi = effects.temperature
     if effects.thermal_alpha:
-        lo, hi = effects.temperature
         terms.append(make_term("thermal_expansion", t_ref=(lo + hi) / 2 if t_ref is None else t_ref))
+    if effects.thermal_links:
+        terms.append(make_term("thermal_expansion", joints=sorted(effects.thermal_links),
+                               t_ref=(lo + hi) / 2 if t_ref is None else t_ref))
     if any(effects.drift):
         terms.append(make_term("drift"))
     model = Model(robot, terms)
@@ -123,8 +135,12 @@ def true_model(robot: Robot, effects: Effects, rng: np.random.Generator,
         values[idx(f"escale{j}")] = s
     for j, b in effects.backlash.items():
         values[idx(f"backlash{j}")] = b
+    for j, k3 in effects.cubic.items():
+        values[idx(f"cubic{j}")] = k3
     if effects.thermal_alpha:
         values[idx("thermal_alpha")] = effects.thermal_alpha
+    for j, a in effects.thermal_links.items():
+        values[idx(f"thermal_alpha{j}")] = a
     for k, v in zip("xyz", effects.drift):
         if any(effects.drift):
             values[idx(f"drift_{k}")] = v
@@ -212,7 +228,7 @@ def simulate(robot: Robot, q: np.ndarray | int, effects: Effects | None = None, 
     extra: dict[str, np.ndarray] = {}
     if payload_kg is not None:
         extra["payload_kg"] = np.broadcast_to(np.asarray(payload_kg, dtype=float), (len(q),)).copy()
-    if effects.thermal_alpha:
+    if effects.thermal_alpha or effects.thermal_links:
         lo, hi = effects.temperature
         drift = np.linspace(lo, hi, len(q)) + rng.normal(0, 0.05 * (hi - lo), len(q))
         extra["temperature_c"] = np.clip(drift, lo, hi)
@@ -271,6 +287,8 @@ def load_protocol(spec: str | Path) -> Protocol:
             encoder_scale={int(k): float(v) for k, v in t.get("encoder_scale", {}).items()},
             backlash={int(k): math.radians(float(v)) for k, v in t.get("backlash_deg", {}).items()},
             thermal_alpha=float(t.get("thermal_alpha", 0.0)),
+            thermal_links={int(k): float(v) for k, v in t.get("thermal_links", {}).items()},
+            cubic={int(k): float(v) for k, v in t.get("cubic", {}).items()},
             noise=t.get("noise_mm", 0.02) / 1000,
             base_xyz=tuple(t.get("base_xyz_m", (0.0, 0.0, 0.0))),
             base_rpy=tuple(math.radians(x) for x in t.get("base_rpy_deg", (0.0, 0.0, 0.0))),

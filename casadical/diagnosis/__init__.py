@@ -1,6 +1,7 @@
 """Diagnosis: what the model gets wrong, why, and what each extension gains."""
 
 from .candidates import Candidate
-from .run import DiagnosisReport, DiagnosisSettings, Finding, Step, diagnose
+from .report import DiagnosisReport, Finding, Step
+from .run import DiagnosisSettings, diagnose
 
 __all__ = ["Candidate", "DiagnosisReport", "DiagnosisSettings", "Finding", "Step", "diagnose"]

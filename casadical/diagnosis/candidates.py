@@ -12,8 +12,9 @@ class Candidate:
     Attributes
     ----------
     cause : str
-        Cause name of INTERFACE.md section 4.
+        Cause name of INTERFACE.md section 4 (or ``nonlinear_stiffness``).
     joint, harmonic : int or None
+        For ``thermal_expansion`` a joint means that link's own coefficient.
     source : str or None
         For backlash: ``torque`` or ``motion``.
     """
@@ -23,10 +24,19 @@ class Candidate:
     harmonic: int | None = None
     source: str | None = None
 
+    @property
+    def tier(self) -> int:
+        """The order in which a round tries causes; a tier is tried only when no cause of an earlier one is
+        supported. 1: a physical cause of the robot with a parameter or two per joint (what a calibration
+        is for, and what holds on other data); 2: drift of the measurement session (it also stands for
+        any structure that follows the order of the measurements); 3: a periodic error (flexible, many
+        harmonics to choose from)."""
+        return {"drift": 2, "joint_periodic": 3}.get(self.cause, 1)
+
     def label(self) -> str:
         parts = [self.cause]
         if self.joint is not None:
-            parts.append(f"joint {self.joint}")
+            parts.append(f"{'link' if self.cause == 'thermal_expansion' else 'joint'} {self.joint}")
         if self.harmonic is not None:
             parts.append(f"harmonic {self.harmonic}")
         if self.source == "motion":
@@ -48,10 +58,11 @@ class Candidate:
         j, h = self.joint, self.harmonic
         return {
             "joint_compliance": [f"c{j}"],
+            "nonlinear_stiffness": [f"cubic{j}"],
             "joint_periodic": [f"gear{j}_s{h}", f"gear{j}_c{h}"],
             "encoder_scale": [f"escale{j}"],
             "backlash": [f"backlash{j}" if self.source != "motion" else f"backlash_m{j}"],
-            "thermal_expansion": ["thermal_alpha"],
+            "thermal_expansion": ["thermal_alpha" if j is None else f"thermal_alpha{j}"],
             "drift": ["drift_x", "drift_y", "drift_z"],
         }[self.cause]
 
@@ -59,6 +70,8 @@ class Candidate:
 def compose_spec(candidates: list[Candidate], geometric: bool = True) -> str:
     """Model specification holding every candidate (same terms merged)."""
     comp = sorted({c.joint for c in candidates if c.cause == "joint_compliance"})
+    cubic = sorted({c.joint for c in candidates if c.cause == "nonlinear_stiffness"})
+    links = sorted({c.joint for c in candidates if c.cause == "thermal_expansion" and c.joint is not None})
     per = sorted({(c.joint, c.harmonic) for c in candidates if c.cause == "joint_periodic"})
     enc = sorted({c.joint for c in candidates if c.cause == "encoder_scale"})
     blt = sorted({c.joint for c in candidates if c.cause == "backlash" and c.source != "motion"})
@@ -66,6 +79,8 @@ def compose_spec(candidates: list[Candidate], geometric: bool = True) -> str:
     parts = ["kinematic" if geometric else "nominal"]
     if comp:
         parts.append(f"joint_compliance[{','.join(map(str, comp))}]")
+    if cubic:
+        parts.append(f"nonlinear_stiffness[{','.join(map(str, cubic))}]")
     if per:
         parts.append(f"joint_periodic[{','.join(f'{j}:{h}' for j, h in per)}]")
     if enc:
@@ -74,8 +89,10 @@ def compose_spec(candidates: list[Candidate], geometric: bool = True) -> str:
         parts.append(f"backlash[{','.join(map(str, blt))}]")
     if blm:
         parts.append(f"backlash_motion[{','.join(map(str, blm))}]")
-    if any(c.cause == "thermal_expansion" for c in candidates):
+    if any(c.cause == "thermal_expansion" and c.joint is None for c in candidates):
         parts.append("thermal_expansion")
+    if links:
+        parts.append(f"thermal_expansion[{','.join(map(str, links))}]")
     if any(c.cause == "drift" for c in candidates):
         parts.append("drift")
     return "+".join(parts)
@@ -96,6 +113,14 @@ TELL_APART = {
         "sign, play that follows gravity does not",
     frozenset({"thermal_expansion", "joint_compliance"}):
         "repeat poses at another temperature in random order",
+    frozenset({"nonlinear_stiffness", "backlash"}):
+        "measure the same poses with two payloads: a progressive spring's deflection grows smoothly with the "
+        "load, backlash jumps at zero torque and stays",
+    frozenset({"joint_compliance", "nonlinear_stiffness"}):
+        "measure poses that load joint {j} over a wider range of torques (and with two payloads)",
+    frozenset({"thermal_expansion"}):
+        "measure while the arm warms up, with the links' temperatures if possible: links that grow "
+        "differently need their own coefficients",
     frozenset({"thermal_expansion", "drift"}):
         "measure in random pose order while the temperature changes: thermal growth scales with the "
         "arm's reach, drift of the measurement frame does not",

@@ -5,8 +5,8 @@ such as ``"kinematic+compliance[2,3]+periodic[2:1]"`` (see
 :func:`casadical.model.parse_spec`).
 """
 
-from . import (backlash, compliance, drift, encoder_scale, geometric, periodic,  # noqa: F401  (registration)
-               rbf_compensator, thermal)
+from . import (backlash, compliance, drift, encoder_scale, geometric, nonlinear_stiffness,  # noqa: F401
+               periodic, rbf_compensator, thermal)
 from .base import REGISTRY, Context, ErrorTerm, ReferencedTerm, register
 
 

@@ -69,6 +69,9 @@ class ErrorTerm:
     cause: ClassVar[str] = ""
     #: covariates read per pose (columns of the measurement file)
     covariates: ClassVar[tuple[str, ...]] = ()
+    #: describes the measurement session, not the robot (like the base pose): a calibration taken
+    #: to other data starts such a term from zero
+    session: ClassVar[bool] = False
 
     def __init__(self, joints: list[int] | None = None):
         self.joints = None if joints is None else sorted({int(j) for j in joints})

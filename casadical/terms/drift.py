@@ -15,6 +15,8 @@ class Drift(ReferencedTerm):
 
     The time is the ``time_s`` column, or the row index when the file has
     none (row order is time order). Velocities are in m/s of the covariate.
+    A drift belongs to its measurement session: a calibration taken to
+    other data (``calibrate CAL.json``) starts it from zero.
 
     Parameters
     ----------
@@ -26,6 +28,7 @@ class Drift(ReferencedTerm):
     name = "drift"
     cause = "drift"
     covariates = ("time_s",)
+    session = True
 
     def parameters(self, robot: Robot) -> list[Parameter]:
         # scale: 1 um per unit of time; bounds generous (1 mm/s)

@@ -1,0 +1,212 @@
+"""Can a periodic error be named? Resolution against neighbours and geometry, stability over halves.
+
+A sine of harmonic ``h`` of a joint's reading is a gear (transmission)
+error only if the data can tell it apart:
+
+- from its neighbours ``h - 1`` and ``h + 1``: over a joint range of R
+  degrees two harmonics drift apart by ``R / 360`` cycles per unit of
+  ``h``, and over a short range they fit much the same residual. The data
+  resolve ``h`` when they prefer it to each neighbour by a likelihood
+  ratio of at least 100 (the drop of the weighted residual sum of squares,
+  in units of the residual variance, exceeds ``2 ln 100``): a strong,
+  clean gear error is resolved over a short range, a weak one only over a
+  long one;
+- from geometry: a low harmonic over a short range is a smooth curve that
+  the link parameters (offset, scale) reproduce; at least half of its
+  columns must lie outside what the current model spans;
+- and its amplitude and phase must agree when fitted on the lower and the
+  upper half of the joint's range (a gear is the same over the whole
+  turn; a flexible fit of session structure is not). The halves in time
+  are reported beside them.
+
+What does not pass is not named as a gear: the diagnosis reports it as
+``unexplained`` structure, with where it lives and its size.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy import stats
+
+from ..data import Measurements
+from ..result import CalibrationResult
+from .validation import Linearized
+
+#: the data must prefer a harmonic to each neighbour by this log-likelihood-ratio (x2): 2 ln 100
+NEIGHBOUR_MARGIN = 2 * math.log(100.0)
+#: at least this fraction of a harmonic's column must lie outside the current model's span
+OUTSIDE_GEOMETRY = 0.5
+#: neighbours looked at on each side, at most, for the band of harmonics not told apart
+MAX_BAND = 5
+
+
+@dataclass
+class Resolution:
+    """How well the data resolve harmonic ``h`` of joint ``j``.
+
+    Attributes
+    ----------
+    outside_geometry : float
+        Fraction (0..1) of the harmonic's columns not reproduced by the current model.
+    neighbour_margin : float
+        How much better ``h`` fits than its better neighbour: drop of the
+        weighted residual sum of squares over the residual variance
+        (twice the log-likelihood ratio).
+    band : (int, int)
+        The harmonics the data cannot tell from ``h``.
+    range_deg : float
+        The joint's range in the data.
+    """
+
+    outside_geometry: float
+    neighbour_margin: float
+    band: tuple[int, int]
+    range_deg: float
+
+    @property
+    def resolved(self) -> bool:
+        return self.outside_geometry >= OUTSIDE_GEOMETRY and self.neighbour_margin >= NEIGHBOUR_MARGIN
+
+    def to_dict(self) -> dict:
+        return {"outside_geometry": round(self.outside_geometry, 4),
+                "neighbour_margin": round(self.neighbour_margin, 3),
+                "band": list(self.band), "range_deg": round(self.range_deg, 2), "resolved": self.resolved}
+
+    def text(self) -> str:
+        lo, hi = self.band
+        if self.resolved:
+            return (f"resolved over the {self.range_deg:.0f} deg the joint covers (preferred to its neighbours by "
+                    f"a likelihood ratio of {math.exp(min(self.neighbour_margin, 1400) / 2):.3g})")
+        why = []
+        if self.outside_geometry < OUTSIDE_GEOMETRY:
+            why.append(f"only {100 * self.outside_geometry:.0f}% of it lies outside what the geometry "
+                       "already fits")
+        if self.neighbour_margin < NEIGHBOUR_MARGIN:
+            why.append(f"harmonics {lo}..{hi} fit about as well over the {self.range_deg:.0f} deg the joint covers")
+        return "not resolved: " + "; ".join(why)
+
+
+def _columns(direction: np.ndarray, q: np.ndarray, h: int, sw: np.ndarray) -> np.ndarray:
+    """The (weighted) Jacobian columns of ``s sin(h q) + c cos(h q)`` on a joint, (3N, 2)."""
+    return np.stack([(direction * np.sin(h * q)[:, None]).ravel() * sw,
+                     (direction * np.cos(h * q)[:, None]).ravel() * sw], axis=1)
+
+
+def resolution(current: CalibrationResult, data: Measurements, joint: int, harmonic: int) -> Resolution:
+    """Resolution of harmonic ``harmonic`` of ``joint`` in ``data``, given the current model."""
+    m, p = current.model, current.parameters
+    xyz, J = m.predict_jacobian(data.q, p.values, m.covariates(data), current.base0)
+    r = xyz - data.xyz
+    sw = np.repeat(np.sqrt(current.loss.weight(np.einsum("ij,ij->i", r, r))), 3)
+    free = np.flatnonzero(p.free)
+    G = J[:, :, free].reshape(-1, len(free)) * p.scales[free] * sw[:, None]
+    Q, _ = np.linalg.qr(G)
+    rw = r.ravel() * sw
+    r_perp = rw - Q @ (Q.T @ rw)
+    sigma2 = float(r_perp @ r_perp) / max(len(rw) - len(free), 1)
+    direction = J[:, :, p.index(f"theta{joint}")]
+    q = data.q[:, joint - 1]
+
+    def drop(h: int) -> float:
+        C = _columns(direction, q, h, sw)
+        U, sv, _ = np.linalg.svd(C - Q @ (Q.T @ C), full_matrices=False)
+        keep = sv > 1e-9 * max(np.linalg.norm(C), 1e-300)
+        proj = U[:, keep].T @ r_perp
+        return float(proj @ proj)
+
+    C = _columns(direction, q, harmonic, sw)
+    outside = float(np.linalg.norm(C - Q @ (Q.T @ C)) / max(np.linalg.norm(C), 1e-300))
+    d0 = drop(harmonic)
+
+    def margin(h: int) -> float:
+        return (d0 - drop(h)) / max(sigma2, 1e-300)
+
+    neighbours = [h for h in (harmonic - 1, harmonic + 1) if h >= 1]
+    lo = hi = harmonic
+    while lo - 1 >= 1 and harmonic - lo < MAX_BAND and margin(lo - 1) < NEIGHBOUR_MARGIN:
+        lo -= 1
+    while hi - harmonic < MAX_BAND and margin(hi + 1) < NEIGHBOUR_MARGIN:
+        hi += 1
+    return Resolution(outside, min(margin(h) for h in neighbours), (lo, hi), float(np.degrees(np.ptp(q))))
+
+
+@dataclass
+class Halves:
+    """A periodic term fitted on two disjoint halves of the data.
+
+    Attributes
+    ----------
+    split : str
+        ``joint`` (lower and upper half of the joint's readings) or ``time``
+        (first and second half of the measurement order).
+    amplitude_arcsec, phase_deg : (float, float)
+        On each half.
+    chi2 : float
+        Of the difference of the two (s, c) estimates against their
+        standard errors (2 degrees of freedom).
+    agree : bool
+        ``chi2`` below the chi-square(2) quantile at ``1 - alpha``.
+    """
+
+    split: str
+    amplitude_arcsec: tuple[float, float]
+    phase_deg: tuple[float, float]
+    chi2: float
+    agree: bool
+    unit: str = ""     # a one-parameter term: its value on each half, in this unit
+
+    def to_dict(self) -> dict:
+        if self.unit:
+            return {"split": self.split, "values": list(self.amplitude_arcsec), "unit": self.unit,
+                    "chi2": round(self.chi2, 3), "agree": self.agree}
+        return {"split": self.split, "amplitude_arcsec": [round(a, 3) for a in self.amplitude_arcsec],
+                "phase_deg": [round(a, 2) for a in self.phase_deg], "chi2": round(self.chi2, 3),
+                "agree": self.agree}
+
+    def text(self) -> str:
+        what = "lower / upper half of the joint's range" if self.split == "joint" else "first / second half in time"
+        a, b = self.amplitude_arcsec
+        pa, pb = self.phase_deg
+        values = (f"{a:.4g} / {b:.4g} {self.unit}" if self.unit else
+                  f"{a:.1f} / {b:.1f} arcsec, phase {pa:.0f} / {pb:.0f} deg")
+        return f"{what}: {values} ({'agree' if self.agree else 'disagree'}, chi2 = {self.chi2:.1f})"
+
+
+def halves(fit: CalibrationResult, data: Measurements, names: list[str], joint: int, alpha: float,
+           lin: Linearized | None = None) -> list[Halves]:
+    """A joint term fitted on the joint's range halves and on the time halves.
+
+    ``names`` are the term's parameters: ``(s, c)`` of a periodic error
+    (amplitude and phase are reported) or one parameter (its value in
+    display units is reported as the "amplitude", phase 0). Each half is
+    refitted by one Gauss-Newton step from the fit on all poses.
+    """
+    lin = lin or Linearized.of(fit, data)
+    cols = [lin.names.index(n) for n in names]
+    base = np.array([fit.parameters[n].value for n in names])
+    q = data.q[:, joint - 1]
+    order_q = np.argsort(q, kind="stable")
+    order_t = np.argsort(data.rows, kind="stable")
+    n = len(q)
+    crit = float(stats.chi2.ppf(1 - alpha, len(names)))
+    out = []
+    for split, order in (("joint", order_q), ("time", order_t)):
+        est, cov = [], []
+        for rows in (order[: n // 2], order[n // 2:]):
+            d, C = lin.refit(np.sort(rows), rel=0.0)
+            s = lin.scale[cols]
+            est.append(base + s * d[cols])
+            cov.append(C[np.ix_(cols, cols)] * np.outer(s, s))
+        diff = est[0] - est[1]
+        chi2 = float(diff @ np.linalg.solve(cov[0] + cov[1], diff))
+        if len(names) == 2:
+            amp = tuple(math.degrees(math.hypot(*e)) * 3600 for e in est)
+            ph = tuple(math.degrees(math.atan2(e[1], e[0])) for e in est)
+        else:
+            p = fit.parameters[names[0]]
+            amp, ph = tuple(float(p.to_display(e[0])) for e in est), (0.0, 0.0)
+        out.append(Halves(split, amp, ph, chi2, chi2 < crit, "" if len(names) == 2 else fit.parameters[names[0]].display_unit))
+    return out

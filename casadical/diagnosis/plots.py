@@ -1,0 +1,58 @@
+"""The data behind each finding's figure: the residual against the variable its cause depends on."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..data import Measurements
+from ..result import CalibrationResult
+from .candidates import Candidate
+from .periodogram import joint_errors
+
+ARCSEC = np.degrees(1.0) * 3600
+
+
+def residual_plot(cand: Candidate, before: CalibrationResult, after: CalibrationResult, d: Measurements) -> dict:
+    """Joint causes: the partial residual (what the fit leaves plus the fitted effect, as the joint's
+    angle error) with the fitted effect as a curve. Thermal expansion and drift: the residual before and after.
+    """
+    if cand.cause in ("thermal_expansion", "drift"):
+        if cand.cause == "thermal_expansion":
+            x, xlabel = d.get("temperature_c"), "temperature (deg C)"
+            ys = [np.linalg.norm(r.residuals(d), axis=1) * 1000 for r in (before, after)]
+            ylabel = "position error (mm)"
+        else:
+            t = d.get("time_s")
+            x, xlabel = (t, "time (s)") if t is not None else (d.rows, "row (measurement order)")
+            v = np.array([after.parameters[n].value for n in cand.parameter_names()])
+            u = v / max(np.linalg.norm(v), 1e-300)
+            ys = [r.residuals(d) @ u * 1000 for r in (before, after)]
+            ylabel = "residual along the drift (mm)"
+        return {"x": np.asarray(x, float).tolist(), "before": ys[0].tolist(), "after": ys[1].tolist(),
+                "xlabel": xlabel, "ylabel": ylabel}
+    j, m, p = cand.joint, after.model, after.parameters
+    cov = m.covariates(d)
+    _, J = m.predict_jacobian(d.q, p.values, cov, after.base0)
+    s, _ = joint_errors(after.residuals(d), J[:, :, p.index(f"theta{j}")])
+    q = d.q[:, j - 1]
+    value = p[cand.parameter_names()[0]].value
+    if cand.cause == "joint_periodic":
+        sn, cs = (p[n].value for n in cand.parameter_names())
+        effect = sn * np.sin(cand.harmonic * q) + cs * np.cos(cand.harmonic * q)
+        # folded by the harmonic, h cycles per turn line up into one sinusoid
+        x = np.degrees(cand.harmonic * q) % 360.0
+        xlabel = f"phase of {cand.harmonic} cycles per turn of joint {j} (deg)"
+    elif cand.cause == "encoder_scale":
+        effect, x, xlabel = value * q, np.degrees(q), f"joint {j} reading (deg)"
+    elif cand.cause == "backlash" and cand.source == "motion":
+        x = d.moves[:, j - 1]
+        effect, xlabel = value * x, f"direction of the last move of joint {j}"
+    else:
+        x = m.torques(d.q, p.values, cov)[:, j - 1]
+        xlabel = f"gravity torque at joint {j} (N m)"
+        effect = {"joint_compliance": value * x, "nonlinear_stiffness": value * x ** 3}.get(
+            cand.cause, value * np.sign(x))
+    order = np.argsort(x)
+    return {"x": np.asarray(x, float).tolist(), "partial": ((s + effect) * ARCSEC).tolist(),
+            "curve_x": np.asarray(x, float)[order].tolist(), "curve_y": (effect[order] * ARCSEC).tolist(),
+            "xlabel": xlabel, "ylabel": f"joint {j} angle error: residual + fitted effect (arcsec)"}

@@ -1,0 +1,102 @@
+"""Does a finding hold up on another measurement series?
+
+The diagnosed model and the model without one finding at a time are taken
+to another series the two ways a calibration travels:
+
+- ``base``: only the base pose is estimated again, on a few poses of the
+  other series (a new tracker set-up), and every other pose judges;
+- ``refit``: the geometry is estimated again on part of the other series
+  with the finding's parameters frozen (a new series of the same robot),
+  and the rest judges.
+
+A finding transfers when the model with it beats the model without it
+both ways. The kinematic model taken there the same way is the baseline.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Callable
+
+import numpy as np
+
+from ..calibration import calibrate
+from ..data import Measurements
+from ..result import CalibrationResult
+
+
+@dataclass
+class Split:
+    """Which poses of the other series fit and which judge, for each way of travelling."""
+
+    base_fit: np.ndarray
+    base_test: np.ndarray
+    refit_fit: np.ndarray
+    refit_test: np.ndarray
+
+    @classmethod
+    def of(cls, n: int, n_base: int, n_refit: int, seed: int) -> "Split":
+        perm = np.random.default_rng(seed).permutation(n)
+        return cls(np.sort(perm[:n_base]), np.sort(perm[n_base:]), np.sort(perm[:n_refit]),
+                   np.sort(perm[n_refit:]))
+
+
+@dataclass
+class Travel:
+    """Mean errors (mm) of one model on the other series, both ways."""
+
+    base_mm: float
+    refit_mm: float
+
+    def to_dict(self) -> dict:
+        return {"base_mm": self.base_mm, "refit_mm": self.refit_mm}
+
+
+def travel(model: CalibrationResult, other: Measurements, split: Split) -> Travel:
+    b = calibrate(model, other.subset(split.base_fit), "base", "lm", warn=False)
+    r = calibrate(model, other.subset(split.refit_fit), "kinematic", "lm", warn=False)
+    return Travel(b.stats(other.subset(split.base_test)).mean_mm, r.stats(other.subset(split.refit_test)).mean_mm)
+
+
+@dataclass
+class TransferStudy:
+    """The final and kinematic models on another series, and each finding's gain there."""
+
+    file: str
+    split: Split
+    final: Travel
+    kinematic: Travel
+    gains: dict = field(default_factory=dict)   # finding index -> (base gain, refit gain), mm
+
+    def to_dict(self) -> dict:
+        return {"file": self.file, "n_base": len(self.split.base_fit), "n_refit": len(self.split.refit_fit),
+                "final": self.final.to_dict(), "kinematic": self.kinematic.to_dict(), "text": self.text()}
+
+    def text(self) -> str:
+        f, k = self.final, self.kinematic
+        return (f"taken to {self.file}: base pose re-estimated on {len(self.split.base_fit)} poses, mean "
+                f"{f.base_mm:.4f} mm (kinematic {k.base_mm:.4f}); geometry refitted on "
+                f"{len(self.split.refit_fit)} poses with the findings frozen, mean {f.refit_mm:.4f} mm "
+                f"(kinematic refit {k.refit_mm:.4f})")
+
+
+def finding_gain(with_it: Travel, without: Travel) -> dict:
+    gb, gr = without.base_mm - with_it.base_mm, without.refit_mm - with_it.refit_mm
+    verdict = "transfers" if gb > 0 and gr > 0 else ("does not transfer" if gb <= 0 and gr <= 0 else "mixed")
+    return {"base_gain_mm": gb, "refit_gain_mm": gr, "verdict": verdict,
+            "text": f"{verdict}: mean {'-' if gb >= 0 else '+'}{abs(gb):.4f} mm with the base re-estimated, "
+                    f"{'-' if gr >= 0 else '+'}{abs(gr):.4f} mm with the geometry refitted"}
+
+
+def study(final: CalibrationResult, kinematic: CalibrationResult, without: Callable[[int], CalibrationResult | None],
+          n_findings: int, other: Measurements, n_base: int, n_refit: int, seed: int,
+          progress: Callable[[str], None]) -> TransferStudy:
+    """Take ``final``, ``kinematic`` and ``without(k)`` (the final model fitted without finding k) to ``other``."""
+    split = Split.of(len(other), n_base, n_refit, seed)
+    progress(f"transfer: taking the final and the kinematic model to {other.path}")
+    out = TransferStudy(other.path, split, travel(final, other, split), travel(kinematic, other, split))
+    for k in range(n_findings):
+        model = without(k)
+        if model is not None:
+            out.gains[k] = travel(model, other, split)
+    return out

@@ -1,0 +1,199 @@
+"""Validation that can tell: cross-validation folds that must extrapolate.
+
+Poses drawn at random from one measurement session share its structure, so
+random folds reward any flexible term that fits the session. A cause that
+is really there also predicts where the model has to extrapolate:
+
+- ``random``: k random folds (interpolation, the usual check);
+- ``time``: k contiguous blocks of the row order (what was measured later
+  is predicted from what was measured before and after);
+- ``joint<j>``: k contiguous blocks of joint j's reading (a range of the
+  joint left out, for every joint).
+
+Each fold is refitted by one Gauss-Newton step from the fit on all poses,
+with the training poses only (exact for a linear model, and the
+calibration problem is nearly linear at its solution): the whole set of
+schemes costs a few small linear solves, not a calibration per fold.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+
+@dataclass
+class Scheme:
+    """A cross-validation scheme: each pose is held out in exactly one fold."""
+
+    name: str
+    folds: list[np.ndarray]
+
+    @property
+    def kind(self) -> str:
+        return "joint" if self.name.startswith("joint") else self.name
+
+
+def random_scheme(n: int, k: int, seed: int) -> Scheme:
+    idx = np.random.default_rng(seed).permutation(n)
+    return Scheme("random", [np.sort(idx[i::k]) for i in range(k)])
+
+
+def time_scheme(rows: np.ndarray, k: int) -> Scheme:
+    """Contiguous blocks of the measurement order (``rows``: each pose's original row)."""
+    order = np.argsort(rows, kind="stable")
+    return Scheme("time", [np.sort(b) for b in np.array_split(order, k)])
+
+
+def joint_scheme(q: np.ndarray, j: int, k: int) -> Scheme:
+    """Contiguous blocks of joint ``j``'s (1-based) reading."""
+    order = np.argsort(q[:, j - 1], kind="stable")
+    return Scheme(f"joint{j}", [np.sort(b) for b in np.array_split(order, k)])
+
+
+def schemes(q: np.ndarray, rows: np.ndarray, k: int, seed: int, lever: np.ndarray | None = None,
+            min_lever: float = 0.05) -> list[Scheme]:
+    """The random, time-blocked and joint-blocked schemes of a data set.
+
+    ``lever`` (one per joint): how far the tool point moves when the joint
+    turns (e.g. the RMS of ``|d xyz / d q_j|`` over the poses). A joint that
+    barely moves the tool point (less than ``min_lever`` of the largest,
+    e.g. a flange joint with the probe on its axis) gets no joint-blocked
+    scheme: leaving out a range of it tests nothing.
+    """
+    out = [random_scheme(len(q), k, seed), time_scheme(rows, k)]
+    top = float(np.max(lever)) if lever is not None and len(lever) else 0.0
+    out += [joint_scheme(q, j, k) for j in range(1, q.shape[1] + 1)
+            if np.ptp(q[:, j - 1]) > 0 and (lever is None or lever[j - 1] >= min_lever * top)]
+    return out
+
+
+def solve_identified(A: np.ndarray, b: np.ndarray, rel: float = 1e-3) -> np.ndarray:
+    """``A^-1 b`` on the directions ``A`` determines; the others stay at zero.
+
+    ``A`` is a Gauss-Newton matrix; with its columns normalised, directions
+    whose singular value (of the Jacobian) is below ``rel`` of the largest
+    are what these poses cannot tell, and a refit would not move them.
+    """
+    d = np.sqrt(np.clip(np.diag(A), 1e-300, None))
+    An = A / np.outer(d, d)
+    lam, V = np.linalg.eigh((An + An.T) / 2)
+    keep = lam > max((rel ** 2) * float(lam[-1]), 1e-300)
+    x = (V[:, keep] / lam[keep]) @ (V[:, keep].T @ (b / d))
+    return x / d
+
+
+@dataclass
+class CVResult:
+    """Held-out errors of one model under each scheme.
+
+    Attributes
+    ----------
+    errors : dict of str to ndarray
+        Scheme name -> held-out position error of every pose (m).
+    """
+
+    errors: dict[str, np.ndarray] = field(default_factory=dict)
+
+    def mean_mm(self, scheme: str, mask: np.ndarray | None = None) -> float:
+        e = self.errors[scheme] if mask is None else self.errors[scheme][mask]
+        return float(np.mean(e) * 1000)
+
+    def kind_errors(self, kind: str) -> np.ndarray:
+        """Held-out error of each pose under one kind of scheme (``joint``: averaged over the joints), m."""
+        names = [s for s in self.errors if (s.startswith("joint") if kind == "joint" else s == kind)]
+        return np.mean([self.errors[s] for s in names], axis=0)
+
+    def kind_mean_mm(self, kind: str, mask: np.ndarray | None = None) -> float:
+        """Mean held-out error over the schemes of one kind (``joint``: all joints)."""
+        e = self.kind_errors(kind)
+        return float(np.mean(e if mask is None else e[mask]) * 1000)
+
+
+def linear_cv(J: np.ndarray, r: np.ndarray, weights: np.ndarray, all_schemes: list[Scheme]) -> CVResult:
+    """Held-out errors by one Gauss-Newton step per fold from the fit on all poses.
+
+    Parameters
+    ----------
+    J : ndarray, shape (N, 3, p)
+        Jacobian of the predictions w.r.t. the (scaled) free parameters at the fit.
+    r : ndarray, shape (N, 3)
+        Residuals at the fit (predicted - measured).
+    weights : ndarray, shape (N,)
+        Pose weights of the fit (robust loss); held fixed.
+    all_schemes : list of Scheme
+
+    Directions the training poses of a fold cannot determine stay at the
+    fit on all poses (:func:`solve_identified`).
+    """
+    N, _, p = J.shape
+    sw = np.sqrt(weights)[:, None, None]
+    Jw = (J * sw).reshape(N, 3, p)
+    rw = r * np.sqrt(weights)[:, None]
+    # per-pose contributions summed per fold: A_T = A - A_F, g_T = g - g_F
+    A = np.einsum("nkp,nkq->pq", Jw, Jw)
+    g = np.einsum("nkp,nk->p", Jw, rw)
+    out = CVResult()
+    for s in all_schemes:
+        err = np.empty(N)
+        for F in s.folds:
+            AF = np.einsum("nkp,nkq->pq", Jw[F], Jw[F])
+            gF = np.einsum("nkp,nk->p", Jw[F], rw[F])
+            d = -solve_identified(A - AF, g - gF)
+            err[F] = np.linalg.norm(r[F] + J[F] @ d, axis=1)
+        out.errors[s.name] = err
+    return out
+
+
+@dataclass
+class Linearized:
+    """A fit linearised at its solution on some poses: what the fold refits and half fits need.
+
+    Attributes
+    ----------
+    J : ndarray, shape (N, 3, p)
+        Jacobian w.r.t. the scaled free parameters.
+    r : ndarray, shape (N, 3)
+        Residuals (predicted - measured, m).
+    weights : ndarray, shape (N,)
+        Robust weights at the fit.
+    names : list of str
+        The free parameters, in column order.
+    scale : ndarray
+        Their scales (a unit step of a column is ``scale`` in SI).
+    """
+
+    J: np.ndarray
+    r: np.ndarray
+    weights: np.ndarray
+    names: list[str]
+    scale: np.ndarray
+
+    @classmethod
+    def of(cls, res, data) -> "Linearized":
+        m, p = res.model, res.parameters
+        xyz, J = m.predict_jacobian(data.q, p.values, m.covariates(data), res.base0)
+        f = np.flatnonzero(p.free)
+        r = xyz - data.xyz
+        w = res.loss.weight(np.einsum("ij,ij->i", r, r))
+        return cls(J[:, :, f] * p.scales[f], r, w, [p.names[i] for i in f], p.scales[f])
+
+    def cv(self, all_schemes: list[Scheme]) -> CVResult:
+        return linear_cv(self.J, self.r, self.weights, all_schemes)
+
+    def refit(self, rows: np.ndarray, rel: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
+        """One Gauss-Newton step on ``rows`` only: the change of the scaled parameters and its covariance.
+
+        ``rel``: see :func:`solve_identified` (0: every direction moves).
+        """
+        J, r, w = self.J[rows], self.r[rows], self.weights[rows]
+        p = J.shape[2]
+        Jw = J * np.sqrt(w)[:, None, None]
+        A = np.einsum("nkp,nkq->pq", Jw, Jw)
+        g = np.einsum("nkp,nk->p", Jw, r * np.sqrt(w)[:, None])
+        d = -solve_identified(A, g, rel)
+        res = r + J @ d
+        dof = max(3 * len(rows) - p, 1)
+        sigma2 = float(np.sum(w[:, None] * res ** 2)) / dof
+        return d, sigma2 * np.linalg.pinv(A)
