@@ -227,6 +227,11 @@ def test_unmapped_column_that_would_clash_with_the_contract(tmp_path):
     got = read_mapped(src, load_column_map(["joints=j1", "joint_unit=deg", "position=X,Y,Z",
                                             "position_unit=mm", "others=drop"]))
     assert list(got.columns) == ["q1_deg", "x_mm", "y_mm", "z_mm"] and got.dropped == ["x_mm"]
+    # an unmapped column that becomes a contract column must hold numbers
+    src.write_text("j1,X,Y,Z,Temperature C\n1,2,3,4,21.5\n1,2,3,4,warm\n")
+    with pytest.raises(DataFileError, match="not a number: 'warm'") as e:
+        read_mapped(src, cmap)
+    assert (e.value.row, e.value.column) == (3, "Temperature C")
 
 
 def test_a_column_named_twice_for_joints_or_positions(tmp_path):

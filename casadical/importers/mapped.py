@@ -157,7 +157,7 @@ def _read_table(path: Path, cmap: ColumnMap) -> _Table | None:
     separator = cmap.separator or _guess_separator(first, cmap, file, first_row)
     reader = csv.reader(buf, delimiter=separator)
     header: list[str] | None = None
-    header_line = offset + 1
+    header_line = 0
     rows: list[list[str]] = []
     lines: list[int] = []
     try:
@@ -223,8 +223,13 @@ def _not_a_number(s: str, decimal: str) -> str:
     return f"not a number: {s!r}{hint}"
 
 
-def _numbers_or_text(t: _Table, j: int, decimal: str) -> np.ndarray:
-    """Column ``j`` as floats when every cell is a number, else its text as it is."""
+def _numbers_or_text(t: _Table, j: int, decimal: str, output: str) -> np.ndarray:
+    """Column ``j`` as floats when every cell is a number, else its text as it is.
+
+    Contract columns (``payload_kg``, ``temperature_c``, ``time_s``) must be numbers.
+    """
+    if output in NUMERIC_OPTIONAL:
+        return _numbers(t, j, decimal)
     try:
         return _numbers(t, j, decimal)
     except DataFileError:
@@ -380,7 +385,7 @@ def read_mapped(path: str | os.PathLike[str], column_map: ColumnMap,
     cmap, path = column_map, Path(path)
     file = str(path)
     t = _read_table(path, cmap)
-    if t is None or not t.header:
+    if t is None:
         raise DataFileError("empty file: expected a header row with the columns "
                             + ", ".join(cmap.joints), file=file, row=cmap.skip_lines + 1,
                             column=cmap.joints[0])
@@ -413,8 +418,7 @@ def read_mapped(path: str | os.PathLike[str], column_map: ColumnMap,
             mapped.append(Mapped("time", t.header[time_idx], "time_s",
                                  f"{cmap.time.format} -> s since the first row"))
     for j, dst in kept:
-        numeric = dst in NUMERIC_OPTIONAL
-        columns[dst] = _numbers(t, j, cmap.decimal) if numeric else _numbers_or_text(t, j, cmap.decimal)
+        columns[dst] = _numbers_or_text(t, j, cmap.decimal, dst)
         mapped.append(Mapped("keep", t.header[j], dst))
 
     dropped: list[str] = []
@@ -431,7 +435,7 @@ def read_mapped(path: str | os.PathLike[str], column_map: ColumnMap,
             raise DataFileError(f"column {why}: keep it under another name (keep.\"{raw}\" = \"...\") "
                                 "or set others = \"drop\" in the mapping",
                                 file=file, row=t.header_line, column=raw or f"field {j + 1}")
-        columns[name] = _numbers_or_text(t, j, cmap.decimal)
+        columns[name] = _numbers_or_text(t, j, cmap.decimal, name)
         mapped.append(Mapped("others", raw, name))
 
     if "time_s" in columns and time_idx is not None:
