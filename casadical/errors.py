@@ -54,6 +54,10 @@ class DataFileError(InputError):
     """A measurement CSV is malformed."""
 
 
+class ColumnMapError(InputError):
+    """A column mapping (TOML file, preset or ``--map key=value``) is invalid; ``column`` holds the key."""
+
+
 class ModelError(CasadicalError):
     """A model cannot be built from the given robot and error terms."""
 

@@ -1,4 +1,4 @@
-"""``split``, ``simulate`` and ``import-ur10``: measurement files in and out."""
+"""``split``, ``simulate``, ``import`` and ``import-ur10``: measurement files in and out."""
 
 from __future__ import annotations
 
@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..importers.column_map import presets
 from .common import add_force, check_outputs, int_at_least, write_json
 
 
@@ -31,15 +32,33 @@ def register(sub) -> None:
     add_force(p)
     p.set_defaults(func=run_simulate, inputs=("protocol",))
 
+    p = sub.add_parser("import", help="convert any tracker file to the measurement CSV with a column mapping",
+                       description="Convert a delimited tracker file to the measurement CSV contract. "
+                                   "The mapping says which columns are joints (deg or rad), which the "
+                                   "measured point (mm or m; directly or as target + deviation), the "
+                                   "separator and decimal mark, and what else to keep; see docs/formats.md.")
+    p.add_argument("source", help="tracker file (text with a header row)")
+    p.add_argument("--map", action="append", required=True, dest="maps",
+                   metavar="MAP.toml|PRESET|KEY=VALUE",
+                   help="column mapping: a TOML file or a preset (" + ", ".join(sorted(presets())) + "), "
+                        "then any key=value pairs that set or override keys (repeat --map)")
+    _add_import_options(p)
+    p.set_defaults(func=run_import, inputs=("source",))
+
     p = sub.add_parser("import-ur10", help="convert the UR10 (ipa) raw format to the measurement CSV",
                        description="Convert a raw UR10 file (';' separated, decimal comma, radians) "
-                                   "to the measurement CSV contract.")
+                                   "to the measurement CSV contract: the same as "
+                                   "'casadical import SOURCE --map ur10-ipa'.")
     p.add_argument("source", help="raw UR10 measurement file")
+    _add_import_options(p)
+    p.set_defaults(func=run_import, maps=["ur10-ipa"], inputs=("source",))
+
+
+def _add_import_options(p) -> None:
     p.add_argument("--out", required=True, metavar="OUT.csv", help="output CSV")
     p.add_argument("--keep-order", action="store_true",
                    help="keep the file's row order where the timestamps say otherwise (default: sort by time)")
     add_force(p)
-    p.set_defaults(func=run_import_ur10, inputs=("source",))
 
 
 def run_split(args) -> int:
@@ -80,10 +99,24 @@ def run_simulate(args) -> int:
     return 0
 
 
-def run_import_ur10(args) -> int:
-    from ..importers.ur10 import convert_ur10
+def run_import(args) -> int:
+    from ..importers import import_file, load_column_map
+    from ..importers.column_map import mapping_file
 
-    check_outputs({"--out": args.out}, [args.source], args.force)
-    n = convert_ur10(args.source, args.out, overwrite=args.force, sort_by_time=not args.keep_order)
-    print(f"converted {n} poses -> {args.out}")
+    column_map = load_column_map(args.maps)
+    map_files = [str(f) for m in args.maps if (f := mapping_file(m)) is not None]
+    check_outputs({"--out": args.out}, [args.source, *map_files], args.force)
+    imported = import_file(args.source, args.out, column_map, overwrite=args.force,
+                           sort_by_time=not args.keep_order)
+    print(f"mapping ({column_map.source}):")
+    groups: dict[str, list] = {}
+    for m in imported.mapped:
+        groups.setdefault(m.group, []).append(m)
+    for group, items in groups.items():
+        notes = sorted({m.note for m in items if m.note})
+        pairs = ", ".join(f"{m.source} -> {m.output}" for m in items)
+        print(f"  {group}{' (' + '; '.join(notes) + ')' if notes else ''}: {pairs}")
+    if imported.dropped:
+        print(f"  dropped: {', '.join(imported.dropped)}")
+    print(f"{len(imported)} rows -> {args.out}")
     return 0
