@@ -52,7 +52,7 @@ class TableRow:
 
 @dataclass
 class ParameterTable:
-    """The rows of :func:`parameter_table` with what the header says about them."""
+    """The rows of :func:`parameter_table` and what the header says about them."""
 
     robot: str
     convention: str
@@ -60,18 +60,18 @@ class ParameterTable:
     rows: list[TableRow]
 
     @property
-    def title(self) -> str:
-        return (f"{self.robot}: {self.convention.upper()} parameter table ({self.model}); "
-                f"{TRANSFORMS[self.convention]}; measured point = base * links * Tx(tool_x) Ty(tool_y) Tz(tool_z); "
-                "angles in deg, lengths in mm; base_pose_* = robot base in the measurement frame")
+    def heading(self) -> str:
+        return f"{self.robot}: {self.convention.upper()} parameter table"
 
-    def row(self, name: str) -> TableRow:
-        return next(r for r in self.rows if r.name == name)
+    @property
+    def conventions(self) -> str:
+        return (f"{TRANSFORMS[self.convention]}; measured point = base * links * Tx(tool_x) Ty(tool_y) "
+                "Tz(tool_z); angles in deg, lengths in mm; base_pose_* = robot base in the measurement frame")
 
     def to_csv(self) -> str:
         """CSV: one comment line (``#``) with the title, the column names, one line per row; full precision."""
         out = io.StringIO()
-        out.write(f"# {self.title}\n")
+        out.write(f"# {self.heading} ({self.model}); {self.conventions}\n")
         w = csv.writer(out, lineterminator="\n")
         w.writerow(COLUMNS)
         for r in self.rows:
@@ -80,11 +80,8 @@ class ParameterTable:
 
     def to_markdown(self) -> str:
         """Markdown: a heading, the conventions and a table rounded for reading (0.1 um, 1e-6 deg)."""
-        lines = [f"# {self.robot}: {self.convention.upper()} parameter table", "",
-                 f"Model: {self.model}. {TRANSFORMS[self.convention]}; measured point = base * links * "
-                 "Tx(tool_x) Ty(tool_y) Tz(tool_z). Angles in deg, lengths in mm; `base_pose_*` is the robot "
-                 "base in the measurement frame. Full precision: the CSV table.", "",
-                 "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
+        lines = [f"# {self.heading}", "", f"Model: {self.model}; {self.conventions}. Full precision: the CSV "
+                 "table.", "", "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
         for r in self.rows:
             cells = [_md(c, r.unit) for c in r.cells()]
             lines.append("| " + " | ".join(cells) + " |")

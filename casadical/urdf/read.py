@@ -39,7 +39,7 @@ from ..robot import GRAVITY, Joint, Robot
 #: equals the geometric term's angle box, so an exported calibration of a
 #: nominally parallel pair is read back with beta again.
 PARALLEL_TOL_DEG = 5.0
-_EPS = 1e-9  # m: below this two axis lines meet (a = 0)
+_EPS = 1e-9  # m: parallel axes closer than this are coaxial (the x axis is kept from the frame before)
 _REVOLUTE = ("revolute", "continuous")
 _TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
 _PARSE_ERRORS = (KeyError, AttributeError, ValueError, TypeError, IndexError)
