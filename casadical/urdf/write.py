@@ -112,7 +112,8 @@ def _geometry(source) -> tuple[Robot, Geometry, np.ndarray, str]:
     values = dict(zip(source.parameters.names, source.parameters.values.tolist()))
     geom = make_term("geometric").geometry(Context(robot, None, values, {}), Geometry.nominal(robot))
     base = base0_to_pose(source.base0) @ base_pose_matrix(geom.base[:3], geom.base[3:])
-    return robot, geom, base, f"calibration, model {source.model.spec}"
+    left_out = ", ".join(t.spec() for t in source.model.terms[1:]) or "none"
+    return robot, geom, base, f"calibration, model {source.model.spec}; terms left out: {left_out}"
 
 
 def _mimic(robot: Robot, i: int) -> tuple[int, float] | None:
