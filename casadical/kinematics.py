@@ -182,8 +182,18 @@ def base_pose_matrix(xyz, rpy) -> np.ndarray:
 
 
 def matrix_to_rpy(R: np.ndarray) -> np.ndarray:
-    """Fixed-axis roll-pitch-yaw (radians) of a rotation matrix, R = Rz Ry Rx."""
-    pitch = np.arcsin(-np.clip(R[2, 0], -1.0, 1.0))
+    """Fixed-axis roll-pitch-yaw (radians) of a rotation matrix, R = Rz Ry Rx.
+
+    Yaw is taken from what roll and pitch leave, so the angles rebuild R to
+    rounding error also at and near pitch = +-90 deg (gimbal lock), where
+    roll and yaw alone are ill-determined.
+    """
+    R = np.asarray(R, dtype=float)
+    pitch = np.arctan2(-R[2, 0], np.hypot(R[2, 1], R[2, 2]))
     roll = np.arctan2(R[2, 1], R[2, 2])
-    yaw = np.arctan2(R[1, 0], R[0, 0])
+    cr, sr, cp, sp = np.cos(roll), np.sin(roll), np.cos(pitch), np.sin(pitch)
+    # Rz(yaw) = R Rx(roll)^T Ry(pitch)^T: first column of that product
+    m00 = R[0, 0] * cp + (R[0, 1] * sr + R[0, 2] * cr) * sp
+    m10 = R[1, 0] * cp + (R[1, 1] * sr + R[1, 2] * cr) * sp
+    yaw = np.arctan2(m10, m00)
     return np.array([roll, pitch, yaw])

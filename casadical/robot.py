@@ -104,13 +104,14 @@ _TABLE_KEYS = {
 
 
 def load_robot(spec: str | Path) -> Robot:
-    """Load a robot from a built-in name or a TOML path.
+    """Load a robot from a built-in name, a TOML path or a URDF path (``.urdf``).
 
     Raises
     ------
     RobotFileError
         Unknown name, unreadable file, or any invalid field (the message
-        names the file, the table and the key).
+        names the file, the table and the key; for URDF the line and the
+        element, see :func:`casadical.urdf.robot_from_urdf`).
     """
     text_spec = str(spec)
     if text_spec.lower() in BUILTINS and not Path(text_spec).exists():
@@ -121,6 +122,9 @@ def load_robot(spec: str | Path) -> Robot:
             raise RobotFileError(
                 f"no such robot file, and not a built-in robot (built-ins: {', '.join(BUILTINS)})",
                 file=text_spec)
+    if path.suffix.lower() == ".urdf":
+        from .urdf import robot_from_urdf
+        return robot_from_urdf(path)
     try:
         with open(path, "rb") as fh:
             data = tomllib.load(fh)

@@ -18,7 +18,7 @@ def register(sub) -> None:
         description="Run calibration methods on the same data and print the seeds' accuracy table "
                     "(mean / max / std of the position error in mm, calibration and validation poses) "
                     f"with the time per method. Methods: {names}.")
-    p.add_argument("robot", metavar="ROBOT", help="built-in robot (ys100, hh800, ur10) or robot TOML file")
+    p.add_argument("robot", metavar="ROBOT", help="built-in robot (ys100, hh800, ur10), robot TOML or URDF file")
     p.add_argument("cal", metavar="CAL.csv", help="calibration poses (with x_mm, y_mm, z_mm)")
     p.add_argument("--validate", metavar="VAL.csv", help="validation poses, never used for fitting")
     add_json(p, "the results")

@@ -23,7 +23,7 @@ def register(sub) -> None:
                     "the criterion, the observability indices O1..O5 and a certificate: an upper "
                     "bound on log det(J^T J) over all M-subsets and the selection's D-efficiency "
                     "against it.")
-    p.add_argument("robot", metavar="ROBOT", help="built-in robot (ys100, hh800, ur10) or robot TOML file")
+    p.add_argument("robot", metavar="ROBOT", help="built-in robot (ys100, hh800, ur10), robot TOML or URDF file")
     p.add_argument("candidates", metavar="CANDIDATES.csv", help="candidate poses (q1_deg, ..., qN_deg)")
     p.add_argument("-m", dest="m", type=int_at_least(1), required=True, metavar="M", help="number of poses to select")
     p.add_argument("--out", required=True, metavar="SELECTED.csv", help="output CSV (selected rows)")
@@ -45,7 +45,7 @@ def register(sub) -> None:
         description="Draw N joint-space poses uniformly within the joint limits (minus a margin), "
                     "keeping those whose tool point lies above the floor and inside the box "
                     "(robot base frame, metres). Writes q1_deg..qN_deg.")
-    p.add_argument("robot", metavar="ROBOT", help="built-in robot (ys100, hh800, ur10) or robot TOML file")
+    p.add_argument("robot", metavar="ROBOT", help="built-in robot (ys100, hh800, ur10), robot TOML or URDF file")
     p.add_argument("-n", dest="n", type=int_at_least(1), required=True, metavar="N", help="number of candidates")
     p.add_argument("--out", required=True, metavar="C.csv", help="output CSV")
     p.add_argument("--floor-z", default="0",

@@ -1,0 +1,154 @@
+"""The controller-ready parameter table: nominal, identified, difference and std of every
+geometric parameter in the robot's own convention (what a controller's calibration offsets
+are entered from), plus the base pose, the tool and any joint compliance.
+
+Angles in degrees, lengths in mm, as in the calibration JSON.
+"""
+
+from __future__ import annotations
+
+import csv
+import io
+import math
+from dataclasses import dataclass
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .parameters import Parameter
+from .robot import Robot
+from .terms import make_term
+
+if TYPE_CHECKING:
+    from .calibration import CalibrationResult
+
+COLUMNS = ("joint", "name", "unit", "nominal", "identified", "difference", "std", "identifiable", "fixed",
+           "reason")
+TRANSFORMS = {
+    "mdh": "modified DH (Craig): link i = Rx(alpha) Tx(a) Ry(beta) Ty(b) Rz(q + theta) Tz(d)",
+    "dh": "standard DH: link i = Rz(q + theta) Tz(d) Tx(a) Rx(alpha) Ry(beta) Ty(b)",
+}
+
+
+@dataclass
+class TableRow:
+    """One parameter; numbers in display units (deg, mm, ...), NaN where there is none."""
+
+    joint: int | None
+    name: str
+    unit: str
+    nominal: float
+    identified: float
+    difference: float
+    std: float
+    identifiable: bool | None
+    fixed: bool | None
+    reason: str = ""
+
+    def cells(self) -> list:
+        return [self.joint, self.name, self.unit, self.nominal, self.identified, self.difference, self.std,
+                self.identifiable, self.fixed, self.reason]
+
+
+@dataclass
+class ParameterTable:
+    """The rows of :func:`parameter_table` and what the header says about them."""
+
+    robot: str
+    convention: str
+    model: str
+    rows: list[TableRow]
+
+    @property
+    def heading(self) -> str:
+        return f"{self.robot}: {self.convention.upper()} parameter table"
+
+    @property
+    def conventions(self) -> str:
+        return (f"{TRANSFORMS[self.convention]}; measured point = base * links * Tx(tool_x) Ty(tool_y) "
+                "Tz(tool_z); angles in deg, lengths in mm; base_pose_* = robot base in the measurement frame")
+
+    def to_csv(self) -> str:
+        """CSV: one comment line (``#``) with the title, the column names, one line per row; full precision."""
+        out = io.StringIO()
+        out.write(f"# {self.heading} ({self.model}); {self.conventions}\n")
+        w = csv.writer(out, lineterminator="\n")
+        w.writerow(COLUMNS)
+        for r in self.rows:
+            w.writerow([_csv(c) for c in r.cells()])
+        return out.getvalue()
+
+    def to_markdown(self) -> str:
+        """Markdown: a heading, the conventions and a table rounded for reading (0.1 um, 1e-6 deg)."""
+        lines = [f"# {self.heading}", "", f"Model: {self.model}; {self.conventions}. Full precision: the CSV "
+                 "table.", "", "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
+        for r in self.rows:
+            cells = [_md(c, r.unit) for c in r.cells()]
+            lines.append("| " + " | ".join(cells) + " |")
+        return "\n".join(lines) + "\n"
+
+
+def parameter_table(source: "CalibrationResult | Robot") -> ParameterTable:
+    """The parameter table of a calibration (identified vs nominal) or of a robot (nominal only).
+
+    Rows, in order: every link parameter in the robot's convention, the tool
+    offset, loop lengths (if any), the base pose in the measurement frame,
+    then joint compliances ``c<j>`` and the stiffnesses ``k<j> = 1/c<j>``.
+    ``std`` is empty where the value was not estimated (fixed, not
+    identifiable, nominal) and for the absolute base pose (its uncertainty
+    is that of the ``base_*`` deviations in the calibration JSON).
+    """
+    calibrated = not isinstance(source, Robot)
+    if calibrated:
+        robot, model = source.model.robot, f"calibration, model {source.model.spec}"
+        params = list(source.parameters)
+        xyz, rpy = source.base_pose()
+        stiffness = source.stiffness()
+    else:
+        robot, model = source, "nominal values of the robot file"
+        params = make_term("geometric").parameters(robot)
+        xyz, rpy, stiffness = robot.base_xyz, robot.base_rpy, {}
+    rows = [_row(p, calibrated) for p in params if p.term == "geometric" and p.group != "base"]
+    nominal = np.concatenate([robot.base_xyz * 1000, np.degrees(robot.base_rpy)])
+    actual = np.concatenate([np.asarray(xyz) * 1000, np.degrees(rpy)])
+    for k, axis in enumerate(("x", "y", "z", "roll", "pitch", "yaw")):
+        rows.append(TableRow(None, f"base_pose_{axis}", "mm" if k < 3 else "deg", float(nominal[k]),
+                             float(actual[k]), float(actual[k] - nominal[k]), math.nan,
+                             True if calibrated else None, not calibrated, "" if calibrated else "nominal"))
+    rows += [_row(p, calibrated) for p in params if p.term == "joint_compliance"]
+    for j, (k, sk) in stiffness.items():
+        rows.append(TableRow(j, f"k{j}", "N*m/rad", math.nan, k, math.nan, sk, True, False, f"derived: 1/c{j}"))
+    return ParameterTable(robot.name, robot.convention, model, rows)
+
+
+def _row(p: Parameter, calibrated: bool) -> TableRow:
+    """A parameter as in the calibration JSON (display units, flags); a robot's: nominal, fixed."""
+    f = p.to_display
+    if not calibrated:
+        return TableRow(p.joint, p.name, p.display_unit, f(p.nominal), f(p.nominal), 0.0, math.nan, None, True,
+                        "nominal")
+    return TableRow(p.joint, p.name, p.display_unit, f(p.nominal), f(p.value), f(p.value) - f(p.nominal),
+                    f(p.std) if math.isfinite(p.std) else math.nan,
+                    bool(p.identifiable) if p.identifiable is not None else not p.fixed, p.fixed, p.reason)
+
+
+def _csv(c) -> str:
+    if c is None or (isinstance(c, float) and math.isnan(c)):
+        return ""
+    if isinstance(c, bool):
+        return "true" if c else "false"
+    return repr(float(c)) if isinstance(c, float) else str(c)
+
+
+def _md(c, unit: str) -> str:
+    if c is None or (isinstance(c, float) and math.isnan(c)):
+        return ""
+    if isinstance(c, bool):
+        return "yes" if c else "no"
+    if isinstance(c, float):
+        if unit == "mm":
+            return f"{c:.4f}"
+        if unit == "deg":
+            return f"{c:.6f}"
+        return f"{c:.6g}"
+    return str(c).replace("|", "\\|")

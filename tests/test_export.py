@@ -1,0 +1,148 @@
+"""``casadical export``: URDF, CSV and Markdown parameter tables from a calibration or a robot."""
+
+import csv
+import json
+import math
+import warnings
+
+import numpy as np
+import pytest
+import yourdfpy
+
+from casadical import calibrate, load_calibration, load_robot
+from casadical.cli import main
+from casadical.parameter_table import COLUMNS, parameter_table
+from casadical.simulate import Effects, simulate
+
+
+def read_table(path) -> tuple[str, list[dict]]:
+    lines = path.read_text().splitlines()
+    assert lines[0].startswith("# ")
+    return lines[0], list(csv.DictReader(lines[1:]))
+
+
+def number(cell: str) -> float:
+    return math.nan if cell == "" else float(cell)
+
+
+@pytest.fixture(scope="module")
+def calibration(tmp_path_factory):
+    """A YS100 calibrated on simulated data with two compliant joints; the JSON and the data."""
+    folder = tmp_path_factory.mktemp("cal")
+    robot = load_robot("ys100")
+    data, truth = simulate(robot, 60, Effects(stiffness={2: 1.5e6, 3: 9e5}, base_xyz=(2.0, -1.0, 0.5),
+                                              base_rpy=(0.0, 0.02, 1.2)), seed=7)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        result = calibrate(robot, data, "kinematic+compliance[2,3]")
+    path = folder / "cal.json"
+    result.save(path)
+    return path, result, data
+
+
+def test_export_writes_urdf_csv_and_markdown(tmp_path, calibration):
+    cal_path, result, data = calibration
+    out = {k: tmp_path / f"out.{k}" for k in ("urdf", "csv", "md")}
+    args = ["export", str(cal_path), "--urdf", str(out["urdf"]), "--table", str(out["csv"]),
+            "--markdown", str(out["md"]), "--quiet"]
+    assert main(args) == 0
+    doc = json.loads(cal_path.read_text())
+
+    # the table's numbers are the calibration JSON's
+    title, rows = read_table(out["csv"])
+    assert "YS100" in title and "MDH" in title and "Rx(alpha) Tx(a) Ry(beta) Ty(b) Rz(q + theta) Tz(d)" in title
+    assert list(rows[0]) == list(COLUMNS)
+    by_name = {r["name"]: r for r in rows}
+    expected = [p for p in doc["parameters"]
+                if (p.get("term") == "geometric" and not p["name"].startswith("base_"))
+                or p.get("term") == "joint_compliance" or p.get("derived")]
+    assert len(rows) == len(expected) + 6          # plus the six base pose rows
+    for p in expected:
+        r = by_name[p["name"]]
+        assert number(r["identified"]) == p["value"] and r["unit"] == p["unit"]
+        assert (r["std"] == "") == (p["std"] is None)
+        if p["std"] is not None:
+            assert number(r["std"]) == p["std"]
+        assert r["identifiable"] == ("true" if p["identifiable"] else "false")
+        if not p.get("derived"):
+            assert number(r["nominal"]) == p["nominal"]
+            assert number(r["difference"]) == pytest.approx(p["value"] - p["nominal"], abs=1e-12)
+            assert r["fixed"] == ("true" if p["fixed"] else "false") and r["reason"] == p["reason"]
+    for k, axis in enumerate("xyz"):
+        assert number(by_name[f"base_pose_{axis}"]["identified"]) == pytest.approx(
+            doc["base_pose"]["xyz_m"][k] * 1000, abs=1e-9)
+    for k, axis in enumerate(("roll", "pitch", "yaw")):
+        assert number(by_name[f"base_pose_{axis}"]["identified"]) == pytest.approx(
+            doc["base_pose"]["rpy_deg"][k], abs=1e-9)
+    assert {"c2", "c3", "k2", "k3"} <= set(by_name)
+    assert number(by_name["k2"]["identified"]) == pytest.approx(1.5e6, rel=0.05)     # the hidden stiffness
+
+    # Markdown: same rows, the convention in the header
+    md = out["md"].read_text().splitlines()
+    assert md[0] == "# YS100: MDH parameter table"
+    assert sum(line.startswith("| ") for line in md) == len(rows) + 1
+
+    # URDF of the loaded JSON: yourdfpy's forward kinematics is the calibration's prediction
+    u = yourdfpy.URDF.load(str(out["urdf"]), load_meshes=False)
+    xyz = []
+    for q in data.q[:10]:
+        u.update_cfg(q)
+        xyz.append(u.get_transform("tool_point", "measurement_frame")[:3, 3])
+    geometric_only = result.model.predict(data.q[:10], np.where(
+        [p.term == "joint_compliance" for p in result.parameters], 0.0, result.parameters.values), base0=result.base0)
+    assert np.abs(np.array(xyz) - geometric_only).max() < 1e-9
+    text = out["urdf"].read_text()
+    assert "joint compliance (stiffness)" in text and "terms left out: joint_compliance[2,3]" in text
+
+
+def test_export_refuses_to_overwrite(tmp_path, calibration):
+    cal_path, _, _ = calibration
+    table = tmp_path / "t.csv"
+    assert main(["export", str(cal_path), "--table", str(table), "-q"]) == 0
+    table.write_text("the user's own notes\n")
+    urdf = tmp_path / "new.urdf"
+    assert main(["export", str(cal_path), "--urdf", str(urdf), "--table", str(table), "-q"]) == 2
+    assert table.read_text() == "the user's own notes\n" and not urdf.exists()   # nothing written at all
+    assert main(["export", str(cal_path), "--urdf", str(urdf), "--table", str(table), "--force", "-q"]) == 0
+    assert table.read_text().startswith("# YS100") and urdf.exists()
+    assert main(["export", str(cal_path), "--table", str(cal_path), "--force"]) == 2   # never over an input
+
+
+def test_export_needs_an_output_and_says_what_urdf_cannot_carry(tmp_path, capsys):
+    assert main(["export", "ys100"]) == 2
+    assert "nothing to write" in capsys.readouterr().err
+    # the HH800's parallelogram loop has no URDF form: one line, and the table is not written either
+    table, urdf = tmp_path / "t.csv", tmp_path / "h.urdf"
+    assert main(["export", "hh800", "--table", str(table), "--urdf", str(urdf)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "four-bar loop" in err[0] and "Traceback" not in err[0]
+    assert not table.exists() and not urdf.exists()
+
+
+def test_nominal_robot_table(tmp_path):
+    out = tmp_path / "ur10.csv"
+    assert main(["export", "ur10", "--table", str(out), "-q"]) == 0
+    title, rows = read_table(out)
+    assert "standard DH" in title
+    robot = load_robot("ur10")
+    table = parameter_table(robot)
+    assert [r["name"] for r in rows] == [r.name for r in table.rows]
+    a2 = next(r for r in rows if r["name"] == "a2")
+    assert number(a2["nominal"]) == number(a2["identified"]) == robot.joints[1].a * 1000
+    assert all(r["std"] == "" and r["fixed"] == "true" and r["difference"] in ("0.0", "-0.0") for r in rows)
+    assert not any(r["name"].startswith(("c", "k")) for r in rows)
+
+
+def test_loaded_calibration_gives_the_same_table(calibration):
+    cal_path, result, _ = calibration
+    fresh, loaded = parameter_table(result), parameter_table(load_calibration(cal_path))
+    for a, b in zip(fresh.rows, loaded.rows):
+        assert a.name == b.name
+        np.testing.assert_allclose([a.nominal, a.identified, a.std], [b.nominal, b.identified, b.std],
+                                   rtol=1e-12, atol=1e-12)
+
+
+def test_help(capsys):
+    with pytest.raises(SystemExit) as e:
+        main(["export", "--help"])
+    assert e.value.code == 0 and "--urdf" in capsys.readouterr().out
