@@ -40,12 +40,15 @@ class Measurements:
         Each pose's row in the original measurement order.
     moves : ndarray, shape (N, n_joints)
         Sign of each joint's last move before the pose, in the original order.
+    lines : ndarray of int, optional
+        Each pose's line in the file it was read from (the header is line 1).
     """
 
     columns: dict[str, np.ndarray]
     path: str = "<memory>"
     rows: np.ndarray | None = None
     moves: np.ndarray | None = None
+    lines: np.ndarray | None = None
     _n_joints: int = field(init=False)
 
     def __post_init__(self) -> None:
@@ -89,6 +92,10 @@ class Measurements:
             raise DataFileError("has no measured positions (columns x_mm, y_mm, z_mm)", file=self.path)
         return np.column_stack([self.columns[c] for c in XYZ]) / 1000.0
 
+    def line(self, i: int) -> int:
+        """Line of pose ``i`` in its file (header = line 1), for error messages."""
+        return int(self.lines[i]) if self.lines is not None else int(self.rows[i]) + 2
+
     def get(self, name: str) -> np.ndarray | None:
         """A numeric column, or None if absent."""
         col = self.columns.get(name)
@@ -99,7 +106,8 @@ class Measurements:
     def subset(self, index) -> "Measurements":
         """Rows ``index`` (mask or integer array), order kept as given."""
         return Measurements({k: v[index] for k, v in self.columns.items()}, self.path,
-                            self.rows[index], self.moves[index])
+                            self.rows[index], self.moves[index],
+                            None if self.lines is None else self.lines[index])
 
     def with_positions(self, xyz_m: np.ndarray, prefix_existing: str = "measured_") -> "Measurements":
         """A copy whose ``x_mm, y_mm, z_mm`` are ``xyz_m``; existing ones are renamed."""
@@ -108,7 +116,7 @@ class Measurements:
             cols[prefix_existing + k if k in XYZ else k] = v
         for i, c in enumerate(XYZ):
             cols[c] = np.asarray(xyz_m)[:, i] * 1000.0
-        return Measurements(cols, self.path, self.rows, self.moves)
+        return Measurements(cols, self.path, self.rows, self.moves, self.lines)
 
     # --- I/O --------------------------------------------------------------------
 
@@ -187,7 +195,7 @@ class Measurements:
                 columns[h] = _numeric(raw[h], h, path, lines)
             else:
                 columns[h] = _maybe_numeric(raw[h])
-        data = cls(columns, path)
+        data = cls(columns, path, lines=np.array(lines))
         _check_units(data)
         return data
 
