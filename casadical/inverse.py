@@ -43,8 +43,9 @@ from .errors import ConvergenceWarning, InputError
 #: relative damping lambda of the pseudo-inverses (a singular value s gets s / (s^2 + (lambda s_max)^2)):
 #: start, smallest, and largest before a row counts as stuck
 LAMBDA_START, LAMBDA_MIN, LAMBDA_MAX = 1e-3, 1e-9, 1e4
-#: residual (m) below which a step counts as not worse (rounding)
-POSITION_FLOOR = 1e-13
+#: a step is kept if it lowers the residual or leaves it below this fraction of the tolerance (the
+#: steps towards the least joint change bend off the solutions by their square, the next step corrects)
+SETTLE_FRACTION = 0.5
 #: an orientation error of 1 rad weighs like a position error of this many metres
 ORIENTATION_WEIGHT = 1.0
 #: largest change of any joint in one iteration (rad)
@@ -299,10 +300,11 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
         loose = np.flatnonzero(result.converged & ~result.orientation_held)
         if loose.size:
             rows = ", ".join(str(targets.line(i)) for i in loose[:10]) + (", ..." if loose.size > 10 else "")
-            warnings.warn(f"{targets.path}: the flange orientation cannot be held on {loose.size} row(s) "
-                          f"({rows}; up to {np.degrees(angle[loose].max()):.3g} deg off): a singular "
-                          "configuration; there the point is reached with the least joint change",
-                          ConvergenceWarning, stacklevel=2)
+            warnings.warn(f"{targets.path}: the flange orientation cannot be held within {max_change_deg:g} deg "
+                          f"of the programmed joints on {loose.size} row(s) ({rows}; up to "
+                          f"{np.degrees(angle[loose].max()):.3g} deg off; near a singular configuration?); "
+                          "there the point is reached with the least joint change", ConvergenceWarning,
+                          stacklevel=2)
     if check:
         result.check()
     return result
@@ -320,7 +322,7 @@ def _levenberg_marquardt(eqs: "_Equations", index: np.ndarray, q_start: np.ndarr
     r, J = eqs(index, q, hold)
     lam = np.full(M, LAMBDA_START)
     iterations = np.zeros(M, dtype=int)
-    floor = max(1e-3 * tol, POSITION_FLOOR) ** 2
+    floor = (SETTLE_FRACTION * tol) ** 2
     act = np.arange(M)
     for _ in range(max_iter):
         step = newton_step(J[act], r[act], q_start[act] - q[act], lam[act])
@@ -334,7 +336,8 @@ def _levenberg_marquardt(eqs: "_Equations", index: np.ndarray, q_start: np.ndarr
         trial = q[act] + step
         rt, Jt = eqs(index[act], trial, hold)
         iterations[act] += 1
-        # a step is kept if it does not raise the residual (beyond rounding); else more damping
+        # a step is kept if it does not raise the residual (or keeps it well within the tolerance);
+        # else more damping
         ok = np.sum(rt * rt, axis=1) <= np.maximum(np.sum(r[act] ** 2, axis=1), floor)
         good, bad = act[ok], act[~ok]
         q[good], r[good], J[good] = trial[ok], rt[ok], Jt[ok]

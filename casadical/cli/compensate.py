@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import math
 
-from .common import Status, add_force, add_quiet, check_outputs, float_in, int_at_least
+from .common import add_force, check_outputs, float_in, int_at_least
 
 
 def register(sub) -> None:
@@ -31,7 +31,6 @@ def register(sub) -> None:
     p.add_argument("--position-only", action="store_true",
                    help="do not hold the flange orientation: least joint change that reaches the point")
     add_force(p)
-    add_quiet(p)
     p.set_defaults(func=run, inputs=("cal", "targets"))
 
 
@@ -41,10 +40,8 @@ def run(args) -> int:
     from ..inverse import compensate
 
     check_outputs({"--out": args.out}, [args.cal, args.targets], args.force)
-    status = Status(args.quiet)
     cal = load_calibration(args.cal)
     targets = Measurements.read_csv(args.targets, n_joints=cal.model.robot.n)
-    status.line(f"compensating {len(targets)} targets with the {cal.model.spec} model of {cal.model.robot.name}")
     result = compensate(cal, targets, tolerance_mm=args.tolerance_mm, max_iter=args.max_iter,
                         max_change_deg=args.max_change_deg, orientation=False if args.position_only else None)
     result.joints().write_csv(args.out, overwrite=args.force)
