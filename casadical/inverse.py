@@ -13,16 +13,18 @@ the desired point, starting from the programmed joints:
 - whatever freedom is left (fewer than 6 joints, more than 6, or a singular
   configuration): the smallest joint change ``|q - q_programmed|``.
 
-The solver is a batched Newton iteration on the exact Jacobians of the
-symbolic model (:meth:`Model.predict_q_jacobian`,
-:meth:`Model.flange_rotation_jacobian`), all rows at once, with a task
-priority: the position step first, the orientation step in what the position
-leaves free, and the step back towards the programmed joints in what neither
-sees. Each step is a damped pseudo-inverse, so a singular row stays finite;
-the three parts lie in orthogonal subspaces, so the damping changes the path
-but never the solution. The residual is evaluated with
-:meth:`CalibrationResult.predict`, i.e. the full prediction: a smooth additive
-correction there is honoured, its derivative only slows the iteration.
+The solver is a batched Levenberg-Marquardt iteration over all rows at once
+on the exact Jacobians of the symbolic model
+(:meth:`Model.predict_q_jacobian`, :meth:`Model.flange_rotation_jacobian`),
+from the programmed joints. Each step is a damped pseudo-inverse (SVD) of
+the equations' Jacobian, plus, in its null space (what the equations do not
+see), the way back to the programmed joints: the two parts are orthogonal,
+so the fixed point is exactly the least joint change and the damping only
+changes the path. The residual is :meth:`CalibrationResult.predict`, the
+full prediction: a smooth additive correction there is honoured, its
+derivative only slows the iteration. Rows where position and orientation
+cannot both be met near the programmed joints get a second pass with the
+position alone.
 
 Joint limits are hard: a row whose solution lies beyond a limit, or that
 does not converge, is an error naming the file, row (and joint column).
@@ -80,7 +82,7 @@ class CompensationResult:
         Angle between the held flange orientation and the calibrated
         model's at ``q`` (rad); None when no orientation is held.
     iterations : ndarray of int, shape (N,)
-        Newton steps taken per row.
+        Levenberg-Marquardt steps tried per row (both passes).
     converged : ndarray of bool, shape (N,)
         ``residual <= tolerance``.
     tolerance : float
@@ -151,12 +153,9 @@ class CompensationResult:
         """Raise the first row's :class:`TargetError` (naming how many more fail), if any."""
         errors = self.failures()
         if errors:
-            e = errors[0]
-            more = [str(x.row) for x in errors[1:]]
-            if more:
-                e.message += (f"; {len(more)} more row(s) fail: " + ", ".join(more[:10])
-                              + (", ..." if len(more) > 10 else ""))
-            raise TargetError(e.message, file=e.file, row=e.row, column=e.column)
+            first, more = errors[0], [e.row for e in errors[1:]]
+            message = first.message + (f"; {len(more)} more row(s) fail: {_some(more)}" if more else "")
+            raise TargetError(message, file=first.file, row=first.row, column=first.column)
 
     def joints(self) -> Measurements:
         """The output table: input columns with corrected ``q*_deg``, then ``programmed_q*_deg``,
@@ -167,7 +166,7 @@ class CompensationResult:
         cols = dict(t.columns)
         for j, c in enumerate(qcols):
             cols[c] = np.degrees(self.q[:, j])
-        for j, c in enumerate(qcols):
+        for c in qcols:
             cols["programmed_" + c] = t.columns[c]
         for j, c in enumerate(qcols):
             cols["d" + c] = np.degrees(self.dq[:, j])
@@ -299,9 +298,9 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
     if hold:
         loose = np.flatnonzero(result.converged & ~result.orientation_held)
         if loose.size:
-            rows = ", ".join(str(targets.line(i)) for i in loose[:10]) + (", ..." if loose.size > 10 else "")
             warnings.warn(f"{targets.path}: the flange orientation cannot be held within {max_change_deg:g} deg "
-                          f"of the programmed joints on {loose.size} row(s) ({rows}; up to "
+                          f"of the programmed joints on {loose.size} row(s) "
+                          f"({_some([targets.line(i) for i in loose])}; up to "
                           f"{np.degrees(angle[loose].max()):.3g} deg off; near a singular configuration?); "
                           "there the point is reached with the least joint change", ConvergenceWarning,
                           stacklevel=2)
@@ -325,12 +324,12 @@ def _levenberg_marquardt(eqs: "_Equations", index: np.ndarray, q_start: np.ndarr
     floor = (SETTLE_FRACTION * tol) ** 2
     act = np.arange(M)
     for _ in range(max_iter):
-        step = newton_step(J[act], r[act], q_start[act] - q[act], lam[act])
+        step = _newton_step(J[act], r[act], q_start[act] - q[act], lam[act])
         big = np.abs(step).max(axis=1)
         settled = (np.linalg.norm(r[act, :3], axis=1) <= tol) & (big <= STEP_TOL)
         far = np.abs(q[act] - q_start[act]).max(axis=1) > max_change
         keep = ~settled & ~far & (lam[act] < LAMBDA_MAX)
-        act, step = act[keep], step[keep] * np.minimum(1.0, MAX_STEP / big[keep])[:, None]
+        act, step = act[keep], step[keep] * np.minimum(1.0, MAX_STEP / np.maximum(big[keep], 1e-300))[:, None]
         if act.size == 0:
             break
         trial = q[act] + step
@@ -346,7 +345,7 @@ def _levenberg_marquardt(eqs: "_Equations", index: np.ndarray, q_start: np.ndarr
     return q, r, iterations
 
 
-def newton_step(J: np.ndarray, r: np.ndarray, to_start: np.ndarray, lam: np.ndarray) -> np.ndarray:
+def _newton_step(J: np.ndarray, r: np.ndarray, to_start: np.ndarray, lam: np.ndarray) -> np.ndarray:
     """Damped Newton step of every row towards ``r + J step = 0``, shape (M, n).
 
     Parameters
@@ -397,6 +396,11 @@ class _Equations:
         """Rotation vector from the held flange orientation to the model's at ``q`` (rad)."""
         R = self.model.flange_rotation(q, self.p, self.cov[index], self.base0)
         return Rotation.from_matrix(R @ self.R_goal[index].transpose(0, 2, 1)).as_rotvec()
+
+
+def _some(rows: list, k: int = 10) -> str:
+    """The first ``k`` row numbers, comma separated."""
+    return ", ".join(str(r) for r in rows[:k]) + (", ..." if len(rows) > k else "")
 
 
 def _at(targets: Measurements, index: np.ndarray, q: np.ndarray) -> Measurements:
