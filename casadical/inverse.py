@@ -136,7 +136,8 @@ class CompensationResult:
                     f"of the programmed joints: after {self.iterations[i]} iterations its tool point is "
                     f"{self.residual[i] * 1e3:.4g} mm from it (tolerance {self.tolerance * 1e3:g} mm) with joints "
                     f"up to {np.degrees(change[i]):.3g} deg from the programmed ones; is the target outside the "
-                    "robot's reach, or not in the measurement frame in mm?", file=t.path, row=t.line(i)))
+                    "reach, near a singular configuration, or not in the measurement frame in mm?",
+                    file=t.path, row=t.line(i)))
                 continue
             for j in range(self.q.shape[1]):
                 lo, hi = self.limits[j]
@@ -283,8 +284,7 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
         # rows where position and orientation cannot both be met near the programmed joints (a
         # singular configuration): the point alone, with the least joint change, from the start again
         loose = np.flatnonzero((np.linalg.norm(r[:, :3], axis=1) > tol)
-                               | (np.linalg.norm(r[:, 3:], axis=1) > ORIENTATION_TOL * ORIENTATION_WEIGHT)
-                               | (np.abs(q - targets.q).max(axis=1) > limit))
+                               | (np.linalg.norm(r[:, 3:], axis=1) > ORIENTATION_TOL * ORIENTATION_WEIGHT))
         if loose.size:
             q[loose], r2, it2 = _levenberg_marquardt(eqs, loose, targets.q[loose], False, tol, max_iter, limit)
             r[loose, :3] = r2
@@ -313,8 +313,9 @@ def _levenberg_marquardt(eqs: "_Equations", index: np.ndarray, q_start: np.ndarr
                          max_iter: int, max_change: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Solve rows ``index`` from ``q_start``: joints, residuals (position m, weighted orientation) and steps.
 
-    A row stops when it has settled, when no damping makes progress, or when
-    a joint has moved more than ``max_change`` (rad) from the start.
+    A step that would move a joint more than ``max_change`` (rad) from the
+    start counts as a failed step. A row stops when it has settled or when no
+    damping makes progress.
     """
     M = len(index)
     q = q_start.copy()
@@ -327,17 +328,17 @@ def _levenberg_marquardt(eqs: "_Equations", index: np.ndarray, q_start: np.ndarr
         step = _newton_step(J[act], r[act], q_start[act] - q[act], lam[act])
         big = np.abs(step).max(axis=1)
         settled = (np.linalg.norm(r[act, :3], axis=1) <= tol) & (big <= STEP_TOL)
-        far = np.abs(q[act] - q_start[act]).max(axis=1) > max_change
-        keep = ~settled & ~far & (lam[act] < LAMBDA_MAX)
+        keep = ~settled & (lam[act] < LAMBDA_MAX)
         act, step = act[keep], step[keep] * np.minimum(1.0, MAX_STEP / np.maximum(big[keep], 1e-300))[:, None]
         if act.size == 0:
             break
         trial = q[act] + step
         rt, Jt = eqs(index[act], trial, hold)
         iterations[act] += 1
-        # a step is kept if it does not raise the residual (or keeps it well within the tolerance);
-        # else more damping
-        ok = np.sum(rt * rt, axis=1) <= np.maximum(np.sum(r[act] ** 2, axis=1), floor)
+        # a step is kept if it does not raise the residual (or keeps it well within the tolerance)
+        # and stays within max_change of the start; else more damping
+        ok = ((np.sum(rt * rt, axis=1) <= np.maximum(np.sum(r[act] ** 2, axis=1), floor))
+              & (np.abs(trial - q_start[act]).max(axis=1) <= max_change))
         good, bad = act[ok], act[~ok]
         q[good], r[good], J[good] = trial[ok], rt[ok], Jt[ok]
         lam[good] = np.maximum(lam[good] / 3.0, LAMBDA_MIN)

@@ -26,8 +26,9 @@ def register(sub) -> None:
     p.add_argument("--max-iter", type=int_at_least(1), default=30,
                    help="iterations per row at most (default: %(default)s)")
     p.add_argument("--max-change-deg", type=float_in(0, 360, hi_open=False), default=5.0,
-                   help="largest change of a joint from its programmed value; a target that needs more is an "
-                        "error (default: %(default)g deg)")
+                   help="largest change of a joint from its programmed value: a target that needs more is an "
+                        "error; where holding the orientation would need more, only the point is reached "
+                        "(default: %(default)g deg)")
     p.add_argument("--position-only", action="store_true",
                    help="do not hold the flange orientation: least joint change that reaches the point")
     add_force(p)
