@@ -6,6 +6,9 @@ import math
 
 from .common import add_force, check_outputs, float_in, int_at_least
 
+#: below this many rows CasADi's virtual machine beats compiling the model (~3 s once per run)
+JIT_MIN_ROWS = 10_000
+
 
 def register(sub) -> None:
     p = sub.add_parser("compensate", help="corrected joint targets that put the calibrated tool point on targets",
@@ -43,6 +46,8 @@ def run(args) -> int:
     check_outputs({"--out": args.out}, [args.cal, args.targets], args.force)
     cal = load_calibration(args.cal)
     targets = Measurements.read_csv(args.targets, n_joints=cal.model.robot.n)
+    if len(targets) < JIT_MIN_ROWS:
+        cal.model.jit = False
     result = compensate(cal, targets, tolerance_mm=args.tolerance_mm, max_iter=args.max_iter,
                         max_change_deg=args.max_change_deg, orientation=False if args.position_only else None)
     result.joints().write_csv(args.out, overwrite=args.force)
