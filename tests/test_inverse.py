@@ -173,6 +173,23 @@ def _calibration_data(robot, truth, seed):
     return data
 
 
+def test_a_smooth_correction_in_predict_is_honoured():
+    """Whatever CalibrationResult.predict adds (e.g. a residual compensator) is part of the equations."""
+    robot, truth, cal, _, targets = setup("arm7", 5, n_targets=20)
+
+    class Corrected(type(cal)):
+        def predict(self, data):
+            q = data.q
+            return super().predict(data) + 0.4e-3 * np.column_stack([np.sin(q[:, 0] + q[:, 1]), np.cos(q[:, 3]),
+                                                                     np.sin(2 * q[:, 2])])
+
+    corrected = Corrected(**vars(cal))
+    res = compensate(corrected, targets)
+    at = Measurements.from_arrays(res.q)
+    assert np.abs(corrected.predict(at) - targets.xyz).max() < 1e-7
+    assert np.abs(cal.predict(at) - targets.xyz).max() > 0.1e-3  # the correction did move the joints
+
+
 def test_joint_jacobians_are_exact():
     """predict_q_jacobian and the flange's angular Jacobian against central differences, every term on."""
     robot = robot_from_dict(ARM7_DH)
