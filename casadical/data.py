@@ -95,6 +95,10 @@ class Measurements:
             raise DataFileError("has no measured positions (columns x_mm, y_mm, z_mm)", file=self.path)
         return np.column_stack([self.columns[c] for c in XYZ]) / 1000.0
 
+    def line(self, i: int) -> int:
+        """Line of pose ``i`` in its file (header = line 1), for error messages."""
+        return int(self.lines[i]) if self.lines is not None else int(self.rows[i]) + 2
+
     def get(self, name: str) -> np.ndarray | None:
         """A numeric column, or None if absent."""
         col = self.columns.get(name)

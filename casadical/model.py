@@ -191,6 +191,11 @@ class Model:
         cost = u2 / (root + 1)
         Js = ca.jacobian(xyz, p)
         lsq = ins + [y, delta]
+        # joint-space derivatives for inverse problems (corrected joint targets): through every
+        # term, since deflections and gear errors depend on q too
+        Jq = ca.densify(ca.jacobian(xyz, q))
+        R = ca.mtimes(base[0], frames.tool[0])  # flange (last link) rotation, measurement frame
+        Jw = _angular_jacobian(R, q)
         # name: (inputs, outputs, broadcast inputs, summed outputs)
         self._graphs = {
             "fk": (ins, [xyz], (1, 3), ()),
@@ -200,6 +205,9 @@ class Model:
             "gn_hess": (lsq, [ca.triu(ca.mtimes(Js.T, Js)) / root], (1, 3, 5), (0,)),
             "tau": ([q, p, c], [tau], (1,), ()),
             "dq": ([q, p, c], [dq], (1,), ()),
+            "fk_q_jac": (ins, [xyz, Jq], (1, 3), ()),
+            "flange": (ins, [R], (1, 3), ()),
+            "flange_jac": (ins, [R, Jw], (1, 3), ()),
         }
         self.fk = ca.Function("fk", ins, [xyz], ["q", "p", "cov", "base0"], ["xyz"])
         self.fk_jac = ca.Function("fk_jac", ins, [xyz, J], ["q", "p", "cov", "base0"], ["xyz", "J"])
@@ -214,7 +222,8 @@ class Model:
         return self.jit if self.jit is not None else (N >= JIT_MIN_POSES and compiler_available())
 
     def per_pose_function(self, which: str, jit: bool = False) -> ca.Function:
-        """One of the per-pose Functions (``fk``, ``fk_jac``, ``cost``, ``grad``, ``gn_hess``, ``tau``, ``dq``)."""
+        """One of the per-pose Functions (``fk``, ``fk_jac``, ``cost``, ``grad``, ``gn_hess``, ``tau``, ``dq``,
+        ``fk_q_jac``, ``flange``, ``flange_jac``)."""
         fun = self._compiled.get((which, jit))
         if fun is None:
             ins, outs, _, _ = self._graphs[which]
@@ -275,6 +284,27 @@ class Model:
         # CasADi is column-major: each pose's 3 x P block arrives transposed
         return xyz, J.reshape(N, len(self.parameters), 3).transpose(0, 2, 1)
 
+    def predict_q_jacobian(self, q, params=None, cov=None, base0=None) -> tuple[np.ndarray, np.ndarray]:
+        """Positions (N, 3) and their Jacobian w.r.t. the joint readings (N, 3, n), exact by AD."""
+        N, q, p, cov, b0 = self._inputs(q, params, cov, base0)
+        xyz, J = self._batch("fk_q_jac", N)(q, p, cov, b0)
+        return xyz, J.reshape(N, self.robot.n, 3).transpose(0, 2, 1)
+
+    def flange_rotation(self, q, params=None, cov=None, base0=None) -> np.ndarray:
+        """Rotation of the last link frame in the measurement frame (N, 3, 3), every term included."""
+        N, q, p, cov, b0 = self._inputs(q, params, cov, base0)
+        return self._batch("flange", N)(q, p, cov, b0)[0].reshape(N, 3, 3).transpose(0, 2, 1)
+
+    def flange_rotation_jacobian(self, q, params=None, cov=None, base0=None) -> tuple[np.ndarray, np.ndarray]:
+        """Flange rotation (N, 3, 3) and its angular-velocity Jacobian (N, 3, n), measurement frame.
+
+        Column k is the rotation rate vector w with dR/dq_k = [w]x R.
+        """
+        N, q, p, cov, b0 = self._inputs(q, params, cov, base0)
+        R, Jw = self._batch("flange_jac", N)(q, p, cov, b0)
+        return (R.reshape(N, 3, 3).transpose(0, 2, 1),
+                Jw.reshape(N, self.robot.n, 3).transpose(0, 2, 1))
+
     def torques(self, q, params=None, cov=None) -> np.ndarray:
         """Gravity torques (N m) at every joint, shape (N, n)."""
         N, q, p, cov, _ = self._inputs(q, params, cov, None)
@@ -330,6 +360,16 @@ class Model:
         """The model's term called ``name`` (or alias), if any."""
         cls = REGISTRY.get(name)
         return next((t for t in self.terms if cls is not None and isinstance(t, cls)), None)
+
+
+def _angular_jacobian(R, q):
+    """Columns w_k with dR/dq_k = [w_k]x R, i.e. the vector of the skew matrix dR/dq_k R^T."""
+    dR = ca.jacobian(ca.vec(R), q)  # column-major vec(R)
+    cols = []
+    for k in range(q.shape[0]):
+        S = ca.mtimes(ca.reshape(dR[:, k], 3, 3), R.T)
+        cols.append(ca.vertcat(S[2, 1], S[0, 2], S[1, 0]))
+    return ca.densify(ca.horzcat(*cols)) if cols else ca.SX.zeros(3, 0)
 
 
 def pose_to_base0(T: np.ndarray) -> np.ndarray:

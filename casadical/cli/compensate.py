@@ -1,0 +1,56 @@
+"""``compensate``: corrected joint targets of a robot program from a calibration."""
+
+from __future__ import annotations
+
+import math
+
+from .common import add_force, check_outputs, float_in, int_at_least
+
+#: below this many rows CasADi's virtual machine beats compiling the model (~3 s once per run)
+JIT_MIN_ROWS = 10_000
+
+
+def register(sub) -> None:
+    p = sub.add_parser("compensate", help="corrected joint targets that put the calibrated tool point on targets",
+                       description="For each row of TARGETS.csv (desired tool point x_mm, y_mm, z_mm in the "
+                                   "measurement frame; programmed joints q1_deg..qN_deg as the start) find the "
+                                   "joints at which the calibrated model puts the tool point on the target. "
+                                   "Robots with 6 joints or more keep the flange orientation the nominal model "
+                                   "has at the programmed joints; the remaining freedom takes the least joint "
+                                   "change. JOINTS.csv holds the input columns with corrected q*_deg, plus "
+                                   "programmed_q*_deg, dq*_deg, residual_mm (and orientation_error_deg). "
+                                   "A row that is not reached or needs a joint beyond its limit is an error; "
+                                   "nothing is written then.")
+    p.add_argument("cal", metavar="CAL.json", help="calibration JSON written by 'calibrate'")
+    p.add_argument("targets", metavar="TARGETS.csv", help="programmed joints and desired tool points")
+    p.add_argument("--out", required=True, metavar="JOINTS.csv", help="corrected joint targets to write")
+    p.add_argument("--tolerance-mm", type=float_in(0, math.inf), default=1e-4,
+                   help="largest distance of the calibrated tool point from a target (default: %(default)g mm)")
+    p.add_argument("--max-iter", type=int_at_least(1), default=30,
+                   help="iterations per row at most (default: %(default)s)")
+    p.add_argument("--max-change-deg", type=float_in(0, 360, hi_open=False), default=5.0,
+                   help="largest change of a joint from its programmed value: a target that needs more is an "
+                        "error; where holding the orientation would need more, only the point is reached "
+                        "(default: %(default)g deg)")
+    p.add_argument("--position-only", action="store_true",
+                   help="do not hold the flange orientation: least joint change that reaches the point")
+    add_force(p)
+    p.set_defaults(func=run, inputs=("cal", "targets"))
+
+
+def run(args) -> int:
+    from ..calibration import load_calibration
+    from ..data import Measurements
+    from ..inverse import compensate
+
+    check_outputs({"--out": args.out}, [args.cal, args.targets], args.force)
+    cal = load_calibration(args.cal)
+    targets = Measurements.read_csv(args.targets, n_joints=cal.model.robot.n)
+    if len(targets) < JIT_MIN_ROWS:
+        cal.model.jit = False
+    result = compensate(cal, targets, tolerance_mm=args.tolerance_mm, max_iter=args.max_iter,
+                        max_change_deg=args.max_change_deg, orientation=False if args.position_only else None)
+    result.joints().write_csv(args.out, overwrite=args.force)
+    print(result.summary())
+    print(f"corrected joints -> {args.out}")
+    return 0

@@ -1,0 +1,412 @@
+"""Corrected joint targets: the joints that put the calibrated tool point on a target.
+
+A robot program holds joint targets taught or computed with the nominal
+model. :func:`compensate` finds, row by row, the joints at which the
+*calibrated* model (every term, the row's covariates) puts the tool point on
+the desired point, starting from the programmed joints:
+
+- position: ``cal.predict(q) = target`` (3 equations), always;
+- orientation, for robots with 6 joints or more: the flange (last link
+  frame) keeps the rotation the nominal model gives at the programmed joints,
+  placed at the calibrated base pose (3 more equations): what the programmer
+  taught;
+- whatever freedom is left (fewer than 6 joints, more than 6, or a singular
+  configuration): the smallest joint change ``|q - q_programmed|``.
+
+The solver is a batched Levenberg-Marquardt iteration over all rows at once
+on the exact Jacobians of the symbolic model
+(:meth:`Model.predict_q_jacobian`, :meth:`Model.flange_rotation_jacobian`),
+from the programmed joints. Each step is a damped pseudo-inverse (SVD) of
+the equations' Jacobian, plus, in its null space (what the equations do not
+see), the way back to the programmed joints: the two parts are orthogonal,
+so the fixed point is exactly the least joint change and the damping only
+changes the path. The residual is :meth:`CalibrationResult.predict`, the
+full prediction: a smooth additive correction there is honoured, its
+derivative only slows the iteration. Rows where position and orientation
+cannot both be met near the programmed joints get a second pass with the
+position alone.
+
+Joint limits are hard: a row whose solution lies beyond a limit, or that
+does not converge, is an error naming the file, row (and joint column).
+"""
+
+from __future__ import annotations
+
+import warnings
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from .calibration import CalibrationResult
+from .data import XYZ, Measurements
+from .errors import ConvergenceWarning, InputError
+
+#: relative damping lambda of the pseudo-inverses (a singular value s gets s / (s^2 + (lambda s_max)^2)):
+#: start, smallest, and largest before a row counts as stuck
+LAMBDA_START, LAMBDA_MIN, LAMBDA_MAX = 1e-3, 1e-9, 1e4
+#: a step is kept if it lowers the residual or leaves it below this fraction of the tolerance (the
+#: steps towards the least joint change bend off the solutions by their square, the next step corrects)
+SETTLE_FRACTION = 0.5
+#: an orientation error of 1 rad weighs like a position error of this many metres
+ORIENTATION_WEIGHT = 1.0
+#: largest change of any joint in one iteration (rad)
+MAX_STEP = 0.2
+#: a row has settled when no joint moves more than this in a step (rad)
+STEP_TOL = 1e-10
+#: the orientation counts as held within this angle (rad)
+ORIENTATION_TOL = 1e-8
+
+
+class TargetError(InputError):
+    """A target cannot be reached: no solution, or one beyond a joint limit."""
+
+
+@dataclass
+class CompensationResult:
+    """Corrected joint targets of a robot program (one row per target).
+
+    Attributes
+    ----------
+    targets : Measurements
+        The input: programmed joints (``q*_deg``) and targets (``x_mm,
+        y_mm, z_mm``, measurement frame), with any other columns.
+    q : ndarray, shape (N, n)
+        Corrected joint readings (rad).
+    residual : ndarray, shape (N,)
+        Distance from the calibrated model's tool point at ``q`` to the
+        target (m).
+    start_residual : ndarray, shape (N,)
+        The same at the programmed joints: what the compensation corrects.
+    orientation_error : ndarray, shape (N,), or None
+        Angle between the held flange orientation and the calibrated
+        model's at ``q`` (rad); None when no orientation is held.
+    iterations : ndarray of int, shape (N,)
+        Levenberg-Marquardt steps tried per row (both passes).
+    converged : ndarray of bool, shape (N,)
+        ``residual <= tolerance``.
+    tolerance : float
+        Position tolerance (m).
+    held : str
+        What is held besides the tool point.
+    limits : ndarray, shape (n, 2)
+        Joint limits of the readings (rad).
+    max_change : float
+        Largest admissible change of a joint (rad).
+    """
+
+    targets: Measurements
+    q: np.ndarray
+    residual: np.ndarray
+    start_residual: np.ndarray
+    orientation_error: np.ndarray | None
+    iterations: np.ndarray
+    converged: np.ndarray
+    tolerance: float
+    held: str
+    limits: np.ndarray
+    max_change: float
+
+    @property
+    def q0(self) -> np.ndarray:
+        """Programmed joint readings (rad), shape (N, n)."""
+        return self.targets.q
+
+    @property
+    def dq(self) -> np.ndarray:
+        """Correction ``q - q0`` (rad), shape (N, n)."""
+        return self.q - self.q0
+
+    @property
+    def orientation_held(self) -> np.ndarray | None:
+        """Rows whose flange orientation is held within :data:`ORIENTATION_TOL` (None if none is held)."""
+        if self.orientation_error is None:
+            return None
+        return self.orientation_error <= ORIENTATION_TOL
+
+    def failures(self) -> list[TargetError]:
+        """One error per failing row, in row order: not reached, or beyond a joint limit."""
+        t = self.targets
+        change = np.abs(self.dq).max(axis=1)
+        out = []
+        for i in range(len(t)):
+            if not self.converged[i] or change[i] > self.max_change:
+                out.append(TargetError(
+                    f"the calibrated model does not reach this target within {np.degrees(self.max_change):g} deg "
+                    f"of the programmed joints: after {self.iterations[i]} iterations its tool point is "
+                    f"{self.residual[i] * 1e3:.4g} mm from it (tolerance {self.tolerance * 1e3:g} mm) with joints "
+                    f"up to {np.degrees(change[i]):.3g} deg from the programmed ones; is the target outside the "
+                    "reach, near a singular configuration, or not in the measurement frame in mm?",
+                    file=t.path, row=t.line(i)))
+                continue
+            for j in range(self.q.shape[1]):
+                lo, hi = self.limits[j]
+                v = self.q[i, j]
+                if v < lo or v > hi:
+                    out.append(TargetError(
+                        f"the corrected joint would be {np.degrees(v):.4f} deg, beyond its limit "
+                        f"{np.degrees(lo if v < lo else hi):g} deg (programmed {np.degrees(self.q0[i, j]):.4f} deg)",
+                        file=t.path, row=t.line(i), column=f"q{j + 1}_deg"))
+                    break
+        return out
+
+    def check(self) -> None:
+        """Raise the first row's :class:`TargetError` (naming how many more fail), if any."""
+        errors = self.failures()
+        if errors:
+            first, more = errors[0], [e.row for e in errors[1:]]
+            message = first.message + (f"; {len(more)} more row(s) fail: {_some(more)}" if more else "")
+            raise TargetError(message, file=first.file, row=first.row, column=first.column)
+
+    def joints(self) -> Measurements:
+        """The output table: input columns with corrected ``q*_deg``, then ``programmed_q*_deg``,
+        ``dq*_deg``, ``residual_mm`` and (orientation held) ``orientation_error_deg``."""
+        t = self.targets
+        n = self.q.shape[1]
+        qcols = [f"q{j + 1}_deg" for j in range(n)]
+        cols = dict(t.columns)
+        for j, c in enumerate(qcols):
+            cols[c] = np.degrees(self.q[:, j])
+        for c in qcols:
+            cols["programmed_" + c] = t.columns[c]
+        for j, c in enumerate(qcols):
+            cols["d" + c] = np.degrees(self.dq[:, j])
+        cols["residual_mm"] = self.residual * 1e3
+        if self.orientation_error is not None:
+            cols["orientation_error_deg"] = np.degrees(self.orientation_error)
+        return Measurements(cols, t.path, t.rows, t.moves, t.lines)
+
+    def summary(self) -> str:
+        """A few lines: rows, largest correction, largest residual, what is held."""
+        t, dq = self.targets, np.degrees(np.abs(self.dq))
+        i, j = np.unravel_index(np.argmax(dq), dq.shape)
+        k = int(np.argmax(self.residual))
+        s0 = self.start_residual * 1e3
+        lines = [f"{len(t)} targets; at the programmed joints the calibrated tool point is {s0.mean():.4g} mm "
+                 f"from them on average, {s0.max():.4g} mm at most",
+                 f"corrected: largest correction {dq[i, j]:.4f} deg (row {t.line(i)}, q{j + 1}_deg), "
+                 f"largest residual {self.residual[k] * 1e3:.3g} mm (row {t.line(k)}), "
+                 f"at most {int(self.iterations.max())} iterations",
+                 f"held: {self.held}"]
+        if self.orientation_error is not None:
+            held = self.orientation_held
+            lines.append(f"flange orientation held on {int(held.sum())} of {len(held)} rows "
+                         f"(largest deviation {np.degrees(self.orientation_error.max()):.3g} deg)")
+        return "\n".join(lines)
+
+
+def output_columns(n: int) -> list[str]:
+    """Columns :meth:`CompensationResult.joints` adds to the input's, for ``n`` joints."""
+    q = [f"q{j}_deg" for j in range(1, n + 1)]
+    return ["programmed_" + c for c in q] + ["d" + c for c in q] + ["residual_mm", "orientation_error_deg"]
+
+
+def held_description(n: int, orientation: bool) -> str:
+    """What :func:`compensate` holds besides the tool point, for ``n`` joints."""
+    if orientation:
+        text = ("the flange orientation of the nominal model at the programmed joints (placed at the "
+                "calibrated base)")
+        return text + (f"; least joint change for the other {n - 6} degree(s) of freedom" if n > 6 else "")
+    if n > 3:
+        return f"nothing else: least joint change for the other {n - 3} degree(s) of freedom"
+    return "nothing else: the joints nearest the programmed ones that reach the point"
+
+
+def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: float = 1e-4,
+               max_iter: int = 30, max_change_deg: float = 5.0, orientation: bool | None = None,
+               check: bool = True) -> CompensationResult:
+    """Corrected joints that put the calibrated model's tool point on each target.
+
+    Parameters
+    ----------
+    cal : CalibrationResult
+        The calibrated model (e.g. from :func:`~casadical.calibration.load_calibration`).
+    targets : Measurements
+        Programmed joints (``q1_deg..qN_deg``, the start) and desired tool
+        points (``x_mm, y_mm, z_mm``, measurement frame); covariates
+        (``payload_kg``, ``temperature_c``, ...) as for ``predict``.
+    tolerance_mm : float
+        Largest admissible distance from the calibrated tool point to the target.
+    max_iter : int
+        Newton iterations per row at most.
+    max_change_deg : float
+        Largest admissible change of any joint from its programmed value.
+        A compensation moves joints by fractions of a degree; a target that
+        needs more is far from the programmed point (wrong frame or units?)
+        and is an error. Where holding the orientation would need more (a
+        near-singular configuration) the point alone is reached instead.
+    orientation : bool, optional
+        Hold the flange orientation of the nominal model at the programmed
+        joints; default: for robots with 6 joints or more.
+    check : bool
+        Raise :class:`TargetError` for a row that is not reached or whose
+        solution is beyond a joint limit (default). With False the result
+        carries the failures (:meth:`CompensationResult.failures`).
+
+    Returns
+    -------
+    CompensationResult
+
+    Raises
+    ------
+    InputError
+        Targets without positions, joint count not the robot's, bad options.
+    TargetError
+        With ``check``: the first failing row (file, row and joint column).
+    """
+    model = cal.model
+    n = model.robot.n
+    if targets.n_joints != n:
+        raise InputError(f"has {targets.n_joints} joint columns but the calibrated robot "
+                         f"{model.robot.name} has {n} joints", file=targets.path, row=1,
+                         column=f"q{min(targets.n_joints, n) + 1}_deg")
+    if not targets.has_positions:
+        missing = next(c for c in XYZ if c not in targets.columns)
+        raise InputError("has no target positions: columns x_mm, y_mm, z_mm (measurement frame) are required",
+                         file=targets.path, row=1, column=missing)
+    clash = [c for c in output_columns(n) if c in targets.columns]
+    if clash:
+        raise InputError("is an output column of compensate; give the original targets (programmed joints and "
+                         "points), not a compensated file", file=targets.path, row=1, column=clash[0])
+    if not (tolerance_mm > 0 and max_change_deg > 0 and max_iter >= 1):
+        raise InputError(f"tolerance_mm and max_change_deg must be positive and max_iter at least 1, got "
+                         f"{tolerance_mm}, {max_change_deg} and {max_iter}")
+    hold = n >= 6 if orientation is None else bool(orientation)
+    if hold and n < 6:
+        raise InputError(f"the orientation cannot be held with {n} joints: 6 are needed")
+
+    eqs = _Equations(cal, targets, hold)
+    tol = tolerance_mm * 1e-3
+    N = len(targets)
+    limit = np.radians(max_change_deg)
+    q, r, iterations = _levenberg_marquardt(eqs, np.arange(N), targets.q, hold, tol, max_iter, limit)
+    if hold:
+        # rows where position and orientation cannot both be met near the programmed joints (a
+        # singular configuration): the point alone, with the least joint change, from the start again
+        loose = np.flatnonzero((np.linalg.norm(r[:, :3], axis=1) > tol)
+                               | (np.linalg.norm(r[:, 3:], axis=1) > ORIENTATION_TOL * ORIENTATION_WEIGHT))
+        if loose.size:
+            q[loose], r2, it2 = _levenberg_marquardt(eqs, loose, targets.q[loose], False, tol, max_iter, limit)
+            r[loose, :3] = r2
+            r[loose, 3:] = eqs.orientation(loose, q[loose]) * ORIENTATION_WEIGHT
+            iterations[loose] += it2
+    residual = np.linalg.norm(r[:, :3], axis=1)
+    angle = np.linalg.norm(r[:, 3:], axis=1) / ORIENTATION_WEIGHT if hold else None
+    start = np.linalg.norm(cal.predict(targets) - targets.xyz, axis=1)
+    result = CompensationResult(targets, q, residual, start, angle, iterations, residual <= tol, tol,
+                                held_description(n, hold), model.robot.limits, limit)
+    if hold:
+        loose = np.flatnonzero(result.converged & ~result.orientation_held)
+        if loose.size:
+            warnings.warn(f"{targets.path}: the flange orientation cannot be held within {max_change_deg:g} deg "
+                          f"of the programmed joints on {loose.size} row(s) "
+                          f"({_some([targets.line(i) for i in loose])}; up to "
+                          f"{np.degrees(angle[loose].max()):.3g} deg off; near a singular configuration?); "
+                          "there the point is reached with the least joint change", ConvergenceWarning,
+                          stacklevel=2)
+    if check:
+        result.check()
+    return result
+
+
+def _levenberg_marquardt(eqs: "_Equations", index: np.ndarray, q_start: np.ndarray, hold: bool, tol: float,
+                         max_iter: int, max_change: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Solve rows ``index`` from ``q_start``: joints, residuals (position m, weighted orientation) and steps.
+
+    A step that would move a joint more than ``max_change`` (rad) from the
+    start counts as a failed step. A row stops when it has settled or when no
+    damping makes progress.
+    """
+    M = len(index)
+    q = q_start.copy()
+    r, J = eqs(index, q, hold)
+    lam = np.full(M, LAMBDA_START)
+    iterations = np.zeros(M, dtype=int)
+    floor = (SETTLE_FRACTION * tol) ** 2
+    act = np.arange(M)
+    for _ in range(max_iter):
+        step = _newton_step(J[act], r[act], q_start[act] - q[act], lam[act])
+        big = np.abs(step).max(axis=1)
+        settled = (np.linalg.norm(r[act, :3], axis=1) <= tol) & (big <= STEP_TOL)
+        keep = ~settled & (lam[act] < LAMBDA_MAX)
+        act, step = act[keep], step[keep] * np.minimum(1.0, MAX_STEP / np.maximum(big[keep], 1e-300))[:, None]
+        if act.size == 0:
+            break
+        trial = q[act] + step
+        rt, Jt = eqs(index[act], trial, hold)
+        iterations[act] += 1
+        # a step is kept if it does not raise the residual (or keeps it well within the tolerance)
+        # and stays within max_change of the start; else more damping
+        ok = ((np.sum(rt * rt, axis=1) <= np.maximum(np.sum(r[act] ** 2, axis=1), floor))
+              & (np.abs(trial - q_start[act]).max(axis=1) <= max_change))
+        good, bad = act[ok], act[~ok]
+        q[good], r[good], J[good] = trial[ok], rt[ok], Jt[ok]
+        lam[good] = np.maximum(lam[good] / 3.0, LAMBDA_MIN)
+        lam[bad] *= 10.0
+    return q, r, iterations
+
+
+def _newton_step(J: np.ndarray, r: np.ndarray, to_start: np.ndarray, lam: np.ndarray) -> np.ndarray:
+    """Damped Newton step of every row towards ``r + J step = 0``, shape (M, n).
+
+    Parameters
+    ----------
+    J, r : ndarray, shapes (M, m, n) and (M, m)
+        Jacobian and residual.
+    to_start : ndarray, shape (M, n)
+        ``q_start - q``, followed in the null space of ``J``: the fixed
+        point is the least joint change from the start.
+    lam : ndarray, shape (M,)
+        Relative damping: singular value s acts as (s^2 + (lam s_max)^2) / s.
+    """
+    U, s, Vt = np.linalg.svd(J)
+    k = s.shape[1]
+    g = s / (s * s + (lam[:, None] * s[:, :1]) ** 2 + 1e-300)
+    step = np.einsum("mkn,mk->mn", Vt[:, :k], g * np.einsum("mik,mi->mk", U[:, :, :k], -r))
+    null = Vt[:, k:]
+    return step + np.einsum("mkn,mk->mn", null, np.einsum("mkn,mn->mk", null, to_start))
+
+
+class _Equations:
+    """Residuals and Jacobians of rows ``index`` at joints ``q``: position (m), then weighted orientation."""
+
+    def __init__(self, cal: CalibrationResult, targets: Measurements, hold: bool):
+        self.cal, self.targets, self.model = cal, targets, cal.model
+        self.p, self.base0 = cal.parameters.values, cal.base0
+        self.cov = self.model.covariates(targets)
+        self.goal = targets.xyz
+        self.R_goal = None
+        if hold:
+            # the nominal geometry at the calibrated base: what the programmer taught
+            nominal = cal.parameters.nominal
+            base = [k for k, prm in enumerate(cal.parameters) if prm.group == "base"]
+            nominal[base] = self.p[base]
+            self.R_goal = self.model.flange_rotation(targets.q, nominal, self.cov, self.base0)
+
+    def __call__(self, index: np.ndarray, q: np.ndarray, hold: bool) -> tuple[np.ndarray, np.ndarray]:
+        r = self.cal.predict(_at(self.targets, index, q)) - self.goal[index]
+        _, J = self.model.predict_q_jacobian(q, self.p, self.cov[index], self.base0)
+        if not hold:
+            return r, J
+        R, Jw = self.model.flange_rotation_jacobian(q, self.p, self.cov[index], self.base0)
+        rw = Rotation.from_matrix(R @ self.R_goal[index].transpose(0, 2, 1)).as_rotvec()
+        return (np.concatenate([r, ORIENTATION_WEIGHT * rw], axis=1),
+                np.concatenate([J, ORIENTATION_WEIGHT * Jw], axis=1))
+
+    def orientation(self, index: np.ndarray, q: np.ndarray) -> np.ndarray:
+        """Rotation vector from the held flange orientation to the model's at ``q`` (rad)."""
+        R = self.model.flange_rotation(q, self.p, self.cov[index], self.base0)
+        return Rotation.from_matrix(R @ self.R_goal[index].transpose(0, 2, 1)).as_rotvec()
+
+
+def _some(rows: list, k: int = 10) -> str:
+    """The first ``k`` row numbers, comma separated."""
+    return ", ".join(str(r) for r in rows[:k]) + (", ..." if len(rows) > k else "")
+
+
+def _at(targets: Measurements, index: np.ndarray, q: np.ndarray) -> Measurements:
+    """Rows ``index`` of the targets with joints ``q`` (rad); covariates and row order kept."""
+    sub = targets.subset(index)
+    for j in range(q.shape[1]):
+        sub.columns[f"q{j + 1}_deg"] = np.degrees(q[:, j])
+    return sub
