@@ -20,9 +20,11 @@ import numpy as np
 
 from . import __version__
 from .alignment import align
+from .calibration_file import validate_calibration_document
 from .data import Measurements
+from .checks import check_poses
 from .errors import (CalibrationFileError, ConvergenceWarning, IdentifiabilityError, IdentifiabilityWarning,
-                     InputError, SolverError)
+                     InputError, ModelError, SolverError)
 from .files import atomic_write
 from .identifiability import Identifiability, analyse
 from .kinematics import matrix_to_rpy
@@ -126,7 +128,12 @@ class CalibrationResult:
         return T[:3, 3], matrix_to_rpy(T[:3, :3])
 
     def stiffness(self) -> dict[int, tuple[float, float]]:
-        """Joint stiffness k_j = 1 / c_j (N m/rad) with its standard error, compliant joints only."""
+        """Joint stiffness k_j = 1 / c_j (N m/rad) with its standard error, compliant joints only.
+
+        A compliance c_j <= 0 (an unbounded solver on a joint stiffer than the
+        poses can tell) has no positive stiffness: k_j is ``inf``, its standard
+        error ``nan``; the summary and the JSON say so in words.
+        """
         out = {}
         for p in self.parameters.select(term="joint_compliance"):
             if p.fixed and p.identifiable is False:
@@ -160,6 +167,9 @@ class CalibrationResult:
         if st:
             lines += ["", "joint stiffness k = 1/c:"]
             for j, (k, sk) in st.items():
+                if not math.isfinite(k):
+                    lines.append(f"  k{j}: {_NOT_POSITIVE.format(j=j, c=self.parameters[f'c{j}'].value)}")
+                    continue
                 lines.append(f"  k{j} = {k:.4e} N m/rad" + (f"  (std {sk:.2e})" if math.isfinite(sk) else ""))
         if self.calibration is not None:
             lines += ["", "calibration poses: " + self.calibration.line()]
@@ -177,8 +187,12 @@ class CalibrationResult:
                            "unit": p.display_unit, "nominal": p.to_display(p.nominal), "fixed": p.fixed,
                            "reason": p.reason, "term": p.term, "joint": p.joint})
         for j, (k, sk) in self.stiffness().items():
-            params.append({"name": f"k{j}", "value": k, "std": sk if math.isfinite(sk) else None,
-                           "identifiable": True, "unit": "N*m/rad", "derived": f"1/c{j}", "joint": j})
+            entry = {"name": f"k{j}", "value": k if math.isfinite(k) else None,
+                     "std": sk if math.isfinite(sk) else None,
+                     "identifiable": True, "unit": "N*m/rad", "derived": f"1/c{j}", "joint": j}
+            if not math.isfinite(k):
+                entry["reason"] = _NOT_POSITIVE.format(j=j, c=self.parameters[f"c{j}"].value)
+            params.append(entry)
         xyz, rpy = self.base_pose()
         doc = {
             "casadical_version": __version__,
@@ -207,6 +221,10 @@ class CalibrationResult:
                      overwrite=overwrite)
 
 
+_NOT_POSITIVE = ("no positive stiffness: compliance c{j} = {c:.3g} rad/(N*m) is not above 0, the joint is "
+                 "stiffer than these poses and loads can tell")
+
+
 def _json_default(o):
     if isinstance(o, (np.floating, np.integer)):
         return o.item()
@@ -217,11 +235,12 @@ def load_calibration(path: str | Path) -> CalibrationResult:
     """Read a calibration JSON written by :meth:`CalibrationResult.save`."""
     path = str(path)
     try:
-        doc = json.loads(Path(path).read_text())
+        doc = json.loads(Path(path).read_text(encoding="utf-8-sig"))
     except FileNotFoundError:
         raise CalibrationFileError("no such file", file=path) from None
-    except (OSError, json.JSONDecodeError) as e:
+    except (OSError, ValueError, RecursionError) as e:  # ValueError: not JSON, not UTF-8
         raise CalibrationFileError(f"not a calibration JSON: {e}", file=path) from e
+    validate_calibration_document(doc, path)
     try:
         robot = robot_from_dict(doc["robot"], path)
         terms = parse_spec(doc["model"])
@@ -277,7 +296,8 @@ def _generic_identifiable(model: Model, params: Parameters, cov: np.ndarray, see
 def calibrate(robot: Robot, data: Measurements, model: str | Model = "kinematic+compliance",
               solver: str = "ipopt", *, solver_options: dict | None = None, fix: tuple[str, ...] = (),
               start: dict[str, float] | None = None, check_identifiability: bool = True,
-              warn: bool = True) -> CalibrationResult:
+              warn: bool = True, allow_outside_limits: bool = False, angles_are_degrees: bool = False,
+              positions_are_mm: bool = False) -> CalibrationResult:
     """Identify the parameters of ``model`` from measured poses.
 
     Parameters
@@ -298,6 +318,9 @@ def calibrate(robot: Robot, data: Measurements, model: str | Model = "kinematic+
         Start values (SI) by parameter name; default nominal.
     check_identifiability : bool
         Fix parameters these poses cannot identify (recommended).
+    allow_outside_limits, angles_are_degrees, positions_are_mm : bool
+        Overrides of the plausibility checks of the poses
+        (:func:`casadical.checks.check_poses`).
 
     Raises
     ------
@@ -323,12 +346,19 @@ def calibrate(robot: Robot, data: Measurements, model: str | Model = "kinematic+
     params = model.parameters.copy()
     for name, v in (start or {}).items():
         params[name].value = float(v)
+    unknown = [n for n in fix if n not in params]
+    if unknown:
+        raise ModelError(f"cannot fix {', '.join(map(repr, unknown))}: model {model.spec} has no such parameter "
+                         f"(its parameters: {', '.join(params.names)})")
     params.fix(fix, reason="fixed by the user")
     q, xyz, cov = data.q, data.xyz, model.covariates(data)
 
     # base pose: closed-form alignment of the start model's predictions to the measurements
     eye = pose_to_base0(np.eye(4))
-    T = align(model.predict(q, params.values, cov, eye), xyz)
+    start_xyz = model.predict(q, params.values, cov, eye)
+    check_poses(data, robot, allow_outside_limits=allow_outside_limits, angles_are_degrees=angles_are_degrees,
+                positions_are_mm=positions_are_mm, predicted=start_xyz)
+    T = align(start_xyz, xyz)
     base0 = pose_to_base0(T)
     for k in ("x", "y", "z", "roll", "pitch", "yaw"):
         params[f"base_{k}"].value = 0.0

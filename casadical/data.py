@@ -20,7 +20,8 @@ import numpy as np
 from .errors import DataFileError, DataWarning
 from .files import atomic_open
 
-_Q = re.compile(r"^q(\d+)_deg$")
+_Q = re.compile(r"^q([1-9]\d*)_deg$")
+_Q_LIKE = re.compile(r"^q\d+_deg$")
 XYZ = ("x_mm", "y_mm", "z_mm")
 NUMERIC_OPTIONAL = ("payload_kg", "temperature_c", "time_s")
 
@@ -40,12 +41,19 @@ class Measurements:
         Each pose's row in the original measurement order.
     moves : ndarray, shape (N, n_joints)
         Sign of each joint's last move before the pose, in the original order.
+    lines : ndarray of int
+        Each pose's line in its file (the header is line 1), for messages.
+    checked : set
+        Plausibility checks this data passed (or was allowed to skip) by
+        :func:`casadical.checks.check_poses`; subsets keep it.
     """
 
     columns: dict[str, np.ndarray]
     path: str = "<memory>"
     rows: np.ndarray | None = None
     moves: np.ndarray | None = None
+    lines: np.ndarray | None = None
+    checked: set = field(default_factory=set, repr=False, compare=False)
     _n_joints: int = field(init=False)
 
     def __post_init__(self) -> None:
@@ -59,6 +67,8 @@ class Measurements:
             self.moves = np.zeros((len(self), self._n_joints))
             if len(self) > 1 and self._n_joints:
                 self.moves[1:] = np.sign(np.diff(self.q, axis=0))
+        if self.lines is None:
+            self.lines = np.asarray(self.rows) + 2  # header on line 1, no blank lines
 
     # --- views ------------------------------------------------------------------
 
@@ -99,7 +109,7 @@ class Measurements:
     def subset(self, index) -> "Measurements":
         """Rows ``index`` (mask or integer array), order kept as given."""
         return Measurements({k: v[index] for k, v in self.columns.items()}, self.path,
-                            self.rows[index], self.moves[index])
+                            self.rows[index], self.moves[index], self.lines[index], set(self.checked))
 
     def with_positions(self, xyz_m: np.ndarray, prefix_existing: str = "measured_") -> "Measurements":
         """A copy whose ``x_mm, y_mm, z_mm`` are ``xyz_m``; existing ones are renamed."""
@@ -108,7 +118,7 @@ class Measurements:
             cols[prefix_existing + k if k in XYZ else k] = v
         for i, c in enumerate(XYZ):
             cols[c] = np.asarray(xyz_m)[:, i] * 1000.0
-        return Measurements(cols, self.path, self.rows, self.moves)
+        return Measurements(cols, self.path, self.rows, self.moves, self.lines)
 
     # --- I/O --------------------------------------------------------------------
 
@@ -147,6 +157,9 @@ class Measurements:
         for i, h in enumerate(header):
             if not h:
                 raise DataFileError(f"header field {i + 1} is empty", file=path, row=1)
+            if _Q_LIKE.match(h) and not _Q.match(h):
+                raise DataFileError("joint columns are numbered from 1 without leading zeros: "
+                                    "q1_deg, q2_deg, ...", file=path, row=1, column=h)
             if h in seen:
                 raise DataFileError(f"duplicated header name (fields {seen[h] + 1} and {i + 1})",
                                     file=path, row=1, column=h)
@@ -155,9 +168,9 @@ class Measurements:
         if not qs:
             raise DataFileError("has no joint columns: expected q1_deg, q2_deg, ...", file=path, row=1)
         if qs != list(range(1, len(qs) + 1)):
-            missing = sorted(set(range(1, max(qs) + 1)) - set(qs))
-            raise DataFileError(f"joint columns are not consecutive: missing q{missing[0]}_deg",
-                                file=path, row=1, column=f"q{missing[0]}_deg")
+            first = next(k for k in range(1, len(qs) + 2) if k not in set(qs))
+            raise DataFileError(f"joint columns are not consecutive: missing q{first}_deg",
+                                file=path, row=1, column=f"q{first}_deg")
         if n_joints is not None and len(qs) != n_joints:
             col = f"q{n_joints + 1}_deg" if len(qs) > n_joints else f"q{len(qs) + 1}_deg"
             raise DataFileError(f"has {len(qs)} joint columns but the robot has {n_joints} joints",
@@ -187,8 +200,9 @@ class Measurements:
                 columns[h] = _numeric(raw[h], h, path, lines)
             else:
                 columns[h] = _maybe_numeric(raw[h])
-        data = cls(columns, path)
-        _check_units(data)
+        data = cls(columns, path, lines=np.array(lines))
+        if n_joints is None:  # with a robot, casadical.checks judges the units (an error, not a warning)
+            _check_units(data)
         return data
 
     def write_csv(self, path: str | Path, overwrite: bool = False) -> None:
