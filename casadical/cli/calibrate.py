@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .common import add_force, check_outputs, int_at_least
+from .common import add_checks, add_force, check_options, check_outputs, int_at_least
 
 
 def register(sub) -> None:
@@ -22,6 +22,7 @@ def register(sub) -> None:
     p.add_argument("--max-iter", type=int_at_least(1), default=None,
                    help="solver iteration limit (default: the solver's own, 200 for ipopt, 100 for lm/gn)")
     p.add_argument("--fix", default="", help="comma-separated parameters to hold at nominal (default: none)")
+    add_checks(p)
     add_force(p)
     p.set_defaults(func=run, inputs=("robot", "data"))
 
@@ -36,7 +37,7 @@ def run(args) -> int:
     data = Measurements.read_csv(args.data, n_joints=robot.n, require_positions=True)
     opts = {"max_iter": args.max_iter} if args.max_iter else {}
     result = calibrate(robot, data, args.model, args.solver, solver_options=opts,
-                       fix=tuple(f.strip() for f in args.fix.split(",") if f.strip()))
+                       fix=tuple(f.strip() for f in args.fix.split(",") if f.strip()), **check_options(args))
     result.save(args.out, overwrite=args.force)
     print(result.summary())
     print(f"\ncalibration -> {args.out}")

@@ -22,6 +22,7 @@ from typing import Callable
 import numpy as np
 
 from ..calibration import CalibrationResult, ErrorStats, calibrate
+from ..checks import check_poses
 from ..data import Measurements
 from ..errors import InputError
 from ..model import Model
@@ -511,7 +512,7 @@ class _Diagnosis:
 
 
 def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: DiagnosisSettings | None = None,
-             progress: Callable[[str], None] | None = None) -> DiagnosisReport:
+             progress: Callable[[str], None] | None = None, **checks: bool) -> DiagnosisReport:
     """Calibrate step by step on ``cal``, judge every step on ``val``, name the causes.
 
     Parameters
@@ -522,6 +523,10 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
     settings : DiagnosisSettings, optional
     progress : callable, optional
         Receives one line of text per step (the command line prints them).
+    **checks : bool
+        Overrides of the plausibility checks of the poses
+        (:func:`casadical.checks.check_poses`: ``allow_outside_limits``,
+        ``angles_are_degrees``, ``positions_are_mm``).
     """
     t0 = time.perf_counter()
     s = settings or DiagnosisSettings()
@@ -529,6 +534,7 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
         if d.n_joints != robot.n:
             raise InputError(f"has {d.n_joints} joint columns but robot {robot.name} has {robot.n} joints",
                              file=d.path)
+        check_poses(d, robot, **checks)
     dg = _Diagnosis(robot, cal, val, s, progress or (lambda _: None))
     current, spec = dg.run()
     final_spec, final_val = spec, current.stats(val)
