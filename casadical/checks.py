@@ -48,6 +48,11 @@ def check_poses(data: Measurements, robot: Robot, *, allow_outside_limits: bool 
                 predicted: np.ndarray | None = None) -> None:
     """Every plausibility check of ``data`` for ``robot``, once per data set and robot.
 
+    A data set that passed, or was let through by an override, is marked
+    (``data.checked``, kept by its subsets): later calls for the same robot
+    return at once, whatever their overrides, so the decision taken at the
+    entry point holds for the calibrations inside a diagnosis or comparison.
+
     Parameters
     ----------
     data : Measurements
