@@ -134,7 +134,11 @@ def check_angle_units(data: Measurements, robot: Robot, allow: bool = False) -> 
 def spread(points: np.ndarray) -> float:
     """Root-mean-square distance of points from their centre (rotation and translation invariant)."""
     p = np.asarray(points, dtype=float)
-    return float(np.sqrt(np.mean(np.sum((p - p.mean(axis=0)) ** 2, axis=1)))) if len(p) else 0.0
+    if not len(p):
+        return 0.0
+    with np.errstate(over="ignore", invalid="ignore"):   # absurd values (1e300 mm) give inf: still judged
+        s = float(np.sqrt(np.mean(np.sum((p - p.mean(axis=0)) ** 2, axis=1))))
+    return s if math.isfinite(s) else math.inf
 
 
 def check_position_units(data: Measurements, predicted: np.ndarray, allow: bool = False) -> None:
@@ -156,7 +160,8 @@ def check_position_units(data: Measurements, predicted: np.ndarray, allow: bool 
              (1e-1, "centimetres: multiply x_mm, y_mm, z_mm by 10"),
              (1 / 25.4, "inches: multiply x_mm, y_mm, z_mm by 25.4"),
              (1e3, "micrometres: divide x_mm, y_mm, z_mm by 1000")]
-    fix = next((f"these look like {text}" for r, text in fixes if abs(math.log(ratio / r)) < math.log(1.3)),
+    fix = next((f"these look like {text}" for r, text in fixes
+                if 0 < ratio < math.inf and abs(math.log(ratio / r)) < math.log(1.3)),
                "is it the right robot file, and are the joint readings in degrees?")
     raise DataFileError(f"the measured positions spread {meas * 1000:.4g} mm around their centre, the robot's "
                         f"tool points for these joint readings {pred * 1000:.4g} mm ({ratio:.3g} times as "
