@@ -66,6 +66,8 @@ def parse_spec(spec: str) -> list[ErrorTerm]:
             try:
                 if REGISTRY[name].name == "joint_periodic":
                     kwargs["harmonics"] = [tuple(int(x) for x in a.split(":")) for a in args.split(",")]
+                    if any(len(h) != 2 for h in kwargs["harmonics"]):
+                        raise ValueError("expected joint:harmonic pairs, e.g. periodic[2:1,2:17]")
                 else:
                     kwargs["joints"] = [int(a) for a in args.split(",")]
             except ValueError as e:

@@ -235,6 +235,7 @@ def test_predict_reports_errors_and_refuses_another_robots_poses(ys, tmp_path, c
     (["diagnose", "ys100", "{cal}", "--validate", "{cal}", "--json", "{out}", "--alpha", "-0.1"], "--alpha"),
     (["candidates", "ys100", "-n", "10", "--out", "{out}", "--margin-deg", "500"], "--margin-deg"),
     (["calibrate", "ys100", "{cal}", "--out", "{out}", "--fix", "a2,zzz"], "'zzz'"),
+    (["calibrate", "ys100", "{cal}", "--out", "{out}", "--model", "kinematic+periodic[2]"], "joint:harmonic"),
 ])
 def test_options_out_of_their_domain(ys, tmp_path, capsys, args, what):
     t0 = time.perf_counter()
