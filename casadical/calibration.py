@@ -21,8 +21,8 @@ import numpy as np
 from . import __version__
 from .alignment import align
 from .calibration_file import validate_calibration_document
-from .data import Measurements
 from .checks import check_poses
+from .data import Measurements
 from .errors import (CalibrationFileError, ConvergenceWarning, IdentifiabilityError, IdentifiabilityWarning,
                      InputError, ModelError, SolverError)
 from .files import atomic_write
@@ -348,8 +348,9 @@ def calibrate(robot: Robot, data: Measurements, model: str | Model = "kinematic+
         params[name].value = float(v)
     unknown = [n for n in fix if n not in params]
     if unknown:
+        names = params.names
         raise ModelError(f"cannot fix {', '.join(map(repr, unknown))}: model {model.spec} has no such parameter "
-                         f"(its parameters: {', '.join(params.names)})")
+                         f"(its parameters: {', '.join(names[:12])}{', ...' if len(names) > 12 else ''})")
     params.fix(fix, reason="fixed by the user")
     q, xyz, cov = data.q, data.xyz, model.covariates(data)
 

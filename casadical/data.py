@@ -168,7 +168,8 @@ class Measurements:
         if not qs:
             raise DataFileError("has no joint columns: expected q1_deg, q2_deg, ...", file=path, row=1)
         if qs != list(range(1, len(qs) + 1)):
-            first = next(k for k in range(1, len(qs) + 2) if k not in set(qs))
+            present = set(qs)
+            first = next(k for k in range(1, len(qs) + 2) if k not in present)
             raise DataFileError(f"joint columns are not consecutive: missing q{first}_deg",
                                 file=path, row=1, column=f"q{first}_deg")
         if n_joints is not None and len(qs) != n_joints:

@@ -358,11 +358,11 @@ def _compile(fun: ca.Function, name: str) -> ca.Function:
     compile failed and the run went on with the virtual machine). Sources
     and libraries go to the private folder removed at exit.
     """
-    folder = _jit_dir()
-    source = ca.CodeGenerator(f"{name}.c", {"with_header": False})
+    folder, serial = _jit_dir(), next(_SERIAL)
+    source = ca.CodeGenerator(f"{name}_{serial}.c", {"with_header": False})
     source.add(fun)
     c_file = source.generate(folder + os.sep)
-    library = os.path.join(folder, f"{name}_{next(_SERIAL)}.so")
+    library = os.path.join(folder, f"{name}_{serial}.so")
     cc = shutil.which("gcc") or shutil.which("cc") or "cc"
     subprocess.run([cc, "-O2", "-fPIC", "-shared", c_file, "-o", library], check=True, capture_output=True,
                    text=True)

@@ -271,7 +271,8 @@ class _Validator:
         except OverflowError:
             v = math.inf
         if not math.isfinite(v):
-            raise self._err(f"must be finite, got {x!r}", table, key)
+            text = repr(x)
+            raise self._err(f"must be finite, got {text if len(text) < 40 else text[:30] + '...'}", table, key)
         for suffix, (top, what) in _RANGES.items():
             if key.endswith(suffix) and abs(v) > top:
                 raise self._err(f"{what} must lie within +-{top:g}, got {v:g}", table, key)

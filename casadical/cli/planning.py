@@ -62,13 +62,13 @@ def register(sub) -> None:
 
 
 def cmd_plan_poses(args) -> int:
-    from ..data import Measurements
-    from ..model import Model
-    from ..robot import load_robot
     from ..calibration import _generic_identifiable
     from ..checks import check_distinct_poses, check_poses
+    from ..data import Measurements
+    from ..model import Model
     from ..planning.observability import design_problem
     from ..planning.selectors import PlanSettings, select_poses
+    from ..robot import load_robot
 
     check_outputs({"--out": args.out, "--json": args.json}, [args.robot, args.candidates], args.force)
     robot = load_robot(args.robot)
