@@ -282,7 +282,9 @@ def load_protocol(spec: str | Path) -> Protocol:
         ws = d.get("workspace", {})
         workspace = {"floor_z": ws.get("floor_z_m", 0.0)}
         if "box_min_m" in ws:
-            workspace["box"] = (tuple(ws["box_min_m"]), tuple(ws["box_max_m"]))
+            workspace["box"] = (tuple(map(float, ws["box_min_m"])), tuple(map(float, ws["box_max_m"])))
+            if any(len(b) != 3 for b in workspace["box"]):
+                raise ValueError("workspace box_min_m and box_max_m need three numbers each (x, y, z)")
         robot_spec = d["robot"]
         if isinstance(robot_spec, str) and (path.parent / robot_spec).is_file():
             robot_spec = path.parent / robot_spec   # a robot file beside the protocol
@@ -291,5 +293,5 @@ def load_protocol(spec: str | Path) -> Protocol:
                         description=d.get("description", ""), workspace=workspace)
     except InputError:
         raise
-    except (KeyError, TypeError, ValueError, tomllib.TOMLDecodeError) as e:
+    except (KeyError, TypeError, ValueError, AttributeError, tomllib.TOMLDecodeError) as e:
         raise InputError(f"invalid protocol: {e!r}", file=str(path)) from e

@@ -419,3 +419,17 @@ def test_ctrl_c_during_the_jit_stops_cleanly(tmp_path):
     assert "interrupted" in err and "Traceback" not in err and "virtual machine" not in err
     assert not (tmp_path / "out.csv").exists()
     assert not list(tmp_path.glob("casadical-jit-*"))
+
+
+@pytest.mark.parametrize("text", [
+    'robot = "ys100"\nsets = 3\n',
+    'robot = "ys100"\n[sets]\na = "x"\n',
+    'robot = "ys100"\n[sets]\na = 5\n[truth]\nperiodic_deg = [[1, 2]]\n',
+    'robot = "ys100"\n[sets]\na = 5\n[workspace]\nbox_min_m = [0, 0]\nbox_max_m = [1, 1, 1]\n',
+    'robot = "nosuch.toml"\n[sets]\na = 5\n',
+])
+def test_malformed_protocol(tmp_path, capsys, text):
+    (tmp_path / "p.toml").write_text(text)
+    code, _, err = cli(capsys, "simulate", tmp_path / "p.toml", "--out-dir", tmp_path / "out")
+    assert code == 2
+    one_error(err)
