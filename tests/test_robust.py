@@ -272,13 +272,16 @@ def test_huge_joint_number_in_a_header(tmp_path):
 # --- robot TOML -----------------------------------------------------------------------------------
 
 
-def test_robot_toml_encodings(tmp_path):
+def test_robot_toml_encodings(tmp_path, capsys):
     text = to_toml(ARMS["arm4"])
     (tmp_path / "bom.toml").write_bytes(b"\xef\xbb\xbf" + text.encode())
     assert load_robot(tmp_path / "bom.toml").n == 4
     (tmp_path / "latin.toml").write_bytes(text.replace("palletiser", "palletis\u00e9r").encode("latin-1"))
     with pytest.raises(RobotFileError, match="not UTF-8"):
         load_robot(tmp_path / "latin.toml")
+    code, _, err = cli(capsys, "inspect", tmp_path / "latin.toml", "--poses", "5")
+    assert code == 2
+    one_error(err, "latin.toml", "not UTF-8", "0xe9")
 
 
 @pytest.mark.parametrize("key,value,match", [
@@ -372,7 +375,7 @@ def test_not_a_calibration_json(tmp_path, content):
 # --- Levenberg-Marquardt on a stiff joint ----------------------------------------------------------
 
 
-def test_lm_with_compliance_below_zero_is_saved_and_reported(tmp_path):
+def test_lm_with_compliance_below_zero_is_saved_and_reported(tmp_path, capsys):
     """A stiff joint (true compliance ~0): LM comes out negative on some seeds, never inf stiffness."""
     robot = load_robot("ys100")
     negative = 0
@@ -389,6 +392,10 @@ def test_lm_with_compliance_below_zero_is_saved_and_reported(tmp_path):
             negative += 1
             assert k3["value"] is None and "no positive stiffness" in k3["reason"]
             assert "no positive stiffness" in res.summary()
+            data.write_csv(tmp_path / f"stiff{seed}.csv")
+            code, out, _ = cli(capsys, "calibrate", "ys100", tmp_path / f"stiff{seed}.csv", "--solver", "lm",
+                               "--model", "kinematic+compliance[2,3]", "--out", tmp_path / f"cli{seed}.json")
+            assert code == 0 and "k3: no positive stiffness" in out and (tmp_path / f"cli{seed}.json").exists()
         else:
             assert k3["value"] == pytest.approx(1 / c3)
         back = load_calibration(tmp_path / f"lm{seed}.json")
