@@ -144,9 +144,14 @@ def test_library_entry_points_check_and_take_overrides():
     with pytest.warns(DataWarning, match="outside joint 2"):
         res = calibrate(robot, bad, "nominal", allow_outside_limits=True, warn=False)
     assert np.isfinite(res.calibration.mean_mm)
-    from casadical.diagnosis import diagnose
+    from casadical.diagnosis import DiagnosisSettings, diagnose
     with pytest.raises(DataFileError, match="outside joint 2"):
         diagnose(robot, data, with_columns(data, q2_deg=q))
+    # allowed once at the entry point, the calibrations inside the diagnosis (subsets, folds) do not re-check
+    quick = DiagnosisSettings(max_harmonic=2, max_rounds=1, blackbox=False)
+    with pytest.warns(DataWarning, match="outside joint 2"):
+        rep = diagnose(robot, with_columns(data, q2_deg=q), data, quick, allow_outside_limits=True)
+    assert rep.steps[0].model == "nominal"
 
 
 # --- the command line, case by case ---------------------------------------------------------------

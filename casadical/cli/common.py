@@ -169,7 +169,7 @@ def add_checks(p: argparse.ArgumentParser, mismatch: bool = False) -> None:
     g.add_argument("--allow-outside-limits", action="store_true",
                    help="accept joint readings beyond the robot's min_deg/max_deg (a warning)")
     g.add_argument("--angles-are-degrees", action="store_true",
-                   help="the joint readings are degrees even though all lie within +-6.3 (else: radians?)")
+                   help="the joint readings are degrees although all lie within +-6.3 (which looks like radians)")
     g.add_argument("--positions-are-mm", action="store_true",
                    help="the positions are mm even though their spread does not match the robot's")
     if mismatch:
