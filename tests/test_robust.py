@@ -12,6 +12,7 @@ import functools
 import json
 import math
 import os
+import shutil
 import signal
 import subprocess
 import sys
@@ -411,7 +412,7 @@ def test_lm_with_compliance_below_zero_is_saved_and_reported(tmp_path, capsys):
 # --- Ctrl-C while the model compiles ----------------------------------------------------------------
 
 
-@pytest.mark.skipif(not (os.path.exists("/usr/bin/gcc") or os.path.exists("/usr/bin/cc")), reason="no C compiler")
+@pytest.mark.skipif(not (shutil.which("gcc") or shutil.which("cc")), reason="no C compiler")
 def test_ctrl_c_during_the_jit_stops_cleanly(tmp_path):
     """A terminal's Ctrl-C (SIGINT to the whole process group) while gcc runs: exit 130, no output, no JIT folder."""
     robot = load_robot("ys100")
