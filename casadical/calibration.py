@@ -26,6 +26,7 @@ from dataclasses import replace
 import numpy as np
 
 from .alignment import align
+from .checks import check_poses
 from .coverage import Coverage
 from .data import Measurements
 from .compensators.guard import fit_guarded
@@ -124,7 +125,8 @@ def _named_free(params: Parameters, named: set[str], new_params: set[str]) -> li
 def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str | Model = "kinematic+compliance",
               solver: str = "ipopt", *, solver_options: dict | None = None, fix: tuple[str, ...] = (),
               start: dict[str, float] | None = None, check_identifiability: bool = True,
-              warn: bool = True, robust: str | RobustLoss = "huber") -> CalibrationResult:
+              warn: bool = True, robust: str | RobustLoss = "huber", allow_outside_limits: bool = False,
+              angles_are_degrees: bool = False, positions_are_mm: bool = False) -> CalibrationResult:
     """Identify the parameters of ``model`` from measured poses.
 
     Parameters
@@ -157,6 +159,9 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         The loss: pseudo-Huber on each pose's residual with the noise scale
         estimated from the data (default), or plain least squares. A
         RobustLoss with its ``sigma`` set keeps that noise scale.
+    allow_outside_limits, angles_are_degrees, positions_are_mm : bool
+        Overrides of the plausibility checks of the poses
+        (:func:`casadical.checks.check_poses`).
 
     Raises
     ------
@@ -212,8 +217,9 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         params = model.parameters.copy()
     unknown = [n for n in list(fix) + list(start or {}) if n not in params]
     if unknown:
-        raise InputError(f"unknown parameter(s) {', '.join(sorted(set(unknown)))} for model {model.spec}; "
-                         f"known: {', '.join(params.names)}")
+        names = params.names
+        raise InputError(f"no parameter {', '.join(map(repr, sorted(set(unknown))))} in model {model.spec} "
+                         f"(its parameters: {', '.join(names[:12])}{', ...' if len(names) > 12 else ''})")
     for name, v in (start or {}).items():
         params[name].value = float(v)
     params.fix(fix, reason="fixed by the user")
@@ -223,7 +229,10 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     for k in ("x", "y", "z", "roll", "pitch", "yaw"):
         params[f"base_{k}"].value = 0.0
     eye = pose_to_base0(np.eye(4))
-    T = align(model.predict(q, params.values, cov, eye), xyz)
+    start_xyz = model.predict(q, params.values, cov, eye)
+    check_poses(data, robot, allow_outside_limits=allow_outside_limits, angles_are_degrees=angles_are_degrees,
+                positions_are_mm=positions_are_mm, predicted=start_xyz)
+    T = align(start_xyz, xyz)
     base0 = pose_to_base0(T)
 
     # --- identifiability

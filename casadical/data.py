@@ -20,7 +20,8 @@ import numpy as np
 from .errors import DataFileError, DataWarning
 from .files import atomic_open
 
-_Q = re.compile(r"^q(\d+)_deg$")
+_Q = re.compile(r"^q([1-9]\d*)_deg$")
+_Q_LIKE = re.compile(r"^q\d+_deg$")
 XYZ = ("x_mm", "y_mm", "z_mm")
 NUMERIC_OPTIONAL = ("payload_kg", "temperature_c", "time_s")
 
@@ -43,6 +44,9 @@ class Measurements:
     lines : ndarray of int
         Each pose's line in its file (the header is line 1), for messages
         and reports; ``rows + 2`` for data made in memory.
+    checked : set
+        Plausibility checks this data passed (or was allowed to skip) by
+        :func:`casadical.checks.check_poses`; subsets keep it.
     """
 
     columns: dict[str, np.ndarray]
@@ -50,6 +54,7 @@ class Measurements:
     rows: np.ndarray | None = None
     moves: np.ndarray | None = None
     lines: np.ndarray | None = None
+    checked: set = field(default_factory=set, repr=False, compare=False)
     _n_joints: int = field(init=False)
 
     def __post_init__(self) -> None:
@@ -109,7 +114,7 @@ class Measurements:
     def subset(self, index) -> "Measurements":
         """Rows ``index`` (mask or integer array), order kept as given."""
         return Measurements({k: v[index] for k, v in self.columns.items()}, self.path,
-                            self.rows[index], self.moves[index], self.lines[index])
+                            self.rows[index], self.moves[index], self.lines[index], set(self.checked))
 
     def with_positions(self, xyz_m: np.ndarray, prefix_existing: str = "measured_") -> "Measurements":
         """A copy whose ``x_mm, y_mm, z_mm`` are ``xyz_m``; existing ones are renamed."""
@@ -157,6 +162,9 @@ class Measurements:
         for i, h in enumerate(header):
             if not h:
                 raise DataFileError(f"header field {i + 1} is empty", file=path, row=1)
+            if _Q_LIKE.match(h) and not _Q.match(h):
+                raise DataFileError("joint columns are numbered from 1 without leading zeros: "
+                                    "q1_deg, q2_deg, ...", file=path, row=1, column=h)
             if h in seen:
                 raise DataFileError(f"duplicated header name (fields {seen[h] + 1} and {i + 1})",
                                     file=path, row=1, column=h)
@@ -165,9 +173,10 @@ class Measurements:
         if not qs:
             raise DataFileError("has no joint columns: expected q1_deg, q2_deg, ...", file=path, row=1)
         if qs != list(range(1, len(qs) + 1)):
-            missing = sorted(set(range(1, max(qs) + 1)) - set(qs))
-            raise DataFileError(f"joint columns are not consecutive: missing q{missing[0]}_deg",
-                                file=path, row=1, column=f"q{missing[0]}_deg")
+            present = set(qs)
+            first = next(k for k in range(1, len(qs) + 2) if k not in present)
+            raise DataFileError(f"joint columns are not consecutive: missing q{first}_deg",
+                                file=path, row=1, column=f"q{first}_deg")
         if n_joints is not None and len(qs) != n_joints:
             col = f"q{n_joints + 1}_deg" if len(qs) > n_joints else f"q{len(qs) + 1}_deg"
             raise DataFileError(f"has {len(qs)} joint columns but the robot has {n_joints} joints",
@@ -198,7 +207,8 @@ class Measurements:
             else:
                 columns[h] = _maybe_numeric(raw[h])
         data = cls(columns, path, lines=np.array(lines))
-        _check_units(data)
+        if n_joints is None:  # with a robot, casadical.checks judges the units (an error, not a warning)
+            _check_units(data)
         return data
 
     def write_csv(self, path: str | Path, overwrite: bool = False) -> None:

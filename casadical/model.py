@@ -17,9 +17,12 @@ Inputs of every model function, per pose:
 from __future__ import annotations
 
 import atexit
+import itertools
 import os
 import re
 import shutil
+import signal
+import subprocess
 import tempfile
 import warnings
 from dataclasses import dataclass
@@ -63,6 +66,8 @@ def parse_spec(spec: str) -> list[ErrorTerm]:
             try:
                 if REGISTRY[name].name == "joint_periodic":
                     kwargs["harmonics"] = [tuple(int(x) for x in a.split(":")) for a in args.split(",")]
+                    if any(len(h) != 2 for h in kwargs["harmonics"]):
+                        raise ValueError("expected joint:harmonic pairs, e.g. periodic[2:1,2:17]")
                 else:
                     kwargs["joints"] = [int(a) for a in args.split(",")]
             except ValueError as e:
@@ -227,19 +232,18 @@ class Model:
         fun = self._compiled.get((which, jit))
         if fun is None:
             ins, outs, _, _ = self._graphs[which]
-            opts = {"jit": True, "compiler": "shell", "jit_cleanup": False, "jit_name": f"casadical_{which}",
-                    "jit_options": {"flags": ["-O2"], "verbose": False, "directory": _jit_dir(),
-                                    "cleanup": False}} if jit else {}  # the folder goes at exit
-            try:
-                fun = ca.Function(which, ins, outs, opts)
-            except RuntimeError as e:
-                if not jit:
-                    raise
-                # a broken compiler must not stop a calibration: the VM gives the same numbers
-                warnings.warn(f"JIT compilation failed, using CasADi's virtual machine ({str(e)[-200:]})",
-                              CasadicalWarning, stacklevel=3)
-                self.jit = False
-                fun = ca.Function(which, ins, outs)
+            fun = ca.Function(which, ins, outs)
+            if jit:
+                try:
+                    fun = _compile(fun, f"casadical_{which}")
+                except (RuntimeError, OSError, subprocess.CalledProcessError) as e:
+                    if getattr(e, "returncode", None) == -signal.SIGINT:
+                        raise KeyboardInterrupt from e   # the compiler alone got the Ctrl-C
+                    # a broken compiler must not stop a calibration: the VM gives the same numbers
+                    detail = getattr(e, "stderr", None) or str(e)
+                    warnings.warn(f"JIT compilation failed, using CasADi's virtual machine ({detail[-200:]})",
+                                  CasadicalWarning, stacklevel=3)
+                    self.jit = False
             self._compiled[(which, jit)] = fun
         return fun
 
@@ -393,6 +397,29 @@ def _jit_dir() -> str:
     d = tempfile.mkdtemp(prefix="casadical-jit-")
     atexit.register(shutil.rmtree, d, ignore_errors=True)
     return d
+
+
+def _compile(fun: ca.Function, name: str) -> ca.Function:
+    """``fun`` as machine code: C from CasADi, compiled by the system compiler, loaded back.
+
+    The compiler runs as a child process that Python waits for, so Ctrl-C
+    stops it and raises KeyboardInterrupt here (CasADi's own JIT runs it
+    through ``system()``, which ignores the interrupt in the caller: the
+    compile failed and the run went on with the virtual machine). Sources
+    and libraries go to the private folder removed at exit.
+    """
+    folder, serial = _jit_dir(), next(_SERIAL)
+    source = ca.CodeGenerator(f"{name}_{serial}.c", {"with_header": False})
+    source.add(fun)
+    c_file = source.generate(folder + os.sep)
+    library = os.path.join(folder, f"{name}_{serial}.so")
+    cc = shutil.which("gcc") or shutil.which("cc") or "cc"
+    subprocess.run([cc, "-O2", "-fPIC", "-shared", c_file, "-o", library], check=True, capture_output=True,
+                   text=True)
+    return ca.external(fun.name(), library)
+
+
+_SERIAL = itertools.count()
 
 
 @cache

@@ -18,6 +18,7 @@ import numpy as np
 
 from . import __version__
 from .data import Measurements
+from .calibration_file import validate_calibration_document
 from .coverage import Coverage
 from .errors import CalibrationFileError, CasadicalError, InputError
 from .files import atomic_write
@@ -132,7 +133,12 @@ class CalibrationResult:
         return T[:3, 3], matrix_to_rpy(T[:3, :3])
 
     def stiffness(self) -> dict[int, tuple[float, float]]:
-        """Joint stiffness k_j = 1 / c_j (N m/rad) with its standard error, compliant joints only."""
+        """Joint stiffness k_j = 1 / c_j (N m/rad) with its standard error, compliant joints only.
+
+        A compliance c_j <= 0 (an unbounded solver on a joint stiffer than the
+        poses can tell) has no positive stiffness: k_j is ``inf``, its standard
+        error ``nan``; the summary and the JSON say so in words.
+        """
         out = {}
         for p in self.parameters.select(term="joint_compliance"):
             if p.fixed and p.identifiable is False:
@@ -166,6 +172,9 @@ class CalibrationResult:
         if st:
             lines += ["", "joint stiffness k = 1/c:"]
             for j, (k, sk) in st.items():
+                if not math.isfinite(k):
+                    lines.append(f"  k{j}: {_NOT_POSITIVE.format(j=j, c=self.parameters[f'c{j}'].value)}")
+                    continue
                 lines.append(f"  k{j} = {k:.4e} N m/rad" + (f"  (std {sk:.2e})" if math.isfinite(sk) else ""))
         if self.calibration is not None:
             lines += ["", "calibration poses: " + self.calibration.line()]
@@ -190,8 +199,12 @@ class CalibrationResult:
                            "unit": p.display_unit, "nominal": p.to_display(p.nominal), "fixed": p.fixed,
                            "reason": p.reason, "term": p.term, "joint": p.joint})
         for j, (k, sk) in self.stiffness().items():
-            params.append({"name": f"k{j}", "value": k, "std": sk if math.isfinite(sk) else None,
-                           "identifiable": True, "unit": "N*m/rad", "derived": f"1/c{j}", "joint": j})
+            entry = {"name": f"k{j}", "value": k if math.isfinite(k) else None,
+                     "std": sk if math.isfinite(sk) else None,
+                     "identifiable": True, "unit": "N*m/rad", "derived": f"1/c{j}", "joint": j}
+            if not math.isfinite(k):
+                entry["reason"] = _NOT_POSITIVE.format(j=j, c=self.parameters[f"c{j}"].value)
+            params.append(entry)
         xyz, rpy = self.base_pose()
         doc = {
             "casadical_version": __version__,
@@ -225,6 +238,10 @@ class CalibrationResult:
                      overwrite=overwrite)
 
 
+_NOT_POSITIVE = ("no positive stiffness: compliance c{j} = {c:.3g} rad/(N*m) is not above 0, the joint is "
+                 "stiffer than these poses and loads can tell")
+
+
 def _json_default(o):
     if isinstance(o, (np.floating, np.integer)):
         return o.item()
@@ -235,11 +252,12 @@ def load_calibration(path: str | Path) -> CalibrationResult:
     """Read a calibration JSON written by :meth:`CalibrationResult.save`."""
     path = str(path)
     try:
-        doc = json.loads(Path(path).read_text())
+        doc = json.loads(Path(path).read_text(encoding="utf-8-sig"))
     except FileNotFoundError:
         raise CalibrationFileError("no such file", file=path) from None
-    except (OSError, json.JSONDecodeError) as e:
+    except (OSError, ValueError, RecursionError) as e:  # ValueError: not JSON, not UTF-8
         raise CalibrationFileError(f"not a calibration JSON: {e}", file=path) from e
+    validate_calibration_document(doc, path)
     try:
         robot = robot_from_dict(doc["robot"], path)
         settings = doc.get("terms", {})

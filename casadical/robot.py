@@ -126,18 +126,27 @@ def load_robot(spec: str | Path) -> Robot:
         from .urdf import robot_from_urdf
         return robot_from_urdf(path)
     try:
-        with open(path, "rb") as fh:
-            data = tomllib.load(fh)
-    except tomllib.TOMLDecodeError as e:
-        raise RobotFileError(f"not valid TOML: {e}", file=str(path)) from e
+        raw = path.read_bytes()
     except OSError as e:
-        raise RobotFileError(f"cannot read: {e.strerror}", file=str(path)) from e
+        raise RobotFileError(f"cannot read: {e.strerror or e}", file=str(path)) from e
+    try:
+        text = raw.decode("utf-8-sig")  # a UTF-8 byte-order mark is harmless
+    except UnicodeDecodeError as e:
+        raise RobotFileError(f"is not UTF-8 text (byte 0x{raw[e.start]:02x} at offset {e.start}); "
+                             "save it as UTF-8", file=str(path)) from e
+    try:
+        data = tomllib.loads(text)
+    except (tomllib.TOMLDecodeError, RecursionError) as e:
+        raise RobotFileError(f"not valid TOML: {e}", file=str(path)) from e
     return robot_from_dict(data, str(path))
 
 
 def robot_from_dict(data: dict[str, Any], file: str = "<dict>") -> Robot:
     """Validate a parsed TOML document and build a :class:`Robot`."""
     v = _Validator(file)
+    if not isinstance(data, dict):
+        raise RobotFileError(f"must be a table of keys (name, convention, joint, ...), got {type(data).__name__}",
+                             file=file)
     v.keys(data, _TOP_KEYS, "")
     name = v.string(data, "name", "", required=True)
     convention = v.string(data, "convention", "", default="mdh")
@@ -188,10 +197,11 @@ def robot_from_dict(data: dict[str, Any], file: str = "<dict>") -> Robot:
         tables[tname] = tab
     base, tool, payload, grav = (tables[k] for k in ("base", "tool", "payload", "gravity"))
     direction = v.vector(grav, "direction", "gravity", 3, default=np.array([0.0, 0.0, -1.0]))
-    norm = float(np.linalg.norm(direction))
-    if norm == 0:
+    if not np.any(direction):
         raise RobotFileError("gravity direction must not be zero", file=file,
                              column="gravity.direction")
+    direction = direction / np.max(np.abs(direction))  # any finite size: no overflow or underflow
+    norm = float(np.linalg.norm(direction))
     pmass = v.number(payload, "mass_kg", "payload", default=0.0)
     if pmass < 0:
         raise RobotFileError(f"mass must not be negative, got {pmass}", file=file,
@@ -246,21 +256,40 @@ class _Validator:
             if required:
                 raise self._err("missing required key", table, key)
             return default
-        x = tab[key]
-        if isinstance(x, bool) or not isinstance(x, (int, float)):
-            raise self._err(f"must be a number, got {x!r}", table, key)
-        if not math.isfinite(x):
-            raise self._err(f"must be finite, got {x!r}", table, key)
-        return float(x)
+        return self._value(tab[key], table, key)
 
     def vector(self, tab, key, table, length, default=None):
         if key not in tab:
             return default
         x = tab[key]
-        if not isinstance(x, list) or len(x) != length or any(
-                isinstance(e, bool) or not isinstance(e, (int, float)) or not math.isfinite(e) for e in x):
+        if not isinstance(x, list) or len(x) != length:
             raise self._err(f"must be a list of {length} finite numbers, got {x!r}", table, key)
-        return np.array(x, dtype=float)
+        return np.array([self._value(e, table, key) for e in x], dtype=float)
+
+    def _value(self, x, table, key) -> float:
+        """A finite number within the plausible range of its unit (the key's suffix)."""
+        if isinstance(x, bool) or not isinstance(x, (int, float)):
+            raise self._err(f"must be a number, got {x!r}", table, key)
+        try:
+            v = float(x)
+        except OverflowError:
+            v = math.inf
+        if not math.isfinite(v):
+            text = repr(x)
+            raise self._err(f"must be finite, got {text if len(text) < 40 else text[:30] + '...'}", table, key)
+        for suffix, (top, what) in _RANGES.items():
+            if key.endswith(suffix) and abs(v) > top:
+                raise self._err(f"{what} must lie within +-{top:g}, got {v:g}", table, key)
+        return v
+
+
+#: plausible ranges by key suffix: beyond them a value is a unit mistake, and would overflow the model
+_RANGES = {
+    "_m": (100.0, "lengths are in metres and"),
+    "_deg": (36000.0, "angles are in degrees and"),
+    "_kg": (1e5, "masses are in kg and"),
+    "coupling": (100.0, "coupling factors"),
+}
 
 
 def robot_to_dict(robot: Robot) -> dict[str, Any]:

@@ -267,7 +267,11 @@ class Protocol:
 
 
 def load_protocol(spec: str | Path) -> Protocol:
-    """Load a protocol by name (``problems/protocols/<name>.toml``) or path."""
+    """Load a protocol by name (``problems/protocols/<name>.toml``) or path.
+
+    Its ``robot`` is a built-in name or a robot file, relative to the
+    protocol's folder (or to the working folder).
+    """
     path = Path(spec)
     if not path.exists():
         path = PROTOCOL_DIR / f"{spec}.toml"
@@ -296,9 +300,16 @@ def load_protocol(spec: str | Path) -> Protocol:
         ws = d.get("workspace", {})
         workspace = {"floor_z": ws.get("floor_z_m", 0.0)}
         if "box_min_m" in ws:
-            workspace["box"] = (tuple(ws["box_min_m"]), tuple(ws["box_max_m"]))
-        return Protocol(name=d.get("name", path.stem), robot=load_robot(d["robot"]), effects=effects,
+            workspace["box"] = (tuple(map(float, ws["box_min_m"])), tuple(map(float, ws["box_max_m"])))
+            if any(len(b) != 3 for b in workspace["box"]):
+                raise ValueError("workspace box_min_m and box_max_m need three numbers each (x, y, z)")
+        robot_spec = d["robot"]
+        if isinstance(robot_spec, str) and (path.parent / robot_spec).is_file():
+            robot_spec = path.parent / robot_spec   # a robot file beside the protocol
+        return Protocol(name=d.get("name", path.stem), robot=load_robot(robot_spec), effects=effects,
                         sets={k: int(v) for k, v in d["sets"].items()}, seed=int(d.get("seed", 0)),
                         description=d.get("description", ""), workspace=workspace)
-    except (KeyError, TypeError, ValueError, tomllib.TOMLDecodeError) as e:
+    except InputError:
+        raise
+    except (KeyError, TypeError, ValueError, AttributeError, tomllib.TOMLDecodeError) as e:
         raise InputError(f"invalid protocol: {e!r}", file=str(path)) from e

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .common import add_force, check_outputs, int_at_least
+from .common import add_checks, add_force, check_options, check_outputs, int_at_least
 
 
 def register(sub) -> None:
@@ -29,6 +29,7 @@ def register(sub) -> None:
                    help="loss: huber (pseudo-Huber with the noise scale from the data: bad measurements are "
                         "down-weighted and reported) or none (plain least squares); default %(default)s")
     p.add_argument("--fix", default="", help="comma-separated parameters to hold at nominal (default: none)")
+    add_checks(p)
     add_force(p)
     p.set_defaults(func=run, inputs=("robot", "data"))
 
@@ -48,7 +49,8 @@ def run(args) -> int:
     data = Measurements.read_csv(args.data, n_joints=n, require_positions=True)
     opts = {"max_iter": args.max_iter} if args.max_iter else {}
     result = calibrate(robot, data, args.model, args.solver, solver_options=opts,
-                       fix=tuple(f.strip() for f in args.fix.split(",") if f.strip()), robust=args.robust)
+                       fix=tuple(f.strip() for f in args.fix.split(",") if f.strip()), robust=args.robust,
+                       **check_options(args))
     result.save(args.out, overwrite=args.force)
     print(result.summary())
     print(f"\ncalibration -> {args.out}")

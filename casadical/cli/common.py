@@ -163,6 +163,26 @@ def add_json(p: argparse.ArgumentParser, what: str, required: bool = False) -> N
                        help=f"write {what} as JSON to OUT.json ('-' or nothing: standard output)")
 
 
+def add_checks(p: argparse.ArgumentParser, mismatch: bool = False) -> None:
+    """The overrides of the plausibility checks of poses (:mod:`casadical.checks`)."""
+    g = p.add_argument_group("plausibility checks of the poses (each is an error unless overridden)")
+    g.add_argument("--allow-outside-limits", action="store_true",
+                   help="accept joint readings beyond the robot's min_deg/max_deg (a warning)")
+    g.add_argument("--angles-are-degrees", action="store_true",
+                   help="the joint readings are degrees although all lie within +-6.3 (which looks like radians)")
+    g.add_argument("--positions-are-mm", action="store_true",
+                   help="the positions are mm even though their spread does not match the robot's")
+    if mismatch:
+        g.add_argument("--allow-mismatch", action="store_true",
+                       help="accept measured poses the calibration predicts far worse than its own (a warning)")
+
+
+def check_options(args) -> dict:
+    """Keyword overrides of :func:`casadical.checks.check_poses` from the options of :func:`add_checks`."""
+    return {"allow_outside_limits": args.allow_outside_limits, "angles_are_degrees": args.angles_are_degrees,
+            "positions_are_mm": args.positions_are_mm}
+
+
 # --- progress ------------------------------------------------------------------------
 
 

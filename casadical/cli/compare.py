@@ -4,11 +4,12 @@ from __future__ import annotations
 
 import sys
 
+from ..checks import check_poses
 from ..data import Measurements
 from ..methods import method_names
 from ..methods.base import MethodResult
 from ..methods.compare import compare, format_table, parse_methods, plot, pyplot, to_json
-from .common import Status, add_force, add_json, add_quiet, check_outputs, write_json
+from .common import Status, add_checks, add_force, add_json, add_quiet, check_options, check_outputs, write_json
 
 
 def register(sub) -> None:
@@ -27,6 +28,7 @@ def register(sub) -> None:
                    help="further measured poses the network methods train on (the TLBO paper's Q2)")
     p.add_argument("--plot", metavar="OUT.png", help="per-pose error bars per method (PNG, needs matplotlib)")
     p.add_argument("--seed", type=int, default=0, help="seed of every random choice (default: %(default)s)")
+    add_checks(p)
     add_quiet(p)
     add_force(p)
     p.set_defaults(func=cmd_compare, inputs=("robot", "cal", "validate", "extra"))
@@ -45,7 +47,9 @@ def cmd_compare(args) -> int:
     def read(path):
         if path is None:
             return None
-        return Measurements.read_csv(path, n_joints=robot.n, require_positions=True)
+        data = Measurements.read_csv(path, n_joints=robot.n, require_positions=True)
+        check_poses(data, robot, **check_options(args))
+        return data
 
     cal, val, extra = read(args.cal), read(args.validate), read(args.extra)
     print(f"compare on {robot.name}: {len(cal)} calibration poses ({args.cal})"

@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from .common import Status, add_force, add_quiet, check_outputs, float_in, int_at_least, write_json, write_text
+from .common import (Status, add_checks, add_force, add_quiet, check_options, check_outputs, float_in, int_at_least,
+                     write_json, write_text)
 
 
 def register(sub) -> None:
@@ -25,6 +26,7 @@ def register(sub) -> None:
                    help="most extensions accepted (default: %(default)s)")
     p.add_argument("--no-blackbox", action="store_true", help="skip the black-box compensator step")
     p.add_argument("--seed", type=int, default=0, help="seed of the cross-validation folds (default: %(default)s)")
+    add_checks(p)
     add_quiet(p)
     add_force(p)
     p.set_defaults(func=run, inputs=("robot", "data", "validate"))
@@ -42,7 +44,7 @@ def run(args) -> int:
     val = Measurements.read_csv(args.validate, n_joints=robot.n, require_positions=True)
     settings = DiagnosisSettings(alpha=args.alpha, max_harmonic=args.max_harmonic,
                                  max_rounds=args.max_rounds, blackbox=not args.no_blackbox, seed=args.seed)
-    report = diagnose(robot, cal, val, settings, progress=Status(args.quiet).line)
+    report = diagnose(robot, cal, val, settings, progress=Status(args.quiet).line, **check_options(args))
     print(report.text())
     write_json(args.json, report.to_dict(), args.force)
     print(f"\nreport -> {args.json}")

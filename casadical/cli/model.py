@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from .common import add_force, add_json, check_outputs, int_at_least, write_json
+from .common import add_checks, add_force, add_json, check_options, check_outputs, int_at_least, write_json
 
 
 def register(sub) -> None:
@@ -30,6 +30,7 @@ def register(sub) -> None:
     p.add_argument("model", metavar="MODEL", help="robot (nominal model) or calibration JSON")
     p.add_argument("poses", metavar="POSES.csv", help="joint readings (q1_deg, ...)")
     p.add_argument("--out", required=True, metavar="OUT.csv", help="output CSV")
+    add_checks(p, mismatch=True)
     add_force(p)
     p.set_defaults(func=run_predict, inputs=("model", "poses"))
 
@@ -84,6 +85,9 @@ def param_json(p) -> dict:
 
 
 def run_predict(args) -> int:
+    from ..alignment import align
+    from ..calibration import ErrorStats
+    from ..checks import check_calibration_fits, check_poses
     from ..data import Measurements
     from ..model import Model
     from ..robot import load_robot
@@ -92,13 +96,29 @@ def run_predict(args) -> int:
     if args.model.lower().endswith(".json"):
         from ..calibration import load_calibration
         cal = load_calibration(args.model)
-        data = Measurements.read_csv(args.poses, n_joints=cal.model.robot.n)
+        robot = cal.model.robot
+        data = Measurements.read_csv(args.poses, n_joints=robot.n)
         xyz = cal.predict(data)
     else:
+        cal = None
         robot = load_robot(args.model)
         model = Model(robot, "nominal")
         data = Measurements.read_csv(args.poses, n_joints=robot.n)
         xyz = model.predict(data.q, cov=model.covariates(data))
+    check_poses(data, robot, predicted=xyz, **check_options(args))
+    stats = None
+    if data.has_positions:
+        if cal is None:   # the robot file's base is not the tracker's: compare after a best-fit base
+            T = align(xyz, data.xyz)
+            errors = np.linalg.norm(xyz @ T[:3, :3].T + T[:3, 3] - data.xyz, axis=1)
+        else:
+            errors = np.linalg.norm(xyz - data.xyz, axis=1)
+            check_calibration_fits(errors, data, args.model,
+                                   cal.calibration.mean_mm if cal.calibration else None, args.allow_mismatch)
+        stats = ErrorStats.of(errors)
     data.with_positions(xyz).write_csv(args.out, overwrite=args.force)
     print(f"predicted {len(data)} poses -> {args.out}")
+    if stats is not None:
+        how = "calibration" if cal is not None else "nominal model with its base pose fitted to them"
+        print(f"error against the measured positions ({how}): {stats.line()}")
     return 0

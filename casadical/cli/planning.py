@@ -5,13 +5,14 @@ from __future__ import annotations
 import csv
 import math
 import time
+import warnings
 
 import numpy as np
 
-from ..errors import IdentifiabilityError, InputError
+from ..errors import DataWarning, IdentifiabilityError, InputError
 from ..files import atomic_open
 from ..planning.selectors import METHODS
-from .common import add_force, check_outputs, float_in, int_at_least, write_json
+from .common import add_checks, add_force, check_options, check_outputs, float_in, int_at_least, write_json
 
 
 def register(sub) -> None:
@@ -37,6 +38,7 @@ def register(sub) -> None:
                    help="solver of the continuous relaxation (default: %(default)s)")
     p.add_argument("--json", nargs="?", const="-", default=None, metavar="SUMMARY.json",
                    help="also write the summary as JSON to SUMMARY.json ('-' or nothing: standard output)")
+    add_checks(p)
     add_force(p)
     p.set_defaults(func=cmd_plan_poses, inputs=("robot", "candidates"))
 
@@ -60,11 +62,13 @@ def register(sub) -> None:
 
 
 def cmd_plan_poses(args) -> int:
+    from ..calibration import _generic_identifiable
+    from ..checks import check_distinct_poses, check_poses
     from ..data import Measurements
     from ..model import Model
-    from ..robot import load_robot
     from ..planning.observability import design_problem
     from ..planning.selectors import PlanSettings, select_poses
+    from ..robot import load_robot
 
     check_outputs({"--out": args.out, "--json": args.json}, [args.robot, args.candidates], args.force)
     robot = load_robot(args.robot)
@@ -72,6 +76,8 @@ def cmd_plan_poses(args) -> int:
     N = len(data)
     if args.m > N:
         raise InputError(f"-m {args.m} asks for more poses than the {N} candidate rows", file=args.candidates)
+    check_poses(data, robot, **check_options(args))
+    check_distinct_poses(data, args.m)
     model = Model(robot, args.model)
     t0 = time.perf_counter()
     try:
@@ -79,6 +85,13 @@ def cmd_plan_poses(args) -> int:
     except IdentifiabilityError as e:
         raise InputError(str(e), file=args.candidates) from e
     t_jac = time.perf_counter() - t0
+    generic = _generic_identifiable(model, model.parameters, model.covariates(data))
+    lost = [n for n in generic if n not in problem.names]
+    if lost:
+        warnings.warn(f"{args.candidates}: these candidates identify {problem.n_parameters} of the {len(generic)} "
+                      f"parameters of model {model.spec} that poses spread over the joint ranges identify (not: "
+                      f"{', '.join(lost[:8])}{' ...' if len(lost) > 8 else ''}); the selection and its "
+                      f"certificate concern those {problem.n_parameters} only", DataWarning, stacklevel=2)
     if args.m < problem.min_poses:
         raise InputError(f"-m {args.m} poses give {3 * args.m} equations, fewer than the "
                          f"{problem.n_parameters} parameters of model {model.spec} these candidates "

@@ -27,6 +27,7 @@ from typing import Callable
 import numpy as np
 
 from ..calibration import calibrate, set_references
+from ..checks import check_poses
 from ..data import Measurements
 from ..errors import InputError
 from ..model import Model, parse_spec
@@ -475,7 +476,8 @@ def _extrapolation_gain(cv0: dict, cv1: dict) -> float:
 
 
 def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: DiagnosisSettings | None = None,
-             progress: Callable[[str], None] | None = None, other: Measurements | None = None) -> DiagnosisReport:
+             progress: Callable[[str], None] | None = None, other: Measurements | None = None,
+             **checks: bool) -> DiagnosisReport:
     """Calibrate step by step on ``cal``, judge every step on ``val``, name the causes.
 
     Parameters
@@ -490,6 +492,10 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
     other : Measurements, optional
         Another measurement series of the same robot: every finding is
         taken there (:mod:`casadical.diagnosis.transfer`).
+    **checks : bool
+        Overrides of the plausibility checks of the poses
+        (:func:`casadical.checks.check_poses`: ``allow_outside_limits``,
+        ``angles_are_degrees``, ``positions_are_mm``).
     """
     t0 = time.perf_counter()
     s = settings or DiagnosisSettings()
@@ -498,6 +504,7 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
         if d.n_joints != robot.n:
             raise InputError(f"has {d.n_joints} joint columns but robot {robot.name} has {robot.n} joints",
                              file=d.path)
+        check_poses(d, robot, **checks)
     dg = _Diagnosis(robot, cal, val, s, say)
     current, accepted, geometric = dg.run()
     parametric = current

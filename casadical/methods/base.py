@@ -23,9 +23,6 @@ from ..robot import Robot
 
 REGISTRY: dict[str, type["Method"]] = {}
 
-#: Joints with a stiffness in all three papers (joint 1 is vertical, joint 6 carries little torque).
-PAPER_COMPLIANT_JOINTS = (2, 3, 4, 5)
-
 
 def register(cls: type["Method"]) -> type["Method"]:
     """Class decorator: make a method available by its ``name`` (case-insensitive lookup)."""
@@ -212,13 +209,16 @@ def frame_rotations(result: CalibrationResult, data: Measurements, frame: str) -
     Rb = base_pose_matrix(xyz, rpy)[:3, :3]
     p = result.parameters
     robot = result.model.robot
-    if robot.convention == "mdh":
-        a, b = p["alpha1"].value, p["beta1"].value
+    if robot.convention == "mdh":   # link 1 turns its axis by alpha1 (and Hayati's beta1, if modelled)
+        a = p["alpha1"].value
+        b = p["beta1"].value if "beta1" in p else 0.0
         ca_, sa, cb, sb = np.cos(a), np.sin(a), np.cos(b), np.sin(b)
         Rx = np.array([[1, 0, 0], [0, ca_, -sa], [0, sa, ca_]])
         Ry = np.array([[cb, 0, sb], [0, 1, 0], [-sb, 0, cb]])
         Rb = Rb @ Rx @ Ry
-    th = data.q[:, 0] + p["theta1"].value
+    j1 = robot.joints[0]
+    q1 = data.q[:, 0] if j1.coupling is None else data.q @ j1.coupling + j1.coupling_offset
+    th = q1 + p["theta1"].value
     c, s = np.cos(th), np.sin(th)
     Rz = np.zeros((N, 3, 3))
     Rz[:, 0, 0], Rz[:, 0, 1], Rz[:, 1, 0], Rz[:, 1, 1], Rz[:, 2, 2] = c, -s, s, c, 1.0
@@ -288,8 +288,13 @@ def new_result(result: CalibrationResult, **kwargs) -> MethodResult:
 
 
 def compliant_joints(robot: Robot, joints=None) -> list[int]:
-    """The compliant joints of a method: given ones, else the papers' 2-5 that exist."""
-    js = PAPER_COMPLIANT_JOINTS if joints is None else tuple(int(j) for j in joints)
+    """The compliant joints of a method: the given ones, else every joint but the first and the last.
+
+    On a six-axis arm the default is the papers' joints 2-5 (joint 1 turns
+    about the vertical, the last joint carries little torque); on other arms
+    the same rule gives 2..n-1 (joint 2 alone on a three-axis arm).
+    """
+    js = tuple(range(2, max(robot.n, 3))) if joints is None else tuple(int(j) for j in joints)
     out = [j for j in js if 1 <= j <= robot.n]
     if not out:
         raise InputError(f"no compliant joint among {list(js)} on {robot.name} ({robot.n} joints)")

@@ -13,7 +13,11 @@ from ..compensators.guard import fit_guarded
 
 @register
 class GARBF(Method):
-    """KM, then a Gaussian RBF network ``tau (6) -> residual (3)`` (GA paper, eqs. 13-20).
+    """KM, then a Gaussian RBF network ``tau (n) -> residual (3)`` (GA paper, eqs. 13-20).
+
+    The paper's YS100 has six joints; on an n-axis arm the network reads the
+    n joints' torques, and the residual frame turning with joint 1 follows
+    the robot file's convention (MDH with or without beta1, or DH).
 
     The torques are the gravity torques of every joint from the calibrated
     kinematics, the link masses and each pose's payload. The network has

@@ -176,7 +176,7 @@ class GlobalStartMethod(Method):
     Settings
     --------
     joints : sequence of int
-        Compliant joints (default 2-5).
+        Compliant joints (default 2-5 on a six-axis arm, 2..n-1 on others).
     params_box : dict
         Further parameters to search, name -> (lower, upper) in SI units
         (e.g. ``{"theta3": (-3.1, 3.1)}``); needs a model whose bounds admit it.

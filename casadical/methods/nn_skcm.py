@@ -11,7 +11,10 @@ from ..compensators.guard import fit_guarded
 
 @register
 class NNSKCM(Method):
-    """SKCM (IPOPT), then an MLP ``q (6) -> residual (3)`` with 5 tanh hidden units.
+    """SKCM (IPOPT), then an MLP ``q (n) -> residual (3)`` with 5 tanh hidden units.
+
+    On the papers' six-axis arms this is their 6-5-3 network; on an n-axis
+    arm the network reads the n joint readings (n-5-3).
 
     The network reads the joint readings (rad) and learns what SKCM leaves:
     gear errors, unmodelled deflections, anything smooth in the joint angles
@@ -24,7 +27,7 @@ class NNSKCM(Method):
     Settings
     --------
     joints : sequence of int
-        Compliant joints of SKCM (default 2-5).
+        Compliant joints of SKCM (default 2-5 on a six-axis arm, 2..n-1 on others).
     hidden : int
         Hidden units (default 5: the 6-5-3 network).
     trainer : {"backprop", "tlbo", "lbfgs"}

@@ -17,7 +17,7 @@ class SKCM(Method):
     Settings
     --------
     joints : sequence of int
-        Compliant joints (default 2-5, as in the papers).
+        Compliant joints (default 2-5 on a six-axis arm, as in the papers; 2..n-1 on others).
     solver : str
         ``"ipopt"`` (default), ``"lm"``, ``"gn"`` or ``"auto"``.
     """

@@ -99,7 +99,7 @@ class TwoPhaseMethod(Method):
     Settings
     --------
     joints : sequence of int
-        Compliant joints (default 2-5).
+        Compliant joints (default 2-5 on a six-axis arm, 2..n-1 on others).
     k_bounds : (float, float)
         Stiffness search range, N m/rad (default 1e4..1e8, log-uniform), cut
         to what the compliance bounds allow.

@@ -1,0 +1,75 @@
+"""Robots that are not built in, for the tests: MDH and DH, beta on some joint or none, 4 to 7 joints."""
+
+import json
+
+#: four-axis palletiser, MDH, no Hayati beta
+ARM4 = {
+    "name": "four-axis palletiser", "convention": "mdh",
+    "joint": [
+        {"alpha_deg": 0, "a_m": 0.0, "d_m": 0.5, "min_deg": -170, "max_deg": 170, "mass_kg": 40,
+         "com_m": [0, 0, -0.2]},
+        {"alpha_deg": -90, "a_m": 0.2, "d_m": 0.0, "min_deg": -80, "max_deg": 60, "mass_kg": 25,
+         "com_m": [0.4, 0, 0]},
+        {"alpha_deg": 0, "a_m": 0.9, "d_m": 0.0, "min_deg": -60, "max_deg": 150, "mass_kg": 15,
+         "com_m": [0.3, 0, 0]},
+        {"alpha_deg": 0, "a_m": 0.8, "d_m": 0.0, "min_deg": -200, "max_deg": 200, "mass_kg": 3,
+         "com_m": [0.05, 0, 0]},
+    ],
+    "tool": {"a_m": 0.15, "b_m": 0.03, "d_m": 0.05},
+    "payload": {"mass_kg": 30},
+}
+
+#: five-axis arm, standard DH, beta on joint 3 (axes 3 and 4 parallel)
+ARM5 = {
+    "name": "five-axis DH arm", "convention": "dh",
+    "joint": [
+        {"alpha_deg": 90, "a_m": 0.15, "d_m": 0.45, "min_deg": -170, "max_deg": 170, "mass_kg": 30,
+         "com_m": [0, -0.1, 0]},
+        {"alpha_deg": 0, "a_m": 0.7, "d_m": 0.0, "min_deg": -10, "max_deg": 170, "mass_kg": 20,
+         "com_m": [-0.35, 0, 0]},
+        {"alpha_deg": 0, "a_m": 0.6, "beta_deg": 0.0, "d_m": 0.0, "min_deg": -150, "max_deg": 150,
+         "mass_kg": 12, "com_m": [-0.3, 0, 0]},
+        {"alpha_deg": 90, "a_m": 0.0, "d_m": 0.0, "min_deg": -120, "max_deg": 120, "mass_kg": 3,
+         "com_m": [0, 0, 0]},
+        {"alpha_deg": 0, "a_m": 0.0, "d_m": 0.15, "min_deg": -350, "max_deg": 350, "mass_kg": 1,
+         "com_m": [0, 0, 0.05]},
+    ],
+    "tool": {"a_m": 0.05, "b_m": 0.02, "d_m": 0.1},
+    "payload": {"mass_kg": 10},
+}
+
+#: seven-axis arm, MDH, beta on joint 4 (axes 3 and 4 parallel)
+ARM7 = {
+    "name": "seven-axis arm", "convention": "mdh",
+    "joint": [
+        {"alpha_deg": 0, "a_m": 0.0, "d_m": 0.34, "min_deg": -170, "max_deg": 170, "mass_kg": 4,
+         "com_m": [0, 0, -0.1]},
+        {"alpha_deg": -90, "a_m": 0.0, "d_m": 0.0, "min_deg": -120, "max_deg": 120, "mass_kg": 4,
+         "com_m": [0, -0.1, 0]},
+        {"alpha_deg": 90, "a_m": 0.0, "d_m": 0.4, "min_deg": -170, "max_deg": 170, "mass_kg": 3,
+         "com_m": [0, 0, -0.15]},
+        {"alpha_deg": 0, "a_m": 0.05, "beta_deg": 0.0, "d_m": 0.0, "min_deg": -120, "max_deg": 120,
+         "mass_kg": 3, "com_m": [0, 0.1, 0]},
+        {"alpha_deg": -90, "a_m": 0.0, "d_m": 0.4, "min_deg": -170, "max_deg": 170, "mass_kg": 2,
+         "com_m": [0, 0, -0.15]},
+        {"alpha_deg": 90, "a_m": 0.0, "d_m": 0.0, "min_deg": -120, "max_deg": 120, "mass_kg": 1.5,
+         "com_m": [0, 0, 0]},
+        {"alpha_deg": -90, "a_m": 0.0, "d_m": 0.126, "min_deg": -175, "max_deg": 175, "mass_kg": 0.5,
+         "com_m": [0, 0, 0.02]},
+    ],
+    "tool": {"a_m": 0.02, "b_m": 0.01, "d_m": 0.1},
+    "payload": {"mass_kg": 5},
+}
+
+ARMS = {"arm4": ARM4, "arm5": ARM5, "arm7": ARM7}
+
+
+def to_toml(doc: dict) -> str:
+    """The robot dict as TOML text (the subset these robots use: scalars, tables, [[joint]])."""
+    out = [f"{k} = {json.dumps(v)}" for k, v in doc.items() if not isinstance(v, (dict, list))]
+    for k, v in doc.items():
+        if isinstance(v, dict):
+            out += [f"[{k}]"] + [f"{kk} = {json.dumps(vv)}" for kk, vv in v.items()]
+    for j in doc["joint"]:
+        out += ["[[joint]]"] + [f"{kk} = {json.dumps(vv)}" for kk, vv in j.items()]
+    return "\n".join(out) + "\n"
