@@ -90,5 +90,9 @@ class IdentifiabilityWarning(CasadicalWarning):
     """The poses leave parameters unidentified that better poses could identify."""
 
 
+class ExtrapolationWarning(CasadicalWarning):
+    """Poses outside the joint ranges (or far from the poses) a calibration was fitted on."""
+
+
 class CorrelationWarning(CasadicalWarning):
     """Identified parameters are strongly correlated or sit at a bound."""

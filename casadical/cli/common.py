@@ -12,6 +12,7 @@ import json
 import math
 import os
 import sys
+import time
 from pathlib import Path
 from typing import Any, Iterable
 
@@ -199,6 +200,14 @@ class Status:
     def line(self, text: str) -> None:
         if not self.quiet:
             print(text, file=sys.stderr, flush=True)
+
+    def timed_line(self):
+        """A line printer that prefixes the time since it was made (for steps of unknown number)."""
+        t0 = time.perf_counter()
+
+        def say(text: str) -> None:
+            self.line(f"[{time.perf_counter() - t0:6.1f} s] {text}")
+        return say
 
     def bar(self, total: int | None, desc: str, unit: str = "it"):
         from tqdm.auto import tqdm

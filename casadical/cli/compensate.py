@@ -3,6 +3,9 @@
 from __future__ import annotations
 
 import math
+import warnings
+
+import numpy as np
 
 from .common import add_force, check_outputs, float_in, int_at_least
 
@@ -41,6 +44,7 @@ def register(sub) -> None:
 def run(args) -> int:
     from ..calibration import load_calibration
     from ..data import Measurements
+    from ..errors import ExtrapolationWarning
     from ..inverse import compensate
 
     check_outputs({"--out": args.out}, [args.cal, args.targets], args.force)
@@ -50,6 +54,9 @@ def run(args) -> int:
         cal.model.jit = False
     result = compensate(cal, targets, tolerance_mm=args.tolerance_mm, max_iter=args.max_iter,
                         max_change_deg=args.max_change_deg, orientation=False if args.position_only else None)
+    if cal.coverage is not None:
+        for text in cal.coverage.describe(np.degrees(result.q), targets.lines, args.targets):
+            warnings.warn(text, ExtrapolationWarning, stacklevel=2)
     result.joints().write_csv(args.out, overwrite=args.force)
     print(result.summary())
     print(f"corrected joints -> {args.out}")

@@ -8,28 +8,46 @@ from .common import (Status, add_checks, add_force, add_quiet, check_options, ch
 
 def register(sub) -> None:
     p = sub.add_parser("diagnose", help="find what the model gets wrong, name the cause, measure the gain",
-                       description="Calibrate on DATA step by step (nominal, geometric, then candidate "
-                                   "causes: joint compliance, periodic gear error, encoder scale, backlash, "
-                                   "thermal expansion, then a black-box compensator), judge every step on "
-                                   "VAL (never fitted), and report the accepted causes with their evidence "
-                                   "and validation gain.")
+                       description="Calibrate on DATA step by step (nominal, geometric, then candidate causes: "
+                                   "joint compliance and progressive stiffness, encoder scale, backlash, thermal "
+                                   "expansion, drift, periodic gear errors, then a black-box compensator). A "
+                                   "cause is accepted only when the calibration data support it: significance "
+                                   "(F-test, BIC) and held-out errors on folds that must extrapolate (time "
+                                   "blocks, joint-range blocks) as well as interpolate; a periodic error must "
+                                   "also be resolved and agree over the halves of its joint's range, or it is "
+                                   "reported as unexplained structure. VAL judges every step and never decides; "
+                                   "--transfer takes every finding to another measurement series.")
     p.add_argument("robot", metavar="ROBOT", help="built-in robot, robot TOML or URDF file")
     p.add_argument("data", metavar="DATA.csv", help="calibration poses")
-    p.add_argument("--validate", required=True, metavar="VAL.csv", help="validation poses (never fitted)")
+    p.add_argument("--validate", required=True, metavar="VAL.csv", help="validation poses (never fitted, never decide)")
     p.add_argument("--json", required=True, metavar="REPORT.json", help="write the report as JSON")
     p.add_argument("--html", metavar="REPORT.html", help="also write a self-contained HTML report")
-    p.add_argument("--alpha", type=float_in(0, 1), default=0.01,
-                   help="family-wise significance level, in (0, 1) (default: %(default)s)")
+    p.add_argument("--out", metavar="FINAL.json",
+                   help="also write the final model as a calibration JSON (compensator included), for predict, "
+                        "compensate, export and calibrate FINAL.json")
+    p.add_argument("--transfer", metavar="OTHER.csv",
+                   help="another measurement series of the same robot: report each finding's gain there, with "
+                        "the base pose re-estimated on a few of its poses and with the geometry refitted")
+    p.add_argument("--transfer-base-poses", type=int_at_least(6), default=30,
+                   help="poses of OTHER.csv the base pose is re-estimated on (default: %(default)s)")
+    p.add_argument("--transfer-refit-poses", type=int_at_least(10), default=None,
+                   help="poses of OTHER.csv the geometry is refitted on (default: as many as DATA.csv has, at most "
+                        "half of OTHER.csv)")
+    p.add_argument("--alpha", type=float_in(0, 1), default=0.001,
+                   help="family-wise significance level of each round, in (0, 1) (default: %(default)s)")
     p.add_argument("--max-harmonic", type=int_at_least(1), default=60,
                    help="highest harmonic scanned, cycles per turn (default: %(default)s)")
-    p.add_argument("--max-rounds", type=int_at_least(0), default=8,
-                   help="most extensions accepted (default: %(default)s)")
+    p.add_argument("--max-rounds", type=int_at_least(0), default=40,
+                   help="safety cap on the rounds; the search stops by itself when nothing more is supported "
+                        "(default: %(default)s)")
+    p.add_argument("--robust", default="huber", choices=["huber", "none"],
+                   help="loss of every fit, as for calibrate (default: %(default)s)")
     p.add_argument("--no-blackbox", action="store_true", help="skip the black-box compensator step")
     p.add_argument("--seed", type=int, default=0, help="seed of the cross-validation folds (default: %(default)s)")
     add_checks(p)
     add_quiet(p)
     add_force(p)
-    p.set_defaults(func=run, inputs=("robot", "data", "validate"))
+    p.set_defaults(func=run, inputs=("robot", "data", "validate", "transfer"))
 
 
 def run(args) -> int:
@@ -38,17 +56,26 @@ def run(args) -> int:
     from ..diagnosis.html import render
     from ..robot import load_robot
 
-    check_outputs({"--json": args.json, "--html": args.html}, [args.robot, args.data, args.validate], args.force)
+    check_outputs({"--json": args.json, "--html": args.html, "--out": args.out},
+                  [args.robot, args.data, args.validate, args.transfer], args.force)
     robot = load_robot(args.robot)
-    cal = Measurements.read_csv(args.data, n_joints=robot.n, require_positions=True)
-    val = Measurements.read_csv(args.validate, n_joints=robot.n, require_positions=True)
-    settings = DiagnosisSettings(alpha=args.alpha, max_harmonic=args.max_harmonic,
-                                 max_rounds=args.max_rounds, blackbox=not args.no_blackbox, seed=args.seed)
-    report = diagnose(robot, cal, val, settings, progress=Status(args.quiet).line, **check_options(args))
+    read = lambda path: Measurements.read_csv(path, n_joints=robot.n, require_positions=True)  # noqa: E731
+    cal, val = read(args.data), read(args.validate)
+    other = read(args.transfer) if args.transfer else None
+    settings = DiagnosisSettings(alpha=args.alpha, max_harmonic=args.max_harmonic, max_rounds=args.max_rounds,
+                                 blackbox=not args.no_blackbox, seed=args.seed, robust=args.robust,
+                                 transfer_base_poses=args.transfer_base_poses,
+                                 transfer_refit_poses=args.transfer_refit_poses)
+    status = Status(args.quiet)
+    report = diagnose(robot, cal, val, settings, progress=status.timed_line(), other=other,
+                      **check_options(args))
     print(report.text())
     write_json(args.json, report.to_dict(), args.force)
     print(f"\nreport -> {args.json}")
     if args.html:
         write_text(args.html, render(report), args.force)
         print(f"html report -> {args.html}")
+    if args.out:
+        report.final.save(args.out, overwrite=args.force)
+        print(f"final model -> {args.out}")
     return 0

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+import warnings
 
 import numpy as np
 
@@ -89,6 +90,7 @@ def run_predict(args) -> int:
     from ..calibration import ErrorStats
     from ..checks import check_calibration_fits, check_poses
     from ..data import Measurements
+    from ..errors import ExtrapolationWarning
     from ..model import Model
     from ..robot import load_robot
 
@@ -116,6 +118,9 @@ def run_predict(args) -> int:
             check_calibration_fits(errors, data, args.model,
                                    cal.calibration.mean_mm if cal.calibration else None, args.allow_mismatch)
         stats = ErrorStats.of(errors)
+    if cal is not None and cal.coverage is not None:
+        for text in cal.coverage.describe(data.q_deg, data.lines, args.poses):
+            warnings.warn(text, ExtrapolationWarning, stacklevel=2)
     data.with_positions(xyz).write_csv(args.out, overwrite=args.force)
     print(f"predicted {len(data)} poses -> {args.out}")
     if stats is not None:
