@@ -183,39 +183,80 @@ class Model:
                 xyz = xyz + off
         tau = ca.vertcat(*ctx.torques()) if robot.n else ca.SX.zeros(0)
         dq = ca.vertcat(*[ca.SX(o) if not isinstance(o, ca.SX) else o for o in offsets])
-        J = ca.densify(ca.jacobian(xyz, p))
+        flange = ca.mtimes(base[0], frames.tool[0])  # flange (last link) rotation, measurement frame
+        self._sym = {"q": q, "p": p, "c": c, "b0": b0, "xyz": xyz, "tau": tau, "dq": dq, "flange": flange}
+        self._graphs: dict = {}
+        self._fk: ca.Function | None = None
+        self._fk_jac: ca.Function | None = None
+
+    def _graph(self, which: str) -> tuple:
+        """``(inputs, outputs, broadcast inputs, summed outputs)`` of a per-pose Function, built on first use.
+
+        Derivatives are what makes a model expensive to build: each is made
+        only when a computation asks for it.
+        """
+        g = self._graphs.get(which)
+        if g is not None:
+            return g
+        S = self._sym
+        q, p, c, b0, xyz = S["q"], S["p"], S["c"], S["b0"], S["xyz"]
         ins = [q, p, c, b0]
-        y = ca.SX.sym("y", 3)
-        delta = ca.SX.sym("delta")  # robust loss: 1 / (c sigma)^2, 0 for plain least squares
-        r = xyz - y
-        u2 = ca.dot(r, r)
-        # per-pose loss pieces, summed over poses by map's reduce_out: the pseudo-Huber loss
-        # (u2 / 2 when delta = 0), its gradient by reverse mode, and the upper triangle of the
-        # IRLS Gauss-Newton matrix w J^T J with J's sparsity (see casadical.problem.RobustLoss)
-        root = ca.sqrt(1 + delta * u2)
-        cost = u2 / (root + 1)
-        Js = ca.jacobian(xyz, p)
-        lsq = ins + [y, delta]
+        if which in ("cost", "grad", "gn_hess"):
+            y = ca.SX.sym("y", 3)
+            delta = ca.SX.sym("delta")  # robust loss: 1 / (c sigma)^2, 0 for plain least squares
+            r = xyz - y
+            u2 = ca.dot(r, r)
+            # per-pose loss pieces, summed over poses by map's reduce_out: the pseudo-Huber loss
+            # (u2 / 2 when delta = 0), its gradient by reverse mode, and the upper triangle of the
+            # IRLS Gauss-Newton matrix w J^T J with J's sparsity (see casadical.problem.RobustLoss)
+            root = ca.sqrt(1 + delta * u2)
+            cost = u2 / (root + 1)
+            lsq = ins + [y, delta]
+            if which == "cost":
+                g = (lsq, [cost], (1, 3, 5), (0,))
+            elif which == "grad":
+                g = (lsq, [cost, ca.gradient(cost, p)], (1, 3, 5), (0, 1))
+            else:
+                # Gauss-Newton matrix of the loss: J^T (w I - delta w^3 r r^T) J, w = 1 / root (positive
+                # semi-definite: w^3 along r), see casadical.problem.Linearization
+                Js = ca.jacobian(xyz, p)
+                Jr = ca.mtimes(Js.T, r)
+                H = ca.mtimes(Js.T, Js) / root - delta / root ** 3 * ca.mtimes(Jr, Jr.T)
+                g = (lsq, [ca.triu(H)], (1, 3, 5), (0,))
+        elif which == "fk":
+            g = (ins, [xyz], (1, 3), ())
+        elif which == "fk_jac":
+            g = (ins, [xyz, ca.densify(ca.jacobian(xyz, p))], (1, 3), ())
+        elif which in ("tau", "dq"):
+            g = ([q, p, c], [S[which]], (1,), ())
         # joint-space derivatives for inverse problems (corrected joint targets): through every
         # term, since deflections and gear errors depend on q too
-        Jq = ca.densify(ca.jacobian(xyz, q))
-        R = ca.mtimes(base[0], frames.tool[0])  # flange (last link) rotation, measurement frame
-        Jw = _angular_jacobian(R, q)
-        # name: (inputs, outputs, broadcast inputs, summed outputs)
-        self._graphs = {
-            "fk": (ins, [xyz], (1, 3), ()),
-            "fk_jac": (ins, [xyz, J], (1, 3), ()),
-            "cost": (lsq, [cost], (1, 3, 5), (0,)),
-            "grad": (lsq, [cost, ca.gradient(cost, p)], (1, 3, 5), (0, 1)),
-            "gn_hess": (lsq, [ca.triu(ca.mtimes(Js.T, Js)) / root], (1, 3, 5), (0,)),
-            "tau": ([q, p, c], [tau], (1,), ()),
-            "dq": ([q, p, c], [dq], (1,), ()),
-            "fk_q_jac": (ins, [xyz, Jq], (1, 3), ()),
-            "flange": (ins, [R], (1, 3), ()),
-            "flange_jac": (ins, [R, Jw], (1, 3), ()),
-        }
-        self.fk = ca.Function("fk", ins, [xyz], ["q", "p", "cov", "base0"], ["xyz"])
-        self.fk_jac = ca.Function("fk_jac", ins, [xyz, J], ["q", "p", "cov", "base0"], ["xyz", "J"])
+        elif which == "fk_q_jac":
+            g = (ins, [xyz, ca.densify(ca.jacobian(xyz, q))], (1, 3), ())
+        elif which == "flange":
+            g = (ins, [S["flange"]], (1, 3), ())
+        elif which == "flange_jac":
+            g = (ins, [S["flange"], _angular_jacobian(S["flange"], q)], (1, 3), ())
+        else:
+            raise ModelError(f"no per-pose function {which!r}")
+        self._graphs[which] = g
+        return g
+
+    @property
+    def fk(self) -> ca.Function:
+        """Tool point of one pose: ``fk(q, p, cov, base0) -> xyz``."""
+        if self._fk is None:
+            ins, outs, _, _ = self._graph("fk")
+            self._fk = ca.Function("fk", ins, outs, ["q", "p", "cov", "base0"], ["xyz"])
+        return self._fk
+
+    @property
+    def fk_jac(self) -> ca.Function:
+        """Tool point and its Jacobian w.r.t. the parameters: ``fk_jac(q, p, cov, base0) -> (xyz, J)``."""
+        if self._fk_jac is None:
+            ins, outs, _, _ = self._graph("fk_jac")
+            self._fk_jac = ca.Function("fk_jac", ins, outs, ["q", "p", "cov", "base0"], ["xyz", "J"])
+        return self._fk_jac
 
     def expression_size(self) -> ExpressionSize:
         return ExpressionSize(len(self.parameters), self.fk.n_instructions(),
@@ -231,7 +272,7 @@ class Model:
         ``fk_q_jac``, ``flange``, ``flange_jac``)."""
         fun = self._compiled.get((which, jit))
         if fun is None:
-            ins, outs, _, _ = self._graphs[which]
+            ins, outs, _, _ = self._graph(which)
             fun = ca.Function(which, ins, outs)
             if jit:
                 try:
@@ -249,7 +290,7 @@ class Model:
 
     def batch_function(self, which: str, N: int) -> ca.Function:
         """``which`` mapped over N poses: parameters and base0 broadcast, sums reduced."""
-        _, _, bcast, reduce = self._graphs[which]
+        _, _, bcast, reduce = self._graph(which)
         fun = self.per_pose_function(which, self._use_jit(N))
         return fun.map(f"{which}_{N}", "serial", N, list(bcast), list(reduce))
 

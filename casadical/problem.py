@@ -98,7 +98,8 @@ class Linearization:
     cost : float
         Sum of the pose losses (m^2; half the SSR for plain least squares).
     A : ndarray, shape (n_free, n_free)
-        ``sum w_i J_i^T J_i`` (Gauss-Newton matrix).
+        The Gauss-Newton matrix of the loss: ``sum J_i^T (w_i I - delta w_i^3 r_i r_i^T) J_i``
+        (``sum J_i^T J_i`` for least squares).
     g : ndarray, shape (n_free,)
         ``sum w_i J_i^T r_i``, the gradient of ``cost``.
     """
@@ -204,7 +205,12 @@ class CalibrationProblem:
             Jw = Jx * np.sqrt(w)[:, None, None]
             Jw2 = Jw.reshape(-1, nf)
             A += Jw2.T @ Jw2
-            g += np.einsum("nkp,nk->p", Jx, r * w[:, None])
+            v = np.einsum("nkp,nk->np", Jx, r)            # J_i^T r_i per pose
+            g += v.T @ w
+            if self.loss.delta:
+                # the loss's own curvature along each residual (Triggs' correction of IRLS): the matrix
+                # stays positive semi-definite, w^3 along r_i, and LM converges as fast as for least squares
+                A -= self.loss.delta * (v * (w ** 3)[:, None]).T @ v
         u2 = np.einsum("ij,ij->i", r_all, r_all)
         return Linearization(r_all, self.loss.weight(u2), float(self.loss.rho(u2).sum()), A, g)
 

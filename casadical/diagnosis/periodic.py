@@ -32,8 +32,8 @@ import numpy as np
 from scipy import stats
 
 from ..data import Measurements
-from ..result import CalibrationResult
-from .validation import Linearized
+from ..parameters import Parameter
+from .screening import LinearFit, Screen
 
 #: the data must prefer a harmonic to each neighbour by this log-likelihood-ratio (x2): 2 ln 100
 NEIGHBOUR_MARGIN = 2 * math.log(100.0)
@@ -95,20 +95,16 @@ def _columns(direction: np.ndarray, q: np.ndarray, h: int, sw: np.ndarray) -> np
                      (direction * np.cos(h * q)[:, None]).ravel() * sw], axis=1)
 
 
-def resolution(current: CalibrationResult, data: Measurements, joint: int, harmonic: int) -> Resolution:
-    """Resolution of harmonic ``harmonic`` of ``joint`` in ``data``, given the current model."""
-    m, p = current.model, current.parameters
-    xyz, J = m.predict_jacobian(data.q, p.values, m.covariates(data), current.base0)
-    r = xyz - data.xyz
-    sw = np.repeat(np.sqrt(current.loss.weight(np.einsum("ij,ij->i", r, r))), 3)
-    free = np.flatnonzero(p.free)
-    G = J[:, :, free].reshape(-1, len(free)) * p.scales[free] * sw[:, None]
+def resolution(screen: Screen, joint: int, harmonic: int) -> Resolution:
+    """Resolution of harmonic ``harmonic`` of ``joint`` in the round's data, given the current model."""
+    sw = np.repeat(np.sqrt(screen.w), 3)
+    G = screen.J[:, :, screen.cur].reshape(len(sw), -1) * sw[:, None]
     Q, _ = np.linalg.qr(G)
-    rw = r.ravel() * sw
+    rw = screen.r.ravel() * sw
     r_perp = rw - Q @ (Q.T @ rw)
-    sigma2 = float(r_perp @ r_perp) / max(len(rw) - len(free), 1)
-    direction = J[:, :, p.index(f"theta{joint}")]
-    q = data.q[:, joint - 1]
+    sigma2 = float(r_perp @ r_perp) / max(len(rw) - G.shape[1], 1)
+    direction = screen.theta_dir[joint]
+    q = screen.cal.q[:, joint - 1]
 
     def drop(h: int) -> float:
         C = _columns(direction, q, h, sw)
@@ -175,18 +171,18 @@ class Halves:
         return f"{what}: {values} ({'agree' if self.agree else 'disagree'}, chi2 = {self.chi2:.1f})"
 
 
-def halves(fit: CalibrationResult, data: Measurements, names: list[str], joint: int, alpha: float,
-           lin: Linearized | None = None) -> list[Halves]:
+def halves(fit: LinearFit, params: list[Parameter], data: Measurements, joint: int, alpha: float) -> list[Halves]:
     """A joint term fitted on the joint's range halves and on the time halves.
 
-    ``names`` are the term's parameters: ``(s, c)`` of a periodic error
+    ``params`` are the term's parameters: ``(s, c)`` of a periodic error
     (amplitude and phase are reported) or one parameter (its value in
     display units is reported as the "amplitude", phase 0). Each half is
-    refitted by one Gauss-Newton step from the fit on all poses.
+    refitted by one Gauss-Newton step from ``fit``.
     """
-    lin = lin or Linearized.of(fit, data)
+    lin = fit.lin
+    names = [p.name for p in params]
     cols = [lin.names.index(n) for n in names]
-    base = np.array([fit.parameters[n].value for n in names])
+    base = np.array([fit.values[n] for n in names])
     q = data.q[:, joint - 1]
     order_q = np.argsort(q, kind="stable")
     order_t = np.argsort(data.rows, kind="stable")
@@ -205,8 +201,8 @@ def halves(fit: CalibrationResult, data: Measurements, names: list[str], joint: 
         if len(names) == 2:
             amp = tuple(math.degrees(math.hypot(*e)) * 3600 for e in est)
             ph = tuple(math.degrees(math.atan2(e[1], e[0])) for e in est)
+            unit = ""
         else:
-            p = fit.parameters[names[0]]
-            amp, ph = tuple(float(p.to_display(e[0])) for e in est), (0.0, 0.0)
-        out.append(Halves(split, amp, ph, chi2, chi2 < crit, "" if len(names) == 2 else fit.parameters[names[0]].display_unit))
+            amp, ph, unit = tuple(float(params[0].to_display(e[0])) for e in est), (0.0, 0.0), params[0].display_unit
+        out.append(Halves(split, amp, ph, chi2, chi2 < crit, unit))
     return out

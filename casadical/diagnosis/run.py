@@ -32,20 +32,19 @@ from ..data import Measurements
 from ..errors import InputError
 from ..model import Model, parse_spec
 from ..problem import RobustLoss
-from ..result import CalibrationResult
+from ..result import CalibrationResult, ErrorStats
 from ..robot import Robot
 from . import transfer as transfer_mod
 from .blackbox import blackbox
 from .candidates import Candidate, compose_spec, tell_apart
+from .findings import UnexplainedLog, describe
 from .periodic import halves, resolution
 from .periodogram import Periodogram, joint_errors, periodogram
-from .plots import residual_plot
 from .report import DiagnosisReport, Finding, Step
-from .screening import Scored, screen
+from .screening import Scored, Screen
 from .statistics import nested_test
-from .validation import CVResult, Linearized, schemes
-
-KINDS = ("random", "time", "joint")
+from .validation import (KINDS, Linearized, by_kind, cv_failure, cv_record, cv_text, extrapolation_gain,
+                         not_better, schemes)
 
 
 @dataclass
@@ -115,50 +114,28 @@ class _Diagnosis:
         self.findings: list[Finding] = []
         self.notes: list[str] = []
         self.periodograms: list[Periodogram] = []
-        self.excluded: set[tuple[int, int]] = set()        # periodic (joint, harmonic) found unexplained
-        self.excluded_causes: set[Candidate] = set()        # other candidates found unexplained
-        self.unexplained: dict[int, Finding] = {}           # by joint
-        self.extra: dict[int, list[Candidate]] = {}         # unexplained periodic terms, by joint
+        self.unexplained = UnexplainedLog()
         self.before: dict[int, CalibrationResult] = {}      # fit before each finding, by finding index
         self.support: dict[int, tuple] = {}                  # (test, cv before, cv after, checks) by finding
 
     # -- fitting ---------------------------------------------------------------
 
-    def model(self, spec: str) -> Model:
+    def fit(self, spec: str, start: CalibrationResult | dict | None = None, loss: RobustLoss | None = None
+            ) -> CalibrationResult:
+        """Calibrate ``spec`` on the calibration poses (LM), from ``start``'s values (a result or a dict)."""
         terms = parse_spec(spec)
         set_references(terms, self.cal)
-        return Model(self.robot, terms, jit=False)
-
-    def fit(self, spec: str, start: CalibrationResult | None = None, loss: RobustLoss | None = None,
-            data: Measurements | None = None) -> CalibrationResult:
-        model = self.model(spec)
+        model = Model(self.robot, terms, jit=False)
         st = None
         if start is not None:
-            st = {p.name: p.value for p in start.parameters if p.name in model.parameters
-                  and not p.name.startswith("base_")}
-        return calibrate(self.robot, data or self.cal, model, "lm", start=st, warn=False,
-                         robust=loss or self.s.robust)
+            values = start if isinstance(start, dict) else {p.name: p.value for p in start.parameters}
+            st = {n: v for n, v in values.items() if n in model.parameters and not n.startswith("base_")}
+        return calibrate(self.robot, self.cal, model, "lm", start=st, warn=False, robust=loss or self.s.robust)
 
     def deviance(self, res: CalibrationResult, loss: RobustLoss) -> float:
         """Twice the loss of ``res`` on the calibration poses under ``loss`` (SSR for least squares)."""
         r = res.residuals(self.cal)
         return 2.0 * float(loss.rho(np.einsum("ij,ij->i", r, r)).sum())
-
-    @staticmethod
-    def n_free(res: CalibrationResult) -> int:
-        return int(res.parameters.free.sum())
-
-    def cv(self, res: CalibrationResult) -> CVResult:
-        return Linearized.of(res, self.cal).cv(self.schemes)
-
-    def cv_kinds(self, cv: CVResult, mask: np.ndarray) -> dict:
-        """Held-out means (mm) by kind of fold."""
-        return {k: cv.kind_mean_mm(k, mask) for k in KINDS}
-
-    @staticmethod
-    def not_better(cv0: dict, cv1: dict) -> list[str]:
-        """Kinds of fold on which the held-out mean error does not drop."""
-        return [k for k in KINDS if not cv1[k] < cv0[k]]
 
     def mask(self, res: CalibrationResult) -> np.ndarray:
         """Poses that count in held-out means: those the robust loss did not set aside."""
@@ -174,24 +151,23 @@ class _Diagnosis:
         self.say(f"  validation mean {self.steps[-1].validation.mean_mm:.4f} mm (judge only)")
         self.say("step 2: geometric (kinematic) calibration")
         kin = self.kinematic = self.fit("kinematic")
-        loss = kin.loss
-        test = nested_test(self.deviance(nominal, loss), self.n_free(nominal), self.deviance(kin, loss),
-                           self.n_free(kin), self.n_eq)
+        test = nested_test(self.deviance(nominal, kin.loss), int(nominal.parameters.free.sum()),
+                           self.deviance(kin, kin.loss), int(kin.parameters.free.sum()), self.n_eq)
         mask = self.mask(kin)
-        cv0, cv1 = self.cv_kinds(self.cv(nominal), mask), self.cv_kinds(self.cv(kin), mask)
-        worse = self.not_better(cv0, cv1)
+        cv0, cv1 = (by_kind(Linearized.of(r, self.cal).cv(self.schemes), mask) for r in (nominal, kin))
+        worse = not_better(cv0, cv1)
         ok = test.log10_p < math.log10(self.s.alpha) and test.delta_bic < 0 and not worse
         kv = kin.stats(self.val)
         reason = "" if ok else "; ".join([f"not significant ({test.text()})"] * (test.log10_p >= math.log10(
-            self.s.alpha)) + ([_cv_failure(worse, cv0, cv1)] if worse else []))
+            self.s.alpha)) + ([cv_failure(worse, cv0, cv1)] if worse else []))
         self.steps.append(Step("kinematic", kin.calibration, kv, ok, Candidate("geometric"), test,
-                               _cv_record(cv0, cv1), reason))
+                               cv_record(cv0, cv1), reason))
         self.say(f"  validation mean {kv.mean_mm:.4f} mm ({test.text()})")
         if ok:
             gain = self.steps[0].validation.mean_mm - kv.mean_mm
             self.findings.append(Finding(Candidate("geometric"), gain,
                                          f"{test.text()} on the calibration poses; held-out mean "
-                                         + _cv_text(cv0, cv1) + "; link, base and tool parameters"))
+                                         + cv_text(cv0, cv1) + "; link, base and tool parameters"))
             current, geometric = kin, True
         else:
             current, geometric = nominal, False
@@ -201,10 +177,24 @@ class _Diagnosis:
             new = self.round(current, accepted, geometric)
             if new is None:
                 break
-            res, cand = new
+            cand, start, level = new
+            step = next(s for s in reversed(self.steps) if s.accepted)
+            new_fit = self.fit(compose_spec(accepted + [cand], geometric), start=start, loss=current.loss)
+            # the one-step fit decided; the full fit must confirm the significance
+            test = nested_test(self.deviance(current, current.loss), int(current.parameters.free.sum()),
+                               self.deviance(new_fit, current.loss), int(new_fit.parameters.free.sum()), self.n_eq)
+            if test.log10_p >= level or test.delta_bic >= 0:
+                step.accepted, step.test = False, test
+                step.reason = f"not significant once fitted in full ({test.text()})"
+                self.say(f"    {cand.label()}: {step.reason}")
+                self.findings.pop()
+                self.support.pop(len(self.findings), None)
+                self.unexplained.excluded_causes.add(cand)
+                continue
             self.before[len(self.findings) - 1] = current
             accepted.append(cand)
-            current = self.fit(compose_spec(accepted, geometric), start=res)   # noise scale re-estimated
+            current = self.fit(compose_spec(accepted, geometric), start=new_fit)   # noise scale re-estimated
+            step.calibration, step.validation = current.calibration, current.stats(self.val)
         else:
             if self.s.max_rounds:
                 self.notes.append(f"stopped at the safety cap of {self.s.max_rounds} rounds while causes were "
@@ -214,9 +204,8 @@ class _Diagnosis:
     def candidates(self, current: CalibrationResult, accepted: list[Candidate]) -> list[Candidate]:
         """Every candidate not yet in the model; periodic ones from the periodogram peaks."""
         have = set(accepted)
-        n = self.robot.n
         out: list[Candidate] = []
-        for j in range(1, n + 1):
+        for j in range(1, self.robot.n + 1):
             out += [Candidate("joint_compliance", j), Candidate("encoder_scale", j),
                     Candidate("backlash", j, source="torque"), Candidate("backlash", j, source="motion")]
             if Candidate("joint_compliance", j) in have:
@@ -231,19 +220,19 @@ class _Diagnosis:
         model, p = current.model, current.parameters
         _, J = model.predict_jacobian(self.cal.q, p.values, model.covariates(self.cal), current.base0)
         resid = current.residuals(self.cal)
-        H = self.max_harmonic()
         self.periodograms = []
-        for j in range(1, n + 1):
+        for j in range(1, self.robot.n + 1):
             s, w = joint_errors(resid, J[:, :, p.index(f"theta{j}")])
-            pg = periodogram(self.cal.q[:, j - 1], s, w, j, H)
+            pg = periodogram(self.cal.q[:, j - 1], s, w, j, self.max_harmonic())
             self.periodograms.append(pg)
-            ranked = [h for h in pg.harmonics[np.argsort(-pg.power)] if (j, int(h)) not in self.excluded][:2]
+            ranked = [int(h) for h in pg.harmonics[np.argsort(-pg.power)]
+                      if (j, int(h)) not in self.unexplained.excluded][:2]
             # the first harmonic always: over a small range it mimics an encoder scale error,
             # and the ambiguity can only be reported if both are screened
-            hs = {int(h) for h in ranked} | ({1} if (j, 1) not in self.excluded else set())
+            hs = set(ranked) | ({1} if (j, 1) not in self.unexplained.excluded else set())
             out += [Candidate("joint_periodic", j, h) for h in sorted(hs)]
-        return [c for c in out if c not in have and c not in self.excluded_causes and not (c.cause == "backlash" and any(
-            a.cause == "backlash" and a.joint == c.joint for a in accepted))]
+        return [c for c in out if c not in have and c not in self.unexplained.excluded_causes and not (
+            c.cause == "backlash" and any(a.cause == "backlash" and a.joint == c.joint for a in accepted))]
 
     def max_harmonic(self) -> int:
         return min(self.s.max_harmonic, max(len(self.cal) // 3, 1))
@@ -254,121 +243,98 @@ class _Diagnosis:
         return (len(cands) - per) + self.robot.n * self.max_harmonic()
 
     def round(self, current: CalibrationResult, accepted: list[Candidate], geometric: bool):
-        cands = self.candidates(current, accepted)
-        scored = screen(current, accepted, cands, geometric, self.cal)
-        level = math.log10(self.s.alpha / max(self.n_tests(cands), 1))
-        if not scored or scored[0].log10_p >= level:
-            best = scored[0] if scored else None
-            self.say("  no candidate passes the score test" +
-                     (f" (best: {best.candidate.label()}, {best.test.text()})" if best else ""))
-            return None
-        loss = current.loss
+        """Screen, fit the best candidates by one step, accept one; None when nothing is supported."""
+        while True:
+            cands = self.candidates(current, accepted)
+            scr = Screen(current, accepted, cands, geometric, self.cal, self.val)
+            scored = scr.scores(cands)
+            level = math.log10(self.s.alpha / max(self.n_tests(cands), 1))
+            if not scored or scored[0].log10_p >= level:
+                best = scored[0] if scored else None
+                self.say("  no candidate passes the score test" +
+                         (f" (best: {best.candidate.label()}, {best.test.text()})" if best else ""))
+                return None
+            accepted_now, pending = self.try_tiers(scr, scored, level, current, accepted, geometric)
+            if accepted_now is not None:
+                return accepted_now
+            for item in pending:
+                self.unexplained.add(*item)
+            if not pending:
+                self.say("  no candidate is supported on the calibration data")
+                return None
+            self.say("  no cause is supported; the structure that cannot be named is set aside, and the round "
+                     "screens again")
+
+    def try_tiers(self, scr: Screen, scored: list[Scored], level: float, current: CalibrationResult,
+                  accepted: list[Candidate], geometric: bool):
+        """Tiers in order; in a tier, up to ``confirm`` candidates fitted and judged, the best accepted."""
         mask = self.mask(current)
-        cv0 = self.cv_kinds(self.cv(current), mask)
-        dev0, p0 = self.deviance(current, loss), self.n_free(current)
+        base = scr.fit()
+        cv0 = by_kind(base.lin.cv(self.schemes), mask)
         cur_val = current.stats(self.val)
-        # significant periodic structure that cannot be named: reported as unexplained unless the round
-        # accepts a cause (then the next round screens again what is left)
-        pending: list[tuple] = []
+        pending: list[tuple] = []   # significant structure that cannot be named (unless a cause is accepted)
         for tier in (1, 2, 3):
-            tried = [sc for sc in scored if sc.candidate.tier == tier and sc.log10_p < level][: self.s.confirm]
             passing = []
-            for sc in tried:
+            for sc in [sc for sc in scored if sc.candidate.tier == tier and sc.log10_p < level][: self.s.confirm]:
                 cand = sc.candidate
-                spec = compose_spec(accepted + [cand], geometric)
                 self.say(f"  fitting {cand.label()} (score {sc.test.text()})")
-                res = self.fit(spec, start=current, loss=loss)
-                test = nested_test(dev0, p0, self.deviance(res, loss), self.n_free(res), self.n_eq)
-                cv1 = self.cv_kinds(self.cv(res), mask)
+                fit = scr.fit(cand)
+                test = nested_test(base.ssr, base.n_free, fit.ssr, fit.n_free, self.n_eq)
+                cv1 = by_kind(fit.lin.cv(self.schemes), mask)
                 reasons = []
                 if test.log10_p >= level:
                     reasons.append(f"F-test not significant at the corrected level ({test.text()})")
                 if test.delta_bic >= 0:
                     reasons.append(f"BIC does not improve ({test.delta_bic:+.1f})")
-                worse = self.not_better(cv0, cv1)
+                worse = not_better(cv0, cv1)
                 # real structure on these poses: significant, and it predicts random held-out poses
                 significant = not reasons and "random" not in worse
                 if worse:
-                    reasons.append(_cv_failure(worse, cv0, cv1))
-                checks: dict = {}
-                if cand.cause in ("joint_periodic", "encoder_scale") and significant:
-                    # a function of the joint's reading: the same over the lower and the upper half of its range
-                    hv = halves(res, self.cal, cand.parameter_names(), cand.joint, self.s.stability_alpha)
-                    checks["halves"] = hv
-                    if cand.cause == "joint_periodic":
-                        checks["resolution"] = rs = resolution(current, self.cal, cand.joint, cand.harmonic)
-                        if not rs.resolved:
-                            reasons.append(rs.text())
-                    if not hv[0].agree:
-                        reasons.append("the halves of the joint's range disagree: " + hv[0].text())
-                vstats = res.stats(self.val)
-                step = Step(spec, res.calibration, vstats, False, cand, test, _cv_record(cv0, cv1),
-                            "; ".join(reasons))
+                    reasons.append(cv_failure(worse, cv0, cv1))
+                checks = self.joint_checks(scr, fit, cand) if significant else {}
+                reasons += checks.pop("reasons", [])
+                vstats = ErrorStats.of(scr.validation_errors(fit))
+                step = Step(compose_spec(accepted + [cand], geometric), ErrorStats.of(np.linalg.norm(fit.lin.r, axis=1)),
+                            vstats, False, cand, test, cv_record(cv0, cv1), "; ".join(reasons))
                 self.steps.append(step)
                 if reasons:
                     self.say(f"    rejected: {step.reason}")
                     if cand.cause in ("joint_periodic", "encoder_scale") and significant:
-                        pending.append((cand, res, test, cv0, cv1, checks, cur_val.mean_mm - vstats.mean_mm,
+                        pending.append((cand, fit.values, test, cv0, cv1, checks, cur_val.mean_mm - vstats.mean_mm,
                                         "; ".join(reasons)))
                     continue
-                passing.append((_extrapolation_gain(cv0, cv1), sc, res, test, cv1, checks, step))
+                passing.append((extrapolation_gain(cv0, cv1), sc, fit, test, cv1, checks, step))
             if passing:
-                gain_x, sc, res, test, cv1, checks, step = max(passing, key=lambda t: t[0])
+                _, sc, fit, test, cv1, checks, step = max(passing, key=lambda t: t[0])
                 step.accepted = True
-                gain = cur_val.mean_mm - step.validation.mean_mm
-                self.say(f"    accepted {sc.candidate.label()}: held-out mean {_cv_text(cv0, cv1)} "
+                self.say(f"    accepted {sc.candidate.label()}: held-out mean {cv_text(cv0, cv1)} "
                          f"(validation mean {cur_val.mean_mm:.4f} -> {step.validation.mean_mm:.4f} mm, judge only)")
-                f = Finding(sc.candidate, gain, "", ambiguous_with=self.ambiguous(sc, scored, level))
-                f.holds_up = {"test": test.text(), "cv_mm": _cv_record(cv0, cv1)}
-                if "resolution" in checks:
-                    f.holds_up["resolution"] = checks["resolution"].to_dict()
-                if "halves" in checks:
-                    f.holds_up["halves"] = [h.to_dict() for h in checks["halves"]]
+                f = Finding(sc.candidate, cur_val.mean_mm - step.validation.mean_mm, "",
+                            ambiguous_with=self.ambiguous(sc, scored, level),
+                            holds_up={"test": test.text(), "cv_mm": cv_record(cv0, cv1),
+                                      **{k: v.to_dict() for k, v in checks.items() if k == "resolution"},
+                                      **({"halves": [h.to_dict() for h in checks["halves"]]} if "halves" in checks
+                                         else {})})
                 self.support[len(self.findings)] = (test, cv0, cv1, checks)
                 self.findings.append(f)
-                return res, sc.candidate
-        for item in pending:
-            self.record_unexplained(*item)
-        if not pending:
-            self.say("  no candidate is supported on the calibration data")
-            return None
-        self.say("  no cause is supported; the periodic structure that cannot be named is set aside, and the "
-                 "round screens again")
-        return self.round(current, accepted, geometric)
+                return (sc.candidate, {**{p.name: p.value for p in current.parameters}, **fit.values}, level), pending
+        return None, pending
 
-    def record_unexplained(self, cand: Candidate, res: CalibrationResult, test, cv0, cv1, checks: dict,
-                           potential: float, why: str) -> None:
-        """Significant structure of a joint's angle error that cannot be named: kept out of the model, reported."""
-        j = cand.joint
+    def joint_checks(self, scr: Screen, fit, cand: Candidate) -> dict:
+        """A function of a joint's reading (periodic error, encoder scale) must hold over both halves of the
+        joint's range; a periodic error must also be resolved from its neighbours and from geometry."""
+        if cand.cause not in ("joint_periodic", "encoder_scale"):
+            return {}
+        out: dict = {"reasons": []}
+        params = [scr.params[n] for n in cand.parameter_names()]
+        hv = out["halves"] = halves(fit, params, self.cal, cand.joint, self.s.stability_alpha)
         if cand.cause == "joint_periodic":
-            band = checks["resolution"].band if "resolution" in checks else (cand.harmonic, cand.harmonic)
-            self.excluded.update((j, h) for h in range(band[0], band[1] + 1))
-            s_, c_ = (res.parameters[n].value for n in cand.parameter_names())
-            size = math.degrees(math.hypot(s_, c_)) * 3600
-            what = f"harmonic {cand.harmonic} ({size:.1f} arcsec)"
-            item = {"harmonic": cand.harmonic, "band": list(band), "amplitude_arcsec": size}
-        else:
-            self.excluded_causes.add(cand)
-            p = res.parameters[cand.parameter_names()[0]]
-            what = f"a trend along the joint's reading ({p.value * 1e6:.0f} ppm)"
-            item = {"trend_ppm": p.value * 1e6}
-        f = self.unexplained.get(j)
-        if f is None:
-            f = Finding(Candidate("unexplained", j), 0.0, "", in_model=False, potential_gain_mm=0.0)
-            f.holds_up = {"structures": []}
-            self.unexplained[j] = f
-            self.extra[j] = [cand]          # the strongest, for the transfer study
-        item.update(what=what, test=test.text(), cv_mm=_cv_record(cv0, cv1), why=why)
-        if "halves" in checks:
-            item["halves"] = [h.to_dict() for h in checks["halves"]]
-        f.holds_up["structures"].append(item)
-        f.potential_gain_mm = max(f.potential_gain_mm or 0.0, potential)
-        f.where = f"joint {j}: " + "; ".join(x["what"] for x in f.holds_up["structures"])
-        f.evidence = (f"structure in joint {j}'s angle error that is significant on the calibration poses but "
-                      "cannot be named as a cause: " + " | ".join(f"{x['what']}: {x['why']}"
-                                                                 for x in f.holds_up["structures"])
-                      + f". Alone it would lower this series' validation mean by up to {f.potential_gain_mm:.4f} mm;"
-                      " it is kept out of the final model because it does not hold up as a cause")
+            rs = out["resolution"] = resolution(scr, cand.joint, cand.harmonic)
+            if not rs.resolved:
+                out["reasons"].append(rs.text())
+        if not hv[0].agree:
+            out["reasons"].append("the halves of the joint's range disagree: " + hv[0].text())
+        return out
 
     def ambiguous(self, best: Scored, scored: list[Scored], level: float) -> list[dict]:
         """Candidates whose screening fit explains the same residual as the accepted one."""
@@ -387,24 +353,6 @@ class _Diagnosis:
                             "tell_apart": tell_apart(cand, other)})
         return amb
 
-    # -- the final model, described with its own values -----------------------------
-
-    def describe(self, final: CalibrationResult) -> None:
-        for k, f in enumerate(self.findings):
-            cand = f.candidate
-            if k not in self.support:
-                continue
-            f.parameters = _param_values(final, cand.parameter_names())
-            test, cv0, cv1, checks = self.support[k]
-            text = f"{test.text()} on the calibration poses; held-out mean {_cv_text(cv0, cv1)}"
-            what = _what(cand, final, self.cal)
-            if "resolution" in checks:
-                text += "; " + checks["resolution"].text()
-            if "halves" in checks:
-                text += "; " + "; ".join(h.text() for h in checks["halves"])
-            f.evidence = text + (("; " + what) if what else "")
-            f.plot = residual_plot(cand, self.before.get(k, final), final, self.cal)
-
 
 def _levers(robot: Robot, data: Measurements) -> np.ndarray:
     """How far the tool point moves per radian of each joint (RMS over the poses, m)."""
@@ -412,67 +360,6 @@ def _levers(robot: Robot, data: Measurements) -> np.ndarray:
     _, J = m.predict_jacobian(data.q, cov=m.covariates(data))
     return np.array([np.sqrt(np.mean(np.sum(J[:, :, m.parameters.index(f"theta{j}")] ** 2, axis=1)))
                      for j in range(1, robot.n + 1)])
-
-
-def _param_values(res: CalibrationResult, names: list[str]) -> dict:
-    out = {}
-    for name in names:
-        p = res.parameters[name]
-        out[name] = {"value": p.to_display(p.value),
-                     "std": p.to_display(p.std) if math.isfinite(p.std) else None, "unit": p.display_unit}
-    return out
-
-
-def _what(cand: Candidate, res: CalibrationResult, cal: Measurements) -> str:
-    """The cause's size in words, from the model's values."""
-    P = res.parameters
-    if cand.cause == "joint_compliance":
-        k, sk = res.stiffness().get(cand.joint, (math.inf, math.nan))
-        what = f"stiffness k{cand.joint} = {k:.4g} N m/rad (std {sk:.2g})"
-        if cal.get("payload_kg") is not None and np.ptp(cal.get("payload_kg")) > 0:
-            what += "; the rows' payloads vary and enter the torques"
-        return what
-    if cand.cause == "nonlinear_stiffness":
-        p = P[f"cubic{cand.joint}"]
-        kind = "stiffens" if p.value < 0 else "softens"
-        return (f"progressive term {p.value:.3g} rad/(N m)^3 (std {p.std:.2g}): the joint {kind} with load")
-    if cand.cause == "joint_periodic":
-        s_, c_ = (P[n].value for n in cand.parameter_names())
-        return (f"amplitude {math.degrees(math.hypot(s_, c_)) * 3600:.2f} arcsec, phase "
-                f"{math.degrees(math.atan2(c_, s_)):.1f} deg, {cand.harmonic} cycles per turn of joint {cand.joint}")
-    if cand.cause == "encoder_scale":
-        return f"scale error {P[f'escale{cand.joint}'].value * 1e6:.1f} ppm"
-    if cand.cause == "backlash":
-        return (f"half play {math.degrees(P[cand.parameter_names()[0]].value) * 3600:.2f} arcsec, sign from the "
-                f"{'gravity torque' if cand.source != 'motion' else 'last move'}")
-    if cand.cause == "thermal_expansion":
-        name = cand.parameter_names()[0]
-        where = "every length" if cand.joint is None else f"the lengths of link {cand.joint}"
-        return f"expansion {P[name].value * 1e6:.2f} ppm/K of {where}"
-    if cand.cause == "drift":
-        v = np.array([P[n].value for n in cand.parameter_names()]) * 1e6
-        unit = "s" if cal.get("time_s") is not None else "row"
-        return (f"the measured points move {np.linalg.norm(v):.3g} um per {unit} (x, y, z: "
-                + ", ".join(f"{c:+.3g}" for c in v) + ")")
-    return ""
-
-
-def _cv_record(cv0: dict, cv1: dict) -> dict:
-    """The held-out means before and after, for the report."""
-    return {**{f"{k}_before": cv0[k] for k in KINDS}, **{k: cv1[k] for k in KINDS}}
-
-
-def _cv_text(cv0: dict, cv1: dict) -> str:
-    return ", ".join(f"{k} {cv0[k]:.4f} -> {cv1[k]:.4f} mm" for k in KINDS)
-
-
-def _cv_failure(worse: list[str], cv0: dict, cv1: dict) -> str:
-    return ("held-out mean does not drop where it must " + ("interpolate" if worse == ["random"] else "extrapolate")
-            + ": " + ", ".join(f"{k} {cv0[k]:.4f} -> {cv1[k]:.4f} mm" for k in worse))
-
-
-def _extrapolation_gain(cv0: dict, cv1: dict) -> float:
-    return 0.5 * ((cv0["time"] - cv1["time"]) + (cv0["joint"] - cv1["joint"]))
 
 
 def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: DiagnosisSettings | None = None,
@@ -528,8 +415,8 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
             dg.steps.append(Step(final_spec + "+rbf_compensator", current.calibration, v0, False,
                                  Candidate("unexplained"), cv_mm=bb.cv_mm, reason=bb.reason))
             say(f"black-box compensator rejected: {bb.reason}")
-    dg.describe(final)
-    dg.findings += list(dg.unexplained.values())
+    describe(dg.findings, dg.support, dg.before, final, cal)
+    dg.findings += list(dg.unexplained.by_joint.values())
     final_val = final.stats(val)
     if final.uncertainty is not None:
         dg.notes.append(f"remaining calibration residual {final.uncertainty.sigma * 1000:.4f} mm per axis (rms); "
@@ -551,7 +438,8 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
             f = dg.findings[k]
             if f.cause == "unexplained" and not f.in_model:
                 # structure left out: what would it have done there?
-                return dg.fit(compose_spec(accepted + dg.extra[f.candidate.joint], geometric), start=parametric)
+                return dg.fit(compose_spec(accepted + [dg.unexplained.strongest[f.candidate.joint]], geometric),
+                              start=parametric)
             if k not in named:
                 return None
             return dg.fit(compose_spec([a for a in accepted if a != f.candidate], geometric), start=parametric)

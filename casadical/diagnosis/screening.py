@@ -1,10 +1,19 @@
-"""Screening every candidate cause at once: the score (Lagrange multiplier) test.
+"""One round's linearisation: every candidate cause scored and fitted at once.
 
-One model holding every candidate is linearised at the current fit; the
-drop of the (robustly weighted) residual sum of squares each candidate's
-parameters would bring is its projection on the residual, after the
-directions the current model already spans are removed. One Jacobian
-evaluation scores all candidates.
+One model holding the current terms and every candidate is linearised at
+the current fit (robust weights held fixed). From that single Jacobian:
+
+- the **score test** of each candidate: the drop of the weighted residual
+  sum of squares its columns would bring, after the directions the current
+  model spans are removed;
+- each candidate's **fit**: one Gauss-Newton step on the current columns
+  plus the candidate's, from the current fit (the calibration problem is
+  nearly linear at its solution, and a candidate adds a small effect), with
+  everything the acceptance needs: the residual, the F-test, the held-out
+  errors of every fold (:mod:`.validation`), the halves (:mod:`.periodic`)
+  and the validation errors (judge only).
+
+Only the accepted candidate is then fitted for real.
 """
 
 from __future__ import annotations
@@ -19,6 +28,7 @@ from ..problem import CalibrationProblem
 from ..result import CalibrationResult
 from .candidates import Candidate, compose_spec
 from .statistics import NestedTest, nested_test
+from .validation import Linearized, solve_identified
 
 
 @dataclass
@@ -31,45 +41,115 @@ class Scored:
     fitted: np.ndarray
 
 
-def screen(current: CalibrationResult, accepted: list[Candidate], cands: list[Candidate], geometric: bool,
-           data: Measurements) -> list[Scored]:
-    """Score test of every candidate at the current fit, best (smallest p) first."""
-    robot = current.model.robot
-    big = Model(robot, compose_spec(accepted + cands, geometric), jit=False)
-    params = big.parameters.copy()
-    for p in params:
-        if p.name in current.parameters:
-            src = current.parameters[p.name]
-            p.value, p.fixed = src.value, src.fixed
-        else:
-            p.fixed = False
-    prob = CalibrationProblem(big, params, data.q, data.xyz, big.covariates(data), current.base0)
-    r, Jx = prob.residuals_jacobian(params.values)
-    # the robust loss's weights at the current fit
-    R = r.reshape(-1, 3)
-    sw = np.repeat(np.sqrt(current.loss.weight(np.einsum("ij,ij->i", R, R))), 3)
-    r, Jx = r * sw, Jx * sw[:, None]
-    free_names = [params.names[i] for i in prob.free]
-    cur = [k for k, n in enumerate(free_names) if n in current.parameters and not current.parameters[n].fixed]
-    Qc, _ = np.linalg.qr(Jx[:, cur])
-    r_perp = r - Qc @ (Qc.T @ r)
-    ssr0 = float(r_perp @ r_perp)
-    p0 = len(cur)
-    n_eq = len(r)
-    scored = []
-    for c in cands:
-        cols = [free_names.index(n) for n in c.parameter_names() if n in free_names]
-        if not cols:
-            continue
-        Jk = Jx[:, cols]
-        Jk = Jk - Qc @ (Qc.T @ Jk)
-        U, sv, _ = np.linalg.svd(Jk, full_matrices=False)
-        keep = sv > 1e-6 * max(np.linalg.norm(Jx[:, cols]), 1e-300)
-        if not keep.any():
-            continue
-        proj = U[:, keep].T @ r_perp
-        drop = float(proj @ proj)
-        test = nested_test(ssr0, p0, ssr0 - drop, p0 + int(keep.sum()), n_eq)
-        scored.append(Scored(test.log10_p, c, test, U[:, keep] @ proj))
-    scored.sort(key=lambda t: t.log10_p)
-    return scored
+@dataclass
+class LinearFit:
+    """A model (the current columns, plus a candidate's) fitted by one step from the current fit.
+
+    Attributes
+    ----------
+    lin : Linearized
+        Jacobian of its free columns, residual after the step, weights: what
+        cross-validation and the halves need.
+    values : dict
+        The SI values of its parameters after the step.
+    ssr : float
+        Weighted residual sum of squares (m^2).
+    n_free : int
+    step : ndarray
+        The change of the scaled free parameters from the current fit.
+    """
+
+    lin: Linearized
+    values: dict
+    ssr: float
+    n_free: int
+    step: np.ndarray
+
+
+class Screen:
+    """The current fit and every candidate, linearised together on the calibration poses."""
+
+    def __init__(self, current: CalibrationResult, accepted: list[Candidate], cands: list[Candidate],
+                 geometric: bool, cal: Measurements, val: Measurements):
+        robot = current.model.robot
+        self.current, self.cal, self.val = current, cal, val
+        self.model = big = Model(robot, compose_spec(accepted + cands, geometric), jit=False)
+        params = big.parameters.copy()
+        for p in params:
+            if p.name in current.parameters:
+                src = current.parameters[p.name]
+                p.value, p.fixed = src.value, src.fixed
+            else:
+                p.fixed = False
+        self.params = params
+        prob = CalibrationProblem(big, params, cal.q, cal.xyz, big.covariates(cal), current.base0)
+        self.free = prob.free
+        self.names = [params.names[i] for i in self.free]
+        self.scale = params.scales[self.free]
+        xyz, J = big.predict_jacobian(cal.q, params.values, prob.cov, current.base0)
+        self.J = J[:, :, self.free] * self.scale           # (N, 3, nf), scaled variables
+        self.theta_dir = {j: J[:, :, params.index(f"theta{j}")] for j in range(1, robot.n + 1)}
+        self.r = xyz - cal.xyz
+        self.w = current.loss.weight(np.einsum("ij,ij->i", self.r, self.r))
+        self.cur = [k for k, n in enumerate(self.names)
+                    if n in current.parameters and not current.parameters[n].fixed]
+        self._val: tuple | None = None
+
+    # -- the score test ----------------------------------------------------------
+
+    def scores(self, cands: list[Candidate]) -> list[Scored]:
+        """Score test of every candidate, best (smallest p) first."""
+        sw = np.repeat(np.sqrt(self.w), 3)
+        r = self.r.ravel() * sw
+        Jx = self.J.reshape(len(r), -1) * sw[:, None]
+        Qc, _ = np.linalg.qr(Jx[:, self.cur])
+        r_perp = r - Qc @ (Qc.T @ r)
+        ssr0 = float(r_perp @ r_perp)
+        p0 = len(self.cur)
+        scored = []
+        for c in cands:
+            cols = self.columns(c)
+            if not cols:
+                continue
+            Jk = Jx[:, cols]
+            Jk = Jk - Qc @ (Qc.T @ Jk)
+            U, sv, _ = np.linalg.svd(Jk, full_matrices=False)
+            keep = sv > 1e-6 * max(np.linalg.norm(Jx[:, cols]), 1e-300)
+            if not keep.any():
+                continue
+            proj = U[:, keep].T @ r_perp
+            drop = float(proj @ proj)
+            test = nested_test(ssr0, p0, ssr0 - drop, p0 + int(keep.sum()), len(r))
+            scored.append(Scored(test.log10_p, c, test, U[:, keep] @ proj))
+        scored.sort(key=lambda t: t.log10_p)
+        return scored
+
+    def columns(self, c: Candidate) -> list[int]:
+        return [self.names.index(n) for n in c.parameter_names() if n in self.names]
+
+    # -- fits by one step ----------------------------------------------------------
+
+    def fit(self, cand: Candidate | None = None) -> LinearFit:
+        """The current columns (plus ``cand``'s) fitted by one weighted Gauss-Newton step."""
+        cols = list(self.cur) + (self.columns(cand) if cand is not None else [])
+        J = self.J[:, :, cols]
+        sw = np.sqrt(self.w)
+        Jw = J * sw[:, None, None]
+        A = np.einsum("nkp,nkq->pq", Jw, Jw)
+        g = np.einsum("nkp,nk->p", Jw, self.r * sw[:, None])
+        d = -solve_identified(A, g, rel=1e-9)
+        r1 = self.r + J @ d
+        names = [self.names[k] for k in cols]
+        values = {n: self.params[n].value + self.scale[k] * dk for n, k, dk in zip(names, cols, d)}
+        lin = Linearized(J, r1, self.w, names, self.scale[cols])
+        return LinearFit(lin, values, float(np.sum(self.w[:, None] * r1 ** 2)), len(cols), d)
+
+    def validation_errors(self, fit: LinearFit) -> np.ndarray:
+        """Position errors (m) on the validation poses of a one-step fit (a judge, never used to decide)."""
+        if self._val is None:
+            big, p = self.model, self.params
+            xyz, J = big.predict_jacobian(self.val.q, p.values, big.covariates(self.val), self.current.base0)
+            self._val = (xyz - self.val.xyz, J[:, :, self.free] * self.scale)
+        r, J = self._val
+        cols = [self.names.index(n) for n in fit.lin.names]
+        return np.linalg.norm(r + J[:, :, cols] @ fit.step, axis=1)

@@ -197,3 +197,37 @@ class Linearized:
         dof = max(3 * len(rows) - p, 1)
         sigma2 = float(np.sum(w[:, None] * res ** 2)) / dof
         return d, sigma2 * np.linalg.pinv(A)
+
+
+# --- held-out means by kind of fold, as the diagnosis judges them ----------------------
+
+KINDS = ("random", "time", "joint")
+
+
+def by_kind(cv: CVResult, mask: np.ndarray) -> dict:
+    """Held-out mean error (mm) by kind of fold, over the poses of ``mask``."""
+    return {k: cv.kind_mean_mm(k, mask) for k in KINDS}
+
+
+def not_better(cv0: dict, cv1: dict) -> list[str]:
+    """Kinds of fold on which the held-out mean error does not drop."""
+    return [k for k in KINDS if not cv1[k] < cv0[k]]
+
+
+def cv_record(cv0: dict, cv1: dict) -> dict:
+    """The held-out means before and after, for the report."""
+    return {**{f"{k}_before": cv0[k] for k in KINDS}, **{k: cv1[k] for k in KINDS}}
+
+
+def cv_text(cv0: dict, cv1: dict) -> str:
+    return ", ".join(f"{k} {cv0[k]:.4f} -> {cv1[k]:.4f} mm" for k in KINDS)
+
+
+def cv_failure(worse: list[str], cv0: dict, cv1: dict) -> str:
+    return ("held-out mean does not drop where it must " + ("interpolate" if worse == ["random"] else "extrapolate")
+            + ": " + ", ".join(f"{k} {cv0[k]:.4f} -> {cv1[k]:.4f} mm" for k in worse))
+
+
+def extrapolation_gain(cv0: dict, cv1: dict) -> float:
+    """How much a step lowers the held-out mean where the model must extrapolate (time and joint folds)."""
+    return 0.5 * ((cv0["time"] - cv1["time"]) + (cv0["joint"] - cv1["joint"]))

@@ -1,0 +1,122 @@
+"""Findings in words: the final model's values, the evidence, and the structure that cannot be named."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..data import Measurements
+from ..result import CalibrationResult
+from .candidates import Candidate
+from .plots import residual_plot
+from .report import Finding
+from .validation import cv_record, cv_text
+
+
+class UnexplainedLog:
+    """Significant structure of a joint's angle error that cannot be named as a cause.
+
+    It is kept out of the model and reported as one ``unexplained`` finding
+    per joint (where it lives, its size, why it cannot be named, what it
+    would give on this series). Its harmonics (or the candidate) are not
+    screened again.
+    """
+
+    def __init__(self) -> None:
+        self.by_joint: dict[int, Finding] = {}
+        self.excluded: set[tuple[int, int]] = set()       # periodic (joint, harmonic)
+        self.excluded_causes: set[Candidate] = set()       # other candidates
+        self.strongest: dict[int, Candidate] = {}          # per joint, for the transfer study
+
+    def add(self, cand: Candidate, values: dict, test, cv0: dict, cv1: dict, checks: dict, potential: float,
+            why: str) -> None:
+        j = cand.joint
+        if cand.cause == "joint_periodic":
+            band = checks["resolution"].band if "resolution" in checks else (cand.harmonic, cand.harmonic)
+            self.excluded.update((j, h) for h in range(band[0], band[1] + 1))
+            s_, c_ = (values[n] for n in cand.parameter_names())
+            size = math.degrees(math.hypot(s_, c_)) * 3600
+            item = {"harmonic": cand.harmonic, "band": list(band), "amplitude_arcsec": size,
+                    "what": f"harmonic {cand.harmonic} ({size:.1f} arcsec)"}
+        else:
+            self.excluded_causes.add(cand)
+            v = values[cand.parameter_names()[0]]
+            item = {"trend_ppm": v * 1e6, "what": f"a trend along the joint's reading ({v * 1e6:.0f} ppm)"}
+        f = self.by_joint.get(j)
+        if f is None:
+            f = self.by_joint[j] = Finding(Candidate("unexplained", j), 0.0, "", in_model=False,
+                                           potential_gain_mm=0.0, holds_up={"structures": []})
+            self.strongest[j] = cand
+        item.update(test=test.text(), cv_mm=cv_record(cv0, cv1), why=why)
+        if "halves" in checks:
+            item["halves"] = [h.to_dict() for h in checks["halves"]]
+        structures = f.holds_up["structures"]
+        structures.append(item)
+        f.potential_gain_mm = max(f.potential_gain_mm or 0.0, potential)
+        f.where = f"joint {j}: " + "; ".join(x["what"] for x in structures)
+        f.evidence = (f"structure in joint {j}'s angle error that is significant on the calibration poses but "
+                      "cannot be named as a cause: " + " | ".join(f"{x['what']}: {x['why']}" for x in structures)
+                      + f". Alone it would lower this series' validation mean by up to {f.potential_gain_mm:.4f} "
+                      "mm; it is kept out of the final model because it does not hold up as a cause")
+
+
+def describe(findings: list[Finding], support: dict, before: dict, final: CalibrationResult,
+             cal: Measurements) -> None:
+    """Fill each accepted finding's parameters, evidence and figure from the final model."""
+    for k, f in enumerate(findings):
+        if k not in support:
+            continue
+        cand = f.candidate
+        test, cv0, cv1, checks = support[k]
+        f.parameters = param_values(final, cand.parameter_names())
+        text = f"{test.text()} on the calibration poses; held-out mean {cv_text(cv0, cv1)}"
+        if "resolution" in checks:
+            text += "; " + checks["resolution"].text()
+        if "halves" in checks:
+            text += "; " + "; ".join(h.text() for h in checks["halves"])
+        size = what(cand, final, cal)
+        f.evidence = text + (("; " + size) if size else "")
+        f.plot = residual_plot(cand, before.get(k, final), final, cal)
+
+
+def param_values(res: CalibrationResult, names: list[str]) -> dict:
+    out = {}
+    for name in names:
+        p = res.parameters[name]
+        out[name] = {"value": p.to_display(p.value),
+                     "std": p.to_display(p.std) if math.isfinite(p.std) else None, "unit": p.display_unit}
+    return out
+
+
+def what(cand: Candidate, res: CalibrationResult, cal: Measurements) -> str:
+    """The cause's size in words, from the model's values."""
+    P = res.parameters
+    if cand.cause == "joint_compliance":
+        k, sk = res.stiffness().get(cand.joint, (math.inf, math.nan))
+        text = f"stiffness k{cand.joint} = {k:.4g} N m/rad (std {sk:.2g})"
+        if cal.get("payload_kg") is not None and np.ptp(cal.get("payload_kg")) > 0:
+            text += "; the rows' payloads vary and enter the torques"
+        return text
+    if cand.cause == "nonlinear_stiffness":
+        p = P[f"cubic{cand.joint}"]
+        return (f"progressive term {p.value:.3g} rad/(N m)^3 (std {p.std:.2g}): the joint "
+                f"{'stiffens' if p.value < 0 else 'softens'} with load")
+    if cand.cause == "joint_periodic":
+        s_, c_ = (P[n].value for n in cand.parameter_names())
+        return (f"amplitude {math.degrees(math.hypot(s_, c_)) * 3600:.2f} arcsec, phase "
+                f"{math.degrees(math.atan2(c_, s_)):.1f} deg, {cand.harmonic} cycles per turn of joint {cand.joint}")
+    if cand.cause == "encoder_scale":
+        return f"scale error {P[f'escale{cand.joint}'].value * 1e6:.1f} ppm"
+    if cand.cause == "backlash":
+        return (f"half play {math.degrees(P[cand.parameter_names()[0]].value) * 3600:.2f} arcsec, sign from the "
+                f"{'gravity torque' if cand.source != 'motion' else 'last move'}")
+    if cand.cause == "thermal_expansion":
+        where = "every length" if cand.joint is None else f"the lengths of link {cand.joint}"
+        return f"expansion {P[cand.parameter_names()[0]].value * 1e6:.2f} ppm/K of {where}"
+    if cand.cause == "drift":
+        v = np.array([P[n].value for n in cand.parameter_names()]) * 1e6
+        unit = "s" if cal.get("time_s") is not None else "row"
+        return (f"the measured points move {np.linalg.norm(v):.3g} um per {unit} (x, y, z: "
+                + ", ".join(f"{c:+.3g}" for c in v) + ")")
+    return ""
