@@ -134,3 +134,81 @@ def test_ambiguous_causes_are_reported():
     others = {(a["cause"], a.get("joint")) for a in f[0].ambiguous_with}
     assert ("joint_periodic", 2) in others or ("encoder_scale", 2) in others, f[0].ambiguous_with
     assert all(a["tell_apart"] for a in f[0].ambiguous_with)
+
+
+def _noise_floor(truth, val):
+    """Validation mean error of the true model itself: the best any model can do on these poses."""
+    import numpy as np
+    return float(np.mean(np.linalg.norm(truth.predict(val) - val.xyz, axis=1)) * 1000)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_progressive_stiffness_is_compliance_not_backlash(seed):
+    """A joint that stiffens with load: compliance (and its cubic term), never backlash or a gear error."""
+    # the cubic term takes back 30 % of the linear deflection at the largest torque (~6000 N m)
+    rep = run(load_robot("ys100"), Effects(stiffness={2: 1.5e6}, cubic={2: -5e-15}), seed)
+    named = causes(rep)
+    assert ("joint_compliance", 2, None) in named or ("nonlinear_stiffness", 2, None) in named, named
+    assert not [c for c in named if c[0] not in ("geometric", "joint_compliance", "nonlinear_stiffness")], named
+    assert rep.final_validation.mean_mm < 0.04      # noise 0.02 mm per axis: the spring is modelled
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_thermal_expansion_of_two_links(seed):
+    """Two links growing with temperature (one coefficient each): the final model reaches the noise floor."""
+    robot = load_robot("ys100")
+    eff = Effects(thermal_links={2: 25e-6, 3: -15e-6}, temperature=(15.0, 35.0))
+    cal, truth = simulate(robot, 80, eff, seed=seed)
+    val, _ = simulate(robot, 200, truth=truth, seed=seed + 500)
+    rep = diagnose(robot, cal, val, DiagnosisSettings(seed=seed))
+    assert any(c[0] == "thermal_expansion" for c in causes(rep)), causes(rep)
+    assert rep.final_validation.mean_mm <= 1.3 * _noise_floor(truth, val), (rep.final_model,
+                                                                             rep.final_validation.mean_mm)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_structure_no_cause_explains_is_unexplained(seed):
+    """An angle error of joint 2 that grows with the square of its reading is in no catalogue: it is reported
+    as unexplained structure on joint 2 and kept out of the model, and never named an encoder scale error
+    (the trend it looks like over part of the range). Known limit (docs/diagnosis.md): physical terms of
+    the same joints (compliance) absorb part of it, and in one seed of three a harmonic of the rest passes."""
+    import numpy as np
+    robot = load_robot("ys100")
+    cal, truth = simulate(robot, 120, Effects(), seed=seed)
+    val, _ = simulate(robot, 200, truth=truth, seed=seed + 500)
+
+    def bend(d):
+        # first-order effect of the angle error e(q2) = k (q2 - 0.6)^2 on the tool point
+        _, J = truth.model.predict_jacobian(d.q, truth.values, truth.model.covariates(d), truth.base0)
+        e = 1e-4 * (d.q[:, 1] - 0.6) ** 2
+        xyz = d.xyz + J[:, :, truth.model.parameters.index("theta2")] * e[:, None]
+        return d.with_positions(xyz)
+    rep = diagnose(robot, bend(cal), bend(val), DiagnosisSettings(seed=seed))
+    named = causes(rep)
+    assert ("encoder_scale", 2, None) not in named, named
+    f = [f for f in rep.findings if f.cause == "unexplained" and f.candidate.joint == 2]
+    assert f and not f[0].in_model and f[0].potential_gain_mm > 0 and "joint 2" in f[0].where
+    assert "unexplained" not in rep.final_model and "rbf" not in rep.final_model
+
+
+def test_transfer_to_another_series():
+    """A compliant joint found on one series holds on another (tracker elsewhere): the finding transfers
+    and the diagnosed model beats the kinematic one there, both ways of travelling."""
+    from dataclasses import replace as dreplace
+
+    from casadical.kinematics import base_pose_matrix
+    from casadical.model import pose_to_base0
+    robot = load_robot("ys100")
+    cal, truth = simulate(robot, 80, Effects(stiffness={3: 1.2e6}), seed=4)
+    val, _ = simulate(robot, 100, truth=truth, seed=5)
+    moved = dreplace(truth, base0=pose_to_base0(base_pose_matrix((1.5, -0.5, 0.2), (0.0, 0.01, 0.8))))
+    other, _ = simulate(robot, 200, truth=moved, seed=6)
+    rep = diagnose(robot, cal, val, DiagnosisSettings(seed=4), other=other)
+    f = next(f for f in rep.findings if f.cause == "joint_compliance")
+    assert f.transfer["verdict"] == "transfers", f.transfer
+    t = rep.transfer
+    assert t["final"]["base_mm"] < 0.5 * t["kinematic"]["base_mm"]
+    assert t["final"]["refit_mm"] < 0.5 * t["kinematic"]["refit_mm"]
+    doc = rep.to_dict()
+    assert doc["transfer"]["n_base"] == 30 and "verdict" in next(
+        x for x in doc["findings"] if x["cause"] == "joint_compliance")["transfer"]

@@ -30,7 +30,6 @@ from dataclasses import dataclass, field
 from typing import ClassVar, Optional
 
 import numpy as np
-import scipy.optimize
 
 from casadical.compensators import Compensator
 from casadical.errors import InputError
@@ -340,6 +339,7 @@ class MLP(Compensator):
         def record(intermediate_result):
             history.append(float(intermediate_result.fun))
 
+        import scipy.optimize  # only L-BFGS training needs it (a second to import)
         res = scipy.optimize.minimize(
             self._loss_grad, w0, args=(Xs, Ys, l2), jac=True, method="L-BFGS-B",
             callback=record, options={"maxiter": epochs, "ftol": tol, "gtol": 1e-10})

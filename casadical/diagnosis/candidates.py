@@ -58,7 +58,7 @@ class Candidate:
         j, h = self.joint, self.harmonic
         return {
             "joint_compliance": [f"c{j}"],
-            "nonlinear_stiffness": [f"cubic{j}"],
+            "nonlinear_stiffness": [f"c{j}", f"cubic{j}"],   # a progressive spring has a linear part too
             "joint_periodic": [f"gear{j}_s{h}", f"gear{j}_c{h}"],
             "encoder_scale": [f"escale{j}"],
             "backlash": [f"backlash{j}" if self.source != "motion" else f"backlash_m{j}"],
@@ -69,8 +69,8 @@ class Candidate:
 
 def compose_spec(candidates: list[Candidate], geometric: bool = True) -> str:
     """Model specification holding every candidate (same terms merged)."""
-    comp = sorted({c.joint for c in candidates if c.cause == "joint_compliance"})
     cubic = sorted({c.joint for c in candidates if c.cause == "nonlinear_stiffness"})
+    comp = sorted({c.joint for c in candidates if c.cause == "joint_compliance"} | set(cubic))
     links = sorted({c.joint for c in candidates if c.cause == "thermal_expansion" and c.joint is not None})
     per = sorted({(c.joint, c.harmonic) for c in candidates if c.cause == "joint_periodic"})
     enc = sorted({c.joint for c in candidates if c.cause == "encoder_scale"})

@@ -39,10 +39,22 @@ class UnexplainedLog:
             size = math.degrees(math.hypot(s_, c_)) * 3600
             item = {"harmonic": cand.harmonic, "band": list(band), "amplitude_arcsec": size,
                     "what": f"harmonic {cand.harmonic} ({size:.1f} arcsec)"}
-        else:
+        elif cand.cause == "encoder_scale":
             self.excluded_causes.add(cand)
             v = values[cand.parameter_names()[0]]
             item = {"trend_ppm": v * 1e6, "what": f"a trend along the joint's reading ({v * 1e6:.0f} ppm)"}
+        elif cand.cause == "backlash":
+            self.excluded_causes.add(cand)
+            v = values[cand.parameter_names()[0]]
+            item = {"half_play_arcsec": math.degrees(v) * 3600,
+                    "what": f"a step with the sign of the joint's {'load' if cand.source != 'motion' else 'motion'} "
+                            f"({math.degrees(v) * 3600:.1f} arcsec)"}
+        else:
+            self.excluded_causes.add(cand)
+            c = values.get(f"c{j}", 0.0)
+            k = 1 / c if c > 0 else math.inf
+            item = {"load_compliance": c, "what": f"a part that follows the joint's load (as if k = {k:.3g} N m/rad"
+                                                   f"{', progressive' if cand.cause == 'nonlinear_stiffness' else ''})"}
         f = self.by_joint.get(j)
         if f is None:
             f = self.by_joint[j] = Finding(Candidate("unexplained", j), 0.0, "", in_model=False,

@@ -59,10 +59,14 @@ def periodogram(q: np.ndarray, s: np.ndarray, w: np.ndarray, joint: int, max_har
     power, amp = np.zeros(len(hs)), np.zeros(len(hs))
     if total <= 0:
         return Periodogram(joint, hs, power, amp)
-    for k, h in enumerate(hs):
-        A = np.column_stack([sw * np.sin(h * q), sw * np.cos(h * q), base])
-        coef = np.linalg.lstsq(A, y, rcond=None)[0]
-        fit = A @ coef
-        power[k] = float(fit @ fit) / total
-        amp[k] = float(np.hypot(coef[0], coef[1]))
+    # every harmonic at once: [sin, cos, base] normal equations stacked, (H, 4, 4)
+    S = sw * np.sin(np.outer(hs, q))                 # (H, N)
+    C = sw * np.cos(np.outer(hs, q))
+    cols = np.stack([S, C, np.broadcast_to(base[:, 0], S.shape), np.broadcast_to(base[:, 1], S.shape)], axis=1)
+    G = np.einsum("hin,hjn->hij", cols, cols)
+    b = np.einsum("hin,n->hi", cols, y)
+    coef = np.stack([np.linalg.lstsq(G[k], b[k], rcond=None)[0] for k in range(len(hs))])
+    fit_sq = np.einsum("hi,hi->h", coef, b)          # |A c|^2 = c^T A^T y at the least-squares solution
+    power[:] = fit_sq / total
+    amp[:] = np.hypot(coef[:, 0], coef[:, 1])
     return Periodogram(joint, hs, power, amp)

@@ -125,7 +125,9 @@ class Screen:
         return scored
 
     def columns(self, c: Candidate) -> list[int]:
-        return [self.names.index(n) for n in c.parameter_names() if n in self.names]
+        """The candidate's free columns not already in the current model."""
+        return [k for k in (self.names.index(n) for n in c.parameter_names() if n in self.names)
+                if k not in self.cur]
 
     # -- fits by one step ----------------------------------------------------------
 
@@ -134,9 +136,9 @@ class Screen:
         cols = list(self.cur) + (self.columns(cand) if cand is not None else [])
         J = self.J[:, :, cols]
         sw = np.sqrt(self.w)
-        Jw = J * sw[:, None, None]
-        A = np.einsum("nkp,nkq->pq", Jw, Jw)
-        g = np.einsum("nkp,nk->p", Jw, self.r * sw[:, None])
+        Jw = (J * sw[:, None, None]).reshape(-1, len(cols))
+        A = Jw.T @ Jw
+        g = Jw.T @ (self.r * sw[:, None]).reshape(-1)
         d = -solve_identified(A, g, rel=1e-9)
         r1 = self.r + J @ d
         names = [self.names[k] for k in cols]

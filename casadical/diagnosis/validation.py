@@ -131,16 +131,15 @@ def linear_cv(J: np.ndarray, r: np.ndarray, weights: np.ndarray, all_schemes: li
     sw = np.sqrt(weights)[:, None, None]
     Jw = (J * sw).reshape(N, 3, p)
     rw = r * np.sqrt(weights)[:, None]
-    # per-pose contributions summed per fold: A_T = A - A_F, g_T = g - g_F
-    A = np.einsum("nkp,nkq->pq", Jw, Jw)
-    g = np.einsum("nkp,nk->p", Jw, rw)
+    # per-pose contributions summed per fold: A_T = A - A_F, g_T = g - g_F (as matrix products: BLAS)
+    J2, r2 = Jw.reshape(-1, p), rw.reshape(-1)
+    A, g = J2.T @ J2, J2.T @ r2
     out = CVResult()
     for s in all_schemes:
         err = np.empty(N)
         for F in s.folds:
-            AF = np.einsum("nkp,nkq->pq", Jw[F], Jw[F])
-            gF = np.einsum("nkp,nk->p", Jw[F], rw[F])
-            d = -solve_identified(A - AF, g - gF)
+            JF, rF = Jw[F].reshape(-1, p), rw[F].reshape(-1)
+            d = -solve_identified(A - JF.T @ JF, g - JF.T @ rF)
             err[F] = np.linalg.norm(r[F] + J[F] @ d, axis=1)
         out.errors[s.name] = err
     return out
@@ -189,9 +188,9 @@ class Linearized:
         """
         J, r, w = self.J[rows], self.r[rows], self.weights[rows]
         p = J.shape[2]
-        Jw = J * np.sqrt(w)[:, None, None]
-        A = np.einsum("nkp,nkq->pq", Jw, Jw)
-        g = np.einsum("nkp,nk->p", Jw, r * np.sqrt(w)[:, None])
+        Jw = (J * np.sqrt(w)[:, None, None]).reshape(-1, p)
+        A = Jw.T @ Jw
+        g = Jw.T @ (r * np.sqrt(w)[:, None]).reshape(-1)
         d = -solve_identified(A, g, rel)
         res = r + J @ d
         dof = max(3 * len(rows) - p, 1)
