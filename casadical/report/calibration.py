@@ -90,7 +90,7 @@ def calibration_html(result: CalibrationResult, data: Measurements, before: Cali
         if pairs:
             page.para(f"The strongest pairs ({ref}); above 0.95 their individual values are uncertain, add poses "
                       "that move them differently:")
-            page.table(["parameter", "parameter", "correlation"],
+            page.table(["parameter", "with", "correlation"],
                        [[a, b, Raw(f"<b>{c:+.3f}</b>" if abs(c) > 0.95 else f"{c:+.3f}")] for a, b, c in pairs],
                        text_columns=(0, 1))
         else:

@@ -120,7 +120,7 @@ def to_svg(fig: Figure, key: str, label: str) -> str:
     """
     buf = io.StringIO()
     with rc_context({**STYLE, "svg.hashsalt": key}):
-        fig.savefig(buf, format="svg", bbox_inches="tight", pad_inches=0.06, metadata={"Date": None})
+        fig.savefig(buf, format="svg", metadata={"Date": None})
     svg = _HEADER.sub("", buf.getvalue(), count=1)
     svg = svg.replace("<svg ", f'<svg role="img" aria-label="{_attr(label)}" ', 1)
     return re.sub(r"<metadata>.*?</metadata>\s*", "", svg, count=1, flags=re.S)

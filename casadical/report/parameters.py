@@ -56,13 +56,17 @@ def correlation_figure(result: CalibrationResult):
     size = min(max(3.6, 0.16 * n + 1.8), 9.5)
     fig, ax = figure(size + 0.9, size)
     ax = ax[0, 0]
-    im = ax.imshow(unc.correlation, cmap="RdBu_r", vmin=-1, vmax=1, interpolation="nearest")
+    # cells as vector rectangles (imshow would embed a bitmap)
+    im = ax.pcolormesh(unc.correlation, cmap="RdBu_r", vmin=-1, vmax=1)
+    ax.set_aspect("equal")
+    ax.invert_yaxis()
     ax.grid(False)
     fs = 8 if n <= 30 else 6.5
-    ax.set_xticks(range(n), unc.names, rotation=90, fontsize=fs)
-    ax.set_yticks(range(n), unc.names, fontsize=fs)
+    ax.set_xticks(np.arange(n) + 0.5, unc.names, rotation=90, fontsize=fs)
+    ax.set_yticks(np.arange(n) + 0.5, unc.names, fontsize=fs)
     ax.tick_params(length=0)
     for s in ax.spines.values():
         s.set_visible(False)
-    fig.colorbar(im, ax=ax, shrink=0.8, label="correlation")
+    bar = fig.colorbar(im, ax=ax, shrink=0.8, label="correlation")
+    bar.solids.set_rasterized(False)
     return fig
