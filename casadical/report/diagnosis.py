@@ -100,7 +100,8 @@ def diagnosis_html(report: DiagnosisReport) -> str:
 def _final_label(report: DiagnosisReport) -> str:
     named = sum(f.in_model and f.cause not in ("geometric", "unexplained") for f in report.findings)
     bb = any(f.in_model and f.cause == "unexplained" for f in report.findings)
-    return "kinematic" + (f" + {named} cause(s)" if named else "") + (" + black box" if bb else "")
+    base = "kinematic" if any(f.cause == "geometric" for f in report.findings) else "nominal"
+    return base + (f" + {named} cause(s)" if named else "") + (" + black box" if bb else "")
 
 
 # --- steps ---------------------------------------------------------------------------
@@ -153,8 +154,8 @@ def _along_steps(steps: list[Step]):
     ax = ax[0, 0]
     x = np.arange(len(steps))
     ax.plot(x, [s.validation.mean_mm for s in steps], "o-", color=AFTER, lw=2.2, label="validation mean")
-    for k, (kind, colour) in enumerate(zip(KINDS, (SERIES[2], SERIES[3], SERIES[1]))):
-        y = [s.cv_mm.get(kind, math.nan) if s.cv_mm else math.nan for s in steps]
+    for kind, colour in zip(KINDS, (SERIES[2], SERIES[3], SERIES[1])):
+        y = [(s.cv_mm or {}).get(kind) for s in steps]
         ax.plot(x, [math.nan if v is None else v for v in y], "s--", color=colour, lw=1.1, ms=3,
                 label=f"held-out, {kind} folds")
     ax.set_xticks(x, [step_label(s) for s in steps], rotation=40, ha="right", rotation_mode="anchor")
@@ -207,8 +208,10 @@ def _findings(page: Page, report: DiagnosisReport) -> None:
         if f.transfer:
             entries.append((f"on {_name(other)}", _transfer_text(f.transfer)))
         page.pairs(entries)
-        if f.evidence:
+        if hu:
             page.details("The evidence in words", f.evidence)
+        elif f.evidence:
+            page.para(esc(f.evidence))
         if "cv_mm" in hu:
             page.table(["held-out folds", "before mm", "with it mm", "gain"],
                        [[kind, num(hu["cv_mm"].get(f"{kind}_before")), num(hu["cv_mm"].get(kind)),

@@ -11,6 +11,7 @@ share clip-path ids while the output stays the same from run to run.
 from __future__ import annotations
 
 import functools
+import html
 import io
 import re
 
@@ -88,8 +89,7 @@ def legend_above(ax: Axes, ncols: int | None = None, **kwargs) -> None:
     """The legend in one row above the axes, where it can never cover data."""
     handles, labels = ax.get_legend_handles_labels()
     if handles:
-        ax.legend(handles, labels, loc="lower left", bbox_to_anchor=(0, 1.01, 1, 0.1), mode=None,
-                  ncols=ncols or len(handles), borderaxespad=0.2, handlelength=1.6, columnspacing=1.2,
+        ax.legend(handles, labels, loc="lower left", bbox_to_anchor=(0, 1.01), ncols=ncols or len(handles), borderaxespad=0.2, handlelength=1.6, columnspacing=1.2,
                   **kwargs)
 
 
@@ -122,9 +122,5 @@ def to_svg(fig: Figure, key: str, label: str) -> str:
     with rc_context({**STYLE, "svg.hashsalt": key}):
         fig.savefig(buf, format="svg", metadata={"Date": None})
     svg = _HEADER.sub("", buf.getvalue(), count=1)
-    svg = svg.replace("<svg ", f'<svg role="img" aria-label="{_attr(label)}" ', 1)
+    svg = svg.replace("<svg ", f'<svg role="img" aria-label="{html.escape(label)}" ', 1)
     return re.sub(r"<metadata>.*?</metadata>\s*", "", svg, count=1, flags=re.S)
-
-
-def _attr(text: str) -> str:
-    return text.replace("&", "&amp;").replace('"', "&quot;").replace("<", "&lt;")

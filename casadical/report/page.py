@@ -47,30 +47,20 @@ ol.notes{font-size:.9em}
 ol.notes li{overflow-wrap:anywhere}
 code{font-size:.92em;overflow-wrap:anywhere}
 details{margin:.3em 0 .6em;max-width:75em}summary{cursor:pointer;color:var(--muted)}
-@media print{body{max-width:none;padding:0;font-size:11pt}.scroll{overflow:visible}details>*{display:block}
- figure,table{break-inside:avoid}h2,h3{break-after:avoid}}
+@media print{body{max-width:none;padding:0;font-size:11pt}.scroll{overflow:visible}
+ figure,tr{break-inside:avoid}h2,h3{break-after:avoid}}
 """
 
 esc = html.escape
 
 
-@dataclass
-class Cell:
-    """A table cell: HTML ``content`` and its class (``t`` text, ``w`` wrapping text, default numbers)."""
-
-    content: str
-    cls: str = ""
-
-
-def cell(x, cls: str = "") -> Cell:
-    """A cell from text (escaped), a :class:`Cell` or raw HTML given as :class:`Raw`."""
-    if isinstance(x, Cell):
-        return x
-    return Cell(str(x) if isinstance(x, Raw) else esc(str(x)), cls)
-
-
 class Raw(str):
     """HTML that is already escaped (a link, an abbreviation)."""
+
+
+def content(x) -> str:
+    """A table cell's HTML: :class:`Raw` as it is, anything else as escaped text."""
+    return str(x) if isinstance(x, Raw) else esc(str(x))
 
 
 @dataclass
@@ -101,7 +91,7 @@ class Page:
             self.parts.append(f"<{tag}>" + "".join(f"<li>{e}</li>" for e in entries) + f"</{tag}>")
 
     def details(self, summary: str, text: str) -> None:
-        """Text folded under a one-line summary (open it to read; printed open)."""
+        """Text folded under a one-line summary (a click opens it)."""
         self.parts.append(f"<details><summary>{esc(summary)}</summary><p class='muted'>{esc(text)}</p></details>")
 
     def pairs(self, entries: list[tuple[str, str]]) -> None:
@@ -111,7 +101,7 @@ class Page:
 
     def table(self, header: list, rows: list[list], text_columns: tuple[int, ...] = (0,),
               wrap_columns: tuple[int, ...] = (), row_classes: list[str] | None = None,
-              details: list[str] | None = None, caption: str = "") -> None:
+              details: list[str] | None = None) -> None:
         """A table in its own scroll container.
 
         Parameters
@@ -119,7 +109,7 @@ class Page:
         header : list
             Column titles (text or :class:`Raw`).
         rows : list of list
-            Cells: text, :class:`Raw` HTML or :class:`Cell`.
+            Cells: text or :class:`Raw` HTML.
         text_columns : tuple of int
             Left-aligned columns (numbers are right-aligned).
         wrap_columns : tuple of int
@@ -135,16 +125,13 @@ class Page:
             return "w" if k in wrap_columns else ("t" if k in text_columns else "")
 
         out = ['<div class="scroll"><table>']
-        if caption:
-            out.append(f"<caption class='muted'>{esc(caption)}</caption>")
         out.append("<thead><tr>" + "".join(
-            f"<th{_cls(kind(k))}>{cell(h).content}</th>" for k, h in enumerate(header)) + "</tr></thead><tbody>")
+            f"<th{_cls(kind(k))}>{content(h)}</th>" for k, h in enumerate(header)) + "</tr></thead><tbody>")
         for i, row in enumerate(rows):
             rc = row_classes[i] if row_classes else ""
-            cells = [cell(x, kind(k)) for k, x in enumerate(row)]
             detail = details[i] if details else ""
             out.append(f"<tr{_cls(' '.join(filter(None, (rc, 'has-detail' if detail else ''))))}>"
-                       + "".join(f"<td{_cls(c.cls)}>{c.content}</td>" for c in cells) + "</tr>")
+                       + "".join(f"<td{_cls(kind(k))}>{content(x)}</td>" for k, x in enumerate(row)) + "</tr>")
             if detail:
                 out.append(f"<tr{_cls(' '.join(filter(None, (rc, 'detail'))))}><td></td>"
                            f"<td class='w' colspan='{len(row) - 1}'>{esc(detail)}</td></tr>")
