@@ -120,7 +120,7 @@ def calibration_html(result: CalibrationResult, data: Measurements, before: Cali
 
 
 def _short(spec: str) -> str:
-    """A model's label for tables: the specification cut before its longest lists."""
+    """A model's label for tables: its first 37 characters when longer than 40 (the whole in a footnote)."""
     return spec if len(spec) <= 40 else spec[:37] + "..."
 
 
