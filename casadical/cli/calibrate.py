@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from .common import add_checks, add_force, check_options, check_outputs, int_at_least
+from .common import add_checks, add_force, check_options, check_outputs, int_at_least, write_text
 
 
 def register(sub) -> None:
@@ -20,6 +20,10 @@ def register(sub) -> None:
                    help="error model, e.g. kinematic, kinematic+compliance, "
                         "kinematic+compliance[2,3]+periodic[2:1] (default: %(default)s)")
     p.add_argument("--out", required=True, metavar="CAL.json", help="calibration JSON to write")
+    p.add_argument("--html", metavar="REPORT.html",
+                   help="also write a self-contained HTML report: errors before (nominal model, base fitted) and "
+                        "after, residuals per axis, parameters with std, correlations, poses set aside, "
+                        "identifiability")
     p.add_argument("--solver", default="ipopt", choices=["ipopt", "lm", "gn", "auto"],
                    help="ipopt (bounded), lm (Levenberg-Marquardt), gn (Gauss-Newton), auto (lm, then "
                         "ipopt if a bound is crossed); default %(default)s")
@@ -35,11 +39,11 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..calibration import calibrate, load_calibration
+    from ..calibration import CalibrationResult, calibrate, load_calibration
     from ..data import Measurements
     from ..robot import load_robot
 
-    check_outputs({"--out": args.out}, [args.robot, args.data], args.force)
+    check_outputs({"--out": args.out, "--html": args.html}, [args.robot, args.data], args.force)
     if args.robot.lower().endswith(".json"):
         robot = load_calibration(args.robot)
         n = robot.model.robot.n
@@ -54,4 +58,12 @@ def run(args) -> int:
     result.save(args.out, overwrite=args.force)
     print(result.summary())
     print(f"\ncalibration -> {args.out}")
+    if args.html:
+        from ..report import calibration_html
+        before, label = None, "nominal model, base pose fitted"
+        if isinstance(robot, CalibrationResult):    # the calibration taken further: the error it starts from
+            before = calibrate(robot, data, "base", "lm", warn=False, robust=args.robust)
+            label = f"{args.robot} with its base pose re-estimated"
+        write_text(args.html, calibration_html(result, data, before, label), args.force)
+        print(f"html report -> {args.html}")
     return 0

@@ -53,7 +53,7 @@ def register(sub) -> None:
 def run(args) -> int:
     from ..data import Measurements
     from ..diagnosis import DiagnosisSettings, diagnose
-    from ..diagnosis.html import render
+    from ..report import diagnosis_html
     from ..robot import load_robot
 
     check_outputs({"--json": args.json, "--html": args.html, "--out": args.out},
@@ -73,7 +73,7 @@ def run(args) -> int:
     write_json(args.json, report.to_dict(), args.force)
     print(f"\nreport -> {args.json}")
     if args.html:
-        write_text(args.html, render(report), args.force)
+        write_text(args.html, diagnosis_html(report), args.force)
         print(f"html report -> {args.html}")
     if args.out:
         report.final.save(args.out, overwrite=args.force)

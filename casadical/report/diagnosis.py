@@ -1,0 +1,397 @@
+"""The HTML report of a diagnosis: steps, findings with their evidence, what transfers, the final model."""
+
+from __future__ import annotations
+
+import math
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .figures import AFTER, BEFORE, CURVE, SERIES, ecdf, figure, legend_above, styled, ticks
+from .page import Page, Raw, esc, gain, model_label, num, sig
+from .parameters import parameter_table
+
+if TYPE_CHECKING:
+    from ..diagnosis.report import DiagnosisReport, Finding, Step
+
+KINDS = ("random", "time", "joint")
+SHORT = {"geometric": "kinematic", "joint_compliance": "compliance", "nonlinear_stiffness": "progressive stiffness",
+         "joint_periodic": "periodic", "encoder_scale": "encoder scale", "backlash": "backlash",
+         "thermal_expansion": "thermal", "drift": "drift", "unexplained": "black box"}
+
+
+def short_label(cand) -> str:
+    """A candidate cause in a few words: ``compliance j2``, ``periodic j2 h17``, ``backlash j3 (motion)``."""
+    if cand is None:
+        return "nominal"
+    parts = [SHORT.get(cand.cause, cand.cause.replace("_", " "))]
+    if cand.joint is not None:
+        parts.append(f"{'link' if cand.cause == 'thermal_expansion' else 'j'}{cand.joint}")
+    if cand.harmonic is not None:
+        parts.append(f"h{cand.harmonic}")
+    if cand.source == "motion":
+        parts.append("(motion)")
+    return " ".join(parts)
+
+
+def step_label(step: Step) -> str:
+    c = step.candidate
+    if c is None or c.cause == "geometric":
+        return short_label(c)
+    return "+ " + short_label(c)
+
+
+def diagnosis_html(report: DiagnosisReport) -> str:
+    """A self-contained HTML report of a diagnosis (inline CSS and SVG, no script, no network).
+
+    Parameters
+    ----------
+    report : DiagnosisReport
+        What :func:`casadical.diagnosis.diagnose` returned.
+    """
+    page = Page(f"casadical diagnosis: {report.robot}")
+    v = report.final_validation
+    final = model_label(page, _final_label(report), report.final_model)
+    page.heading(f"Diagnosis of {report.robot}", 1)
+    text = (f"Final model {final}: validation mean {v.mean_mm:.4f} mm, max {v.max_mm:.4f} mm, rms "
+            f"{v.rms_mm:.4f} mm over {v.n_poses} validation poses that were never fitted and never decided "
+            "anything")
+    k = report.kinematic_validation
+    if k is not None:
+        text += f"; {gain(k.mean_mm - v.mean_mm)} than the kinematic calibration ({k.mean_mm:.4f} mm)"
+    nominal = report.steps[0].validation if report.steps else None
+    if nominal is not None:
+        text += f" and {gain(nominal.mean_mm - v.mean_mm)} than the nominal model ({nominal.mean_mm:.4f} mm)"
+    page.para(text + f". Run time {report.time_s:.1f} s.", "lead")
+    named = [f for f in report.findings if f.in_model and f.cause not in ("geometric", "unexplained")]
+    kept_out = [f for f in report.findings if not f.in_model]
+    page.para(f"{len(named)} cause(s) named beyond the geometry; {len(kept_out)} joint(s) with structure that "
+              "holds up statistically but not as a cause, kept out of the model.")
+    sections = [("steps", "Steps"), ("findings", "Findings"), ("unexplained", "Structure kept out of the model"),
+                ("transfer", "On another series"), ("periodograms", "What is left"),
+                ("parameters", "Final parameters"), ("notes", "Notes and settings")]
+    present = {"unexplained": bool(kept_out), "transfer": bool(report.transfer),
+               "periodograms": bool(report.periodograms)}
+    page.items([page.ref(a, t) for a, t in sections if present.get(a, True)], "ol")
+
+    _steps(page, report)
+    _findings(page, report)
+    if kept_out:
+        _kept_out(page, report, kept_out)
+    if report.transfer:
+        _transfer(page, report)
+    if report.periodograms:
+        page.heading("What is left: periodograms of the final residual", anchor="periodograms")
+        ref = page.figure(_periodograms(report), "fig-periodograms",
+                          "Share of each joint's projected calibration residual that one harmonic of its reading "
+                          "explains, per harmonic (cycles per turn). Dotted lines: harmonics in the final model.")
+        page.para(f"A single tall peak in {ref} is a periodic error the model lacks; a forest of small ones "
+                  "is noise or structure no single harmonic holds.")
+    page.heading("Final parameters", anchor="parameters")
+    page.para("The final model fitted on the calibration poses (what <code>diagnose --out</code> writes). "
+              "Angles in degrees, lengths in millimetres; greyed rows are held.")
+    parameter_table(page, report.final)
+    page.heading("Notes and settings", anchor="notes")
+    page.items([esc(n) for n in report.notes])
+    page.pairs([(k, esc(str(v))) for k, v in report.settings.items()])
+    return page.html()
+
+
+def _final_label(report: DiagnosisReport) -> str:
+    named = sum(f.in_model and f.cause not in ("geometric", "unexplained") for f in report.findings)
+    bb = any(f.in_model and f.cause == "unexplained" for f in report.findings)
+    base = "kinematic" if any(f.cause == "geometric" for f in report.findings) else "nominal"
+    return base + (f" + {named} cause(s)" if named else "") + (" + black box" if bb else "")
+
+
+# --- steps ---------------------------------------------------------------------------
+
+
+def _steps(page: Page, report: DiagnosisReport) -> None:
+    page.heading("Steps", anchor="steps")
+    rows, classes, reasons = [], [], []
+    current = None
+    for i, s in enumerate(report.steps, 1):
+        cv = s.cv_mm or {}
+        held = [Raw(num(cv.get(k)) + (f"<br><small>{gain(_drop(cv, k), unit='')}</small>"
+                                      if _drop(cv, k) is not None else "")) for k in KINDS]
+        vm = num(s.validation.mean_mm)
+        if current is not None:
+            vm += f"<br><small>{gain(current - s.validation.mean_mm, unit='')}</small>"
+        rows.append([str(i), model_label(page, step_label(s), s.model), num(s.calibration.rms_mm), *held, Raw(vm),
+                     num(s.validation.max_mm), num(s.validation.rms_mm), "yes" if s.accepted else "no"])
+        classes.append("" if s.accepted else "off")
+        reasons.append(s.reason)
+        if s.accepted:
+            current = s.validation.mean_mm
+    page.para("Each step adds one cause to the model before it; a step is accepted only on the calibration poses "
+              "(significance and held-out means on folds that interpolate, follow time, and extrapolate over "
+              "joint ranges). The validation columns judge and never decide. Under each mean, its gain (mm) on "
+              "the model before: the last accepted step. Hover over a step for its whole model, or see the "
+              "footnotes; why a step was not accepted is written under it.")
+    page.table(["#", "step", "calibration rms mm", "held-out mean, random folds, mm", "held-out mean, time folds, mm",
+                "held-out mean, joint folds, mm", "validation mean mm", "validation max mm", "validation rms mm",
+                "accepted"], rows, text_columns=(1, 9), row_classes=classes, details=reasons)
+    acc = [s for s in report.steps if s.accepted and s.candidate is not None]
+    if acc:
+        ref = page.figure(_along_steps(acc), "fig-steps",
+                          "Validation mean error and held-out means on the calibration poses along the accepted "
+                          f"steps (the nominal model, not shown: {report.steps[0].validation.mean_mm:.4f} mm).")
+        page.para(f"How the error falls along the accepted steps: {ref}.")
+    e0 = np.asarray(report.plots.get("val_errors_nominal_mm", []), float)
+    e1 = np.asarray(report.plots.get("val_errors_final_mm", []), float)
+    if len(e0) and len(e1):
+        ref = page.figure(_per_pose(e0, e1), "fig-poses",
+                          "Position error of each validation pose, nominal model (base fitted) and final model: "
+                          "distribution (top) and per pose (bottom).")
+        page.para(f"Every validation pose before and after: {ref}; the median goes from {np.median(e0):.4f} mm "
+                  f"to {np.median(e1):.4f} mm, the worst from {e0.max():.4f} mm to {e1.max():.4f} mm.")
+
+
+@styled
+def _along_steps(steps: list[Step]):
+    fig, ax = figure(8.6, 3.6)
+    ax = ax[0, 0]
+    x = np.arange(len(steps))
+    ax.plot(x, [s.validation.mean_mm for s in steps], "o-", color=AFTER, lw=2.2, label="validation mean")
+    for kind, colour in zip(KINDS, (SERIES[2], SERIES[3], SERIES[1])):
+        y = [(s.cv_mm or {}).get(kind) for s in steps]
+        ax.plot(x, [math.nan if v is None else v for v in y], "s--", color=colour, lw=1.1, ms=3,
+                label=f"held-out, {kind} folds")
+    ax.set_xticks(x, [step_label(s) for s in steps], rotation=40, ha="right", rotation_mode="anchor")
+    ax.set_ylabel("mean position error (mm)")
+    ticks(ax, x=False)
+    legend_above(ax)
+    return fig
+
+
+@styled
+def _per_pose(e0: np.ndarray, e1: np.ndarray):
+    fig, ax = figure(8.6, 5.6, 2, 1)
+    ecdf(ax[0, 0], e0, e1, "nominal model (base fitted)", "final model")
+    legend_above(ax[0, 0])
+    a = ax[1, 0]
+    idx = np.arange(len(e0))
+    a.plot(idx, e0, ".", color=BEFORE, ms=2.5, alpha=0.6, label="nominal")
+    a.plot(idx, e1, ".", color=AFTER, ms=2.5, alpha=0.8, label="final")
+    a.set(xlabel="validation pose (file order)", ylabel="position error (mm)")
+    ticks(a)
+    return fig
+
+
+# --- findings ------------------------------------------------------------------------
+
+
+def _findings(page: Page, report: DiagnosisReport) -> None:
+    page.heading("Findings", anchor="findings")
+    shown = [f for f in report.findings if f.in_model]
+    if len(shown) <= 1:
+        page.para("No cause beyond the geometry: the kinematic model explains the data down to what the "
+                  "checks can support.")
+    other = report.transfer.get("file", "the other series") if report.transfer else ""
+    for k, f in enumerate(shown):
+        anchor = f"finding-{k + 1}"
+        head = f"{k + 1}. {f.label()}"
+        page.parts.append(f'<h3 id="{anchor}">{esc(head)}: {gain(f.gain_mm)} on validation</h3>')
+        entries = []
+        if f.parameters:
+            entries.append(("values", esc(", ".join(
+                f"{n} = {sig(p['value'])}" + (f" \u00b1 {sig(p['std'], 2)}" if p.get("std") is not None else "")
+                + f" {p['unit']}" for n, p in f.parameters.items()))))
+        hu = f.holds_up or {}
+        if "test" in hu:
+            entries.append(("significance", esc(hu["test"] + " on the calibration poses")))
+        if "resolution" in hu:
+            entries.append(("resolution", esc(_resolution(hu["resolution"]))))
+        for a in f.ambiguous_with:
+            entries.append(("ambiguous with", esc(f"{a['label']} (similarity {a['similarity']}): {a['tell_apart']}")))
+        if f.transfer:
+            entries.append((f"on {_name(other)}", _transfer_text(f.transfer)))
+        page.pairs(entries)
+        if hu:
+            page.details("The evidence in words", f.evidence)
+        elif f.evidence:
+            page.para(esc(f.evidence))
+        if "cv_mm" in hu:
+            page.table(["held-out folds", "before mm", "with it mm", "gain"],
+                       [[kind, num(hu["cv_mm"].get(f"{kind}_before")), num(hu["cv_mm"].get(kind)),
+                         gain(_drop(hu["cv_mm"], kind))] for kind in KINDS], text_columns=(0, 3))
+        if hu.get("halves"):
+            _halves_table(page, hu["halves"])
+        if f.plot:
+            page.figure(_finding_plot(f), f"fig-{anchor}", _finding_caption(f))
+
+
+def _drop(cv: dict, kind: str) -> float | None:
+    a, b = cv.get(f"{kind}_before"), cv.get(kind)
+    return None if a is None or b is None else a - b
+
+
+def _resolution(r: dict) -> str:
+    lo, hi = r.get("band", ["?", "?"])
+    if r.get("resolved"):
+        return (f"resolved over the {r.get('range_deg', math.nan):.0f} deg the joint covers: no neighbouring "
+                f"harmonic fits as well (margin {r.get('neighbour_margin', math.nan):.3g}); "
+                f"{100 * r.get('outside_geometry', math.nan):.0f} % of it lies outside what the geometry fits")
+    return (f"not resolved: harmonics {lo}..{hi} fit about as well over the {r.get('range_deg', math.nan):.0f} "
+            "deg the joint covers")
+
+
+def _halves_table(page: Page, halves: list[dict]) -> None:
+    rows = []
+    for h in halves:
+        what = "joint range: lower / upper half" if h.get("split") == "joint" else "time: first / second half"
+        if "amplitude_arcsec" in h:
+            a, b = h["amplitude_arcsec"]
+            pa, pb = h["phase_deg"]
+            size, phase = f"{a:.1f} / {b:.1f} arcsec", f"{pa:.0f} / {pb:.0f} deg"
+        else:
+            a, b = h["values"]
+            size, phase = f"{sig(a, 3)} / {sig(b, 3)} {h.get('unit', '')}", ""
+        rows.append([what, size, phase, f"{h['chi2']:.1f}", "agree" if h["agree"] else "disagree"])
+    page.table(["stable over", "size (each half)", "phase (each half)", "chi2", "verdict"], rows,
+               text_columns=(0, 1, 2, 4))
+
+
+def _transfer_text(t: dict) -> Raw:
+    return Raw(f"{esc(t['verdict'])}: {gain(t['base_gain_mm'])} with the base pose re-estimated, "
+               f"{gain(t['refit_gain_mm'])} with the geometry refitted")
+
+
+def _name(path: str) -> str:
+    return path.replace("\\", "/").rsplit("/", 1)[-1]
+
+
+def _finding_caption(f: Finding) -> str:
+    if "partial" in f.plot:
+        return (f"{f.label()}: the calibration residual as joint {f.candidate.joint}'s angle error plus the fitted "
+                "effect (points) against the cause's variable, and the fitted effect (line).")
+    return f"{f.label()}: calibration residual before and after the finding, against its variable."
+
+
+@styled
+def _finding_plot(f: Finding):
+    pl = f.plot
+    fig, ax = figure(6.8, 3.2)
+    ax = ax[0, 0]
+    x = np.asarray(pl["x"], float)
+    if "partial" in pl:
+        ax.plot(x, pl["partial"], ".", color=AFTER, ms=3, alpha=0.55, label="residual + fitted effect")
+        ax.plot(pl["curve_x"], pl["curve_y"], "-", color=CURVE, lw=2, label="fitted effect")
+    else:
+        ax.plot(x, pl["before"], ".", color=BEFORE, ms=3, alpha=0.6, label="before")
+        ax.plot(x, pl["after"], ".", color=AFTER, ms=3, alpha=0.7, label="after")
+    ax.set(xlabel=pl["xlabel"], ylabel=_wrap(pl["ylabel"]))
+    ticks(ax)
+    legend_above(ax, markerscale=2.5)
+    return fig
+
+
+def _wrap(label: str, width: int = 34) -> str:
+    """An axis label on two lines when long (a label longer than its axis would be cut)."""
+    if len(label) <= width:
+        return label
+    cut = label.rfind(" ", 0, len(label) // 2 + 8)
+    return label if cut < 0 else label[:cut] + "\n" + label[cut + 1:]
+
+
+# --- unexplained, transfer, periodograms ------------------------------------------------
+
+
+def _kept_out(page: Page, report: DiagnosisReport, kept: list[Finding]) -> None:
+    page.heading("Structure kept out of the model", anchor="unexplained")
+    page.para("Significant on the calibration poses, but it does not hold up as a cause (not resolved from its "
+              "neighbouring harmonics, or not the same over the halves of the joint's range), so the final model "
+              "leaves it out. What it would have given: on this series' validation poses, and taken to the other "
+              "series the same two ways as the findings.")
+    other = _name(report.transfer.get("file", "")) if report.transfer else ""
+    rows, details = [], []
+    for f in kept:
+        structures = f.holds_up.get("structures", [])
+        sizes = [s["amplitude_arcsec"] for s in structures if "amplitude_arcsec" in s]
+        row = [f"joint {f.candidate.joint}" if f.candidate.joint else "", str(len(structures)),
+               f"{max(sizes):.1f} arcsec" if sizes else "", gain(f.potential_gain_mm)]
+        if other:
+            row.append(_transfer_text(f.transfer) if f.transfer else "")
+        rows.append(row)
+        details.append(f.where)
+    header = ["where", "structures", "largest", "on this series' validation"] + ([f"on {other}"] if other else [])
+    page.table(header, rows, text_columns=(0, 2, 3), wrap_columns=(4,), details=details)
+    rows = [[f"joint {f.candidate.joint}", s.get("what", ""), s.get("why", "")]
+            for f in kept for s in f.holds_up.get("structures", [])]
+    if rows:
+        page.para("Why each was kept out:")
+        page.table(["where", "structure", "why kept out"], rows, text_columns=(0, 1), wrap_columns=(2,))
+
+
+def _transfer(page: Page, report: DiagnosisReport) -> None:
+    t = report.transfer
+    page.heading(f"On another series: {_name(t['file'])}", anchor="transfer")
+    fb, fr = t["final"]["base_mm"], t["final"]["refit_mm"]
+    kb, kr = t["kinematic"]["base_mm"], t["kinematic"]["refit_mm"]
+    page.para(esc(f"The final and the kinematic model taken to {t['file']} the two ways a calibration travels: "
+                  f"only the base pose re-estimated on {t['n_base']} of its poses (a new tracker set-up), or the "
+                  f"geometry refitted on {t['n_refit']} of them with the findings frozen (a new series of the same "
+                  "robot); the other poses judge."))
+    page.table(["taken there with", "kinematic mean mm", "final mean mm", "final against kinematic"],
+               [["base pose re-estimated", num(kb), num(fb), gain(kb - fb)],
+                ["geometry refitted", num(kr), num(fr), gain(kr - fr)]], text_columns=(0, 3))
+    ref = page.figure(_transfer_plot(t), "fig-transfer",
+                      f"Mean error on {_name(t['file'])}, kinematic and final model, both ways of taking them there.")
+    rows = [[f.label(), gain(f.transfer["base_gain_mm"]), gain(f.transfer["refit_gain_mm"]), f.transfer["verdict"]]
+            for f in report.findings if f.transfer and f.in_model]
+    if rows:
+        page.para(f"Each finding there ({ref} shows the whole model): the model with the finding against the same "
+                  "model without it.")
+        page.table(["finding", "base re-estimated", "geometry refitted", "verdict"], rows,
+                   text_columns=(0, 1, 2, 3))
+
+
+@styled
+def _transfer_plot(t: dict):
+    fig, ax = figure(5.6, 3.0)
+    ax = ax[0, 0]
+    x = np.arange(2)
+    w = 0.36
+    for k, (who, colour) in enumerate((("kinematic", BEFORE), ("final", AFTER))):
+        vals = [t[who]["base_mm"], t[who]["refit_mm"]]
+        bars = ax.bar(x + (k - 0.5) * w, vals, w, color=colour, label=f"{who} model")
+        ax.bar_label(bars, fmt="%.3f", padding=2, fontsize=8)
+    ax.set_xticks(x, ["base pose re-estimated", "geometry refitted"])
+    ax.set_ylabel("mean position error (mm)")
+    ax.margins(y=0.15)
+    ax.grid(axis="x", visible=False)
+    ticks(ax, x=False)
+    legend_above(ax)
+    return fig
+
+
+@styled
+def _periodograms(report: DiagnosisReport):
+    pgs = report.periodograms
+    ncols = 2 if len(pgs) > 3 else 1
+    nrows = math.ceil(len(pgs) / ncols)
+    fig, ax = figure(8.6, 1.45 * nrows + 0.9, nrows, ncols, sharex=True, sharey=True)
+    in_model: dict[int, list[int]] = {}
+    for f in report.findings:
+        c = f.candidate
+        if f.in_model and c.cause == "joint_periodic":
+            in_model.setdefault(c.joint, []).append(c.harmonic)
+    for k, pg in enumerate(pgs):
+        a = ax[k // ncols, k % ncols]
+        for h in in_model.get(pg.joint, []):
+            a.axvline(h, color="#888", lw=0.9, ls=":")
+        a.plot(pg.harmonics, pg.power, color=AFTER, lw=1.2)
+        a.text(0.99, 0.92, f"joint {pg.joint}", transform=a.transAxes, ha="right", va="top", fontsize=9,
+               bbox={"facecolor": "white", "edgecolor": "none", "pad": 1})
+        ticks(a, n=5)
+        if k % ncols == 0:
+            a.set_ylabel("share")
+    for k in range(len(pgs), nrows * ncols):
+        ax[k // ncols, k % ncols].set_visible(False)
+    for a in ax[-1]:
+        a.set_xlabel("harmonic (cycles per turn)")
+    if len(pgs) % ncols:
+        ax[-2, -1].xaxis.set_tick_params(labelbottom=True)
+        ax[-2, -1].set_xlabel("harmonic (cycles per turn)")
+    return fig

@@ -1,0 +1,126 @@
+"""Figures of the HTML reports: matplotlib drawn to inline SVG, one shared style.
+
+Figures are made with :class:`matplotlib.figure.Figure` directly, never
+through ``pyplot``: no display, no global backend switch in the caller's
+program, nothing kept open. Text stays text in the SVG (``svg.fonttype
+none``: small files, selectable, checked for overflow in a browser) and
+every figure gets its own id salt, so several figures on one page never
+share clip-path ids while the output stays the same from run to run.
+"""
+
+from __future__ import annotations
+
+import functools
+import html
+import io
+import re
+
+import numpy as np
+from matplotlib import rc_context
+from matplotlib.axes import Axes
+from matplotlib.figure import Figure
+from matplotlib.ticker import MaxNLocator
+
+#: colour-blind safe (Paul Tol's "bright"): before / after and series
+BEFORE, AFTER, CURVE = "#EE6677", "#4477AA", "#228833"
+SERIES = ("#4477AA", "#EE6677", "#228833", "#CCBB44", "#66CCEE", "#AA3377", "#BBBBBB")
+
+STYLE = {
+    "svg.fonttype": "none",
+    "font.family": "sans-serif",
+    "font.sans-serif": ["DejaVu Sans", "Liberation Sans", "Arial"],
+    "font.size": 9.5,
+    "axes.titlesize": 10,
+    "axes.labelsize": 9.5,
+    "legend.fontsize": 9,
+    "xtick.labelsize": 8.5,
+    "ytick.labelsize": 8.5,
+    "axes.spines.top": False,
+    "axes.spines.right": False,
+    "axes.grid": True,
+    "grid.color": "#e3e3e3",
+    "grid.linewidth": 0.7,
+    "axes.axisbelow": True,
+    "axes.xmargin": 0.03,
+    "axes.ymargin": 0.06,
+    "lines.linewidth": 1.6,
+    "lines.markersize": 4,
+    "legend.frameon": False,
+}
+
+
+def styled(build):
+    """Decorator: ``build`` (a function making a figure) runs in the report style.
+
+    matplotlib reads most style settings when an artist is made, so the whole
+    drawing, not only the figure's creation, runs inside the style.
+    """
+    @functools.wraps(build)
+    def run(*args, **kwargs):
+        with rc_context(STYLE):
+            return build(*args, **kwargs)
+    return run
+
+
+def figure(width_in: float = 6.4, height_in: float = 3.4, nrows: int = 1, ncols: int = 1,
+           **subplots) -> tuple[Figure, np.ndarray]:
+    """A figure and its axes (always a 2-D array); call it inside a :func:`styled` function.
+
+    Parameters
+    ----------
+    width_in, height_in : float
+        Size in inches (shown at 96 px per inch, scaled down on narrow screens).
+    nrows, ncols : int
+    **subplots
+        Passed to :meth:`matplotlib.figure.Figure.subplots` (``sharex`` ...).
+    """
+    fig = Figure(figsize=(width_in, height_in), layout="constrained")
+    return fig, fig.subplots(nrows, ncols, squeeze=False, **subplots)
+
+
+def ticks(ax: Axes, x: bool = True, y: bool = True, n: int = 7, least: int = 4) -> None:
+    """Enough ticks on linear axes: about ``n`` and never fewer than ``least``."""
+    for use, axis in ((x, ax.xaxis), (y, ax.yaxis)):
+        if use and axis.get_scale() == "linear":
+            axis.set_major_locator(MaxNLocator(nbins=n, min_n_ticks=least))
+
+
+def legend_above(ax: Axes, ncols: int | None = None, **kwargs) -> None:
+    """The legend in one row above the axes, where it can never cover data."""
+    handles, labels = ax.get_legend_handles_labels()
+    if handles:
+        ax.legend(handles, labels, loc="lower left", bbox_to_anchor=(0, 1.01), ncols=ncols or len(handles), borderaxespad=0.2, handlelength=1.6, columnspacing=1.2,
+                  **kwargs)
+
+
+def ecdf(ax: Axes, before, after, before_label: str, after_label: str) -> None:
+    """Empirical cumulative distributions of position errors (mm) before and after, as step lines."""
+    for values, label, colour in ((before, before_label, BEFORE), (after, after_label, AFTER)):
+        v = np.sort(np.asarray(values, float))
+        if len(v):
+            ax.step(np.concatenate([[v[0]], v]), np.arange(len(v) + 1) / len(v), where="post",
+                    color=colour, label=label)
+    ax.set(xlabel="position error (mm)", ylabel="share of poses with a smaller error", ylim=(0, 1.02))
+    ticks(ax)
+
+
+_HEADER = re.compile(r"^.*?(?=<svg)", re.S)
+
+
+def to_svg(fig: Figure, key: str, label: str) -> str:
+    """The figure as an ``<svg>`` element to put in a page.
+
+    Parameters
+    ----------
+    fig : Figure
+    key : str
+        Unique on the page (salts the SVG's internal ids).
+    label : str
+        Accessible name of the image (``aria-label``).
+    """
+    buf = io.StringIO()
+    with rc_context({**STYLE, "svg.hashsalt": key}):
+        fig.savefig(buf, format="svg", metadata={"Date": None})
+    svg = _HEADER.sub("", buf.getvalue(), count=1)
+    svg = svg.replace("<svg ", f'<svg role="img" aria-label="{html.escape(label)}" ', 1)
+    return re.sub(r"<metadata>.*?</metadata>\s*", "", svg, count=1, flags=re.S)

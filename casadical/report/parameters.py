@@ -1,0 +1,72 @@
+"""The parameter table and the correlation figure, shared by both reports."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..result import CalibrationResult
+from .figures import figure, styled
+from .page import Page, sig
+
+
+def parameter_table(page: Page, result: CalibrationResult) -> None:
+    """Every parameter: nominal, identified, deviation, std, unit, and whether (and why not) identified."""
+    rows, classes = [], []
+    for p in result.parameters:
+        f = p.to_display
+        if not p.fixed:
+            status = "identified"
+        elif p.identifiable is False:
+            status = "not identifiable: " + (p.reason or "no reason recorded")
+        else:
+            status = "held" + (f": {p.reason}" if p.reason else "")
+        rows.append([p.name, p.term, "" if p.joint is None else str(p.joint), sig(f(p.nominal), 6),
+                     sig(f(p.value), 6), sig(f(p.value - p.nominal), 3) if not p.fixed else "",
+                     sig(f(p.std), 2) if math.isfinite(p.std) else "", p.display_unit, status])
+        classes.append("off" if p.fixed else "")
+    page.table(["parameter", "term", "joint", "nominal", "identified", "deviation", "std", "unit", "status"],
+               rows, text_columns=(0, 1, 7), wrap_columns=(8,), row_classes=classes)
+    stiff = result.stiffness()
+    if stiff:
+        page.para("Joint stiffness k = 1/c, from the identified compliance:")
+        page.table(["joint", "k (N m/rad)", "std (N m/rad)"],
+                   [[str(j), sig(k, 4) if math.isfinite(k) else "not positive", sig(sk, 2)]
+                    for j, (k, sk) in stiff.items()])
+
+
+def strongest_pairs(result: CalibrationResult, n: int = 12, floor: float = 0.5) -> list[tuple[str, str, float]]:
+    """The ``n`` most correlated pairs of free parameters with |r| >= ``floor``, strongest first."""
+    unc = result.uncertainty
+    if unc is None or len(unc.names) < 2:
+        return []
+    c = unc.correlation
+    i, j = np.triu_indices(len(c), 1)
+    order = np.argsort(-np.abs(c[i, j]))
+    return [(unc.names[i[k]], unc.names[j[k]], float(c[i[k], j[k]])) for k in order[:n]
+            if abs(c[i[k], j[k]]) >= floor]
+
+
+@styled
+def correlation_figure(result: CalibrationResult):
+    """Heat map of the correlation matrix of the free parameters."""
+    unc = result.uncertainty
+    n = len(unc.names)
+    size = min(max(3.6, 0.16 * n + 1.8), 9.5)
+    fig, ax = figure(size + 0.9, size)
+    ax = ax[0, 0]
+    # cells as vector rectangles (imshow would embed a bitmap)
+    im = ax.pcolormesh(unc.correlation, cmap="RdBu_r", vmin=-1, vmax=1)
+    ax.set_aspect("equal")
+    ax.invert_yaxis()
+    ax.grid(False)
+    fs = 8 if n <= 30 else 6.5
+    ax.set_xticks(np.arange(n) + 0.5, unc.names, rotation=90, fontsize=fs)
+    ax.set_yticks(np.arange(n) + 0.5, unc.names, fontsize=fs)
+    ax.tick_params(length=0)
+    for s in ax.spines.values():
+        s.set_visible(False)
+    bar = fig.colorbar(im, ax=ax, shrink=0.8, label="correlation")
+    bar.solids.set_rasterized(False)
+    return fig

@@ -1,0 +1,418 @@
+"""HTML reports: what a reader acts on must be on the page, and right.
+
+Hidden in simulated data on robots that are not built in: bad measurements
+(the calibration report must list their file lines and no others), a
+compliant joint (the diagnosis report must show it as a finding with its
+gain as a gain, its evidence and its figure). The pages are then loaded in
+a real headless Chromium (``test_*_in_a_browser``).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import re
+import shutil
+from html.parser import HTMLParser
+
+import numpy as np
+import pytest
+
+from arms import ARM4, ARM5, ARM7, to_toml
+from casadical.calibration import calibrate
+from casadical.cli import main
+from casadical.data import Measurements
+from casadical.diagnosis import DiagnosisSettings, Finding, diagnose
+from casadical.diagnosis.candidates import Candidate
+from casadical.report import calibration_html, diagnosis_html
+from casadical.robot import robot_from_dict
+from casadical.simulate import Effects, simulate
+
+try:                        # drives the browser through the DevTools protocol
+    from playwright.sync_api import sync_playwright
+except ImportError:
+    sync_playwright = None
+
+CASES = [("arm4", ARM4, 0), ("arm5", ARM5, 1), ("arm7", ARM7, 2)]
+
+
+# --- reading a page as a person would: sections, tables, figures ---------------------
+
+
+class Page(HTMLParser):
+    """The parts of a report a test reads: tables and figures by section, titles, text."""
+
+    def __init__(self, text: str):
+        super().__init__()
+        self.section = ""
+        self.tables: dict[str, list[list[list[str]]]] = {}
+        self.figures: dict[str, str] = {}          # id -> section
+        self.titles: list[str] = []                # abbr title attributes
+        self.h3: dict[str, str] = {}               # id -> text
+        self._h3: str | None = None
+        self.footnotes: list[str] = []
+        self.text_parts: list[str] = []
+        self._cell: list[str] | None = None
+        self._row: list[str] | None = None
+        self._in_fn = False
+        self.feed(text)
+        self.text = " ".join(" ".join(self.text_parts).split())
+
+    def handle_starttag(self, tag, attrs):
+        a = dict(attrs)
+        if tag == "h2" and a.get("id"):
+            self.section = a["id"]
+        elif tag == "table":
+            self.tables.setdefault(self.section, []).append([])
+        elif tag == "tr":
+            self._row = []
+        elif tag in ("td", "th"):
+            self._cell = []
+        elif tag == "br" and self._cell is not None:
+            self._cell.append(" ")
+        elif tag == "figure":
+            self.figures[a["id"]] = self.section
+        elif tag == "h3" and a.get("id"):
+            self._h3 = a["id"]
+            self.h3[self._h3] = ""
+        elif tag == "abbr":
+            self.titles.append(a["title"])
+        elif tag == "li" and (a.get("id") or "").startswith("fn"):
+            self._in_fn = True
+            self.footnotes.append("")
+
+    def handle_endtag(self, tag):
+        if tag in ("td", "th") and self._cell is not None:
+            self._row.append(" ".join("".join(self._cell).split()))
+            self._cell = None
+        elif tag == "tr" and self._row is not None:
+            self.tables[self.section][-1].append(self._row)
+            self._row = None
+        elif tag == "li":
+            self._in_fn = False
+        elif tag == "h3":
+            self._h3 = None
+
+    def handle_data(self, data):
+        if self._cell is not None:
+            self._cell.append(data)
+        if self._in_fn:
+            self.footnotes[-1] += data
+        if self._h3:
+            self.h3[self._h3] += data
+        self.text_parts.append(data)
+
+    def table(self, section: str, k: int = 0) -> list[dict[str, str]]:
+        """Table ``k`` of a section as rows keyed by the header."""
+        head, *rows = self.tables[section][k]
+        return [dict(zip(head, r)) for r in rows if len(r) == len(head)]
+
+
+def assert_self_contained(html: str) -> None:
+    assert html.startswith("<!DOCTYPE html>")
+    assert "<script" not in html and "<img" not in html and not re.search(r"url\((?!#)", html)
+    # links stay on the page; the only URL is the SVG namespace
+    assert not re.search(r'(href|src)="(?!#)', html)
+    assert set(re.findall(r"https?://[^\s\"'<>]+", html)) <= {"http://www.w3.org/2000/svg",
+                                                               "http://www.w3.org/1999/xlink"}
+
+
+def simulated(arm: dict, seed: int, n: int, path, effects: Effects, bad: int = 0, truth=None):
+    """Poses of ``arm`` written to ``path`` and read back (real file lines); ``bad`` of them 3 mm off."""
+    robot = robot_from_dict(arm)
+    data, truth = simulate(robot, n, effects, truth=truth, seed=seed, floor_z=None)
+    rows = np.sort(np.random.default_rng(seed + 100).choice(n, bad, replace=False)) if bad else np.array([], int)
+    for r in rows:
+        for c, d in zip(("x_mm", "y_mm", "z_mm"), np.random.default_rng(seed + r).normal(size=3)):
+            data.columns[c][r] += 3.0 * d / math.sqrt(3)
+    data.write_csv(path)
+    return robot, Measurements.read_csv(path, n_joints=robot.n, require_positions=True), truth, rows + 2
+
+
+# --- the calibration report --------------------------------------------------------------
+
+
+@pytest.fixture(scope="module", params=CASES, ids=[c[0] for c in CASES])
+def calibration_page(request, tmp_path_factory):
+    name, arm, seed = request.param
+    path = tmp_path_factory.mktemp(name) / "poses.csv"
+    robot, data, _, bad_lines = simulated(arm, seed, 60, path, Effects(stiffness={2: 4e5}), bad=2 + seed % 2)
+    result = calibrate(robot, data, "kinematic+compliance", warn=False)
+    html = calibration_html(result, data)
+    return result, data, html, Page(html), bad_lines
+
+
+def test_calibration_report_lists_the_bad_measurements_by_file_line(calibration_page):
+    result, data, html, page, bad_lines = calibration_page
+    listed = [int(r["file line"]) for r in page.table("outliers")]
+    assert sorted(listed) == sorted(bad_lines.tolist())
+    for r in page.table("outliers"):
+        i = int(np.flatnonzero(data.lines == int(r["file line"]))[0])
+        residual = np.linalg.norm(result.residuals(data)[i]) * 1000
+        assert float(r["residual mm"]) == pytest.approx(residual, abs=1e-3)
+
+
+def test_calibration_report_errors_and_gain(calibration_page):
+    result, data, html, page, _ = calibration_page
+    before, after = page.table("errors")
+    assert before["model"].startswith("nominal model") and after["model"].startswith("calibrated")
+    stats = result.stats(data)
+    assert float(after["mean mm"]) == pytest.approx(stats.mean_mm, abs=1e-4)
+    assert float(after["max mm"]) == pytest.approx(stats.max_mm, abs=1e-4)
+    drop = float(before["mean mm"]) - float(after["mean mm"])
+    assert drop > 0
+    # the gain is written as a gain, never as a signed difference
+    written = re.search(r"mean position error ([\d.]+) mm, ([\d.]+) mm better than the nominal", page.text)
+    assert float(written.group(1)) == pytest.approx(stats.mean_mm, abs=1e-4)
+    assert float(written.group(2)) == pytest.approx(drop, abs=1.5e-4)
+    assert not re.search(r"-\s?\d+\.\d+ mm (better|worse)", page.text)
+
+
+def test_calibration_report_parameters_identifiability_and_correlations(calibration_page):
+    result, data, html, page, _ = calibration_page
+    params = page.table("parameters")
+    assert [r["parameter"] for r in params] == [p.name for p in result.parameters]
+    for r in params:
+        p = result.parameters[r["parameter"]]
+        assert float(r["identified"]) == pytest.approx(p.to_display(p.value), rel=1e-5, abs=1e-9)
+        assert r["unit"] == p.display_unit
+        if p.fixed:
+            assert r["status"].startswith("not identifiable" if p.identifiable is False else "held")
+        else:
+            assert r["status"] == "identified" and float(r["std"]) == pytest.approx(p.to_display(p.std), rel=0.06)
+    held = {r["parameter"]: r["held because"] for r in page.table("identifiability")}
+    assert held == {p.name: p.reason or "fixed on request" for p in result.parameters if p.fixed}
+    stiff = page.table("parameters", 1)
+    assert [int(r["joint"]) for r in stiff] == sorted(result.stiffness())
+    # the strongest correlations, computed here from the covariance
+    unc = result.uncertainty
+    s = np.sqrt(np.diag(unc.covariance))
+    corr = unc.covariance / np.outer(s, s)
+    i, j = np.triu_indices(len(s), 1)
+    top = [k for k in np.argsort(-np.abs(corr[i, j]))[:3] if abs(corr[i[k], j[k]]) >= 0.5]
+    expected = [(unc.names[i[k]], unc.names[j[k]], corr[i[k], j[k]]) for k in top]
+    if not expected:
+        assert "No pair of parameters is correlated above 0.5" in page.text
+        return
+    listed = [(r["parameter"], r["with"], float(r["correlation"])) for r in page.table("correlations")[:3]]
+    assert [(a, b) for a, b, _ in listed] == [(a, b) for a, b, _ in expected]
+    assert [c for *_, c in listed] == pytest.approx([c for *_, c in expected], abs=1e-3)
+
+
+def test_calibration_report_figures_and_page(calibration_page):
+    result, data, html, page, _ = calibration_page
+    assert set(page.figures) == {"fig-errors", "fig-axes", "fig-joints", "fig-correlation"}
+    joints = re.search(r'<figure id="fig-joints">(.*?)</figure>', html, re.S).group(1)
+    for j in range(1, result.model.robot.n + 1):
+        assert f"q{j} (deg)" in joints
+    for unit in ("position error (mm)", "x residual (mm)", "z residual (mm)"):
+        assert unit in html
+    assert_self_contained(html)
+    # every figure the text refers to exists
+    for target in re.findall(r'href="#(fig-[\w-]+)"', html):
+        assert target in page.figures
+
+
+# --- the diagnosis report ------------------------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def diagnosis_page(tmp_path_factory):
+    tmp = tmp_path_factory.mktemp("diag")
+    effects = Effects(stiffness={2: 4e5})
+    robot, cal, truth, _ = simulated(ARM5, 3, 60, tmp / "cal.csv", effects)
+    _, val, _, _ = simulated(ARM5, 4, 100, tmp / "val.csv", effects, truth=truth)
+    _, other, _, _ = simulated(ARM5, 5, 100, tmp / "other.csv", effects, truth=truth)
+    report = diagnose(robot, cal, val, DiagnosisSettings(seed=3, max_harmonic=20), other=other)
+    html = diagnosis_html(report)
+    return report, html, Page(html)
+
+
+def test_diagnosis_report_steps_with_short_labels_and_full_specs(diagnosis_page):
+    report, html, page = diagnosis_page
+    rows = [r for r in page.table("steps") if r.get("#", "").isdigit()]
+    assert len(rows) == len(report.steps)
+    for r, s in zip(rows, report.steps):
+        assert float(r["validation mean mm"].split()[0]) == pytest.approx(s.validation.mean_mm, abs=1e-4)
+        assert r["accepted"] == ("yes" if s.accepted else "no")
+        # a short label; the whole model on hover and in a footnote
+        assert len(r["step"]) < 40
+        assert s.model in r["step"] or (s.model in page.titles and s.model in page.footnotes)
+    assert page.footnotes and all(len(f) > 0 for f in page.footnotes)
+
+
+def test_diagnosis_report_names_the_hidden_compliance_with_its_gain(diagnosis_page):
+    report, html, page = diagnosis_page
+    f = next(f for f in report.findings if f.cause == "joint_compliance")
+    assert f.candidate.joint == 2
+    k = [g for g in report.findings if g.in_model].index(f) + 1
+    assert page.h3[f"finding-{k}"] == f"{k}. joint_compliance joint 2: {f.gain_mm:.4f} mm better on validation"
+    assert "validation mean -" not in page.text and "&minus;" not in html
+    assert f"fig-finding-{k}" in page.figures
+    held = page.tables["findings"]
+    assert any(row[0] == "time" and "mm better" in row[3] for t in held for row in t[1:]), held
+    # the final parameter table: every parameter, the compliance with its std
+    params = page.table("parameters")
+    assert [r["parameter"] for r in params] == [p.name for p in report.final.parameters]
+    c2 = next(r for r in params if r["parameter"] == "c2")
+    assert float(c2["std"]) == pytest.approx(report.final.parameters["c2"].std, rel=0.05)
+
+
+def test_diagnosis_report_transfer_and_figures(diagnosis_page):
+    report, html, page = diagnosis_page
+    assert report.transfer
+    summary = page.table("transfer")
+    assert [r["taken there with"] for r in summary] == ["base pose re-estimated", "geometry refitted"]
+    t = report.transfer
+    assert float(summary[0]["final mean mm"]) == pytest.approx(t["final"]["base_mm"], abs=1e-4)
+    gains = page.table("transfer", 1)
+    named = [f for f in report.findings if f.in_model and f.transfer]
+    assert [r["finding"] for r in gains] == [f.label() for f in named]
+    for r, f in zip(gains, named):
+        g = f.transfer["base_gain_mm"]
+        assert r["base re-estimated"] == f"{abs(g):.4f} mm {'better' if g > 0 else 'worse'}"
+    assert {"fig-steps", "fig-poses", "fig-transfer", "fig-periodograms"} <= set(page.figures)
+    assert_self_contained(html)
+
+
+def test_diagnosis_report_structure_kept_out(diagnosis_page):
+    """Unexplained structure (in_model false) gets its own table: where, size, why, what it would give."""
+    report, _, _ = diagnosis_page
+    structure = {"harmonic": 7, "band": [6, 8], "amplitude_arcsec": 12.5, "what": "harmonic 7 (12.5 arcsec)",
+                 "why": "not resolved: harmonics 6..8 fit about as well over the 90 deg the joint covers"}
+    kept = Finding(Candidate("unexplained", 3), 0.0, "structure in joint 3", in_model=False,
+                   where="joint 3: harmonic 7 (12.5 arcsec)", potential_gain_mm=0.0042,
+                   holds_up={"structures": [structure]},
+                   transfer={"base_gain_mm": -0.001, "refit_gain_mm": 0.002, "verdict": "mixed"})
+    report.findings.append(kept)
+    try:
+        page = Page(diagnosis_html(report))
+    finally:
+        report.findings.remove(kept)
+    row = page.table("unexplained")[0]
+    assert row["where"] == "joint 3" and row["largest"] == "12.5 arcsec"
+    assert row["on this series' validation"] == "0.0042 mm better"
+    assert "0.0010 mm worse" in row["on other.csv"] and "0.0020 mm better" in row["on other.csv"]
+    why = page.table("unexplained", 1)[0]
+    assert why["why kept out"] == structure["why"]
+
+
+# --- the command line ----------------------------------------------------------------------
+
+
+def test_cli_calibrate_html(tmp_path, capsys):
+    robot, data, _, bad_lines = simulated(ARM4, 7, 50, tmp_path / "poses.csv", Effects(stiffness={2: 4e5}), bad=1)
+    out, html = str(tmp_path / "cal.json"), str(tmp_path / "cal.html")
+    (tmp_path / "arm4.toml").write_text(to_toml(ARM4))
+    args = ["calibrate", str(tmp_path / "arm4.toml"), data.path, "--out", out, "--html", html]
+    assert main(args) == 0
+    page = Page(open(html, encoding="utf-8").read())
+    assert [int(r["file line"]) for r in page.table("outliers")] == bad_lines.tolist()
+    assert main(args) == 2                                   # never over an existing report
+    assert "exists already" in capsys.readouterr().err
+    # one file for both outputs: refused before any work
+    assert main(["calibrate", str(tmp_path / "arm4.toml"), data.path, "--out", str(tmp_path / "other.json"),
+                 "--html", str(tmp_path / "other.json")]) == 2
+    assert "name the same file" in capsys.readouterr().err
+    # a calibration taken further: compared with itself, base re-estimated
+    html2 = str(tmp_path / "again.html")
+    assert main(["calibrate", out, data.path, "--model", "base", "--out", str(tmp_path / "again.json"),
+                 "--html", html2]) == 0
+    assert "with its base pose re-estimated" in Page(open(html2, encoding="utf-8").read()).text
+
+
+# --- in a real browser ----------------------------------------------------------------------
+
+CHROMIUM = shutil.which("chromium") or shutil.which("chromium-browser")
+FLAGS = ["--no-sandbox", "--disable-gpu", "--disable-background-networking", "--disable-component-update",
+         "--disable-sync", "--no-first-run"]
+
+#: what a reader would see, measured in the page (CSS pixels)
+CHECKS = """() => {
+  const out = {overflow: document.documentElement.scrollWidth - window.innerWidth, tables: [], svgs: [], links: []};
+  const pageRight = document.body.getBoundingClientRect().right;
+  for (const t of document.querySelectorAll('table')) {
+    const box = t.closest('.scroll');
+    const fits = t.getBoundingClientRect().right <= pageRight + 1;
+    const scrolls = box !== null && getComputedStyle(box).overflowX === 'auto'
+                    && box.getBoundingClientRect().right <= pageRight + 1;
+    out.tables.push({fits, scrolls});
+  }
+  for (const s of document.querySelectorAll('svg')) {
+    const r = s.getBoundingClientRect();
+    let worst = 0;
+    for (const t of s.querySelectorAll('text')) {
+      const b = t.getBoundingClientRect();
+      if (b.width === 0) continue;
+      worst = Math.max(worst, r.left - b.left, b.right - r.right, r.top - b.top, b.bottom - r.bottom);
+    }
+    out.svgs.push({id: s.closest('figure') ? s.closest('figure').id : '', w: r.width, h: r.height,
+                   texts: s.querySelectorAll('text').length, worst});
+  }
+  for (const a of document.querySelectorAll('a[href^="#"]')) {
+    const el = document.getElementById(a.getAttribute('href').slice(1));
+    out.links.push({href: a.getAttribute('href'), text: a.textContent,
+                    ok: el !== null && (!a.textContent.startsWith('figure') ||
+                                        (el.tagName === 'FIGURE' && el.querySelector('svg') !== null))});
+  }
+  return out;
+}"""
+
+
+@pytest.fixture(scope="module")
+def browser(tmp_path_factory):
+    if CHROMIUM is None:
+        if os.environ.get("CI"):
+            pytest.fail("Chromium is not installed: .ci/run installs Debian's chromium; the browser checks of the "
+                        "HTML reports must run in CI")
+        pytest.skip("no chromium on this machine (apt-get install chromium)")
+    if sync_playwright is None:
+        if os.environ.get("CI"):
+            pytest.fail("playwright is not installed (pip install -e '.[test]')")
+        pytest.skip("no playwright (pip install -e '.[test]')")
+    with sync_playwright() as p:
+        context = p.chromium.launch_persistent_context(
+            str(tmp_path_factory.mktemp("chromium-profile")), executable_path=CHROMIUM, headless=True,
+            args=FLAGS, viewport={"width": 1280, "height": 900})
+        yield context
+        context.close()
+
+
+def look(browser, html: str, path) -> dict:
+    path.write_text(html, encoding="utf-8")
+    page = browser.new_page()
+    problems: list[str] = []
+    page.on("console", lambda m: problems.append(m.text) if m.type in ("error", "warning") else None)
+    page.on("pageerror", lambda e: problems.append(str(e)))
+    page.goto(path.as_uri())
+    seen = page.evaluate(CHECKS)
+    pdf = page.pdf(format="A4")
+    page.close()
+    seen.update(problems=problems, pdf=pdf)
+    return seen
+
+
+def assert_readable(seen: dict) -> None:
+    assert seen["problems"] == []
+    assert seen["overflow"] <= 0, "the page scrolls sideways at 1280 px"
+    assert seen["tables"] and all(t["fits"] or t["scrolls"] for t in seen["tables"])
+    for s in seen["svgs"]:
+        assert s["w"] > 50 and s["h"] > 50 and s["texts"] > 0, s
+        assert s["worst"] <= 1.0, f"text outside figure {s['id']} by {s['worst']:.1f} px"
+    assert seen["links"] and all(a["ok"] for a in seen["links"]), [a for a in seen["links"] if not a["ok"]]
+    assert seen["pdf"].startswith(b"%PDF") and len(seen["pdf"]) > 10_000
+
+
+def test_calibration_report_in_a_browser(browser, calibration_page, tmp_path):
+    result, data, html, page, _ = calibration_page
+    seen = look(browser, html, tmp_path / "calibration.html")
+    assert_readable(seen)
+    assert len(seen["svgs"]) == len(page.figures)
+
+
+def test_diagnosis_report_in_a_browser(browser, diagnosis_page, tmp_path):
+    report, html, page = diagnosis_page
+    seen = look(browser, html, tmp_path / "diagnosis.html")
+    assert_readable(seen)
+    assert len(seen["svgs"]) == len(page.figures)
+    assert any(a["text"].startswith("figure") for a in seen["links"])
