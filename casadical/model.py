@@ -288,10 +288,14 @@ class Model:
             self._compiled[(which, jit)] = fun
         return fun
 
-    def batch_function(self, which: str, N: int) -> ca.Function:
-        """``which`` mapped over N poses: parameters and base0 broadcast, sums reduced."""
+    def batch_function(self, which: str, N: int, compiled: bool | None = None) -> ca.Function:
+        """``which`` mapped over N poses: parameters and base0 broadcast, sums reduced.
+
+        ``compiled=False`` keeps CasADi's own expression graph, whose derivatives CasADi can take (a
+        compiled library has none); default: compiled for large batches.
+        """
         _, _, bcast, reduce = self._graph(which)
-        fun = self.per_pose_function(which, self._use_jit(N))
+        fun = self.per_pose_function(which, self._use_jit(N) if compiled is None else compiled)
         return fun.map(f"{which}_{N}", "serial", N, list(bcast), list(reduce))
 
     def _batch(self, which: str, N: int) -> "_Batch":

@@ -168,3 +168,32 @@ def test_non_convergence_is_reported():
     with pytest.warns(ConvergenceWarning, match="did not converge"):
         res = calibrate(robot, data, "kinematic+compliance", "ipopt", solver_options={"max_iter": 1})
     assert not res.solver.success and "did not converge" in " ".join(res.notes)
+
+
+def test_compiled_model_with_every_solver(tmp_path):
+    """With a C compiler, large batches are compiled: every solver must work on them (IPOPT differentiates
+    its objective, which a compiled library cannot be), and give the answer of the uncompiled model."""
+    import json
+    import os
+    import shutil
+    import subprocess
+    import sys
+    if shutil.which("gcc") is None and shutil.which("cc") is None:
+        pytest.skip("no C compiler on this machine")
+    robot = load_robot("ys100")
+    data, _ = simulate(robot, 320, Effects(stiffness={2: 1.5e6}), seed=3)     # above JIT_MIN_POSES
+    data.write_csv(tmp_path / "d.csv")
+    out = {}
+    for jit in ("1", "0"):
+        env = {**os.environ, "CASADICAL_JIT": jit}
+        for solver in ("ipopt", "lm"):
+            path = tmp_path / f"{solver}{jit}.json"
+            r = subprocess.run([sys.executable, "-m", "casadical", "calibrate", "ys100", str(tmp_path / "d.csv"),
+                                "--model", "kinematic+compliance[2]", "--solver", solver, "--out", str(path)],
+                               capture_output=True, text=True, env=env)
+            assert r.returncode == 0, r.stderr
+            doc = json.loads(path.read_text())
+            out[solver, jit] = {p["name"]: p["value"] for p in doc["parameters"] if not p.get("derived")}
+    for solver in ("ipopt", "lm"):
+        a, b = out[solver, "1"], out[solver, "0"]
+        assert max(abs(a[k] - b[k]) for k in a) < 1e-6

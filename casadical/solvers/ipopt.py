@@ -62,7 +62,9 @@ class Ipopt(Solver):
         # grad_f and hess_lag come from the per-pose Gauss-Newton Function summed over poses
         # (compiled for large batches): no AD through the map inside IPOPT
         S = ca.diag(sel_scale) @ ca.DM(E)  # d p / d x
-        f = model.batch_function("cost", N)(Q, p, C, base0, XYZ, delta)
+        # the objective as an expression graph (IPOPT's set-up differentiates it); its gradient and
+        # Hessian below are compiled functions given to IPOPT directly
+        f = model.batch_function("cost", N, compiled=False)(Q, p, C, base0, XYZ, delta)
         nlp = {"x": x, "p": data, "f": f}
         # the cost is ~1e-7 m^2: in mm^2 IPOPT's tolerances mean what they say
         opts = {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes", "max_iter": self.max_iter,
