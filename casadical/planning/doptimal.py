@@ -62,6 +62,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import IdentifiabilityError, InputError, SolverError
+from ..threads import limited_threads
 
 
 @dataclass
@@ -324,6 +325,7 @@ def _check_m(A: np.ndarray, m: int) -> None:
 # --- the bound ------------------------------------------------------------------------
 
 
+@limited_threads()
 def upper_bound(A: np.ndarray, m: int, weights: np.ndarray) -> float:
     """Certified upper bound on the log det of every M-pose subset of the pool.
 
@@ -391,6 +393,7 @@ def _line_search(lam: np.ndarray) -> float:
     return lo
 
 
+@limited_threads()
 def relax_multiplicative(A: np.ndarray, m: int, settings: RelaxationSettings | None = None,
                          w0: np.ndarray | None = None) -> Relaxation:
     """Solve the relaxation with the capped multiplicative algorithm (first-order).
@@ -479,7 +482,8 @@ def relax_multiplicative(A: np.ndarray, m: int, settings: RelaxationSettings | N
         w[act] = wa + s * (v - wa)
         Ms = Ms + s * Dm
         keep = w[act] > st.prune
-        if not keep.all():
+        # prune in batches: each pruning recomputes the information matrix
+        if np.count_nonzero(~keep) > len(act) // 50 or (it % st.check_every == 0 and not keep.all()):
             w[act[~keep]] = 0.0
             act = act[keep]
             w[act] = _cap_project(w[act], m)
@@ -493,6 +497,7 @@ def relax_multiplicative(A: np.ndarray, m: int, settings: RelaxationSettings | N
 # --- conic relaxation -----------------------------------------------------------------
 
 
+@limited_threads()
 def relax_cvxpy(A: np.ndarray, m: int, solver: str | None = None, verbose: bool = False,
                 **solver_options) -> Relaxation:
     """Solve the relaxation as a conic program with cvxpy's ``log_det``.
@@ -561,6 +566,7 @@ def relax_cvxpy(A: np.ndarray, m: int, solver: str | None = None, verbose: bool 
 # --- rounding and exchange ------------------------------------------------------------
 
 
+@limited_threads()
 def exchange(A: np.ndarray, m: int, start, *, n_candidates: int | None = None,
              max_swaps: int | None = None, weights: np.ndarray | None = None) -> ExactDesign:
     """Fedorov exchange from a starting set of M distinct poses.
@@ -707,6 +713,7 @@ def _auto_starts(N: int) -> int:
     return 16 if N <= 2000 else 8 if N <= 20000 else 3
 
 
+@limited_threads()
 def round_and_exchange(A: np.ndarray, m: int, weights: np.ndarray, *, n_starts: int | None = None,
                        seed: int = 0, n_candidates: int | None = None) -> ExactDesign:
     """Exact design of M distinct poses from relaxed weights: best of several rounded starts + exchange.
@@ -757,6 +764,7 @@ def round_and_exchange(A: np.ndarray, m: int, weights: np.ndarray, *, n_starts: 
     return ExactDesign(best, best_ld, swaps, time.perf_counter() - t0, len(seen))
 
 
+@limited_threads()
 def d_optimal_design(A: np.ndarray, m: int, *, relaxation: str = "first-order",
                      settings: RelaxationSettings | None = None,
                      n_candidates: int | None = None, n_starts: int | None = None,

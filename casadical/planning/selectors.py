@@ -16,6 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
+from ..threads import limited_threads
 from .doptimal import (DOptimalDesign, RelaxationSettings, _check_m, d_efficiency,
                        d_optimal_design, relax_multiplicative)
 from .observability import DesignProblem, Observability, design_problem, log_det_information, o1_batch, observability
@@ -134,6 +135,7 @@ class PlanResult:
                 "details": {k: v for k, v in self.details.items() if not k.startswith("_")}}
 
 
+@limited_threads()
 def select_poses(model, q_candidates: np.ndarray | None, m: int, method: str = "d-optimal", *,
                  seed: int | None = None, cov: np.ndarray | None = None,
                  settings: PlanSettings | None = None,
@@ -221,6 +223,7 @@ def select_poses(model, q_candidates: np.ndarray | None, m: int, method: str = "
                       gap, t_sel, t_jac, seed, details)
 
 
+@limited_threads()
 def random_o1(A: np.ndarray, m: int, n_sets: int, seed: int | None = None) -> np.ndarray:
     """O1 of ``n_sets`` uniformly random M-subsets of the pool (the GA paper's Fig. 6 baseline)."""
     rng = np.random.default_rng(seed)
