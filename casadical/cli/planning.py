@@ -63,7 +63,7 @@ def cmd_plan_poses(args) -> int:
     from ..data import Measurements
     from ..model import Model
     from ..robot import load_robot
-    from ..planning.observability import design_problem
+    from ..planning.observability import JIT_MIN_CANDIDATES, design_problem
     from ..planning.selectors import PlanSettings, select_poses
 
     check_outputs({"--out": args.out, "--json": args.json}, [args.robot, args.candidates], args.force)
@@ -72,7 +72,8 @@ def cmd_plan_poses(args) -> int:
     N = len(data)
     if args.m > N:
         raise InputError(f"-m {args.m} asks for more poses than the {N} candidate rows", file=args.candidates)
-    model = Model(robot, args.model)
+    # compiling the model (~1.5 s) pays only for large pools; the model decides whether it can
+    model = Model(robot, args.model, jit=None if N >= JIT_MIN_CANDIDATES else False)
     t0 = time.perf_counter()
     try:
         problem = design_problem(model, data.q, model.covariates(data))
@@ -110,17 +111,23 @@ def _write_rows(source: str, indices: np.ndarray, out: str, force: bool) -> list
 
     Returns the file line numbers (header = 1) of the selected rows.
     """
+    where = {int(i): k for k, i in enumerate(indices)}
+    picked: list = [None] * len(where)
     with open(source, newline="", encoding="utf-8-sig") as fh:
         reader = csv.reader(fh)
         header = next(reader)
-        # the same rows Measurements.read_csv counts: non-blank lines after the header
-        body = [(reader.line_num, r) for r in reader if any(x.strip() for x in r)]
+        n = 0  # the same rows Measurements.read_csv counts: non-blank lines after the header
+        for r in reader:
+            if not "".join(r).strip():
+                continue
+            if n in where:
+                picked[where[n]] = (reader.line_num, r)
+            n += 1
     with atomic_open(out, "w", overwrite=force, newline="") as fh:
         w = csv.writer(fh)
         w.writerow(header)
-        for i in indices:
-            w.writerow(body[int(i)][1])
-    return [body[int(i)][0] for i in indices]
+        w.writerows(r for _, r in picked)
+    return [line for line, _ in picked]
 
 
 def _parse_box(text: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
