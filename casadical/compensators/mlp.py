@@ -30,7 +30,6 @@ from dataclasses import dataclass, field
 from typing import ClassVar, Optional
 
 import numpy as np
-import scipy.optimize
 
 from casadical.compensators import Compensator
 from casadical.errors import InputError
@@ -339,6 +338,8 @@ class MLP(Compensator):
 
         def record(intermediate_result):
             history.append(float(intermediate_result.fun))
+
+        import scipy.optimize  # here, not at import: it costs 0.3 s of every command's start-up
 
         res = scipy.optimize.minimize(
             self._loss_grad, w0, args=(Xs, Ys, l2), jac=True, method="L-BFGS-B",
