@@ -90,7 +90,9 @@ def cmd_plan_poses(args) -> int:
     try:
         res = select_poses(model, None, args.m, args.method, seed=args.seed, settings=settings,
                            problem=problem)
-    except IdentifiabilityError as e:
+    except (IdentifiabilityError, InputError) as e:
+        if getattr(e, "file", None):
+            raise
         raise InputError(str(e), file=args.candidates) from e
     res.jacobian_time_s = t_jac
     lines = _write_rows(args.candidates, res.indices, args.out, args.force)

@@ -184,6 +184,10 @@ class DesignProblem:
     scaling : str
         ``"scales"`` (default) or ``"si"`` (unscaled SI columns, for
         comparing with papers that use raw units).
+    missing : list of str
+        Parameters that poses spread over the joint ranges identify but this
+        pool does not (empty when the pool is not degenerate). No choice
+        from the pool calibrates them, so no certificate is given for it.
     """
 
     A: np.ndarray
@@ -191,6 +195,7 @@ class DesignProblem:
     identifiability: Identifiability | None = None
     model_spec: str = ""
     scaling: str = "scales"
+    missing: list[str] = field(default_factory=list)
 
     @property
     def n_candidates(self) -> int:
@@ -212,7 +217,8 @@ class DesignProblem:
 
 @limited_threads()
 def design_problem(model, q: np.ndarray, cov: np.ndarray | None = None, *,
-                   scaling: str = "scales", base0: np.ndarray | None = None) -> DesignProblem:
+                   scaling: str = "scales", base0: np.ndarray | None = None,
+                   reference: bool = True) -> DesignProblem:
     """Scaled identification Jacobian of the identifiable parameters over a candidate pool.
 
     Parameters
@@ -228,6 +234,10 @@ def design_problem(model, q: np.ndarray, cov: np.ndarray | None = None, *,
         units (m per m, m per rad, ...).
     base0 : ndarray, optional
         Reference base pose (12 numbers); defaults to the robot file's.
+    reference : bool
+        Also compare with the parameters that poses spread over the joint
+        ranges identify (:func:`reference_identifiable`, ~0.05 s) and list
+        those the pool misses in ``missing``.
 
     Raises
     ------
@@ -246,7 +256,28 @@ def design_problem(model, q: np.ndarray, cov: np.ndarray | None = None, *,
     A = J[:, :, idx]
     if scaling == "scales":
         A = A * params.scales[idx]
-    return DesignProblem(np.ascontiguousarray(A), list(ident.identifiable), ident, model.spec, scaling)
+    missing: list[str] = []
+    if reference:
+        ref = reference_identifiable(model, base0)
+        if len(ref) > len(ident.identifiable):  # the pool identifies fewer than poses across the joints do
+            have = set(ident.identifiable)
+            missing = [n for n in ref if n not in have]
+    return DesignProblem(np.ascontiguousarray(A), list(ident.identifiable), ident, model.spec, scaling,
+                         missing)
+
+
+def reference_identifiable(model, base0: np.ndarray | None = None, n: int = 200) -> list[str]:
+    """Parameters of ``model`` that ``n`` poses drawn uniformly over the joint ranges identify.
+
+    The yardstick of a candidate pool: a pool that identifies fewer is
+    degenerate (identical or too similar poses, no load where compliance
+    needs one). Covariates are the robot's defaults (its payload).
+    """
+    from ..simulate import sample_poses
+
+    q = sample_poses(model.robot, n, np.random.default_rng(0), floor_z=None)
+    J = model.predict_jacobian(q, base0=base0)[1]
+    return list(analyse(J, model.parameters).identifiable)
 
 
 def pool_jacobian(model, q: np.ndarray, cov: np.ndarray | None = None, base0: np.ndarray | None = None,
