@@ -630,16 +630,18 @@ def _exchange(pool: _Pool, X: np.ndarray, n_candidates: int | None, max_swaps: i
     ridge = 1e-10 * np.eye(p)
     I = np.eye(r)
     work: np.ndarray | None = None  # working list of pool rows (sorted)
+    selected = np.zeros(N, dtype=bool)
+    selected[X] = True
     swaps = 0
     while nc > 0 and swaps < max_swaps:
         L = np.linalg.cholesky(pool.info(X, np.ones(m)) + ridge)
         T = np.linalg.inv(L)
         if work is None:
             work = _top_rows(pool.variances(T), X, min(N - m, 4 * nc), support)
-        rows = np.setdiff1d(work, X, assume_unique=True)
+        rows = work[~selected[work]]
         d = pool.variances(T, rows)
         cand = rows[np.argpartition(-d, nc - 1)[:nc]] if nc < len(rows) else rows
-        cand = np.union1d(cand, np.setdiff1d(support, X, assume_unique=True))
+        cand = np.union1d(cand, support[~selected[support]])
         ratio = _swap_ratios(pool, T, cand, X, I)
         c, o = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
         if not ratio[c, o] > 1.0 + 1e-10:
@@ -650,6 +652,7 @@ def _exchange(pool: _Pool, X: np.ndarray, n_candidates: int | None, max_swaps: i
                 break
             work = np.union1d(work, new)
             continue
+        selected[X[o]], selected[cand[c]] = False, True
         X[o] = cand[c]
         swaps += 1
     return np.sort(X), swaps
@@ -672,18 +675,23 @@ def _swap_ratios(pool: _Pool, T: np.ndarray, cand: np.ndarray, X: np.ndarray, I:
     """
     r, p = pool.r, pool.p
     k, m = len(cand), len(X)
-    GX = (pool.A[X] * pool.c) @ T.T            # (m, r, p)
-    GC = (pool.A[cand] * pool.c) @ T.T         # (k, r, p)
-    R = np.linalg.cholesky(I + GC @ GC.transpose(0, 2, 1))
+    TC = (T * pool.c).T
+    GX = pool.A[X].reshape(m * r, p) @ TC                     # whitened blocks of the design
+    GC = (pool.A[cand].reshape(k * r, p) @ TC).reshape(k, r, p)
+    R = np.linalg.cholesky(I + np.einsum("kip,kjp->kij", GC, GC))
     det_in = np.prod(np.diagonal(R, axis1=1, axis2=2), axis=1) ** 2
-    Q = np.linalg.inv(R) @ GC                  # (k, r, p)
-    W = (Q.reshape(k * r, p) @ GX.reshape(m * r, p).T).reshape(k, r, m, r)  # W[c, j, o, a]
-    Boo = GX @ GX.transpose(0, 2, 1)           # (m, r, r)
+    Q = np.einsum("kij,kjp->kip", np.linalg.inv(R), GC)
+    W = (Q.reshape(k * r, p) @ GX.T).reshape(k, r, m, r).transpose(3, 1, 0, 2).copy()  # W[a, j, c, o]
+    GX = GX.reshape(m, r, p)
+    Boo = np.einsum("oip,ojp->ijo", GX, GX)                   # a_o a_o^T, (r, r, m)
     S = np.empty((r, r, k, m))
     for a in range(r):
         for b in range(a, r):
-            S[a, b] = I[a, b] - Boo[None, :, a, b] + np.einsum("cjo,cjo->co", W[..., a], W[..., b])
-            S[b, a] = S[a, b]
+            acc = W[a, 0] * W[b, 0]
+            for j in range(1, r):
+                acc += W[a, j] * W[b, j]
+            acc += I[a, b] - Boo[a, b]
+            S[a, b] = S[b, a] = acc
     return det_in[:, None] * _det_small(S)
 
 
