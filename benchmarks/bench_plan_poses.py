@@ -10,7 +10,9 @@ exchange, writing the selection) and measures its wall time
 - with one other CPU-bound process running (``python -c "while True: pass"``,
   started by this script and stopped after each measurement),
 
-for the code of this checkout and for a baseline commit (default ``b70ddc3``,
+(and the CPU time of the process: user + system, all its threads; a
+measure of the work that the load of other users changes little) for the
+code of this checkout and for a baseline commit (default ``b70ddc3``,
 the code before the speed work), checked out with ``git worktree`` into a
 temporary folder and run with ``PYTHONPATH`` pointing at it. Both run with
 the BLAS thread settings a user has by default: ``OPENBLAS_NUM_THREADS``,
@@ -35,6 +37,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import resource
 import shutil
 import signal
 import subprocess
@@ -81,13 +84,16 @@ def _plan(code: str | None, cands: Path, m: int, out: Path) -> dict:
     cmd = [sys.executable, "-m", "casadical", "plan-poses", str(ROBOT), str(cands), "-m", str(m),
            "--out", str(out), "--json", str(summary), "--force"]
     load = os.getloadavg()[0]
+    cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     t0 = time.perf_counter()
     proc = subprocess.run(cmd, env=_env(code), cwd=tempfile.gettempdir(), capture_output=True, text=True)
     wall = time.perf_counter() - t0
+    cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (cpu1.ru_utime - cpu0.ru_utime) + (cpu1.ru_stime - cpu0.ru_stime)
     if proc.returncode != 0:
         raise RuntimeError(f"plan-poses failed ({code or 'this checkout'}): {proc.stderr.strip()}")
     doc = json.loads(summary.read_text())
-    return {"wall_s": wall, "load_before": load, "load_after": os.getloadavg()[0],
+    return {"wall_s": wall, "cpu_s": cpu, "load_before": load, "load_after": os.getloadavg()[0],
             "d_efficiency": doc["d_efficiency"], "log_det": doc["log_det"], "upper_bound": doc["upper_bound"],
             "selection_s": doc["time_s"], "jacobian_s": doc["jacobian_time_s"], "indices": doc["indices"]}
 
@@ -174,8 +180,8 @@ def main() -> int:
                             best = sorted(runs, key=lambda r: r["wall_s"])[len(runs) // 2]
                             best["wall_runs_s"] = [r["wall_s"] for r in runs]
                             row[f"{name}_{cond}"] = best
-                            print(f"N={N} M={m} {name} {cond}: {best['wall_s']:.2f} s (load "
-                                  f"{best['load_before']:.1f}), D-eff {best['d_efficiency']:.4f}", flush=True)
+                            print(f"N={N} M={m} {name} {cond}: {best['wall_s']:.2f} s (CPU {best['cpu_s']:.2f} s, "
+                                  f"load {best['load_before']:.1f}), D-eff {best['d_efficiency']:.4f}", flush=True)
                     rows.append(row)
         finally:
             if base is not None:
@@ -187,12 +193,12 @@ def main() -> int:
     names = list(codes)
 
     def wall(r, key):
-        return f"{r[key]['wall_s']:.2f}" if key in r else "-"
+        return f"{r[key]['wall_s']:.2f} ({r[key].get('cpu_s', float('nan')):.2f})" if key in r else "-"
 
     print()
     head = ["candidates", "M"]
     for name in names:
-        head += [f"{name} {c} (s)" for c in conds]
+        head += [f"{name} {c}: wall (CPU) s" for c in conds]
         if "busy" in conds:
             head.append(f"{name} busy / quiet")
     head += [f"{name} D-eff" for name in names] + ["load (1 min) at the runs"]
