@@ -18,10 +18,10 @@ scipy's OpenBLAS, MKL, ...) through `threadpoolctl
 <https://github.com/joblib/threadpoolctl>`_, and restores the previous
 settings on exit. Thread counts of these libraries are process-wide, so the
 limit holds for every Python thread while any is inside. Entering and
-leaving costs about 15 us when nested in another limit, 25 us when it
-changes a library's limit (2-core VM, two OpenBLAS libraries loaded); the
-scan for loaded libraries (~8 ms) is done once and repeated only after new
-modules have been imported.
+leaving costs 5-14 us when nested in another limit and 5-27 us when it
+changes a library's limit (2-core VM at load 3-8, two OpenBLAS libraries
+loaded; ``benchmarks/bench_plan_poses.py``); the scan for loaded libraries
+(~8 ms) is done once and repeated only after new modules have been imported.
 
 Examples
 --------
