@@ -74,6 +74,10 @@ class CalibrationFileError(InputError):
     """A calibration JSON written by ``calibrate`` cannot be read back."""
 
 
+class SettingError(CasadicalError, ValueError):
+    """A setting (environment variable or Python setting) has a value casadical cannot use."""
+
+
 class CasadicalWarning(UserWarning):
     """Base class of casadical's warnings."""
 

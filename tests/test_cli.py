@@ -60,3 +60,24 @@ def test_simulate_protocol(tmp_path):
     assert main(["simulate", "ca-ys100", "--out-dir", str(tmp_path)]) == 0
     cal = Measurements.read_csv(tmp_path / "calibration.csv", n_joints=6, require_positions=True)
     assert len(cal) == 25 and (tmp_path / "truth.json").exists()
+
+
+def test_every_option_has_help_with_its_default():
+    """Help texts for every argument; an option with a default says it (issue 11: CLI conventions)."""
+    import argparse
+
+    from casadical.cli import build_parser
+    ap = build_parser()
+    sub = next(a for a in ap._actions if isinstance(a, argparse._SubParsersAction))
+    missing = []
+    for name, p in sub.choices.items():
+        for a in p._actions:
+            if isinstance(a, argparse._HelpAction) or a.dest == "debug":
+                continue
+            h = a.help or ""
+            if not h:
+                missing.append(f"{name} {a.option_strings or a.dest}: no help")
+            elif (a.default not in (None, False, argparse.SUPPRESS) and not isinstance(a, argparse._StoreTrueAction)
+                  and "default" not in h):
+                missing.append(f"{name} {a.option_strings}: default {a.default!r} not in its help")
+    assert not missing, missing

@@ -172,7 +172,6 @@ def test_structure_no_cause_explains_is_unexplained(seed):
     as unexplained structure on joint 2 and kept out of the model, and never named an encoder scale error
     (the trend it looks like over part of the range). Known limit (docs/diagnosis.md): physical terms of
     the same joints (compliance) absorb part of it, and in one seed of three a harmonic of the rest passes."""
-    import numpy as np
     robot = load_robot("ys100")
     cal, truth = simulate(robot, 120, Effects(), seed=seed)
     val, _ = simulate(robot, 200, truth=truth, seed=seed + 500)

@@ -11,15 +11,21 @@ import re
 import numpy as np
 import pytest
 
+from threadpoolctl import threadpool_limits
+
 from casadical import cli
-from casadical.errors import IdentifiabilityError, InputError
+from casadical.errors import IdentifiabilityError, IdentifiabilityWarning, InputError
+from casadical.identifiability import analyse
 from casadical.model import Model
 from casadical.planning import (RelaxationSettings, d_optimal_design, design_problem, exchange,
                                 indices_from_singular_values, log_det_information, o1_batch,
                                 observability, random_o1, relax_cvxpy, relax_multiplicative,
                                 select_poses, upper_bound)
-from casadical.robot import PROBLEMS, load_robot
+from casadical.planning.doptimal import _Pool, _swap_ratios
+from casadical.planning.observability import _analyse_pool, pool_jacobian
+from casadical.robot import PROBLEMS, load_robot, robot_from_dict
 from casadical.simulate import load_protocol, sample_poses
+from casadical.threads import set_threads
 
 
 def _random_pool(N: int, p: int, seed: int, r: int = 3) -> np.ndarray:
@@ -304,3 +310,148 @@ def test_cli_candidates_bad_box(tmp_path, capsys):
     rc, _, err = _run(["candidates", "ys100", "-n", "5", "--out", str(tmp_path / "c.csv"),
                        "--box", "1,2,3"], capsys)
     assert rc == 2 and "--box" in err and err.count("\n") == 1
+
+
+# --- fast paths, thread limit, duplicated and degenerate pools ------------------------
+
+
+def _arm(n: int, convention: str, beta_joint: int | None, seed: int):
+    """A random n-joint arm that is not built in (Hayati beta on ``beta_joint``, if any)."""
+    rng = np.random.default_rng(seed)
+    joints = []
+    for j in range(1, n + 1):
+        jt = {"alpha_deg": float(rng.choice([-90, 0, 90])) if j > 1 else 90.0,
+              "a_m": float(rng.uniform(0.05, 0.6)), "d_m": float(rng.uniform(0.0, 0.4)),
+              "min_deg": -160.0, "max_deg": 160.0, "mass_kg": float(rng.uniform(2, 30)),
+              "com_m": [float(x) for x in rng.uniform(-0.2, 0.2, 3)]}
+        if j == beta_joint:
+            jt.update(alpha_deg=0.0, beta_deg=0.0)
+        joints.append(jt)
+    return robot_from_dict({"name": f"arm{n}", "convention": convention, "joint": joints,
+                            "tool": {"a_m": 0.05, "b_m": 0.02, "d_m": 0.1}, "payload": {"mass_kg": 10.0}})
+
+
+ARMS = [(4, "mdh", 2), (5, "dh", None), (7, "dh", 3)]
+
+
+@pytest.mark.parametrize("n,convention,beta", ARMS)
+@pytest.mark.parametrize("seed", [0, 1])
+def test_chunked_pool_jacobian_and_compressed_analysis(n, convention, beta, seed):
+    robot = _arm(n, convention, beta, seed)
+    model = Model(robot, "kinematic+compliance", jit=False)
+    q = sample_poses(robot, 300, np.random.default_rng(seed), floor_z=None)
+    J = model.predict_jacobian(q)[1]
+    np.testing.assert_allclose(pool_jacobian(model, q, chunk=64), J, rtol=1e-13, atol=1e-15)  # last chunk padded
+    full, small = analyse(J, model.parameters), _analyse_pool(J, model.parameters)
+    assert small.identifiable == full.identifiable and len(full.identifiable) >= 3 * n
+    assert [(u.name, u.reason) for u in small.unidentifiable] == [(u.name, u.reason) for u in full.unidentifiable]
+    assert small.n_equations == full.n_equations == 900
+    np.testing.assert_allclose(small.singular_values, full.singular_values, rtol=1e-9)
+
+
+@pytest.mark.parametrize("r", [2, 3, 4])
+@pytest.mark.parametrize("seed", [0, 1])
+def test_swap_ratios_are_determinant_ratios(r, seed):
+    A = _random_pool(40, 9, seed, r=r)
+    pool = _Pool(A, 6)
+    rng = np.random.default_rng(seed)
+    X = rng.choice(40, 6, replace=False)
+    cand = np.setdiff1d(np.arange(40), X)
+    L = np.linalg.cholesky(pool.info(X, np.ones(6)))
+    ratio = _swap_ratios(pool, np.linalg.inv(L), cand, X, np.eye(r))
+    base = _logdet(A, X)
+    brute = np.array([[math.exp(_logdet(A, np.where(X == o, c, X)) - base) for o in X] for c in cand])
+    np.testing.assert_allclose(ratio, brute, rtol=1e-8)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_exchange_ends_where_no_swap_improves(seed):
+    A = _random_pool(120, 10, seed)
+    m = 8
+    start = np.random.default_rng(seed).choice(120, m, replace=False)
+    ex = exchange(A, m, start, n_candidates=120 - m)  # every unselected pose is a candidate
+    assert ex.swaps > 0 and ex.log_det > _logdet(A, start)
+    best_swap = max(_logdet(A, np.where(ex.indices == o, c, ex.indices))
+                    for o in ex.indices for c in np.setdiff1d(np.arange(120), ex.indices))
+    assert best_swap <= ex.log_det + 1e-9
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_relaxation_chunked_sweeps_same_certificate(seed):
+    A = _random_pool(1500, 12, seed)
+    a = relax_multiplicative(A, 30, RelaxationSettings(tol=1e-5))
+    b = relax_multiplicative(A, 30, RelaxationSettings(tol=1e-5, chunk=32))  # pool and active set in chunks
+    assert a.status == b.status == "converged"
+    assert abs(a.log_det - b.log_det) / 12 < 1e-5
+    assert a.upper_bound >= b.log_det - 1e-9 and b.upper_bound >= a.log_det - 1e-9
+
+
+def test_same_design_with_and_without_the_thread_limit(ys100_pool):
+    _, _, prob = ys100_pool
+    limited = d_optimal_design(prob.A, 40)
+    set_threads(0)
+    try:
+        with threadpool_limits(limits=2):
+            free = d_optimal_design(prob.A, 40)
+    finally:
+        set_threads(None)
+    np.testing.assert_array_equal(limited.indices, free.indices)
+    assert limited.log_det == pytest.approx(free.log_det, abs=1e-9)
+    assert limited.d_efficiency == pytest.approx(free.d_efficiency, abs=1e-9)
+
+
+@pytest.mark.parametrize("n,convention,beta", ARMS)
+def test_one_repeated_pose_gets_no_certificate(n, convention, beta):
+    robot = _arm(n, convention, beta, 2)
+    model = Model(robot, "kinematic+compliance", jit=False)
+    pool = np.repeat(sample_poses(robot, 1, np.random.default_rng(2), floor_z=None), 50, axis=0)
+    with pytest.raises(InputError, match="only 1 distinct pose"):
+        select_poses(model, pool, 10)
+    # the one pose identifies 3 parameters and is trivially the best 1-set for them: no certificate
+    with pytest.warns(IdentifiabilityWarning, match="identify only 3 parameters"):
+        res = select_poses(model, pool, 1)
+    assert res.upper_bound is None and res.d_efficiency is None and res.duplicates == 49
+    assert len(res.missing_parameters) >= 3 * n - 3
+    assert "no certificate" in res.summary() and "D-efficiency" not in res.summary()
+
+
+@pytest.mark.parametrize("n,convention,beta", ARMS)
+def test_pool_where_a_joint_never_moves_is_not_certified(n, convention, beta):
+    robot = _arm(n, convention, beta, 3)
+    model = Model(robot, "kinematic+compliance", jit=False)
+    q = sample_poses(robot, 150, np.random.default_rng(3), floor_z=None)
+    good = select_poses(model, q, 15)
+    assert not good.missing_parameters and good.d_efficiency > 0.5  # M near p / 3: a loose bound
+    q[:, -1] = 0.3  # the hidden defect: the last joint stands still in every candidate
+    with pytest.warns(IdentifiabilityWarning):
+        bad = select_poses(model, q, 15)
+    assert bad.upper_bound is None and bad.d_efficiency is None
+    assert bad.missing_parameters and not set(bad.missing_parameters) & set(bad.parameters)
+    assert len(bad.parameters) + len(bad.missing_parameters) == len(good.parameters)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_duplicated_rows_are_offered_once(seed):
+    robot = _arm(6, "mdh", 2, seed)
+    model = Model(robot, "kinematic+compliance", jit=False)
+    rng = np.random.default_rng(seed)
+    q = sample_poses(robot, 100, rng, floor_z=None)
+    pool = np.concatenate([q, q[rng.choice(100, 60, replace=False)]])[rng.permutation(160)]
+    m = 30
+    res = select_poses(model, pool, m)
+    assert res.duplicates == 60
+    assert len(np.unique(pool[res.indices], axis=0)) == m  # M distinct poses, not copies
+    ref = select_poses(model, q, m)
+    p = len(ref.parameters)
+    assert res.parameters == ref.parameters
+    assert res.upper_bound == pytest.approx(ref.upper_bound, abs=2e-4 * p)  # the same relaxation, within its gap
+    assert res.d_efficiency > 0.9
+
+
+def test_cli_identical_candidates_one_line(tmp_path, capsys):
+    path = tmp_path / "same.csv"
+    path.write_text("q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\n" + "10,40,20,5,30,0\n" * 40)
+    out = tmp_path / "sel.csv"
+    rc, _, err = _run(["plan-poses", "ys100", str(path), "-m", "12", "--out", str(out)], capsys)
+    assert rc == 2 and err.count("\n") == 1 and str(path) in err and "only 1 distinct pose" in err
+    assert not out.exists()

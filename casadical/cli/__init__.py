@@ -18,6 +18,7 @@ import warnings
 
 from .. import __version__
 from ..errors import CasadicalError, CasadicalWarning
+from ..threads import limited_threads
 from . import calibrate, compare, compensate, data, diagnose, export, model, planning
 
 #: command modules, in the order ``--help`` lists them
@@ -71,7 +72,8 @@ def main(argv: list[str] | None = None) -> int:
     old = warnings.showwarning
     warnings.showwarning = _show_warning
     try:
-        return int(args.func(args) or 0)
+        with limited_threads():  # small dense problems: one BLAS thread unless CASADICAL_THREADS says otherwise
+            return int(args.func(args) or 0)
     except CasadicalError as e:
         print(f"casadical: error: {e}", file=sys.stderr)
         return 2

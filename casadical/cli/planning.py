@@ -66,7 +66,7 @@ def cmd_plan_poses(args) -> int:
     from ..checks import check_distinct_poses, check_poses
     from ..data import Measurements
     from ..model import Model
-    from ..planning.observability import design_problem
+    from ..planning.observability import JIT_MIN_CANDIDATES, design_problem
     from ..planning.selectors import PlanSettings, select_poses
     from ..robot import load_robot
 
@@ -78,7 +78,8 @@ def cmd_plan_poses(args) -> int:
         raise InputError(f"-m {args.m} asks for more poses than the {N} candidate rows", file=args.candidates)
     check_poses(data, robot, **check_options(args))
     check_distinct_poses(data, args.m)
-    model = Model(robot, args.model)
+    # compiling the model (~1.5 s) pays only for large pools; the model decides whether it can
+    model = Model(robot, args.model, jit=None if N >= JIT_MIN_CANDIDATES else False)
     t0 = time.perf_counter()
     try:
         problem = design_problem(model, data.q, model.covariates(data))
@@ -102,7 +103,9 @@ def cmd_plan_poses(args) -> int:
     try:
         res = select_poses(model, None, args.m, args.method, seed=args.seed, settings=settings,
                            problem=problem)
-    except IdentifiabilityError as e:
+    except (IdentifiabilityError, InputError) as e:
+        if getattr(e, "file", None):
+            raise
         raise InputError(str(e), file=args.candidates) from e
     res.jacobian_time_s = t_jac
     lines = _write_rows(args.candidates, res.indices, args.out, args.force)
@@ -123,17 +126,23 @@ def _write_rows(source: str, indices: np.ndarray, out: str, force: bool) -> list
 
     Returns the file line numbers (header = 1) of the selected rows.
     """
+    where = {int(i): k for k, i in enumerate(indices)}
+    picked: list = [None] * len(where)
     with open(source, newline="", encoding="utf-8-sig") as fh:
         reader = csv.reader(fh)
         header = next(reader)
-        # the same rows Measurements.read_csv counts: non-blank lines after the header
-        body = [(reader.line_num, r) for r in reader if any(x.strip() for x in r)]
+        n = 0  # the same rows Measurements.read_csv counts: non-blank lines after the header
+        for r in reader:
+            if not "".join(r).strip():
+                continue
+            if n in where:
+                picked[where[n]] = (reader.line_num, r)
+            n += 1
     with atomic_open(out, "w", overwrite=force, newline="") as fh:
         w = csv.writer(fh)
         w.writerow(header)
-        for i in indices:
-            w.writerow(body[int(i)][1])
-    return [body[int(i)][0] for i in indices]
+        w.writerows(r for _, r in picked)
+    return [line for line, _ in picked]
 
 
 def _parse_box(text: str) -> tuple[tuple[float, ...], tuple[float, ...]]:

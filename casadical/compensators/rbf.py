@@ -27,7 +27,6 @@ from dataclasses import dataclass
 from typing import ClassVar, Optional, Union
 
 import numpy as np
-import scipy.linalg
 
 from casadical.compensators import Compensator, _as_matrix
 from casadical.errors import InputError, SolverError
@@ -235,6 +234,8 @@ class RBFNetwork(Compensator):
             penal[-1, -1] = 0.0
         A = np.vstack([Phi, penal])
         B = np.vstack([Ys, np.zeros((Phi.shape[1], Ys.shape[1]))])
+        import scipy.linalg  # here, not at import: start-up time of every command
+
         try:
             return scipy.linalg.lstsq(A, B)[0]
         except (np.linalg.LinAlgError, ValueError) as exc:

@@ -62,6 +62,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import IdentifiabilityError, InputError, SolverError
+from ..threads import limited_threads
 
 
 @dataclass
@@ -80,23 +81,28 @@ class RelaxationSettings:
     exponent : float
         ``gamma`` of the multiplicative update ``w_i d_i^gamma``; 1 is the
         classical algorithm, larger values converge faster and the line
-        search keeps them monotone.
+        search keeps them monotone (5 takes about 40 % fewer iterations
+        than 3 on 2,000-10^5 candidates, the same certificate).
     prune : float
         Weights below this leave the active set (checked back against the
-        whole pool before the result is certified).
+        whole pool before the result is certified). The certificate does not
+        depend on it; the speed does: 1e-5 keeps the active set small early.
     check_every : int
-        Iterations between full-pool variance checks.
+        Least iterations between full-pool variance checks (a check is also
+        skipped until the active-set work since the last one is as large as
+        the pool).
     chunk : int
-        Poses per block when sweeping the pool (bounds temporary memory).
+        Poses per block when sweeping the pool (bounds temporary memory and
+        keeps a block in the CPU cache).
     """
 
     tol: float = 1e-4
     max_iter: int = 20000
     time_limit_s: float = 600.0
-    exponent: float = 3.0
-    prune: float = 1e-12
+    exponent: float = 5.0
+    prune: float = 1e-5
     check_every: int = 25
-    chunk: int = 16384
+    chunk: int = 2048
 
     def __post_init__(self) -> None:
         if not self.tol > 0:
@@ -212,9 +218,14 @@ class _Pool:
     Work is in scaled coordinates ``A_i C`` with ``C = diag(c)`` chosen so
     that the uniform design ``w = M/N`` has a unit-diagonal information
     matrix; log dets are converted back by ``- 2 sum log c``.
+
+    Sweeps over the pool go in chunks of ``chunk`` poses (small enough to
+    stay in the CPU cache); the scaled blocks of one small index set (the
+    relaxation's active set, an exchange's candidates) are kept contiguous
+    between calls.
     """
 
-    def __init__(self, A: np.ndarray, m: int, chunk: int = 16384):
+    def __init__(self, A: np.ndarray, m: int, chunk: int = 2048):
         A = np.asarray(A, dtype=float)
         if A.ndim != 3:
             raise InputError(f"expected per-pose Jacobian blocks of shape (N, r, p), got shape {A.shape}")
@@ -230,25 +241,51 @@ class _Pool:
         c[~np.isfinite(c)] = 1.0  # a column without effect anywhere: leave it (M will be singular)
         self.c = c
         self.log_c = float(np.sum(np.log(c)))
+        self._kept: tuple[np.ndarray, np.ndarray] | None = None
+
+    def blocks(self, idx: np.ndarray) -> np.ndarray:
+        """Scaled blocks of the poses ``idx`` as one ``(len(idx) r, p)`` array (cached for one set)."""
+        if self._kept is not None and np.array_equal(self._kept[0], idx):
+            return self._kept[1]
+        B = (self.A[idx] * self.c).reshape(-1, self.p)
+        self._kept = (np.array(idx), B)
+        return B
+
+    def _sweep(self, idx: np.ndarray | None):
+        """``(start, 2-D blocks, scaled)`` over the pool or ``idx``, in chunks; small sets in one piece.
+
+        Chunks are not scaled (the scaling is applied to the small matrices instead).
+        """
+        n = self.N if idx is None else len(idx)
+        if idx is not None and n <= 4 * self.chunk:
+            yield 0, self.blocks(idx), True
+            return
+        for s in range(0, n, self.chunk):
+            blk = self.A[s:s + self.chunk] if idx is None else self.A[idx[s:s + self.chunk]]
+            yield s, blk.reshape(-1, self.p), False
 
     def info(self, idx: np.ndarray, w: np.ndarray) -> np.ndarray:
         """Scaled ``sum_k w_k H_idx[k]`` (weights may be negative: a difference of designs)."""
-        p = self.p
-        out = np.zeros((p, p))
-        for s in range(0, len(idx), self.chunk):
-            B = self.A[idx[s:s + self.chunk]].reshape(-1, p) * self.c
-            out += (B * np.repeat(w[s:s + self.chunk], self.r)[:, None]).T @ B
+        out = np.zeros((self.p, self.p))
+        raw = np.zeros((self.p, self.p))
+        for s, B, scaled in self._sweep(idx):
+            n = len(B) // self.r
+            part = (B * np.repeat(w[s:s + n], self.r)[:, None]).T @ B
+            if scaled:
+                out += part
+            else:
+                raw += part
+        out += raw * np.outer(self.c, self.c)
         return 0.5 * (out + out.T)
 
     def variances(self, T: np.ndarray, idx: np.ndarray | None = None) -> np.ndarray:
         """``d_i = ||T C A_i^T||_F^2`` for ``T = L^-1`` (scaled Cholesky factor of M)."""
-        TC = (T * self.c).T  # (p, p): rows of A times C T^T
-        n = self.N if idx is None else len(idx)
-        d = np.empty(n)
-        for s in range(0, n, self.chunk):
-            blk = self.A[s:s + self.chunk] if idx is None else self.A[idx[s:s + self.chunk]]
-            G = blk.reshape(-1, self.p) @ TC
-            d[s:s + len(blk)] = np.einsum("ij,ij->i", G, G).reshape(len(blk), self.r).sum(axis=1)
+        d = np.empty(self.N if idx is None else len(idx))
+        TT, TC = T.T, (T * self.c).T
+        for s, B, scaled in self._sweep(idx):
+            G = B @ (TT if scaled else TC)
+            n = len(B) // self.r
+            d[s:s + n] = np.einsum("ij,ij->i", G, G).reshape(n, self.r).sum(axis=1)
         return d
 
     def factor(self, Ms: np.ndarray) -> tuple[np.ndarray, float]:
@@ -288,6 +325,7 @@ def _check_m(A: np.ndarray, m: int) -> None:
 # --- the bound ------------------------------------------------------------------------
 
 
+@limited_threads()
 def upper_bound(A: np.ndarray, m: int, weights: np.ndarray) -> float:
     """Certified upper bound on the log det of every M-pose subset of the pool.
 
@@ -355,6 +393,7 @@ def _line_search(lam: np.ndarray) -> float:
     return lo
 
 
+@limited_threads()
 def relax_multiplicative(A: np.ndarray, m: int, settings: RelaxationSettings | None = None,
                          w0: np.ndarray | None = None) -> Relaxation:
     """Solve the relaxation with the capped multiplicative algorithm (first-order).
@@ -390,16 +429,21 @@ def relax_multiplicative(A: np.ndarray, m: int, settings: RelaxationSettings | N
     Ms = pool.info(act, w[act])
     status = f"iteration limit ({st.max_iter})"
     best_ub, ld, it = math.inf, -math.inf, 0
+    last_full, work = 0, 0
     for it in range(1, st.max_iter + 1):
         if it % st.check_every == 0:
             Ms = pool.info(act, w[act])  # drop the rounding drift of the incremental updates
         L, ld = pool.factor(Ms)
         T = np.linalg.inv(L)
         d = pool.variances(T, act)
+        work += len(act)
         gap_act = math.log(max(float(np.sum(_top(d, m))), p) / p)
         timeout = time.perf_counter() - t0 > st.time_limit_s
-        if gap_act <= st.tol or it % st.check_every == 0 or timeout or it == st.max_iter:
+        # a sweep of the whole pool costs N: at most about as often as the active-set work pays for it
+        due = it - last_full >= st.check_every and work >= N
+        if gap_act <= st.tol or due or timeout or it == st.max_iter:
             # certify against the whole pool; pruned candidates that now matter come back
+            last_full, work = it, 0
             d_all = pool.variances(T)
             ub = pool.bound_from(ld, d_all)
             best_ub = min(best_ub, ub)
@@ -438,7 +482,8 @@ def relax_multiplicative(A: np.ndarray, m: int, settings: RelaxationSettings | N
         w[act] = wa + s * (v - wa)
         Ms = Ms + s * Dm
         keep = w[act] > st.prune
-        if not keep.all():
+        # prune in batches: each pruning recomputes the information matrix
+        if np.count_nonzero(~keep) > len(act) // 50 or (it % st.check_every == 0 and not keep.all()):
             w[act[~keep]] = 0.0
             act = act[keep]
             w[act] = _cap_project(w[act], m)
@@ -452,6 +497,7 @@ def relax_multiplicative(A: np.ndarray, m: int, settings: RelaxationSettings | N
 # --- conic relaxation -----------------------------------------------------------------
 
 
+@limited_threads()
 def relax_cvxpy(A: np.ndarray, m: int, solver: str | None = None, verbose: bool = False,
                 **solver_options) -> Relaxation:
     """Solve the relaxation as a conic program with cvxpy's ``log_det``.
@@ -520,6 +566,7 @@ def relax_cvxpy(A: np.ndarray, m: int, solver: str | None = None, verbose: bool 
 # --- rounding and exchange ------------------------------------------------------------
 
 
+@limited_threads()
 def exchange(A: np.ndarray, m: int, start, *, n_candidates: int | None = None,
              max_swaps: int | None = None, weights: np.ndarray | None = None) -> ExactDesign:
     """Fedorov exchange from a starting set of M distinct poses.
@@ -548,55 +595,118 @@ def exchange(A: np.ndarray, m: int, start, *, n_candidates: int | None = None,
     _check_m(A, m)
     t0 = time.perf_counter()
     pool = _Pool(A, m)
-    N, r, p = pool.N, pool.r, pool.p
     X = np.array(start, dtype=int).ravel()
-    if len(X) != m or len(np.unique(X)) != m or X.min() < 0 or X.max() >= N:
+    if len(X) != m or len(np.unique(X)) != m or X.min() < 0 or X.max() >= pool.N:
         raise InputError(f"the starting design must hold {m} distinct pool rows")
+    X, swaps = _exchange(pool, X, n_candidates, max_swaps, weights)
+    return ExactDesign(X, _exact_log_det(pool, X), swaps, time.perf_counter() - t0)
+
+
+def _exact_log_det(pool: _Pool, X: np.ndarray) -> float:
+    sign, ld = np.linalg.slogdet(pool.info(X, np.ones(len(X))))
+    return float(ld) - 2.0 * pool.log_c if sign > 0 else -math.inf
+
+
+def _exchange(pool: _Pool, X: np.ndarray, n_candidates: int | None, max_swaps: int | None,
+              weights: np.ndarray | None) -> tuple[np.ndarray, int]:
+    """Fedorov exchange on a pool; returns the sorted design and the number of swaps.
+
+    Each step scores every (candidate in, selected out) pair among the ``nc``
+    unselected poses of largest variance (plus the relaxation's support) by
+    the determinant ratio ``det(I + A_c M^-1 A_c^T) det(I - A_o M'^-1 A_o^T)``
+    (``M' = M + A_c^T A_c``; the same value as ``det(I_2r + D U^T M^-1 U)``),
+    all pairs at once from one matrix product. Variances are computed on a
+    working list of poses; before stopping, the whole pool is checked and
+    the list extended if its ``nc`` largest variances lie outside it, so the
+    stopping rule is that of the exchange over the whole pool.
+    """
+    N, r, p, m = pool.N, pool.r, pool.p, len(X)
+    X = X.copy()
     nc = min(N - m, n_candidates or max(100, 2 * m))
     max_swaps = 10 * m if max_swaps is None else max_swaps
     support = np.flatnonzero(weights > 1e-6) if weights is not None else np.zeros(0, int)
     # a tiny ridge keeps the criterion finite for a rank-deficient start; swaps that
     # restore the rank then have huge ratios
     ridge = 1e-10 * np.eye(p)
-    swaps = 0
     I = np.eye(r)
+    work: np.ndarray | None = None  # working list of pool rows (sorted)
+    selected = np.zeros(N, dtype=bool)
+    selected[X] = True
+    swaps = 0
     while nc > 0 and swaps < max_swaps:
-        Ms = pool.info(X, np.ones(m)) + ridge
-        Minv = np.linalg.inv(Ms)
-        L = np.linalg.cholesky(Ms)
-        d = pool.variances(np.linalg.inv(L))
-        d[X] = -np.inf
-        cand = np.argpartition(-d, nc - 1)[:nc] if nc < N - m else np.flatnonzero(np.isfinite(d))
-        if len(support):
-            extra = np.setdiff1d(support, np.concatenate([cand, X]))
-            cand = np.concatenate([cand, extra])
-        best = (1.0 + 1e-10, -1, -1)
-        AX = A[X] * pool.c
-        BX = AX @ Minv  # (m, r, p)
-        Boo = np.einsum("oip,ojp->oij", BX, AX)
-        step = max(1, 2_000_000 // (m * (2 * r) ** 2))
-        for s in range(0, len(cand), step):
-            AC = A[cand[s:s + step]] * pool.c
-            GC = AC @ Minv
-            Bcc = np.einsum("cip,cjp->cij", GC, AC)
-            Bco = np.einsum("cip,ojp->coij", GC, AX)
-            K = np.empty((len(AC), m, 2 * r, 2 * r))
-            K[:, :, :r, :r] = (I + Bcc)[:, None]
-            K[:, :, :r, r:] = Bco
-            K[:, :, r:, :r] = -Bco.transpose(0, 1, 3, 2)
-            K[:, :, r:, r:] = (I - Boo)[None]
-            ratio = np.linalg.det(K)
-            c, o = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
-            if ratio[c, o] > best[0]:
-                best = (float(ratio[c, o]), int(cand[s + c]), int(o))
-        if best[1] < 0:
-            break
-        X[best[2]] = best[1]
+        L = np.linalg.cholesky(pool.info(X, np.ones(m)) + ridge)
+        T = np.linalg.inv(L)
+        if work is None:
+            work = _top_rows(pool.variances(T), X, min(N - m, 4 * nc), support)
+        rows = work[~selected[work]]
+        d = pool.variances(T, rows)
+        cand = rows[np.argpartition(-d, nc - 1)[:nc]] if nc < len(rows) else rows
+        cand = np.union1d(cand, support[~selected[support]])
+        ratio = _swap_ratios(pool, T, cand, X, I)
+        c, o = np.unravel_index(int(np.argmax(ratio)), ratio.shape)
+        if not ratio[c, o] > 1.0 + 1e-10:
+            # no swap improves within the working list: check the whole pool before stopping
+            top = _top_rows(pool.variances(T), X, nc, np.zeros(0, int))
+            new = np.setdiff1d(top, work, assume_unique=True)
+            if not len(new):
+                break
+            work = np.union1d(work, new)
+            continue
+        selected[X[o]], selected[cand[c]] = False, True
+        X[o] = cand[c]
         swaps += 1
-    X = np.sort(X)
-    sign, ld = np.linalg.slogdet(pool.info(X, np.ones(m)))
-    ld = float(ld) - 2.0 * pool.log_c if sign > 0 else -math.inf
-    return ExactDesign(X, ld, swaps, time.perf_counter() - t0)
+    return np.sort(X), swaps
+
+
+def _top_rows(d: np.ndarray, X: np.ndarray, k: int, extra: np.ndarray) -> np.ndarray:
+    """The k unselected rows of largest ``d``, with ``extra`` added (sorted, unique)."""
+    d = d.copy()
+    d[X] = -np.inf
+    top = np.argpartition(-d, k - 1)[:k] if k < len(d) - len(X) else np.flatnonzero(np.isfinite(d))
+    return np.union1d(top, extra)
+
+
+def _swap_ratios(pool: _Pool, T: np.ndarray, cand: np.ndarray, X: np.ndarray, I: np.ndarray) -> np.ndarray:
+    """``det(M_new) / det(M)`` for swapping each candidate (rows) in and each selected pose (columns) out.
+
+    With whitened blocks ``a = A T^T`` (``M^-1 = T^T T``) and ``I + a_c a_c^T = R_c R_c^T``, the
+    ratio is ``det(R_c)^2 det(I - a_o a_o^T + W^T W)`` with ``W = R_c^-1 a_c a_o^T``: one matrix
+    product for all pairs, then closed-form ``r x r`` determinants.
+    """
+    r, p = pool.r, pool.p
+    k, m = len(cand), len(X)
+    TC = (T * pool.c).T
+    GX = pool.A[X].reshape(m * r, p) @ TC                     # whitened blocks of the design
+    GC = (pool.A[cand].reshape(k * r, p) @ TC).reshape(k, r, p)
+    R = np.linalg.cholesky(I + np.einsum("kip,kjp->kij", GC, GC))
+    det_in = np.prod(np.diagonal(R, axis1=1, axis2=2), axis=1) ** 2
+    Q = np.einsum("kij,kjp->kip", np.linalg.inv(R), GC)
+    W = (Q.reshape(k * r, p) @ GX.T).reshape(k, r, m, r).transpose(3, 1, 0, 2).copy()  # W[a, j, c, o]
+    GX = GX.reshape(m, r, p)
+    Boo = np.einsum("oip,ojp->ijo", GX, GX)                   # a_o a_o^T, (r, r, m)
+    S = np.empty((r, r, k, m))
+    for a in range(r):
+        for b in range(a, r):
+            acc = W[a, 0] * W[b, 0]
+            for j in range(1, r):
+                acc += W[a, j] * W[b, j]
+            acc += I[a, b] - Boo[a, b]
+            S[a, b] = S[b, a] = acc
+    return det_in[:, None] * _det_small(S)
+
+
+def _det_small(S: np.ndarray) -> np.ndarray:
+    """Determinants of ``S[:, :, ...]`` (a stack of small matrices, leading axes; closed form up to 3 x 3)."""
+    n = S.shape[0]
+    if n == 1:
+        return S[0, 0]
+    if n == 2:
+        return S[0, 0] * S[1, 1] - S[0, 1] * S[1, 0]
+    if n == 3:
+        return (S[0, 0] * (S[1, 1] * S[2, 2] - S[1, 2] * S[2, 1])
+                - S[0, 1] * (S[1, 0] * S[2, 2] - S[1, 2] * S[2, 0])
+                + S[0, 2] * (S[1, 0] * S[2, 1] - S[1, 1] * S[2, 0]))
+    return np.linalg.det(np.moveaxis(S, (0, 1), (-2, -1)))
 
 
 def round_weights(weights: np.ndarray, m: int, tiebreak: np.ndarray | None = None) -> np.ndarray:
@@ -607,10 +717,13 @@ def round_weights(weights: np.ndarray, m: int, tiebreak: np.ndarray | None = Non
 
 
 def _auto_starts(N: int) -> int:
-    # exchange costs ~N M p^2 per swap: many starts on small pools, a few on huge ones
-    return 16 if N <= 2000 else 8 if N <= 20000 else 3
+    # exchange costs ~M p^2 (nc + M) per swap: many starts on small pools, a few on huge ones. Twice
+    # the starts of the first version (16 / 8 / 3), now that a swap is several times cheaper: the best
+    # local optimum depends less on which roundings the relaxation's path leads to
+    return 32 if N <= 2000 else 16 if N <= 20000 else 6
 
 
+@limited_threads()
 def round_and_exchange(A: np.ndarray, m: int, weights: np.ndarray, *, n_starts: int | None = None,
                        seed: int = 0, n_candidates: int | None = None) -> ExactDesign:
     """Exact design of M distinct poses from relaxed weights: best of several rounded starts + exchange.
@@ -626,7 +739,7 @@ def round_and_exchange(A: np.ndarray, m: int, weights: np.ndarray, *, n_starts: 
         (M poses drawn without replacement with probabilities proportional
         to the weights). Exchange stops at a local optimum for single swaps;
         several starts escape poor ones, which matters when M is close to
-        ``p / 3``. Default 16 for pools up to 2,000, 8 up to 20,000, else 3.
+        ``p / 3``. Default 32 for pools up to 2,000, 16 up to 20,000, else 6.
     seed : int
         Seed of the random roundings.
     n_candidates : int, optional
@@ -640,9 +753,12 @@ def round_and_exchange(A: np.ndarray, m: int, weights: np.ndarray, *, n_starts: 
     rng = np.random.default_rng(seed)
     with np.errstate(divide="ignore"):
         logw = np.log(np.maximum(w, 0.0))
-    best = exchange(A, m, round_weights(w, m), n_candidates=n_candidates, weights=w)
-    seen = {tuple(round_weights(w, m).tolist())}
-    t_ex, swaps = best.time_s, best.swaps
+    t0 = time.perf_counter()
+    pool = _Pool(A, m)
+    first = round_weights(w, m)
+    seen = {tuple(first.tolist())}
+    best, swaps = _exchange(pool, first, n_candidates, None, w)
+    best_ld = _exact_log_det(pool, best)
     for _ in range(n_starts - 1):
         # Gumbel top-M: sampling without replacement, probabilities proportional to w
         start = np.sort(np.argsort(-(logw + rng.gumbel(size=N)))[:m])
@@ -650,14 +766,15 @@ def round_and_exchange(A: np.ndarray, m: int, weights: np.ndarray, *, n_starts: 
         if key in seen:
             continue
         seen.add(key)
-        ex = exchange(A, m, start, n_candidates=n_candidates, weights=w)
-        t_ex += ex.time_s
-        swaps += ex.swaps
-        if ex.log_det > best.log_det:
-            best = ex
-    return ExactDesign(best.indices, best.log_det, swaps, t_ex, len(seen))
+        X, k = _exchange(pool, start, n_candidates, None, w)
+        swaps += k
+        ld = _exact_log_det(pool, X)
+        if ld > best_ld:
+            best, best_ld = X, ld
+    return ExactDesign(best, best_ld, swaps, time.perf_counter() - t0, len(seen))
 
 
+@limited_threads()
 def d_optimal_design(A: np.ndarray, m: int, *, relaxation: str = "first-order",
                      settings: RelaxationSettings | None = None,
                      n_candidates: int | None = None, n_starts: int | None = None,

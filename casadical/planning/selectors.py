@@ -11,11 +11,13 @@ from __future__ import annotations
 
 import math
 import time
+import warnings
 from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError
+from ..errors import IdentifiabilityWarning, InputError
+from ..threads import limited_threads
 from .doptimal import (DOptimalDesign, RelaxationSettings, _check_m, d_efficiency,
                        d_optimal_design, relax_multiplicative)
 from .observability import DesignProblem, Observability, design_problem, log_det_information, o1_batch, observability
@@ -77,6 +79,13 @@ class PlanResult:
     seed : int or None
     details : dict
         Method-specific figures (iterations, swaps, generations, ...).
+    missing_parameters : list of str
+        Parameters that poses across the joint ranges identify but the pool
+        does not (:attr:`DesignProblem.missing`); when any, no certificate is
+        given: every choice from the pool leaves them uncalibrated.
+    duplicates : int
+        Candidate rows identical to an earlier one (same Jacobian block):
+        offered once, so the M poses are distinct.
     """
 
     indices: np.ndarray
@@ -92,6 +101,8 @@ class PlanResult:
     jacobian_time_s: float = 0.0
     seed: int | None = None
     details: dict = field(default_factory=dict)
+    missing_parameters: list[str] = field(default_factory=list)
+    duplicates: int = 0
 
     @property
     def m(self) -> int:
@@ -116,6 +127,11 @@ class PlanResult:
             lines.append(f"certificate: no {self.m}-pose subset of the pool exceeds log det "
                          f"{self.upper_bound:.6g} (relaxation bound, gap {self.relaxation_gap:.2g} per "
                          f"parameter); D-efficiency of this selection >= {self.d_efficiency:.4f}")
+        elif self.missing_parameters:
+            lines.append("no certificate: " + degenerate_message(self.missing_parameters, p))
+        if self.duplicates:
+            lines.append(f"note: {self.duplicates} candidate rows repeat earlier ones; each pose was "
+                         "offered once")
         for k, v in self.details.items():
             if k.startswith("_"):
                 continue
@@ -131,9 +147,11 @@ class PlanResult:
                 "upper_bound": self.upper_bound, "d_efficiency": self.d_efficiency,
                 "relaxation_gap": self.relaxation_gap, "time_s": self.time_s,
                 "jacobian_time_s": self.jacobian_time_s, "seed": self.seed,
+                "missing_parameters": self.missing_parameters, "duplicate_rows": self.duplicates,
                 "details": {k: v for k, v in self.details.items() if not k.startswith("_")}}
 
 
+@limited_threads()
 def select_poses(model, q_candidates: np.ndarray | None, m: int, method: str = "d-optimal", *,
                  seed: int | None = None, cov: np.ndarray | None = None,
                  settings: PlanSettings | None = None,
@@ -169,9 +187,18 @@ def select_poses(model, q_candidates: np.ndarray | None, m: int, method: str = "
     Raises
     ------
     InputError
-        Unknown method, M larger than the pool.
+        Unknown method, M larger than the number of distinct candidates.
     IdentifiabilityError
         M too small to identify the parameters the pool can identify.
+
+    Notes
+    -----
+    Identical candidates (same Jacobian block) are offered once. A pool that
+    identifies fewer parameters than poses across the joint ranges do gets
+    no certificate (``upper_bound`` and ``d_efficiency`` None) and an
+    :class:`~casadical.errors.IdentifiabilityWarning`: the bound would only
+    cover the parameters the pool happens to identify, e.g. 3 for a pool of
+    one repeated pose, where every selection is "optimal".
     """
     if method not in METHODS:
         raise InputError(f"unknown selection method {method!r}; choose one of {', '.join(METHODS)}")
@@ -180,9 +207,16 @@ def select_poses(model, q_candidates: np.ndarray | None, m: int, method: str = "
     if problem is None:
         problem = design_problem(model, np.asarray(q_candidates, dtype=float), cov)
     t_jac = time.perf_counter() - t0
-    A = problem.A
     N, p = problem.n_candidates, problem.n_parameters
+    rows = distinct_rows(problem.A)
+    if len(rows) < m:
+        k = len(rows)
+        raise InputError(f"M={m} distinct poses asked for, but the {N} candidates hold only {k} distinct "
+                         f"pose{'s' if k != 1 else ''} ({N - k} rows repeat earlier ones)")
+    A = problem.A[rows] if len(rows) < N else problem.A
     _check_m(A, m)
+    if problem.missing:
+        warnings.warn(degenerate_message(problem.missing, p), IdentifiabilityWarning, stacklevel=3)
     t1 = time.perf_counter()
     details: dict = {}
     ub = gap = None
@@ -202,25 +236,43 @@ def select_poses(model, q_candidates: np.ndarray | None, m: int, method: str = "
         from ..optim.genetic import SubsetGeneticAlgorithm
 
         ga = SubsetGeneticAlgorithm(generations=st.ga_generations)
-        res = ga.maximize(lambda S: o1_batch(A, S), N, m, seed=seed)
+        res = ga.maximize(lambda S: o1_batch(A, S), len(A), m, seed=seed)
         idx = np.sort(np.asarray(res.x, dtype=int))
         details = {"ga": f"{res.nit} generations, {res.nfev} sets evaluated, best O1 {res.fun:.6g}, "
                          f"{res.time_s:.3g} s ({res.message})", "_result": res}
     else:
         rng = np.random.default_rng(seed)
-        idx = np.sort(rng.choice(N, size=m, replace=False))
+        idx = np.sort(rng.choice(len(A), size=m, replace=False))
     t_sel = time.perf_counter() - t1
     ld = log_det_information(A, idx)
-    if ub is None and st.certify:
+    if problem.missing:
+        ub = gap = None  # a bound over the parameters a degenerate pool identifies is no certificate
+    elif ub is None and st.certify:
         rel = relax_multiplicative(A, m, st.relaxation_settings)
         ub, gap = rel.upper_bound, rel.gap_per_parameter
         details["certificate"] = (f"first-order relaxation, {rel.iterations} iterations, "
                                   f"{rel.time_s:.3g} s")
     eff = d_efficiency(ld, ub, p) if ub is not None else None
-    return PlanResult(idx, method, N, list(problem.names), observability(A, idx), ld, ub, eff,
-                      gap, t_sel, t_jac, seed, details)
+    return PlanResult(rows[idx], method, N, list(problem.names), observability(A, idx), ld, ub, eff,
+                      gap, t_sel, t_jac, seed, details, list(problem.missing), N - len(rows))
 
 
+def distinct_rows(A: np.ndarray) -> np.ndarray:
+    """Sorted first occurrences of the distinct per-pose blocks ``A[i]`` (bitwise equality)."""
+    flat = np.ascontiguousarray(A).reshape(len(A), -1)
+    keys = flat.view(np.dtype((np.void, flat.dtype.itemsize * flat.shape[1]))).ravel()
+    return np.sort(np.unique(keys, return_index=True)[1])
+
+
+def degenerate_message(missing: list[str], p: int) -> str:
+    """Why a pool that misses parameters gets no certificate."""
+    shown = ", ".join(missing[:8]) + (f" and {len(missing) - 8} more" if len(missing) > 8 else "")
+    return (f"the candidates identify only {p} parameters; {len(missing)} more that poses across the "
+            f"joint ranges identify ({shown}) stay uncalibrated whatever is chosen from them: add "
+            "candidates that move them (other poses, loads)")
+
+
+@limited_threads()
 def random_o1(A: np.ndarray, m: int, n_sets: int, seed: int | None = None) -> np.ndarray:
     """O1 of ``n_sets`` uniformly random M-subsets of the pool (the GA paper's Fig. 6 baseline)."""
     rng = np.random.default_rng(seed)
