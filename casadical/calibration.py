@@ -41,6 +41,7 @@ from .robot import Robot
 from .simulate import sample_poses
 from .solvers import make_solver
 from .terms import ErrorTerm, ReferencedTerm, make_term
+from .threads import limited_threads
 from .terms.rbf_compensator import RBFCompensator, features
 from .uncertainty import from_normal, warn_problems
 
@@ -122,6 +123,7 @@ def _named_free(params: Parameters, named: set[str], new_params: set[str]) -> li
     return [p.name for p in params if p.group == "base" or p.term in named or p.name in new_params]
 
 
+@limited_threads()
 def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str | Model = "kinematic+compliance",
               solver: str = "ipopt", *, solver_options: dict | None = None, fix: tuple[str, ...] = (),
               start: dict[str, float] | None = None, check_identifiability: bool = True,

@@ -34,6 +34,7 @@ from ..model import Model, parse_spec
 from ..problem import RobustLoss
 from ..result import CalibrationResult, ErrorStats
 from ..robot import Robot
+from ..threads import limited_threads
 from . import transfer as transfer_mod
 from .blackbox import blackbox
 from .candidates import Candidate, compose_spec, tell_apart
@@ -369,6 +370,7 @@ def _levers(robot: Robot, data: Measurements) -> np.ndarray:
                      for j in range(1, robot.n + 1)])
 
 
+@limited_threads()
 def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: DiagnosisSettings | None = None,
              progress: Callable[[str], None] | None = None, other: Measurements | None = None,
              **checks: bool) -> DiagnosisReport:
