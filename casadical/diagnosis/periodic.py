@@ -171,11 +171,12 @@ class Halves:
         return f"{what}: {values} ({'agree' if self.agree else 'disagree'}, chi2 = {self.chi2:.1f})"
 
 
-def halves(fit: LinearFit, params: list[Parameter], data: Measurements, joint: int, alpha: float) -> list[Halves]:
-    """A joint term fitted on the joint's range halves and on the time halves.
+def halves(fit: LinearFit, params: list[Parameter], data: Measurements, joint: int | None,
+           alpha: float) -> list[Halves]:
+    """A term fitted on the joint's range halves and on the time halves (only the latter without a joint).
 
     ``params`` are the term's parameters: ``(s, c)`` of a periodic error
-    (amplitude and phase are reported) or one parameter (its value in
+    (amplitude and phase are reported) or others (the first one's value in
     display units is reported as the "amplitude", phase 0). Each half is
     refitted by one Gauss-Newton step from ``fit``.
     """
@@ -183,13 +184,14 @@ def halves(fit: LinearFit, params: list[Parameter], data: Measurements, joint: i
     names = [p.name for p in params]
     cols = [lin.names.index(n) for n in names]
     base = np.array([fit.values[n] for n in names])
-    q = data.q[:, joint - 1]
-    order_q = np.argsort(q, kind="stable")
     order_t = np.argsort(data.rows, kind="stable")
-    n = len(q)
+    splits = [("time", order_t)]
+    if joint is not None:
+        splits.insert(0, ("joint", np.argsort(data.q[:, joint - 1], kind="stable")))
+    n = len(order_t)
     crit = float(stats.chi2.ppf(1 - alpha, len(names)))
     out = []
-    for split, order in (("joint", order_q), ("time", order_t)):
+    for split, order in splits:
         est, cov = [], []
         for rows in (order[: n // 2], order[n // 2:]):
             d, C = lin.refit(np.sort(rows), rel=0.0)

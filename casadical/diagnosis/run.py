@@ -330,11 +330,17 @@ class _Diagnosis:
 
     def joint_checks(self, scr: Screen, fit, cand: Candidate) -> dict:
         """A function of a joint's reading (periodic error, encoder scale) is the same over both halves of the
-        joint's range; a periodic error must also be resolved from its neighbours and from geometry."""
-        if cand.cause not in JOINT_CAUSES:
+        joint's range, and a periodic error must be resolved from its neighbours and from geometry; a drift
+        (a velocity) is the same over both halves of the measurement time."""
+        if cand.cause not in JOINT_CAUSES + ("drift",):
             return {}
         out: dict = {"reasons": []}
         params = [scr.params[n] for n in cand.parameter_names() if n in fit.lin.names]
+        if cand.cause == "drift":
+            hv = out["halves"] = halves(fit, params, self.cal, None, self.s.stability_alpha)
+            if not hv[0].agree:
+                out["reasons"].append("the first and second half in time disagree: " + hv[0].text())
+            return out
         hv = out["halves"] = halves(fit, params, self.cal, cand.joint, self.s.stability_alpha)
         if cand.cause == "joint_periodic":
             rs = out["resolution"] = resolution(scr, cand.joint, cand.harmonic)
@@ -451,7 +457,10 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
                               start=parametric)
             if k not in named:
                 return None
-            return dg.fit(compose_spec([a for a in accepted if a != f.candidate], geometric), start=parametric)
+            c = f.candidate
+            rest = [a for a in accepted if a != c and not (c.cause == "joint_compliance" and a.joint == c.joint
+                                                             and a.cause == "nonlinear_stiffness")]
+            return dg.fit(compose_spec(rest, geometric), start=parametric)
 
         study = transfer_mod.study(final, dg.kinematic, without, len(dg.findings), other,
                                    s.transfer_base_poses, n_refit, s.seed, say)

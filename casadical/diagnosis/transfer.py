@@ -82,7 +82,11 @@ class TransferStudy:
 
 def finding_gain(with_it: Travel, without: Travel) -> dict:
     gb, gr = without.base_mm - with_it.base_mm, without.refit_mm - with_it.refit_mm
-    verdict = "transfers" if gb > 0 and gr > 0 else ("does not transfer" if gb <= 0 and gr <= 0 else "mixed")
+    tie = 1e-4  # mm: no difference there
+    if abs(gb) < tie and abs(gr) < tie:
+        verdict = "no difference"
+    else:
+        verdict = "transfers" if gb > 0 and gr > 0 else ("does not transfer" if gb <= 0 and gr <= 0 else "mixed")
     return {"base_gain_mm": gb, "refit_gain_mm": gr, "verdict": verdict,
             "text": f"{verdict}: mean {'-' if gb >= 0 else '+'}{abs(gb):.4f} mm with the base re-estimated, "
                     f"{'-' if gr >= 0 else '+'}{abs(gr):.4f} mm with the geometry refitted"}
