@@ -87,7 +87,12 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     ap.add_argument("--before", type=Path, help="folder of the old diagnosis' final models")
     ap.add_argument("--json", help="write the results here")
+    ap.add_argument("--plot", help="write the side-by-side figure (PNG) here")
+    ap.add_argument("--from-json", help="plot results written before by --json instead of running")
     args = ap.parse_args()
+    if args.from_json:
+        plot(json.loads(Path(args.from_json).read_text()), args.plot)
+        return
     warnings.simplefilter("ignore")
     robot = load_robot("ur10")
     series = {s: Measurements.read_csv(DATA / f"series_{s}.csv", n_joints=6) for s in "ab"}
@@ -114,6 +119,41 @@ def main() -> None:
                           f"base {f['base_gain_mm']:+.4f}  refit {f['refit_gain_mm']:+.4f}  {f['verdict']}")
     if args.json:
         Path(args.json).write_text(json.dumps(results, indent=1))
+    if args.plot:
+        plot(results, args.plot)
+
+
+def plot(results: list[dict], path: str) -> None:
+    """Mean error per run: in series, other series with the base re-estimated, with the geometry refitted."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    panels = [("in the same series (held-out poses)", "val"), ("other series, base pose re-estimated", "base"),
+              ("other series, geometry refitted", "refit")]
+    fig, axes = plt.subplots(1, 3, figsize=(13, 4.2), sharey=True)
+    labels = [f"{r['series'].upper()} {r['seed']}" for r in results]
+    x = np.arange(len(results))
+    for ax, (title, key) in zip(axes, panels):
+        def val(r, who):
+            if key == "val":
+                return {"kinematic": r["kinematic_val_mm"], "diagnosed": r["final_val_mm"],
+                        "before": r.get("before", {}).get("val_mm", np.nan)}[who]
+            if who == "before":
+                return r.get("before", {}).get(f"{key}_mm", np.nan)
+            return r["transfer"]["kinematic" if who == "kinematic" else "final"][f"{key}_mm"]
+        for k, (who, colour) in enumerate((("kinematic", "#bbbbbb"), ("before", "#ee8866"),
+                                           ("diagnosed", "#4477aa"))):
+            ax.bar(x + (k - 1) * 0.27, [val(r, who) for r in results], 0.27, color=colour,
+                   label={"before": "diagnosed, before this change"}.get(who, who))
+        ax.set_xticks(x, labels)
+        ax.set_title(title, fontsize=10)
+        ax.set_xlabel("source series, seed")
+        ax.grid(axis="y", alpha=0.3)
+    axes[0].set_ylabel("mean position error (mm)")
+    handles, names = axes[0].get_legend_handles_labels()
+    fig.legend(handles, names, loc="upper center", ncol=3, frameon=False)
+    fig.tight_layout(rect=(0, 0, 1, 0.9))
+    fig.savefig(path, dpi=110)
 
 
 if __name__ == "__main__":
