@@ -40,7 +40,9 @@ class Measurements:
     rows : ndarray of int
         Each pose's row in the original measurement order.
     moves : ndarray, shape (N, n_joints)
-        Sign of each joint's last move before the pose, in the original order.
+        Sign of each joint's last move before the pose, in the original order
+        (the columns ``move1..moveN`` when the file has them, as ``split``
+        writes them).
     lines : ndarray of int
         Each pose's line in its file (the header is line 1), for messages
         and reports; ``rows + 2`` for data made in memory.
@@ -67,9 +69,14 @@ class Measurements:
         if self.lines is None:
             self.lines = self.rows + 2
         if self.moves is None:
-            self.moves = np.zeros((len(self), self._n_joints))
-            if len(self) > 1 and self._n_joints:
-                self.moves[1:] = np.sign(np.diff(self.q, axis=0))
+            given = [self.get(f"move{j}") for j in range(1, self._n_joints + 1)]
+            if self._n_joints and all(m is not None for m in given):
+                # written by 'split': the moves of the original sequence, which a subset cannot recompute
+                self.moves = np.column_stack(given).astype(float)
+            else:
+                self.moves = np.zeros((len(self), self._n_joints))
+                if len(self) > 1 and self._n_joints:
+                    self.moves[1:] = np.sign(np.diff(self.q, axis=0))
 
     # --- views ------------------------------------------------------------------
 
