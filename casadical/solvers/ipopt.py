@@ -65,7 +65,7 @@ class Ipopt(Solver):
         f = model.batch_function("cost", N)(Q, p, C, base0, XYZ, delta)
         nlp = {"x": x, "p": data, "f": f}
         # the cost is ~1e-7 m^2: in mm^2 IPOPT's tolerances mean what they say
-        opts = {"print_time": False, "ipopt": {"print_level": 0, "sb": "yes", "max_iter": self.max_iter,
+        opts = {"print_time": False, "no_nlp_grad": True, "calc_lam_p": False, "ipopt": {"print_level": 0, "sb": "yes", "max_iter": self.max_iter,
                                                "tol": self.tol, "obj_scaling_factor": 1e6, **self.options}}
         if self.hessian == "gauss-newton":
             fv, g = model.batch_function("grad", N)(Q, p, C, base0, XYZ, delta)
