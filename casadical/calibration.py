@@ -29,7 +29,6 @@ from .alignment import align
 from .checks import check_poses
 from .coverage import Coverage
 from .data import Measurements
-from .compensators.guard import fit_guarded
 from .errors import CasadicalWarning, ConvergenceWarning, IdentifiabilityError, IdentifiabilityWarning, InputError, SolverError
 from .identifiability import analyse
 from .kinematics import base_pose_matrix
@@ -394,6 +393,8 @@ def fit_compensator(result: CalibrationResult, data: Measurements, seed: int = 0
     error (otherwise ``result`` comes back with a note saying so). Poses the
     robust loss set aside do not train the network.
     """
+    from .compensators.guard import fit_guarded  # scipy: imported only when a compensator is fitted
+
     X, Y, keep = compensator_data(result, data)
     net, info = fit_guarded(rbf_candidates(int(keep.sum()), seed), X[keep], Y[keep], seed=seed)
     if net is None:

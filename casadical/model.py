@@ -16,21 +16,15 @@ Inputs of every model function, per pose:
 
 from __future__ import annotations
 
-import atexit
-import itertools
 import os
 import re
-import shutil
-import signal
-import subprocess
-import tempfile
 import warnings
 from dataclasses import dataclass
-from functools import cache
 
 import casadi as ca
 import numpy as np
 
+from . import jitcache
 from .errors import CasadicalWarning, ModelError
 from .kinematics import Geometry, base_pose_matrix, chain_angles, compose, forward, rpy_pose
 from .parameters import Parameters
@@ -223,25 +217,37 @@ class Model:
 
     # --- numeric evaluation -------------------------------------------------------
 
-    def _use_jit(self, N: int) -> bool:
-        return self.jit if self.jit is not None else (N >= JIT_MIN_POSES and compiler_available())
+    def _use_jit(self, N: int) -> bool | str:
+        if self.jit is not None:
+            return self.jit
+        if not compiler_available():
+            return False
+        return True if N >= JIT_MIN_POSES else "cached"
 
-    def per_pose_function(self, which: str, jit: bool = False) -> ca.Function:
+    def per_pose_function(self, which: str, jit: bool | str = False) -> ca.Function:
         """One of the per-pose Functions (``fk``, ``fk_jac``, ``cost``, ``grad``, ``gn_hess``, ``tau``, ``dq``,
-        ``fk_q_jac``, ``flange``, ``flange_jac``)."""
+        ``fk_q_jac``, ``flange``, ``flange_jac``).
+
+        ``jit``: False for CasADi's virtual machine; True for compiled code,
+        from the disk cache (:mod:`casadical.jitcache`) or compiled now and
+        stored there; ``"cached"`` for compiled code if the cache has it,
+        else the virtual machine.
+        """
         fun = self._compiled.get((which, jit))
+        if fun is None and jit == "cached":
+            fun = self._compiled.get((which, True))
         if fun is None:
-            ins, outs, _, _ = self._graphs[which]
-            fun = ca.Function(which, ins, outs)
+            vm = self._compiled.get((which, False))
+            if vm is None:
+                ins, outs, _, _ = self._graphs[which]
+                vm = self._compiled[(which, False)] = ca.Function(which, ins, outs)
+            fun = vm
             if jit:
                 try:
-                    fun = _compile(fun, f"casadical_{which}")
-                except (RuntimeError, OSError, subprocess.CalledProcessError) as e:
-                    if getattr(e, "returncode", None) == -signal.SIGINT:
-                        raise KeyboardInterrupt from e   # the compiler alone got the Ctrl-C
+                    fun = jitcache.load(vm, compile=jit is True) or vm
+                except jitcache.CompileError as e:
                     # a broken compiler must not stop a calibration: the VM gives the same numbers
-                    detail = getattr(e, "stderr", None) or str(e)
-                    warnings.warn(f"JIT compilation failed, using CasADi's virtual machine ({detail[-200:]})",
+                    warnings.warn(f"JIT compilation failed, using CasADi's virtual machine ({str(e)[-200:]})",
                                   CasadicalWarning, stacklevel=3)
                     self.jit = False
             self._compiled[(which, jit)] = fun
@@ -388,46 +394,9 @@ def base0_to_pose(b0: np.ndarray) -> np.ndarray:
     return T
 
 
-@cache
-def _jit_dir() -> str:
-    """A private folder for the JIT's C sources and libraries, removed when Python exits.
-
-    Without it CasADi writes them to the working directory, i.e. into the user's files.
-    """
-    d = tempfile.mkdtemp(prefix="casadical-jit-")
-    atexit.register(shutil.rmtree, d, ignore_errors=True)
-    return d
-
-
-def _compile(fun: ca.Function, name: str) -> ca.Function:
-    """``fun`` as machine code: C from CasADi, compiled by the system compiler, loaded back.
-
-    The compiler runs as a child process that Python waits for, so Ctrl-C
-    stops it and raises KeyboardInterrupt here (CasADi's own JIT runs it
-    through ``system()``, which ignores the interrupt in the caller: the
-    compile failed and the run went on with the virtual machine). Sources
-    and libraries go to the private folder removed at exit.
-    """
-    folder, serial = _jit_dir(), next(_SERIAL)
-    source = ca.CodeGenerator(f"{name}_{serial}.c", {"with_header": False})
-    source.add(fun)
-    c_file = source.generate(folder + os.sep)
-    library = os.path.join(folder, f"{name}_{serial}.so")
-    cc = shutil.which("gcc") or shutil.which("cc") or "cc"
-    subprocess.run([cc, "-O2", "-fPIC", "-shared", c_file, "-o", library], check=True, capture_output=True,
-                   text=True)
-    return ca.external(fun.name(), library)
-
-
-_SERIAL = itertools.count()
-
-
-@cache
 def compiler_available() -> bool:
-    """True if CasADi's JIT can find a C compiler (``CASADICAL_JIT=0`` disables it)."""
-    if os.environ.get("CASADICAL_JIT", "1") == "0":
-        return False
-    return shutil.which("gcc") is not None or shutil.which("cc") is not None
+    """True if a C compiler is on PATH and ``CASADICAL_JIT=0`` does not turn automatic compilation off."""
+    return os.environ.get("CASADICAL_JIT", "1") != "0" and jitcache.compiler() is not None
 
 
 class _Batch:
