@@ -269,7 +269,7 @@ def main(argv=None) -> int:
                         "iterations": res.iterations,
                         "status": res.status, "x": res.x})
         if "IPOPT" in name:
-            st = next(iter(s._cache.values())).stats()
+            st = s._last.stats()
             ipopt_stats[name] = {k: st[k] for k in ("t_wall_nlp_f", "t_wall_nlp_grad_f", "t_wall_nlp_hess_l",
                                                     "n_call_nlp_f", "n_call_nlp_grad_f", "n_call_nlp_hess_l")}
         print(f"  {name}: {fmt_t(t)} warm (first call {fmt_t(t_first)})", flush=True)

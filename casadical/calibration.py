@@ -268,7 +268,7 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     # --- solve; with the robust loss, re-estimate the noise scale until it settles
     opts = solver_options or {}
     x = problem.x_from_values(params.values)
-    res, name, solve_time = None, "", 0.0
+    res, name, solve_time, setup_time = None, "", 0.0, 0.0
     estimate_scale = loss.robust and not math.isfinite(loss.sigma)
     for _ in range(ROBUST_LOOPS if estimate_scale else 1):
         if estimate_scale:
@@ -279,8 +279,9 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
             problem.loss = new
         res, name = _solve(problem, x, solver, opts)
         solve_time += res.solve_time_s
+        setup_time += res.setup_time_s
         x = res.x
-    res.solve_time_s = solve_time
+    res.solve_time_s, res.setup_time_s = solve_time, setup_time
     if not np.isfinite(res.cost):
         raise SolverError(f"{name} ended with a non-finite cost ({res.status}); check the data for outliers "
                           "and the robot file for wrong units")
