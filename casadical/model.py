@@ -31,7 +31,15 @@ from .parameters import Parameters
 from .robot import Robot
 from .terms import REGISTRY, Context, ErrorTerm, make_term
 
-JIT_MIN_POSES = 300
+#: batches of this many poses or more run compiled code, compiled once per machine and kept in the disk cache
+#: (casadical.jitcache); smaller ones use it only if the cache has it. Measured on the UR10 kinematic model
+#: (benchmarks/bench_calibrate_cli.py): compiling costs ~1.2 s of CPU more than a run on the VM, once, and
+#: saves ~0.55 s per later 200-pose calibration, so it pays from the third run
+JIT_MIN_POSES = 100
+#: poses per inner map of large batches: a flat map of N poses holds every pose's summed outputs at once
+#: (the Gauss-Newton matrix: ~700 numbers per UR10 pose, 1.1 GB at 200,000 poses); a map of chunks holds
+#: one chunk's and one sum per chunk
+MAP_CHUNK = 256
 _SPEC_ITEM = re.compile(r"^\s*([a-z_]+)\s*(?:\[([^\]]*)\])?\s*$")
 
 
@@ -91,9 +99,11 @@ class Model:
         (:func:`parse_spec`). The geometric term is always present; it is
         free only if listed (``kinematic``), otherwise only the base pose is.
     jit : bool, optional
-        Compile the model to machine code with the system C compiler (about
-        1 s once, then ~8x faster). Default: for batches of
-        ``JIT_MIN_POSES`` poses or more, when a compiler is available.
+        Compile the model to machine code with the system C compiler (0.2-3
+        s per function once per machine, kept in the disk cache of
+        :mod:`casadical.jitcache`; then ~8x faster). Default: for batches of
+        ``JIT_MIN_POSES`` poses or more when a compiler is available, and for
+        smaller batches when the cache already holds the function.
     """
 
     def __init__(self, robot: Robot, terms: list[ErrorTerm] | str = "kinematic",
@@ -184,11 +194,16 @@ class Model:
         r = xyz - y
         u2 = ca.dot(r, r)
         # per-pose loss pieces, summed over poses by map's reduce_out: the pseudo-Huber loss
-        # (u2 / 2 when delta = 0), its gradient by reverse mode, and the upper triangle of the
-        # IRLS Gauss-Newton matrix w J^T J with J's sparsity (see casadical.problem.RobustLoss)
+        # (u2 / 2 when delta = 0), its gradient by reverse mode, and the upper triangle of its
+        # Gauss-Newton matrix J^T (I / root - delta / root^3 r r^T) J, with J's sparsity (see
+        # casadical.problem.RobustLoss). The second part is the curvature of the loss itself: without
+        # it (the IRLS matrix J^T J / root) IPOPT converged linearly and ended in dozens of iterations
+        # of failing line searches at round-off level; the matrix stays positive semi-definite (the
+        # eigenvalues of the middle factor are 1 / root and 1 / root^3)
         root = ca.sqrt(1 + delta * u2)
         cost = u2 / (root + 1)
         Js = ca.jacobian(xyz, p)
+        Jr = ca.mtimes(Js.T, r)
         lsq = ins + [y, delta]
         # joint-space derivatives for inverse problems (corrected joint targets): through every
         # term, since deflections and gear errors depend on q too
@@ -201,7 +216,8 @@ class Model:
             "fk_jac": (ins, [xyz, J], (1, 3), ()),
             "cost": (lsq, [cost], (1, 3, 5), (0,)),
             "grad": (lsq, [cost, ca.gradient(cost, p)], (1, 3, 5), (0, 1)),
-            "gn_hess": (lsq, [ca.triu(ca.mtimes(Js.T, Js)) / root], (1, 3, 5), (0,)),
+            "gn_hess": (lsq, [ca.triu(ca.mtimes(Js.T, Js)) / root
+                              - delta / root ** 3 * ca.triu(ca.mtimes(Jr, Jr.T))], (1, 3, 5), (0,)),
             "tau": ([q, p, c], [tau], (1,), ()),
             "dq": ([q, p, c], [dq], (1,), ()),
             "fk_q_jac": (ins, [xyz, Jq], (1, 3), ()),
@@ -254,10 +270,31 @@ class Model:
         return fun
 
     def batch_function(self, which: str, N: int) -> ca.Function:
-        """``which`` mapped over N poses: parameters and base0 broadcast, sums reduced."""
+        """``which`` mapped over N poses: parameters and base0 broadcast, sums reduced.
+
+        Beyond ``2 * MAP_CHUNK`` poses the map runs over chunks of
+        ``MAP_CHUNK`` poses (and the rest), so its memory does not grow with
+        N times the size of a summed output.
+        """
         _, _, bcast, reduce = self._graphs[which]
+        bcast, reduce = list(bcast), list(reduce)
         fun = self.per_pose_function(which, self._use_jit(N))
-        return fun.map(f"{which}_{N}", "serial", N, list(bcast), list(reduce))
+        if N < 2 * MAP_CHUNK:
+            return fun.map(f"{which}_{N}", "serial", N, bcast, reduce)
+        M, R = divmod(N, MAP_CHUNK)
+        inner = fun.map(f"{which}_{MAP_CHUNK}", "serial", MAP_CHUNK, bcast, reduce)
+        pieces = [(0, M * MAP_CHUNK, inner.map(f"{which}_{MAP_CHUNK}x{M}", "serial", M, bcast, reduce))]
+        if R:
+            pieces.append((M * MAP_CHUNK, N, fun.map(f"{which}_{R}", "serial", R, bcast, reduce)))
+        ins = [ca.MX.sym(fun.name_in(i), fun.size1_in(i), fun.size2_in(i) * (1 if i in bcast else N))
+               for i in range(fun.n_in())]
+        outs = []
+        for a, b, F in pieces:
+            outs.append(F.call([x if i in bcast else x[:, fun.size2_in(i) * a:fun.size2_in(i) * b]
+                                for i, x in enumerate(ins)]))
+        res = [sum(o[j] for o in outs) if j in reduce else ca.horzcat(*(o[j] for o in outs))
+               for j in range(fun.n_out())]
+        return ca.Function(f"{which}_{N}", ins, res)
 
     def _batch(self, which: str, N: int) -> "_Batch":
         key = (which, N, self._use_jit(N))

@@ -3,8 +3,9 @@
 The NLP is built on the mapped model Function with the data as NLP
 parameters, so its size does not grow with the number of poses and one
 built solver serves every data set of the same size. The Hessian is the
-Gauss-Newton one (J^T J, passed as ``hess_lag``): it is what the least
-squares structure offers for free, and it is positive semi-definite.
+Gauss-Newton one of the (robust) loss (J^T J for plain least squares,
+passed as ``hess_lag``): it is what the least squares structure offers for
+free, and it is positive semi-definite.
 """
 
 from __future__ import annotations
