@@ -187,45 +187,77 @@ class Model:
                 xyz = xyz + off
         tau = ca.vertcat(*ctx.torques()) if robot.n else ca.SX.zeros(0)
         dq = ca.vertcat(*[ca.SX(o) if not isinstance(o, ca.SX) else o for o in offsets])
-        J = ca.densify(ca.jacobian(xyz, p))
-        ins = [q, p, c, b0]
-        y = ca.SX.sym("y", 3)
-        delta = ca.SX.sym("delta")  # robust loss: 1 / (c sigma)^2, 0 for plain least squares
-        r = xyz - y
-        u2 = ca.dot(r, r)
-        # per-pose loss pieces, summed over poses by map's reduce_out: the pseudo-Huber loss
-        # (u2 / 2 when delta = 0), its gradient by reverse mode, and the upper triangle of its
-        # Gauss-Newton matrix J^T (I / root - delta / root^3 r r^T) J, with J's sparsity (see
-        # casadical.problem.RobustLoss). The second part is the curvature of the loss itself: without
-        # it (the IRLS matrix J^T J / root) IPOPT converged linearly and ended in dozens of iterations
-        # of failing line searches at round-off level; the matrix stays positive semi-definite (the
-        # eigenvalues of the middle factor are 1 / root and 1 / root^3)
-        root = ca.sqrt(1 + delta * u2)
-        cost = u2 / (root + 1)
-        Js = ca.jacobian(xyz, p)
-        Jr = ca.mtimes(Js.T, r)
-        lsq = ins + [y, delta]
-        # joint-space derivatives for inverse problems (corrected joint targets): through every
-        # term, since deflections and gear errors depend on q too
-        Jq = ca.densify(ca.jacobian(xyz, q))
         R = ca.mtimes(base[0], frames.tool[0])  # flange (last link) rotation, measurement frame
-        Jw = _angular_jacobian(R, q)
-        # name: (inputs, outputs, broadcast inputs, summed outputs)
-        self._graphs = {
-            "fk": (ins, [xyz], (1, 3), ()),
-            "fk_jac": (ins, [xyz, J], (1, 3), ()),
-            "cost": (lsq, [cost], (1, 3, 5), (0,)),
-            "grad": (lsq, [cost, ca.gradient(cost, p)], (1, 3, 5), (0, 1)),
-            "gn_hess": (lsq, [ca.triu(ca.mtimes(Js.T, Js)) / root
-                              - delta / root ** 3 * ca.triu(ca.mtimes(Jr, Jr.T))], (1, 3, 5), (0,)),
-            "tau": ([q, p, c], [tau], (1,), ()),
-            "dq": ([q, p, c], [dq], (1,), ()),
-            "fk_q_jac": (ins, [xyz, Jq], (1, 3), ()),
-            "flange": (ins, [R], (1, 3), ()),
-            "flange_jac": (ins, [R, Jw], (1, 3), ()),
-        }
-        self.fk = ca.Function("fk", ins, [xyz], ["q", "p", "cov", "base0"], ["xyz"])
-        self.fk_jac = ca.Function("fk_jac", ins, [xyz, J], ["q", "p", "cov", "base0"], ["xyz", "J"])
+        self._sx = {"q": q, "p": p, "c": c, "b0": b0, "xyz": xyz, "tau": tau, "dq": dq, "R": R}
+        # name: (inputs, outputs, broadcast inputs, summed outputs), built when first used (_graph): the
+        # derivatives cost most of a model's construction, and a calibration needs few of them
+        self._graphs: dict = {}
+
+    def _graph(self, which: str) -> tuple:
+        g = self._graphs.get(which)
+        if g is not None:
+            return g
+        x = self._sx
+        q, p, xyz = x["q"], x["p"], x["xyz"]
+        ins = [q, p, x["c"], x["b0"]]
+        if which in ("cost", "grad", "gn_hess"):
+            if "lsq" not in x:
+                y = ca.SX.sym("y", 3)
+                delta = ca.SX.sym("delta")  # robust loss: 1 / (c sigma)^2, 0 for plain least squares
+                r = xyz - y
+                u2 = ca.dot(r, r)
+                root = ca.sqrt(1 + delta * u2)
+                x["lsq"] = (ins + [y, delta], r, delta, root, u2 / (root + 1))
+            lsq, r, delta, root, cost = x["lsq"]
+        if which == "fk":
+            g = (ins, [xyz], (1, 3), ())
+        elif which == "fk_jac":
+            g = (ins, [xyz, ca.densify(self._jacobian())], (1, 3), ())
+        elif which == "cost":
+            g = (lsq, [cost], (1, 3, 5), (0,))
+        elif which == "grad":
+            g = (lsq, [cost, ca.gradient(cost, p)], (1, 3, 5), (0, 1))
+        elif which == "gn_hess":
+            # per-pose loss pieces, summed over poses by map's reduce_out: the pseudo-Huber loss (u2 / 2
+            # when delta = 0), its gradient by reverse mode, and the upper triangle of its Gauss-Newton
+            # matrix J^T (I / root - delta / root^3 r r^T) J, with J's sparsity (see
+            # casadical.problem.RobustLoss). The second part is the curvature of the loss itself: without
+            # it (the IRLS matrix J^T J / root) IPOPT converged linearly and ended in dozens of iterations
+            # of failing line searches at round-off level; the matrix stays positive semi-definite (the
+            # eigenvalues of the middle factor are 1 / root and 1 / root^3)
+            Js = self._jacobian()
+            Jr = ca.mtimes(Js.T, r)
+            g = (lsq, [ca.triu(ca.mtimes(Js.T, Js)) / root - delta / root ** 3 * ca.triu(ca.mtimes(Jr, Jr.T))],
+                 (1, 3, 5), (0,))
+        elif which in ("tau", "dq"):
+            g = ([q, p, x["c"]], [x[which]], (1,), ())
+        elif which == "fk_q_jac":
+            # joint-space derivatives for inverse problems (corrected joint targets): through every
+            # term, since deflections and gear errors depend on q too
+            g = (ins, [xyz, ca.densify(ca.jacobian(xyz, q))], (1, 3), ())
+        elif which == "flange":
+            g = (ins, [x["R"]], (1, 3), ())
+        elif which == "flange_jac":
+            g = (ins, [x["R"], _angular_jacobian(x["R"], q)], (1, 3), ())
+        else:
+            raise ModelError(f"no model function {which!r}")
+        self._graphs[which] = g
+        return g
+
+    def _jacobian(self):
+        if "J" not in self._sx:
+            self._sx["J"] = ca.jacobian(self._sx["xyz"], self._sx["p"])
+        return self._sx["J"]
+
+    @property
+    def fk(self) -> ca.Function:
+        """Tool point (xyz) of one pose as a Function of (q, p, cov, base0)."""
+        return ca.Function("fk", *self._graph("fk")[:2], ["q", "p", "cov", "base0"], ["xyz"])
+
+    @property
+    def fk_jac(self) -> ca.Function:
+        """Tool point and its Jacobian w.r.t. p of one pose as a Function of (q, p, cov, base0)."""
+        return ca.Function("fk_jac", *self._graph("fk_jac")[:2], ["q", "p", "cov", "base0"], ["xyz", "J"])
 
     def expression_size(self) -> ExpressionSize:
         return ExpressionSize(len(self.parameters), self.fk.n_instructions(),
@@ -255,7 +287,7 @@ class Model:
         if fun is None:
             vm = self._compiled.get((which, False))
             if vm is None:
-                ins, outs, _, _ = self._graphs[which]
+                ins, outs, _, _ = self._graph(which)
                 vm = self._compiled[(which, False)] = ca.Function(which, ins, outs)
             fun = vm
             if jit:
@@ -276,7 +308,7 @@ class Model:
         ``MAP_CHUNK`` poses (and the rest), so its memory does not grow with
         N times the size of a summed output.
         """
-        _, _, bcast, reduce = self._graphs[which]
+        _, _, bcast, reduce = self._graph(which)
         bcast, reduce = list(bcast), list(reduce)
         fun = self.per_pose_function(which, self._use_jit(N))
         if N < 2 * MAP_CHUNK:
