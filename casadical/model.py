@@ -187,77 +187,80 @@ class Model:
                 xyz = xyz + off
         tau = ca.vertcat(*ctx.torques()) if robot.n else ca.SX.zeros(0)
         dq = ca.vertcat(*[ca.SX(o) if not isinstance(o, ca.SX) else o for o in offsets])
-        R = ca.mtimes(base[0], frames.tool[0])  # flange (last link) rotation, measurement frame
-        self._sx = {"q": q, "p": p, "c": c, "b0": b0, "xyz": xyz, "tau": tau, "dq": dq, "R": R}
-        # name: (inputs, outputs, broadcast inputs, summed outputs), built when first used (_graph): the
-        # derivatives cost most of a model's construction, and a calibration needs few of them
+        flange = ca.mtimes(base[0], frames.tool[0])  # flange (last link) rotation, measurement frame
+        self._sym = {"q": q, "p": p, "c": c, "b0": b0, "xyz": xyz, "tau": tau, "dq": dq, "flange": flange}
         self._graphs: dict = {}
+        self._fk: ca.Function | None = None
+        self._fk_jac: ca.Function | None = None
 
     def _graph(self, which: str) -> tuple:
+        """``(inputs, outputs, broadcast inputs, summed outputs)`` of a per-pose Function, built on first use.
+
+        Derivatives are what makes a model expensive to build: each is made
+        only when a computation asks for it.
+        """
         g = self._graphs.get(which)
         if g is not None:
             return g
-        x = self._sx
-        q, p, xyz = x["q"], x["p"], x["xyz"]
-        ins = [q, p, x["c"], x["b0"]]
+        S = self._sym
+        q, p, c, b0, xyz = S["q"], S["p"], S["c"], S["b0"], S["xyz"]
+        ins = [q, p, c, b0]
         if which in ("cost", "grad", "gn_hess"):
-            if "lsq" not in x:
-                y = ca.SX.sym("y", 3)
-                delta = ca.SX.sym("delta")  # robust loss: 1 / (c sigma)^2, 0 for plain least squares
-                r = xyz - y
-                u2 = ca.dot(r, r)
-                root = ca.sqrt(1 + delta * u2)
-                x["lsq"] = (ins + [y, delta], r, delta, root, u2 / (root + 1))
-            lsq, r, delta, root, cost = x["lsq"]
-        if which == "fk":
+            y = ca.SX.sym("y", 3)
+            delta = ca.SX.sym("delta")  # robust loss: 1 / (c sigma)^2, 0 for plain least squares
+            r = xyz - y
+            u2 = ca.dot(r, r)
+            # per-pose loss pieces, summed over poses by map's reduce_out: the pseudo-Huber loss
+            # (u2 / 2 when delta = 0), its gradient by reverse mode, and the upper triangle of the
+            # IRLS Gauss-Newton matrix w J^T J with J's sparsity (see casadical.problem.RobustLoss)
+            root = ca.sqrt(1 + delta * u2)
+            cost = u2 / (root + 1)
+            lsq = ins + [y, delta]
+            if which == "cost":
+                g = (lsq, [cost], (1, 3, 5), (0,))
+            elif which == "grad":
+                g = (lsq, [cost, ca.gradient(cost, p)], (1, 3, 5), (0, 1))
+            else:
+                # Gauss-Newton matrix of the loss: J^T (w I - delta w^3 r r^T) J, w = 1 / root (positive
+                # semi-definite: w^3 along r), see casadical.problem.Linearization
+                Js = ca.jacobian(xyz, p)
+                Jr = ca.mtimes(Js.T, r)
+                H = ca.mtimes(Js.T, Js) / root - delta / root ** 3 * ca.mtimes(Jr, Jr.T)
+                g = (lsq, [ca.triu(H)], (1, 3, 5), (0,))
+        elif which == "fk":
             g = (ins, [xyz], (1, 3), ())
         elif which == "fk_jac":
-            g = (ins, [xyz, ca.densify(self._jacobian())], (1, 3), ())
-        elif which == "cost":
-            g = (lsq, [cost], (1, 3, 5), (0,))
-        elif which == "grad":
-            g = (lsq, [cost, ca.gradient(cost, p)], (1, 3, 5), (0, 1))
-        elif which == "gn_hess":
-            # per-pose loss pieces, summed over poses by map's reduce_out: the pseudo-Huber loss (u2 / 2
-            # when delta = 0), its gradient by reverse mode, and the upper triangle of its Gauss-Newton
-            # matrix J^T (I / root - delta / root^3 r r^T) J, with J's sparsity (see
-            # casadical.problem.RobustLoss). The second part is the curvature of the loss itself: without
-            # it (the IRLS matrix J^T J / root) IPOPT converged linearly and ended in dozens of iterations
-            # of failing line searches at round-off level; the matrix stays positive semi-definite (the
-            # eigenvalues of the middle factor are 1 / root and 1 / root^3)
-            Js = self._jacobian()
-            Jr = ca.mtimes(Js.T, r)
-            g = (lsq, [ca.triu(ca.mtimes(Js.T, Js)) / root - delta / root ** 3 * ca.triu(ca.mtimes(Jr, Jr.T))],
-                 (1, 3, 5), (0,))
+            g = (ins, [xyz, ca.densify(ca.jacobian(xyz, p))], (1, 3), ())
         elif which in ("tau", "dq"):
-            g = ([q, p, x["c"]], [x[which]], (1,), ())
+            g = ([q, p, c], [S[which]], (1,), ())
+        # joint-space derivatives for inverse problems (corrected joint targets): through every
+        # term, since deflections and gear errors depend on q too
         elif which == "fk_q_jac":
-            # joint-space derivatives for inverse problems (corrected joint targets): through every
-            # term, since deflections and gear errors depend on q too
             g = (ins, [xyz, ca.densify(ca.jacobian(xyz, q))], (1, 3), ())
         elif which == "flange":
-            g = (ins, [x["R"]], (1, 3), ())
+            g = (ins, [S["flange"]], (1, 3), ())
         elif which == "flange_jac":
-            g = (ins, [x["R"], _angular_jacobian(x["R"], q)], (1, 3), ())
+            g = (ins, [S["flange"], _angular_jacobian(S["flange"], q)], (1, 3), ())
         else:
-            raise ModelError(f"no model function {which!r}")
+            raise ModelError(f"no per-pose function {which!r}")
         self._graphs[which] = g
         return g
 
-    def _jacobian(self):
-        if "J" not in self._sx:
-            self._sx["J"] = ca.jacobian(self._sx["xyz"], self._sx["p"])
-        return self._sx["J"]
-
     @property
     def fk(self) -> ca.Function:
-        """Tool point (xyz) of one pose as a Function of (q, p, cov, base0)."""
-        return ca.Function("fk", *self._graph("fk")[:2], ["q", "p", "cov", "base0"], ["xyz"])
+        """Tool point of one pose: ``fk(q, p, cov, base0) -> xyz``."""
+        if self._fk is None:
+            ins, outs, _, _ = self._graph("fk")
+            self._fk = ca.Function("fk", ins, outs, ["q", "p", "cov", "base0"], ["xyz"])
+        return self._fk
 
     @property
     def fk_jac(self) -> ca.Function:
-        """Tool point and its Jacobian w.r.t. p of one pose as a Function of (q, p, cov, base0)."""
-        return ca.Function("fk_jac", *self._graph("fk_jac")[:2], ["q", "p", "cov", "base0"], ["xyz", "J"])
+        """Tool point and its Jacobian w.r.t. the parameters: ``fk_jac(q, p, cov, base0) -> (xyz, J)``."""
+        if self._fk_jac is None:
+            ins, outs, _, _ = self._graph("fk_jac")
+            self._fk_jac = ca.Function("fk_jac", ins, outs, ["q", "p", "cov", "base0"], ["xyz", "J"])
+        return self._fk_jac
 
     def expression_size(self) -> ExpressionSize:
         return ExpressionSize(len(self.parameters), self.fk.n_instructions(),
@@ -301,8 +304,11 @@ class Model:
             self._compiled[(which, jit)] = fun
         return fun
 
-    def batch_function(self, which: str, N: int) -> ca.Function:
+    def batch_function(self, which: str, N: int, compiled: bool | None = None) -> ca.Function:
         """``which`` mapped over N poses: parameters and base0 broadcast, sums reduced.
+
+        ``compiled=False`` keeps CasADi's own expression graph, whose derivatives CasADi can take (a
+        compiled library has none); default: compiled for large batches.
 
         Beyond ``2 * MAP_CHUNK`` poses the map runs over chunks of
         ``MAP_CHUNK`` poses (and the rest), so its memory does not grow with
@@ -310,7 +316,7 @@ class Model:
         """
         _, _, bcast, reduce = self._graph(which)
         bcast, reduce = list(bcast), list(reduce)
-        fun = self.per_pose_function(which, self._use_jit(N))
+        fun = self.per_pose_function(which, self._use_jit(N) if compiled is None else compiled)
         if N < 2 * MAP_CHUNK:
             return fun.map(f"{which}_{N}", "serial", N, bcast, reduce)
         M, R = divmod(N, MAP_CHUNK)
