@@ -36,9 +36,9 @@ from .terms import REGISTRY, Context, ErrorTerm, make_term
 #: (benchmarks/bench_calibrate_cli.py): compiling costs ~1.2 s of CPU more than a run on the VM, once, and
 #: saves ~0.55 s per later 200-pose calibration, so it pays from the third run
 JIT_MIN_POSES = 100
-#: poses per inner map of large batches: a flat map of N poses holds every pose's summed outputs at once
-#: (the Gauss-Newton matrix: ~700 numbers per UR10 pose, 1.1 GB at 200,000 poses); a map of chunks holds
-#: one chunk's and one sum per chunk
+#: poses per inner map of batches of 2 * MAP_CHUNK poses or more (Model.batch_function): a flat map of N
+#: poses holds every pose's summed outputs at once (the Gauss-Newton matrix: ~700 numbers per UR10 pose,
+#: 1.1 GB at 200,000 poses); a map of chunks holds one chunk's and one sum per chunk
 MAP_CHUNK = 256
 _SPEC_ITEM = re.compile(r"^\s*([a-z_]+)\s*(?:\[([^\]]*)\])?\s*$")
 
@@ -288,14 +288,11 @@ class Model:
         if fun is None and jit == "cached":
             fun = self._compiled.get((which, True))
         if fun is None:
-            vm = self._compiled.get((which, False))
-            if vm is None:
-                ins, outs, _, _ = self._graph(which)
-                vm = self._compiled[(which, False)] = ca.Function(which, ins, outs)
-            fun = vm
+            ins, outs, _, _ = self._graph(which)
+            fun = ca.Function(which, ins, outs)
             if jit:
                 try:
-                    fun = jitcache.load(vm, compile=jit is True) or vm
+                    fun = jitcache.load(fun, compile=jit is True) or fun
                 except jitcache.CompileError as e:
                     # a broken compiler must not stop a calibration: the VM gives the same numbers
                     warnings.warn(f"JIT compilation failed, using CasADi's virtual machine ({str(e)[-200:]})",
@@ -309,10 +306,6 @@ class Model:
 
         ``compiled=False`` keeps CasADi's own expression graph, whose derivatives CasADi can take (a
         compiled library has none); default: compiled for large batches.
-
-        Beyond ``2 * MAP_CHUNK`` poses the map runs over chunks of
-        ``MAP_CHUNK`` poses (and the rest), so its memory does not grow with
-        N times the size of a summed output.
         """
         _, _, bcast, reduce = self._graph(which)
         bcast, reduce = list(bcast), list(reduce)

@@ -121,16 +121,13 @@ class _Diagnosis:
         self.extra: dict[int, list[Candidate]] = {}         # unexplained periodic terms, by joint
         self.before: dict[int, CalibrationResult] = {}      # fit before each finding, by finding index
         self.support: dict[int, tuple] = {}                  # (test, cv before, cv after, checks) by finding
-        self.models: dict[str, Model] = {}                   # by specification: built once per diagnosis
 
     # -- fitting ---------------------------------------------------------------
 
     def model(self, spec: str) -> Model:
-        if spec not in self.models:
-            terms = parse_spec(spec)
-            set_references(terms, self.cal)
-            self.models[spec] = Model(self.robot, terms, jit=False)
-        return self.models[spec]
+        terms = parse_spec(spec)
+        set_references(terms, self.cal)
+        return Model(self.robot, terms, jit=False)
 
     def fit(self, spec: str, start: CalibrationResult | None = None, loss: RobustLoss | None = None,
             data: Measurements | None = None) -> CalibrationResult:
