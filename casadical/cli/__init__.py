@@ -18,7 +18,8 @@ import warnings
 
 from .. import __version__
 from ..errors import CasadicalError, CasadicalWarning
-from . import cache, calibrate, compare, compensate, data, diagnose, export, model, planning
+from . import calibrate, compare, compensate, data, diagnose, export, model, planning
+from . import cache
 
 #: command modules, in the order ``--help`` lists them
 COMMANDS = (model, calibrate, diagnose, compensate, planning, compare, data, export, cache)
