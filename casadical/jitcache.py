@@ -121,7 +121,12 @@ def load(fun: ca.Function, compile: bool = True) -> ca.Function | None:
         if compile:
             raise CompileError("no C compiler (gcc or cc) on PATH")
         return None
-    key = entry_key(fun, cc)
+    try:
+        key = entry_key(fun, cc)
+    except (RuntimeError, OSError) as e:   # a Function CasADi cannot serialize, a compiler gone meanwhile
+        if compile:
+            raise CompileError(f"cannot key {fun.name()} for the cache: {e}") from e
+        return None
     folder = cache_dir()
     with contextlib.suppress(OSError):
         for path in sorted(folder.glob(f"{fun.name()}-{key}-*{_SUFFIX}")):
@@ -192,6 +197,9 @@ def _store(folder: Path, filename: str, data: bytes) -> None:
             fh.write(data)
             fh.flush()
             os.fsync(fh.fileno())
+            umask = os.umask(0)
+            os.umask(umask)
+            os.fchmod(fh.fileno(), 0o666 & ~umask)  # as a plain open() would: a shared cache stays readable
         os.replace(part, final)  # same name = same bytes: a concurrent writer's rename is harmless
         part = None
     except OSError:
