@@ -233,3 +233,16 @@ def test_an_unwritable_cache_still_compiles(monkeypatch, tmp_path):
     compiled = jitcache.load(vm)
     np.testing.assert_allclose(evaluate(compiled, model), evaluate(vm, model), rtol=1e-13, atol=1e-15)
     assert blocker.read_text().startswith("a file")
+
+
+def test_ipopt_exact_hessian_on_a_compiled_model(cache):
+    """IPOPT's exact Hessian differentiates the objective: it must work when the model is compiled."""
+    robot = robot_from_dict(ARM3)
+    data, _ = simulate(robot, 120, Effects(stiffness={2: 4e5}), seed=5, floor_z=None)
+    spec = "kinematic+compliance[2]"
+    opts = {"hessian": "exact"}
+    ref = calibrate(robot, data, Model(robot, spec, jit=False), "ipopt", solver_options=opts, warn=False)
+    got = calibrate(robot, data, Model(robot, spec, jit=True), "ipopt", solver_options=opts, warn=False)
+    assert got.solver.success
+    scale = ref.parameters.scales
+    np.testing.assert_allclose(got.parameters.values / scale, ref.parameters.values / scale, rtol=0, atol=1e-7)
