@@ -29,7 +29,6 @@ from .alignment import align
 from .checks import check_poses
 from .coverage import Coverage
 from .data import Measurements
-from .compensators.guard import fit_guarded
 from .errors import CasadicalWarning, ConvergenceWarning, IdentifiabilityError, IdentifiabilityWarning, InputError, SolverError
 from .identifiability import analyse
 from .kinematics import base_pose_matrix
@@ -270,7 +269,7 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     # --- solve; with the robust loss, re-estimate the noise scale until it settles
     opts = solver_options or {}
     x = problem.x_from_values(params.values)
-    res, name, solve_time = None, "", 0.0
+    res, name, solve_time, setup_time = None, "", 0.0, 0.0
     estimate_scale = loss.robust and not math.isfinite(loss.sigma)
     for _ in range(ROBUST_LOOPS if estimate_scale else 1):
         if estimate_scale:
@@ -281,8 +280,9 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
             problem.loss = new
         res, name = _solve(problem, x, solver, opts)
         solve_time += res.solve_time_s
+        setup_time += res.setup_time_s
         x = res.x
-    res.solve_time_s = solve_time
+    res.solve_time_s, res.setup_time_s = solve_time, setup_time
     if not np.isfinite(res.cost):
         raise SolverError(f"{name} ended with a non-finite cost ({res.status}); check the data for outliers "
                           "and the robot file for wrong units")
@@ -395,6 +395,8 @@ def fit_compensator(result: CalibrationResult, data: Measurements, seed: int = 0
     error (otherwise ``result`` comes back with a note saying so). Poses the
     robust loss set aside do not train the network.
     """
+    from .compensators.guard import fit_guarded  # scipy: imported only when a compensator is fitted
+
     X, Y, keep = compensator_data(result, data)
     net, info = fit_guarded(rbf_candidates(int(keep.sum()), seed), X[keep], Y[keep], seed=seed)
     if net is None:

@@ -8,12 +8,14 @@ Other columns are kept as they are.
 
 from __future__ import annotations
 
+import contextlib
 import csv
 import math
 import re
 import warnings
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Iterator
 
 import numpy as np
 
@@ -154,17 +156,12 @@ class Measurements:
             Naming file, row (1-based line; the header is row 1) and column.
         """
         path = str(path)
-        try:
-            with open(path, newline="", encoding="utf-8-sig") as fh:
-                rows = list(csv.reader(fh))
-        except FileNotFoundError:
-            raise DataFileError("no such file", file=path) from None
-        except (OSError, UnicodeDecodeError, csv.Error) as e:
-            raise DataFileError(f"cannot read: {e}", file=path) from e
-        if not rows or not any(h.strip() for h in rows[0]):
+        with _csv_rows(path) as rows:
+            first = next(rows, None)
+        if not first or not any(h.strip() for h in first):
             raise DataFileError("is empty: expected a header row (q1_deg, ..., x_mm, y_mm, z_mm)",
                                 file=path, row=1)
-        header = [h.strip() for h in rows[0]]
+        header = [h.strip() for h in first]
         seen: dict[str, int] = {}
         for i, h in enumerate(header):
             if not h:
@@ -195,24 +192,15 @@ class Measurements:
         if require_positions and not present:
             raise DataFileError("has no measured positions: columns x_mm, y_mm, z_mm are required here",
                                 file=path, row=1, column="x_mm")
-        body = [(k, r) for k, r in enumerate(rows[1:], start=2) if any(x.strip() for x in r)]
-        if not body:
-            raise DataFileError("has a header but no data rows", file=path, row=2)
         numeric = {f"q{i}_deg" for i in qs} | set(present) | {c for c in NUMERIC_OPTIONAL if c in seen}
-        raw: dict[str, list[str]] = {h: [] for h in header}
-        for line, r in body:
-            if len(r) != len(header):
-                raise DataFileError(f"has {len(r)} fields, the header has {len(header)}",
-                                    file=path, row=line)
-            for h, x in zip(header, r):
-                raw[h].append(x.strip())
-        columns: dict[str, np.ndarray] = {}
-        lines = [k for k, _ in body]
-        for h in header:
-            if h in numeric:
-                columns[h] = _numeric(raw[h], h, path, lines)
-            else:
-                columns[h] = _maybe_numeric(raw[h])
+        # the rows are converted in chunks: the numbers of a 200,000-row file stay in memory, not its text
+        with _csv_rows(path) as rows:
+            next(rows, None)
+            columns, lines = _read_body(rows, header, numeric, path)
+        text = [h for h in header if columns[h] is None]
+        if text:  # columns of words: read again for their exact text
+            with _csv_rows(path) as rows:
+                columns.update(_text_columns(rows, header, text))
         data = cls(columns, path, lines=np.array(lines))
         if n_joints is None:  # with a robot, casadical.checks judges the units (an error, not a warning)
             _check_units(data)
@@ -245,6 +233,68 @@ class Measurements:
         return cls(cols)
 
 
+@contextlib.contextmanager
+def _csv_rows(path: str) -> Iterator[Iterator[list[str]]]:
+    """The rows of a CSV file; a file that cannot be read is a DataFileError naming it."""
+    try:
+        with open(path, newline="", encoding="utf-8-sig") as fh:
+            yield csv.reader(fh)
+    except FileNotFoundError:
+        raise DataFileError("no such file", file=path) from None
+    except (OSError, UnicodeDecodeError, csv.Error) as e:
+        raise DataFileError(f"cannot read: {e}", file=path) from e
+
+
+#: rows converted at a time by read_csv
+READ_CHUNK = 8192
+
+
+def _read_body(reader, header: list[str], numeric: set[str], path: str) -> tuple[dict, list[int]]:
+    """Columns of the data rows, converted chunk by chunk; None for a column that is not all numbers."""
+    parts: dict[str, list | None] = {h: [] for h in header}
+    lines: list[int] = []
+    chunk: list[list[str]] = []
+
+    def convert() -> None:
+        rows = lines[len(lines) - len(chunk):]
+        for h, values in zip(header, zip(*chunk)):
+            values = [x.strip() for x in values]
+            if h in numeric:
+                parts[h].append(_numeric(values, h, path, rows))
+            elif parts[h] is not None:
+                try:
+                    parts[h].append(np.array([float(x) for x in values]))
+                except ValueError:
+                    parts[h] = None
+        chunk.clear()
+
+    for line, r in enumerate(reader, start=2):
+        if not any(x.strip() for x in r):
+            continue
+        if len(r) != len(header):
+            raise DataFileError(f"has {len(r)} fields, the header has {len(header)}", file=path, row=line)
+        chunk.append(r)
+        lines.append(line)
+        if len(chunk) == READ_CHUNK:
+            convert()
+    if not lines:
+        raise DataFileError("has a header but no data rows", file=path, row=2)
+    convert()
+    return {h: None if p is None else np.concatenate(p) for h, p in parts.items()}, lines
+
+
+def _text_columns(reader, header: list[str], names: list[str]) -> dict[str, np.ndarray]:
+    """The stripped text of columns ``names`` over the data rows."""
+    idx = [header.index(h) for h in names]
+    out: dict[str, list[str]] = {h: [] for h in names}
+    next(reader, None)
+    for r in reader:
+        if any(x.strip() for x in r):
+            for h, i in zip(names, idx):
+                out[h].append(r[i].strip())
+    return {h: np.array(v, dtype=object) for h, v in out.items()}
+
+
 def _numeric(values: list[str], column: str, path: str, lines: list[int]) -> np.ndarray:
     out = np.empty(len(values))
     for i, x in enumerate(values):
@@ -259,13 +309,6 @@ def _numeric(values: list[str], column: str, path: str, lines: list[int]) -> np.
                                 row=lines[i], column=column)
         out[i] = v
     return out
-
-
-def _maybe_numeric(values: list[str]) -> np.ndarray:
-    try:
-        return np.array([float(x) for x in values])
-    except ValueError:
-        return np.array(values, dtype=object)
 
 
 def _check_units(data: Measurements) -> None:

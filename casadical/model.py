@@ -16,28 +16,30 @@ Inputs of every model function, per pose:
 
 from __future__ import annotations
 
-import atexit
-import itertools
 import os
 import re
-import shutil
-import signal
-import subprocess
-import tempfile
 import warnings
 from dataclasses import dataclass
-from functools import cache
 
 import casadi as ca
 import numpy as np
 
+from . import jitcache
 from .errors import CasadicalWarning, ModelError
 from .kinematics import Geometry, base_pose_matrix, chain_angles, compose, forward, rpy_pose
 from .parameters import Parameters
 from .robot import Robot
 from .terms import REGISTRY, Context, ErrorTerm, make_term
 
-JIT_MIN_POSES = 300
+#: batches of this many poses or more run compiled code, compiled once per machine and kept in the disk cache
+#: (casadical.jitcache); smaller ones use it only if the cache has it. Measured on the UR10 kinematic model
+#: (benchmarks/bench_calibrate_cli.py): compiling costs ~1.2 s of CPU more than a run on the VM, once, and
+#: saves ~0.55 s per later 200-pose calibration, so it pays from the third run
+JIT_MIN_POSES = 100
+#: poses per inner map of batches of 2 * MAP_CHUNK poses or more (Model.batch_function): a flat map of N
+#: poses holds every pose's summed outputs at once (the Gauss-Newton matrix: ~700 numbers per UR10 pose,
+#: 1.1 GB at 200,000 poses); a map of chunks holds one chunk's and one sum per chunk
+MAP_CHUNK = 256
 _SPEC_ITEM = re.compile(r"^\s*([a-z_]+)\s*(?:\[([^\]]*)\])?\s*$")
 
 
@@ -97,9 +99,11 @@ class Model:
         (:func:`parse_spec`). The geometric term is always present; it is
         free only if listed (``kinematic``), otherwise only the base pose is.
     jit : bool, optional
-        Compile the model to machine code with the system C compiler (about
-        1 s once, then ~8x faster). Default: for batches of
-        ``JIT_MIN_POSES`` poses or more, when a compiler is available.
+        Compile the model to machine code with the system C compiler (0.2-3
+        s per function once per machine, kept in the disk cache of
+        :mod:`casadical.jitcache`; then ~8x faster). Default: for batches of
+        ``JIT_MIN_POSES`` poses or more when a compiler is available, and for
+        smaller batches when the cache already holds the function.
     """
 
     def __init__(self, robot: Robot, terms: list[ErrorTerm] | str = "kinematic",
@@ -264,25 +268,34 @@ class Model:
 
     # --- numeric evaluation -------------------------------------------------------
 
-    def _use_jit(self, N: int) -> bool:
-        return self.jit if self.jit is not None else (N >= JIT_MIN_POSES and compiler_available())
+    def _use_jit(self, N: int) -> bool | str:
+        if self.jit is not None:
+            return self.jit
+        if not compiler_available():
+            return False
+        return True if N >= JIT_MIN_POSES else "cached"
 
-    def per_pose_function(self, which: str, jit: bool = False) -> ca.Function:
+    def per_pose_function(self, which: str, jit: bool | str = False) -> ca.Function:
         """One of the per-pose Functions (``fk``, ``fk_jac``, ``cost``, ``grad``, ``gn_hess``, ``tau``, ``dq``,
-        ``fk_q_jac``, ``flange``, ``flange_jac``)."""
+        ``fk_q_jac``, ``flange``, ``flange_jac``).
+
+        ``jit``: False for CasADi's virtual machine; True for compiled code,
+        from the disk cache (:mod:`casadical.jitcache`) or compiled now and
+        stored there; ``"cached"`` for compiled code if the cache has it,
+        else the virtual machine.
+        """
         fun = self._compiled.get((which, jit))
+        if fun is None and jit == "cached":
+            fun = self._compiled.get((which, True))
         if fun is None:
             ins, outs, _, _ = self._graph(which)
             fun = ca.Function(which, ins, outs)
             if jit:
                 try:
-                    fun = _compile(fun, f"casadical_{which}")
-                except (RuntimeError, OSError, subprocess.CalledProcessError) as e:
-                    if getattr(e, "returncode", None) == -signal.SIGINT:
-                        raise KeyboardInterrupt from e   # the compiler alone got the Ctrl-C
+                    fun = jitcache.load(fun, compile=jit is True) or fun
+                except jitcache.CompileError as e:
                     # a broken compiler must not stop a calibration: the VM gives the same numbers
-                    detail = getattr(e, "stderr", None) or str(e)
-                    warnings.warn(f"JIT compilation failed, using CasADi's virtual machine ({detail[-200:]})",
+                    warnings.warn(f"JIT compilation failed, using CasADi's virtual machine ({str(e)[-200:]})",
                                   CasadicalWarning, stacklevel=3)
                     self.jit = False
             self._compiled[(which, jit)] = fun
@@ -295,8 +308,24 @@ class Model:
         compiled library has none); default: compiled for large batches.
         """
         _, _, bcast, reduce = self._graph(which)
+        bcast, reduce = list(bcast), list(reduce)
         fun = self.per_pose_function(which, self._use_jit(N) if compiled is None else compiled)
-        return fun.map(f"{which}_{N}", "serial", N, list(bcast), list(reduce))
+        if N < 2 * MAP_CHUNK:
+            return fun.map(f"{which}_{N}", "serial", N, bcast, reduce)
+        M, R = divmod(N, MAP_CHUNK)
+        inner = fun.map(f"{which}_{MAP_CHUNK}", "serial", MAP_CHUNK, bcast, reduce)
+        pieces = [(0, M * MAP_CHUNK, inner.map(f"{which}_{MAP_CHUNK}x{M}", "serial", M, bcast, reduce))]
+        if R:
+            pieces.append((M * MAP_CHUNK, N, fun.map(f"{which}_{R}", "serial", R, bcast, reduce)))
+        ins = [ca.MX.sym(fun.name_in(i), fun.size1_in(i), fun.size2_in(i) * (1 if i in bcast else N))
+               for i in range(fun.n_in())]
+        outs = []
+        for a, b, F in pieces:
+            outs.append(F.call([x if i in bcast else x[:, fun.size2_in(i) * a:fun.size2_in(i) * b]
+                                for i, x in enumerate(ins)]))
+        res = [sum(o[j] for o in outs) if j in reduce else ca.horzcat(*(o[j] for o in outs))
+               for j in range(fun.n_out())]
+        return ca.Function(f"{which}_{N}", ins, res)
 
     def _batch(self, which: str, N: int) -> "_Batch":
         key = (which, N, self._use_jit(N))
@@ -433,46 +462,9 @@ def base0_to_pose(b0: np.ndarray) -> np.ndarray:
     return T
 
 
-@cache
-def _jit_dir() -> str:
-    """A private folder for the JIT's C sources and libraries, removed when Python exits.
-
-    Without it CasADi writes them to the working directory, i.e. into the user's files.
-    """
-    d = tempfile.mkdtemp(prefix="casadical-jit-")
-    atexit.register(shutil.rmtree, d, ignore_errors=True)
-    return d
-
-
-def _compile(fun: ca.Function, name: str) -> ca.Function:
-    """``fun`` as machine code: C from CasADi, compiled by the system compiler, loaded back.
-
-    The compiler runs as a child process that Python waits for, so Ctrl-C
-    stops it and raises KeyboardInterrupt here (CasADi's own JIT runs it
-    through ``system()``, which ignores the interrupt in the caller: the
-    compile failed and the run went on with the virtual machine). Sources
-    and libraries go to the private folder removed at exit.
-    """
-    folder, serial = _jit_dir(), next(_SERIAL)
-    source = ca.CodeGenerator(f"{name}_{serial}.c", {"with_header": False})
-    source.add(fun)
-    c_file = source.generate(folder + os.sep)
-    library = os.path.join(folder, f"{name}_{serial}.so")
-    cc = shutil.which("gcc") or shutil.which("cc") or "cc"
-    subprocess.run([cc, "-O2", "-fPIC", "-shared", c_file, "-o", library], check=True, capture_output=True,
-                   text=True)
-    return ca.external(fun.name(), library)
-
-
-_SERIAL = itertools.count()
-
-
-@cache
 def compiler_available() -> bool:
-    """True if CasADi's JIT can find a C compiler (``CASADICAL_JIT=0`` disables it)."""
-    if os.environ.get("CASADICAL_JIT", "1") == "0":
-        return False
-    return shutil.which("gcc") is not None or shutil.which("cc") is not None
+    """True if a C compiler is on PATH and ``CASADICAL_JIT=0`` does not turn automatic compilation off."""
+    return os.environ.get("CASADICAL_JIT", "1") != "0" and jitcache.compiler() is not None
 
 
 class _Batch:

@@ -169,13 +169,14 @@ def sample_poses(robot: Robot, n: int, rng: np.random.Generator, *,
     lim[:, 0] += margin
     lim[:, 1] -= margin
     lim[lim[:, 0] > lim[:, 1]] = robot.limits[lim[:, 0] > lim[:, 1]]
-    nominal = Model(robot, "nominal", jit=False)
+    # the tool point only where a filter needs it (the identifiability analysis samples without one)
+    nominal = Model(robot, "nominal", jit=False) if floor_z is not None or box is not None else None
     eye = pose_to_base0(np.eye(4))
     kept: list[np.ndarray] = []
     for _ in range(max_tries):
         # chunks bound the memory of large pools (10^5 candidates)
         q = rng.uniform(lim[:, 0], lim[:, 1], size=(min(max(4 * (n - len(kept)), 64), 20_000), robot.n))
-        xyz = nominal.predict(q, base0=eye)
+        xyz = nominal.predict(q, base0=eye) if nominal is not None else None
         ok = np.ones(len(q), dtype=bool)
         if floor_z is not None:
             ok &= xyz[:, 2] > floor_z

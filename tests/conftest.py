@@ -1,10 +1,16 @@
+import atexit
 import os
+import shutil
+import tempfile
 import textwrap
 
 import pytest
 
 # unit tests evaluate small batches; JIT compilation would only add start-up time
 os.environ.setdefault("CASADICAL_JIT", "0")
+# compiled functions go to a cache of the test run, never the user's (removed at exit)
+os.environ["CASADICAL_CACHE"] = tempfile.mkdtemp(prefix="casadical-test-cache-")
+atexit.register(shutil.rmtree, os.environ["CASADICAL_CACHE"], ignore_errors=True)
 
 
 @pytest.fixture

@@ -72,3 +72,36 @@ def test_radians_warning(write):
 def test_no_file():
     with pytest.raises(DataFileError, match="no such file"):
         Measurements.read_csv("/nonexistent/m.csv")
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_rows_read_in_chunks_keep_every_value_and_name_the_bad_row(tmp_path, monkeypatch, seed):
+    """Chunks of 4 rows: numbers, a column of words that appear only after the first chunk (kept as
+    written), blank lines, and a bad value far down named by its file line."""
+    import casadical.data as data_module
+    monkeypatch.setattr(data_module, "READ_CHUNK", 4)
+    rng = np.random.default_rng(seed)
+    n = 23
+    q = rng.uniform(-90, 90, (n, 3))
+    label = [f"{v:.2f}" for v in rng.uniform(0, 1, n)]
+    label[9] = "shot 10 (repeat)"
+    text = "q1_deg,q2_deg,q3_deg,x_mm,y_mm,z_mm,label,std_mm\n"
+    for i in range(n):
+        text += ",".join(repr(float(v)) for v in q[i]) + f",{i},{2 * i},{3 * i},{label[i]},{0.01 * i}\n"
+        if i == 5:
+            text += "\n"
+    path = tmp_path / "d.csv"
+    path.write_text(text)
+    d = Measurements.read_csv(path, n_joints=3)
+    np.testing.assert_array_equal(d.q_deg, q)
+    assert list(d.columns["label"]) == label and d.columns["std_mm"].dtype.kind == "f"
+    assert d.line(6) == 9 and d.line(n - 1) == n + 2    # the blank line counts
+    bad = text.splitlines()
+    k = 15 + int(rng.integers(0, 5))
+    fields = bad[k].split(",")
+    fields[1] = "1,5"
+    bad[k] = ",".join(fields[:1] + ['"1,5"'] + fields[2:])
+    path.write_text("\n".join(bad) + "\n")
+    with pytest.raises(DataFileError, match=r"decimal comma") as e:
+        Measurements.read_csv(path, n_joints=3)
+    assert f"row {k + 1}" in str(e.value) and "q2_deg" in str(e.value)

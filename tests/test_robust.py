@@ -414,11 +414,12 @@ def test_lm_with_compliance_below_zero_is_saved_and_reported(tmp_path, capsys):
 
 @pytest.mark.skipif(not (shutil.which("gcc") or shutil.which("cc")), reason="no C compiler")
 def test_ctrl_c_during_the_jit_stops_cleanly(tmp_path):
-    """A terminal's Ctrl-C (SIGINT to the whole process group) while gcc runs: exit 130, no output, no JIT folder."""
+    """A terminal's Ctrl-C (SIGINT to the whole process group) while gcc runs: exit 130, no output, no JIT folder,
+    nothing in the compiled-function cache."""
     robot = load_robot("ys100")
     q = np.random.default_rng(0).uniform(robot.limits[:, 0] + 0.1, robot.limits[:, 1] - 0.1, (400, 6))
     Measurements.from_arrays(q).write_csv(tmp_path / "poses.csv")
-    env = dict(os.environ, CASADICAL_JIT="1", TMPDIR=str(tmp_path))
+    env = dict(os.environ, CASADICAL_JIT="1", TMPDIR=str(tmp_path), CASADICAL_CACHE=str(tmp_path / "cache"))
     p = subprocess.Popen([sys.executable, "-m", "casadical", "predict", "ys100", str(tmp_path / "poses.csv"),
                           "--out", str(tmp_path / "out.csv")], env=env, stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True, start_new_session=True)
@@ -432,6 +433,7 @@ def test_ctrl_c_during_the_jit_stops_cleanly(tmp_path):
     assert "interrupted" in err and "Traceback" not in err and "virtual machine" not in err
     assert not (tmp_path / "out.csv").exists()
     assert not list(tmp_path.glob("casadical-jit-*"))
+    assert not (tmp_path / "cache").exists() or not list((tmp_path / "cache").iterdir())
 
 
 @pytest.mark.parametrize("text", [

@@ -20,9 +20,10 @@ from .. import __version__
 from ..errors import CasadicalError, CasadicalWarning
 from ..threads import limited_threads
 from . import calibrate, compare, compensate, data, diagnose, export, model, planning
+from . import cache
 
 #: command modules, in the order ``--help`` lists them
-COMMANDS = (model, calibrate, diagnose, compensate, planning, compare, data, export)
+COMMANDS = (model, calibrate, diagnose, compensate, planning, compare, data, export, cache)
 
 class UsageError(CasadicalError):
     """A command line that argparse rejects (unknown option, value out of its domain)."""

@@ -6,9 +6,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..calibration import calibrate
-from ..compensators import RBFNetwork
 from .base import Inputs, Method, MethodResult, compensator_features, new_result, register, to_frame
-from ..compensators.guard import fit_guarded
 
 
 @register
@@ -70,6 +68,8 @@ class GARBF(Method):
         km = calibrate(inputs.robot, data, "kinematic", self.solver, warn=False)
         X = compensator_features(km, data, "torques")
         Y = to_frame(km, data, self.frame, km.residuals(data))
+        from ..compensators.guard import fit_guarded  # scipy: imported when the method runs
+
         comp, info = fit_guarded(self._candidates(len(X), inputs.seed), X, Y, guard=self.guard,
                                  folds=self.folds, seed=inputs.seed)
         if comp is not None:
@@ -81,6 +81,8 @@ class GARBF(Method):
     def _candidates(self, n: int, seed: int) -> dict:
         """Networks to choose from: with ``n_centers="cv"``, 2 .. n/2 centres (A8: fewer centres
         than poses, the paper's calibration error is not zero), each with its width by CV."""
+        from ..compensators import RBFNetwork  # scipy: imported when the method runs
+
         def make(k):
             return lambda: RBFNetwork(n_centers=k, width=self.width, ridge=self.ridge, seed=seed)
         if self.n_centers != "cv":

@@ -3,10 +3,8 @@
 from __future__ import annotations
 
 from ..calibration import calibrate
-from ..compensators import MLP
 from .base import (Inputs, Method, MethodResult, compliance_model, compliant_joints, new_result, register,
                    to_frame)
-from ..compensators.guard import fit_guarded
 
 
 @register
@@ -84,6 +82,9 @@ class NNSKCM(Method):
         if use_extra and self.holdout_check:   # the calibration poses are unseen by the network
             cal = inputs.calibration
             holdout = (cal.q, to_frame(sk, cal, self.frame, sk.residuals(cal)))
+        from ..compensators import MLP  # scipy: imported when the method runs
+        from ..compensators.guard import fit_guarded
+
         comp, info = fit_guarded(lambda: MLP(hidden=self.hidden, seed=inputs.seed), X, Y, guard=self.guard,
                                  folds=self.folds, seed=inputs.seed, holdout=holdout, **kw)
         info["trained_on"] = "extra" if use_extra else "calibration"

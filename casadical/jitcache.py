@@ -1,0 +1,286 @@
+"""Compiled model functions, kept on disk between runs.
+
+A per-pose model Function (:meth:`casadical.model.Model.per_pose_function`)
+is compiled once per machine: CasADi writes its C source, the system C
+compiler turns it into a shared library, and the library is stored in the
+cache folder under a key that changes whenever the code it would contain
+could change:
+
+- the Function's serialized expression graph (which the C source is
+  generated from, so the same graph always gives the same source; hashing
+  it costs about a quarter of generating the source);
+- the CasADi version (its code generator);
+- the compiler (resolved path, size and modification time) and its flags.
+
+Every later run loads the library (well under 1 ms) instead of compiling
+it (0.2-3 s per Function).
+
+The folder is ``$CASADICAL_CACHE`` if set, else ``$XDG_CACHE_HOME/casadical``
+or ``~/.cache/casadical``. An entry is one file,
+``NAME-KEY-DIGEST.so``, where DIGEST is the hash of the library's own bytes:
+it is written under a temporary name and renamed into place when complete,
+so concurrent runs never see half a file, two runs compiling the same
+Function end with one entry, and an entry whose bytes no longer match its
+name (a damaged disk, a hand edit) is deleted and compiled again. The
+folder is kept under ``$CASADICAL_CACHE_MAX_MB`` megabytes (default 256) by
+removing the entries used least recently. ``casadical cache --info`` and
+``--clear`` show and empty it.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import os
+import shutil
+import signal
+import subprocess
+import tempfile
+import time
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
+
+import casadi as ca
+
+from .errors import CasadicalError
+
+#: flags of every compilation: -O1 compiles the large Jacobian and Gauss-Newton Functions in about
+#: 60% of -O2's time and evaluates them as fast (benchmarks/bench_calibrate_cli.py)
+FLAGS = ("-O1", "-fPIC", "-shared")
+DEFAULT_MAX_MB = 256.0
+_SUFFIX = ".so"
+_PART = ".part"
+#: a partial file older than this belongs to a run that was killed
+_STALE_PART_S = 3600.0
+
+
+class CompileError(CasadicalError):
+    """The C compiler is missing or failed (the caller falls back to CasADi's virtual machine)."""
+
+
+def cache_dir() -> Path:
+    """The cache folder (created only when the first entry is written)."""
+    env = os.environ.get("CASADICAL_CACHE")
+    if env:
+        return Path(env).expanduser()
+    base = os.environ.get("XDG_CACHE_HOME") or os.path.join(os.path.expanduser("~"), ".cache")
+    return Path(base) / "casadical"
+
+
+def max_bytes() -> int:
+    """Size limit of the cache folder (``$CASADICAL_CACHE_MAX_MB``, default 256 MB)."""
+    try:
+        mb = float(os.environ.get("CASADICAL_CACHE_MAX_MB", DEFAULT_MAX_MB))
+    except ValueError:
+        mb = DEFAULT_MAX_MB
+    return int(max(mb, 0.0) * 1e6)
+
+
+@cache
+def compiler() -> str | None:
+    """The C compiler on PATH (gcc, else cc), or None."""
+    return shutil.which("gcc") or shutil.which("cc")
+
+
+@cache
+def _compiler_id(cc: str) -> str:
+    real = os.path.realpath(cc)
+    st = os.stat(real)
+    return f"{real}:{st.st_size}:{st.st_mtime_ns}"
+
+
+def entry_key(fun: ca.Function, cc: str) -> str:
+    """Hash of everything the compiled library depends on (see the module docstring)."""
+    h = hashlib.sha256()
+    for part in ("casadical-jit-1", ca.__version__, _compiler_id(cc), " ".join(FLAGS), fun.name()):
+        h.update(part.encode() + b"\0")
+    h.update(fun.serialize().encode())
+    return h.hexdigest()[:32]
+
+
+def load(fun: ca.Function, compile: bool = True) -> ca.Function | None:
+    """``fun`` as compiled code: from the cache, else compiled now and stored.
+
+    Parameters
+    ----------
+    fun : casadi.Function
+        An SX Function (its name becomes the symbol in the library).
+    compile : bool
+        Compile on a cache miss; with False a miss returns None.
+
+    Raises
+    ------
+    CompileError
+        No compiler, or the compiler failed (with ``compile=True``).
+    KeyboardInterrupt
+        Ctrl-C while the compiler ran; nothing is left in the cache.
+    """
+    cc = compiler()
+    if cc is None:
+        if compile:
+            raise CompileError("no C compiler (gcc or cc) on PATH")
+        return None
+    try:
+        key = entry_key(fun, cc)
+    except (RuntimeError, OSError) as e:   # a Function CasADi cannot serialize, a compiler gone meanwhile
+        if compile:
+            raise CompileError(f"cannot key {fun.name()} for the cache: {e}") from e
+        return None
+    folder = cache_dir()
+    with contextlib.suppress(OSError):
+        for path in sorted(folder.glob(f"{fun.name()}-{key}-*{_SUFFIX}")):
+            loaded = _load_entry(path, fun.name())
+            if loaded is not None:
+                return loaded
+    return _compile(fun, folder, key, cc) if compile else None
+
+
+def _digest(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()[:16]
+
+
+def _load_entry(path: Path, name: str) -> ca.Function | None:
+    """A verified entry loaded; a damaged one is deleted (None)."""
+    try:
+        ok = _digest(path.read_bytes()) == path.stem.rsplit("-", 1)[-1]
+    except OSError:  # removed meanwhile by another run's clean-up
+        return None
+    if ok:
+        try:
+            fun = ca.external(name, str(path))
+        except RuntimeError:
+            ok = False
+    if not ok:
+        with contextlib.suppress(OSError):
+            path.unlink()
+        return None
+    with contextlib.suppress(OSError):
+        os.utime(path)  # most recently used: kept longest
+    return fun
+
+
+def _compile(fun: ca.Function, folder: Path, key: str, cc: str) -> ca.Function:
+    """Compile in a private temporary folder, store the library atomically, load it."""
+    name = fun.name()
+    with tempfile.TemporaryDirectory(prefix="casadical-jit-") as tmp:
+        gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
+        gen.add(fun)
+        c_file = gen.generate(tmp + os.sep)
+        library = os.path.join(tmp, name + _SUFFIX)
+        # a child process Python waits for: Ctrl-C stops it and raises KeyboardInterrupt here (CasADi's
+        # own JIT runs the compiler through system(), which ignores the interrupt in the caller)
+        try:
+            subprocess.run([cc, *FLAGS, c_file, "-o", library], check=True, capture_output=True, text=True)
+        except subprocess.CalledProcessError as e:
+            if e.returncode == -signal.SIGINT:
+                raise KeyboardInterrupt from e  # the compiler alone got the Ctrl-C
+            raise CompileError(f"{cc} failed: {(e.stderr or '').strip()[-200:]}") from e
+        except OSError as e:
+            raise CompileError(f"cannot run {cc}: {e}") from e
+        data = Path(library).read_bytes()
+        _store(folder, f"{name}-{key}-{_digest(data)}{_SUFFIX}", data)
+        try:
+            return ca.external(name, library)  # loaded before the temporary folder goes
+        except RuntimeError as e:
+            raise CompileError(f"cannot load the compiled {name}: {e}") from e
+
+
+def _store(folder: Path, filename: str, data: bytes) -> None:
+    """Write an entry under a temporary name and rename it into place (skipped if the folder is not writable)."""
+    final = folder / filename
+    part = None
+    try:
+        folder.mkdir(parents=True, exist_ok=True)
+        fd, part = tempfile.mkstemp(prefix=f".{filename}.", suffix=_PART, dir=folder)
+        with os.fdopen(fd, "wb") as fh:
+            fh.write(data)
+            fh.flush()
+            os.fsync(fh.fileno())
+            umask = os.umask(0)
+            os.umask(umask)
+            os.fchmod(fh.fileno(), 0o666 & ~umask)  # as a plain open() would: a shared cache stays readable
+        os.replace(part, final)  # same name = same bytes: a concurrent writer's rename is harmless
+        part = None
+    except OSError:
+        return
+    finally:
+        if part is not None:
+            with contextlib.suppress(OSError):
+                os.unlink(part)
+    prune(folder)
+
+
+def _entries(folder: Path) -> list[tuple[float, int, Path]]:
+    out = []
+    with contextlib.suppress(OSError):
+        for p in folder.iterdir():
+            if p.suffix == _SUFFIX or p.name.endswith(_PART):
+                with contextlib.suppress(OSError):
+                    st = p.stat()
+                    out.append((st.st_mtime, st.st_size, p))
+    return out
+
+
+def prune(folder: Path | None = None, limit: int | None = None) -> int:
+    """Remove the least recently used entries beyond ``limit`` bytes, and stale partial files.
+
+    Returns
+    -------
+    int
+        Number of files removed.
+    """
+    folder = cache_dir() if folder is None else folder
+    limit = max_bytes() if limit is None else limit
+    now, total, removed = time.time(), 0, 0
+    for mtime, size, p in sorted(_entries(folder), key=lambda e: e[0], reverse=True):
+        if p.name.endswith(_PART):
+            drop = now - mtime > _STALE_PART_S
+        else:
+            total += size
+            drop = total > limit
+        if drop:
+            with contextlib.suppress(OSError):
+                p.unlink()
+                removed += 1
+    return removed
+
+
+@dataclass
+class CacheInfo:
+    """What the cache folder holds."""
+
+    folder: Path
+    entries: int
+    bytes: int
+    max_bytes: int
+    compiler: str | None
+    casadi_version: str
+
+    def to_dict(self) -> dict:
+        return {"folder": str(self.folder), "entries": self.entries, "bytes": self.bytes,
+                "max_bytes": self.max_bytes, "compiler": self.compiler, "flags": list(FLAGS),
+                "casadi_version": self.casadi_version}
+
+
+def info() -> CacheInfo:
+    """Folder, number and total size of the entries, limit, compiler."""
+    entries = [e for e in _entries(cache_dir()) if e[2].suffix == _SUFFIX]
+    return CacheInfo(cache_dir(), len(entries), sum(e[1] for e in entries), max_bytes(), compiler(),
+                     ca.__version__)
+
+
+def clear() -> int:
+    """Remove every entry (and partial file) of the cache folder; other files are left alone.
+
+    Returns
+    -------
+    int
+        Number of files removed.
+    """
+    removed = 0
+    for _, _, p in _entries(cache_dir()):
+        with contextlib.suppress(OSError):
+            p.unlink()
+            removed += 1
+    return removed
