@@ -18,10 +18,10 @@ import warnings
 
 from .. import __version__
 from ..errors import CasadicalError, CasadicalWarning
-from . import calibrate, compare, data, diagnose, model, planning
+from . import calibrate, compare, data, diagnose, model, planning, study
 
 #: command modules, in the order ``--help`` lists them
-COMMANDS = (model, calibrate, diagnose, planning, compare, data)
+COMMANDS = (model, calibrate, diagnose, planning, compare, data, study)
 
 class UsageError(CasadicalError):
     """A command line that argparse rejects (unknown option, value out of its domain)."""
