@@ -260,9 +260,9 @@ def load_protocol(spec: str | Path) -> Protocol:
         file and the key, e.g. ``column 'truth.noise_mm'``).
     """
     path = Path(spec)
-    if not path.exists():
+    if not path.is_file():
         path = PROTOCOL_DIR / f"{spec}.toml"
-    if not path.exists():
+    if not path.is_file():
         known = sorted(p.stem for p in PROTOCOL_DIR.glob("*.toml"))
         raise InputError(f"no such protocol; known: {', '.join(known)}", file=str(spec))
     d = read_toml(path)

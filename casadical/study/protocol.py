@@ -149,10 +149,10 @@ class Study:
 def study_path(spec: str | Path) -> Path:
     """A study file by path, or by name in ``problems/studies``."""
     path = Path(spec)
-    if path.exists():
+    if path.is_file():
         return path
     named = STUDY_DIR / f"{spec}.toml"
-    if named.exists():
+    if named.is_file():
         return named
     known = sorted(p.stem for p in STUDY_DIR.glob("*.toml"))
     raise InputError(f"no such study protocol file, and not a bundled study (bundled: {', '.join(known)})",

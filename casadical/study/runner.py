@@ -122,6 +122,8 @@ def run_study(study: Study, out: str | Path, *, backend: str = "dask", workers: 
     """
     if backend not in ("dask", "serial"):
         raise InputError(f"unknown backend {backend!r}; use 'dask' or 'serial'")
+    if backend == "dask" and client is None:
+        _distributed()            # a missing Dask fails before the results folder is touched
     t0 = time.perf_counter()
     with ResultStore.for_study(out, study, force) as store:
         done = store.finished()

@@ -201,6 +201,8 @@ class ResultStore:
     def append(self, rows: list[dict]) -> Path:
         """Write the rows of finished repetitions as one new part (atomically)."""
         pa, pq = arrow()
+        maps = [c for c, kind in COLUMNS if kind == "map"]
+        rows = [{**r, **{c: list(r[c].items()) for c in maps}} for r in rows]   # (key, value) pairs: any pyarrow
         table = pa.Table.from_pylist(rows, schema=schema())
         reps = [r["repetition"] for r in rows]
         path = self.path / f"part-{min(reps):06d}-{max(reps):06d}-{secrets.token_hex(4)}.parquet"
