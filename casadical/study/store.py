@@ -33,7 +33,7 @@ from .. import __version__
 from ..errors import CasadicalError, CasadicalWarning, InputError
 from ..files import atomic_open, atomic_write
 from .protocol import Study
-from .task import COLUMNS
+from .task import COLUMNS, TIME_COLUMNS
 
 MANIFEST = "_study.json"
 PROTOCOL_COPY = "_protocol.toml"
@@ -234,6 +234,29 @@ class ResultStore:
         return table.take(pa.array(order))
 
 
+def differing_columns(a, b) -> list[str]:
+    """Columns in which two results tables differ, row by row, times aside.
+
+    Floats are compared bit for bit (NaN equal to NaN): runs of one study
+    on any backend and number of workers must give the same values.
+    """
+    if a.column_names != b.column_names or a.num_rows != b.num_rows:
+        return ["<shape>"]
+    out = []
+    for c in a.column_names:
+        if c in TIME_COLUMNS:
+            continue
+        x, y = a.column(c), b.column(c)
+        if dict(COLUMNS)[c] == "map":
+            same = x.to_pylist() == y.to_pylist()
+        else:
+            x, y = x.to_numpy(zero_copy_only=False), y.to_numpy(zero_copy_only=False)
+            same = np.array_equal(x, y, equal_nan=x.dtype.kind == "f")
+        if not same:
+            out.append(c)
+    return out
+
+
 def _ours(name: str) -> bool:
     return name.startswith((".", "_")) or (name.startswith("part-") and name.endswith(".parquet"))
 
@@ -251,4 +274,5 @@ def _read_manifest(path: Path) -> dict | None:
     return doc
 
 
-__all__ = ["LOCK", "MANIFEST", "PROTOCOL_COPY", "ResultStore", "manifest_of", "arrow", "schema"]
+__all__ = ["LOCK", "MANIFEST", "PROTOCOL_COPY", "ResultStore", "arrow", "differing_columns", "manifest_of",
+           "schema"]
