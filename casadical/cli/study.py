@@ -81,8 +81,8 @@ def _run(args, study) -> int:
 
     def started(report) -> None:
         where = "this process" if report.backend == "serial" else (
-            f"a local Dask cluster of {report.workers} workers" if report.backend == "dask"
-            else f"the Dask cluster at {report.backend} ({report.workers} workers)")
+            f"a local Dask cluster of {_workers(report.workers)}" if report.backend == "dask"
+            else f"the Dask cluster at {report.backend} ({_workers(report.workers)})")
         todo = report.repetitions - report.skipped
         status.line(f"{report.skipped} repetitions already in {args.out}; running {todo} on {where}")
         state["bar"] = status.bar(todo, "repetitions", unit="rep")
@@ -109,6 +109,10 @@ def _run(args, study) -> int:
     print(f"{report.computed} repetitions in {report.time_s:.1f} s ({report.error_rows} rows with errors); "
           f"{report.skipped + report.computed} of {report.repetitions} in {args.out}")
     return _summary(args, args.out)
+
+
+def _workers(n: int) -> str:
+    return f"{n} worker" + ("" if n == 1 else "s")
 
 
 def _summary(args, results: str) -> int:
