@@ -195,7 +195,7 @@ def _plot_errors(plt, summary: Summary, path: Path, overwrite: bool) -> Path:
     cols = min(3, len(cells))
     nrows = -(-len(cells) // cols)
     fig, axes = plt.subplots(nrows, cols, figsize=(1.2 + cols * max(3.0, 0.9 * len(methods)), 3.4 * nrows),
-                             squeeze=False)
+                             squeeze=False, sharey=True)
     data = np.concatenate([v for v in summary.values.values() if len(v)] or [np.array([1.0])])
     data = data[np.isfinite(data) & (data > 0)]
     log = len(data) > 0 and data.max() > 30 * data.min()
@@ -204,7 +204,8 @@ def _plot_errors(plt, summary: Summary, path: Path, overwrite: bool) -> Path:
         ax.boxplot([v if len(v) else [np.nan] for v in vals], showfliers=True)
         ax.set_xticks(range(1, len(methods) + 1), methods, rotation=30, ha="right", fontsize=8)
         ax.set_title(f"{plan}, {n} poses", fontsize=9)
-        ax.set_ylabel(f"{summary.metric}")
+        if ax in axes[:, 0]:
+            ax.set_ylabel(f"{summary.metric}")
         if log:
             ax.set_yscale("log")
     for ax in list(axes.flat)[len(cells):]:

@@ -15,6 +15,7 @@ from __future__ import annotations
 
 import contextlib
 import os
+import threading
 import time
 import warnings
 import zlib
@@ -181,24 +182,34 @@ def _figures(res: MethodResult, truth: Truth, val: Measurements) -> dict:
     return row
 
 
+_vm = {"users": 0, "old": None, "lock": threading.Lock()}
+
+
 @contextlib.contextmanager
 def _task_environment():
     """Warnings off (pytest's filters or a user's must not turn one into an error on one backend only)
-    and CasADi's virtual machine instead of JIT compilation (tasks evaluate small batches on fresh
-    models, and the VM gives the same floats with or without a compiler on the worker)."""
-    old = os.environ.get("CASADICAL_JIT")
-    os.environ["CASADICAL_JIT"] = "0"
-    compiler_available.cache_clear()
+    and CasADi's virtual machine instead of JIT compilation: tasks evaluate small batches on fresh
+    models, and the VM gives the same floats whether or not a worker has a compiler. Safe for tasks
+    in several threads of one process: the first in sets ``CASADICAL_JIT=0``, the last out restores it."""
+    with _vm["lock"]:
+        if _vm["users"] == 0:
+            _vm["old"] = os.environ.get("CASADICAL_JIT")
+            os.environ["CASADICAL_JIT"] = "0"
+            compiler_available.cache_clear()
+        _vm["users"] += 1
     try:
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             yield
     finally:
-        if old is None:
-            os.environ.pop("CASADICAL_JIT", None)
-        else:
-            os.environ["CASADICAL_JIT"] = old
-        compiler_available.cache_clear()
+        with _vm["lock"]:
+            _vm["users"] -= 1
+            if _vm["users"] == 0:
+                if _vm["old"] is None:
+                    os.environ.pop("CASADICAL_JIT", None)
+                else:
+                    os.environ["CASADICAL_JIT"] = _vm["old"]
+                compiler_available.cache_clear()
 
 
 def run_task(study: Study, repetition: int) -> list[dict]:
