@@ -311,7 +311,7 @@ def cluster():
     import logging
 
     from distributed import Client, LocalCluster
-    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None,
+    with LocalCluster(n_workers=2, threads_per_worker=1, processes=True, dashboard_address=":0",
                       silence_logs=logging.CRITICAL) as c, Client(c) as client:
         yield client
 
@@ -360,6 +360,33 @@ def test_killed_worker_loses_nothing(cluster, reference, tmp_path):
     assert sorted(raw_repetitions(tmp_path / "r")) == EACH_ONCE   # each once
     assert_same_rows(ResultStore.open(tmp_path / "r").read(), serial)
     cluster.wait_for_workers(2, timeout=30)
+
+
+def test_a_task_that_kills_its_worker_is_an_error_row(cluster, reference, tmp_path):
+    path, serial = reference
+    killed = []
+
+    def kill_a_busy_worker(rep, rows):
+        busy = [w for w, keys in cluster.processing().items() if keys]
+        if not killed and busy:
+            killed.append(cluster.run(os.getpid, workers=busy[:1])[busy[0]])
+            os.kill(killed[0], signal.SIGKILL)
+
+    # with no second chance, the tasks on the killed worker fail as a whole (Dask: KilledWorker)
+    old = cluster.run_on_scheduler(lambda dask_scheduler: dask_scheduler.allowed_failures)
+    cluster.run_on_scheduler(lambda dask_scheduler: setattr(dask_scheduler, "allowed_failures", 0))
+    try:
+        report = run_study(load_study(path), tmp_path / "r", client=cluster, progress=kill_a_busy_worker)
+    finally:
+        cluster.run_on_scheduler(lambda dask_scheduler, n=old: setattr(dask_scheduler, "allowed_failures", n))
+        cluster.wait_for_workers(2, timeout=30)
+    assert killed and report.computed == REPS and report.error_rows > 0
+    assert sorted(raw_repetitions(tmp_path / "r")) == EACH_ONCE
+    rows, ref = ResultStore.open(tmp_path / "r").read().to_pylist(), serial.to_pylist()
+    failed = {r["repetition"] for r in rows if r["status"] == "error"}
+    assert failed and all("KilledWorker" in r["error"] for r in rows if r["status"] == "error")
+    assert [r["val_mean_mm"] for r in rows if r["repetition"] not in failed] == \
+        [r["val_mean_mm"] for r in ref if r["repetition"] not in failed]
 
 
 def test_interrupted_run_resumes_to_the_same_table(cluster, reference, tmp_path):

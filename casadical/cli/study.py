@@ -5,7 +5,7 @@ from __future__ import annotations
 from pathlib import Path
 
 from ..errors import InputError
-from .common import Status, add_force, add_quiet, int_at_least
+from .common import Status, add_quiet, int_at_least
 
 
 def register(sub) -> None:
@@ -19,7 +19,7 @@ def register(sub) -> None:
                     "print the comparison table of RESULTS and write its plots.")
     p.add_argument("protocol", nargs="?", metavar="PROTOCOL.toml", help="study protocol (file or bundled name)")
     p.add_argument("--out", metavar="RESULTS", help="results folder (created, or resumed)")
-    p.add_argument("--workers", type=int_at_least(1), default=None,
+    p.add_argument("--workers", type=int_at_least(1), default=None, metavar="N",
                    help="worker processes of the local Dask cluster (default: one per core)")
     p.add_argument("--scheduler", metavar="ADDRESS", help="use the running Dask cluster at ADDRESS")
     p.add_argument("--serial", action="store_true", help="run in this process, without Dask")
@@ -29,7 +29,9 @@ def register(sub) -> None:
                    help="float column to compare (default: %(default)s; e.g. val_true_mean_mm)")
     p.add_argument("--plot-dir", metavar="DIR", help="write errors.png (and poses.png) into DIR (created)")
     add_quiet(p)
-    add_force(p)
+    p.add_argument("--force", action="store_true",
+                   help="discard the results RESULTS holds (of this or another protocol) and start over; "
+                        "replace existing plots")
     p.set_defaults(func=cmd_study, inputs=("protocol",))
 
 

@@ -176,7 +176,7 @@ def _run_dask(study: Study, todo: list[int], finished, report: RunReport, worker
             report.backend = scheduler
         elif client is None:
             own_cluster = distributed.LocalCluster(n_workers=workers or _cores(), threads_per_worker=1,
-                                                   processes=True, dashboard_address=None,
+                                                   processes=True, dashboard_address=":0",
                                                    silence_logs=logging.ERROR)
             client = own_client = distributed.Client(own_cluster)
             report.backend = "dask"
@@ -189,10 +189,11 @@ def _run_dask(study: Study, todo: list[int], finished, report: RunReport, worker
         try:
             for fut, result in distributed.as_completed(futures, with_results=True, raise_errors=False):
                 rep = futures[fut]
-                # a task that kept killing its workers ends as an error of its own (KilledWorker)
-                rows = error_rows(study, rep, result) if isinstance(result, BaseException) else result
+                if fut.status != "finished":
+                    # the task itself failed, e.g. it kept killing its workers (KilledWorker)
+                    result = error_rows(study, rep, fut.exception() if fut.status == "error" else str(result))
                 fut.release()
-                finished(rep, rows)
+                finished(rep, result)
         finally:
             client.cancel(list(futures))
     finally:
