@@ -11,6 +11,7 @@ Usage::
 
     python benchmarks/bench_study.py                          # poses-ys100, 40 repetitions, 1 and 2 workers
     python benchmarks/bench_study.py ca-ys100 --repetitions 20 --workers 1 2 4 --keep out/bench
+    python benchmarks/bench_study.py --repetitions 10 --rounds 3  # medians of 3 rotated rounds
 """
 
 from __future__ import annotations
@@ -19,6 +20,7 @@ import argparse
 import os
 import platform
 import shutil
+import statistics
 import sys
 import tempfile
 import time
@@ -48,6 +50,9 @@ def main(argv=None) -> int:
     ap.add_argument("study", nargs="?", default="poses-ys100", help="study protocol (file or bundled name)")
     ap.add_argument("--repetitions", type=int, default=None, help="override the protocol's repetitions")
     ap.add_argument("--workers", type=int, nargs="+", default=[1, 2], help="Dask worker counts (default 1 2)")
+    ap.add_argument("--rounds", type=int, default=1,
+                    help="repeat every configuration, in rotated order, and report medians (a shared "
+                         "machine's load changes from minute to minute)")
     ap.add_argument("--keep", help="keep the results folders here (default: a temporary folder)")
     args = ap.parse_args(argv)
     study = load_study(args.study)
@@ -57,25 +62,34 @@ def main(argv=None) -> int:
     os.makedirs(folder, exist_ok=True)
     print(f"# study {study.name}: {study.repetitions} repetitions x {study.rows_per_repetition} rows; "
           f"{cpu()}, {len(os.sched_getaffinity(0))} cores, python {platform.python_version()}\n")
-    print("| backend | workers | wall time (s) | speed-up vs serial | rows | rows with errors | equal to serial "
+    print("| round | backend | workers | wall time (s) | rows | rows with errors | equal to serial "
           "| load average before (1/5/15 min) | after |")
     print("|---|---|---|---|---|---|---|---|---|")
-    runs = [("serial", None)] + [("dask", n) for n in args.workers]
-    serial = base = None
-    for backend, n in runs:
-        out = os.path.join(folder, backend if n is None else f"dask-{n}")
-        before = load()
-        t0 = time.perf_counter()
-        report = run_study(study, out, backend=backend, workers=n, force=True)
-        wall = time.perf_counter() - t0
-        table = ResultStore.open(out).read()
-        if serial is None:
-            serial, base, same = table, wall, "(baseline)"
-        else:
-            diff = differing_columns(table, serial)
-            same = "yes, bit for bit" if not diff else "NO: " + ", ".join(diff)
-        print(f"| {backend} | {n or 1} | {wall:.1f} | {base / wall:.2f} | {table.num_rows} | {report.error_rows} "
-              f"| {same} | {before} | {load()} |", flush=True)
+    configs = [("serial", None)] + [("dask", n) for n in args.workers]
+    walls: dict = {c: [] for c in configs}
+    serial = None
+    for k in range(args.rounds):
+        order = configs[k % len(configs):] + configs[:k % len(configs)]
+        for backend, n in order:
+            out = os.path.join(folder, backend if n is None else f"dask-{n}")
+            before = load()
+            t0 = time.perf_counter()
+            report = run_study(study, out, backend=backend, workers=n, force=True)
+            wall = time.perf_counter() - t0
+            walls[(backend, n)].append(wall)
+            table = ResultStore.open(out).read()
+            if serial is None:          # round 1 starts with the serial run: the reference
+                serial, same = table, "(reference)"
+            else:
+                diff = differing_columns(table, serial)
+                same = "yes, bit for bit" if not diff else "NO: " + ", ".join(diff)
+            print(f"| {k + 1} | {backend} | {n or 1} | {wall:.1f} | {table.num_rows} | {report.error_rows} "
+                  f"| {same} | {before} | {load()} |", flush=True)
+    base = statistics.median(walls[("serial", None)])
+    print(f"\n| backend | workers | median wall time (s) over {args.rounds} round(s) | speed-up vs serial |")
+    print("|---|---|---|---|")
+    for (backend, n), w in walls.items():
+        print(f"| {backend} | {n or 1} | {statistics.median(w):.1f} | {base / statistics.median(w):.2f} |")
     if not args.keep:
         shutil.rmtree(folder, ignore_errors=True)
     return 0

@@ -362,6 +362,9 @@ def effects_from_table(t: dict, robot: Robot, file: str, table: str = "truth") -
             raise InputError(f"stiffness must be positive, got {k}", file=file, column=f"{table}.stiffness.{j}")
     backlash = v.per_joint(t, "backlash_deg", table, n)
     periodic = []
+    if not isinstance(t.get("periodic_deg", []), list):
+        raise InputError(f"must be a list of [joint, harmonic, amplitude_deg, phase_deg], got {t['periodic_deg']!r}",
+                         file=file, column=f"{table}.periodic_deg")
     for i, item in enumerate(t.get("periodic_deg", [])):
         where = f"{table}.periodic_deg[{i + 1}]"
         if (not isinstance(item, list) or len(item) != 4

@@ -292,6 +292,7 @@ def test_results_folder_resumes_extends_and_refuses(tmp_path):
     for target in (tmp_path / "notes", tmp_path / "notes" / "mine.txt"):
         with pytest.raises(InputError):
             run_study(load_study(path), target, backend="serial", force=True)
+    assert [p.name for p in (tmp_path / "notes").iterdir()] == ["mine.txt"]
     assert (tmp_path / "notes" / "mine.txt").read_text() == "keep"
 
 

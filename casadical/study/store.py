@@ -126,14 +126,14 @@ class ResultStore:
             if not path.parent.exists():
                 raise InputError(f"folder {str(path.parent)!r} does not exist", file=where)
             path.mkdir()
+        foreign = [p.name for p in path.iterdir() if not _ours(p.name)]
+        if foreign and _read_manifest(path) is None:       # checked before the lock file is made
+            raise InputError(f"is a folder that is not a study results folder (it holds {foreign[0]!r}); "
+                             "choose another --out", file=where)
         store = cls(path, {})
         store._take_lock()
         try:
             old = _read_manifest(path)
-            foreign = [p.name for p in path.iterdir() if not _ours(p.name)]
-            if old is None and foreign:
-                raise InputError(f"is a folder that is not a study results folder (it holds {foreign[0]!r}); "
-                                 "choose another --out", file=where)
             new = manifest_of(study)
             if old is not None and not force:
                 if old.get("digest") != new["digest"]:
