@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 from ..errors import InputError
@@ -46,6 +47,7 @@ def cmd_study(args) -> int:
                                 ("--scheduler", args.scheduler), ("--serial", args.serial)) if v]
         if given:
             raise InputError(f"study --summary takes RESULTS only, not {', '.join(given)}")
+        _check_plot_dir(args)
         return _summary(args, args.summary)
     if not args.protocol or not args.out:
         raise InputError("study: give PROTOCOL.toml and --out RESULTS to run a study, or --summary RESULTS")
@@ -79,7 +81,7 @@ def _run(args, study) -> int:
     cells = study.cells()
     status.line(f"study {study.name}: {study.repetitions} repetitions x {len(cells)} plans x "
                 f"{len(study.methods)} methods ({study.rows_per_repetition} rows per repetition), seed {study.seed}")
-    state = {"bar": None}
+    state = {"bar": None, "stored": 0, "errors": 0}
 
     def started(report) -> None:
         where = "this process" if report.backend == "serial" else (
@@ -88,9 +90,10 @@ def _run(args, study) -> int:
         todo = report.repetitions - report.skipped
         status.line(f"{report.skipped} repetitions already in {args.out}; running {todo} on {where}")
         state["bar"] = status.bar(todo, "repetitions", unit="rep")
-        state["errors"] = 0
+        state["stored"] = report.skipped
 
     def progress(rep: int, rows: list) -> None:
+        state["stored"] += 1
         state["errors"] += sum(r["status"] != "ok" for r in rows)
         state["bar"].update(1)
         if state["errors"]:
@@ -102,8 +105,8 @@ def _run(args, study) -> int:
     except KeyboardInterrupt:
         if state["bar"] is not None:
             state["bar"].close()
-        status.line(f"interrupted: the finished repetitions are in {args.out}; run the same command again "
-                    "to resume")
+        print(f"casadical: interrupted: {state['stored']} of {study.repetitions} repetitions are in {args.out}; "
+              "run the same command again to resume", file=sys.stderr)
         return 130
     finally:
         if state["bar"] is not None:
@@ -120,8 +123,6 @@ def _workers(n: int) -> str:
 def _summary(args, results: str) -> int:
     from ..study import plot_summary, summarize
 
-    if args.plot_dir:
-        _check_plot_dir(args)
     summary = summarize(results, baseline=args.baseline, metric=args.metric)
     print()
     print(summary.table())

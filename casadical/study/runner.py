@@ -179,6 +179,7 @@ def _run_dask(study: Study, todo: list[int], finished, report: RunReport, worker
                                                    processes=True, dashboard_address=":0",
                                                    silence_logs=logging.ERROR)
             client = own_client = distributed.Client(own_cluster)
+            client.register_plugin(_ignore_interrupts(distributed)(), name="casadical-ignore-sigint")
             report.backend = "dask"
         _check_workers(client)
         report.workers = len(client.scheduler_info()["workers"])
@@ -201,6 +202,21 @@ def _run_dask(study: Study, todo: list[int], finished, report: RunReport, worker
             own_client.close()
         if own_cluster is not None:
             own_cluster.close()
+
+
+def _ignore_interrupts(distributed):
+    """A worker plugin: Ctrl-C is for the process that runs the study, which stops the workers itself.
+
+    The local cluster's workers share the terminal's process group; without
+    this each would print a KeyboardInterrupt traceback, and the run's own
+    one-line message would drown.
+    """
+    class IgnoreInterrupts(distributed.WorkerPlugin):
+        def setup(self, worker) -> None:
+            import signal
+            signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+    return IgnoreInterrupts
 
 
 def _check_workers(client) -> None:

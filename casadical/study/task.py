@@ -113,7 +113,7 @@ class Selection:
 def select(study: Study, rep: Repetition, plan: PlanSpec, m: int, designs: dict) -> Selection:
     """Select the ``m`` poses of ``plan`` from its pool (``designs`` caches the pools' Jacobians)."""
     pool = rep.pools[plan.pool_size(m)]
-    if len(pool) == m:            # random poses drawn directly: the pool is the plan
+    if len(pool) == m:            # the plan takes its whole pool (random poses drawn directly)
         return Selection(np.arange(m))
     key = (plan.model, len(pool))
     if key not in designs:
