@@ -2,9 +2,9 @@
 
 Both backends run the same task (:func:`casadical.study.task.run_task`) and
 hand its rows to the same writer in this process, which appends them to the
-results folder as they arrive (a batch at most every ``flush_s`` seconds,
-and whatever is finished when the run stops, interrupted or not). A
-restarted run skips the repetitions already stored.
+results folder in batches (when a repetition finishes ``flush_s`` seconds or
+more after the last write, and whatever is finished when the run stops,
+interrupted or not). A restarted run skips the repetitions already stored.
 
 Dask (``dask.distributed``) is optional: a local cluster of worker
 processes by default, or any running cluster given by its scheduler
@@ -105,7 +105,8 @@ def run_study(study: Study, out: str | Path, *, backend: str = "dask", workers: 
     progress : callable, optional
         Called in this process after each stored repetition.
     flush_s : float
-        Append finished repetitions to the folder at least this often (0: each one at once).
+        Write a batch when a repetition finishes this long or longer after the last write
+        (0: each repetition at once).
     on_start : callable, optional
         Called with the report once the folder is open and the work is known.
 
