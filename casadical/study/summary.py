@@ -70,7 +70,7 @@ class Summary:
 
     def table(self) -> str:
         """Markdown table."""
-        out = [f"study {self.name}: {self.repetitions} repetitions; {self.metric} (mm) over the repetitions "
+        out = [f"study {self.name}: {self.repetitions} repetitions; {self.metric} over the repetitions "
                f"that succeeded; win rate = share of paired repetitions with a lower {self.metric} than "
                f"{self.baseline}", "",
                f"| plan | poses | method | ok | median | IQR | true error, median | win rate vs {self.baseline} "
@@ -128,17 +128,18 @@ def summarize(results: str | Path | ResultStore, baseline: str | None = None,
            for c in ("repetition", "plan", "n_poses", "method", "status", metric, "val_true_mean_mm",
                      "stiffness_error_pct", "fit_time_s")}
     ok = col["status"] == "ok"
+    usable = ok & ~np.isnan(col[metric])          # e.g. no stiffness error for a kinematic method
     rows, values = [], {}
     for plan in store.manifest["plans"]:
         for n in plan["poses"]:
             cell = (col["plan"] == plan["name"]) & (col["n_poses"] == n)
             if not cell.any():
                 continue
-            base = cell & ok & (col["method"] == baseline)
+            base = cell & usable & (col["method"] == baseline)
             base_of = dict(zip(col["repetition"][base].tolist(), col[metric][base].tolist()))
             for m in methods:
                 sel = cell & (col["method"] == m)
-                good = sel & ok
+                good = sel & usable
                 v = col[metric][good]
                 values[(plan["name"], n, m)] = v
                 q25, med, q75 = np.percentile(v, [25, 50, 75]) if len(v) else (np.nan,) * 3
@@ -151,10 +152,11 @@ def summarize(results: str | Path | ResultStore, baseline: str | None = None,
                         a, b = v[paired], b[paired]
                         win = float(((a < b).sum() + 0.5 * (a == b).sum()) / pairs)
                 with np.errstate(invalid="ignore"):
-                    rows.append(SummaryRow(plan["name"], int(n), m, int(sel.sum()), int(good.sum()), float(med),
-                                           float(q25), float(q75), _median(col["val_true_mean_mm"][good]), win,
-                                           pairs, _median(col["stiffness_error_pct"][good]),
-                                           _median(col["fit_time_s"][good])))
+                    done = sel & ok
+                    rows.append(SummaryRow(plan["name"], int(n), m, int(sel.sum()), int(done.sum()), float(med),
+                                           float(q25), float(q75), _median(col["val_true_mean_mm"][done]), win,
+                                           pairs, _median(col["stiffness_error_pct"][done]),
+                                           _median(col["fit_time_s"][done])))
     return Summary(store.manifest.get("name", ""), metric, baseline, len(set(col["repetition"].tolist())),
                    rows, values)
 
