@@ -214,17 +214,14 @@ class ResultStore:
         """Every row as a pyarrow Table, by repetition then protocol order.
 
         A repetition found in two parts (only possible if two runs wrote to
-        the folder at once) is taken from the first; ``duplicates`` counts
-        the rows left out.
+        the folder at once, which the lock prevents) is taken from the first.
         """
         pa, pq = arrow()
         tables, seen = [], set()
-        self.duplicates = 0
         for p in self.parts():
             t = pq.read_table(p, schema=schema())
             reps = np.asarray(t.column("repetition").to_numpy())
             keep = ~np.isin(reps, list(seen))
-            self.duplicates += int((~keep).sum())
             seen.update(reps.tolist())
             tables.append(t.filter(pa.array(keep)) if not keep.all() else t)
         if not tables:
