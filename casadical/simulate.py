@@ -20,7 +20,7 @@ from .data import Measurements
 from .errors import InputError
 from .kinematics import base_pose_matrix
 from .model import Model, pose_to_base0
-from .robot import PROBLEMS, Robot, load_robot
+from .robot import PROBLEMS, Robot, _Validator, load_robot
 from .terms import make_term
 
 
@@ -272,45 +272,159 @@ def load_protocol(spec: str | Path) -> Protocol:
 
     Its ``robot`` is a built-in name or a robot file, relative to the
     protocol's folder (or to the working folder).
+
+    Raises
+    ------
+    InputError
+        Unknown name, invalid TOML, or an invalid key (the message names the
+        file and the key, e.g. ``column 'truth.noise_mm'``).
     """
     path = Path(spec)
-    if not path.exists():
+    if not path.is_file():
         path = PROTOCOL_DIR / f"{spec}.toml"
-    if not path.exists():
+    if not path.is_file():
         known = sorted(p.stem for p in PROTOCOL_DIR.glob("*.toml"))
         raise InputError(f"no such protocol; known: {', '.join(known)}", file=str(spec))
+    d = read_toml(path)
+    v = TomlValidator(str(path))
+    v.keys(d, {"name", "robot", "description", "seed", "sets", "truth", "workspace"}, "")
+    robot = load_robot(resolve_path(v.string(d, "robot", "", required=True), path))
+    sets = v.table(d, "sets", "", required=True)
+    if not sets:
+        raise InputError("needs at least one pose set", file=str(path), column="sets")
+    return Protocol(name=v.string(d, "name", "", default=path.stem), robot=robot,
+                    effects=effects_from_table(v.table(d, "truth", ""), robot, str(path)),
+                    sets={k: v.integer(sets, k, "sets", minimum=1) for k in sets},
+                    seed=v.integer(d, "seed", "", default=0, minimum=0),
+                    description=v.string(d, "description", "", default=""),
+                    workspace=workspace_from_table(v.table(d, "workspace", ""), str(path)))
+
+
+# --- protocol tables (shared with casadical.study) ---------------------------------
+
+#: keys of a protocol's ``[truth]`` table
+TRUTH_KEYS = {"length_sigma_mm", "angle_sigma_deg", "noise_mm", "stiffness", "periodic_deg", "encoder_scale",
+              "backlash_deg", "thermal_alpha", "thermal_links", "cubic", "base_xyz_m", "base_rpy_deg"}
+#: keys of a protocol's ``[workspace]`` table
+WORKSPACE_KEYS = {"floor_z_m", "box_min_m", "box_max_m"}
+
+
+class TomlValidator(_Validator):
+    """Typed look-ups in a protocol TOML; errors are :class:`InputError` naming ``table.key``."""
+
+    def _err(self, msg: str, table: str, key: str) -> InputError:
+        return InputError(msg, file=self.file, column=f"{table}.{key}" if table else key)
+
+    def table(self, tab: dict, key: str, table: str, required: bool = False) -> dict:
+        if key not in tab:
+            if required:
+                raise self._err("missing required table", table, key)
+            return {}
+        if not isinstance(tab[key], dict):
+            raise self._err(f"must be a table, got {tab[key]!r}", table, key)
+        return tab[key]
+
+    def integer(self, tab: dict, key: str, table: str, required: bool = False, default=None,
+                minimum: int | None = None):
+        if key not in tab:
+            if required:
+                raise self._err("missing required key", table, key)
+            return default
+        x = tab[key]
+        if isinstance(x, bool) or not isinstance(x, int):
+            raise self._err(f"must be a whole number, got {x!r}", table, key)
+        if minimum is not None and x < minimum:
+            raise self._err(f"must be at least {minimum}, got {x}", table, key)
+        return x
+
+    def nonnegative(self, tab: dict, key: str, table: str, default: float) -> float:
+        x = self.number(tab, key, table, default=default)
+        if x < 0:
+            raise self._err(f"must not be negative, got {x}", table, key)
+        return x
+
+    def per_joint(self, tab: dict, key: str, table: str, n_joints: int) -> dict[int, float]:
+        """A table ``{joint = number}`` with joints 1..n_joints."""
+        sub = self.table(tab, key, table)
+        out = {}
+        for k in sub:
+            if not (k.isdigit() and 1 <= int(k) <= n_joints):
+                raise self._err(f"must be a joint number from 1 to {n_joints}", f"{table}.{key}", k)
+            out[int(k)] = self.number(sub, k, f"{table}.{key}")
+        return out
+
+
+def read_toml(path: str | Path) -> dict:
+    """Parse a TOML file; unreadable or invalid files raise one :class:`InputError`."""
     try:
         with open(path, "rb") as fh:
-            d = tomllib.load(fh)
-        t = d.get("truth", {})
-        effects = Effects(
-            length_sigma=t.get("length_sigma_mm", 0.5) / 1000,
-            angle_sigma=math.radians(t.get("angle_sigma_deg", 0.05)),
-            stiffness={int(k): float(v) for k, v in t.get("stiffness", {}).items()},
-            periodic=[(int(j), int(h), math.radians(a), math.radians(ph))
-                      for j, h, a, ph in t.get("periodic_deg", [])],
-            encoder_scale={int(k): float(v) for k, v in t.get("encoder_scale", {}).items()},
-            backlash={int(k): math.radians(float(v)) for k, v in t.get("backlash_deg", {}).items()},
-            thermal_alpha=float(t.get("thermal_alpha", 0.0)),
-            thermal_links={int(k): float(v) for k, v in t.get("thermal_links", {}).items()},
-            cubic={int(k): float(v) for k, v in t.get("cubic", {}).items()},
-            noise=t.get("noise_mm", 0.02) / 1000,
-            base_xyz=tuple(t.get("base_xyz_m", (0.0, 0.0, 0.0))),
-            base_rpy=tuple(math.radians(x) for x in t.get("base_rpy_deg", (0.0, 0.0, 0.0))),
-        )
-        ws = d.get("workspace", {})
-        workspace = {"floor_z": ws.get("floor_z_m", 0.0)}
-        if "box_min_m" in ws:
-            workspace["box"] = (tuple(map(float, ws["box_min_m"])), tuple(map(float, ws["box_max_m"])))
-            if any(len(b) != 3 for b in workspace["box"]):
-                raise ValueError("workspace box_min_m and box_max_m need three numbers each (x, y, z)")
-        robot_spec = d["robot"]
-        if isinstance(robot_spec, str) and (path.parent / robot_spec).is_file():
-            robot_spec = path.parent / robot_spec   # a robot file beside the protocol
-        return Protocol(name=d.get("name", path.stem), robot=load_robot(robot_spec), effects=effects,
-                        sets={k: int(v) for k, v in d["sets"].items()}, seed=int(d.get("seed", 0)),
-                        description=d.get("description", ""), workspace=workspace)
-    except InputError:
-        raise
-    except (KeyError, TypeError, ValueError, AttributeError, tomllib.TOMLDecodeError) as e:
-        raise InputError(f"invalid protocol: {e!r}", file=str(path)) from e
+            return tomllib.load(fh)
+    except tomllib.TOMLDecodeError as e:
+        raise InputError(f"not valid TOML: {e}", file=str(path)) from e
+    except OSError as e:
+        raise InputError(f"cannot read: {e.strerror or e}", file=str(path)) from e
+
+
+def resolve_path(spec: str, relative_to: str | Path) -> str:
+    """A file named in a TOML file: relative to that file's folder if it exists there, else as given."""
+    beside = Path(relative_to).parent / spec
+    return str(beside) if not Path(spec).is_absolute() and beside.exists() else spec
+
+
+def effects_from_table(t: dict, robot: Robot, file: str, table: str = "truth") -> Effects:
+    """The :class:`Effects` of a protocol's ``[truth]`` table (mm, degrees; see docs/formats.md)."""
+    v = TomlValidator(file)
+    v.keys(t, TRUTH_KEYS, table)
+    n = robot.n
+    stiffness = v.per_joint(t, "stiffness", table, n)
+    for j, k in stiffness.items():
+        if k <= 0:
+            raise InputError(f"stiffness must be positive, got {k}", file=file, column=f"{table}.stiffness.{j}")
+    backlash = v.per_joint(t, "backlash_deg", table, n)
+    periodic = []
+    if not isinstance(t.get("periodic_deg", []), list):
+        raise InputError(f"must be a list of [joint, harmonic, amplitude_deg, phase_deg], got {t['periodic_deg']!r}",
+                         file=file, column=f"{table}.periodic_deg")
+    for i, item in enumerate(t.get("periodic_deg", [])):
+        where = f"{table}.periodic_deg[{i + 1}]"
+        if (not isinstance(item, list) or len(item) != 4
+                or any(isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x)
+                       for x in item)):
+            raise InputError(f"must be [joint, harmonic, amplitude_deg, phase_deg], got {item!r}",
+                             file=file, column=where)
+        j, h, amp, ph = item
+        if j != int(j) or not 1 <= j <= n or h != int(h) or h < 1:
+            raise InputError(f"joint must be 1 to {n} and harmonic a whole number >= 1, got {item!r}",
+                             file=file, column=where)
+        periodic.append((int(j), int(h), math.radians(amp), math.radians(ph)))
+    return Effects(
+        length_sigma=v.nonnegative(t, "length_sigma_mm", table, 0.5) / 1000,
+        angle_sigma=math.radians(v.nonnegative(t, "angle_sigma_deg", table, 0.05)),
+        stiffness=stiffness,
+        periodic=periodic,
+        encoder_scale=v.per_joint(t, "encoder_scale", table, n),
+        backlash={j: math.radians(b) for j, b in backlash.items()},
+        thermal_alpha=v.number(t, "thermal_alpha", table, default=0.0),
+        thermal_links=v.per_joint(t, "thermal_links", table, n),
+        cubic=v.per_joint(t, "cubic", table, n),
+        noise=v.nonnegative(t, "noise_mm", table, 0.02) / 1000,
+        base_xyz=tuple(float(x) for x in v.vector(t, "base_xyz_m", table, 3, default=np.zeros(3))),
+        base_rpy=tuple(math.radians(x) for x in v.vector(t, "base_rpy_deg", table, 3, default=np.zeros(3))),
+    )
+
+
+def workspace_from_table(ws: dict, file: str, table: str = "workspace") -> dict:
+    """Pose filter options of :func:`sample_poses` from a protocol's ``[workspace]`` table."""
+    v = TomlValidator(file)
+    v.keys(ws, WORKSPACE_KEYS, table)
+    out: dict = {"floor_z": v.number(ws, "floor_z_m", table, default=0.0)}
+    if ("box_min_m" in ws) != ("box_max_m" in ws):
+        raise InputError("give both box_min_m and box_max_m, or neither", file=file,
+                         column=f"{table}.{'box_max_m' if 'box_min_m' in ws else 'box_min_m'}")
+    if "box_min_m" in ws:
+        lo, hi = (v.vector(ws, k, table, 3) for k in ("box_min_m", "box_max_m"))
+        if not np.all(lo < hi):
+            raise InputError(f"every component must exceed box_min_m {lo.tolist()}, got {hi.tolist()}",
+                             file=file, column=f"{table}.box_max_m")
+        out["box"] = (tuple(lo.tolist()), tuple(hi.tolist()))
+    return out

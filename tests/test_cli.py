@@ -16,7 +16,7 @@ def run(*args):
 
 
 @pytest.mark.parametrize("cmd", ["inspect", "predict", "simulate", "import-ur10", "calibrate", "diagnose", "split",
-                                 "plan-poses", "candidates", "compare"])
+                                 "plan-poses", "candidates", "compare", "study"])
 def test_help(cmd, capsys):
     with pytest.raises(SystemExit) as e:
         main([cmd, "--help"])

@@ -19,11 +19,10 @@ import warnings
 from .. import __version__
 from ..errors import CasadicalError, CasadicalWarning
 from ..threads import limited_threads
-from . import calibrate, compare, compensate, data, diagnose, export, model, planning
-from . import cache
+from . import cache, calibrate, compare, compensate, data, diagnose, export, model, planning, study
 
 #: command modules, in the order ``--help`` lists them
-COMMANDS = (model, calibrate, diagnose, compensate, planning, compare, data, export, cache)
+COMMANDS = (model, calibrate, diagnose, compensate, planning, compare, study, data, export, cache)
 
 class UsageError(CasadicalError):
     """A command line that argparse rejects (unknown option, value out of its domain)."""

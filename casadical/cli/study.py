@@ -1,0 +1,133 @@
+"""``study``: Monte Carlo studies of pose plans x calibration methods, on Dask or serially."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from ..errors import InputError
+from .common import Status, add_quiet, int_at_least
+
+
+def register(sub) -> None:
+    p = sub.add_parser(
+        "study", help="run a Monte Carlo study of pose plans and methods (Dask), or summarise one",
+        description="Run the repetitions of a study protocol (TOML, or a name in problems/studies) that "
+                    "RESULTS does not hold yet: each draws a true robot, selects the calibration poses of "
+                    "every plan and runs every method on them. Rows stream into RESULTS (a Parquet "
+                    "folder) as repetitions finish; run the same command again to resume an interrupted "
+                    "study. On a local Dask cluster by default (needs the 'study' extra). With --summary, "
+                    "print the comparison table of RESULTS and write its plots.")
+    p.add_argument("protocol", nargs="?", metavar="PROTOCOL.toml", help="study protocol (file or bundled name)")
+    p.add_argument("--out", metavar="RESULTS", help="results folder (created, or resumed)")
+    p.add_argument("--workers", type=int_at_least(1), default=None, metavar="N",
+                   help="worker processes of the local Dask cluster (default: one per core)")
+    p.add_argument("--scheduler", metavar="ADDRESS", help="use the running Dask cluster at ADDRESS")
+    p.add_argument("--serial", action="store_true", help="run in this process, without Dask")
+    p.add_argument("--summary", metavar="RESULTS", help="summarise RESULTS instead of running a study")
+    p.add_argument("--baseline", metavar="METHOD", help="method the win rates are against (default: the first)")
+    p.add_argument("--metric", default="val_mean_mm",
+                   help="float column to compare (default: %(default)s; e.g. val_true_mean_mm)")
+    p.add_argument("--plot-dir", metavar="DIR", help="write errors.png (and poses.png) into DIR (created)")
+    add_quiet(p)
+    p.add_argument("--force", action="store_true",
+                   help="discard the results RESULTS holds (of this or another protocol) and start over; "
+                        "replace existing plots")
+    p.set_defaults(func=cmd_study, inputs=("protocol",))
+
+
+def cmd_study(args) -> int:
+    from ..study import load_study
+    from ..study.summary import METRICS
+
+    if args.metric not in METRICS:
+        raise InputError(f"--metric: unknown column {args.metric!r}; choose from {', '.join(METRICS)}")
+    if args.summary:
+        given = [o for o, v in (("PROTOCOL.toml", args.protocol), ("--out", args.out), ("--workers", args.workers),
+                                ("--scheduler", args.scheduler), ("--serial", args.serial)) if v]
+        if given:
+            raise InputError(f"study --summary takes RESULTS only, not {', '.join(given)}")
+        _check_plot_dir(args)
+        return _summary(args, args.summary)
+    if not args.protocol or not args.out:
+        raise InputError("study: give PROTOCOL.toml and --out RESULTS to run a study, or --summary RESULTS")
+    if args.serial and (args.workers or args.scheduler):
+        raise InputError("--serial runs without Dask: leave out --workers and --scheduler")
+    if args.workers and args.scheduler:
+        raise InputError("--workers starts a local cluster; a cluster given by --scheduler has its own workers")
+    study = load_study(args.protocol)
+    if args.baseline and args.baseline.strip().lower() not in {m.name.lower() for m in study.methods}:
+        raise InputError(f"--baseline: no method {args.baseline!r} in this study; its methods: "
+                         + ", ".join(m.name for m in study.methods), file=study.path)
+    _check_plot_dir(args)
+    return _run(args, study)
+
+
+def _check_plot_dir(args) -> None:
+    if args.plot_dir and not args.force:
+        for name in ("errors.png", "poses.png"):
+            if (Path(args.plot_dir) / name).exists():
+                raise InputError("exists already; choose another --plot-dir or pass --force to replace it",
+                                 file=str(Path(args.plot_dir) / name))
+    if args.plot_dir:
+        from ..methods.compare import pyplot
+        pyplot()                   # a missing matplotlib fails before the work
+
+
+def _run(args, study) -> int:
+    from ..study import run_study
+
+    status = Status(args.quiet)
+    cells = study.cells()
+    status.line(f"study {study.name}: {study.repetitions} repetitions x {len(cells)} plans x "
+                f"{len(study.methods)} methods ({study.rows_per_repetition} rows per repetition), seed {study.seed}")
+    state = {"bar": None, "stored": 0, "errors": 0}
+
+    def started(report) -> None:
+        where = "this process" if report.backend == "serial" else (
+            f"a local Dask cluster of {_workers(report.workers)}" if report.backend == "dask"
+            else f"the Dask cluster at {report.backend} ({_workers(report.workers)})")
+        todo = report.repetitions - report.skipped
+        status.line(f"{report.skipped} repetitions already in {args.out}; running {todo} on {where}")
+        state["bar"] = status.bar(todo, "repetitions", unit="rep")
+        state["stored"] = report.skipped
+
+    def progress(rep: int, rows: list) -> None:
+        state["stored"] += 1
+        state["errors"] += sum(r["status"] != "ok" for r in rows)
+        state["bar"].update(1)
+        if state["errors"]:
+            state["bar"].set_postfix(error_rows=state["errors"])
+
+    try:
+        report = run_study(study, args.out, backend="serial" if args.serial else "dask", workers=args.workers,
+                           scheduler=args.scheduler, force=args.force, progress=progress, on_start=started)
+    except KeyboardInterrupt:
+        if state["bar"] is not None:
+            state["bar"].close()
+        print(f"casadical: interrupted: {state['stored']} of {study.repetitions} repetitions are in {args.out}; "
+              "run the same command again to resume", file=sys.stderr)
+        return 130
+    finally:
+        if state["bar"] is not None:
+            state["bar"].close()
+    print(f"{report.computed} repetitions in {report.time_s:.1f} s ({report.error_rows} rows with errors); "
+          f"{report.skipped + report.computed} of {report.repetitions} in {args.out}")
+    return _summary(args, args.out)
+
+
+def _workers(n: int) -> str:
+    return f"{n} worker" + ("" if n == 1 else "s")
+
+
+def _summary(args, results: str) -> int:
+    from ..study import plot_summary, summarize
+
+    summary = summarize(results, baseline=args.baseline, metric=args.metric)
+    print()
+    print(summary.table())
+    if args.plot_dir:
+        Path(args.plot_dir).mkdir(parents=True, exist_ok=True)
+        for path in plot_summary(summary, args.plot_dir, overwrite=args.force):
+            print(f"plot -> {path}")
+    return 0
