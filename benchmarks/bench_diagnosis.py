@@ -18,6 +18,7 @@ from casadical import calibrate, load_robot
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.diagnosis.candidates import compose_spec
 from casadical.diagnosis.run import _Diagnosis
+from casadical.diagnosis.screening import Screen
 from casadical.simulate import Effects, simulate
 
 
@@ -35,7 +36,7 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="only the small case")
     args = ap.parse_args()
     sizes = [(80, 200)] + ([] if args.quick else [(300, 1200)])
-    print(f"{'poses':>12} {'diagnose s':>11} {'findings':>40} {'round-1 score s':>16} "
+    print(f"{'poses':>12} {'diagnose s':>11} {'findings':<72} {'round-1 score s':>16} "
           f"{'round-1 fit-all s':>18} {'ratio':>6}")
     for n_cal, n_val in sizes:
         robot, cal, val = case(n_cal, n_val)
@@ -49,13 +50,13 @@ def main() -> None:
         kin = dg.fit("kinematic")
         t = time.perf_counter()
         cands = dg.candidates(kin, [])
-        dg.screen(kin, [], cands, True)
+        Screen(kin, [], cands, True, cal, val).scores(cands)
         t_score = time.perf_counter() - t
         t = time.perf_counter()
         for c in cands:
             calibrate(robot, cal, compose_spec([c]), "lm", warn=False)
         t_all = time.perf_counter() - t
-        print(f"{n_cal:>5}+{n_val:<6} {t_diag:>11.1f} {found[:40]:>40} {t_score:>16.2f} {t_all:>18.2f} "
+        print(f"{n_cal:>5}+{n_val:<6} {t_diag:>11.1f} {found:<72} {t_score:>16.2f} {t_all:>18.2f} "
               f"{t_all / t_score:>6.1f}")
         target = 30 if n_cal + n_val <= 280 else 120
         print(f"  target {target} s: {'met' if t_diag < target else 'NOT met'} ({len(cands)} candidates "

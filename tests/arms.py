@@ -63,6 +63,44 @@ ARM7 = {
 
 ARMS = {"arm4": ARM4, "arm5": ARM5, "arm7": ARM7}
 
+#: four-axis arm, MDH, beta on joint 3
+ARM4_BETA = {
+    "name": "four-axis test arm", "convention": "mdh",
+    "joint": [
+        {"alpha_deg": 0, "a_m": 0.0, "d_m": 0.5, "min_deg": -170, "max_deg": 170, "mass_kg": 20,
+         "com_m": [0, 0, -0.1]},
+        {"alpha_deg": -90, "a_m": 0.2, "d_m": 0.0, "min_deg": -120, "max_deg": 60, "mass_kg": 18,
+         "com_m": [0.3, 0, 0]},
+        {"alpha_deg": 0, "a_m": 0.7, "beta_deg": 0.0, "d_m": 0.0, "min_deg": -150, "max_deg": 150,
+         "mass_kg": 10, "com_m": [0.3, 0, 0]},
+        {"alpha_deg": -90, "a_m": 0.1, "d_m": 0.6, "min_deg": -180, "max_deg": 180, "mass_kg": 4,
+         "com_m": [0, 0, -0.1]},
+    ],
+    "tool": {"a_m": 0.05, "b_m": 0.0, "d_m": 0.12},
+    "payload": {"mass_kg": 8},
+}
+
+#: seven-axis arm, standard DH, beta on joint 4
+ARM7_DH = {
+    "name": "seven-axis test arm", "convention": "dh",
+    "joint": [
+        {"alpha_deg": -90, "a_m": 0.0, "d_m": 0.34, "min_deg": -170, "max_deg": 170, "mass_kg": 4,
+         "com_m": [0, 0.03, 0]},
+        {"alpha_deg": 90, "a_m": 0.0, "d_m": 0.0, "min_deg": -120, "max_deg": 120, "mass_kg": 4,
+         "com_m": [0, 0, 0.05]},
+        {"alpha_deg": 90, "a_m": 0.0, "d_m": 0.4, "min_deg": -170, "max_deg": 170, "mass_kg": 3,
+         "com_m": [0, -0.03, 0]},
+        {"alpha_deg": -90, "a_m": 0.0, "beta_deg": 0.0, "d_m": 0.0, "min_deg": -120, "max_deg": 120,
+         "mass_kg": 2.7, "com_m": [0, 0, 0.05]},
+        {"alpha_deg": -90, "a_m": 0.0, "d_m": 0.4, "min_deg": -170, "max_deg": 170, "mass_kg": 1.7,
+         "com_m": [0, 0.02, 0]},
+        {"alpha_deg": 90, "a_m": 0.0, "d_m": 0.0, "min_deg": -120, "max_deg": 120, "mass_kg": 1.8,
+         "com_m": [0, 0, 0.02]},
+        {"alpha_deg": 0, "a_m": 0.0, "d_m": 0.126, "min_deg": -175, "max_deg": 175, "mass_kg": 0.3},
+    ],
+    "tool": {"a_m": 0.02, "b_m": 0.01, "d_m": 0.1},
+    "payload": {"mass_kg": 5},
+}
 
 def to_toml(doc: dict) -> str:
     """The robot dict as TOML text (the subset these robots use: scalars, tables, [[joint]])."""

@@ -11,21 +11,8 @@ from casadical.problem import RobustLoss
 from casadical.robot import robot_from_dict
 from casadical.simulate import Effects, simulate
 
-FOUR_AXIS = {  # not built in: MDH, beta on joint 3, 4 joints
-    "name": "four-axis test arm", "convention": "mdh",
-    "joint": [
-        {"alpha_deg": 0, "a_m": 0.0, "d_m": 0.5, "min_deg": -170, "max_deg": 170, "mass_kg": 20,
-         "com_m": [0, 0, -0.1]},
-        {"alpha_deg": -90, "a_m": 0.2, "d_m": 0.0, "min_deg": -120, "max_deg": 60, "mass_kg": 18,
-         "com_m": [0.3, 0, 0]},
-        {"alpha_deg": 0, "a_m": 0.7, "beta_deg": 0.0, "d_m": 0.0, "min_deg": -150, "max_deg": 150,
-         "mass_kg": 10, "com_m": [0.3, 0, 0]},
-        {"alpha_deg": -90, "a_m": 0.1, "d_m": 0.6, "min_deg": -180, "max_deg": 180, "mass_kg": 4,
-         "com_m": [0, 0, -0.1]},
-    ],
-    "tool": {"a_m": 0.05, "b_m": 0.0, "d_m": 0.12},
-    "payload": {"mass_kg": 8},
-}
+from arms import ARM4_BETA
+
 
 
 def _spoil(data, rows, rng, size_mm=20.0):
@@ -43,7 +30,7 @@ def _spoil(data, rows, rng, size_mm=20.0):
                                                    ("four", 1, 3), ("four", 3, 4)])
 @pytest.mark.parametrize("solver", ["lm", "ipopt"])
 def test_gross_outliers_are_set_aside(robot_name, n_bad, seed, solver):
-    robot = load_robot("ys100") if robot_name == "ys100" else robot_from_dict(FOUR_AXIS)
+    robot = load_robot("ys100") if robot_name == "ys100" else robot_from_dict(ARM4_BETA)
     spec = "kinematic+compliance" if robot_name == "ys100" else "kinematic"
     eff = Effects(stiffness={2: 1.5e6, 3: 1.2e6}) if robot_name == "ys100" else Effects()
     cal, truth = simulate(robot, 90, eff, seed=seed, floor_z=None)

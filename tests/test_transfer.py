@@ -11,26 +11,8 @@ from casadical.cli import main
 from casadical.robot import robot_from_dict
 from casadical.simulate import Effects, simulate
 
-SEVEN_AXIS = {  # not built in: DH, beta on joint 4, 7 joints
-    "name": "seven-axis test arm", "convention": "dh",
-    "joint": [
-        {"alpha_deg": -90, "a_m": 0.0, "d_m": 0.34, "min_deg": -170, "max_deg": 170, "mass_kg": 4,
-         "com_m": [0, 0.03, 0]},
-        {"alpha_deg": 90, "a_m": 0.0, "d_m": 0.0, "min_deg": -120, "max_deg": 120, "mass_kg": 4,
-         "com_m": [0, 0, 0.05]},
-        {"alpha_deg": 90, "a_m": 0.0, "d_m": 0.4, "min_deg": -170, "max_deg": 170, "mass_kg": 3,
-         "com_m": [0, -0.03, 0]},
-        {"alpha_deg": -90, "a_m": 0.0, "beta_deg": 0.0, "d_m": 0.0, "min_deg": -120, "max_deg": 120,
-         "mass_kg": 2.7, "com_m": [0, 0, 0.05]},
-        {"alpha_deg": -90, "a_m": 0.0, "d_m": 0.4, "min_deg": -170, "max_deg": 170, "mass_kg": 1.7,
-         "com_m": [0, 0.02, 0]},
-        {"alpha_deg": 90, "a_m": 0.0, "d_m": 0.0, "min_deg": -120, "max_deg": 120, "mass_kg": 1.8,
-         "com_m": [0, 0, 0.02]},
-        {"alpha_deg": 0, "a_m": 0.0, "d_m": 0.126, "min_deg": -175, "max_deg": 175, "mass_kg": 0.3},
-    ],
-    "tool": {"a_m": 0.02, "b_m": 0.01, "d_m": 0.1},
-    "payload": {"mass_kg": 5},
-}
+from arms import ARM7_DH
+
 
 
 def _series(robot, truth, n, seed, base_xyz, base_rpy):
@@ -45,7 +27,7 @@ def _series(robot, truth, n, seed, base_xyz, base_rpy):
 
 @pytest.mark.parametrize("name,seed", [("ys100", 0), ("ys100", 1), ("seven", 2)])
 def test_base_only_keeps_everything_else(name, seed):
-    robot = load_robot("ys100") if name == "ys100" else robot_from_dict(SEVEN_AXIS)
+    robot = load_robot("ys100") if name == "ys100" else robot_from_dict(ARM7_DH)
     eff = Effects(stiffness={2: 1.2e6, 3: 0.8e6}) if name == "ys100" else Effects(stiffness={2: 2e4, 4: 1e4})
     spec = "kinematic+compliance[2,3]" if name == "ys100" else "kinematic+compliance[2,4]"
     cal, truth = simulate(robot, 80, eff, seed=seed, floor_z=None)
