@@ -2,6 +2,20 @@
 
 import json
 
+#: three joints, DH, Hayati beta on joint 2 (compiles in well under a second)
+ARM3 = {
+    "name": "three-axis test arm", "convention": "dh",
+    "joint": [
+        {"alpha_deg": 90, "a_m": 0.15, "d_m": 0.4, "min_deg": -170, "max_deg": 170, "mass_kg": 30,
+         "com_m": [0, -0.1, 0]},
+        {"alpha_deg": 0, "a_m": 0.8, "d_m": 0.0, "beta_deg": 0.0, "min_deg": -10, "max_deg": 170,
+         "mass_kg": 25, "com_m": [-0.4, 0, 0]},
+        {"alpha_deg": 0, "a_m": 0.6, "d_m": 0.0, "min_deg": -150, "max_deg": 150, "mass_kg": 12,
+         "com_m": [-0.3, 0, 0]},
+    ],
+    "tool": {"a_m": 0.1, "b_m": 0.02, "d_m": 0.05},
+}
+
 #: four-axis palletiser, MDH, no Hayati beta
 ARM4 = {
     "name": "four-axis palletiser", "convention": "mdh",

@@ -11,6 +11,8 @@ from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.robot import robot_from_dict
 from casadical.simulate import Effects, simulate
 
+from arms import ARM3
+
 SEEDS = [0, 1, 2]
 
 
@@ -72,19 +74,7 @@ def test_noise_only_gives_no_further_finding(seed):
     assert rep.final_model == "kinematic"
 
 
-PLANAR_ARM = {
-    "name": "three-axis test arm", "convention": "dh",
-    "joint": [
-        {"alpha_deg": 90, "a_m": 0.15, "d_m": 0.4, "min_deg": -170, "max_deg": 170, "mass_kg": 30,
-         "com_m": [0, -0.1, 0]},
-        {"alpha_deg": 0, "a_m": 0.8, "d_m": 0.0, "beta_deg": 0.0, "min_deg": -10, "max_deg": 170,
-         "mass_kg": 25, "com_m": [-0.4, 0, 0]},
-        {"alpha_deg": 0, "a_m": 0.6, "d_m": 0.0, "min_deg": -150, "max_deg": 150, "mass_kg": 12,
-         "com_m": [-0.3, 0, 0]},
-    ],
-    "tool": {"a_m": 0.1, "b_m": 0.02, "d_m": 0.05},
-    "payload": {"mass_kg": 20},
-}
+PLANAR_ARM = {**ARM3, "payload": {"mass_kg": 20}}
 
 
 @pytest.mark.parametrize("seed", SEEDS)
