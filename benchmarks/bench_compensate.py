@@ -48,6 +48,8 @@ import numpy as np  # noqa: E402
 import scipy  # noqa: E402
 from scipy.optimize import least_squares  # noqa: E402
 
+from bench_model import cpu_model  # noqa: E402  (this folder is on sys.path when run as a script)
+
 from casadical import Measurements, Model, calibrate, load_robot  # noqa: E402
 from casadical.inverse import compensate  # noqa: E402
 from casadical.model import compiler_available  # noqa: E402
@@ -55,16 +57,6 @@ from casadical.simulate import Effects, sample_poses, simulate  # noqa: E402
 
 SPEC = "kinematic+compliance"
 EFFECTS = Effects(stiffness={2: 1.73e6, 3: 1.2e6}, base_xyz=(2.0, -0.5, 0.3), base_rpy=(0.01, -0.02, 1.2))
-
-
-def cpu_model() -> str:
-    try:
-        for line in open("/proc/cpuinfo"):
-            if line.lower().startswith("model name"):
-                return line.split(":", 1)[1].strip()
-    except OSError:
-        pass
-    return platform.processor() or "unknown"
 
 
 def fmt_t(s: float) -> str:
