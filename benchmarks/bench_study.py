@@ -54,6 +54,7 @@ def main(argv=None) -> int:
                     help="repeat every configuration, in rotated order, and report medians (a shared "
                          "machine's load changes from minute to minute)")
     ap.add_argument("--keep", help="keep the results folders here (default: a temporary folder)")
+    ap.add_argument("--plot", metavar="OUT.png", help="wall time against workers: every run and the medians")
     args = ap.parse_args(argv)
     study = load_study(args.study)
     if args.repetitions:
@@ -90,9 +91,36 @@ def main(argv=None) -> int:
     print("|---|---|---|---|")
     for (backend, n), w in walls.items():
         print(f"| {backend} | {n or 1} | {statistics.median(w):.1f} | {base / statistics.median(w):.2f} |")
+    if args.plot:
+        plot(walls, study, args.plot)
     if not args.keep:
         shutil.rmtree(folder, ignore_errors=True)
     return 0
+
+
+def plot(walls: dict, study, path: str) -> None:
+    """Wall time of every run and the medians against the configuration, with the serial time / workers."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    labels = [("serial" if n is None else f"Dask, {n} worker{'s' if n > 1 else ''}") for _, n in walls]
+    base = statistics.median(walls[("serial", None)])
+    fig, ax = plt.subplots(figsize=(6, 3.4), layout="constrained")
+    for i, ((_, n), w) in enumerate(walls.items()):
+        ax.bar(i, statistics.median(w), color="#9ecae1", label="median" if i == 0 else None)
+        ax.plot([i] * len(w), w, "o", color="#08519c", ms=4, label="each run" if i == 0 else None)
+        if n:
+            ax.plot([i - 0.4, i + 0.4], [base / n] * 2, "--", color="#d94801",
+                    label="serial time / workers" if n == min(k for _, k in walls if k) else None)
+    ax.set_xticks(range(len(walls)), labels)
+    ax.set_ylabel("wall time (s)")
+    ax.set_title(f"study {study.name}, {study.repetitions} repetitions, load {os.getloadavg()[0]:.1f}",
+                 fontsize=10)
+    ax.legend(loc="upper right", fontsize=8)
+    ax.margins(y=0.15)
+    fig.savefig(path, dpi=110)
+    print(f"plot -> {path}")
 
 
 if __name__ == "__main__":
