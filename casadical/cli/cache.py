@@ -18,7 +18,7 @@ def register(sub) -> None:
     what.add_argument("--clear", action="store_true", help="remove every compiled function of the cache")
     add_json(p, "the cache information (with --info)")
     add_force(p)
-    p.set_defaults(func=run, inputs=())
+    p.set_defaults(func=run)
 
 
 def run(args) -> int:

@@ -35,7 +35,7 @@ def register(sub) -> None:
     p.add_argument("--fix", default="", help="comma-separated parameters to hold at nominal (default: none)")
     add_checks(p)
     add_force(p)
-    p.set_defaults(func=run, inputs=("robot", "data"))
+    p.set_defaults(func=run)
 
 
 def run(args) -> int:

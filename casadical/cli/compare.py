@@ -31,7 +31,7 @@ def register(sub) -> None:
     add_checks(p)
     add_quiet(p)
     add_force(p)
-    p.set_defaults(func=cmd_compare, inputs=("robot", "cal", "validate", "extra"))
+    p.set_defaults(func=cmd_compare)
 
 
 def cmd_compare(args) -> int:

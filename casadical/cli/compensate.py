@@ -38,7 +38,7 @@ def register(sub) -> None:
     p.add_argument("--position-only", action="store_true",
                    help="do not hold the flange orientation: least joint change that reaches the point")
     add_force(p)
-    p.set_defaults(func=run, inputs=("cal", "targets"))
+    p.set_defaults(func=run)
 
 
 def run(args) -> int:

@@ -22,7 +22,7 @@ def register(sub) -> None:
     p.add_argument("--out-val", required=True, metavar="VAL.csv", help="validation poses to write")
     p.add_argument("--seed", type=int, default=0, help="seed of the random split (default: %(default)s)")
     add_force(p)
-    p.set_defaults(func=run_split, inputs=("data",))
+    p.set_defaults(func=run_split)
 
     p = sub.add_parser("simulate", help="simulate the pose sets of an experiment protocol",
                        description="Simulate measurements from a protocol of problems/protocols "
@@ -31,7 +31,7 @@ def register(sub) -> None:
     p.add_argument("--out-dir", required=True, help="folder for the CSV files and truth.json (created)")
     p.add_argument("--seed", type=int, default=None, help="override the protocol's seed")
     add_force(p)
-    p.set_defaults(func=run_simulate, inputs=("protocol",))
+    p.set_defaults(func=run_simulate)
 
     p = sub.add_parser("import", help="convert any tracker file to the measurement CSV with a column mapping",
                        description="Convert a delimited tracker file to the measurement CSV contract. "
@@ -44,7 +44,7 @@ def register(sub) -> None:
                    help="column mapping: a TOML file or a preset (" + ", ".join(sorted(presets())) + "), "
                         "then any key=value pairs that set or override keys (repeat --map)")
     _add_import_options(p)
-    p.set_defaults(func=run_import, inputs=("source",))
+    p.set_defaults(func=run_import)
 
     p = sub.add_parser("import-ur10", help="convert the UR10 (ipa) raw format to the measurement CSV",
                        description="Convert a raw UR10 file (';' separated, decimal comma, radians) "
@@ -52,7 +52,7 @@ def register(sub) -> None:
                                    "'casadical import SOURCE --map ur10-ipa'.")
     p.add_argument("source", help="raw UR10 measurement file")
     _add_import_options(p)
-    p.set_defaults(func=run_import, maps=["ur10-ipa"], inputs=("source",))
+    p.set_defaults(func=run_import, maps=["ur10-ipa"])
 
 
 def _add_import_options(p) -> None:

@@ -47,7 +47,7 @@ def register(sub) -> None:
     add_checks(p)
     add_quiet(p)
     add_force(p)
-    p.set_defaults(func=run, inputs=("robot", "data", "validate", "transfer"))
+    p.set_defaults(func=run)
 
 
 def run(args) -> int:

@@ -18,7 +18,7 @@ def register(sub) -> None:
     p.add_argument("--markdown", metavar="OUT.md", help="the parameter table as Markdown")
     add_force(p)
     add_quiet(p)
-    p.set_defaults(func=run, inputs=("source",))
+    p.set_defaults(func=run)
 
 
 def run(args) -> int:

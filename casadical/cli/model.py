@@ -22,7 +22,7 @@ def register(sub) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the random poses (default: %(default)s)")
     add_json(p, "the model description")
     add_force(p)
-    p.set_defaults(func=run_inspect, inputs=("robot",))
+    p.set_defaults(func=run_inspect)
 
     p = sub.add_parser("predict", help="predict tool positions for joint readings",
                        description="Predict tool positions. MODEL is a robot (nominal model) or a "
@@ -33,7 +33,7 @@ def register(sub) -> None:
     p.add_argument("--out", required=True, metavar="OUT.csv", help="output CSV")
     add_checks(p, mismatch=True)
     add_force(p)
-    p.set_defaults(func=run_predict, inputs=("model", "poses"))
+    p.set_defaults(func=run_predict)
 
 
 def run_inspect(args) -> int:
@@ -124,6 +124,6 @@ def run_predict(args) -> int:
     data.with_positions(xyz).write_csv(args.out, overwrite=args.force)
     print(f"predicted {len(data)} poses -> {args.out}")
     if stats is not None:
-        how = "calibration" if cal is not None else "nominal model with its base pose fitted to them"
+        how = "calibrated model" if cal is not None else "nominal model with its base pose fitted to them"
         print(f"error against the measured positions ({how}): {stats.line()}")
     return 0

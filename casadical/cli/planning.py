@@ -12,7 +12,7 @@ import numpy as np
 from ..errors import DataWarning, IdentifiabilityError, InputError
 from ..files import atomic_open
 from ..planning.selectors import METHODS
-from .common import add_checks, add_force, check_options, check_outputs, float_in, int_at_least, write_json
+from .common import add_checks, add_force, add_json, check_options, check_outputs, float_in, int_at_least, write_json
 
 
 def register(sub) -> None:
@@ -36,11 +36,10 @@ def register(sub) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the ga and random methods (default: 0)")
     p.add_argument("--relaxation", choices=("first-order", "cvxpy"), default="first-order",
                    help="solver of the continuous relaxation (default: %(default)s)")
-    p.add_argument("--json", nargs="?", const="-", default=None, metavar="SUMMARY.json",
-                   help="also write the summary as JSON to SUMMARY.json ('-' or nothing: standard output)")
+    add_json(p, "the summary")
     add_checks(p)
     add_force(p)
-    p.set_defaults(func=cmd_plan_poses, inputs=("robot", "candidates"))
+    p.set_defaults(func=cmd_plan_poses)
 
     p = sub.add_parser(
         "candidates", help="generate candidate poses within the joint limits and a workspace",
@@ -58,7 +57,7 @@ def register(sub) -> None:
                    help="keep this far from the joint limits, degrees (default 5)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     add_force(p)
-    p.set_defaults(func=cmd_candidates, inputs=("robot",))
+    p.set_defaults(func=cmd_candidates)
 
 
 def cmd_plan_poses(args) -> int:

@@ -33,7 +33,7 @@ def register(sub) -> None:
     p.add_argument("--force", action="store_true",
                    help="discard the results RESULTS holds (of this or another protocol) and start over; "
                         "replace existing plots")
-    p.set_defaults(func=cmd_study, inputs=("protocol",))
+    p.set_defaults(func=cmd_study)
 
 
 def cmd_study(args) -> int:
