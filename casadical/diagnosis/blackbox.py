@@ -12,6 +12,7 @@ removes is structure no named cause explains: the ``unexplained`` finding.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Callable
 
 import numpy as np
 
@@ -19,8 +20,10 @@ from ..calibration import compensator_data, rbf_candidates, with_compensator
 from ..compensators.guard import fit_guarded
 from ..data import Measurements
 from ..result import CalibrationResult
+from .candidates import Candidate
+from .report import Finding, Step
 from .statistics import paired_gain
-from .validation import Scheme
+from .validation import KINDS, Scheme
 
 
 @dataclass
@@ -56,7 +59,7 @@ def blackbox(current: CalibrationResult, data: Measurements, all_schemes: list[S
     idx = np.flatnonzero(keep)
     cv: dict = {}
     worse = []
-    for kind in ("random", "time", "joint"):
+    for kind in KINDS:
         group = [x for x in all_schemes if x.kind == kind]
         before, after = np.zeros(len(X)), np.zeros(len(X))
         for s in group:
@@ -83,3 +86,28 @@ def blackbox(current: CalibrationResult, data: Measurements, all_schemes: list[S
     res = with_compensator(current, net, data, f"rbf_compensator: {net.n_centers_} Gaussian units "
                                                f"({info['reason']})")
     return BlackBox(True, res, cv, "")
+
+
+def blackbox_step(current: CalibrationResult, spec: str, cal: Measurements, val: Measurements,
+                  all_schemes: list[Scheme], settings, steps: list[Step], findings: list[Finding],
+                  progress: Callable[[str], None]) -> tuple[CalibrationResult, str]:
+    """The diagnosis's last step: try :func:`blackbox` on ``current`` (model ``spec``), record it in ``steps``
+    (and ``findings`` when accepted); returns the final model and its spec."""
+    bb = blackbox(current, cal, all_schemes, settings.seed, settings.alpha)
+    v0 = current.stats(val)
+    if not bb.accepted:
+        steps.append(Step(spec + "+rbf_compensator", current.calibration, v0, False,
+                          Candidate("unexplained"), cv_mm=bb.cv_mm, reason=bb.reason))
+        progress(f"black-box compensator rejected: {bb.reason}")
+        return current, spec
+    final, spec = bb.result, spec + "+rbf_compensator"
+    v1 = final.stats(val)
+    steps.append(Step(spec, final.calibration, v1, True, Candidate("unexplained"), cv_mm=bb.cv_mm))
+    findings.append(Finding(
+        Candidate("unexplained"), v0.mean_mm - v1.mean_mm,
+        "an RBF network on joint angles and gravity torques removes structure no named cause explains: "
+        "held-out mean " + ", ".join(f"{k} {bb.cv_mm[k + '_before']:.4f} -> {bb.cv_mm[k]:.4f} mm"
+                                     for k in KINDS), where="black-box compensator (rbf_compensator)",
+        holds_up={"cv_mm": bb.cv_mm}))
+    progress(f"black-box compensator accepted: validation mean {v0.mean_mm:.4f} -> {v1.mean_mm:.4f} mm")
+    return final, spec

@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import dataclass
+from dataclasses import asdict, dataclass
 from typing import Callable
 
 import numpy as np
@@ -36,7 +36,7 @@ from ..result import CalibrationResult, ErrorStats
 from ..robot import Robot
 from ..threads import limited_threads
 from . import transfer as transfer_mod
-from .blackbox import blackbox
+from .blackbox import blackbox_step
 from .candidates import Candidate, compose_spec, tell_apart
 from .findings import UnexplainedLog, describe
 from .periodic import halves, resolution
@@ -44,7 +44,7 @@ from .periodogram import Periodogram, joint_errors, periodogram
 from .report import DiagnosisReport, Finding, Step
 from .screening import Scored, Screen
 from .statistics import nested_test
-from .validation import (KINDS, Linearized, by_kind, cv_failure, cv_record, cv_text, extrapolation_gain,
+from .validation import (Linearized, by_kind, cv_failure, cv_record, cv_text, extrapolation_gain,
                          not_better, schemes)
 
 
@@ -412,24 +412,7 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
     parametric = current
     final, final_spec = current, compose_spec(accepted, geometric)
     if s.blackbox:
-        bb = blackbox(current, cal, dg.schemes, s.seed, s.alpha)
-        v0 = current.stats(val)
-        if bb.accepted:
-            final, final_spec = bb.result, final_spec + "+rbf_compensator"
-            v1 = final.stats(val)
-            dg.steps.append(Step(final_spec, final.calibration, v1, True, Candidate("unexplained"),
-                                 cv_mm=bb.cv_mm))
-            dg.findings.append(Finding(
-                Candidate("unexplained"), v0.mean_mm - v1.mean_mm,
-                "an RBF network on joint angles and gravity torques removes structure no named cause explains: "
-                "held-out mean " + ", ".join(f"{k} {bb.cv_mm[k + '_before']:.4f} -> {bb.cv_mm[k]:.4f} mm"
-                                             for k in KINDS), where="black-box compensator (rbf_compensator)",
-                holds_up={"cv_mm": bb.cv_mm}))
-            say(f"black-box compensator accepted: validation mean {v0.mean_mm:.4f} -> {v1.mean_mm:.4f} mm")
-        else:
-            dg.steps.append(Step(final_spec + "+rbf_compensator", current.calibration, v0, False,
-                                 Candidate("unexplained"), cv_mm=bb.cv_mm, reason=bb.reason))
-            say(f"black-box compensator rejected: {bb.reason}")
+        final, final_spec = blackbox_step(current, final_spec, cal, val, dg.schemes, s, dg.steps, dg.findings, say)
     describe(dg.findings, dg.support, dg.before, final, cal)
     dg.findings += list(dg.unexplained.by_joint.values())
     final_val = final.stats(val)
@@ -442,39 +425,9 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
                         + (" ..." if len(final.downweighted) > 10 else "") + "): likely bad measurements")
     study = None
     if other is not None:
-        named = [k for k, f in enumerate(dg.findings) if f.in_model and f.cause not in ("geometric", "unexplained")]
-        n_refit = s.transfer_refit_poses or min(len(cal), len(other) // 2)
-        if not s.transfer_base_poses < len(other) or not n_refit < len(other):
-            raise InputError(f"has {len(other)} poses: too few to re-estimate the base on "
-                             f"{s.transfer_base_poses} and the geometry on {n_refit} and judge on the rest",
-                             file=other.path)
-
-        def without(k: int) -> CalibrationResult | None:
-            f = dg.findings[k]
-            if f.cause == "unexplained" and not f.in_model:
-                # structure left out: what would it have done there?
-                return dg.fit(compose_spec(accepted + [dg.unexplained.strongest[f.candidate.joint]], geometric),
-                              start=parametric)
-            if k not in named:
-                return None
-            c = f.candidate
-            rest = [a for a in accepted if a != c and not (c.cause == "joint_compliance" and a.joint == c.joint
-                                                             and a.cause == "nonlinear_stiffness")]
-            return dg.fit(compose_spec(rest, geometric), start=parametric)
-
-        study = transfer_mod.study(final, dg.kinematic, without, len(dg.findings), other,
-                                   s.transfer_base_poses, n_refit, s.seed, say)
-        # the named causes alone there (the final model unless a black box was added)
-        named_only = study.final if parametric is final else transfer_mod.travel(parametric, other, study.split)
-        for k, f in enumerate(dg.findings):
-            if k in study.gains:
-                with_it, without_it = ((study.final, study.gains[k]) if f.in_model else (study.gains[k], named_only))
-                f.transfer = transfer_mod.finding_gain(with_it, without_it)
-            elif f.cause == "unexplained" and f.in_model:
-                f.transfer = transfer_mod.finding_gain(study.final, named_only)
+        study = transfer_mod.findings_study(dg, final, parametric, accepted, geometric, other, s, say)
     plots = {"val_errors_nominal_mm": (dg.nominal.errors(val) * 1000).tolist(),
              "val_errors_final_mm": (final.errors(val) * 1000).tolist()}
-    settings_doc = {k: getattr(s, k) for k in s.__dataclass_fields__}
     return DiagnosisReport(robot.name, dg.steps, dg.findings, final_spec, final_val, final, dg.periodograms, plots,
                            dg.notes, time.perf_counter() - t0, dg.kinematic.stats(val),
-                           study.to_dict() if study is not None else {}, settings_doc)
+                           study.to_dict() if study is not None else {}, asdict(s))

@@ -22,7 +22,9 @@ import numpy as np
 
 from ..calibration import calibrate
 from ..data import Measurements
+from ..errors import InputError
 from ..result import CalibrationResult
+from .candidates import Candidate, compose_spec
 
 
 @dataclass
@@ -103,4 +105,45 @@ def study(final: CalibrationResult, kinematic: CalibrationResult, without: Calla
         model = without(k)
         if model is not None:
             out.gains[k] = travel(model, other, split)
+    return out
+
+
+def findings_study(dg, final: CalibrationResult, parametric: CalibrationResult, accepted: list[Candidate],
+                   geometric: bool, other: Measurements, settings, progress: Callable[[str], None]) -> TransferStudy:
+    """Take a diagnosis (``dg``: its findings, fits and kinematic model) to ``other``; set each finding's verdict.
+
+    ``parametric`` is the model of the named causes (``final`` without a black box); a named finding is
+    judged against the model refitted without it, structure kept out against the model refitted with it.
+    """
+    s = settings
+    named = [k for k, f in enumerate(dg.findings) if f.in_model and f.cause not in ("geometric", "unexplained")]
+    n_refit = s.transfer_refit_poses or min(len(dg.cal), len(other) // 2)
+    if not s.transfer_base_poses < len(other) or not n_refit < len(other):
+        raise InputError(f"has {len(other)} poses: too few to re-estimate the base on "
+                         f"{s.transfer_base_poses} and the geometry on {n_refit} and judge on the rest",
+                         file=other.path)
+
+    def without(k: int) -> CalibrationResult | None:
+        f = dg.findings[k]
+        if f.cause == "unexplained" and not f.in_model:
+            # structure left out: what would it have done there?
+            return dg.fit(compose_spec(accepted + [dg.unexplained.strongest[f.candidate.joint]], geometric),
+                          start=parametric)
+        if k not in named:
+            return None
+        c = f.candidate
+        rest = [a for a in accepted if a != c and not (c.cause == "joint_compliance" and a.joint == c.joint
+                                                         and a.cause == "nonlinear_stiffness")]
+        return dg.fit(compose_spec(rest, geometric), start=parametric)
+
+    out = study(final, dg.kinematic, without, len(dg.findings), other, s.transfer_base_poses, n_refit, s.seed,
+                progress)
+    # the named causes alone there (the final model unless a black box was added)
+    named_only = out.final if parametric is final else travel(parametric, other, out.split)
+    for k, f in enumerate(dg.findings):
+        if k in out.gains:
+            with_it, without_it = ((out.final, out.gains[k]) if f.in_model else (out.gains[k], named_only))
+            f.transfer = finding_gain(with_it, without_it)
+        elif f.cause == "unexplained" and f.in_model:
+            f.transfer = finding_gain(out.final, named_only)
     return out
