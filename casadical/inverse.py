@@ -384,18 +384,22 @@ class _Equations:
             self.R_goal = self.model.flange_rotation(targets.q, nominal, self.cov, self.base0)
 
     def __call__(self, index: np.ndarray, q: np.ndarray, hold: bool) -> tuple[np.ndarray, np.ndarray]:
+        # the residual is CalibrationResult.predict itself, so that whatever it adds is honoured; the
+        # Jacobian is the model's
         r = self.cal.predict(_at(self.targets, index, q)) - self.goal[index]
         _, J = self.model.predict_q_jacobian(q, self.p, self.cov[index], self.base0)
         if not hold:
             return r, J
         R, Jw = self.model.flange_rotation_jacobian(q, self.p, self.cov[index], self.base0)
-        rw = Rotation.from_matrix(R @ self.R_goal[index].transpose(0, 2, 1)).as_rotvec()
-        return (np.concatenate([r, ORIENTATION_WEIGHT * rw], axis=1),
+        return (np.concatenate([r, ORIENTATION_WEIGHT * self._from_held(R, index)], axis=1),
                 np.concatenate([J, ORIENTATION_WEIGHT * Jw], axis=1))
 
     def orientation(self, index: np.ndarray, q: np.ndarray) -> np.ndarray:
         """Rotation vector from the held flange orientation to the model's at ``q`` (rad)."""
-        R = self.model.flange_rotation(q, self.p, self.cov[index], self.base0)
+        return self._from_held(self.model.flange_rotation(q, self.p, self.cov[index], self.base0), index)
+
+    def _from_held(self, R: np.ndarray, index: np.ndarray) -> np.ndarray:
+        """Rotation vectors from the held orientations of rows ``index`` to the rotations ``R`` (rad)."""
         return Rotation.from_matrix(R @ self.R_goal[index].transpose(0, 2, 1)).as_rotvec()
 
 
