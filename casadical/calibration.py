@@ -111,7 +111,7 @@ def _merge(prior: list[ErrorTerm], new: list[ErrorTerm]) -> tuple[list[ErrorTerm
         p = out[same]
         if hasattr(t, "harmonics"):
             merged = sorted(set(p.harmonics) | set(t.harmonics))
-            out[same] = restore_term(type(t)(merged), p.settings() | {"harmonics": merged})
+            out[same] = restore_term(type(t)(merged), p.settings())
         elif t.joints is not None and p.joints is not None and set(t.joints) - set(p.joints):
             out[same] = restore_term(type(t)(sorted(set(p.joints) | set(t.joints))), p.settings())
     return out, named

@@ -72,9 +72,12 @@ class Coverage:
         q = np.atleast_2d(np.asarray(q_deg, float))
         tol = 1e-6
         beyond = (q < self.q_min_deg - tol) | (q > self.q_max_deg + tol)
-        limit = max(far_factor * self.spacing_deg, 10.0)
-        far = _nearest(q, self.poses_deg) > limit if len(self.poses_deg) else np.zeros(len(q), bool)
+        far = _nearest(q, self.poses_deg) > self.far_limit_deg(far_factor) if len(self.poses_deg) else np.zeros(len(q), bool)
         return beyond, far
+
+    def far_limit_deg(self, far_factor: float = 4.0) -> float:
+        """Distance in joint space (deg) beyond which a pose is far from every calibration pose."""
+        return max(far_factor * self.spacing_deg, 10.0)
 
     def describe(self, q_deg: np.ndarray, lines: np.ndarray, file: str) -> list[str]:
         """Warnings (one line each) for poses that extrapolate; empty if none does."""
@@ -92,7 +95,7 @@ class Coverage:
         if only_far.any():
             rows = np.flatnonzero(only_far)
             out.append(f"{file}: {len(rows)} pose(s) (lines {_list(lines[rows])}) lie far from every "
-                       f"calibration pose (more than {max(4 * self.spacing_deg, 10.0):.0f} deg in joint space): "
+                       f"calibration pose (more than {self.far_limit_deg():.0f} deg in joint space): "
                        "the model interpolates over a gap there")
         return out
 

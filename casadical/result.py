@@ -293,7 +293,4 @@ def restore_term(term: ErrorTerm, settings: dict) -> ErrorTerm:
     kwargs = {k: v for k, v in settings.items() if k in allowed and k not in ("joints", "harmonics")}
     if not kwargs:
         return term
-    own = {k: getattr(term, k) for k in ("joints", "harmonics") if k in allowed and hasattr(term, k)}
-    if "harmonics" in own:
-        own.pop("joints", None)
-    return type(term)(**own, **kwargs)
+    return type(term)(joints=term.joints, **kwargs)   # a term with settings besides its joints takes joints

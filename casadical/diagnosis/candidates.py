@@ -4,6 +4,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+#: causes in a few words, for reports
+SHORT = {"geometric": "kinematic", "joint_compliance": "compliance", "nonlinear_stiffness": "progressive stiffness",
+         "joint_periodic": "periodic", "encoder_scale": "encoder scale", "backlash": "backlash",
+         "thermal_expansion": "thermal", "drift": "drift", "unexplained": "black box"}
+
 
 @dataclass(frozen=True)
 class Candidate:
@@ -33,14 +38,17 @@ class Candidate:
         harmonics to choose from)."""
         return {"drift": 2, "joint_periodic": 3}.get(self.cause, 1)
 
-    def label(self) -> str:
-        parts = [self.cause]
+    def label(self, short: bool = False) -> str:
+        """``joint_periodic joint 2 harmonic 17``; short (reports): ``periodic j2 h17``."""
+        parts = [SHORT.get(self.cause, self.cause.replace("_", " ")) if short else self.cause]
         if self.joint is not None:
-            parts.append(f"{'link' if self.cause == 'thermal_expansion' else 'joint'} {self.joint}")
+            link = self.cause == "thermal_expansion"
+            parts.append(("link" if link else "j") + str(self.joint) if short
+                         else f"{'link' if link else 'joint'} {self.joint}")
         if self.harmonic is not None:
-            parts.append(f"harmonic {self.harmonic}")
+            parts.append(f"h{self.harmonic}" if short else f"harmonic {self.harmonic}")
         if self.source == "motion":
-            parts.append("(direction of motion)")
+            parts.append("(motion)" if short else "(direction of motion)")
         return " ".join(parts)
 
     def to_dict(self) -> dict:

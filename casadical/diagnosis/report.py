@@ -137,7 +137,7 @@ class Finding:
 
 @dataclass
 class DiagnosisReport:
-    """Everything :func:`diagnose` found (JSON: :meth:`to_dict`, HTML: :mod:`.html`).
+    """Everything :func:`diagnose` found (JSON: :meth:`to_dict`, HTML: :func:`casadical.report.diagnosis_html`).
 
     Attributes
     ----------

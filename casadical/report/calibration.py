@@ -42,7 +42,8 @@ def calibration_html(result: CalibrationResult, data: Measurements, before: Cali
     robot = result.model.robot.name
     page = Page(f"casadical calibration: {robot}, {result.model.spec}")
     r0, r1 = before.residuals(data) * 1000, result.residuals(data) * 1000
-    e0, e1 = ErrorStats.of(np.linalg.norm(r0, axis=1) / 1000), ErrorStats.of(np.linalg.norm(r1, axis=1) / 1000)
+    n0, n1 = np.linalg.norm(r0, axis=1), np.linalg.norm(r1, axis=1)    # mm
+    e0, e1 = ErrorStats.of(n0 / 1000), ErrorStats.of(n1 / 1000)
 
     page.heading(f"Calibration of {robot}", 1)
     drop = e0.mean_mm - e1.mean_mm
@@ -59,11 +60,11 @@ def calibration_html(result: CalibrationResult, data: Measurements, before: Cali
                [[before_label, str(e0.n_poses), num(e0.mean_mm), num(e0.max_mm), num(e0.std_mm), num(e0.rms_mm)],
                 [Raw("calibrated: " + model_label(page, _short(result.model.spec), result.model.spec)),
                  str(e1.n_poses), num(e1.mean_mm), num(e1.max_mm), num(e1.std_mm), num(e1.rms_mm)]])
-    ref = page.figure(_distribution(np.linalg.norm(r0, axis=1), np.linalg.norm(r1, axis=1), before_label),
+    ref = page.figure(_distribution(n0, n1, before_label),
                       "fig-errors", "Distribution of the position error over the calibration poses, before "
                       "and after: histogram (left) and cumulative share of poses (right).")
     page.para(f"The whole distribution moves ({ref}): the median pose error goes from "
-              f"{np.median(np.linalg.norm(r0, axis=1)):.4f} mm to {np.median(np.linalg.norm(r1, axis=1)):.4f} mm, "
+              f"{np.median(n0):.4f} mm to {np.median(n1):.4f} mm, "
               f"the worst from {e0.max_mm:.4f} mm to {e1.max_mm:.4f} mm.")
 
     page.heading("Residuals per axis", anchor="residuals")

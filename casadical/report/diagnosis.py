@@ -14,24 +14,13 @@ from .parameters import parameter_table
 if TYPE_CHECKING:
     from ..diagnosis.report import DiagnosisReport, Finding, Step
 
+#: casadical.diagnosis.validation.KINDS (not imported: the diagnosis package pulls in scipy)
 KINDS = ("random", "time", "joint")
-SHORT = {"geometric": "kinematic", "joint_compliance": "compliance", "nonlinear_stiffness": "progressive stiffness",
-         "joint_periodic": "periodic", "encoder_scale": "encoder scale", "backlash": "backlash",
-         "thermal_expansion": "thermal", "drift": "drift", "unexplained": "black box"}
 
 
 def short_label(cand) -> str:
     """A candidate cause in a few words: ``compliance j2``, ``periodic j2 h17``, ``backlash j3 (motion)``."""
-    if cand is None:
-        return "nominal"
-    parts = [SHORT.get(cand.cause, cand.cause.replace("_", " "))]
-    if cand.joint is not None:
-        parts.append(f"{'link' if cand.cause == 'thermal_expansion' else 'j'}{cand.joint}")
-    if cand.harmonic is not None:
-        parts.append(f"h{cand.harmonic}")
-    if cand.source == "motion":
-        parts.append("(motion)")
-    return " ".join(parts)
+    return "nominal" if cand is None else cand.label(short=True)
 
 
 def step_label(step: Step) -> str:
