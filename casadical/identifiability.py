@@ -11,6 +11,7 @@ accepted columns names the parameters it is confounded with.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Iterable
 
 import numpy as np
 
@@ -70,6 +71,18 @@ def _priority(params: Parameters, i: int) -> tuple[int, int]:
     p = params.items[i]
     group = _GROUP_PRIORITY.get(p.group, 2) if p.term == "geometric" else 2
     return group, i
+
+
+def triangular_factor(blocks: Iterable[np.ndarray], P: int) -> np.ndarray:
+    """``R`` (at most P x P) with ``R^T R = J^T J`` of the rows of ``J`` given block by block (tall-skinny QR).
+
+    Memory stays that of one block; pass ``R`` to :func:`analyse` with
+    ``n_equations`` = the rows of ``J``.
+    """
+    R = np.zeros((0, P))
+    for block in blocks:
+        R = np.linalg.qr(np.vstack([R, block.reshape(-1, P)]), mode="r")
+    return R
 
 
 def analyse(J: np.ndarray, params: Parameters, tol: float = 1e-6,

@@ -21,6 +21,7 @@ import numpy as np
 
 from .data import Measurements
 from .errors import CasadicalError
+from .identifiability import triangular_factor
 from .model import Model
 from .parameters import Parameters
 
@@ -171,10 +172,7 @@ class CalibrationProblem:
         return (self.params.lower[f] - nom) / s, (self.params.upper[f] - nom) / s
 
     def _chunks(self):
-        N = self.n_poses
-        size = CHUNK if N > CHUNK else N
-        for a in range(0, N, size):
-            yield slice(a, min(a + size, N))
+        return _chunks(self.n_poses)
 
     def residuals(self, values: np.ndarray) -> np.ndarray:
         """Stacked residuals (m), shape (3N,)."""
@@ -182,11 +180,6 @@ class CalibrationProblem:
         for s in self._chunks():
             out[s] = self.model.predict(self.q[s], values, self.cov[s], self.base0) - self.xyz[s]
         return out.ravel()
-
-    def cost(self, values: np.ndarray) -> float:
-        """The loss at ``values`` (no Jacobian)."""
-        r = self.residuals(values).reshape(-1, 3)
-        return float(self.loss.rho(np.einsum("ij,ij->i", r, r)).sum())
 
     def linearize(self, values: np.ndarray) -> Linearization:
         """Residuals, weights, loss and normal equations at ``values``, accumulated over chunks of poses."""
@@ -196,12 +189,14 @@ class CalibrationProblem:
         A = np.zeros((nf, nf))
         g = np.zeros(nf)
         r_all = np.empty((self.n_poses, 3))
+        u2_all, w_all = np.empty(self.n_poses), np.empty(self.n_poses)
         for s in self._chunks():
             xyz, J = self.model.predict_jacobian(self.q[s], values, self.cov[s], self.base0)
             r = xyz - self.xyz[s]
             r_all[s] = r
             Jx = J[:, :, f] * scale                       # (n, 3, nf), scaled variables
-            w = self.loss.weight(np.einsum("ij,ij->i", r, r))
+            u2_all[s] = np.einsum("ij,ij->i", r, r)
+            w = w_all[s] = self.loss.weight(u2_all[s])
             Jw = Jx * np.sqrt(w)[:, None, None]
             Jw2 = Jw.reshape(-1, nf)
             A += Jw2.T @ Jw2
@@ -211,8 +206,7 @@ class CalibrationProblem:
                 # the loss's own curvature along each residual (Triggs' correction of IRLS): the matrix
                 # stays positive semi-definite, w^3 along r_i, and LM converges as fast as for least squares
                 A -= self.loss.delta * (v * (w ** 3)[:, None]).T @ v
-        u2 = np.einsum("ij,ij->i", r_all, r_all)
-        return Linearization(r_all, self.loss.weight(u2), float(self.loss.rho(u2).sum()), A, g)
+        return Linearization(r_all, w_all, float(self.loss.rho(u2_all).sum()), A, g)
 
     def residuals_jacobian(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Residuals (3N,) and their Jacobian w.r.t. the scaled free variables (3N, n_free).
@@ -233,11 +227,11 @@ def jacobian_factor(model: Model, q: np.ndarray, values: np.ndarray, cov: np.nda
     fits in memory; column inner products, hence every identifiability
     question, are those of ``J``.
     """
-    P = len(values)
-    R = np.zeros((0, P))
-    N = len(q)
-    size = CHUNK if N > CHUNK else N
-    for a in range(0, N, size):
-        _, J = model.predict_jacobian(q[a:a + size], values, cov[a:a + size], base0)
-        R = np.linalg.qr(np.vstack([R, J.reshape(-1, P)]), mode="r")
-    return R
+    return triangular_factor((model.predict_jacobian(q[s], values, cov[s], base0)[1] for s in _chunks(len(q))),
+                             len(values))
+
+
+def _chunks(N: int):
+    """Slices of at most ``CHUNK`` poses covering ``N``."""
+    for a in range(0, N, CHUNK):
+        yield slice(a, min(a + CHUNK, N))

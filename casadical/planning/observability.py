@@ -23,12 +23,12 @@ dominate every index by ten orders of magnitude.
 from __future__ import annotations
 
 import math
-from dataclasses import asdict, dataclass, field, replace
+from dataclasses import asdict, dataclass, field
 
 import numpy as np
 
 from ..errors import IdentifiabilityError, InputError
-from ..identifiability import Identifiability, analyse
+from ..identifiability import Identifiability, analyse, triangular_factor
 from ..threads import limited_threads
 
 #: poses per Jacobian evaluation of a candidate pool (bounds memory and CasADi's map size)
@@ -314,19 +314,16 @@ def _analyse_pool(J: np.ndarray, params) -> Identifiability:
     """:func:`casadical.identifiability.analyse` of a large pool's Jacobian, on a ``P x P`` factor.
 
     ``J = Q R`` (Householder QR, in chunks of rows) keeps every angle and
-    length between columns, which is all the analysis uses; only its test of
-    a parameter's effect is a root mean square over the rows, kept by
-    scaling ``R`` by ``sqrt(P / rows)``. Saves a Gram-Schmidt sweep and the
-    least-squares fits over ``3N`` rows (seconds at 10^5 poses).
+    length between columns, which is all the analysis uses. Saves a
+    Gram-Schmidt sweep and the least-squares fits over ``3N`` rows (seconds
+    at 10^5 poses).
     """
     rows = J.reshape(-1, J.shape[-1])
     n_rows, P = rows.shape
     if n_rows <= 4 * P:
         return analyse(J, params)
-    R = np.zeros((0, P))
-    for s in range(0, n_rows, 8192):
-        R = np.linalg.qr(np.vstack([R, rows[s:s + 8192]]), mode="r")
-    return replace(analyse(R * math.sqrt(len(R) / n_rows), params), n_equations=n_rows)
+    R = triangular_factor((rows[s:s + 8192] for s in range(0, n_rows, 8192)), P)
+    return analyse(R, params, n_equations=n_rows)
 
 
 def _blocks(A) -> np.ndarray:
