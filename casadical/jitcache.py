@@ -43,7 +43,8 @@ from pathlib import Path
 
 import casadi as ca
 
-from .errors import CasadicalError
+from .errors import CasadicalError, InputError
+from .files import atomic_write
 
 #: flags of every compilation: -O1 compiles the large Jacobian and Gauss-Newton Functions in about
 #: 60% of -O2's time and evaluates them as fast (benchmarks/bench_calibrate_cli.py)
@@ -187,27 +188,13 @@ def _compile(fun: ca.Function, folder: Path, key: str, cc: str) -> ca.Function:
 
 
 def _store(folder: Path, filename: str, data: bytes) -> None:
-    """Write an entry under a temporary name and rename it into place (skipped if the folder is not writable)."""
-    final = folder / filename
-    part = None
+    """Write an entry atomically (skipped if the folder is not writable); same name = same bytes, so a
+    concurrent writer's rename is harmless."""
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        fd, part = tempfile.mkstemp(prefix=f".{filename}.", suffix=_PART, dir=folder)
-        with os.fdopen(fd, "wb") as fh:
-            fh.write(data)
-            fh.flush()
-            os.fsync(fh.fileno())
-            umask = os.umask(0)
-            os.umask(umask)
-            os.fchmod(fh.fileno(), 0o666 & ~umask)  # as a plain open() would: a shared cache stays readable
-        os.replace(part, final)  # same name = same bytes: a concurrent writer's rename is harmless
-        part = None
-    except OSError:
+        atomic_write(folder / filename, data, overwrite=True)   # its temporary files end in _PART
+    except (OSError, InputError):
         return
-    finally:
-        if part is not None:
-            with contextlib.suppress(OSError):
-                os.unlink(part)
     prune(folder)
 
 
