@@ -12,10 +12,11 @@ from __future__ import annotations
 import contextlib
 import os
 import tempfile
+import tomllib
 from pathlib import Path
 from typing import IO, Iterator
 
-from .errors import InputError
+from .errors import CasadicalError, InputError
 
 EXISTS = "exists already; choose another name or pass --force to replace it"
 
@@ -85,3 +86,24 @@ def atomic_write(path: str | Path, data: str | bytes, overwrite: bool = False) -
     """Write ``data`` (text or bytes) to ``path`` atomically; see :func:`atomic_open`."""
     with atomic_open(path, "wb" if isinstance(data, bytes) else "w", overwrite=overwrite) as fh:
         fh.write(data)
+
+
+def read_toml(path: str | Path, error: type[CasadicalError] = InputError, label: str | None = None) -> dict:
+    """Parse a TOML file (UTF-8; a byte-order mark is skipped); any failure is one ``error`` naming the file.
+
+    ``label`` names the file in messages (default: ``path``).
+    """
+    label = str(path) if label is None else label
+    try:
+        raw = Path(path).read_bytes()
+    except OSError as e:
+        raise error(f"cannot read: {e.strerror or e}", file=label) from e
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise error(f"is not UTF-8 text (byte 0x{raw[e.start]:02x} at offset {e.start}); save it as UTF-8",
+                    file=label) from e
+    try:
+        return tomllib.loads(text)
+    except (tomllib.TOMLDecodeError, RecursionError) as e:
+        raise error(f"not valid TOML: {e}", file=label) from e

@@ -7,7 +7,6 @@ symbolic model (:mod:`casadical.model`) turns it into CasADi expressions.
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -15,6 +14,7 @@ from typing import Any
 import numpy as np
 
 from .errors import RobotFileError
+from .files import read_toml
 
 GRAVITY = 9.81
 PROBLEMS = Path(__file__).resolve().parent.parent / "problems"
@@ -125,19 +125,7 @@ def load_robot(spec: str | Path) -> Robot:
     if path.suffix.lower() == ".urdf":
         from .urdf import robot_from_urdf
         return robot_from_urdf(path)
-    try:
-        raw = path.read_bytes()
-    except OSError as e:
-        raise RobotFileError(f"cannot read: {e.strerror or e}", file=str(path)) from e
-    try:
-        text = raw.decode("utf-8-sig")  # a UTF-8 byte-order mark is harmless
-    except UnicodeDecodeError as e:
-        raise RobotFileError(f"is not UTF-8 text (byte 0x{raw[e.start]:02x} at offset {e.start}); "
-                             "save it as UTF-8", file=str(path)) from e
-    try:
-        data = tomllib.loads(text)
-    except (tomllib.TOMLDecodeError, RecursionError) as e:
-        raise RobotFileError(f"not valid TOML: {e}", file=str(path)) from e
+    data = read_toml(path, RobotFileError)
     return robot_from_dict(data, str(path))
 
 

@@ -10,7 +10,6 @@ the identification or the diagnosis to find it.
 from __future__ import annotations
 
 import math
-import tomllib
 from dataclasses import dataclass, field
 from pathlib import Path
 
@@ -18,6 +17,7 @@ import numpy as np
 
 from .data import Measurements
 from .errors import InputError
+from .files import read_toml
 from .kinematics import base_pose_matrix
 from .model import Model, pose_to_base0
 from .robot import PROBLEMS, Robot, _Validator, load_robot
@@ -354,15 +354,11 @@ class TomlValidator(_Validator):
         return out
 
 
-def read_toml(path: str | Path) -> dict:
-    """Parse a TOML file; unreadable or invalid files raise one :class:`InputError`."""
+def _finite_number(x) -> bool:
     try:
-        with open(path, "rb") as fh:
-            return tomllib.load(fh)
-    except tomllib.TOMLDecodeError as e:
-        raise InputError(f"not valid TOML: {e}", file=str(path)) from e
-    except OSError as e:
-        raise InputError(f"cannot read: {e.strerror or e}", file=str(path)) from e
+        return not isinstance(x, bool) and isinstance(x, (int, float)) and math.isfinite(x)
+    except OverflowError:   # an integer beyond the range of a float
+        return False
 
 
 def resolve_path(spec: str, relative_to: str | Path) -> str:
@@ -387,9 +383,7 @@ def effects_from_table(t: dict, robot: Robot, file: str, table: str = "truth") -
                          file=file, column=f"{table}.periodic_deg")
     for i, item in enumerate(t.get("periodic_deg", [])):
         where = f"{table}.periodic_deg[{i + 1}]"
-        if (not isinstance(item, list) or len(item) != 4
-                or any(isinstance(x, bool) or not isinstance(x, (int, float)) or not math.isfinite(x)
-                       for x in item)):
+        if not isinstance(item, list) or len(item) != 4 or not all(_finite_number(x) for x in item):
             raise InputError(f"must be [joint, harmonic, amplitude_deg, phase_deg], got {item!r}",
                              file=file, column=where)
         j, h, amp, ph = item

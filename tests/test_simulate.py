@@ -80,3 +80,21 @@ def test_protocols_generate(name):
     assert sum(len(s) for s in sets.values()) == sum(proto.sets.values())
     for s in sets.values():
         assert s.has_positions
+
+
+def test_protocol_file_with_a_byte_order_mark_and_a_huge_number(tmp_path):
+    """Protocols are read like robot files (UTF-8 BOM skipped); an integer beyond float range is one clear error."""
+    import pytest
+
+    from casadical.errors import InputError
+    from casadical.robot import PROBLEMS
+
+    text = (PROBLEMS / "protocols" / "ca-ys100.toml").read_text(encoding="utf-8")
+    bom = tmp_path / "bom.toml"
+    bom.write_bytes(b"\xef\xbb\xbf" + text.encode("utf-8"))
+    assert load_protocol(str(bom)).name == load_protocol("ca-ys100").name
+    huge = tmp_path / "huge.toml"
+    huge.write_text(text.replace("[truth]", "[truth]\nperiodic_deg = [[2, 1, 1" + "0" * 400 + ", 0]]", 1),
+                    encoding="utf-8")
+    with pytest.raises(InputError, match=r"periodic_deg\[1\]"):
+        load_protocol(str(huge))

@@ -30,6 +30,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from ..errors import ColumnMapError
+from ..files import read_toml
 
 __all__ = ["ColumnMap", "TimeColumn", "column_map_from_dict", "load_column_map", "presets"]
 
@@ -306,16 +307,6 @@ def presets() -> dict[str, Path]:
     return {Path(p.name).stem: Path(str(p)) for p in folder.iterdir() if p.name.endswith(".toml")}
 
 
-def _read_toml(path: Path, label: str) -> dict[str, Any]:
-    try:
-        with open(path, "rb") as fh:
-            return tomllib.load(fh)
-    except tomllib.TOMLDecodeError as e:
-        raise ColumnMapError(f"not valid TOML: {e}", file=label) from e
-    except OSError as e:
-        raise ColumnMapError(f"cannot read: {e.strerror or e}", file=label) from e
-
-
 def _override(spec: str) -> dict[str, Any]:
     """One ``--map key=value``: the value as TOML, else as a plain string (lists: comma separated)."""
     key, _, value = spec.partition("=")
@@ -383,7 +374,7 @@ def load_column_map(specs: Sequence[str]) -> ColumnMap:
                                  f"(first: {file})", file=spec)
         else:
             file = str(path)
-            base = _read_toml(path, file)
+            base = read_toml(path, ColumnMapError, file)
     if not specs:
         raise ColumnMapError("no mapping: give a mapping TOML file, a preset or key=value pairs",
                              file="--map")

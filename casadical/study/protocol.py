@@ -15,11 +15,11 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from ..errors import CasadicalError, InputError
+from ..files import read_toml
 from ..model import Model
 from ..planning.selectors import METHODS as SELECTORS
 from ..robot import PROBLEMS, Robot, load_robot, robot_from_dict, robot_to_dict
-from ..simulate import (Effects, TomlValidator, effects_from_table, load_protocol, read_toml, resolve_path,
-                        workspace_from_table)
+from ..simulate import Effects, TomlValidator, effects_from_table, load_protocol, resolve_path, workspace_from_table
 
 STUDY_DIR = PROBLEMS / "studies"
 SOLVERS = ("ipopt", "lm", "gn", "auto")
