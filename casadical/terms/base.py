@@ -16,7 +16,7 @@ from typing import Any, ClassVar
 from ..errors import ModelError
 from ..kinematics import Frames, Geometry, chain_angles, forward, gravity_torques
 from ..parameters import Parameter
-from ..robot import Robot
+from ..robot import GRAVITY, Robot
 
 REGISTRY: dict[str, type["ErrorTerm"]] = {}
 
@@ -148,3 +148,9 @@ def reach(robot: Robot, first: int = 1) -> float:
     links = sum(abs(j.a) + abs(j.d) + abs(j.b or 0.0) for j in robot.joints[first - 1:])
     loop = robot.loop.crank if robot.loop else 0.0
     return links + loop + float(sum(abs(robot.tool)))
+
+
+def max_gravity_torque(robot: Robot, j: int) -> float:
+    """Upper bound of the gravity torque at joint ``j`` (N m): every mass after it, payload included, at full reach."""
+    load = sum(jt.mass for jt in robot.joints[j - 1:]) + robot.payload_mass
+    return GRAVITY * load * reach(robot, j)

@@ -3,8 +3,8 @@
 from __future__ import annotations
 
 from ..parameters import Parameter
-from ..robot import GRAVITY, Robot
-from .base import Context, ErrorTerm, reach, register
+from ..robot import Robot
+from .base import Context, ErrorTerm, max_gravity_torque, register
 
 
 @register
@@ -25,8 +25,7 @@ class NonlinearStiffness(ErrorTerm):
     def parameters(self, robot: Robot) -> list[Parameter]:
         ps = []
         for j in self.joints:
-            load = sum(jt.mass for jt in robot.joints[j - 1:]) + robot.payload_mass
-            tau_max = GRAVITY * load * reach(robot, j)
+            tau_max = max_gravity_torque(robot, j)
             # a unit step of the scaled variable deflects the joint 0.1 mrad at full load
             scale = 1e-4 / tau_max ** 3 if tau_max > 0 else 1e-12
             ps.append(Parameter(f"cubic{j}", 0.0, "rad/(N*m)^3", scale, self.name, j))

@@ -8,7 +8,7 @@ from ..errors import ModelError
 from ..kinematics import Geometry
 from ..parameters import Parameter
 from ..robot import Robot
-from .base import Context, ReferencedTerm, register
+from .base import Context, ErrorTerm, ReferencedTerm, register
 
 
 @register
@@ -39,37 +39,31 @@ class ThermalExpansion(ReferencedTerm):
         super().__init__(None, t_ref)
         self.joints = None if joints is None else sorted({int(j) for j in joints})
 
-    @property
-    def links(self) -> list[int] | None:
-        """Links with their own coefficient (None: one for the whole arm)."""
-        return self.joints
-
     def bind(self, robot: Robot) -> None:
         bad = [j for j in self.joints or [] if not 1 <= j <= robot.n]
         if bad:
             raise ModelError(f"term thermal_expansion: links {bad} do not exist on {robot.name} "
                              f"(links 1..{robot.n})")
 
-    def spec(self) -> str:
-        return self.name if self.links is None else f"{self.name}[{','.join(map(str, self.links))}]"
+    spec = ErrorTerm.spec    # joints = links with their own coefficient (None: one for the whole arm)
 
     def settings(self) -> dict:
-        return {"t_ref": self.t_ref, "joints": self.links}
+        return {"t_ref": self.t_ref, "joints": self.joints}
 
     def parameters(self, robot: Robot) -> list[Parameter]:
         # aluminium 23e-6/K, steel 12e-6/K: bounds allow any plausible structure
-        if self.links is None:
+        if self.joints is None:
             return [Parameter("thermal_alpha", 0.0, "1/K", 1e-5, self.name, None, lower=-1e-4, upper=1e-4)]
         return [Parameter(f"thermal_alpha{j}", 0.0, "1/K", 1e-5, self.name, j, lower=-1e-4, upper=1e-4)
-                for j in self.links]
+                for j in self.joints]
 
     def geometry(self, ctx: Context, geom: Geometry) -> Geometry:
         dT = ctx.cov["temperature_c"] - self.t_ref
-        if self.links is None:
+        if self.joints is None:
             f = 1 + ctx.p["thermal_alpha"] * dT
             return replace(geom, a=[x * f for x in geom.a], b=[x * f for x in geom.b],
                            d=[x * f for x in geom.d], tool=[x * f for x in geom.tool],
                            loop=[x * f for x in geom.loop])
-        f = [1 + ctx.p[f"thermal_alpha{j}"] * dT if j in self.links else 1 for j in range(1, ctx.robot.n + 1)]
+        f = [1 + ctx.p[f"thermal_alpha{j}"] * dT if j in self.joints else 1 for j in range(1, ctx.robot.n + 1)]
         return replace(geom, a=[x * k for x, k in zip(geom.a, f)], b=[x * k for x, k in zip(geom.b, f)],
                        d=[x * k for x, k in zip(geom.d, f)])
