@@ -111,7 +111,7 @@ class Measurements:
 
     def line(self, i: int) -> int:
         """Line of pose ``i`` in its file (header = line 1), for error messages."""
-        return int(self.lines[i]) if self.lines is not None else int(self.rows[i]) + 2
+        return int(self.lines[i])
 
     def get(self, name: str) -> np.ndarray | None:
         """A numeric column, or None if absent."""

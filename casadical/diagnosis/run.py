@@ -403,10 +403,7 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
     s = settings or DiagnosisSettings()
     say = progress or (lambda _: None)
     for d in [cal, val] + ([other] if other is not None else []):
-        if d.n_joints != robot.n:
-            raise InputError(f"has {d.n_joints} joint columns but robot {robot.name} has {robot.n} joints",
-                             file=d.path)
-        check_poses(d, robot, **checks)
+        check_poses(d, robot, **checks)     # the joint count first
     dg = _Diagnosis(robot, cal, val, s, say)
     current, accepted, geometric = dg.run()
     parametric = current
