@@ -15,9 +15,8 @@ from typing import Any
 import numpy as np
 
 from .errors import CalibrationFileError, ModelError, RobotFileError
-from .model import parse_spec
+from .model import assemble_terms, parse_spec
 from .robot import Robot, robot_from_dict
-from .terms import make_term
 
 STATS_KEYS = ("n_poses", "mean_mm", "max_mm", "std_mm", "rms_mm")
 #: term settings that may be zero or negative (all other numeric settings must be positive)
@@ -73,17 +72,9 @@ def validate_calibration_document(doc: Any, path: str) -> None:
 def _terms(robot: Robot, spec: str, err) -> list:
     """The model's terms as :class:`~casadical.model.Model` builds them (geometric first), bound to the robot."""
     try:
-        terms = parse_spec(spec)
-        geo = [t for t in terms if t.name == "geometric"]
-        terms = (geo[:1] or [make_term("geometric")]) + [t for t in terms if t.name != "geometric"]
-        specs = [t.spec() for t in terms]
-        if len(set(specs)) != len(specs):
-            raise ModelError(f"a term is given twice in {spec!r}")
-        for t in terms:
-            t.bind(robot)
+        return assemble_terms(parse_spec(spec), robot)
     except ModelError as e:
         raise err("model", str(e)) from e
-    return terms
 
 
 def _check_settings(settings: Any, terms: list, err) -> None:

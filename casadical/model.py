@@ -78,6 +78,25 @@ def parse_spec(spec: str) -> list[ErrorTerm]:
     return terms
 
 
+def assemble_terms(terms: list[ErrorTerm], robot: Robot) -> list[ErrorTerm]:
+    """The terms of a model, geometric first (the nominal geometry if none is given), each bound to ``robot``.
+
+    Raises
+    ------
+    ModelError
+        A term is given twice, or does not fit the robot.
+    """
+    geo = [t for t in terms if t.name == "geometric"]
+    out = (geo[:1] or [make_term("geometric")]) + [t for t in terms if t.name != "geometric"]
+    seen = set()
+    for t in out:
+        if t.spec() in seen:
+            raise ModelError(f"term {t.spec()} given twice")
+        seen.add(t.spec())
+        t.bind(robot)
+    return out
+
+
 @dataclass
 class ExpressionSize:
     """Sizes of the symbolic expressions (for ``inspect``)."""
@@ -111,16 +130,8 @@ class Model:
         if isinstance(terms, str):
             terms = parse_spec(terms)
         self.robot = robot
-        geo = [t for t in terms if t.name == "geometric"]
-        self.geometric_free = bool(geo)
-        self.terms: list[ErrorTerm] = (geo[:1] or [make_term("geometric")]) + [
-            t for t in terms if t.name != "geometric"]
-        seen = set()
-        for t in self.terms:
-            if t.spec() in seen:
-                raise ModelError(f"term {t.spec()} given twice")
-            seen.add(t.spec())
-            t.bind(robot)
+        self.geometric_free = any(t.name == "geometric" for t in terms)
+        self.terms: list[ErrorTerm] = assemble_terms(terms, robot)
         items = [p for t in self.terms for p in t.parameters(robot)]
         self.parameters = Parameters(items)
         if not self.geometric_free:
