@@ -22,12 +22,10 @@ import warnings
 
 import numpy as np
 
-from .data import XYZ, Measurements
+from .data import XYZ, Measurements, looks_like_radians
 from .errors import DataFileError, DataWarning, InputError
 from .robot import Robot
 
-#: readings within +-2 pi "degrees" on every joint over this many rows look like radians
-MIN_ROWS_RADIANS = 5
 #: measured and predicted spreads of the tool points may differ by this factor at most
 SPREAD_FACTOR = 5.0
 #: below this spread of the predicted tool points (m) the poses barely move: no units check
@@ -115,15 +113,13 @@ def check_joint_limits(data: Measurements, robot: Robot, allow: bool = False) ->
 def check_angle_units(data: Measurements, robot: Robot, allow: bool = False) -> None:
     """Joint readings that look like radians in the ``_deg`` columns.
 
-    The rule: at least :data:`MIN_ROWS_RADIANS` rows, every reading of every
-    joint within +-2 pi, and a robot with a joint whose limits reach beyond
+    The rule: :func:`casadical.data.looks_like_radians` (every reading of every
+    joint within +-2 pi over a few rows), and a robot with a joint whose limits reach beyond
     +-2 pi degrees (on such a robot, calibration poses spread over tens of
     degrees).
     """
-    q = np.abs(data.q_deg)
     lim = np.degrees(np.abs(robot.limits)).max()
-    if allow or len(data) < MIN_ROWS_RADIANS or not q.max() > 0 or q.max() > 2 * math.pi + 1e-9 \
-            or lim <= 2 * math.pi:
+    if allow or not looks_like_radians(data.q_deg) or lim <= 2 * math.pi:
         return
     raise DataFileError(f"every joint reading of the {len(data)} rows lies within +-6.3: these look like "
                         "radians, but the q<j>_deg columns hold degrees; convert radians to degrees "

@@ -311,10 +311,19 @@ def _numeric(values: list[str], column: str, path: str, lines: list[int]) -> np.
     return out
 
 
+#: fewer rows than this never look like radians
+MIN_ROWS_RADIANS = 5
+
+
+def looks_like_radians(q_deg: np.ndarray, tol: float = 1e-9) -> bool:
+    """Joint readings (rows x joints) that look like radians: every one within +-2 pi (+ ``tol``), not all
+    zero, over :data:`MIN_ROWS_RADIANS` rows or more (readings in degrees span tens of degrees)."""
+    top = float(np.max(np.abs(q_deg))) if np.size(q_deg) else 0.0
+    return len(q_deg) >= MIN_ROWS_RADIANS and 0 < top <= 2 * math.pi + tol
+
+
 def _check_units(data: Measurements) -> None:
-    q = np.abs(data.q_deg)
-    # readings in degrees span tens of degrees; all within +-2 pi over many rows suggests radians
-    if len(data) >= 5 and q.max() <= 2 * math.pi + 1e-9 and q.max() > 0:
+    if looks_like_radians(data.q_deg):
         warnings.warn(f"{data.path}: every joint reading is within +-6.3: "
                       "these look like radians, but _deg columns must hold degrees", DataWarning,
                       stacklevel=3)

@@ -30,7 +30,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..data import NUMERIC_OPTIONAL, XYZ, Measurements
+from ..data import NUMERIC_OPTIONAL, XYZ, Measurements, looks_like_radians
 from ..errors import DataFileError, DataWarning, InputError
 from ..files import EXISTS
 from .column_map import DEVIATION_SIGNS, JOINT_UNITS, LENGTH_UNITS, RESERVED, ColumnMap
@@ -283,7 +283,7 @@ def _time_order(columns: dict[str, np.ndarray], lines: list[int], file: str,
 def _check_joint_unit(readings: list[tuple[int, np.ndarray]], unit: str, t: _Table) -> None:
     """Warn when the joint readings look like the other unit (the import goes on)."""
     top, j = max((float(np.max(np.abs(v))), j) for j, v in readings)
-    if unit == "deg" and len(t.rows) >= 5 and 0 < top <= 2 * math.pi:
+    if unit == "deg" and looks_like_radians(np.column_stack([v for _, v in readings]), tol=0.0):
         what = "every joint reading is within +-6.3: these look like radians"
     elif unit == "rad" and top > 2.02 * math.pi:
         what = f"column {t.header[j]!r} reaches {top:g}, more than 2 pi: degrees?"
