@@ -119,6 +119,13 @@ def pyplot():
     return plt
 
 
+def save_png(plt, fig, path: str | Path, overwrite: bool) -> None:
+    """Write ``fig`` as a PNG atomically and close it."""
+    with atomic_open(path, "wb", overwrite=overwrite) as fh:
+        fig.savefig(fh, format="png", dpi=110)
+    plt.close(fig)
+
+
 def plot(results: list[MethodResult], sets: dict[str, Measurements], path: str | Path, title: str = "",
          overwrite: bool = False) -> None:
     """Per-pose position error bars per method (one panel per pose set), as the seeds' figures; PNG."""
@@ -146,9 +153,7 @@ def plot(results: list[MethodResult], sets: dict[str, Measurements], path: str |
     fig.legend(handles, [lb.split(" (")[0] for lb in labels], fontsize=8, ncol=min(6, len(results)),
                loc="upper center", frameon=False)
     fig.tight_layout(rect=(0, 0, 1, 1 - 0.35 / (3.0 * len(sets) + 0.6) * (1 + (len(results) - 1) // 6)))
-    with atomic_open(path, "wb", overwrite=overwrite) as fh:
-        fig.savefig(fh, format="png", dpi=110)
-    plt.close(fig)
+    save_png(plt, fig, path, overwrite)
 
 
 def _spread(results, data) -> bool:

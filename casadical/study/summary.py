@@ -17,7 +17,6 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..files import atomic_open
 from .store import ResultStore
 from .task import COLUMNS
 
@@ -184,10 +183,10 @@ def plot_summary(summary: Summary, folder: str | Path, overwrite: bool = False) 
 
 
 def _save(plt, fig, path: Path, overwrite: bool) -> Path:
+    from ..methods.compare import save_png
+
     fig.tight_layout()
-    with atomic_open(path, "wb", overwrite=overwrite) as fh:
-        fig.savefig(fh, format="png", dpi=110)
-    plt.close(fig)
+    save_png(plt, fig, path, overwrite)
     return path
 
 
