@@ -31,7 +31,6 @@ from .coverage import Coverage
 from .data import Measurements
 from .errors import CasadicalWarning, ConvergenceWarning, IdentifiabilityError, IdentifiabilityWarning, InputError, SolverError
 from .identifiability import analyse
-from .kinematics import base_pose_matrix
 from .model import Model, parse_spec, pose_to_base0
 from .parameters import Parameters
 from .problem import CalibrationProblem, RobustLoss, jacobian_factor
@@ -345,11 +344,7 @@ def _solve(problem: CalibrationProblem, x0: np.ndarray, solver: str, opts: dict)
 
 def base_rotation(result: CalibrationResult) -> np.ndarray:
     """Rotation of the robot base frame in the measurement frame (3x3)."""
-    from .model import base0_to_pose
-    p = result.parameters
-    delta = base_pose_matrix([p[f"base_{k}"].value for k in "xyz"],
-                             [p[f"base_{k}"].value for k in ("roll", "pitch", "yaw")])
-    return (base0_to_pose(result.base0) @ delta)[:3, :3]
+    return result.base_matrix()[:3, :3]
 
 
 def compensator_data(result: CalibrationResult, data: Measurements) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -174,10 +174,15 @@ def gravity_torques(robot: Robot, frames: Frames, payload_mass) -> list:
 
 def base_pose_matrix(xyz, rpy) -> np.ndarray:
     """Numeric 4x4 pose from translation and fixed-axis roll-pitch-yaw (radians)."""
-    R, t = rpy_pose(*xyz, *rpy)
+    return pose_matrix(rpy_pose(*xyz, *rpy))
+
+
+def pose_matrix(pose) -> np.ndarray:
+    """Numeric 4x4 matrix of a pose ``(R, t)`` whose entries are constant CasADi expressions."""
+    R, t = pose
     T = np.eye(4)
-    T[:3, :3] = np.array(ca.DM(ca.evalf(R)))
-    T[:3, 3] = np.array(ca.DM(ca.evalf(t))).ravel()
+    T[:3, :3] = np.array(ca.evalf(ca.SX(R)))
+    T[:3, 3] = np.array(ca.evalf(ca.SX(t))).ravel()
     return T
 
 

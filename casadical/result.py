@@ -123,13 +123,16 @@ class CalibrationResult:
 
     # --- derived quantities ---------------------------------------------------
 
-    def base_pose(self) -> tuple[np.ndarray, np.ndarray]:
-        """Robot base in the measurement frame: translation (m) and roll-pitch-yaw (rad)."""
+    def base_matrix(self) -> np.ndarray:
+        """Robot base in the measurement frame, 4x4."""
         from .kinematics import base_pose_matrix
         p = self.parameters
-        delta = base_pose_matrix([p[f"base_{k}"].value for k in "xyz"],
-                                 [p[f"base_{k}"].value for k in ("roll", "pitch", "yaw")])
-        T = base0_to_pose(self.base0) @ delta
+        return base0_to_pose(self.base0) @ base_pose_matrix([p[f"base_{k}"].value for k in "xyz"],
+                                                             [p[f"base_{k}"].value for k in ("roll", "pitch", "yaw")])
+
+    def base_pose(self) -> tuple[np.ndarray, np.ndarray]:
+        """Robot base in the measurement frame: translation (m) and roll-pitch-yaw (rad)."""
+        T = self.base_matrix()
         return T[:3, 3], matrix_to_rpy(T[:3, :3])
 
     def stiffness(self) -> dict[int, tuple[float, float]]:

@@ -18,13 +18,11 @@ import math
 import xml.etree.ElementTree as ET
 from typing import TYPE_CHECKING
 
-import casadi as ca
 import numpy as np
 
 from .. import __version__
 from ..errors import ModelError
-from ..kinematics import Geometry, base_pose_matrix, forward, matrix_to_rpy
-from ..model import base0_to_pose
+from ..kinematics import Geometry, base_pose_matrix, forward, matrix_to_rpy, pose_matrix
 from ..robot import Robot
 from ..terms import Context, make_term
 
@@ -67,8 +65,8 @@ def robot_to_urdf(source: "CalibrationResult | Robot") -> str:
     mimics = [_mimic(robot, i) for i in range(n)]
 
     frames = forward(robot, [0.0] * n, geom)
-    links = [_matrix(p) for p in frames.link]
-    tool = _matrix(frames.tool)
+    links = [pose_matrix(p) for p in frames.link]
+    tool = pose_matrix(frames.tool)
     # the frame each joint turns: its link frame before the turn
     turn = []
     for i in range(n):
@@ -111,7 +109,7 @@ def _geometry(source) -> tuple[Robot, Geometry, np.ndarray, str]:
     robot = source.model.robot
     values = dict(zip(source.parameters.names, source.parameters.values.tolist()))
     geom = make_term("geometric").geometry(Context(robot, None, values, {}), Geometry.nominal(robot))
-    base = base0_to_pose(source.base0) @ base_pose_matrix(geom.base[:3], geom.base[3:])
+    base = source.base_matrix()
     left_out = ", ".join(t.spec() for t in source.model.terms[1:]) or "none"
     return robot, geom, base, f"calibration, model {source.model.spec}; terms left out: {left_out}"
 
@@ -163,14 +161,6 @@ def _upright(down: np.ndarray) -> np.ndarray:
     if down @ np.array([0.0, 0.0, -1.0]) < 1.0 - 1e-15:
         from scipy.spatial.transform import Rotation
         T[:3, :3] = Rotation.align_vectors([[0.0, 0.0, -1.0]], [down])[0].as_matrix()
-    return T
-
-
-def _matrix(pose) -> np.ndarray:
-    R, t = pose
-    T = np.eye(4)
-    T[:3, :3] = np.array(ca.evalf(ca.SX(R)))
-    T[:3, 3] = np.array(ca.evalf(ca.SX(t))).ravel()
     return T
 
 
