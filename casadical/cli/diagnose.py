@@ -53,7 +53,6 @@ def register(sub) -> None:
 def run(args) -> int:
     from ..data import Measurements
     from ..diagnosis import DiagnosisSettings, diagnose
-    from ..report import diagnosis_html
     from ..robot import load_robot
 
     check_outputs({"--json": args.json, "--html": args.html, "--out": args.out},
@@ -73,6 +72,8 @@ def run(args) -> int:
     write_json(args.json, report.to_dict(), args.force)
     print(f"\nreport -> {args.json}")
     if args.html:
+        from ..report import diagnosis_html  # matplotlib: imported only for the HTML report
+
         write_text(args.html, diagnosis_html(report), args.force)
         print(f"html report -> {args.html}")
     if args.out:

@@ -29,7 +29,7 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy import stats
+from scipy import special
 
 from ..data import Measurements
 from ..parameters import Parameter
@@ -189,7 +189,7 @@ def halves(fit: LinearFit, params: list[Parameter], data: Measurements, joint: i
     if joint is not None:
         splits.insert(0, ("joint", np.argsort(data.q[:, joint - 1], kind="stable")))
     n = len(order_t)
-    crit = float(stats.chi2.ppf(1 - alpha, len(names)))
+    crit = float(special.chdtri(len(names), alpha))  # chi-square quantile at 1 - alpha
     out = []
     for split, order in splits:
         est, cov = [], []
