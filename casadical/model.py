@@ -183,7 +183,8 @@ class Model:
         for t in self.terms:
             for j, off in t.joint_offsets(ctx).items():
                 offsets[j - 1] = offsets[j - 1] + off
-        frames = forward(robot, [a + o for a, o in zip(angles, offsets)], geom)
+        chain = [a + o for a, o in zip(angles, offsets)]
+        frames = forward(robot, chain, geom)
         R0 = ca.reshape(b0[:9], 3, 3).T  # row-major input
         base = compose((R0, b0[9:12]), rpy_pose(*geom.base))
         point = frames.tool[1]
@@ -199,7 +200,8 @@ class Model:
         tau = ca.vertcat(*ctx.torques()) if robot.n else ca.SX.zeros(0)
         dq = ca.vertcat(*[ca.SX(o) if not isinstance(o, ca.SX) else o for o in offsets])
         flange = ca.mtimes(base[0], frames.tool[0])  # flange (last link) rotation, measurement frame
-        self._sym = {"q": q, "p": p, "c": c, "b0": b0, "xyz": xyz, "tau": tau, "dq": dq, "flange": flange}
+        self._sym = {"q": q, "p": p, "c": c, "b0": b0, "xyz": xyz, "tau": tau, "dq": dq, "flange": flange,
+                     "chain": chain, "geom": geom, "R": base[0]}
         self._graphs: dict = {}
         self._fk: ca.Function | None = None
         self._fk_jac: ca.Function | None = None
@@ -240,6 +242,13 @@ class Model:
                 g = (lsq, [ca.triu(H)], (1, 3, 5), (0,))
         elif which == "fk":
             g = (ins, [xyz], (1, 3), ())
+        elif which == "fk_jac_angles":
+            # and the derivative w.r.t. an offset added to each chain angle: a joint-angle error term's
+            # column is this times the term's own derivative (the diagnosis screens periodic errors so)
+            A = ca.SX.sym("A", self.robot.n)
+            tool = forward(self.robot, [A[i] for i in range(self.robot.n)], S["geom"]).tool[1]
+            JA = ca.substitute(ca.mtimes(S["R"], ca.jacobian(tool, A)), A, ca.vertcat(*S["chain"]))
+            g = (ins, [xyz, ca.densify(ca.jacobian(xyz, p)), ca.densify(JA)], (1, 3), ())
         elif which == "fk_jac":
             g = (ins, [xyz, ca.densify(ca.jacobian(xyz, p))], (1, 3), ())
         elif which in ("tau", "dq"):
@@ -287,8 +296,8 @@ class Model:
         return True if N >= JIT_MIN_POSES else "cached"
 
     def per_pose_function(self, which: str, jit: bool | str = False) -> ca.Function:
-        """One of the per-pose Functions (``fk``, ``fk_jac``, ``cost``, ``grad``, ``gn_hess``, ``tau``, ``dq``,
-        ``fk_q_jac``, ``flange``, ``flange_jac``).
+        """One of the per-pose Functions (``fk``, ``fk_jac``, ``fk_jac_angles``, ``cost``, ``grad``, ``gn_hess``,
+        ``tau``, ``dq``, ``fk_q_jac``, ``flange``, ``flange_jac``).
 
         ``jit``: False for CasADi's virtual machine; True for compiled code,
         from the disk cache (:mod:`casadical.jitcache`) or compiled now and
@@ -372,6 +381,15 @@ class Model:
         xyz, J = self._batch("fk_jac", N)(q, p, cov, b0)
         # CasADi is column-major: each pose's 3 x P block arrives transposed
         return xyz, J.reshape(N, len(self.parameters), 3).transpose(0, 2, 1)
+
+    def predict_angle_jacobian(self, q, params=None, cov=None, base0=None
+                               ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Positions (N, 3), their Jacobian w.r.t. the parameters (N, 3, P) and w.r.t. an offset added to
+        each joint's chain angle (N, 3, n)."""
+        N, q, p, cov, b0 = self._inputs(q, params, cov, base0)
+        xyz, J, JA = self._batch("fk_jac_angles", N)(q, p, cov, b0)
+        return (xyz, J.reshape(N, len(self.parameters), 3).transpose(0, 2, 1),
+                JA.reshape(N, self.robot.n, 3).transpose(0, 2, 1))
 
     def predict_q_jacobian(self, q, params=None, cov=None, base0=None) -> tuple[np.ndarray, np.ndarray]:
         """Positions (N, 3) and their Jacobian w.r.t. the joint readings (N, 3, n), exact by AD."""

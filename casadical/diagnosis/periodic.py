@@ -103,7 +103,7 @@ def resolution(screen: Screen, joint: int, harmonic: int) -> Resolution:
     rw = screen.r.ravel() * sw
     r_perp = rw - Q @ (Q.T @ rw)
     sigma2 = float(r_perp @ r_perp) / max(len(rw) - G.shape[1], 1)
-    direction = screen.theta_dir[joint]
+    direction = screen.angle_dir[joint]
     q = screen.cal.q[:, joint - 1]
 
     def drop(h: int) -> float:

@@ -122,6 +122,7 @@ class _Diagnosis:
         self.findings: list[Finding] = []
         self.notes: list[str] = []
         self.periodograms: list[Periodogram] = []
+        self._periodograms_of: CalibrationResult | None = None    # the fit they were computed for
         self.unexplained = UnexplainedLog()
         self.before: dict[int, CalibrationResult] = {}      # fit before each finding, by finding index
         self.support: dict[int, tuple] = {}                  # (test, cv before, cv after, checks) by finding
@@ -224,15 +225,17 @@ class _Diagnosis:
             out += [Candidate("thermal_expansion", j) for j, jt in enumerate(self.robot.joints, start=1)
                     if abs(jt.a) + abs(jt.d) + abs(jt.b or 0.0) > 0]
         out.append(Candidate("drift"))  # time_s, or the row order
-        # periodograms of the projected residuals
-        model, p = current.model, current.parameters
-        _, J = model.predict_jacobian(self.cal.q, p.values, model.covariates(self.cal), current.base0)
-        resid = current.residuals(self.cal)
-        self.periodograms = []
-        for j in range(1, self.robot.n + 1):
-            s, w = joint_errors(resid, J[:, :, p.index(f"theta{j}")])
-            pg = periodogram(self.cal.q[:, j - 1], s, w, j, self.max_harmonic())
-            self.periodograms.append(pg)
+        # periodograms of the projected residuals (the same while the fit is the same)
+        if self._periodograms_of is not current:
+            model, p = current.model, current.parameters
+            _, J = model.predict_jacobian(self.cal.q, p.values, model.covariates(self.cal), current.base0)
+            resid = current.residuals(self.cal)
+            self.periodograms = []
+            for j in range(1, self.robot.n + 1):
+                s, w = joint_errors(resid, J[:, :, p.index(f"theta{j}")])
+                self.periodograms.append(periodogram(self.cal.q[:, j - 1], s, w, j, self.max_harmonic()))
+            self._periodograms_of = current
+        for j, pg in enumerate(self.periodograms, start=1):
             ranked = [int(h) for h in pg.harmonics[np.argsort(-pg.power)]
                       if (j, int(h)) not in self.unexplained.excluded][:2]
             # the first harmonic always: over a small range it mimics an encoder scale error,
@@ -252,9 +255,12 @@ class _Diagnosis:
 
     def round(self, current: CalibrationResult, accepted: list[Candidate], geometric: bool):
         """Screen, fit the best candidates by one step, accept one; None when nothing is supported."""
+        scr = None
         while True:
             cands = self.candidates(current, accepted)
-            scr = Screen(current, accepted, cands, geometric, self.cal, self.val)
+            # screening again (after setting structure aside) reuses the linearisation
+            scr = Screen(current, accepted, cands, geometric, self.cal, self.val) if scr is None else \
+                scr.with_candidates(cands)
             scored = scr.scores(cands)
             level = math.log10(self.s.alpha / max(self.n_tests(cands), 1))
             if not scored or scored[0].log10_p >= level:

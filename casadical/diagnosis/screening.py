@@ -18,6 +18,7 @@ Only the accepted candidate is then fitted for real.
 
 from __future__ import annotations
 
+import copy
 from dataclasses import dataclass
 
 import numpy as np
@@ -26,6 +27,7 @@ from ..data import Measurements
 from ..model import Model
 from ..problem import CalibrationProblem
 from ..result import CalibrationResult
+from ..terms.periodic import JointPeriodic
 from .candidates import Candidate, compose_spec
 from .statistics import NestedTest, nested_test
 from .validation import Linearized, solve_identified
@@ -67,13 +69,21 @@ class LinearFit:
 
 
 class Screen:
-    """The current fit and every candidate, linearised together on the calibration poses."""
+    """The current fit and every candidate, linearised together on the calibration poses.
+
+    The model evaluated holds the current terms and the candidates other
+    than periodic errors; a periodic candidate's columns are the exact
+    derivative of the tool point w.r.t. its joint's angle times ``sin`` and
+    ``cos`` of its harmonic, so screening again with other harmonics
+    (:meth:`with_candidates`) needs no new model and no new evaluation.
+    """
 
     def __init__(self, current: CalibrationResult, accepted: list[Candidate], cands: list[Candidate],
                  geometric: bool, cal: Measurements, val: Measurements):
         robot = current.model.robot
         self.current, self.cal, self.val = current, cal, val
-        self.model = big = Model(robot, compose_spec(accepted + cands, geometric), jit=False)
+        self.physical = {c for c in cands if c.cause != "joint_periodic"}
+        self.model = big = Model(robot, compose_spec(accepted + list(self.physical), geometric), jit=False)
         params = big.parameters.copy()
         for p in params:
             if p.name in current.parameters:
@@ -81,19 +91,44 @@ class Screen:
                 p.value, p.fixed = src.value, src.fixed
             else:
                 p.fixed = False
-        self.params = params
+        self.model_params = params
         prob = CalibrationProblem(big, params, cal.q, cal.xyz, big.covariates(cal), current.base0)
         self.free = prob.free
-        self.names = [params.names[i] for i in self.free]
-        self.scale = params.scales[self.free]
-        xyz, J = big.predict_jacobian(cal.q, params.values, prob.cov, current.base0)
-        self.J = J[:, :, self.free] * self.scale           # (N, 3, nf), scaled variables
-        self.theta_dir = {j: J[:, :, params.index(f"theta{j}")] for j in range(1, robot.n + 1)}
+        xyz, J, JA = big.predict_angle_jacobian(cal.q, params.values, prob.cov, current.base0)
+        self._model_cols = (J[:, :, self.free] * params.scales[self.free], [params.names[i] for i in self.free],
+                            params.scales[self.free])
+        self.angle_dir = {j: JA[:, :, j - 1] for j in range(1, robot.n + 1)}
         self.r = xyz - cal.xyz
         self.w = current.loss.weight(np.einsum("ij,ij->i", self.r, self.r))
-        self.cur = [k for k, n in enumerate(self.names)
-                    if n in current.parameters and not current.parameters[n].fixed]
         self._val: tuple | None = None
+        self._set_periodic(cands)
+
+    def with_candidates(self, cands: list[Candidate]) -> "Screen":
+        """The same linearisation screening ``cands`` (other periodic harmonics; no new non-periodic cause)."""
+        extra = {c for c in cands if c.cause != "joint_periodic"} - self.physical
+        if extra:
+            raise ValueError(f"not in this screen's model: {sorted(map(str, extra))}")
+        new = copy.copy(self)
+        new._set_periodic(cands)
+        return new
+
+    def _set_periodic(self, cands: list[Candidate]) -> None:
+        """Columns, names, scales and parameters: the model's, then each periodic candidate's."""
+        J, names, scale = self._model_cols
+        self.periodic = [c for c in cands if c.cause == "joint_periodic" and c.parameter_names()[0] not in names]
+        self.params = {p.name: p for p in self.model_params}
+        cols = [J]
+        for c in self.periodic:
+            ps = JointPeriodic([(c.joint, c.harmonic)]).parameters(self.model.robot)
+            self.params.update((p.name, p) for p in ps)
+            names = names + [p.name for p in ps]
+            scale = np.append(scale, [p.scale for p in ps])
+            cols.append(_periodic_columns(self.angle_dir[c.joint], self.cal.q[:, c.joint - 1], c.harmonic)
+                        * [p.scale for p in ps])
+        self.J = np.concatenate(cols, axis=2) if len(cols) > 1 else J
+        self.names, self.scale = names, scale
+        cur = self.current.parameters
+        self.cur = [k for k, n in enumerate(self.names) if n in cur and not cur[n].fixed]
 
     # -- the score test ----------------------------------------------------------
 
@@ -149,9 +184,23 @@ class Screen:
     def validation_errors(self, fit: LinearFit) -> np.ndarray:
         """Position errors (m) on the validation poses of a one-step fit (a judge, never used to decide)."""
         if self._val is None:
-            big, p = self.model, self.params
-            xyz, J = big.predict_jacobian(self.val.q, p.values, big.covariates(self.val), self.current.base0)
-            self._val = (xyz - self.val.xyz, J[:, :, self.free] * self.scale)
-        r, J = self._val
-        cols = [self.names.index(n) for n in fit.lin.names]
-        return np.linalg.norm(r + J[:, :, cols] @ fit.step, axis=1)
+            big, p = self.model, self.model_params
+            xyz, J, JA = big.predict_angle_jacobian(self.val.q, p.values, big.covariates(self.val),
+                                                    self.current.base0)
+            self._val = (xyz - self.val.xyz, J[:, :, self.free] * p.scales[self.free], JA)
+        r, J, JA = self._val
+        cols = []
+        for n in fit.lin.names:
+            if n in self._model_cols[1]:
+                cols.append(J[:, :, self._model_cols[1].index(n)])
+            else:   # a periodic candidate's: gear{j}_{s|c}{h}
+                c = next(c for c in self.periodic if n in c.parameter_names())
+                k = c.parameter_names().index(n)
+                col = _periodic_columns(JA[:, :, c.joint - 1], self.val.q[:, c.joint - 1], c.harmonic)[:, :, k]
+                cols.append(col * self.params[n].scale)
+        return np.linalg.norm(r + np.stack(cols, axis=2) @ fit.step, axis=1)
+
+
+def _periodic_columns(direction: np.ndarray, q: np.ndarray, h: int) -> np.ndarray:
+    """Columns (N, 3, 2) of ``s sin(h q) + c cos(h q)`` added to a joint's angle, ``direction`` its derivative."""
+    return np.stack([direction * np.sin(h * q)[:, None], direction * np.cos(h * q)[:, None]], axis=2)
