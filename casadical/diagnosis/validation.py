@@ -75,12 +75,15 @@ def solve_identified(A: np.ndarray, b: np.ndarray, rel: float = 1e-3) -> np.ndar
     ``A`` is a Gauss-Newton matrix; with its columns normalised, directions
     whose singular value (of the Jacobian) is below ``rel`` of the largest
     are what these poses cannot tell, and a refit would not move them.
+    Stacked systems (``A`` of shape (..., p, p), ``b`` (..., p)) are solved
+    at once.
     """
-    d = np.sqrt(np.clip(np.diag(A), 1e-300, None))
-    An = A / np.outer(d, d)
-    lam, V = np.linalg.eigh((An + An.T) / 2)
-    keep = lam > max((rel ** 2) * float(lam[-1]), 1e-300)
-    x = (V[:, keep] / lam[keep]) @ (V[:, keep].T @ (b / d))
+    d = np.sqrt(np.clip(np.diagonal(A, axis1=-2, axis2=-1), 1e-300, None))
+    An = A / (d[..., :, None] * d[..., None, :])
+    lam, V = np.linalg.eigh((An + np.swapaxes(An, -1, -2)) / 2)
+    keep = lam > np.maximum((rel ** 2) * lam[..., -1:], 1e-300)
+    inv = np.where(keep, 1.0 / np.where(keep, lam, 1.0), 0.0)
+    x = np.einsum("...ij,...j->...i", V, inv * np.einsum("...ji,...j->...i", V, b / d))
     return x / d
 
 
@@ -134,13 +137,17 @@ def linear_cv(J: np.ndarray, r: np.ndarray, weights: np.ndarray, all_schemes: li
     # per-pose contributions summed per fold: A_T = A - A_F, g_T = g - g_F (as matrix products: BLAS)
     J2, r2 = Jw.reshape(-1, p), rw.reshape(-1)
     A, g = J2.T @ J2, J2.T @ r2
+    folds = [F for s in all_schemes for F in s.folds]
+    AT, gT = np.empty((len(folds), p, p)), np.empty((len(folds), p))
+    for k, F in enumerate(folds):
+        JF, rF = Jw[F].reshape(-1, p), rw[F].reshape(-1)
+        AT[k], gT[k] = A - JF.T @ JF, g - JF.T @ rF
+    steps = iter(-solve_identified(AT, gT))      # every fold of every scheme in one stacked solve
     out = CVResult()
     for s in all_schemes:
         err = np.empty(N)
         for F in s.folds:
-            JF, rF = Jw[F].reshape(-1, p), rw[F].reshape(-1)
-            d = -solve_identified(A - JF.T @ JF, g - JF.T @ rF)
-            err[F] = np.linalg.norm(r[F] + J[F] @ d, axis=1)
+            err[F] = np.linalg.norm(r[F] + J[F] @ next(steps), axis=1)
         out.errors[s.name] = err
     return out
 
