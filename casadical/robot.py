@@ -13,7 +13,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import RobotFileError
+from .errors import InputError, RobotFileError
 from .files import read_toml
 
 GRAVITY = 9.81
@@ -103,8 +103,16 @@ _TABLE_KEYS = {
 }
 
 
-def load_robot(spec: str | Path) -> Robot:
+def load_robot(spec: str | Path, tip: str | None = None, base: str | None = None,
+               tool: tuple[float, float, float] | None = None) -> Robot:
     """Load a robot from a built-in name, a TOML path or a URDF path (``.urdf``).
+
+    Parameters
+    ----------
+    spec : str or Path
+    tip, base, tool : optional
+        For a URDF file only: the chain to read (see
+        :func:`casadical.urdf.robot_from_urdf`).
 
     Raises
     ------
@@ -112,6 +120,8 @@ def load_robot(spec: str | Path) -> Robot:
         Unknown name, unreadable file, or any invalid field (the message
         names the file, the table and the key; for URDF the line and the
         element, see :func:`casadical.urdf.robot_from_urdf`).
+    InputError
+        ``tip``, ``base`` or ``tool`` given for a robot that is not a URDF file.
     """
     text_spec = str(spec)
     if text_spec.lower() in BUILTINS and not Path(text_spec).exists():
@@ -124,7 +134,10 @@ def load_robot(spec: str | Path) -> Robot:
                 file=text_spec)
     if path.suffix.lower() == ".urdf":
         from .urdf import robot_from_urdf
-        return robot_from_urdf(path)
+        return robot_from_urdf(path, tip=tip, base=base, tool=tool)
+    if (tip, base, tool) != (None, None, None):
+        raise InputError(f"{text_spec}: a tip link, base link or tool point chooses the chain of a URDF file; "
+                         "this robot is not one (give a .urdf file, or drop those options)")
     data = read_toml(path, RobotFileError)
     return robot_from_dict(data, str(path))
 

@@ -467,3 +467,44 @@ def test_cli_bad_urdf_exits_2_with_one_line(tmp_path, capsys):
     assert main(["inspect", urdf_file(tmp_path, BAD["not-xml"][0], "x.urdf")]) == 2
     assert len(capsys.readouterr().err.strip().splitlines()) == 1
     assert main(["inspect", urdf_file(tmp_path, arm(), "ok.urdf"), "--model", "kinematic", "--poses", "30"]) == 0
+
+
+def test_cli_chooses_the_chain_of_a_urdf(tmp_path, capsys):
+    """--urdf-tip/--urdf-tool pick the chain and the measured point; yourdfpy is the reference."""
+    path = urdf_file(tmp_path, UR10_ROS)
+    q = np.random.default_rng(5).uniform(-1.5, 1.5, (12, 6))
+    poses = tmp_path / "poses.csv"
+    poses.write_text("q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg\n"
+                     + "".join(",".join(f"{v:.12f}" for v in np.degrees(row)) + "\n" for row in q))
+    out = tmp_path / "xyz.csv"
+    # the default chain branches: one line that names the leaves
+    assert main(["predict", path, str(poses), "--out", str(out)]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "branches: leaves ee_link, tool0" in err[0]
+    assert main(["predict", path, str(poses), "--out", str(out), "--urdf-tip", "tool0",
+                 "--urdf-tool", "0.01,-0.02,0.093"]) == 0
+    got = np.loadtxt(out, delimiter=",", skiprows=1)[:, -3:] / 1000
+    u = yourdfpy.URDF.load(path, load_meshes=False)
+    ref = []
+    for row in np.radians(np.loadtxt(poses, delimiter=",", skiprows=1)):
+        u.update_cfg(dict(zip(UR10_JOINTS, row)))
+        ref.append((u.get_transform("tool0") @ [0.01, -0.02, 0.093, 1.0])[:3])
+    assert np.abs(got - np.array(ref)).max() < 1e-6          # the CSV carries micrometres
+    # the other tip, from another base link: a different chain, not the same numbers
+    out2 = tmp_path / "xyz2.csv"
+    assert main(["predict", path, str(poses), "--out", str(out2), "--urdf-tip", "ee_link",
+                 "--urdf-base", "base_link"]) == 0
+    assert np.abs(np.loadtxt(out2, delimiter=",", skiprows=1)[:, -3:] / 1000 - np.array(ref)).max() > 1e-3
+
+
+@pytest.mark.parametrize("argv, expected", [
+    (["inspect", "ur10", "--urdf-tip", "tool0"], "not one (give a .urdf file"),
+    (["inspect", "{urdf}", "--urdf-tip", "nosuch"], "no link named 'nosuch'"),
+    (["inspect", "{urdf}", "--urdf-tip", "tool0", "--urdf-tool", "0.1,0.2"], "three numbers"),
+    (["inspect", "{urdf}", "--urdf-tip", "tool0", "--urdf-tool", "0.1,x,0"], "not a number"),
+])
+def test_cli_urdf_chain_errors_are_one_line(tmp_path, capsys, argv, expected):
+    path = urdf_file(tmp_path, UR10_ROS)
+    assert main([a.format(urdf=path) for a in argv]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert expected in err[-1] and "Traceback" not in "\n".join(err)

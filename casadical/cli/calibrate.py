@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from .common import add_checks, add_force, check_options, check_outputs, int_at_least, write_text
+from .common import (add_checks, add_force, add_urdf_chain, check_no_urdf_chain, check_options, check_outputs,
+                     int_at_least, robot_from_args, write_text)
 
 
 def register(sub) -> None:
@@ -34,6 +35,7 @@ def register(sub) -> None:
                         "down-weighted and reported) or none (plain least squares); default %(default)s")
     p.add_argument("--fix", default="", help="comma-separated parameters to hold at nominal (default: none)")
     add_checks(p)
+    add_urdf_chain(p)
     add_force(p)
     p.set_defaults(func=run)
 
@@ -41,14 +43,14 @@ def register(sub) -> None:
 def run(args) -> int:
     from ..calibration import CalibrationResult, calibrate, load_calibration
     from ..data import Measurements
-    from ..robot import load_robot
 
     check_outputs({"--out": args.out, "--html": args.html}, [args.robot, args.data], args.force)
     if args.robot.lower().endswith(".json"):
+        check_no_urdf_chain(args.robot, args)
         robot = load_calibration(args.robot)
         n = robot.model.robot.n
     else:
-        robot = load_robot(args.robot)
+        robot = robot_from_args(args.robot, args)
         n = robot.n
     data = Measurements.read_csv(args.data, n_joints=n, require_positions=True)
     opts = {"max_iter": args.max_iter} if args.max_iter else {}

@@ -178,6 +178,38 @@ def add_checks(p: argparse.ArgumentParser, mismatch: bool = False) -> None:
                        help="accept measured poses the calibration predicts far worse than its own (a warning)")
 
 
+def add_urdf_chain(p: argparse.ArgumentParser) -> None:
+    """``--urdf-base``, ``--urdf-tip``, ``--urdf-tool``: which chain of a URDF robot file is read."""
+    g = p.add_argument_group("URDF robot (ROBOT a .urdf file; defaults: the root link, the deepest leaf, its "
+                             "origin)")
+    g.add_argument("--urdf-base", metavar="LINK", help="link the robot stands on; positions are in its frame")
+    g.add_argument("--urdf-tip", metavar="LINK", help="link whose frame carries the measured point")
+    g.add_argument("--urdf-tool", type=_triple, metavar="X,Y,Z",
+                   help="measured point in the tip link's frame, metres (default: its origin)")
+
+
+def _triple(text: str) -> tuple[float, float, float]:
+    parts = text.split(",")
+    if len(parts) != 3:
+        raise argparse.ArgumentTypeError(f"three numbers separated by commas (metres), got {text!r}")
+    return tuple(_number(x) for x in parts)  # type: ignore[return-value]
+
+
+def robot_from_args(spec: str, args):
+    """The robot ``spec`` names (built-in, TOML or URDF), with the chain options of :func:`add_urdf_chain`."""
+    from ..robot import load_robot
+
+    return load_robot(spec, tip=args.urdf_tip, base=args.urdf_base, tool=args.urdf_tool)
+
+
+def check_no_urdf_chain(spec: str, args) -> None:
+    """Refuse the URDF chain options where ``spec`` is a calibration JSON (its robot is stored in it)."""
+    given = [f"--urdf-{k}" for k in ("base", "tip", "tool") if getattr(args, f"urdf_{k}", None) is not None]
+    if given:
+        raise InputError(f"{spec}: {', '.join(given)} choose the chain of a URDF robot; a calibration JSON "
+                         "already holds its robot (drop the option)")
+
+
 def check_options(args) -> dict:
     """Keyword overrides of :func:`casadical.checks.check_poses` from the options of :func:`add_checks`."""
     return {"allow_outside_limits": args.allow_outside_limits, "angles_are_degrees": args.angles_are_degrees,

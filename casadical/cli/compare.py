@@ -9,7 +9,8 @@ from ..data import Measurements
 from ..methods import method_names
 from ..methods.base import MethodResult
 from ..methods.compare import compare, format_table, parse_methods, plot, pyplot, to_json
-from .common import Status, add_checks, add_force, add_json, add_quiet, check_options, check_outputs, write_json
+from .common import (Status, add_checks, add_force, add_json, add_quiet, add_urdf_chain, check_options, check_outputs,
+                     robot_from_args, write_json)
 
 
 def register(sub) -> None:
@@ -30,19 +31,18 @@ def register(sub) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of every random choice (default: %(default)s)")
     add_checks(p)
     add_quiet(p)
+    add_urdf_chain(p)
     add_force(p)
     p.set_defaults(func=cmd_compare)
 
 
 def cmd_compare(args) -> int:
-    from ..robot import load_robot
-
     methods = parse_methods(args.methods)        # bad names fail before any work
     inputs = [args.cal, args.validate, args.extra]
     check_outputs({"--json": args.json, "--plot": args.plot}, [args.robot, *inputs], args.force)
     if args.plot:
         pyplot()                               # a missing matplotlib fails before the work, too
-    robot = load_robot(args.robot)
+    robot = robot_from_args(args.robot, args)
 
     def read(path):
         if path is None:

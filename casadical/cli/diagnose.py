@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from .common import (Status, add_checks, add_force, add_quiet, check_options, check_outputs, float_in, int_at_least,
-                     write_json, write_text)
+from .common import (Status, add_checks, add_force, add_quiet, add_urdf_chain, check_options, check_outputs, float_in,
+                     int_at_least, robot_from_args, write_json, write_text)
 
 
 def register(sub) -> None:
@@ -46,6 +46,7 @@ def register(sub) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the cross-validation folds (default: %(default)s)")
     add_checks(p)
     add_quiet(p)
+    add_urdf_chain(p)
     add_force(p)
     p.set_defaults(func=run)
 
@@ -53,11 +54,10 @@ def register(sub) -> None:
 def run(args) -> int:
     from ..data import Measurements
     from ..diagnosis import DiagnosisSettings, diagnose
-    from ..robot import load_robot
 
     check_outputs({"--json": args.json, "--html": args.html, "--out": args.out},
                   [args.robot, args.data, args.validate, args.transfer], args.force)
-    robot = load_robot(args.robot)
+    robot = robot_from_args(args.robot, args)
     read = lambda path: Measurements.read_csv(path, n_joints=robot.n, require_positions=True)  # noqa: E731
     cal, val = read(args.data), read(args.validate)
     other = read(args.transfer) if args.transfer else None

@@ -3,7 +3,8 @@
 from __future__ import annotations
 
 from ..errors import InputError
-from .common import Status, add_force, add_quiet, check_outputs, write_text
+from .common import (Status, add_force, add_quiet, add_urdf_chain, check_no_urdf_chain, check_outputs, robot_from_args,
+                     write_text)
 
 
 def register(sub) -> None:
@@ -16,6 +17,7 @@ def register(sub) -> None:
     p.add_argument("--urdf", metavar="OUT.urdf", help="the geometric model as URDF")
     p.add_argument("--table", metavar="OUT.csv", help="the parameter table as CSV (full precision)")
     p.add_argument("--markdown", metavar="OUT.md", help="the parameter table as Markdown")
+    add_urdf_chain(p)
     add_force(p)
     add_quiet(p)
     p.set_defaults(func=run)
@@ -24,14 +26,17 @@ def register(sub) -> None:
 def run(args) -> int:
     from ..calibration import load_calibration
     from ..parameter_table import parameter_table
-    from ..robot import load_robot
     from ..urdf import robot_to_urdf
 
     outputs = {"--urdf": args.urdf, "--table": args.table, "--markdown": args.markdown}
     if not any(outputs.values()):
         raise InputError("nothing to write: give --urdf OUT.urdf, --table OUT.csv and/or --markdown OUT.md")
     check_outputs(outputs, [args.source], args.force)
-    source = load_calibration(args.source) if args.source.lower().endswith(".json") else load_robot(args.source)
+    if args.source.lower().endswith(".json"):
+        check_no_urdf_chain(args.source, args)
+        source = load_calibration(args.source)
+    else:
+        source = robot_from_args(args.source, args)
     texts = {}   # everything is built before anything is written
     if args.urdf:
         texts[args.urdf] = robot_to_urdf(source)

@@ -7,7 +7,8 @@ import warnings
 
 import numpy as np
 
-from .common import add_checks, add_force, add_json, check_options, check_outputs, int_at_least, write_json
+from .common import (add_checks, add_force, add_json, add_urdf_chain, check_no_urdf_chain, check_options,
+                     check_outputs, int_at_least, robot_from_args, write_json)
 
 
 def register(sub) -> None:
@@ -21,6 +22,7 @@ def register(sub) -> None:
                    help="random poses for the identifiability analysis (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="seed of the random poses (default: %(default)s)")
     add_json(p, "the model description")
+    add_urdf_chain(p)
     add_force(p)
     p.set_defaults(func=run_inspect)
 
@@ -32,6 +34,7 @@ def register(sub) -> None:
     p.add_argument("poses", metavar="POSES.csv", help="joint readings (q1_deg, ...)")
     p.add_argument("--out", required=True, metavar="OUT.csv", help="output CSV")
     add_checks(p, mismatch=True)
+    add_urdf_chain(p)
     add_force(p)
     p.set_defaults(func=run_predict)
 
@@ -39,11 +42,10 @@ def register(sub) -> None:
 def run_inspect(args) -> int:
     from ..identifiability import analyse
     from ..model import Model
-    from ..robot import load_robot
     from ..simulate import sample_poses
 
     check_outputs({"--json": args.json}, [args.robot], args.force)
-    robot = load_robot(args.robot)
+    robot = robot_from_args(args.robot, args)
     model = Model(robot, args.model)
     rng = np.random.default_rng(args.seed)
     q = sample_poses(robot, args.poses, rng, floor_z=None)
@@ -92,18 +94,18 @@ def run_predict(args) -> int:
     from ..data import Measurements
     from ..errors import ExtrapolationWarning
     from ..model import Model
-    from ..robot import load_robot
 
     check_outputs({"--out": args.out}, [args.model, args.poses], args.force)
     if args.model.lower().endswith(".json"):
         from ..calibration import load_calibration
+        check_no_urdf_chain(args.model, args)
         cal = load_calibration(args.model)
         robot = cal.model.robot
         data = Measurements.read_csv(args.poses, n_joints=robot.n)
         xyz = cal.predict(data)
     else:
         cal = None
-        robot = load_robot(args.model)
+        robot = robot_from_args(args.model, args)
         model = Model(robot, "nominal")
         data = Measurements.read_csv(args.poses, n_joints=robot.n)
         xyz = model.predict(data.q, cov=model.covariates(data))

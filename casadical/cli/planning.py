@@ -12,7 +12,8 @@ import numpy as np
 from ..errors import DataWarning, IdentifiabilityError, InputError
 from ..files import atomic_open
 from ..planning.selectors import METHODS
-from .common import add_checks, add_force, add_json, check_options, check_outputs, float_in, int_at_least, write_json
+from .common import (add_checks, add_force, add_json, add_urdf_chain, check_options, check_outputs, float_in,
+                     int_at_least, robot_from_args, write_json)
 
 
 def register(sub) -> None:
@@ -38,6 +39,7 @@ def register(sub) -> None:
                    help="solver of the continuous relaxation (default: %(default)s)")
     add_json(p, "the summary")
     add_checks(p)
+    add_urdf_chain(p)
     add_force(p)
     p.set_defaults(func=cmd_plan_poses)
 
@@ -56,6 +58,7 @@ def register(sub) -> None:
     p.add_argument("--margin-deg", type=float_in(0, 180, lo_open=False), default=5.0,
                    help="keep this far from the joint limits, degrees (default 5)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
+    add_urdf_chain(p)
     add_force(p)
     p.set_defaults(func=cmd_candidates)
 
@@ -67,10 +70,9 @@ def cmd_plan_poses(args) -> int:
     from ..model import Model
     from ..planning.observability import JIT_MIN_CANDIDATES, design_problem
     from ..planning.selectors import PlanSettings, select_poses
-    from ..robot import load_robot
 
     check_outputs({"--out": args.out, "--json": args.json}, [args.robot, args.candidates], args.force)
-    robot = load_robot(args.robot)
+    robot = robot_from_args(args.robot, args)
     data = Measurements.read_csv(args.candidates, n_joints=robot.n)
     N = len(data)
     if args.m > N:
@@ -159,13 +161,12 @@ def _parse_box(text: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
 
 def cmd_candidates(args) -> int:
     from ..data import Measurements
-    from ..robot import load_robot
     from ..simulate import sample_poses
 
     check_outputs({"--out": args.out}, [args.robot], args.force)
     floor = None if args.floor_z.strip().lower() == "none" else _float(args.floor_z, "--floor-z")
     box = _parse_box(args.box) if args.box else None
-    robot = load_robot(args.robot)
+    robot = robot_from_args(args.robot, args)
     span = np.degrees(robot.limits[:, 1] - robot.limits[:, 0])
     if 2 * args.margin_deg >= span.min():
         j = int(np.argmin(span)) + 1
