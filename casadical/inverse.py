@@ -39,6 +39,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from .calibration import CalibrationResult
+from .checks import check_poses
 from .data import XYZ, Measurements
 from .errors import ConvergenceWarning, InputError
 
@@ -214,7 +215,7 @@ def held_description(n: int, orientation: bool) -> str:
 
 def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: float = 1e-4,
                max_iter: int = 30, max_change_deg: float = 5.0, orientation: bool | None = None,
-               check: bool = True) -> CompensationResult:
+               check: bool = True, **checks: bool) -> CompensationResult:
     """Corrected joints that put the calibrated model's tool point on each target.
 
     Parameters
@@ -242,6 +243,11 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
         Raise :class:`TargetError` for a row that is not reached or whose
         solution is beyond a joint limit (default). With False the result
         carries the failures (:meth:`CompensationResult.failures`).
+    **checks : bool
+        Overrides of the plausibility checks of the targets
+        (:func:`casadical.checks.check_poses`: ``allow_outside_limits``,
+        ``angles_are_degrees``, ``positions_are_mm``): programmed joints
+        beyond the limits or in radians, target points in metres.
 
     Returns
     -------
@@ -251,6 +257,8 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
     ------
     InputError
         Targets without positions, joint count not the robot's, bad options.
+    DataFileError
+        A plausibility check failed (file, row and column named, with the override).
     TargetError
         With ``check``: the first failing row (file, row and joint column).
     """
@@ -274,6 +282,7 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
     hold = n >= 6 if orientation is None else bool(orientation)
     if hold and n < 6:
         raise InputError(f"the orientation cannot be held with {n} joints: 6 are needed")
+    check_poses(targets, model.robot, predicted=cal.predict(targets), **checks)
 
     eqs = _Equations(cal, targets, hold)
     tol = tolerance_mm * 1e-3

@@ -314,12 +314,19 @@ def test_solution_beyond_a_joint_limit_is_an_error_naming_row_and_column(files, 
     doc["robot"]["joint"][j]["max_deg" if res.dq[i, j] > 0 else "min_deg"] = limit
     tight = tmp_path / "tight.json"
     tight.write_text(json.dumps(doc))
-    beyond = np.flatnonzero(np.sign(res.dq[i, j]) * (np.degrees(res.q[:, j]) - limit) > 0)
+    # the rows whose programmed joint is within the tightened limit (row i is; a program beyond a limit is
+    # refused by the plausibility check before any solving)
+    side = np.sign(res.dq[i, j])
+    legal = np.flatnonzero(side * (np.degrees(res.q0[:, j]) - limit) <= 0)
+    path = tmp_path / "legal.csv"
+    Measurements({k: v[legal] for k, v in targets.columns.items()}).write_csv(path)
+    targets = Measurements.read_csv(path, n_joints=6)
+    beyond = np.flatnonzero(side * (np.degrees(res.q[legal, j]) - limit) > 0)
     first = beyond[0] + 2  # file row of the first row beyond the limit (the header is row 1)
     with pytest.raises(TargetError, match=rf"row {first}, column 'q{j + 1}_deg': the corrected joint would be"):
         compensate(load_calibration(tight), targets)
     out = tmp_path / "joints.csv"
-    line = cli_error(capsys, tight, d / "targets.csv", "--out", out)
+    line = cli_error(capsys, tight, path, "--out", out)
     assert f"row {first}, column 'q{j + 1}_deg'" in line and f"beyond its limit {limit:g} deg" in line
     assert not out.exists()
 
@@ -374,3 +381,27 @@ def test_position_only_on_six_axes_changes_less(files):
         free = compensate(cal, targets, orientation=False)
     assert free.orientation_error is None and "least joint change" in free.held
     assert np.all(np.linalg.norm(free.dq, axis=1) <= np.linalg.norm(held.dq, axis=1) + 1e-12)
+
+
+@pytest.mark.parametrize("change, expected, override", [
+    (lambda c: [c.__setitem__(f"q{j}_deg", np.radians(c[f"q{j}_deg"])) for j in range(1, 7)],
+     "these look like radians", "--angles-are-degrees"),
+    (lambda c: [c.__setitem__(k, c[k] / 1000) for k in ("x_mm", "y_mm", "z_mm")], "--positions-are-mm",
+     "--positions-are-mm"),
+    (lambda c: c["q1_deg"].__setitem__(3, 400.0), "row 5, column 'q1_deg'", "--allow-outside-limits"),
+])
+def test_implausible_targets_are_one_line_naming_the_fix(files, tmp_path, capsys, change, expected, override):
+    """Radian joints, metre points, a programmed joint beyond its limit: the check says so before any solving."""
+    d, cal, _ = files
+    targets = Measurements.read_csv(d / "targets.csv", n_joints=6)
+    cols = {k: np.array(v, dtype=v.dtype) for k, v in targets.columns.items()}
+    change(cols)
+    path = tmp_path / "implausible.csv"
+    Measurements(cols).write_csv(path)
+    out = tmp_path / "joints.csv"
+    line = cli_error(capsys, d / "cal.json", path, "--out", out)
+    assert str(path) in line and expected in line and override in line and not out.exists()
+    # the override lets it through the check (here to the solver, which cannot reach such targets)
+    main(["compensate", str(d / "cal.json"), str(path), "--out", str(out), override])
+    errors = [e for e in capsys.readouterr().err.splitlines() if e.startswith("casadical: error")]
+    assert all(expected not in e for e in errors)

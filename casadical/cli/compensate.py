@@ -7,7 +7,7 @@ import warnings
 
 import numpy as np
 
-from .common import add_force, check_outputs, float_in, int_at_least
+from .common import add_checks, add_force, check_options, check_outputs, float_in, int_at_least
 
 #: below this many rows CasADi's virtual machine beats compiling the model (~3 s once per run)
 JIT_MIN_ROWS = 10_000
@@ -37,6 +37,7 @@ def register(sub) -> None:
                         "(default: %(default)g deg)")
     p.add_argument("--position-only", action="store_true",
                    help="do not hold the flange orientation: least joint change that reaches the point")
+    add_checks(p)
     add_force(p)
     p.set_defaults(func=run)
 
@@ -53,7 +54,8 @@ def run(args) -> int:
     if len(targets) < JIT_MIN_ROWS:
         cal.model.jit = False
     result = compensate(cal, targets, tolerance_mm=args.tolerance_mm, max_iter=args.max_iter,
-                        max_change_deg=args.max_change_deg, orientation=False if args.position_only else None)
+                        max_change_deg=args.max_change_deg, orientation=False if args.position_only else None,
+                        **check_options(args))
     if cal.coverage is not None:
         for text in cal.coverage.describe(np.degrees(result.q), targets.lines, args.targets):
             warnings.warn(text, ExtrapolationWarning, stacklevel=2)
