@@ -363,7 +363,7 @@ def test_killed_worker_loses_nothing(cluster, reference, tmp_path):
     cluster.wait_for_workers(2, timeout=30)
 
 
-def test_a_task_that_kills_its_worker_is_an_error_row(cluster, reference, tmp_path):
+def test_a_task_that_kills_its_worker_is_lost_and_resumed(cluster, reference, tmp_path):
     path, serial = reference
     killed = []
 
@@ -384,10 +384,15 @@ def test_a_task_that_kills_its_worker_is_an_error_row(cluster, reference, tmp_pa
     assert killed and report.computed == REPS and report.error_rows > 0
     assert sorted(raw_repetitions(tmp_path / "r")) == EACH_ONCE
     rows, ref = ResultStore.open(tmp_path / "r").read().to_pylist(), serial.to_pylist()
-    failed = {r["repetition"] for r in rows if r["status"] == "error"}
-    assert failed and all("KilledWorker" in r["error"] for r in rows if r["status"] == "error")
+    failed = {r["repetition"] for r in rows if r["status"] == "lost"}
+    assert failed and all("KilledWorker" in r["error"] for r in rows if r["status"] == "lost")
+    assert not any(r["status"] == "error" for r in rows)
     assert [r["val_mean_mm"] for r in rows if r["repetition"] not in failed] == \
         [r["val_mean_mm"] for r in ref if r["repetition"] not in failed]
+    # a resumed run computes the lost repetitions again, and the table is the serial one
+    report = run_study(load_study(path), tmp_path / "r", client=cluster)
+    assert (report.skipped, report.computed) == (REPS - len(failed), len(failed))
+    assert_same_rows(ResultStore.open(tmp_path / "r").read(), serial)
 
 
 def test_interrupted_run_resumes_to_the_same_table(cluster, reference, tmp_path):

@@ -45,7 +45,7 @@ class RunReport:
     computed : int
         Finished and stored by this run.
     error_rows : int
-        Rows with ``status = "error"`` among those stored by this run.
+        Rows with ``status`` ``error`` or ``lost`` among those stored by this run.
     time_s : float
     backend : str
         ``serial``, ``dask`` (a local cluster) or the scheduler address.
@@ -192,8 +192,10 @@ def _run_dask(study: Study, todo: list[int], finished, report: RunReport, worker
             for fut, result in distributed.as_completed(futures, with_results=True, raise_errors=False):
                 rep = futures[fut]
                 if fut.status != "finished":
-                    # the task itself failed, e.g. it kept killing its workers (KilledWorker)
-                    result = error_rows(study, rep, fut.exception() if fut.status == "error" else str(result))
+                    # the task itself failed, e.g. it kept killing its workers (KilledWorker): kept as lost
+                    # rows, computed again by a resumed run
+                    result = error_rows(study, rep, fut.exception() if fut.status == "error" else str(result),
+                                        status="lost")
                 fut.release()
                 finished(rep, result)
         finally:

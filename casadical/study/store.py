@@ -191,11 +191,12 @@ class ResultStore:
         return sorted(self.path.glob("part-*.parquet"))
 
     def finished(self) -> set[int]:
-        """Repetitions whose rows are in the folder."""
+        """Repetitions whose rows are in the folder (those the backend lost, all ``lost``, are not)."""
         _, pq = arrow()
         done: set[int] = set()
         for p in self.parts():
-            done.update(pq.read_table(p, columns=["repetition"]).column(0).to_pylist())
+            t = pq.read_table(p, columns=["repetition", "status"])
+            done.update(r for r, s in zip(t.column(0).to_pylist(), t.column(1).to_pylist()) if s != "lost")
         return done
 
     def append(self, rows: list[dict]) -> Path:
@@ -213,16 +214,22 @@ class ResultStore:
     def read(self):
         """Every row as a pyarrow Table, by repetition then protocol order.
 
-        A repetition found in two parts (only possible if two runs wrote to
-        the folder at once, which the lock prevents) is taken from the first.
+        A repetition found in several parts is taken from the first that
+        holds it computed: a lost one is computed again by a resumed run,
+        and two runs writing at once (which the lock prevents) would
+        duplicate it.
         """
         pa, pq = arrow()
+        parts = [pq.read_table(p, schema=schema()) for p in self.parts()]
+        computed = [{r for r, s in zip(t.column("repetition").to_pylist(), t.column("status").to_pylist())
+                     if s != "lost"} for t in parts]
         tables, seen = [], set()
-        for p in self.parts():
-            t = pq.read_table(p, schema=schema())
+        for k, t in enumerate(parts):
             reps = np.asarray(t.column("repetition").to_numpy())
-            keep = ~np.isin(reps, list(seen))
-            seen.update(reps.tolist())
+            # lost here but computed in another part: that part's rows
+            later = set().union(*computed[k + 1:]) - computed[k] if k + 1 < len(parts) else set()
+            keep = ~np.isin(reps, list(seen | later))
+            seen.update(reps[keep].tolist())
             tables.append(t.filter(pa.array(keep)) if not keep.all() else t)
         if not tables:
             return schema().empty_table()

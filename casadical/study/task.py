@@ -8,7 +8,9 @@ the calibration poses of every plan and runs every method on them. The same
 on any number of workers.
 
 Errors never escape: a repetition, plan or method that fails gives rows
-with ``status = "error"`` and the error, so a study always completes.
+with ``status = "error"`` and the error, so a study always completes. A
+task the backend lost (its worker died) gives rows with ``status =
+"lost"``: they are kept, and a resumed run computes them again.
 """
 
 from __future__ import annotations
@@ -148,11 +150,12 @@ def run_method_spec(spec: MethodSpec, study: Study, cal: Measurements, rep: Repe
                                                                     rep.validation)
 
 
-def _row(repetition: int, plan: PlanSpec, m: int, method: MethodSpec, error: str = "") -> dict:
+def _row(repetition: int, plan: PlanSpec, m: int, method: MethodSpec, error: str = "", status: str = "error"
+         ) -> dict:
     row: dict = {name: (float("nan") if kind == "float" else {} if kind == "map" else 0 if kind == "int" else "")
                  for name, kind in COLUMNS}
     row.update(repetition=repetition, plan=plan.name, selector=plan.selector, n_poses=m, pool=plan.pool_size(m),
-               method=method.name, status="error" if error else "ok", error=error)
+               method=method.name, status=status if error else "ok", error=error)
     return row
 
 
@@ -162,10 +165,14 @@ def describe(e: BaseException) -> str:
     return f"{type(e).__name__}: {text[0]}" if text else type(e).__name__
 
 
-def error_rows(study: Study, repetition: int, error: BaseException | str) -> list[dict]:
-    """The rows of a repetition that failed as a whole, each carrying the error."""
+def error_rows(study: Study, repetition: int, error: BaseException | str, status: str = "error") -> list[dict]:
+    """The rows of a repetition that failed as a whole, each carrying the error.
+
+    ``status``: ``error`` (the repetition itself failed: it would again) or
+    ``lost`` (the backend lost the task: a resumed run computes it again).
+    """
     msg = error if isinstance(error, str) else describe(error)
-    return [_row(repetition, p, m, meth, msg) for p, m in study.cells() for meth in study.methods]
+    return [_row(repetition, p, m, meth, msg, status) for p, m in study.cells() for meth in study.methods]
 
 
 def _figures(res: MethodResult, truth: Truth, val: Measurements) -> dict:
