@@ -190,7 +190,10 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     if prior is not None:
         merged, named = _merge(list(prior.model.terms), terms)
         geometric = prior.model.geometric_free or "geometric" in named
-        model = Model(robot, [t for t in merged if t.name != "geometric" or geometric], jit=prior.model.jit)
+        spec = "+".join(["kinematic" if geometric else "nominal"] + [t.spec() for t in merged if t.name != "geometric"])
+        # the same terms: the calibration's own model (its symbolic build and evaluators) serves again
+        model = prior.model if spec == prior.model.spec else \
+            Model(robot, [t for t in merged if t.name != "geometric" or geometric], jit=prior.model.jit)
         old = {p.name for p in prior.parameters}
         params = model.parameters.copy()
         new_params = {p.name for p in params if p.name not in old}
