@@ -29,7 +29,8 @@ from .alignment import align
 from .checks import check_poses
 from .coverage import Coverage
 from .data import Measurements
-from .errors import CasadicalWarning, ConvergenceWarning, IdentifiabilityError, IdentifiabilityWarning, InputError, SolverError
+from .errors import (CasadicalWarning, ConvergenceWarning, IdentifiabilityError, IdentifiabilityWarning, InputError,
+                     SolverError, listing)
 from .identifiability import analyse
 from .model import Model, parse_spec, pose_to_base0
 from .parameters import Parameters
@@ -322,7 +323,7 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
             notes.append(f"the robust loss set aside {len(down)} pose(s) of {data.path} whose residual exceeds "
                          f"{math.sqrt(DOWNWEIGHT_REPORT ** -2 - 1) * loss.c:.1f} times the noise scale of "
                          f"{problem.loss.sigma * 1000:.4f} mm (lines "
-                         + ", ".join(str(d["line"]) for d in down[:10]) + (" ..." if len(down) > 10 else "")
+                         + listing([d["line"] for d in down], 10)
                          + "): likely bad measurements; check them, or pass --robust none to fit them anyway")
     result = CalibrationResult(model, params, base0, res, name, ident, unc, ErrorStats.of(norms), notes,
                                problem.loss, down, Coverage.of(data.q_deg))

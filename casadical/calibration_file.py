@@ -14,7 +14,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import CalibrationFileError, ModelError, RobotFileError
+from .errors import CalibrationFileError, ModelError, RobotFileError, listing
 from .model import assemble_terms, parse_spec
 from .robot import Robot, robot_from_dict
 
@@ -137,9 +137,8 @@ def _check_parameters(entries: Any, names: list[str], spec: str, err) -> None:
             raise err(f"{at}.reason", f"must be a string, got {_kind(e['reason'])}")
     missing = [n for n in names if n not in seen]
     if missing:
-        more = f" and {len(missing) - 8} more" if len(missing) > 8 else ""
         raise err("parameters", f"has {len(seen)} of the {len(names)} parameters of model {spec}; missing "
-                                f"{', '.join(missing[:8])}{more}")
+                                f"{listing(missing)}")
 
 
 def _check_base0(base0: Any, err) -> None:

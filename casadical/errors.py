@@ -100,3 +100,9 @@ class ExtrapolationWarning(CasadicalWarning):
 
 class CorrelationWarning(CasadicalWarning):
     """Identified parameters are strongly correlated or sit at a bound."""
+
+
+def listing(items, k: int = 8) -> str:
+    """The first ``k`` items, comma separated, and how many more there are (for messages)."""
+    items = [str(x) for x in items]
+    return ", ".join(items[:k]) + (f" and {len(items) - k} more" if len(items) > k else "")

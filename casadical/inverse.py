@@ -41,7 +41,7 @@ from scipy.spatial.transform import Rotation
 from .calibration import CalibrationResult
 from .checks import check_poses
 from .data import XYZ, Measurements
-from .errors import ConvergenceWarning, InputError
+from .errors import ConvergenceWarning, InputError, listing
 
 #: relative damping lambda of the pseudo-inverses (a singular value s gets s / (s^2 + (lambda s_max)^2)):
 #: start, smallest, and largest before a row counts as stuck
@@ -156,7 +156,7 @@ class CompensationResult:
         errors = self.failures()
         if errors:
             first, more = errors[0], [e.row for e in errors[1:]]
-            message = first.message + (f"; {len(more)} more row(s) fail: {_some(more)}" if more else "")
+            message = first.message + (f"; {len(more)} more row(s) fail: {listing(more, 10)}" if more else "")
             raise TargetError(message, file=first.file, row=first.row, column=first.column)
 
     def joints(self) -> Measurements:
@@ -309,7 +309,7 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
         if loose.size:
             warnings.warn(f"{targets.path}: the flange orientation cannot be held within {max_change_deg:g} deg "
                           f"of the programmed joints on {loose.size} row(s) "
-                          f"({_some([targets.line(i) for i in loose])}; up to "
+                          f"({listing([targets.line(i) for i in loose], 10)}; up to "
                           f"{np.degrees(angle[loose].max()):.3g} deg off; near a singular configuration?); "
                           "there the point is reached with the least joint change", ConvergenceWarning,
                           stacklevel=2)
@@ -412,9 +412,6 @@ class _Equations:
         return Rotation.from_matrix(R @ self.R_goal[index].transpose(0, 2, 1)).as_rotvec()
 
 
-def _some(rows: list, k: int = 10) -> str:
-    """The first ``k`` row numbers, comma separated."""
-    return ", ".join(str(r) for r in rows[:k]) + (", ..." if len(rows) > k else "")
 
 
 def _at(targets: Measurements, index: np.ndarray, q: np.ndarray) -> Measurements:

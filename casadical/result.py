@@ -20,7 +20,7 @@ from . import __version__
 from .data import Measurements
 from .calibration_file import validate_calibration_document
 from .coverage import Coverage
-from .errors import CalibrationFileError, CasadicalError, InputError
+from .errors import CalibrationFileError, CasadicalError, InputError, listing
 from .files import atomic_write
 from .identifiability import Identifiability
 from .kinematics import matrix_to_rpy
@@ -185,8 +185,7 @@ class CalibrationResult:
             lines.append(f"robust loss: pseudo-Huber, noise scale {self.loss.sigma * 1000:.4f} mm per axis, "
                          f"linear beyond {self.loss.c:g} sigma; "
                          + (f"{len(self.downweighted)} pose(s) down-weighted below half weight (file lines "
-                            + ", ".join(str(d["line"]) for d in self.downweighted[:12])
-                            + (" ..." if len(self.downweighted) > 12 else "") + ")"
+                            + listing([d["line"] for d in self.downweighted], 12) + ")"
                             if self.downweighted else "no pose down-weighted below half weight"))
         for n in self.notes:
             lines.append("note: " + n)

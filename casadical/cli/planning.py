@@ -9,7 +9,7 @@ import warnings
 
 import numpy as np
 
-from ..errors import DataWarning, IdentifiabilityError, InputError
+from ..errors import DataWarning, IdentifiabilityError, InputError, listing
 from ..files import atomic_open
 from ..planning.selectors import METHODS
 from .common import (add_checks, add_force, add_json, add_urdf_chain, check_options, check_outputs, float_in,
@@ -92,7 +92,7 @@ def cmd_plan_poses(args) -> int:
     if lost:
         warnings.warn(f"{args.candidates}: these candidates identify {problem.n_parameters} of the {len(generic)} "
                       f"parameters of model {model.spec} that poses spread over the joint ranges identify (not: "
-                      f"{', '.join(lost[:8])}{' ...' if len(lost) > 8 else ''}); the selection and its "
+                      f"{listing(lost)}); the selection and its "
                       f"certificate concern those {problem.n_parameters} only", DataWarning, stacklevel=2)
     if args.m < problem.min_poses:
         raise InputError(f"-m {args.m} poses give {3 * args.m} equations, fewer than the "

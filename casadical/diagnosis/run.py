@@ -29,7 +29,7 @@ import numpy as np
 from ..calibration import calibrate, set_references
 from ..checks import check_poses
 from ..data import Measurements
-from ..errors import InputError
+from ..errors import InputError, listing
 from ..model import Model, parse_spec
 from ..problem import RobustLoss
 from ..result import CalibrationResult, ErrorStats
@@ -424,8 +424,7 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
                         f"validation rms {final_val.rms_mm / math.sqrt(3):.4f} mm per axis")
     if final.downweighted:
         dg.notes.append(f"the robust loss set aside {len(final.downweighted)} calibration pose(s) of {cal.path} "
-                        "(lines " + ", ".join(str(d["line"]) for d in final.downweighted[:10])
-                        + (" ..." if len(final.downweighted) > 10 else "") + "): likely bad measurements")
+                        "(lines " + listing([d["line"] for d in final.downweighted], 10) + "): likely bad measurements")
     study = None
     if other is not None:
         study = transfer_mod.findings_study(dg, final, parametric, accepted, geometric, other, s, say)

@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from ..data import NUMERIC_OPTIONAL, XYZ, Measurements, looks_like_radians
-from ..errors import DataFileError, DataWarning, InputError
+from ..errors import DataFileError, DataWarning, InputError, listing
 from ..files import EXISTS
 from .column_map import DEVIATION_SIGNS, JOINT_UNITS, LENGTH_UNITS, RESERVED, ColumnMap
 
@@ -344,7 +344,7 @@ class _Header:
         close = difflib.get_close_matches(name, h, n=1)
         if close:
             return f" (did you mean {close[0]!r}?)"
-        return f" (the header has: {', '.join(h[:8])}{', ...' if len(h) > 8 else ''})"
+        return f" (the header has: {listing(h)})"
 
 
 def read_mapped(path: str | os.PathLike[str], column_map: ColumnMap,

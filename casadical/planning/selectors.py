@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import IdentifiabilityWarning, InputError
+from ..errors import IdentifiabilityWarning, InputError, listing
 from ..threads import limited_threads
 from .doptimal import (DOptimalDesign, RelaxationSettings, _check_m, d_efficiency,
                        d_optimal_design, relax_multiplicative)
@@ -266,7 +266,7 @@ def distinct_rows(A: np.ndarray) -> np.ndarray:
 
 def degenerate_message(missing: list[str], p: int) -> str:
     """Why a pool that misses parameters gets no certificate."""
-    shown = ", ".join(missing[:8]) + (f" and {len(missing) - 8} more" if len(missing) > 8 else "")
+    shown = listing(missing)
     return (f"the candidates identify only {p} parameters; {len(missing)} more that poses across the "
             f"joint ranges identify ({shown}) stay uncalibrated whatever is chosen from them: add "
             "candidates that move them (other poses, loads)")
