@@ -156,46 +156,9 @@ class Measurements:
             Naming file, row (1-based line; the header is row 1) and column.
         """
         path = str(path)
-        with _csv_rows(path) as rows:
-            first = next(rows, None)
-        if not first or not any(h.strip() for h in first):
-            raise DataFileError("is empty: expected a header row (q1_deg, ..., x_mm, y_mm, z_mm)",
-                                file=path, row=1)
-        header = [h.strip() for h in first]
-        seen: dict[str, int] = {}
-        for i, h in enumerate(header):
-            if not h:
-                raise DataFileError(f"header field {i + 1} is empty", file=path, row=1)
-            if _Q_LIKE.match(h) and not _Q.match(h):
-                raise DataFileError("joint columns are numbered from 1 without leading zeros: "
-                                    "q1_deg, q2_deg, ...", file=path, row=1, column=h)
-            if h in seen:
-                raise DataFileError(f"duplicated header name (fields {seen[h] + 1} and {i + 1})",
-                                    file=path, row=1, column=h)
-            seen[h] = i
-        qs = sorted(int(m.group(1)) for h in header if (m := _Q.match(h)))
-        if not qs:
-            raise DataFileError("has no joint columns: expected q1_deg, q2_deg, ...", file=path, row=1)
-        if qs != list(range(1, len(qs) + 1)):
-            present = set(qs)
-            first = next(k for k in range(1, len(qs) + 2) if k not in present)
-            raise DataFileError(f"joint columns are not consecutive: missing q{first}_deg",
-                                file=path, row=1, column=f"q{first}_deg")
-        if n_joints is not None and len(qs) != n_joints:
-            col = f"q{n_joints + 1}_deg" if len(qs) > n_joints else f"q{len(qs) + 1}_deg"
-            raise DataFileError(f"has {len(qs)} joint columns but the robot has {n_joints} joints",
-                                file=path, row=1, column=col)
-        present = [c for c in XYZ if c in seen]
-        if present and len(present) < 3:
-            missing = [c for c in XYZ if c not in seen][0]
-            raise DataFileError("has only some of x_mm, y_mm, z_mm", file=path, row=1, column=missing)
-        if require_positions and not present:
-            raise DataFileError("has no measured positions: columns x_mm, y_mm, z_mm are required here",
-                                file=path, row=1, column="x_mm")
-        numeric = {f"q{i}_deg" for i in qs} | set(present) | {c for c in NUMERIC_OPTIONAL if c in seen}
         # the rows are converted in chunks: the numbers of a 200,000-row file stay in memory, not its text
         with _csv_rows(path) as rows:
-            next(rows, None)
+            header, numeric = _check_header(next(rows, None), path, n_joints, require_positions)
             columns, lines = _read_body(rows, header, numeric, path)
         text = [h for h in header if columns[h] is None]
         if text:  # columns of words: read again for their exact text
@@ -231,6 +194,47 @@ class Measurements:
         for k, v in extra.items():
             cols[k] = np.asarray(v)
         return cls(cols)
+
+
+def _check_header(first: list[str] | None, path: str, n_joints: int | None, require_positions: bool
+                  ) -> tuple[list[str], set[str]]:
+    """The header row checked (see :meth:`Measurements.read_csv`); its names and the numeric columns."""
+    if not first or not any(h.strip() for h in first):
+        raise DataFileError("is empty: expected a header row (q1_deg, ..., x_mm, y_mm, z_mm)",
+                            file=path, row=1)
+    header = [h.strip() for h in first]
+    seen: dict[str, int] = {}
+    for i, h in enumerate(header):
+        if not h:
+            raise DataFileError(f"header field {i + 1} is empty", file=path, row=1)
+        if _Q_LIKE.match(h) and not _Q.match(h):
+            raise DataFileError("joint columns are numbered from 1 without leading zeros: "
+                                "q1_deg, q2_deg, ...", file=path, row=1, column=h)
+        if h in seen:
+            raise DataFileError(f"duplicated header name (fields {seen[h] + 1} and {i + 1})",
+                                file=path, row=1, column=h)
+        seen[h] = i
+    qs = sorted(int(m.group(1)) for h in header if (m := _Q.match(h)))
+    if not qs:
+        raise DataFileError("has no joint columns: expected q1_deg, q2_deg, ...", file=path, row=1)
+    if qs != list(range(1, len(qs) + 1)):
+        present = set(qs)
+        first = next(k for k in range(1, len(qs) + 2) if k not in present)
+        raise DataFileError(f"joint columns are not consecutive: missing q{first}_deg",
+                            file=path, row=1, column=f"q{first}_deg")
+    if n_joints is not None and len(qs) != n_joints:
+        col = f"q{n_joints + 1}_deg" if len(qs) > n_joints else f"q{len(qs) + 1}_deg"
+        raise DataFileError(f"has {len(qs)} joint columns but the robot has {n_joints} joints",
+                            file=path, row=1, column=col)
+    present = [c for c in XYZ if c in seen]
+    if present and len(present) < 3:
+        missing = [c for c in XYZ if c not in seen][0]
+        raise DataFileError("has only some of x_mm, y_mm, z_mm", file=path, row=1, column=missing)
+    if require_positions and not present:
+        raise DataFileError("has no measured positions: columns x_mm, y_mm, z_mm are required here",
+                            file=path, row=1, column="x_mm")
+    numeric = {f"q{i}_deg" for i in qs} | set(present) | {c for c in NUMERIC_OPTIONAL if c in seen}
+    return header, numeric
 
 
 @contextlib.contextmanager
