@@ -9,6 +9,7 @@ Jacobian by automatic differentiation.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -129,24 +130,59 @@ class Frames:
 
 
 def forward(robot: Robot, angles: list, geom: Geometry) -> Frames:
-    """Chain of link transforms for the given chain angles (theta offsets added here)."""
-    pose: Pose = (ca.SX.eye(3), ca.SX.zeros(3, 1))
+    """Chain of link transforms for the given chain angles (theta offsets added here).
+
+    The chain is built once per convention and joint count as a CasADi
+    Function of the angles and the geometry (:func:`_chain_function`) and
+    called on the given expressions: the same expression graph as building
+    it term by term, three times faster to make (a model builds two chains).
+    """
+    n = robot.n
+    F = _chain_function(robot.convention, n)
+
+    def column(values) -> ca.SX:
+        return ca.vertcat(*[v if isinstance(v, ca.SX) else ca.SX(v) for v in values]) if len(values) else ca.SX(0, 1)
+
+    out = F.call([column(angles), *(column(getattr(geom, k)) for k in _CHAIN_GEOMETRY), column(geom.tool)])[0]
     axes, origins, links = [], [], []
-    for i in range(robot.n):
-        th = angles[i] + geom.theta[i]
-        if robot.convention == "mdh":
-            pre = compose(pose, rotx(geom.alpha[i]), trans(geom.a[i]), roty(geom.beta[i]), trans(0, geom.b[i]))
-            axes.append(pre[0][:, 2])
-            origins.append(pre[1])
-            pose = compose(pre, rotz(th), trans(0, 0, geom.d[i]))
+    for i in range(n):
+        k = 18 * i
+        axes.append(out[k:k + 3])
+        origins.append(out[k + 3:k + 6])
+        links.append((ca.reshape(out[k + 6:k + 15], 3, 3), out[k + 15:k + 18]))
+    k = 18 * n
+    return Frames(axes, origins, links, (ca.reshape(out[k:k + 9], 3, 3), out[k + 9:k + 12]))
+
+
+_CHAIN_GEOMETRY = ("alpha", "a", "beta", "b", "d", "theta")
+
+
+@functools.lru_cache(maxsize=None)
+def _chain_function(convention: str, n: int) -> ca.Function:
+    """The chain of :func:`forward` as a Function of (angles, alpha, a, beta, b, d, theta, tool).
+
+    Output: one column holding, per joint, its axis, a point on it and its
+    link pose (R column-major, t), then the tool pose.
+    """
+    angles = ca.SX.sym("angles", n)
+    geo = {k: ca.SX.sym(k, n) for k in _CHAIN_GEOMETRY}
+    tool = ca.SX.sym("tool", 3)
+    pose: Pose = (ca.SX.eye(3), ca.SX.zeros(3, 1))
+    out = []
+    for i in range(n):
+        alpha, a, beta, b, d = (geo[k][i] for k in ("alpha", "a", "beta", "b", "d"))
+        th = angles[i] + geo["theta"][i]
+        if convention == "mdh":
+            pre = compose(pose, rotx(alpha), trans(a), roty(beta), trans(0, b))
+            axis, origin = pre[0][:, 2], pre[1]
+            pose = compose(pre, rotz(th), trans(0, 0, d))
         else:
-            axes.append(pose[0][:, 2])
-            origins.append(pose[1])
-            pose = compose(pose, rotz(th), trans(0, 0, geom.d[i]), trans(geom.a[i]),
-                           rotx(geom.alpha[i]), roty(geom.beta[i]), trans(0, geom.b[i]))
-        links.append(pose)
-    tool = compose(pose, trans(*geom.tool))
-    return Frames(axes, origins, links, tool)
+            axis, origin = pose[0][:, 2], pose[1]
+            pose = compose(pose, rotz(th), trans(0, 0, d), trans(a), rotx(alpha), roty(beta), trans(0, b))
+        out += [axis, origin, ca.vec(pose[0]), pose[1]]
+    end = compose(pose, trans(tool[0], tool[1], tool[2]))
+    out += [ca.vec(end[0]), end[1]]
+    return ca.Function(f"chain_{convention}_{n}", [angles, *geo.values(), tool], [ca.vertcat(*out)])
 
 
 def gravity_torques(robot: Robot, frames: Frames, payload_mass) -> list:
