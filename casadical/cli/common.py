@@ -206,8 +206,8 @@ def check_no_urdf_chain(spec: str, args) -> None:
     """Refuse the URDF chain options where ``spec`` is a calibration JSON (its robot is stored in it)."""
     given = [f"--urdf-{k}" for k in ("base", "tip", "tool") if getattr(args, f"urdf_{k}", None) is not None]
     if given:
-        raise InputError(f"{spec}: {', '.join(given)} choose the chain of a URDF robot; a calibration JSON "
-                         "already holds its robot (drop the option)")
+        raise InputError(f"{spec}: {', '.join(given)} {'chooses' if len(given) == 1 else 'choose'} the chain of a "
+                         "URDF robot; a calibration JSON already holds its robot (drop the option)")
 
 
 def check_options(args) -> dict:
