@@ -508,3 +508,21 @@ def test_cli_urdf_chain_errors_are_one_line(tmp_path, capsys, argv, expected):
     assert main([a.format(urdf=path) for a in argv]) == 2
     err = capsys.readouterr().err.strip().splitlines()
     assert expected in err[-1] and "Traceback" not in "\n".join(err)
+
+
+def test_cli_urdf_chain_options_refused_with_a_calibration(tmp_path, capsys):
+    robot = load_robot("ur10")
+    data, _ = simulate(robot, 40, Effects(), seed=3)
+    csv = tmp_path / "poses.csv"
+    data.write_csv(csv)
+    cal = tmp_path / "cal.json"
+    calibrate(robot, data, "kinematic", "lm", warn=False).save(cal)
+    for argv in (["predict", str(cal), str(csv), "--out", str(tmp_path / "p.csv"), "--urdf-tip", "tool0"],
+                 ["calibrate", str(cal), str(csv), "--model", "base", "--out", str(tmp_path / "c.json"),
+                  "--urdf-base", "world", "--urdf-tool", "0,0,0.1"],
+                 ["export", str(cal), "--table", str(tmp_path / "t.csv"), "--urdf-tip", "tool0"]):
+        capsys.readouterr()
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and str(cal) in err[0] and "a calibration JSON already holds its robot" in err[0]
+        assert not any(p.exists() for p in (tmp_path / "p.csv", tmp_path / "c.json", tmp_path / "t.csv"))
