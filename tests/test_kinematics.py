@@ -107,6 +107,29 @@ def test_jacobian_matches_finite_differences():
                                    err_msg=model.parameters.names[k])
 
 
+@pytest.mark.parametrize("name", ["ys100", "hh800", "arm4", "arm5", "arm7"])
+def test_angle_jacobian_is_the_derivative_of_a_joint_angle_error(name):
+    """predict_angle_jacobian: the column of a periodic error is the angle derivative times sin/cos, on MDH and
+    DH arms with and without beta, 4 to 7 joints, and the HH800's four-bar (where theta's column differs)."""
+    from arms import ARMS
+
+    robot = load_robot(name) if name in ("ys100", "hh800") else robot_from_dict(ARMS[name])
+    harm = [(j, 2 + j) for j in range(1, robot.n + 1)]
+    spec = "kinematic+compliance+encoder_scale+periodic[" + ",".join(f"{j}:{h}" for j, h in harm) + "]"
+    model = Model(robot, spec, jit=False)
+    rng = np.random.default_rng(7)
+    q = rng.uniform(-1.2, 1.2, (9, robot.n))
+    p0 = model.parameters.values + model.parameters.scales * rng.normal(0, 1, len(model.parameters))
+    xyz, J, JA = model.predict_angle_jacobian(q, p0)
+    np.testing.assert_allclose(xyz, model.predict(q, p0), atol=1e-14)
+    np.testing.assert_allclose(J, model.predict_jacobian(q, p0)[1], atol=1e-14)
+    for j, h in harm:
+        for kind, f in (("s", np.sin), ("c", np.cos)):
+            col = J[:, :, model.parameters.index(f"gear{j}_{kind}{h}")]
+            np.testing.assert_allclose(JA[:, :, j - 1] * f(h * q[:, j - 1])[:, None], col,
+                                       atol=1e-12 * max(1.0, np.abs(col).max()), err_msg=f"{name} joint {j}")
+
+
 def test_gravity_torques_hand_computed():
     m1, m2, mp, r1, r2 = 12.0, 7.0, 3.0, 0.3, 0.2
     # gravity along -y of the base frame: the joint axes (z) are horizontal
