@@ -228,11 +228,12 @@ class _Diagnosis:
         # periodograms of the projected residuals (the same while the fit is the same)
         if self._periodograms_of is not current:
             model, p = current.model, current.parameters
-            _, J = model.predict_jacobian(self.cal.q, p.values, model.covariates(self.cal), current.base0)
+            # a joint angle error moves the tool point along the derivative w.r.t. the joint's angle
+            _, _, JA = model.predict_angle_jacobian(self.cal.q, p.values, model.covariates(self.cal), current.base0)
             resid = current.residuals(self.cal)
             self.periodograms = []
             for j in range(1, self.robot.n + 1):
-                s, w = joint_errors(resid, J[:, :, p.index(f"theta{j}")])
+                s, w = joint_errors(resid, JA[:, :, j - 1])
                 self.periodograms.append(periodogram(self.cal.q[:, j - 1], s, w, j, self.max_harmonic()))
             self._periodograms_of = current
         for j, pg in enumerate(self.periodograms, start=1):
