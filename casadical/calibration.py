@@ -31,7 +31,7 @@ from .coverage import Coverage
 from .data import Measurements
 from .errors import (CasadicalWarning, ConvergenceWarning, IdentifiabilityError, IdentifiabilityWarning, InputError,
                      SolverError, listing)
-from .identifiability import analyse
+from .identifiability import Identifiability, analyse
 from .model import Model, parse_spec, pose_to_base0
 from .parameters import Parameters
 from .problem import CalibrationProblem, RobustLoss, jacobian_factor
@@ -271,21 +271,25 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
 
     # --- solve; with the robust loss, re-estimate the noise scale until it settles
     opts = solver_options or {}
-    x = problem.x_from_values(params.values)
-    res, name, solve_time, setup_time = None, "", 0.0, 0.0
-    estimate_scale = loss.robust and not math.isfinite(loss.sigma)
-    for _ in range(ROBUST_LOOPS if estimate_scale else 1):
-        if estimate_scale:
-            norms = np.linalg.norm(problem.residuals(problem.values_from_x(x)).reshape(-1, 3), axis=1)
-            new = loss.with_sigma_from(norms)
-            if res is not None and abs(new.sigma / problem.loss.sigma - 1) < 0.05:
-                break
-            problem.loss = new
-        res, name = _solve(problem, x, solver, opts)
-        solve_time += res.solve_time_s
-        setup_time += res.setup_time_s
-        x = res.x
-    res.solve_time_s, res.setup_time_s = solve_time, setup_time
+    res, name = _solve_robust(problem, problem.x_from_values(params.values), solver, opts,
+                              loss.robust and not math.isfinite(loss.sigma))
+    if ident is not None:
+        # a combination of other parameters in the nominal model that the fitted terms tell apart (the tilt
+        # of joint 1 against gravity once a compliance deflects the arm): identified when these poses
+        # determine it well
+        values = problem.values_from_x(res.x)
+        freed = separated(problem, values, ident)
+        if freed:
+            params.values = values
+            ident.free(freed, params)
+            notes.append(f"{', '.join(freed)}: a combination of other parameters in the nominal model, but the "
+                         f"fitted terms ({', '.join(t.spec() for t in model.terms[1:])}) tell them apart on these "
+                         "poses (std below a tenth of the typical size): identified")
+            first = res
+            problem = CalibrationProblem(model, params, q, xyz, cov, base0, problem.loss)
+            res, name = _solve_robust(problem, problem.x_from_values(params.values), solver, opts, False)
+            res.solve_time_s += first.solve_time_s
+            res.setup_time_s += first.setup_time_s
     if not np.isfinite(res.cost):
         raise SolverError(f"{name} ended with a non-finite cost ({res.status}); check the data for outliers "
                           "and the robot file for wrong units")
@@ -330,6 +334,58 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     if want_rbf:
         result = fit_compensator(result, data, warn=warn)
     return result
+
+
+def _solve_robust(problem: CalibrationProblem, x: np.ndarray, solver: str, opts: dict, estimate_scale: bool):
+    """Solve; with ``estimate_scale``, re-estimate the robust loss's noise scale until it settles."""
+    res, name, solve_time, setup_time = None, "", 0.0, 0.0
+    for _ in range(ROBUST_LOOPS if estimate_scale else 1):
+        if estimate_scale:
+            norms = np.linalg.norm(problem.residuals(problem.values_from_x(x)).reshape(-1, 3), axis=1)
+            new = problem.loss.with_sigma_from(norms)
+            if res is not None and abs(new.sigma / problem.loss.sigma - 1) < 0.05:
+                break
+            problem.loss = new
+        res, name = _solve(problem, x, solver, opts)
+        solve_time += res.solve_time_s
+        setup_time += res.setup_time_s
+        x = res.x
+    res.solve_time_s, res.setup_time_s = solve_time, setup_time
+    return res, name
+
+
+#: a structural combination of the nominal model is identified when its std is below this share of its scale
+SEPARATED_STD = 0.1
+
+
+def separated(problem: CalibrationProblem, values: np.ndarray, ident: Identifiability) -> list[str]:
+    """Parameters fixed as combinations of others at the nominal values that the fit tells apart well.
+
+    The structural analysis runs at nominal values, where every compliance
+    is zero; a fitted compliance can break a combination (tilting joint 1
+    changes the gravity torques, which moving the base does not). Such a
+    parameter is freed when its column, beyond what the free columns span,
+    determines it to ``SEPARATED_STD`` of its typical size at the noise of
+    the fit.
+    """
+    model, params = problem.model, problem.params
+    cands = [u.name for u in ident.unidentifiable if u.confounded_with]
+    if not cands or all(t.name == "geometric" for t in model.terms):
+        return []
+    xyz, J = model.predict_jacobian(problem.q, values, problem.cov, problem.base0)
+    r = xyz - problem.xyz
+    sw = np.repeat(np.sqrt(problem.loss.weight(np.einsum("ij,ij->i", r, r))), 3)
+    f = problem.free
+    Q, _ = np.linalg.qr(J[:, :, f].reshape(-1, len(f)) * params.scales[f] * sw[:, None])
+    sigma = math.sqrt(float(np.sum((r.ravel() * sw) ** 2)) / max(r.size - len(f), 1))
+    out = []
+    for name in cands:
+        i = params.index(name)
+        c = J[:, :, i].ravel() * params.scales[i] * sw
+        perp = float(np.linalg.norm(c - Q @ (Q.T @ c)))
+        if perp > 0 and sigma / perp < SEPARATED_STD:
+            out.append(name)
+    return out
 
 
 def _solve(problem: CalibrationProblem, x0: np.ndarray, solver: str, opts: dict):

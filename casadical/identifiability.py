@@ -59,6 +59,13 @@ class Identifiability:
         for n in self.identifiable:
             params[n].identifiable = True
 
+    def free(self, names: list[str], params: Parameters) -> None:
+        """Count ``names`` as identifiable after all (see :func:`casadical.calibration.separated`); free them."""
+        self.unidentifiable = [u for u in self.unidentifiable if u.name not in names]
+        self.identifiable = [n for n in params.names if n in set(self.identifiable) | set(names)]
+        for n in names:
+            params[n].fixed, params[n].identifiable, params[n].reason = False, True, ""
+
     def report(self) -> str:
         lines = [f"identifiable: {len(self.identifiable)} parameters from {self.n_equations} equations, "
                  f"condition number {self.condition_number:.3g} (scaled, column-normalised Jacobian)"]

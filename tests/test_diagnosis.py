@@ -84,6 +84,19 @@ def test_other_robot_compliance(seed):
     assert_found(rep, "joint_compliance", 2)
 
 
+@pytest.mark.parametrize("seed", SEEDS)
+def test_closed_chain_heavy_arm_compliance_and_gear_error(seed):
+    """HH800 (four-bar, 2 t links): a compliance and a gear error on joint 2, and nothing else named. Before the
+    fitted compliance could free the tilt of joint 1 against gravity, the fit stopped short of the truth and the
+    diagnosis named a spurious first harmonic of joint 1 for what was left."""
+    rep = run(load_robot("hh800"), Effects(stiffness={2: 2e6}, periodic=[(2, 9, math.radians(0.01), 0.4)]), seed,
+              n_cal=150, n_val=300)
+    named = causes(rep)
+    assert ("joint_compliance", 2, None) in named and ("joint_periodic", 2, 9) in named, named
+    assert not [c for c in named if c not in (("geometric", None, None), ("joint_compliance", 2, None),
+                                              ("joint_periodic", 2, 9))], named
+
+
 def test_cli_json_contract_and_html(tmp_path):
     robot = load_robot("ys100")
     cal, truth = simulate(robot, 60, Effects(stiffness={2: 1.5e6}), seed=9)
