@@ -31,10 +31,10 @@ from .coverage import Coverage
 from .data import Measurements
 from .errors import (CasadicalWarning, ConvergenceWarning, IdentifiabilityError, IdentifiabilityWarning, InputError,
                      SolverError, listing)
-from .identifiability import Identifiability, analyse
+from .identifiability import Identifiability, analyse, triangular_factor
 from .model import Model, parse_spec, pose_to_base0
 from .parameters import Parameters
-from .problem import CalibrationProblem, RobustLoss, jacobian_factor
+from .problem import CalibrationProblem, RobustLoss, _chunks, jacobian_factor
 from .result import CalibrationResult, ErrorStats, load_calibration, restore_term
 from .robot import Robot
 from .simulate import sample_poses
@@ -372,17 +372,24 @@ def separated(problem: CalibrationProblem, values: np.ndarray, ident: Identifiab
     cands = [u.name for u in ident.unidentifiable if u.confounded_with]
     if not cands or all(t.name == "geometric" for t in model.terms):
         return []
-    xyz, J = model.predict_jacobian(problem.q, values, problem.cov, problem.base0)
-    r = xyz - problem.xyz
-    sw = np.repeat(np.sqrt(problem.loss.weight(np.einsum("ij,ij->i", r, r))), 3)
     f = problem.free
-    Q, _ = np.linalg.qr(J[:, :, f].reshape(-1, len(f)) * params.scales[f] * sw[:, None])
-    sigma = math.sqrt(float(np.sum((r.ravel() * sw) ** 2)) / max(r.size - len(f), 1))
+    cols = np.concatenate([f, [params.index(n) for n in cands]])
+    scale = params.scales[cols]
+    ssr = [0.0]
+
+    def blocks():   # weighted, scaled Jacobian columns (free ones first), pose chunk by pose chunk
+        for s in _chunks(problem.n_poses):
+            xyz, J = model.predict_jacobian(problem.q[s], values, problem.cov[s], problem.base0)
+            u2 = np.einsum("ij,ij->i", xyz - problem.xyz[s], xyz - problem.xyz[s])
+            w = problem.loss.weight(u2)
+            ssr[0] += float(w @ u2)
+            yield J[:, :, cols] * scale * np.sqrt(w)[:, None, None]
+
+    R = triangular_factor(blocks(), len(cols))
+    sigma = math.sqrt(ssr[0] / max(3 * problem.n_poses - len(f), 1))
     out = []
-    for name in cands:
-        i = params.index(name)
-        c = J[:, :, i].ravel() * params.scales[i] * sw
-        perp = float(np.linalg.norm(c - Q @ (Q.T @ c)))
+    for j, name in enumerate(cands):
+        perp = float(np.linalg.norm(R[len(f):, len(f) + j]))     # the column beyond the free columns' span
         if perp > 0 and sigma / perp < SEPARATED_STD:
             out.append(name)
     return out
