@@ -85,16 +85,19 @@ def test_other_robot_compliance(seed):
 
 
 @pytest.mark.parametrize("seed", SEEDS)
-def test_closed_chain_heavy_arm_compliance_and_gear_error(seed):
-    """HH800 (four-bar, 2 t links): a compliance and a gear error on joint 2, and nothing else named. Before the
-    fitted compliance could free the tilt of joint 1 against gravity, the fit stopped short of the truth and the
-    diagnosis named a spurious first harmonic of joint 1 for what was left."""
-    rep = run(load_robot("hh800"), Effects(stiffness={2: 2e6}, periodic=[(2, 9, math.radians(0.01), 0.4)]), seed,
+@pytest.mark.parametrize("gear", [(2, 9), (3, 7)])
+def test_closed_chain_heavy_arm_compliance_and_gear_error(seed, gear):
+    """HH800 (four-bar, 2 t links): a compliance on joint 2 and a gear error, and nothing else named.
+
+    Two things used to add a cause: the fit stopped short of the truth until a fitted compliance could free the
+    tilt of joint 1 against gravity (a spurious first harmonic of joint 1 took up the rest), and a compliance of
+    joint 3, accepted (physical causes first) while the joint-3 gear error was not yet in the model, stayed after
+    it was found (the final check drops it)."""
+    j, h = gear
+    rep = run(load_robot("hh800"), Effects(stiffness={2: 2e6}, periodic=[(j, h, math.radians(0.01), 0.4)]), seed,
               n_cal=150, n_val=300)
-    named = causes(rep)
-    assert ("joint_compliance", 2, None) in named and ("joint_periodic", 2, 9) in named, named
-    assert not [c for c in named if c not in (("geometric", None, None), ("joint_compliance", 2, None),
-                                              ("joint_periodic", 2, 9))], named
+    truth = [("geometric", None, None), ("joint_compliance", 2, None), ("joint_periodic", j, h)]
+    assert sorted(causes(rep), key=str) == sorted(truth, key=str), causes(rep)
 
 
 def test_cli_json_contract_and_html(tmp_path):

@@ -12,9 +12,11 @@ periodic errors, which must also be resolved from their neighbouring
 harmonics and from geometry and agree over the two halves of the joint's
 range (:mod:`.periodic`); structure that passes the statistics but not
 these checks is reported as ``unexplained`` and kept out of the model.
-The validation poses judge every step and are never used to accept one. A
-black box fitted last (:mod:`.blackbox`) tells how much structure no named
-cause explains; :mod:`.transfer` takes the findings to another series.
+At the end every accepted cause is tested again against the final model
+(:mod:`.backward`). The validation poses judge every step and are never
+used to accept one. A black box fitted last (:mod:`.blackbox`) tells how
+much structure no named cause explains; :mod:`.transfer` takes the
+findings to another series.
 """
 
 from __future__ import annotations
@@ -36,15 +38,16 @@ from ..result import CalibrationResult, ErrorStats
 from ..robot import Robot
 from ..threads import limited_threads
 from . import transfer as transfer_mod
+from .backward import drop_redundant
 from .blackbox import blackbox_step
-from .candidates import Candidate, compose_spec, tell_apart
+from .candidates import Candidate, compose_spec
 from .findings import UnexplainedLog, describe
 from .periodic import halves, resolution
 from .periodogram import Periodogram, joint_errors, periodogram
 from .report import DiagnosisReport, Finding, Step
-from .screening import Scored, Screen
+from .screening import Scored, Screen, ambiguous
 from .statistics import nested_test
-from .validation import (Linearized, by_kind, cv_failure, cv_record, cv_text, extrapolation_gain,
+from .validation import (Linearized, by_kind, cv_failure, cv_record, cv_text, extrapolation_gain, joint_levers,
                          not_better, schemes)
 
 
@@ -117,7 +120,7 @@ class _Diagnosis:
         self.robot, self.cal, self.val, self.s = robot, cal, val, settings
         self.say = progress
         self.n_eq = 3 * len(cal)
-        self.schemes = schemes(cal.q, cal.rows, settings.folds, settings.seed, _levers(robot, cal))
+        self.schemes = schemes(cal.q, cal.rows, settings.folds, settings.seed, joint_levers(robot, cal))
         self.steps: list[Step] = []
         self.findings: list[Finding] = []
         self.notes: list[str] = []
@@ -208,7 +211,18 @@ class _Diagnosis:
             if self.s.max_rounds:
                 self.notes.append(f"stopped at the safety cap of {self.s.max_rounds} rounds while causes were "
                                   "still supported; raise --max-rounds to look further")
+        if len(accepted) > 1:
+            self.say("final check: is every cause still needed?")
+            current, accepted = drop_redundant(self, current, accepted, geometric)
         return current, accepted, geometric
+
+    def drop_finding(self, k: int) -> None:
+        """Remove finding ``k`` (and what is kept by finding index)."""
+        self.findings.pop(k)
+        for d in (self.support, self.before):
+            moved = {(i - 1 if i > k else i): v for i, v in d.items() if i != k}
+            d.clear()
+            d.update(moved)
 
     def candidates(self, current: CalibrationResult, accepted: list[Candidate]) -> list[Candidate]:
         """Every candidate not yet in the model; periodic ones from the periodogram peaks."""
@@ -309,8 +323,9 @@ class _Diagnosis:
                 checks = self.joint_checks(scr, fit, cand) if significant else {}
                 reasons += checks.pop("reasons", [])
                 vstats = ErrorStats.of(scr.validation_errors(fit))
-                step = Step(compose_spec(accepted + [cand], geometric), ErrorStats.of(np.linalg.norm(fit.lin.r, axis=1)),
-                            vstats, False, cand, test, cv_record(cv0, cv1), "; ".join(reasons))
+                step = Step(compose_spec(accepted + [cand], geometric),
+                            ErrorStats.of(np.linalg.norm(fit.lin.r, axis=1)), vstats, False, cand, test,
+                            cv_record(cv0, cv1), "; ".join(reasons))
                 self.steps.append(step)
                 if reasons:
                     self.say(f"    rejected: {step.reason}")
@@ -325,7 +340,7 @@ class _Diagnosis:
                 self.say(f"    accepted {sc.candidate.label()}: held-out mean {cv_text(cv0, cv1)} "
                          f"(validation mean {cur_val.mean_mm:.4f} -> {step.validation.mean_mm:.4f} mm, judge only)")
                 f = Finding(sc.candidate, cur_val.mean_mm - step.validation.mean_mm, "",
-                            ambiguous_with=self.ambiguous(sc, scored, level),
+                            ambiguous_with=ambiguous(sc, scored, level),
                             holds_up={"test": test.text(), "cv_mm": cv_record(cv0, cv1),
                                       **{k: v.to_dict() for k, v in checks.items() if k == "resolution"},
                                       **({"halves": [h.to_dict() for h in checks["halves"]]} if "halves" in checks
@@ -356,31 +371,6 @@ class _Diagnosis:
         if not hv[0].agree:
             out["reasons"].append("the halves of the joint's range disagree: " + hv[0].text())
         return out
-
-    def ambiguous(self, best: Scored, scored: list[Scored], level: float) -> list[dict]:
-        """Candidates whose screening fit explains the same residual as the accepted one."""
-        amb = []
-        best_drop = float(best.fitted @ best.fitted)
-        cand = best.candidate
-        for sc in scored:
-            other = sc.candidate
-            if other == cand or sc.log10_p >= level or (other.cause == cand.cause and other.joint == cand.joint
-                                                        and other.cause != "joint_periodic"):
-                continue
-            drop = float(sc.fitted @ sc.fitted)
-            cos = float(sc.fitted @ best.fitted) / math.sqrt(max(drop * best_drop, 1e-300))
-            if drop > 0.7 * best_drop and cos > 0.9:
-                amb.append({**other.to_dict(), "label": other.label(), "similarity": round(cos, 4),
-                            "tell_apart": tell_apart(cand, other)})
-        return amb
-
-
-def _levers(robot: Robot, data: Measurements) -> np.ndarray:
-    """How far the tool point moves per radian of each joint (RMS over the poses, m)."""
-    m = Model(robot, "nominal", jit=False)
-    _, J = m.predict_jacobian(data.q, cov=m.covariates(data))
-    return np.array([np.sqrt(np.mean(np.sum(J[:, :, m.parameters.index(f"theta{j}")] ** 2, axis=1)))
-                     for j in range(1, robot.n + 1)])
 
 
 @limited_threads()

@@ -19,6 +19,7 @@ Only the accepted candidate is then fitted for real.
 from __future__ import annotations
 
 import copy
+import math
 from dataclasses import dataclass
 
 import numpy as np
@@ -28,7 +29,7 @@ from ..model import Model
 from ..problem import CalibrationProblem
 from ..result import CalibrationResult
 from ..terms.periodic import JointPeriodic
-from .candidates import Candidate, compose_spec
+from .candidates import Candidate, compose_spec, tell_apart
 from .statistics import NestedTest, nested_test
 from .validation import Linearized, solve_identified
 
@@ -204,3 +205,21 @@ class Screen:
 def _periodic_columns(direction: np.ndarray, q: np.ndarray, h: int) -> np.ndarray:
     """Columns (N, 3, 2) of ``s sin(h q) + c cos(h q)`` added to a joint's angle, ``direction`` its derivative."""
     return np.stack([direction * np.sin(h * q)[:, None], direction * np.cos(h * q)[:, None]], axis=2)
+
+
+def ambiguous(best: Scored, scored: list[Scored], level: float) -> list[dict]:
+    """Candidates whose screening fit explains the same residual as the accepted one."""
+    amb = []
+    best_drop = float(best.fitted @ best.fitted)
+    cand = best.candidate
+    for sc in scored:
+        other = sc.candidate
+        if other == cand or sc.log10_p >= level or (other.cause == cand.cause and other.joint == cand.joint
+                                                    and other.cause != "joint_periodic"):
+            continue
+        drop = float(sc.fitted @ sc.fitted)
+        cos = float(sc.fitted @ best.fitted) / math.sqrt(max(drop * best_drop, 1e-300))
+        if drop > 0.7 * best_drop and cos > 0.9:
+            amb.append({**other.to_dict(), "label": other.label(), "similarity": round(cos, 4),
+                        "tell_apart": tell_apart(cand, other)})
+    return amb

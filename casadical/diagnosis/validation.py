@@ -22,6 +22,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from ..data import Measurements
+from ..model import Model
+from ..robot import Robot
+
 
 @dataclass
 class Scheme:
@@ -237,3 +241,11 @@ def cv_failure(worse: list[str], cv0: dict, cv1: dict) -> str:
 def extrapolation_gain(cv0: dict, cv1: dict) -> float:
     """How much a step lowers the held-out mean where the model must extrapolate (time and joint folds)."""
     return 0.5 * ((cv0["time"] - cv1["time"]) + (cv0["joint"] - cv1["joint"]))
+
+
+def joint_levers(robot: Robot, data: Measurements) -> np.ndarray:
+    """How far the tool point moves per radian of each joint (RMS over the poses, m)."""
+    m = Model(robot, "nominal", jit=False)
+    _, J = m.predict_jacobian(data.q, cov=m.covariates(data))
+    return np.array([np.sqrt(np.mean(np.sum(J[:, :, m.parameters.index(f"theta{j}")] ** 2, axis=1)))
+                     for j in range(1, robot.n + 1)])

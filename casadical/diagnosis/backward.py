@@ -1,0 +1,79 @@
+"""After the search: is every accepted cause still needed in the final model?
+
+Causes are accepted one at a time, physical ones before periodic ones, so
+an early cause can stand in for part of a later, stronger one (a
+compliance of the joint whose gear error is found two rounds later). At
+the end each named cause is tested again against the final model: the
+model without it (its parameters at zero, the others refitted by one
+Gauss-Newton step from the final fit) must fit significantly worse, at the
+same corrected level and by BIC. The weakest cause that fails is refitted
+without it for real; if that confirms, it is dropped and the test runs
+again on the new model.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from ..result import CalibrationResult
+from .candidates import Candidate, compose_spec
+from .statistics import NestedTest, nested_test
+from .validation import Linearized
+
+
+def own_parameters(cand: Candidate, accepted: list[Candidate]) -> list[str]:
+    """The parameters only ``cand`` brings (a progressive stiffness shares its linear part with the compliance)."""
+    others = {n for a in accepted if a != cand for n in a.parameter_names()}
+    return [n for n in cand.parameter_names() if n not in others]
+
+
+def without_tests(current: CalibrationResult, accepted: list[Candidate], data, n_eq: int
+                  ) -> list[tuple[Candidate, NestedTest]]:
+    """For each accepted cause: the F-test of the final model against the model without it (linearised)."""
+    lin = Linearized.of(current, data)
+    N, _, p = lin.J.shape
+    sw = np.repeat(np.sqrt(lin.weights), 3)
+    X = lin.J.reshape(-1, p) * sw[:, None]
+    r = lin.r.ravel() * sw
+    ssr = float(r @ r)
+    out = []
+    for cand in accepted:
+        cols = [lin.names.index(n) for n in own_parameters(cand, accepted) if n in lin.names]
+        if not cols:
+            continue
+        keep = [k for k in range(p) if k not in cols]
+        # the cause switched off (its parameters at zero), the rest refitted by one step
+        r0 = r - X[:, cols] @ np.array([current.parameters[lin.names[k]].value / lin.scale[k] for k in cols])
+        Q, _ = np.linalg.qr(X[:, keep])
+        r_red = r0 - Q @ (Q.T @ r0)
+        out.append((cand, nested_test(float(r_red @ r_red), len(keep), ssr, p, n_eq)))
+    return out
+
+
+def drop_redundant(dg, current: CalibrationResult, accepted: list[Candidate], geometric: bool
+                   ) -> tuple[CalibrationResult, list[Candidate]]:
+    """Drop, one at a time, the accepted causes the final model no longer needs (see the module)."""
+    while accepted:
+        level = math.log10(dg.s.alpha / max(dg.n_tests(dg.candidates(current, accepted)), 1))
+        failing = [(c, t) for c, t in without_tests(current, accepted, dg.cal, dg.n_eq)
+                   if not (t.log10_p < level and t.delta_bic < 0)]
+        if not failing:
+            break
+        cand, test = max(failing, key=lambda ct: ct[1].log10_p)
+        rest = [a for a in accepted if a != cand]
+        refit = dg.fit(compose_spec(rest, geometric), start=current)
+        full = nested_test(dg.deviance(refit, current.loss), int(refit.parameters.free.sum()),
+                           dg.deviance(current, current.loss), int(current.parameters.free.sum()), dg.n_eq)
+        if full.log10_p < level and full.delta_bic < 0:
+            break       # the one-step estimate was too pessimistic: it is still supported
+        k = next(i for i, f in enumerate(dg.findings) if f.candidate == cand)
+        dg.drop_finding(k)
+        later = [a.label() for a in accepted[accepted.index(cand) + 1:]]
+        dg.notes.append(f"{cand.label()} was dropped at the end: with "
+                        + (", ".join(later) if later else "the other causes")
+                        + f" in the model it no longer explains anything ({full.text()})")
+        dg.say(f"  dropped {cand.label()}: not needed once the later causes are in the model ({full.text()})")
+        current, accepted = refit, rest
+    return current, accepted
