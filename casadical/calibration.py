@@ -34,7 +34,7 @@ from .errors import (CasadicalWarning, ConvergenceWarning, IdentifiabilityError,
 from .identifiability import Identifiability, analyse, triangular_factor
 from .model import Model, parse_spec, pose_to_base0
 from .parameters import Parameters
-from .problem import CalibrationProblem, RobustLoss, _chunks, jacobian_factor
+from .problem import CalibrationProblem, RobustLoss, jacobian_factor, pose_chunks
 from .result import CalibrationResult, ErrorStats, load_calibration, restore_term
 from .robot import Robot
 from .simulate import sample_poses
@@ -378,7 +378,7 @@ def separated(problem: CalibrationProblem, values: np.ndarray, ident: Identifiab
     ssr = [0.0]
 
     def blocks():   # weighted, scaled Jacobian columns (free ones first), pose chunk by pose chunk
-        for s in _chunks(problem.n_poses):
+        for s in pose_chunks(problem.n_poses):
             xyz, J = model.predict_jacobian(problem.q[s], values, problem.cov[s], problem.base0)
             u2 = np.einsum("ij,ij->i", xyz - problem.xyz[s], xyz - problem.xyz[s])
             w = problem.loss.weight(u2)

@@ -172,7 +172,7 @@ class CalibrationProblem:
         return (self.params.lower[f] - nom) / s, (self.params.upper[f] - nom) / s
 
     def _chunks(self):
-        return _chunks(self.n_poses)
+        return pose_chunks(self.n_poses)
 
     def residuals(self, values: np.ndarray) -> np.ndarray:
         """Stacked residuals (m), shape (3N,)."""
@@ -227,11 +227,11 @@ def jacobian_factor(model: Model, q: np.ndarray, values: np.ndarray, cov: np.nda
     fits in memory; column inner products, hence every identifiability
     question, are those of ``J``.
     """
-    return triangular_factor((model.predict_jacobian(q[s], values, cov[s], base0)[1] for s in _chunks(len(q))),
+    return triangular_factor((model.predict_jacobian(q[s], values, cov[s], base0)[1] for s in pose_chunks(len(q))),
                              len(values))
 
 
-def _chunks(N: int):
+def pose_chunks(N: int):
     """Slices of at most ``CHUNK`` poses covering ``N``."""
     for a in range(0, N, CHUNK):
         yield slice(a, min(a + CHUNK, N))
