@@ -273,18 +273,22 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     opts = solver_options or {}
     res, name = _solve_robust(problem, problem.x_from_values(params.values), solver, opts,
                               loss.robust and not math.isfinite(loss.sigma))
+    expected: frozenset = frozenset()    # correlations said in a note, not warned about again
     if ident is not None:
         # a combination of other parameters in the nominal model that the fitted terms tell apart (the tilt
         # of joint 1 against gravity once a compliance deflects the arm): identified when these poses
         # determine it well
         values = problem.values_from_x(res.x)
         freed = separated(problem, values, ident)
-        if freed:
+        partners = {u.name: u.confounded_with for u in ident.unidentifiable if u.name in freed}
+        if partners:
+            expected = frozenset(frozenset((n, c)) for n, cs in partners.items() for c in cs)
             params.values = values
-            ident.free(freed, params)
-            notes.append(f"{', '.join(freed)}: a combination of other parameters in the nominal model, but the "
-                         f"fitted terms ({', '.join(t.spec() for t in model.terms[1:])}) tell them apart on these "
-                         "poses (std below a tenth of the typical size): identified")
+            ident.free(list(partners), params)
+            notes.append(f"{', '.join(partners)}: a combination of other parameters in the nominal model, but "
+                         f"the fitted terms ({', '.join(t.spec() for t in model.terms[1:])}) tell them apart on "
+                         "these poses (std below a tenth of the typical size): identified; they stay strongly "
+                         f"correlated with {', '.join(sorted({c for cs in partners.values() for c in cs}))}")
             first = res
             problem = CalibrationProblem(model, params, q, xyz, cov, base0, problem.loss)
             res, name = _solve_robust(problem, problem.x_from_values(params.values), solver, opts, False)
@@ -315,7 +319,7 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     with warnings.catch_warnings():
         if not warn:
             warnings.simplefilter("ignore")
-        notes += warn_problems(unc, params)
+        notes += warn_problems(unc, params, expected=expected)
     down = []
     if loss.robust:
         for i in np.argsort(-norms):

@@ -77,10 +77,15 @@ def from_normal(A: np.ndarray, ssr: float, m: int, scale: np.ndarray, names: lis
     return Uncertainty(names, cov, float(np.sqrt(sigma2)) if dof > 0 else float("nan"), dof)
 
 
-def warn_problems(unc: Uncertainty, params, threshold: float = 0.95) -> list[str]:
-    """Issue :class:`CorrelationWarning` for strongly correlated or bound-limited parameters."""
+def warn_problems(unc: Uncertainty, params, threshold: float = 0.95,
+                  expected: frozenset = frozenset()) -> list[str]:
+    """Issue :class:`CorrelationWarning` for strongly correlated or bound-limited parameters.
+
+    ``expected``: pairs (frozensets of two names) whose correlation is known
+    and said elsewhere (a combination that only a fitted term tells apart).
+    """
     notes = []
-    pairs = unc.strong_pairs(threshold)
+    pairs = [pr for pr in unc.strong_pairs(threshold) if frozenset(pr[:2]) not in expected]
     if pairs:
         shown = ", ".join(f"{a}~{b} ({c:+.3f})" for a, b, c in pairs[:5])
         more = f" and {len(pairs) - 5} more" if len(pairs) > 5 else ""
