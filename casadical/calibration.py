@@ -274,7 +274,7 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     res, name = _solve_robust(problem, problem.x_from_values(params.values), solver, opts,
                               loss.robust and not math.isfinite(loss.sigma))
     expected: frozenset = frozenset()    # correlations said in a note, not warned about again
-    if ident is not None:
+    if ident is not None and np.isfinite(res.cost):
         # a combination of other parameters in the nominal model that the fitted terms tell apart (the tilt
         # of joint 1 against gravity once a compliance deflects the arm): identified when these poses
         # determine it well
