@@ -94,6 +94,13 @@ def set_references(terms: list[ErrorTerm], data: Measurements) -> None:
                 t.t_ref = float(np.mean(col))
 
 
+def model_for(robot: Robot, spec: str | list[ErrorTerm], data: Measurements, jit: bool | None = None) -> Model:
+    """The model of ``spec`` for ``data``: terms driven by a covariate referenced to its mean there."""
+    terms = parse_spec(spec) if isinstance(spec, str) else spec
+    set_references(terms, data)
+    return Model(robot, terms, jit=jit)
+
+
 def _merge(prior: list[ErrorTerm], new: list[ErrorTerm]) -> tuple[list[ErrorTerm], set[str]]:
     """Terms of a calibration extended by a specification's terms; the names of the latter's terms.
 
@@ -213,11 +220,7 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
                 # what the calibration could not identify stays put unless these poses can
                 p.reason = ""
     else:
-        if built is None:
-            set_references(terms, data)
-            model = Model(robot, terms)
-        else:
-            model = built
+        model = built if built is not None else model_for(robot, terms, data)
         params = model.parameters.copy()
     unknown = [n for n in list(fix) + list(start or {}) if n not in params]
     if unknown:

@@ -28,11 +28,10 @@ from typing import Callable
 
 import numpy as np
 
-from ..calibration import calibrate, set_references
+from ..calibration import calibrate, model_for
 from ..checks import check_poses
 from ..data import Measurements
 from ..errors import InputError, listing
-from ..model import Model, parse_spec
 from ..problem import RobustLoss
 from ..result import CalibrationResult, ErrorStats
 from ..robot import Robot
@@ -135,9 +134,7 @@ class _Diagnosis:
     def fit(self, spec: str, start: CalibrationResult | dict | None = None, loss: RobustLoss | None = None
             ) -> CalibrationResult:
         """Calibrate ``spec`` on the calibration poses (LM), from ``start``'s values (a result or a dict)."""
-        terms = parse_spec(spec)
-        set_references(terms, self.cal)
-        model = Model(self.robot, terms, jit=False)
+        model = model_for(self.robot, spec, self.cal, jit=False)
         st = None
         if start is not None:
             values = start if isinstance(start, dict) else {p.name: p.value for p in start.parameters}

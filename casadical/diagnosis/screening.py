@@ -25,7 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..data import Measurements
-from ..model import Model
+from ..calibration import model_for
 from ..problem import CalibrationProblem
 from ..result import CalibrationResult
 from ..terms.periodic import JointPeriodic
@@ -84,7 +84,8 @@ class Screen:
         robot = current.model.robot
         self.current, self.cal, self.val = current, cal, val
         self.physical = {c for c in cands if c.cause != "joint_periodic"}
-        self.model = big = Model(robot, compose_spec(accepted + list(self.physical), geometric), jit=False)
+        # drift and thermal terms referenced to the calibration poses, as in the fits (current's model)
+        self.model = big = model_for(robot, compose_spec(accepted + list(self.physical), geometric), cal, jit=False)
         params = big.parameters.copy()
         for p in params:
             if p.name in current.parameters:
