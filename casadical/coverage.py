@@ -13,6 +13,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from .errors import listing
+
 #: calibration poses kept for the distance check (a subsample of larger sets)
 MAX_SAMPLE = 2000
 
@@ -86,7 +88,7 @@ class Coverage:
         if beyond.any():
             rows = np.flatnonzero(beyond.any(axis=1))
             joints = sorted({int(j) + 1 for j in np.flatnonzero(beyond.any(axis=0))})
-            out.append(f"{file}: {len(rows)} pose(s) (lines {_list(lines[rows])}) have joint readings outside "
+            out.append(f"{file}: {len(rows)} pose(s) (lines {listing(lines[rows].tolist())}) have joint readings outside "
                        f"the ranges the calibration saw (joints {', '.join(map(str, joints))}: "
                        + "; ".join(f"q{j} {self.q_min_deg[j - 1]:.1f}..{self.q_max_deg[j - 1]:.1f} deg"
                                    for j in joints)
@@ -94,7 +96,7 @@ class Coverage:
         only_far = far & ~beyond.any(axis=1)
         if only_far.any():
             rows = np.flatnonzero(only_far)
-            out.append(f"{file}: {len(rows)} pose(s) (lines {_list(lines[rows])}) lie far from every "
+            out.append(f"{file}: {len(rows)} pose(s) (lines {listing(lines[rows].tolist())}) lie far from every "
                        f"calibration pose (more than {self.far_limit_deg():.0f} deg in joint space): "
                        "the model interpolates over a gap there")
         return out
@@ -111,8 +113,3 @@ def _nearest(a: np.ndarray, b: np.ndarray, exclude_self: bool = False, block: in
             d2[np.arange(len(x)), np.arange(s, s + len(x))] = np.inf
         out[s:s + block] = np.sqrt(np.maximum(d2.min(axis=1), 0.0))
     return out
-
-
-def _list(lines: np.ndarray, k: int = 8) -> str:
-    shown = ", ".join(str(int(x)) for x in lines[:k])
-    return shown + (f" and {len(lines) - k} more" if len(lines) > k else "")
