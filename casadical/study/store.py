@@ -223,12 +223,14 @@ class ResultStore:
         parts = [pq.read_table(p, schema=schema()) for p in self.parts()]
         computed = [{r for r, s in zip(t.column("repetition").to_pylist(), t.column("status").to_pylist())
                      if s != "lost"} for t in parts]
+        later: list[set] = [set()] * len(parts)      # repetitions computed in the parts after each
+        for k in range(len(parts) - 2, -1, -1):
+            later[k] = later[k + 1] | computed[k + 1]
         tables, seen = [], set()
         for k, t in enumerate(parts):
             reps = np.asarray(t.column("repetition").to_numpy())
-            # lost here but computed in another part: that part's rows
-            later = set().union(*computed[k + 1:]) - computed[k] if k + 1 < len(parts) else set()
-            keep = ~np.isin(reps, list(seen | later))
+            # lost here but computed in a later part: that part's rows
+            keep = ~np.isin(reps, list(seen | (later[k] - computed[k])))
             seen.update(reps[keep].tolist())
             tables.append(t.filter(pa.array(keep)) if not keep.all() else t)
         if not tables:
