@@ -120,7 +120,8 @@ def select(study: Study, rep: Repetition, plan: PlanSpec, m: int, designs: dict)
     key = (plan.model, len(pool))
     if key not in designs:
         model = Model(study.robot, plan.model, jit=False)
-        designs[key] = (model, design_problem(model, pool.q, model.covariates(pool)))
+        # the rows keep only the selection, its O1 and log det: no comparison with a reference pose set
+        designs[key] = (model, design_problem(model, pool.q, model.covariates(pool), reference=False))
     model, problem = designs[key]
     t0 = time.perf_counter()
     res = select_poses(model, None, m, plan.selector, problem=problem,
