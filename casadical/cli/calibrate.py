@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from .common import (add_checks, add_force, add_urdf_chain, check_no_urdf_chain, check_options, check_outputs,
-                     int_at_least, robot_from_args, write_text)
+from .common import (add_checks, add_force, add_urdf_chain, check_options, check_outputs, int_at_least,
+                     robot_or_calibration, write_text)
 
 
 def register(sub) -> None:
@@ -41,17 +41,12 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..calibration import CalibrationResult, calibrate, load_calibration
+    from ..calibration import CalibrationResult, calibrate
     from ..data import Measurements
 
     check_outputs({"--out": args.out, "--html": args.html}, [args.robot, args.data], args.force)
-    if args.robot.lower().endswith(".json"):
-        check_no_urdf_chain(args.robot, args)
-        robot = load_calibration(args.robot)
-        n = robot.model.robot.n
-    else:
-        robot = robot_from_args(args.robot, args)
-        n = robot.n
+    robot = robot_or_calibration(args.robot, args)
+    n = robot.model.robot.n if isinstance(robot, CalibrationResult) else robot.n
     data = Measurements.read_csv(args.data, n_joints=n, require_positions=True)
     opts = {"max_iter": args.max_iter} if args.max_iter else {}
     result = calibrate(robot, data, args.model, args.solver, solver_options=opts,

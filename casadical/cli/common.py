@@ -202,12 +202,17 @@ def robot_from_args(spec: str, args):
     return load_robot(spec, tip=args.urdf_tip, base=args.urdf_base, tool=args.urdf_tool)
 
 
-def check_no_urdf_chain(spec: str, args) -> None:
-    """Refuse the URDF chain options where ``spec`` is a calibration JSON (its robot is stored in it)."""
+def robot_or_calibration(spec: str, args):
+    """A calibration (``spec`` ends in ``.json``; the URDF chain options are refused) or a robot."""
+    if not spec.lower().endswith(".json"):
+        return robot_from_args(spec, args)
     given = [f"--urdf-{k}" for k in ("base", "tip", "tool") if getattr(args, f"urdf_{k}", None) is not None]
     if given:
         raise InputError(f"{spec}: {', '.join(given)} {'chooses' if len(given) == 1 else 'choose'} the chain of a "
                          "URDF robot; a calibration JSON already holds its robot (drop the option)")
+    from ..calibration import load_calibration
+
+    return load_calibration(spec)
 
 
 def check_options(args) -> dict:

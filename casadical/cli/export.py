@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 from ..errors import InputError
-from .common import (Status, add_force, add_quiet, add_urdf_chain, check_no_urdf_chain, check_outputs, robot_from_args,
-                     write_text)
+from .common import Status, add_force, add_quiet, add_urdf_chain, check_outputs, robot_or_calibration, write_text
 
 
 def register(sub) -> None:
@@ -24,7 +23,6 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..calibration import load_calibration
     from ..parameter_table import parameter_table
     from ..urdf import robot_to_urdf
 
@@ -32,11 +30,7 @@ def run(args) -> int:
     if not any(outputs.values()):
         raise InputError("nothing to write: give --urdf OUT.urdf, --table OUT.csv and/or --markdown OUT.md")
     check_outputs(outputs, [args.source], args.force)
-    if args.source.lower().endswith(".json"):
-        check_no_urdf_chain(args.source, args)
-        source = load_calibration(args.source)
-    else:
-        source = robot_from_args(args.source, args)
+    source = robot_or_calibration(args.source, args)
     texts = {}   # everything is built before anything is written
     if args.urdf:
         texts[args.urdf] = robot_to_urdf(source)

@@ -7,8 +7,8 @@ import warnings
 
 import numpy as np
 
-from .common import (add_checks, add_force, add_json, add_urdf_chain, check_no_urdf_chain, check_options,
-                     check_outputs, int_at_least, robot_from_args, write_json)
+from .common import (add_checks, add_force, add_json, add_urdf_chain, check_options, check_outputs, int_at_least,
+                     robot_from_args, robot_or_calibration, write_json)
 
 
 def register(sub) -> None:
@@ -89,23 +89,20 @@ def param_json(p) -> dict:
 
 def run_predict(args) -> int:
     from ..alignment import align
-    from ..calibration import ErrorStats
+    from ..calibration import CalibrationResult, ErrorStats
     from ..checks import check_calibration_fits, check_poses
     from ..data import Measurements
     from ..errors import ExtrapolationWarning
     from ..model import Model
 
     check_outputs({"--out": args.out}, [args.model, args.poses], args.force)
-    if args.model.lower().endswith(".json"):
-        from ..calibration import load_calibration
-        check_no_urdf_chain(args.model, args)
-        cal = load_calibration(args.model)
-        robot = cal.model.robot
+    source = robot_or_calibration(args.model, args)
+    if isinstance(source, CalibrationResult):
+        cal, robot = source, source.model.robot
         data = Measurements.read_csv(args.poses, n_joints=robot.n)
         xyz = cal.predict(data)
     else:
-        cal = None
-        robot = robot_from_args(args.model, args)
+        cal, robot = None, source
         model = Model(robot, "nominal")
         data = Measurements.read_csv(args.poses, n_joints=robot.n)
         xyz = model.predict(data.q, cov=model.covariates(data))
