@@ -32,7 +32,7 @@ from .data import Measurements
 from .errors import (CasadicalWarning, ConvergenceWarning, IdentifiabilityError, IdentifiabilityWarning, InputError,
                      SolverError, listing)
 from .identifiability import Identifiability, analyse, triangular_factor
-from .model import Model, parse_spec, pose_to_base0
+from .model import Model, parse_spec, pose_to_base0, spec_of
 from .parameters import Parameters
 from .problem import CalibrationProblem, RobustLoss, jacobian_factor, pose_chunks
 from .result import CalibrationResult, ErrorStats, load_calibration, restore_term
@@ -198,9 +198,8 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     if prior is not None:
         merged, named = _merge(list(prior.model.terms), terms)
         geometric = prior.model.geometric_free or "geometric" in named
-        spec = "+".join(["kinematic" if geometric else "nominal"] + [t.spec() for t in merged if t.name != "geometric"])
         # the same terms: the calibration's own model (its symbolic build and evaluators) serves again
-        model = prior.model if spec == prior.model.spec else \
+        model = prior.model if spec_of(merged, geometric) == prior.model.spec else \
             Model(robot, [t for t in merged if t.name != "geometric" or geometric], jit=prior.model.jit)
         old = {p.name for p in prior.parameters}
         params = model.parameters.copy()

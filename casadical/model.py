@@ -78,6 +78,11 @@ def parse_spec(spec: str) -> list[ErrorTerm]:
     return terms
 
 
+def spec_of(terms: list[ErrorTerm], geometric_free: bool) -> str:
+    """The specification of a model of ``terms`` (the geometric term, if among them, is the first part)."""
+    return "+".join(["kinematic" if geometric_free else "nominal"] + [t.spec() for t in terms if t.name != "geometric"])
+
+
 def assemble_terms(terms: list[ErrorTerm], robot: Robot) -> list[ErrorTerm]:
     """The terms of a model, geometric first (the nominal geometry if none is given), each bound to ``robot``.
 
@@ -157,8 +162,7 @@ class Model:
     @property
     def spec(self) -> str:
         """Specification string that rebuilds this model."""
-        parts = [t.spec() for t in self.terms[1:]]
-        return "+".join(["kinematic" if self.geometric_free else "nominal"] + parts)
+        return spec_of(self.terms, self.geometric_free)
 
     @property
     def n_joints(self) -> int:
