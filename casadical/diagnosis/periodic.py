@@ -33,7 +33,7 @@ from scipy import special
 
 from ..data import Measurements
 from ..parameters import Parameter
-from .screening import LinearFit, Screen
+from .screening import LinearFit, Screen, periodic_columns
 
 #: the data must prefer a harmonic to each neighbour by this log-likelihood-ratio (x2): 2 ln 100
 NEIGHBOUR_MARGIN = 2 * math.log(100.0)
@@ -89,12 +89,6 @@ class Resolution:
         return "not resolved: " + "; ".join(why)
 
 
-def _columns(direction: np.ndarray, q: np.ndarray, h: int, sw: np.ndarray) -> np.ndarray:
-    """The (weighted) Jacobian columns of ``s sin(h q) + c cos(h q)`` on a joint, (3N, 2)."""
-    return np.stack([(direction * np.sin(h * q)[:, None]).ravel() * sw,
-                     (direction * np.cos(h * q)[:, None]).ravel() * sw], axis=1)
-
-
 def resolution(screen: Screen, joint: int, harmonic: int) -> Resolution:
     """Resolution of harmonic ``harmonic`` of ``joint`` in the round's data, given the current model."""
     sw = np.repeat(np.sqrt(screen.w), 3)
@@ -107,13 +101,13 @@ def resolution(screen: Screen, joint: int, harmonic: int) -> Resolution:
     q = screen.cal.q[:, joint - 1]
 
     def drop(h: int) -> float:
-        C = _columns(direction, q, h, sw)
+        C = periodic_columns(direction, q, h).reshape(-1, 2) * sw[:, None]
         U, sv, _ = np.linalg.svd(C - Q @ (Q.T @ C), full_matrices=False)
         keep = sv > 1e-9 * max(np.linalg.norm(C), 1e-300)
         proj = U[:, keep].T @ r_perp
         return float(proj @ proj)
 
-    C = _columns(direction, q, harmonic, sw)
+    C = periodic_columns(direction, q, harmonic).reshape(-1, 2) * sw[:, None]
     outside = float(np.linalg.norm(C - Q @ (Q.T @ C)) / max(np.linalg.norm(C), 1e-300))
     d0 = drop(harmonic)
 

@@ -267,12 +267,17 @@ class _Diagnosis:
 
     def round(self, current: CalibrationResult, accepted: list[Candidate], geometric: bool):
         """Screen, fit the best candidates by one step, accept one; None when nothing is supported."""
-        scr = None
+        scr = baseline = None
         while True:
             cands = self.candidates(current, accepted)
-            # screening again (after setting structure aside) reuses the linearisation
-            scr = Screen(current, accepted, cands, geometric, self.cal, self.val) if scr is None else \
-                scr.with_candidates(cands)
+            # screening again (after setting structure aside) reuses the linearisation and the baseline
+            if scr is None:
+                scr = Screen(current, accepted, cands, geometric, self.cal, self.val)
+                mask = self.mask(current)
+                base = scr.fit()
+                baseline = (mask, base, by_kind(base.lin.cv(self.schemes), mask), current.stats(self.val))
+            else:
+                scr = scr.with_candidates(cands)
             scored = scr.scores(cands)
             level = math.log10(self.s.alpha / max(self.n_tests(cands), 1))
             if not scored or scored[0].log10_p >= level:
@@ -280,7 +285,7 @@ class _Diagnosis:
                 self.say("  no candidate passes the score test" +
                          (f" (best: {best.candidate.label()}, {best.test.text()})" if best else ""))
                 return None
-            accepted_now, pending = self.try_tiers(scr, scored, level, current, accepted, geometric)
+            accepted_now, pending = self.try_tiers(scr, scored, level, baseline, current, accepted, geometric)
             if accepted_now is not None:
                 return accepted_now
             for item in pending:
@@ -291,13 +296,13 @@ class _Diagnosis:
             self.say("  no cause is supported; the structure that cannot be named is set aside, and the round "
                      "screens again")
 
-    def try_tiers(self, scr: Screen, scored: list[Scored], level: float, current: CalibrationResult,
+    def try_tiers(self, scr: Screen, scored: list[Scored], level: float, baseline: tuple, current: CalibrationResult,
                   accepted: list[Candidate], geometric: bool):
-        """Tiers in order; in a tier, up to ``confirm`` candidates fitted and judged, the best accepted."""
-        mask = self.mask(current)
-        base = scr.fit()
-        cv0 = by_kind(base.lin.cv(self.schemes), mask)
-        cur_val = current.stats(self.val)
+        """Tiers in order; in a tier, up to ``confirm`` candidates fitted and judged, the best accepted.
+
+        ``baseline``: the current fit's pose mask, one-step fit, held-out means and validation errors.
+        """
+        mask, base, cv0, cur_val = baseline
         pending: list[tuple] = []   # significant structure that cannot be named (unless a cause is accepted)
         for tier in (1, 2, 3):
             passing = []

@@ -125,7 +125,7 @@ class Screen:
             self.params.update((p.name, p) for p in ps)
             names = names + [p.name for p in ps]
             scale = np.append(scale, [p.scale for p in ps])
-            cols.append(_periodic_columns(self.angle_dir[c.joint], self.cal.q[:, c.joint - 1], c.harmonic)
+            cols.append(periodic_columns(self.angle_dir[c.joint], self.cal.q[:, c.joint - 1], c.harmonic)
                         * [p.scale for p in ps])
         self.J = np.concatenate(cols, axis=2) if len(cols) > 1 else J
         self.names, self.scale = names, scale
@@ -198,12 +198,12 @@ class Screen:
             else:   # a periodic candidate's: gear{j}_{s|c}{h}
                 c = next(c for c in self.periodic if n in c.parameter_names())
                 k = c.parameter_names().index(n)
-                col = _periodic_columns(JA[:, :, c.joint - 1], self.val.q[:, c.joint - 1], c.harmonic)[:, :, k]
+                col = periodic_columns(JA[:, :, c.joint - 1], self.val.q[:, c.joint - 1], c.harmonic)[:, :, k]
                 cols.append(col * self.params[n].scale)
         return np.linalg.norm(r + np.stack(cols, axis=2) @ fit.step, axis=1)
 
 
-def _periodic_columns(direction: np.ndarray, q: np.ndarray, h: int) -> np.ndarray:
+def periodic_columns(direction: np.ndarray, q: np.ndarray, h: int) -> np.ndarray:
     """Columns (N, 3, 2) of ``s sin(h q) + c cos(h q)`` added to a joint's angle, ``direction`` its derivative."""
     return np.stack([direction * np.sin(h * q)[:, None], direction * np.cos(h * q)[:, None]], axis=2)
 
