@@ -282,7 +282,8 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
     hold = n >= 6 if orientation is None else bool(orientation)
     if hold and n < 6:
         raise InputError(f"the orientation cannot be held with {n} joints: 6 are needed")
-    check_poses(targets, model.robot, predicted=cal.predict(targets), **checks)
+    programmed = cal.predict(targets)    # the calibrated tool points at the programmed joints
+    check_poses(targets, model.robot, predicted=programmed, **checks)
 
     eqs = _Equations(cal, targets, hold)
     tol = tolerance_mm * 1e-3
@@ -301,7 +302,7 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
             iterations[loose] += it2
     residual = np.linalg.norm(r[:, :3], axis=1)
     angle = np.linalg.norm(r[:, 3:], axis=1) / ORIENTATION_WEIGHT if hold else None
-    start = np.linalg.norm(cal.predict(targets) - targets.xyz, axis=1)
+    start = np.linalg.norm(programmed - targets.xyz, axis=1)
     result = CompensationResult(targets, q, residual, start, angle, iterations, residual <= tol, tol,
                                 held_description(n, hold), model.robot.limits, limit)
     if hold:
