@@ -244,8 +244,6 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     # --- identifiability
     ident = None
     if check_identifiability:
-        # structural question: at a perturbed start exact redundancies only look near-exact
-        R = jacobian_factor(model, q, params.nominal, cov, base0)
         generic = _generic_identifiable(model, params, cov)
         needed = len(generic)
         if 3 * len(q) <= needed:
@@ -253,6 +251,8 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
                 f"{len(q)} poses give {3 * len(q)} equations for the {needed} identifiable parameters of "
                 f"model {model.spec}: at least {needed // 3 + 1} poses are needed, and 3-5 times that for a "
                 "reliable fit")
+        # structural question, at nominal values: at a perturbed start exact redundancies only look near-exact
+        R = jacobian_factor(model, q, params.nominal, cov, base0)
         ident = analyse(R, params, n_equations=3 * len(q))
         lost = [u for u in ident.unidentifiable if u.name in generic]
         if lost:
