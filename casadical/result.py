@@ -48,9 +48,10 @@ class ErrorStats:
         e = np.asarray(errors_m) * 1000.0
         return cls(len(e), float(e.mean()), float(e.max()), float(e.std()), float(np.sqrt((e ** 2).mean())))
 
-    def to_dict(self) -> dict:
-        return {"n_poses": self.n_poses, "mean_mm": self.mean_mm, "max_mm": self.max_mm,
-                "std_mm": self.std_mm, "rms_mm": self.rms_mm}
+    def to_dict(self, n_poses: bool = True) -> dict:
+        """The statistics (mm), with the number of poses unless ``n_poses`` is False."""
+        d = {"mean_mm": self.mean_mm, "max_mm": self.max_mm, "std_mm": self.std_mm, "rms_mm": self.rms_mm}
+        return {"n_poses": self.n_poses, **d} if n_poses else d
 
     def line(self) -> str:
         return (f"mean {self.mean_mm:.4f}  max {self.max_mm:.4f}  std {self.std_mm:.4f}  "

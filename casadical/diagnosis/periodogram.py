@@ -35,10 +35,6 @@ class Periodogram:
     power: np.ndarray
     amplitude: np.ndarray
 
-    def peaks(self, k: int = 2) -> list[int]:
-        """The ``k`` harmonics of highest power."""
-        return [int(h) for h in self.harmonics[np.argsort(-self.power)[:k]]]
-
 
 def joint_errors(residual: np.ndarray, direction: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Angle error estimate per pose and its weight, from residuals (N, 3) and d xyz / d theta_j (N, 3)."""

@@ -11,9 +11,6 @@ from .periodogram import Periodogram
 from .statistics import NestedTest
 
 
-def stats_dict(s: ErrorStats) -> dict:
-    return {"mean_mm": s.mean_mm, "max_mm": s.max_mm, "std_mm": s.std_mm, "rms_mm": s.rms_mm}
-
 
 def finite(x: float | None) -> float | None:
     return float(x) if x is not None and math.isfinite(x) else None
@@ -50,8 +47,8 @@ class Step:
     reason: str = ""
 
     def to_dict(self) -> dict:
-        d = {"model": self.model, "validation": stats_dict(self.validation),
-             "calibration": stats_dict(self.calibration), "accepted": self.accepted}
+        d = {"model": self.model, "validation": self.validation.to_dict(n_poses=False),
+             "calibration": self.calibration.to_dict(n_poses=False), "accepted": self.accepted}
         if self.candidate is not None:
             d["candidate"] = self.candidate.to_dict()
         if self.test is not None:
@@ -172,7 +169,7 @@ class DiagnosisReport:
             "robot": self.robot,
             "steps": [s.to_dict() for s in self.steps],
             "findings": [f.to_dict() for f in self.findings],
-            "final": {"model": self.final_model, "validation": stats_dict(self.final_validation),
+            "final": {"model": self.final_model, "validation": self.final_validation.to_dict(n_poses=False),
                       "parameters": params,
                       "robust": {"sigma_mm": self.final.loss.sigma * 1000 if self.final.loss.robust else None,
                                  "set_aside": self.final.downweighted}},

@@ -103,10 +103,6 @@ class CVResult:
 
     errors: dict[str, np.ndarray] = field(default_factory=dict)
 
-    def mean_mm(self, scheme: str, mask: np.ndarray | None = None) -> float:
-        e = self.errors[scheme] if mask is None else self.errors[scheme][mask]
-        return float(np.mean(e) * 1000)
-
     def kind_errors(self, kind: str) -> np.ndarray:
         """Held-out error of each pose under one kind of scheme (``joint``: averaged over the joints), m."""
         names = [s for s in self.errors if (s.startswith("joint") if kind == "joint" else s == kind)]

@@ -141,10 +141,10 @@ class MethodResult:
     def to_dict(self) -> dict:
         """The ``compare`` JSON entry of this method."""
         return {"name": self.name,
-                "calibration": stats_dict(self.calibration),
-                "validation": stats_dict(self.validation) if self.validation else None,
+                "calibration": self.calibration.to_dict(n_poses=False),
+                "validation": self.validation.to_dict(n_poses=False) if self.validation else None,
                 "time_s": self.time_s,
-                "extra": stats_dict(self.extra) if self.extra else None,
+                "extra": self.extra.to_dict(n_poses=False) if self.extra else None,
                 "n_poses": {"calibration": self.calibration.n_poses,
                             "validation": self.validation.n_poses if self.validation else 0,
                             "extra": self.extra.n_poses if self.extra else 0},
@@ -152,10 +152,6 @@ class MethodResult:
                 "compensator": type(self.compensator).__name__ if self.compensator is not None else None,
                 "details": _jsonable(self.info)}
 
-
-def stats_dict(s: ErrorStats) -> dict:
-    """The four statistics of the compare JSON (mm)."""
-    return {"mean_mm": s.mean_mm, "max_mm": s.max_mm, "std_mm": s.std_mm, "rms_mm": s.rms_mm}
 
 
 def _jsonable(o):
