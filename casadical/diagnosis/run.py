@@ -167,8 +167,9 @@ class _Diagnosis:
         worse = not_better(cv0, cv1)
         ok = test.log10_p < math.log10(self.s.alpha) and test.delta_bic < 0 and not worse
         kv = kin.stats(self.val)
-        reason = "" if ok else "; ".join([f"not significant ({test.text()})"] * (test.log10_p >= math.log10(
-            self.s.alpha)) + ([cv_failure(worse, cv0, cv1)] if worse else []))
+        reason = "; ".join([f"not significant ({test.text()})"] * (test.log10_p >= math.log10(self.s.alpha))
+                           + [f"BIC does not improve ({test.delta_bic:+.1f})"] * (test.delta_bic >= 0)
+                           + ([cv_failure(worse, cv0, cv1)] if worse else []))
         self.steps.append(Step("kinematic", kin.calibration, kv, ok, Candidate("geometric"), test,
                                cv_record(cv0, cv1), reason))
         self.say(f"  validation mean {kv.mean_mm:.4f} mm ({test.text()})")
