@@ -82,7 +82,7 @@ class NNSKCM(Method):
         if use_extra and self.holdout_check:   # the calibration poses are unseen by the network
             cal = inputs.calibration
             holdout = (cal.q, to_frame(sk, cal, self.frame, sk.residuals(cal)))
-        from ..compensators import MLP  # scipy: imported when the method runs
+        from ..compensators import MLP  # here, not at import: 9 ms of every command's start-up
         from ..compensators.guard import fit_guarded
 
         comp, info = fit_guarded(lambda: MLP(hidden=self.hidden, seed=inputs.seed), X, Y, guard=self.guard,
