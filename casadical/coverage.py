@@ -9,11 +9,12 @@ that lie beyond those ranges or far from every calibration pose, so that
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import listing
+from .errors import ExtrapolationWarning, listing
 
 #: calibration poses kept for the distance check (a subsample of larger sets)
 MAX_SAMPLE = 2000
@@ -80,6 +81,11 @@ class Coverage:
     def far_limit_deg(self, far_factor: float = 4.0) -> float:
         """Distance in joint space (deg) beyond which a pose is far from every calibration pose."""
         return max(far_factor * self.spacing_deg, 10.0)
+
+    def warn(self, q_deg: np.ndarray, lines: np.ndarray, file: str) -> None:
+        """Issue :meth:`describe`'s lines as :class:`ExtrapolationWarning`."""
+        for text in self.describe(q_deg, lines, file):
+            warnings.warn(text, ExtrapolationWarning, stacklevel=3)
 
     def describe(self, q_deg: np.ndarray, lines: np.ndarray, file: str) -> list[str]:
         """Warnings (one line each) for poses that extrapolate; empty if none does."""

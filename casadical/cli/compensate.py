@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 
@@ -45,7 +44,6 @@ def register(sub) -> None:
 def run(args) -> int:
     from ..calibration import load_calibration
     from ..data import Measurements
-    from ..errors import ExtrapolationWarning
     from ..inverse import compensate
 
     check_outputs({"--out": args.out}, [args.cal, args.targets], args.force)
@@ -57,8 +55,7 @@ def run(args) -> int:
                         max_change_deg=args.max_change_deg, orientation=False if args.position_only else None,
                         **check_options(args))
     if cal.coverage is not None:
-        for text in cal.coverage.describe(np.degrees(result.q), targets.lines, args.targets):
-            warnings.warn(text, ExtrapolationWarning, stacklevel=2)
+        cal.coverage.warn(np.degrees(result.q), targets.lines, args.targets)
     result.joints().write_csv(args.out, overwrite=args.force)
     print(result.summary())
     print(f"corrected joints -> {args.out}")

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import math
-import warnings
 
 import numpy as np
 
@@ -92,7 +91,6 @@ def run_predict(args) -> int:
     from ..calibration import CalibrationResult, ErrorStats
     from ..checks import check_calibration_fits, check_poses
     from ..data import Measurements
-    from ..errors import ExtrapolationWarning
     from ..model import Model
 
     check_outputs({"--out": args.out}, [args.model, args.poses], args.force)
@@ -118,8 +116,7 @@ def run_predict(args) -> int:
                                    cal.calibration.mean_mm if cal.calibration else None, args.allow_mismatch)
         stats = ErrorStats.of(errors)
     if cal is not None and cal.coverage is not None:
-        for text in cal.coverage.describe(data.q_deg, data.lines, args.poses):
-            warnings.warn(text, ExtrapolationWarning, stacklevel=2)
+        cal.coverage.warn(data.q_deg, data.lines, args.poses)
     data.with_positions(xyz).write_csv(args.out, overwrite=args.force)
     print(f"predicted {len(data)} poses -> {args.out}")
     if stats is not None:
