@@ -107,3 +107,17 @@ def read_toml(path: str | Path, error: type[CasadicalError] = InputError, label:
         return tomllib.loads(text)
     except (tomllib.TOMLDecodeError, RecursionError) as e:
         raise error(f"not valid TOML: {e}", file=label) from e
+
+
+def named_toml(spec: str | Path, folder: Path, missing: str) -> Path:
+    """``spec`` if it is a file, else ``folder/<spec>.toml``; else an InputError naming ``spec``.
+
+    ``missing``: the message, with ``{known}`` standing for the names the folder holds.
+    """
+    path = Path(spec)
+    if not path.is_file():
+        path = folder / f"{spec}.toml"
+    if not path.is_file():
+        known = ", ".join(sorted(p.stem for p in folder.glob("*.toml")))
+        raise InputError(missing.format(known=known), file=str(spec))
+    return path

@@ -17,7 +17,7 @@ import numpy as np
 
 from .data import Measurements
 from .errors import InputError
-from .files import read_toml
+from .files import named_toml, read_toml
 from .kinematics import base_pose_matrix
 from .model import Model, pose_to_base0
 from .robot import PROBLEMS, Robot, _Validator, load_robot
@@ -279,12 +279,7 @@ def load_protocol(spec: str | Path) -> Protocol:
         Unknown name, invalid TOML, or an invalid key (the message names the
         file and the key, e.g. ``column 'truth.noise_mm'``).
     """
-    path = Path(spec)
-    if not path.is_file():
-        path = PROTOCOL_DIR / f"{spec}.toml"
-    if not path.is_file():
-        known = sorted(p.stem for p in PROTOCOL_DIR.glob("*.toml"))
-        raise InputError(f"no such protocol; known: {', '.join(known)}", file=str(spec))
+    path = named_toml(spec, PROTOCOL_DIR, "no such protocol; known: {known}")
     d = read_toml(path)
     v = TomlValidator(str(path))
     v.keys(d, {"name", "robot", "description", "seed", "sets", "truth", "workspace"}, "")

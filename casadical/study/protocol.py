@@ -15,7 +15,7 @@ from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 from ..errors import CasadicalError, InputError
-from ..files import read_toml
+from ..files import named_toml, read_toml
 from ..model import Model
 from ..planning.selectors import METHODS as SELECTORS
 from ..robot import PROBLEMS, Robot, load_robot, robot_from_dict, robot_to_dict
@@ -148,15 +148,7 @@ class Study:
 
 def study_path(spec: str | Path) -> Path:
     """A study file by path, or by name in ``problems/studies``."""
-    path = Path(spec)
-    if path.is_file():
-        return path
-    named = STUDY_DIR / f"{spec}.toml"
-    if named.is_file():
-        return named
-    known = sorted(p.stem for p in STUDY_DIR.glob("*.toml"))
-    raise InputError(f"no such study protocol file, and not a bundled study (bundled: {', '.join(known)})",
-                     file=str(spec))
+    return named_toml(spec, STUDY_DIR, "no such study protocol file, and not a bundled study (bundled: {known})")
 
 
 def load_study(spec: str | Path) -> Study:
