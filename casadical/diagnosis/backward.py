@@ -68,8 +68,7 @@ def drop_redundant(dg, current: CalibrationResult, accepted: list[Candidate], ge
                            dg.deviance(current, current.loss), int(current.parameters.free.sum()), dg.n_eq)
         if full.log10_p < level and full.delta_bic < 0:
             break       # the one-step estimate was too pessimistic: it is still supported
-        k = next(i for i, f in enumerate(dg.findings) if f.candidate == cand)
-        dg.drop_finding(k)
+        dg.drop_finding(cand)
         later = [a.label() for a in accepted[accepted.index(cand) + 1:]]
         dg.notes.append(f"{cand.label()} was dropped at the end: with "
                         + (", ".join(later) if later else "the other causes")

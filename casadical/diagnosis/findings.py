@@ -76,11 +76,11 @@ class UnexplainedLog:
 def describe(findings: list[Finding], support: dict, before: dict, final: CalibrationResult,
              cal: Measurements) -> None:
     """Fill each accepted finding's parameters, evidence and figure from the final model."""
-    for k, f in enumerate(findings):
-        if k not in support:
-            continue
+    for f in findings:
         cand = f.candidate
-        test, cv0, cv1, checks = support[k]
+        if cand not in support:
+            continue
+        test, cv0, cv1, checks = support[cand]
         f.parameters = param_values(final, cand.parameter_names())
         text = f"{test.text()} on the calibration poses; held-out mean {cv_text(cv0, cv1)}"
         if "resolution" in checks:
@@ -89,7 +89,7 @@ def describe(findings: list[Finding], support: dict, before: dict, final: Calibr
             text += "; " + "; ".join(h.text() for h in checks["halves"])
         size = what(cand, final, cal)
         f.evidence = text + (("; " + size) if size else "")
-        f.plot = residual_plot(cand, before.get(k, final), final, cal)
+        f.plot = residual_plot(cand, before.get(cand, final), final, cal)
 
 
 def param_values(res: CalibrationResult, names: list[str]) -> dict:

@@ -126,8 +126,8 @@ class _Diagnosis:
         self.periodograms: list[Periodogram] = []
         self._periodograms_of: CalibrationResult | None = None    # the fit they were computed for
         self.unexplained = UnexplainedLog()
-        self.before: dict[int, CalibrationResult] = {}      # fit before each finding, by finding index
-        self.support: dict[int, tuple] = {}                  # (test, cv before, cv after, checks) by finding
+        self.before: dict[Candidate, CalibrationResult] = {}   # fit before each finding, by its cause
+        self.support: dict[Candidate, tuple] = {}               # (test, cv before, cv after, checks) by cause
 
     # -- fitting ---------------------------------------------------------------
 
@@ -198,10 +198,10 @@ class _Diagnosis:
                 step.reason = f"not significant once fitted in full ({test.text()})"
                 self.say(f"    {cand.label()}: {step.reason}")
                 self.findings.pop()
-                self.support.pop(len(self.findings), None)
+                self.support.pop(cand, None)
                 self.unexplained.excluded_causes.add(cand)
                 continue
-            self.before[len(self.findings) - 1] = current
+            self.before[cand] = current
             accepted.append(cand)
             current = new_fit
             step.calibration, step.validation = current.calibration, current.stats(self.val)
@@ -214,13 +214,11 @@ class _Diagnosis:
             current, accepted = drop_redundant(self, current, accepted, geometric)
         return current, accepted, geometric
 
-    def drop_finding(self, k: int) -> None:
-        """Remove finding ``k`` (and what is kept by finding index)."""
-        self.findings.pop(k)
-        for d in (self.support, self.before):
-            moved = {(i - 1 if i > k else i): v for i, v in d.items() if i != k}
-            d.clear()
-            d.update(moved)
+    def drop_finding(self, cand: Candidate) -> None:
+        """Remove the finding of ``cand`` and what is kept for it."""
+        self.findings = [f for f in self.findings if f.candidate != cand]
+        self.support.pop(cand, None)
+        self.before.pop(cand, None)
 
     def candidates(self, current: CalibrationResult, accepted: list[Candidate]) -> list[Candidate]:
         """Every candidate not yet in the model; periodic ones from the periodogram peaks."""
@@ -348,7 +346,7 @@ class _Diagnosis:
                                       **{k: v.to_dict() for k, v in checks.items() if k == "resolution"},
                                       **({"halves": [h.to_dict() for h in checks["halves"]]} if "halves" in checks
                                          else {})})
-                self.support[len(self.findings)] = (test, cv0, cv1, checks)
+                self.support[sc.candidate] = (test, cv0, cv1, checks)
                 self.findings.append(f)
                 return (sc.candidate, {**{p.name: p.value for p in current.parameters}, **fit.values}, level), pending
         return None, pending
