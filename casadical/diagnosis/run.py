@@ -410,7 +410,8 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
         final, final_spec = blackbox_step(current, final_spec, cal, val, dg.schemes, s, dg.steps, dg.findings, say)
     describe(dg.findings, dg.support, dg.before, final, cal)
     dg.findings += list(dg.unexplained.by_joint.values())
-    final_val = final.stats(val)
+    final_errors = final.errors(val)
+    final_val = ErrorStats.of(final_errors)
     if final.uncertainty is not None:
         dg.notes.append(f"remaining calibration residual {final.uncertainty.sigma * 1000:.4f} mm per axis (rms); "
                         f"validation rms {final_val.rms_mm / math.sqrt(3):.4f} mm per axis")
@@ -421,7 +422,8 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
     if other is not None:
         study = transfer_mod.findings_study(dg, final, parametric, accepted, geometric, other, s, say)
     plots = {"val_errors_nominal_mm": (dg.nominal.errors(val) * 1000).tolist(),
-             "val_errors_final_mm": (final.errors(val) * 1000).tolist()}
+             "val_errors_final_mm": (final_errors * 1000).tolist()}
     return DiagnosisReport(robot.name, dg.steps, dg.findings, final_spec, final_val, final, dg.periodograms, plots,
-                           dg.notes, time.perf_counter() - t0, dg.kinematic.stats(val),
+                           dg.notes, time.perf_counter() - t0,
+                           next(st.validation for st in dg.steps if st.model == "kinematic"),
                            study.to_dict() if study is not None else {}, asdict(s))
