@@ -218,7 +218,9 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
             elif p.name in old and prior.parameters[p.name].fixed and p.group != "base":
                 # what the calibration could not identify stays put unless these poses can
                 p.reason = ""
+        kept = {p.name for p in params if p.fixed} - set(fix)   # their std too comes from the calibration
     else:
+        kept = set()
         model = built if built is not None else model_for(robot, terms, data)
         params = model.parameters.copy()
     unknown = [n for n in list(fix) + list(start or {}) if n not in params]
@@ -316,7 +318,7 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         params[n].std = float(s)
     for i in np.flatnonzero(~params.free):
         p = params.items[i]
-        if prior is None or not (p.reason.startswith("kept") or p.reason.startswith("belongs")):
+        if p.name not in kept:
             p.std = 0.0 if p.identifiable is not False else math.nan
     with warnings.catch_warnings():
         if not warn:
