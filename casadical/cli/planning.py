@@ -81,13 +81,14 @@ def cmd_plan_poses(args) -> int:
     check_distinct_poses(data, args.m)
     # compiling the model (~1.5 s) pays only for large pools; the model decides whether it can
     model = Model(robot, args.model, jit=None if N >= JIT_MIN_CANDIDATES else False)
+    cov = model.covariates(data)
     t0 = time.perf_counter()
     try:
-        problem = design_problem(model, data.q, model.covariates(data))
+        problem = design_problem(model, data.q, cov)
     except IdentifiabilityError as e:
         raise InputError(str(e), file=args.candidates) from e
     t_jac = time.perf_counter() - t0
-    generic = _generic_identifiable(model, model.parameters, model.covariates(data))
+    generic = _generic_identifiable(model, model.parameters, cov)
     lost = [n for n in generic if n not in problem.names]
     if lost:
         warnings.warn(f"{args.candidates}: these candidates identify {problem.n_parameters} of the {len(generic)} "
