@@ -5,11 +5,10 @@ from __future__ import annotations
 import csv
 import math
 import time
-import warnings
 
 import numpy as np
 
-from ..errors import DataWarning, IdentifiabilityError, InputError, listing
+from ..errors import IdentifiabilityError, InputError
 from ..files import atomic_open
 from ..planning.selectors import METHODS
 from .common import (add_checks, add_force, add_json, add_urdf_chain, check_options, check_outputs, float_in,
@@ -64,7 +63,6 @@ def register(sub) -> None:
 
 
 def cmd_plan_poses(args) -> int:
-    from ..calibration import _generic_identifiable
     from ..checks import check_distinct_poses, check_poses
     from ..data import Measurements
     from ..model import Model
@@ -88,13 +86,6 @@ def cmd_plan_poses(args) -> int:
     except IdentifiabilityError as e:
         raise InputError(str(e), file=args.candidates) from e
     t_jac = time.perf_counter() - t0
-    generic = _generic_identifiable(model, model.parameters, cov)
-    lost = [n for n in generic if n not in problem.names]
-    if lost:
-        warnings.warn(f"{args.candidates}: these candidates identify {problem.n_parameters} of the {len(generic)} "
-                      f"parameters of model {model.spec} that poses spread over the joint ranges identify (not: "
-                      f"{listing(lost)}); the selection and its "
-                      f"certificate concern those {problem.n_parameters} only", DataWarning, stacklevel=2)
     if args.m < problem.min_poses:
         raise InputError(f"-m {args.m} poses give {3 * args.m} equations, fewer than the "
                          f"{problem.n_parameters} parameters of model {model.spec} these candidates "
