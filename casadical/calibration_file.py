@@ -64,6 +64,7 @@ def validate_calibration_document(doc: Any, path: str) -> None:
     _check_base0(doc["base0"], err)
     _check_stats(doc.get("calibration"), err)
     _check_robust(doc.get("robust"), err)
+    _check_coverage(doc.get("coverage"), err)
     notes = doc.get("notes", [])
     if not isinstance(notes, list) or not all(isinstance(n, str) for n in notes):
         raise err("notes", "must be a list of strings")
@@ -181,6 +182,31 @@ def _check_robust(robust: Any, err) -> None:
     down = robust.get("downweighted", [])
     if not isinstance(down, list) or not all(isinstance(d, dict) for d in down):
         raise err("robust.downweighted", "must be a list of objects (line, residual_mm, weight)")
+
+
+def _check_coverage(coverage: Any, err) -> None:
+    """The joint ranges and poses a calibration saw (optional): finite numbers, one per joint."""
+    if not coverage:
+        return
+    if not isinstance(coverage, dict):
+        raise err("coverage", f"must be an object, got {_kind(coverage)}")
+    for key in ("q_min_deg", "q_max_deg", "poses_deg", "spacing_deg"):
+        if key not in coverage:
+            raise err(f"coverage.{key}", "missing key")
+    n = None
+    for key in ("q_min_deg", "q_max_deg"):
+        v = coverage[key]
+        if not isinstance(v, list) or not all(_finite(x) for x in v) or (n is not None and len(v) != n):
+            raise err(f"coverage.{key}", "must be a list of finite numbers, one per joint")
+        n = len(v)
+    poses = coverage["poses_deg"]
+    if not isinstance(poses, list) or not poses:
+        raise err("coverage.poses_deg", f"must be a non-empty list of poses, got {_kind(poses)}")
+    for i, pose in enumerate(poses):
+        if not isinstance(pose, list) or len(pose) != n or not all(_finite(x) for x in pose):
+            raise err(f"coverage.poses_deg[{i}]", f"must be a list of {n} finite numbers (degrees)")
+    if not _finite(coverage["spacing_deg"]):
+        raise err("coverage.spacing_deg", f"must be a finite number, got {coverage['spacing_deg']!r}")
 
 
 def _finite(x: Any) -> bool:

@@ -358,6 +358,10 @@ def _set(path, value):
     (_set(["robot", "joint"], 3), "robot.joint"),
     (_set(["robot", "joint", 1, "a_m"], 1e300), "robot.joint[2].a_m"),
     (_set(["robot"], KeyError), "robot"),
+    (_set(["coverage", "poses_deg"], 10 ** 400), "coverage.poses_deg"),     # found by the slow fuzz test
+    (_set(["coverage", "q_min_deg", 2], 10 ** 400), "coverage.q_min_deg"),
+    (_set(["coverage", "poses_deg", 1], [1.0]), "coverage.poses_deg[1]"),
+    (_set(["coverage", "spacing_deg"], KeyError), "coverage.spacing_deg"),
 ])
 def test_malformed_calibration_json(ys, tmp_path, capsys, mutate, column):
     doc = json.loads((ys / "cal.json").read_text())
