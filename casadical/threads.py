@@ -1,4 +1,4 @@
-"""Thread limits for the library's small dense linear algebra.
+"""Thread limits for the library's small dense linear algebra, and threads for model evaluation.
 
 casadical's matrices are small (tens of parameters, a few thousand rows per
 block). Multi-threaded BLAS gains little on them and loses a lot on a busy
@@ -32,6 +32,13 @@ Examples
 >>> @limited_threads()
 ... def solve(): ...
 >>> set_threads(None)                         # back to CASADICAL_THREADS / 1
+
+Evaluating a model on many poses (CasADi, which releases the GIL) is a
+different matter: each thread takes its own block of poses and nothing
+waits on anything until the blocks are done, so no thread spins on a busy
+machine. :func:`evaluation_threads` says how many threads do it:
+``CASADICAL_EVAL_THREADS`` (a whole number ``n >= 1``), else the cores this
+process may use, at most :data:`EVAL_MAX`.
 """
 
 from __future__ import annotations
@@ -47,6 +54,11 @@ from .errors import SettingError
 ENV = "CASADICAL_THREADS"
 #: the limit when neither :func:`set_threads` nor the environment says otherwise
 DEFAULT = 1
+
+#: environment variable read by :func:`evaluation_threads`
+EVAL_ENV = "CASADICAL_EVAL_THREADS"
+#: the most evaluation threads by default (blocks of a few hundred poses gain little from more)
+EVAL_MAX = 4
 
 _lock = threading.RLock()
 _setting: int | None = None        # set_threads(); None = not set
@@ -146,3 +158,40 @@ def blas_threads() -> dict[str, int]:
     """Current thread count of each loaded BLAS/OpenMP library, by file name (for reports and tests)."""
     with _lock:
         return {os.path.basename(lib.filepath): lib.get_num_threads() for lib in _libraries()}
+
+
+def evaluation_threads() -> int:
+    """Threads that evaluate one large batch of poses (:class:`casadical.model.Model`), each its own block.
+
+    ``CASADICAL_EVAL_THREADS`` if set (a whole number >= 1), else the cores
+    this process may use, at most :data:`EVAL_MAX`. The results do not
+    depend on it: every pose is evaluated alone, by the same code.
+    """
+    text = os.environ.get(EVAL_ENV, "").strip()
+    if not text:
+        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+        return max(1, min(cores, EVAL_MAX))
+    try:
+        n = int(text)
+    except ValueError:
+        n = 0
+    if n < 1:
+        raise SettingError(f"environment variable {EVAL_ENV} must be a whole number >= 1; got {text!r}")
+    return n
+
+
+_pool: tuple | None = None   # (pid, size, ThreadPoolExecutor) of evaluation_pool()
+
+
+def evaluation_pool(n: int):
+    """A process-wide pool of ``n`` threads for :func:`evaluation_threads` (made again after a fork)."""
+    global _pool
+    with _lock:
+        if _pool is None or _pool[0] != os.getpid() or _pool[1] != n:
+            from concurrent.futures import ThreadPoolExecutor
+
+            if _pool is not None and _pool[0] == os.getpid():
+                _pool[2].shutdown(wait=False)
+
+            _pool = (os.getpid(), n, ThreadPoolExecutor(n, thread_name_prefix="casadical-eval"))
+        return _pool[2]

@@ -1,4 +1,5 @@
-"""casadical.threads: the BLAS/OpenMP limit is in force inside, restored after, and can be overridden."""
+"""casadical.threads: the BLAS/OpenMP limit is in force inside, restored after, and can be overridden; large
+batches of poses are evaluated in blocks, side by side, to the same bits."""
 
 from __future__ import annotations
 
@@ -9,7 +10,9 @@ from threadpoolctl import threadpool_limits
 
 from casadical import cli
 from casadical.errors import SettingError
-from casadical.threads import ENV, blas_threads, get_threads, limited_threads, set_threads
+from casadical.robot import load_robot
+from casadical.threads import (ENV, EVAL_ENV, EVAL_MAX, blas_threads, evaluation_threads, get_threads,
+                               limited_threads, set_threads)
 
 
 #: libraries that can run 2 threads: a BLAS built single-threaded (SCS's, loaded with cvxpy by other
@@ -132,3 +135,81 @@ def test_same_numbers_with_and_without_the_limit():
     with limited_threads(0):
         b = np.linalg.cholesky(X.T @ X)
     np.testing.assert_allclose(a, b, rtol=1e-12)
+
+
+# --- evaluation threads: a large batch of poses in blocks, side by side ----------------------------
+
+
+@pytest.mark.parametrize("name", ["arm4", "arm5", "arm7"])
+def test_blocks_give_the_same_bits_as_one_batch(monkeypatch, name):
+    """Every per-pose output (positions, Jacobians, rotations, torques, offsets) is the same in 1, 2 or 3
+    blocks, with per-pose covariates (temperature, time, motion direction) sliced with their poses."""
+    from arms import ARMS
+
+    from casadical.model import Model
+    from casadical.robot import robot_from_dict
+
+    robot = robot_from_dict(ARMS[name])
+    model = Model(robot, "kinematic+compliance+backlash+thermal_expansion+drift+periodic[2:1,3:2]", jit=False)
+    rng = np.random.default_rng(3)
+    N = 731  # blocks of unequal size
+    q = rng.uniform(-1.5, 1.5, (N, robot.n))
+    p = model.parameters.values + model.parameters.scales * rng.normal(0, 1, len(model.parameters))
+    cov = model.default_covariates(N) + rng.normal(0, 1, (N, len(model.covariate_names)))
+    methods = ("predict", "predict_jacobian", "predict_angle_jacobian", "predict_q_jacobian", "flange_rotation",
+               "flange_rotation_jacobian", "torques", "joint_offsets")
+    results = {}
+    for n in ("1", "2", "3"):
+        monkeypatch.setenv(EVAL_ENV, n)
+        for m in methods:
+            out = getattr(model, m)(q, p, cov)
+            results.setdefault(m, []).append(out if isinstance(out, tuple) else (out,))
+        blocks = model._batch("fk_jac", N)
+        assert len(getattr(blocks, "blocks", [blocks])) == int(n)
+    for m, (one, *more) in results.items():
+        for other in more:
+            for a, b in zip(one, other):
+                assert a.shape == b.shape and np.array_equal(a, b), m
+    assert not np.array_equal(results["predict"][0][0][:N // 2], results["predict"][0][0][N // 2:])
+
+
+def test_small_batches_and_compiled_code_stay_in_one_block(monkeypatch):
+    from casadical.model import BLOCK_MIN, Model
+
+    monkeypatch.setenv(EVAL_ENV, "4")
+    model = Model(load_robot("ur10"), "kinematic", jit=False)
+    assert not hasattr(model._batch("fk", 2 * BLOCK_MIN - 1), "blocks")
+    assert len(model._batch("fk", 4 * BLOCK_MIN).blocks) == 4
+
+
+@pytest.mark.parametrize("value", ["two", "0", "-1", "1.5"])
+def test_bad_evaluation_threads_value(monkeypatch, value):
+    monkeypatch.setenv(EVAL_ENV, value)
+    with pytest.raises(SettingError, match=EVAL_ENV):
+        evaluation_threads()
+
+
+def test_default_evaluation_threads(monkeypatch):
+    monkeypatch.delenv(EVAL_ENV, raising=False)
+    assert 1 <= evaluation_threads() <= EVAL_MAX
+    monkeypatch.setenv(EVAL_ENV, " 3 ")
+    assert evaluation_threads() == 3
+
+
+def test_blocks_after_a_fork(monkeypatch):
+    """A child process made by fork has none of its parent's pool threads: it makes its own pool."""
+    import multiprocessing
+
+    from casadical.model import Model
+
+    monkeypatch.setenv(EVAL_ENV, "2")
+    model = Model(load_robot("ur10"), "kinematic", jit=False)
+    q = np.random.default_rng(0).uniform(-1, 1, (400, 6))
+    expect = model.predict(q)   # the parent's pool exists now
+    ctx = multiprocessing.get_context("fork")
+    out = ctx.Queue()
+    child = ctx.Process(target=lambda: out.put(model.predict(q)))  # fork: nothing is pickled but the result
+    child.start()
+    got = out.get(timeout=60)
+    child.join(timeout=60)
+    assert child.exitcode == 0 and np.array_equal(got, expect)

@@ -192,19 +192,22 @@ def _figures(res: MethodResult, truth: Truth, val: Measurements) -> dict:
     return row
 
 
-_vm = {"users": 0, "old": None, "lock": threading.Lock()}
+#: the environment of a task: CasADi's virtual machine, one thread per task (a study runs a task per core)
+_TASK_ENV = {"CASADICAL_JIT": "0", "CASADICAL_EVAL_THREADS": "1"}
+_vm = {"users": 0, "old": {}, "lock": threading.Lock()}
 
 
 @contextlib.contextmanager
 def _task_environment():
-    """Warnings off (pytest's filters or a user's must not turn one into an error on one backend only)
-    and CasADi's virtual machine instead of JIT compilation: tasks evaluate small batches on fresh
-    models, and the VM gives the same floats whether or not a worker has a compiler. Safe for tasks
-    in several threads of one process: the first in sets ``CASADICAL_JIT=0``, the last out restores it."""
+    """Warnings off (pytest's filters or a user's must not turn one into an error on one backend only),
+    CasADi's virtual machine instead of JIT compilation (tasks evaluate small batches on fresh models,
+    and the VM gives the same floats whether or not a worker has a compiler) and one evaluation thread
+    (the study already runs a task per core). Safe for tasks in several threads of one process: the
+    first in sets the environment (:data:`_TASK_ENV`), the last out restores it."""
     with _vm["lock"]:
         if _vm["users"] == 0:
-            _vm["old"] = os.environ.get("CASADICAL_JIT")
-            os.environ["CASADICAL_JIT"] = "0"
+            _vm["old"] = {k: os.environ.get(k) for k in _TASK_ENV}
+            os.environ.update(_TASK_ENV)
         _vm["users"] += 1
     try:
         with warnings.catch_warnings():
@@ -214,10 +217,11 @@ def _task_environment():
         with _vm["lock"]:
             _vm["users"] -= 1
             if _vm["users"] == 0:
-                if _vm["old"] is None:
-                    os.environ.pop("CASADICAL_JIT", None)
-                else:
-                    os.environ["CASADICAL_JIT"] = _vm["old"]
+                for k, v in _vm["old"].items():
+                    if v is None:
+                        os.environ.pop(k, None)
+                    else:
+                        os.environ[k] = v
 
 
 _ROBOTS: dict[str, Robot] = {}
