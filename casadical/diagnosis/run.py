@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import asdict, dataclass
+from dataclasses import asdict
 from typing import Callable
 
 import numpy as np
@@ -31,7 +31,7 @@ import numpy as np
 from ..calibration import calibrate, model_for
 from ..checks import check_poses
 from ..data import Measurements
-from ..errors import InputError, listing
+from ..errors import listing
 from ..problem import RobustLoss
 from ..result import CalibrationResult, ErrorStats
 from ..robot import Robot
@@ -45,65 +45,10 @@ from .periodic import halves, resolution
 from .periodogram import Periodogram, joint_errors, periodogram
 from .report import DiagnosisReport, Finding, Step
 from .screening import Scored, Screen, ambiguous
+from .settings import DiagnosisSettings
 from .statistics import nested_test
 from .validation import (Linearized, by_kind, cv_failure, cv_record, cv_text, extrapolation_gain, joint_levers,
                          not_better, schemes)
-
-
-@dataclass
-class DiagnosisSettings:
-    """Settings of :func:`diagnose`.
-
-    Parameters
-    ----------
-    alpha : float
-        Family-wise significance level of the F-tests (Bonferroni over the
-        candidates of a round, harmonics scanned included).
-    max_harmonic : int
-        Highest harmonic of the periodogram (cycles per joint turn).
-    folds : int
-        Folds of each cross-validation scheme.
-    max_rounds : int
-        Safety cap on the rounds; the search stops when no candidate is
-        supported, and a note says if the cap stopped it instead.
-    confirm : int
-        Candidates fitted for real per round and tier (best scores first).
-    blackbox : bool
-        Try a black-box compensator on what remains.
-    stability_alpha : float
-        Level of the test that a periodic error's amplitude and phase agree
-        on the two halves of the joint's range.
-    robust : {"huber", "none"}
-        Loss of every fit (see :func:`casadical.calibrate`).
-    transfer_base_poses : int
-        With another series: poses on which the base pose is re-estimated there.
-    transfer_refit_poses : int or None
-        With another series: poses on which the geometry is refitted there
-        (default: as many as the calibration poses, at most half the series).
-    seed : int
-    """
-
-    alpha: float = 0.001
-    max_harmonic: int = 60
-    folds: int = 5
-    max_rounds: int = 40
-    confirm: int = 3
-    blackbox: bool = True
-    stability_alpha: float = 0.001
-    robust: str = "huber"
-    transfer_base_poses: int = 30
-    transfer_refit_poses: int | None = None
-    seed: int = 0
-
-    def __post_init__(self) -> None:
-        if not 0 < self.alpha < 1 or not 0 < self.stability_alpha < 1:
-            raise InputError(f"alpha and stability_alpha must be in (0, 1), got {self.alpha}, "
-                             f"{self.stability_alpha}")
-        for name in ("max_harmonic", "folds", "confirm", "transfer_base_poses"):
-            if getattr(self, name) < (2 if name == "folds" else 1):
-                raise InputError(f"{name} must be at least {2 if name == 'folds' else 1}, got {getattr(self, name)}")
-        if self.max_rounds < 0:
-            raise InputError(f"max_rounds must not be negative, got {self.max_rounds}")
 
 
 #: functions of one joint's reading: each must be the same over the lower and the upper half of its range.

@@ -1,0 +1,63 @@
+"""Settings of the diagnosis (:func:`casadical.diagnosis.diagnose`)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from ..errors import InputError
+
+
+@dataclass
+class DiagnosisSettings:
+    """Settings of :func:`diagnose`.
+
+    Parameters
+    ----------
+    alpha : float
+        Family-wise significance level of the F-tests (Bonferroni over the
+        candidates of a round, harmonics scanned included).
+    max_harmonic : int
+        Highest harmonic of the periodogram (cycles per joint turn).
+    folds : int
+        Folds of each cross-validation scheme.
+    max_rounds : int
+        Safety cap on the rounds; the search stops when no candidate is
+        supported, and a note says if the cap stopped it instead.
+    confirm : int
+        Candidates fitted for real per round and tier (best scores first).
+    blackbox : bool
+        Try a black-box compensator on what remains.
+    stability_alpha : float
+        Level of the test that a periodic error's amplitude and phase agree
+        on the two halves of the joint's range.
+    robust : {"huber", "none"}
+        Loss of every fit (see :func:`casadical.calibrate`).
+    transfer_base_poses : int
+        With another series: poses on which the base pose is re-estimated there.
+    transfer_refit_poses : int or None
+        With another series: poses on which the geometry is refitted there
+        (default: as many as the calibration poses, at most half the series).
+    seed : int
+    """
+
+    alpha: float = 0.001
+    max_harmonic: int = 60
+    folds: int = 5
+    max_rounds: int = 40
+    confirm: int = 3
+    blackbox: bool = True
+    stability_alpha: float = 0.001
+    robust: str = "huber"
+    transfer_base_poses: int = 30
+    transfer_refit_poses: int | None = None
+    seed: int = 0
+
+    def __post_init__(self) -> None:
+        if not 0 < self.alpha < 1 or not 0 < self.stability_alpha < 1:
+            raise InputError(f"alpha and stability_alpha must be in (0, 1), got {self.alpha}, "
+                             f"{self.stability_alpha}")
+        for name in ("max_harmonic", "folds", "confirm", "transfer_base_poses"):
+            if getattr(self, name) < (2 if name == "folds" else 1):
+                raise InputError(f"{name} must be at least {2 if name == 'folds' else 1}, got {getattr(self, name)}")
+        if self.max_rounds < 0:
+            raise InputError(f"max_rounds must not be negative, got {self.max_rounds}")
