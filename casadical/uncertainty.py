@@ -1,10 +1,14 @@
 """Parameter uncertainty from the least-squares Jacobian at the solution.
 
-cov = sigma^2 (J^T W J)^-1 with sigma^2 = sum w_i |r_i|^2 / (3N - p) estimated
-from the residuals (W: the robust loss's pose weights, identity for plain
-least squares); standard errors, correlations, and warnings on strong
-correlations and on parameters at a bound (where the linearised covariance
-does not hold).
+cov = sigma^2 A^-1 with sigma^2 = sum w_i |r_i|^2 / (3N - p) estimated from
+the residuals. ``A`` is the Gauss-Newton matrix of the loss at the solution:
+``J^T J`` for plain least squares; for the robust loss
+``sum J_i^T (w_i I - delta w_i^3 r_i r_i^T) J_i`` (w_i: the pose weights),
+i.e. ``J^T W J`` less the loss's flattening along each large residual, so a
+pose the loss sets aside informs the estimate even less than its weight
+says (:class:`casadical.problem.Linearization`). Standard errors,
+correlations, and warnings on strong correlations and on parameters at a
+bound (where the linearised covariance does not hold).
 """
 
 from __future__ import annotations
@@ -56,8 +60,8 @@ def from_normal(A: np.ndarray, ssr: float, m: int, scale: np.ndarray, names: lis
     Parameters
     ----------
     A : ndarray, shape (p, p)
-        ``J^T W J`` in scaled variables (``W``: the robust loss's pose
-        weights, identity for plain least squares).
+        The loss's Gauss-Newton matrix in scaled variables (``J^T J`` for
+        plain least squares; see the module's docstring for the robust loss).
     ssr : float
         Weighted sum of squared residuals ``sum w_i |r_i|^2`` (m^2).
     m : int
