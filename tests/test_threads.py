@@ -189,6 +189,15 @@ def test_bad_evaluation_threads_value(monkeypatch, value):
         evaluation_threads()
 
 
+def test_cli_bad_evaluation_threads_is_one_line(monkeypatch, capsys, tmp_path):
+    """Said before any work, even by a command that would evaluate only compiled code or nothing at all."""
+    monkeypatch.setenv(EVAL_ENV, "many")
+    rc = cli.main(["candidates", "ys100", "-n", "3", "--out", str(tmp_path / "c.csv")])
+    err = capsys.readouterr().err
+    assert rc == 2 and err.count("\n") == 1 and EVAL_ENV in err
+    assert not (tmp_path / "c.csv").exists()
+
+
 def test_default_evaluation_threads(monkeypatch):
     monkeypatch.delenv(EVAL_ENV, raising=False)
     assert 1 <= evaluation_threads() <= EVAL_MAX

@@ -18,7 +18,7 @@ import warnings
 
 from .. import __version__
 from ..errors import CasadicalError, CasadicalWarning
-from ..threads import limited_threads
+from ..threads import evaluation_threads, limited_threads
 from . import cache, calibrate, compare, compensate, data, diagnose, export, model, planning, study
 
 #: command modules, in the order ``--help`` lists them
@@ -72,6 +72,7 @@ def main(argv: list[str] | None = None) -> int:
     old = warnings.showwarning
     warnings.showwarning = _show_warning
     try:
+        evaluation_threads()     # a bad CASADICAL_EVAL_THREADS is said before any work, whatever the command
         with limited_threads():  # small dense problems: one BLAS thread unless CASADICAL_THREADS says otherwise
             return int(args.func(args) or 0)
     except CasadicalError as e:
