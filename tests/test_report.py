@@ -228,6 +228,35 @@ def diagnosis_page(tmp_path_factory):
     return report, html, Page(html)
 
 
+def test_figures_drawn_in_processes_are_the_same_page(diagnosis_page, calibration_page):
+    """Figures drawn by forked processes give the same bytes as drawn in this one, whatever the count."""
+    report, html, _ = diagnosis_page
+    assert diagnosis_html(report, processes=2) == html
+    assert diagnosis_html(report, processes=5) == html
+    result, data, html, _, _ = calibration_page
+    assert calibration_html(result, data, processes=3) == html
+
+
+def test_a_figure_a_child_cannot_draw_is_drawn_here():
+    """A child process that fails leaves its share to this process: nothing is missing or out of order."""
+    import os
+
+    from casadical.report.figures import figure, render, styled
+
+    parent = os.getpid()
+
+    @styled
+    def line(k):
+        if os.getpid() != parent and k % 2:
+            raise RuntimeError("this child cannot draw")
+        fig, ax = figure(3, 2)
+        ax[0, 0].plot([0, 1], [0, k])
+        return fig
+
+    jobs = [(lambda k=k: line(k), f"f{k}", f"figure {k}") for k in range(5)]
+    assert render(jobs, processes=2) == render(jobs)
+
+
 def test_diagnosis_report_steps_with_short_labels_and_full_specs(diagnosis_page):
     report, html, page = diagnosis_page
     rows = [r for r in page.table("steps") if r.get("#", "").isdigit()]

@@ -57,10 +57,11 @@ def run(args) -> int:
     print(f"\ncalibration -> {args.out}")
     if args.html:
         from ..report import calibration_html
+        from ..threads import evaluation_threads
         before, label = None, "nominal model, base pose fitted"
         if isinstance(robot, CalibrationResult):    # the calibration taken further: the error it starts from
             before = calibrate(robot, data, "base", "lm", warn=False, robust=args.robust)
             label = f"{args.robot} with its base pose re-estimated"
-        write_text(args.html, calibration_html(result, data, before, label), args.force)
+        write_text(args.html, calibration_html(result, data, before, label, processes=evaluation_threads()), args.force)
         print(f"html report -> {args.html}")
     return 0

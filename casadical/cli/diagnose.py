@@ -73,8 +73,9 @@ def run(args) -> int:
     print(f"\nreport -> {args.json}")
     if args.html:
         from ..report import diagnosis_html  # matplotlib: imported only for the HTML report
+        from ..threads import evaluation_threads
 
-        write_text(args.html, diagnosis_html(report), args.force)
+        write_text(args.html, diagnosis_html(report, processes=evaluation_threads()), args.force)
         print(f"html report -> {args.html}")
     if args.out:
         report.final.save(args.out, overwrite=args.force)

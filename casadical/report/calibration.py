@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from functools import partial
 
 import numpy as np
 
@@ -17,7 +18,7 @@ AXES = ("x", "y", "z")
 
 
 def calibration_html(result: CalibrationResult, data: Measurements, before: CalibrationResult | None = None,
-                     before_label: str = "nominal model, base pose fitted") -> str:
+                     before_label: str = "nominal model, base pose fitted", processes: int = 1) -> str:
     """A self-contained HTML report of a calibration.
 
     Parameters
@@ -31,6 +32,8 @@ def calibration_html(result: CalibrationResult, data: Measurements, before: Cali
         base pose fitted to ``data`` (the error a calibration starts from).
     before_label : str
         What ``before`` is, in words.
+    processes : int
+        Draw the figures in this many processes (:func:`casadical.report.figures.render`).
 
     Returns
     -------
@@ -60,7 +63,7 @@ def calibration_html(result: CalibrationResult, data: Measurements, before: Cali
                [[before_label, str(e0.n_poses), num(e0.mean_mm), num(e0.max_mm), num(e0.std_mm), num(e0.rms_mm)],
                 [Raw("calibrated: " + model_label(page, _short(result.model.spec), result.model.spec)),
                  str(e1.n_poses), num(e1.mean_mm), num(e1.max_mm), num(e1.std_mm), num(e1.rms_mm)]])
-    ref = page.figure(_distribution(n0, n1, before_label),
+    ref = page.figure(partial(_distribution, n0, n1, before_label),
                       "fig-errors", "Distribution of the position error over the calibration poses, before "
                       "and after: histogram (left) and cumulative share of poses (right).")
     page.para(f"The whole distribution moves ({ref}): the median pose error goes from "
@@ -68,10 +71,10 @@ def calibration_html(result: CalibrationResult, data: Measurements, before: Cali
               f"the worst from {e0.max_mm:.4f} mm to {e1.max_mm:.4f} mm.")
 
     page.heading("Residuals per axis", anchor="residuals")
-    ref_pose = page.figure(_per_pose(data, r0, r1, before_label), "fig-axes",
+    ref_pose = page.figure(partial(_per_pose, data, r0, r1, before_label), "fig-axes",
                            "Measured minus predicted position along each axis of the measurement frame, per pose "
                            "in file order, before and after.")
-    ref_joint = page.figure(_per_joint(data, r1), "fig-joints",
+    ref_joint = page.figure(partial(_per_joint, data, r1), "fig-joints",
                             "Residual of the calibrated model along each axis against each joint's reading. A "
                             "trend or a wave here is structure the model does not have (run casadical diagnose).")
     page.para(f"Drifts along the file (time) show in {ref_pose}; what depends on a joint's angle in {ref_joint}.")
@@ -84,7 +87,7 @@ def calibration_html(result: CalibrationResult, data: Measurements, before: Cali
 
     if result.uncertainty is not None and len(result.uncertainty.names) >= 2:
         page.heading("Correlations of the free parameters", anchor="correlations")
-        ref = page.figure(correlation_figure(result), "fig-correlation",
+        ref = page.figure(partial(correlation_figure, result), "fig-correlation",
                           "Correlation matrix of the identified parameters (red positive, blue negative). Pairs "
                           "near +1 or -1 are told apart poorly by these poses.")
         pairs = strongest_pairs(result)
@@ -117,7 +120,7 @@ def calibration_html(result: CalibrationResult, data: Measurements, before: Cali
     if result.notes:
         page.heading("Notes", anchor="notes")
         page.items([esc(n) for n in result.notes])
-    return page.html()
+    return page.html(processes)
 
 
 def _short(spec: str) -> str:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from functools import partial
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -30,13 +31,15 @@ def step_label(step: Step) -> str:
     return "+ " + short_label(c)
 
 
-def diagnosis_html(report: DiagnosisReport) -> str:
+def diagnosis_html(report: DiagnosisReport, processes: int = 1) -> str:
     """A self-contained HTML report of a diagnosis (inline CSS and SVG, no script, no network).
 
     Parameters
     ----------
     report : DiagnosisReport
         What :func:`casadical.diagnosis.diagnose` returned.
+    processes : int
+        Draw the figures in this many processes (:func:`casadical.report.figures.render`).
     """
     page = Page(f"casadical diagnosis: {report.robot}")
     v = report.final_validation
@@ -71,7 +74,7 @@ def diagnosis_html(report: DiagnosisReport) -> str:
         _transfer(page, report)
     if report.periodograms:
         page.heading("What is left: periodograms of the final residual", anchor="periodograms")
-        ref = page.figure(_periodograms(report), "fig-periodograms",
+        ref = page.figure(partial(_periodograms, report), "fig-periodograms",
                           "Share of each joint's projected calibration residual that one harmonic of its reading "
                           "explains, per harmonic (cycles per turn). Dotted lines: harmonics in the final model.")
         page.para(f"A single tall peak in {ref} is a periodic error the model lacks; a forest of small ones "
@@ -83,7 +86,7 @@ def diagnosis_html(report: DiagnosisReport) -> str:
     page.heading("Notes and settings", anchor="notes")
     page.items([esc(n) for n in report.notes])
     page.pairs([(k, esc(str(v))) for k, v in report.settings.items()])
-    return page.html()
+    return page.html(processes)
 
 
 def _final_label(report: DiagnosisReport) -> str:
@@ -123,14 +126,14 @@ def _steps(page: Page, report: DiagnosisReport) -> None:
                 "accepted"], rows, text_columns=(1, 9), row_classes=classes, details=reasons)
     acc = [s for s in report.steps if s.accepted and s.candidate is not None]
     if acc:
-        ref = page.figure(_along_steps(acc), "fig-steps",
+        ref = page.figure(partial(_along_steps, acc), "fig-steps",
                           "Validation mean error and held-out means on the calibration poses along the accepted "
                           f"steps (the nominal model, not shown: {report.steps[0].validation.mean_mm:.4f} mm).")
         page.para(f"How the error falls along the accepted steps: {ref}.")
     e0 = np.asarray(report.plots.get("val_errors_nominal_mm", []), float)
     e1 = np.asarray(report.plots.get("val_errors_final_mm", []), float)
     if len(e0) and len(e1):
-        ref = page.figure(_per_pose(e0, e1), "fig-poses",
+        ref = page.figure(partial(_per_pose, e0, e1), "fig-poses",
                           "Position error of each validation pose, nominal model (base fitted) and final model: "
                           "distribution (top) and per pose (bottom).")
         page.para(f"Every validation pose before and after: {ref}; the median goes from {np.median(e0):.4f} mm "
@@ -208,7 +211,7 @@ def _findings(page: Page, report: DiagnosisReport) -> None:
         if hu.get("halves"):
             _halves_table(page, hu["halves"])
         if f.plot:
-            page.figure(_finding_plot(f), f"fig-{anchor}", _finding_caption(f))
+            page.figure(partial(_finding_plot, f), f"fig-{anchor}", _finding_caption(f))
 
 
 def _drop(cv: dict, kind: str) -> float | None:
@@ -325,7 +328,7 @@ def _transfer(page: Page, report: DiagnosisReport) -> None:
     page.table(["taken there with", "kinematic mean mm", "final mean mm", "final against kinematic"],
                [["base pose re-estimated", num(kb), num(fb), gain(kb - fb)],
                 ["geometry refitted", num(kr), num(fr), gain(kr - fr)]], text_columns=(0, 3))
-    ref = page.figure(_transfer_plot(t), "fig-transfer",
+    ref = page.figure(partial(_transfer_plot, t), "fig-transfer",
                       f"Mean error on {_name(t['file'])}, kinematic and final model, both ways of taking them there.")
     rows = [[f.label(), gain(f.transfer["base_gain_mm"]), gain(f.transfer["refit_gain_mm"]), f.transfer["verdict"]]
             for f in report.findings if f.transfer and f.in_model]

@@ -13,6 +13,7 @@ from __future__ import annotations
 import functools
 import html
 import io
+import os
 import re
 
 import numpy as np
@@ -124,3 +125,64 @@ def to_svg(fig: Figure, key: str, label: str) -> str:
     svg = _HEADER.sub("", buf.getvalue(), count=1)
     svg = svg.replace("<svg ", f'<svg role="img" aria-label="{html.escape(label)}" ', 1)
     return re.sub(r"<metadata>.*?</metadata>\s*", "", svg, count=1, flags=re.S)
+
+
+_JOBS: list = []   # what the processes of render() draw (inherited through fork, never pickled)
+
+
+def _draw(jobs, indices) -> list[str]:
+    out = []
+    for i in indices:
+        fig, key, label = jobs[i]
+        out.append(to_svg(fig() if callable(fig) else fig, key, label))
+    return out
+
+
+def _draw_inherited(indices) -> list[str]:
+    return _draw(_JOBS, indices)
+
+
+def render(jobs: list[tuple], processes: int = 1) -> list[str]:
+    """``<svg>`` elements of figures, in order.
+
+    Parameters
+    ----------
+    jobs : list of (Figure or callable, str, str)
+        A figure or a function making one, its key and its label (:func:`to_svg`).
+    processes : int
+        Draw in this many processes: this one and ``processes - 1`` forked
+        children, each a share of the figures (POSIX only; elsewhere, or if
+        a child fails, this process draws them). matplotlib holds the GIL,
+        so threads would not help. The SVG is the same either way.
+    """
+    n = len(jobs)
+    if processes < 2 or n < 2 or not hasattr(os, "fork"):
+        return _draw(jobs, range(n))
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    k = min(processes, n)
+    shares = [list(range(i, n, k)) for i in range(k)]   # interleaved: the costly figures are spread
+    global _JOBS
+    _JOBS = jobs
+    out: list = [None] * n
+    try:
+        with ProcessPoolExecutor(k - 1, mp_context=multiprocessing.get_context("fork")) as pool:
+            futures = []
+            for share in shares[1:]:
+                try:
+                    futures.append((share, pool.submit(_draw_inherited, share)))
+                except Exception:  # noqa: BLE001  (no child process here: this one draws its share)
+                    futures.append((share, None))
+            done = [(shares[0], _draw(jobs, shares[0]))]
+            for share, fut in futures:
+                try:
+                    done.append((share, fut.result() if fut else _draw(jobs, share)))
+                except Exception:  # noqa: BLE001  (a child that failed, or none: its share is drawn here)
+                    done.append((share, _draw(jobs, share)))
+        for share, svgs in done:
+            for i, svg in zip(share, svgs):
+                out[i] = svg
+    finally:
+        _JOBS = []
+    return out

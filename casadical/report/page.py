@@ -11,10 +11,11 @@ from __future__ import annotations
 import html
 import math
 from dataclasses import dataclass, field
+from typing import Callable
 
 from matplotlib.figure import Figure
 
-from .figures import to_svg
+from .figures import render
 
 CSS = """
 :root{--ink:#1d1d1f;--muted:#666;--line:#d6d6d6;--faint:#f4f5f7;--good:#1a7f37;--bad:#b42318}
@@ -76,6 +77,7 @@ class Page:
     parts: list[str] = field(default_factory=list)
     footnotes: list[str] = field(default_factory=list)
     n_figures: int = 0
+    _figures: list[tuple] = field(default_factory=list)   # (index in parts, figure or maker, anchor, caption)
 
     def heading(self, text: str, level: int = 2, anchor: str | None = None) -> None:
         ident = f' id="{esc(anchor)}"' if anchor else ""
@@ -138,12 +140,16 @@ class Page:
         out.append("</tbody></table></div>")
         self.parts.append("".join(out))
 
-    def figure(self, fig: Figure, anchor: str, caption: str) -> str:
-        """Add a numbered figure; returns a link to it for the text (``figure N``)."""
+    def figure(self, fig: Figure | Callable[[], Figure], anchor: str, caption: str) -> Raw:
+        """Add a numbered figure; returns a link to it for the text (``figure N``).
+
+        ``fig``: a figure, or a function that makes it: then it is drawn only
+        by :meth:`html`, possibly in another process.
+        """
         self.n_figures += 1
-        svg = to_svg(fig, anchor, caption)
-        self.parts.append(f'<figure id="{esc(anchor)}">{svg}<figcaption><b>Figure {self.n_figures}.</b> '
-                          f"{esc(caption)}</figcaption></figure>")
+        self._figures.append((len(self.parts), fig, anchor, f"<b>Figure {self.n_figures}.</b> {esc(caption)}",
+                              caption))
+        self.parts.append("")
         return self.ref(anchor, f"figure {self.n_figures}")
 
     @staticmethod
@@ -156,7 +162,11 @@ class Page:
             self.footnotes.append(text)
         return self.footnotes.index(text) + 1
 
-    def html(self) -> str:
+    def html(self, processes: int = 1) -> str:
+        """The document; ``processes`` > 1 draws the figures in that many processes (:func:`.figures.render`)."""
+        svgs = render([(fig, anchor, label) for _, fig, anchor, _, label in self._figures], processes)
+        for (i, _, anchor, caption, _), svg in zip(self._figures, svgs):
+            self.parts[i] = f'<figure id="{esc(anchor)}">{svg}<figcaption>{caption}</figcaption></figure>'
         notes = ""
         if self.footnotes:
             notes = ('<h2 id="footnotes">Model specifications</h2><ol class="notes">'
