@@ -370,8 +370,8 @@ class Model:
                 b = _Batch(self.batch_function(which, N), N)
             else:   # bounds of k blocks of (nearly) equal size, evaluated side by side
                 cuts = [N * i // k for i in range(k + 1)]
-                b = _Blocks([(a, _Batch(self.batch_function(which, c - a, compiled=jit), c - a))
-                             for a, c in zip(cuts, cuts[1:])], self._graph(which)[2])
+                maps = {n: self.batch_function(which, n, compiled=jit) for n in {c - a for a, c in zip(cuts, cuts[1:])}}
+                b = _Blocks([(a, _Batch(maps[c - a], c - a)) for a, c in zip(cuts, cuts[1:])], self._graph(which)[2])
             self._maps[key] = b
         return b
 
