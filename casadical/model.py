@@ -25,12 +25,12 @@ import casadi as ca
 import numpy as np
 
 from . import jitcache
-from .threads import evaluation_pool, evaluation_threads
 from .errors import CasadicalWarning, ModelError
 from .kinematics import Geometry, base_pose_matrix, chain_angles, compose, forward, rpy_pose
 from .parameters import Parameters
 from .robot import Robot
 from .terms import REGISTRY, Context, ErrorTerm, make_term
+from .threads import evaluation_pool, evaluation_threads
 
 #: batches of this many poses or more run compiled code, compiled once per machine and kept in the disk cache
 #: (casadical.jitcache); smaller ones use it only if the cache has it. Measured on the UR10 kinematic model
@@ -563,7 +563,9 @@ class _Blocks:
         N = sum(b.N for _, b in self.blocks)
         inputs = [np.asarray(x, dtype=float) if i in self.bcast else np.asarray(x, dtype=float).reshape(N, -1)
                   for i, x in enumerate(inputs)]
-        pool = evaluation_pool(len(self.blocks))
-        parts = list(pool.map(lambda block: block[1](*(x if i in self.bcast else x[block[0]:block[0] + block[1].N]
-                                                        for i, x in enumerate(inputs))), self.blocks))
+
+        def block(start: int, batch: _Batch) -> list[np.ndarray]:
+            return batch(*(x if i in self.bcast else x[start:start + batch.N] for i, x in enumerate(inputs)))
+
+        parts = list(evaluation_pool().map(block, *zip(*self.blocks)))
         return [np.concatenate([p[j] for p in parts]) for j in range(len(parts[0]))]

@@ -185,15 +185,15 @@ def evaluation_threads() -> int:
 _pool: tuple | None = None   # (pid, size, ThreadPoolExecutor) of evaluation_pool()
 
 
-def evaluation_pool(n: int):
-    """A process-wide pool of ``n`` threads for :func:`evaluation_threads` (made again after a fork)."""
+def evaluation_pool():
+    """The process-wide pool of :func:`evaluation_threads` threads (made again after a fork or a new setting)."""
     global _pool
+    n = evaluation_threads()
     with _lock:
         if _pool is None or _pool[0] != os.getpid() or _pool[1] != n:
             from concurrent.futures import ThreadPoolExecutor
 
             if _pool is not None and _pool[0] == os.getpid():
                 _pool[2].shutdown(wait=False)
-
             _pool = (os.getpid(), n, ThreadPoolExecutor(n, thread_name_prefix="casadical-eval"))
         return _pool[2]

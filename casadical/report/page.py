@@ -77,7 +77,7 @@ class Page:
     parts: list[str] = field(default_factory=list)
     footnotes: list[str] = field(default_factory=list)
     n_figures: int = 0
-    _figures: list[tuple] = field(default_factory=list)   # (index in parts, figure or maker, anchor, caption)
+    _figures: list[tuple] = field(default_factory=list)   # (index in parts, figure or maker, anchor, caption, N)
 
     def heading(self, text: str, level: int = 2, anchor: str | None = None) -> None:
         ident = f' id="{esc(anchor)}"' if anchor else ""
@@ -147,9 +147,8 @@ class Page:
         by :meth:`html`, possibly in another process.
         """
         self.n_figures += 1
-        self._figures.append((len(self.parts), fig, anchor, f"<b>Figure {self.n_figures}.</b> {esc(caption)}",
-                              caption))
-        self.parts.append("")
+        self._figures.append((len(self.parts), fig, anchor, caption, self.n_figures))
+        self.parts.append("")   # the figure, drawn by html()
         return self.ref(anchor, f"figure {self.n_figures}")
 
     @staticmethod
@@ -164,9 +163,10 @@ class Page:
 
     def html(self, processes: int = 1) -> str:
         """The document; ``processes`` > 1 draws the figures in that many processes (:func:`.figures.render`)."""
-        svgs = render([(fig, anchor, label) for _, fig, anchor, _, label in self._figures], processes)
-        for (i, _, anchor, caption, _), svg in zip(self._figures, svgs):
-            self.parts[i] = f'<figure id="{esc(anchor)}">{svg}<figcaption>{caption}</figcaption></figure>'
+        svgs = render([(fig, anchor, caption) for _, fig, anchor, caption, _ in self._figures], processes)
+        for (i, _, anchor, caption, n), svg in zip(self._figures, svgs):
+            self.parts[i] = (f'<figure id="{esc(anchor)}">{svg}<figcaption><b>Figure {n}.</b> {esc(caption)}'
+                             "</figcaption></figure>")
         notes = ""
         if self.footnotes:
             notes = ('<h2 id="footnotes">Model specifications</h2><ol class="notes">'
