@@ -34,6 +34,16 @@ def assert_found(report, cause, joint=None, harmonic=None):
     assert not extra, f"spurious findings {extra} in {named}"
     f = next(f for f in report.findings if f.candidate.cause == cause)
     assert f.gain_mm > 0 and "F =" in f.evidence
+    assert_gains_are_the_steps(report)
+
+
+def assert_gains_are_the_steps(report):
+    """A finding's validation gain is what its step did to the validation mean, full fit to full fit."""
+    done = [s for s in report.steps if s.accepted]
+    for before, step in zip(done, done[1:]):
+        f = next((f for f in report.findings if f.candidate == step.candidate), None)
+        if f is not None:   # (none when the final check dropped it)
+            assert f.gain_mm == pytest.approx(before.validation.mean_mm - step.validation.mean_mm, abs=1e-12)
 
 
 @pytest.mark.parametrize("seed", SEEDS)
@@ -98,6 +108,7 @@ def test_closed_chain_heavy_arm_compliance_and_gear_error(seed, gear):
               n_cal=150, n_val=300)
     truth = [("geometric", None, None), ("joint_compliance", 2, None), ("joint_periodic", j, h)]
     assert sorted(causes(rep), key=str) == sorted(truth, key=str), causes(rep)
+    assert_gains_are_the_steps(rep)
 
 
 def test_cli_json_contract_and_html(tmp_path):

@@ -149,7 +149,10 @@ class _Diagnosis:
             self.before[cand] = current
             accepted.append(cand)
             current = new_fit
-            step.calibration, step.validation = current.calibration, current.stats(self.val)
+            # the step and the finding's gain judge the full fit, not the one-step fit that decided
+            full = current.stats(self.val)
+            next(f for f in self.findings if f.candidate == cand).gain_mm += step.validation.mean_mm - full.mean_mm
+            step.calibration, step.validation = current.calibration, full
         else:
             if self.s.max_rounds:
                 self.notes.append(f"stopped at the safety cap of {self.s.max_rounds} rounds while causes were "
