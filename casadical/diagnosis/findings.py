@@ -9,7 +9,7 @@ import numpy as np
 from ..data import Measurements
 from ..result import CalibrationResult
 from .candidates import Candidate
-from .plots import residual_plot
+from .plots import joint_view, residual_plot
 from .report import Finding
 from .validation import cv_record, cv_text
 
@@ -76,6 +76,7 @@ class UnexplainedLog:
 def describe(findings: list[Finding], support: dict, before: dict, final: CalibrationResult,
              cal: Measurements) -> None:
     """Fill each accepted finding's parameters, evidence and figure from the final model."""
+    view = None   # the final model's residuals and joint angle directions on the calibration poses
     for f in findings:
         cand = f.candidate
         if cand not in support:
@@ -89,7 +90,9 @@ def describe(findings: list[Finding], support: dict, before: dict, final: Calibr
             text += "; " + "; ".join(h.text() for h in checks["halves"])
         size = what(cand, final, cal)
         f.evidence = text + (("; " + size) if size else "")
-        f.plot = residual_plot(cand, before.get(cand, final), final, cal)
+        if view is None and cand.joint is not None and cand.cause != "thermal_expansion":
+            view = joint_view(final, cal)
+        f.plot = residual_plot(cand, before.get(cand, final), final, cal, view)
 
 
 def param_values(res: CalibrationResult, names: list[str]) -> dict:

@@ -12,9 +12,12 @@ from .periodogram import joint_errors
 ARCSEC = np.degrees(1.0) * 3600
 
 
-def residual_plot(cand: Candidate, before: CalibrationResult, after: CalibrationResult, d: Measurements) -> dict:
+def residual_plot(cand: Candidate, before: CalibrationResult, after: CalibrationResult, d: Measurements,
+                  view: tuple | None = None) -> dict:
     """Joint causes: the partial residual (what the fit leaves plus the fitted effect, as the joint's
     angle error) with the fitted effect as a curve. Thermal expansion and drift: the residual before and after.
+
+    ``view``: :func:`joint_view` of ``after`` on ``d`` when it is at hand (one per model, not per figure).
     """
     if cand.cause in ("thermal_expansion", "drift"):
         if cand.cause == "thermal_expansion":
@@ -32,8 +35,8 @@ def residual_plot(cand: Candidate, before: CalibrationResult, after: Calibration
                 "xlabel": xlabel, "ylabel": ylabel}
     j, m, p = cand.joint, after.model, after.parameters
     cov = m.covariates(d)
-    _, J = m.predict_jacobian(d.q, p.values, cov, after.base0)
-    s, _ = joint_errors(after.residuals(d), J[:, :, p.index(f"theta{j}")])
+    resid, directions = view or joint_view(after, d)
+    s, _ = joint_errors(resid, directions[:, :, j - 1])
     q = d.q[:, j - 1]
     value = p[cand.parameter_names()[0]].value
     if cand.cause == "joint_periodic":
@@ -56,3 +59,11 @@ def residual_plot(cand: Candidate, before: CalibrationResult, after: Calibration
     return {"x": np.asarray(x, float).tolist(), "partial": ((s + effect) * ARCSEC).tolist(),
             "curve_x": np.asarray(x, float)[order].tolist(), "curve_y": (effect[order] * ARCSEC).tolist(),
             "xlabel": xlabel, "ylabel": f"joint {j} angle error: residual + fitted effect (arcsec)"}
+
+
+def joint_view(res: CalibrationResult, d: Measurements) -> tuple[np.ndarray, np.ndarray]:
+    """Residuals of ``res`` on ``d`` (measured minus predicted, (N, 3)) and how the tool point moves with
+    each joint's angle ((N, 3, n): the exact direction of a joint angle error, as the periodograms use it)."""
+    m, p = res.model, res.parameters
+    xyz, _, directions = m.predict_angle_jacobian(d.q, p.values, m.covariates(d), res.base0)
+    return d.xyz - xyz, directions
