@@ -61,7 +61,7 @@ def periodogram(q: np.ndarray, s: np.ndarray, w: np.ndarray, joint: int, max_har
     cols = np.stack([S, C, np.broadcast_to(base[:, 0], S.shape), np.broadcast_to(base[:, 1], S.shape)], axis=1)
     G = np.einsum("hin,hjn->hij", cols, cols)
     b = np.einsum("hin,n->hi", cols, y)
-    coef = np.stack([np.linalg.lstsq(G[k], b[k], rcond=None)[0] for k in range(len(hs))])
+    coef = np.einsum("hij,hj->hi", np.linalg.pinv(G), b)   # least squares of every harmonic in one batch
     fit_sq = np.einsum("hi,hi->h", coef, b)          # |A c|^2 = c^T A^T y at the least-squares solution
     power[:] = fit_sq / total
     amp[:] = np.hypot(coef[:, 0], coef[:, 1])
