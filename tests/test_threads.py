@@ -222,3 +222,18 @@ def test_blocks_after_a_fork(monkeypatch):
     got = out.get(timeout=60)
     child.join(timeout=60)
     assert child.exitcode == 0 and np.array_equal(got, expect)
+
+
+def test_stacked_eigendecompositions_in_threads_give_the_same_bits(monkeypatch):
+    """The cross-validation's stacked solve (every fold of every scheme) is shared among the threads."""
+    from casadical.diagnosis.validation import solve_identified
+
+    rng = np.random.default_rng(5)
+    X = rng.normal(size=(37, 90, 12)) * np.logspace(0, -4, 12)   # some directions poorly determined
+    A, b = np.einsum("kni,knj->kij", X, X), rng.normal(size=(37, 12))
+    out = {}
+    for n in ("1", "2", "3"):
+        monkeypatch.setenv(EVAL_ENV, n)
+        out[n] = solve_identified(A, b)
+    assert np.array_equal(out["1"], out["2"]) and np.array_equal(out["1"], out["3"])
+    np.testing.assert_allclose(out["1"][4], solve_identified(A[4], b[4]), rtol=1e-12)

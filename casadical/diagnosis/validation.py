@@ -25,6 +25,7 @@ import numpy as np
 from ..data import Measurements
 from ..model import Model
 from ..robot import Robot
+from ..threads import evaluation_pool, evaluation_threads
 
 
 @dataclass
@@ -84,11 +85,21 @@ def solve_identified(A: np.ndarray, b: np.ndarray, rel: float = 1e-3) -> np.ndar
     """
     d = np.sqrt(np.clip(np.diagonal(A, axis1=-2, axis2=-1), 1e-300, None))
     An = A / (d[..., :, None] * d[..., None, :])
-    lam, V = np.linalg.eigh((An + np.swapaxes(An, -1, -2)) / 2)
+    lam, V = _eigh((An + np.swapaxes(An, -1, -2)) / 2)
     keep = lam > np.maximum((rel ** 2) * lam[..., -1:], 1e-300)
     inv = np.where(keep, 1.0 / np.where(keep, lam, 1.0), 0.0)
     x = np.einsum("...ij,...j->...i", V, inv * np.einsum("...ji,...j->...i", V, b / d))
     return x / d
+
+
+def _eigh(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``np.linalg.eigh`` of a stack of matrices, its parts in the evaluation threads (LAPACK lets go of
+    the GIL; each matrix is decomposed alone, so the results are the same bits)."""
+    k = min(evaluation_threads(), len(M) // 8) if M.ndim == 3 else 1
+    if k < 2:
+        return np.linalg.eigh(M)
+    parts = list(evaluation_pool().map(np.linalg.eigh, np.array_split(M, k)))
+    return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
 
 
 @dataclass
