@@ -13,8 +13,8 @@ from __future__ import annotations
 import functools
 import html
 import io
-import os
 import re
+import sys
 
 import numpy as np
 from matplotlib import rc_context
@@ -151,12 +151,12 @@ def render(jobs: list[tuple], processes: int = 1) -> list[str]:
         A figure or a function making one, its key and its label (:func:`to_svg`).
     processes : int
         Draw in this many processes: this one and ``processes - 1`` forked
-        children, each a share of the figures (POSIX only; elsewhere, or if
+        children, each a share of the figures (Linux only: elsewhere, or if
         a child fails, this process draws them). matplotlib holds the GIL,
         so threads would not help. The SVG is the same either way.
     """
     n = len(jobs)
-    if processes < 2 or n < 2 or not hasattr(os, "fork"):
+    if processes < 2 or n < 2 or not sys.platform.startswith("linux"):   # fork is safe on Linux only
         return _draw(jobs, range(n))
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
