@@ -2,6 +2,7 @@
 
 from .candidates import Candidate
 from .report import DiagnosisReport, Finding, Step
-from .run import DiagnosisSettings, diagnose
+from .run import diagnose
+from .settings import DiagnosisSettings
 
 __all__ = ["Candidate", "DiagnosisReport", "DiagnosisSettings", "Finding", "Step", "diagnose"]

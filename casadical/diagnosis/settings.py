@@ -9,7 +9,7 @@ from ..errors import InputError
 
 @dataclass
 class DiagnosisSettings:
-    """Settings of :func:`diagnose`.
+    """Settings of :func:`casadical.diagnosis.diagnose`.
 
     Parameters
     ----------
