@@ -133,6 +133,14 @@ class Model:
         :mod:`casadical.jitcache`; then ~8x faster). Default: for batches of
         ``JIT_MIN_POSES`` poses or more when a compiler is available, and for
         smaller batches when the cache already holds the function.
+
+    Notes
+    -----
+    On CasADi's virtual machine a batch of ``2 * BLOCK_MIN`` poses or more
+    is evaluated in blocks side by side, one per evaluation thread
+    (:func:`casadical.threads.evaluation_threads`); the results are the
+    same bits. A model's batches share buffers: evaluate one model from one
+    thread at a time.
     """
 
     def __init__(self, robot: Robot, terms: list[ErrorTerm] | str = "kinematic",
