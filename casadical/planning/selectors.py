@@ -9,7 +9,6 @@ GA's or a random set's distance from the optimum is known, not guessed.
 
 from __future__ import annotations
 
-import math
 import time
 import warnings
 from dataclasses import dataclass, field
@@ -279,8 +278,3 @@ def random_o1(A: np.ndarray, m: int, n_sets: int, seed: int | None = None) -> np
     N = A.shape[0]
     sets = np.sort(np.argsort(rng.random((n_sets, N)), axis=1)[:, :m], axis=1)
     return o1_batch(A, sets)
-
-
-def o1_from_log_det(log_det: float, m: int, p: int) -> float:
-    """O1 from ``log det(J^T J)``: ``exp(log det / (2 p)) / sqrt(m)``."""
-    return math.exp(log_det / (2 * p)) / math.sqrt(m) if math.isfinite(log_det) else 0.0
