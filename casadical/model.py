@@ -19,6 +19,7 @@ from __future__ import annotations
 import os
 import re
 import warnings
+from concurrent.futures import wait
 from dataclasses import dataclass
 
 import casadi as ca
@@ -549,10 +550,14 @@ class _Batch:
             self.buf.set_res(i, memoryview(r))
 
     def __call__(self, *inputs) -> list[np.ndarray]:
+        self.evaluate(*inputs)
+        return [r.copy() for r in self.res]
+
+    def evaluate(self, *inputs) -> None:
+        """Evaluate into the buffers (``self.res``, valid until the next evaluation)."""
         for a, x in zip(self.args, inputs):
             a.reshape(-1)[:] = np.asarray(x, dtype=float).reshape(-1)
         self.trigger()
-        return [r.copy() for r in self.res]
 
 
 class _Blocks:
@@ -572,8 +577,15 @@ class _Blocks:
         inputs = [np.asarray(x, dtype=float) if i in self.bcast else np.asarray(x, dtype=float).reshape(N, -1)
                   for i, x in enumerate(inputs)]
 
-        def block(start: int, batch: _Batch) -> list[np.ndarray]:
-            return batch(*(x if i in self.bcast else x[start:start + batch.N] for i, x in enumerate(inputs)))
+        def block(start: int, batch: _Batch) -> None:
+            batch.evaluate(*(x if i in self.bcast else x[start:start + batch.N] for i, x in enumerate(inputs)))
 
-        parts = list(evaluation_pool().map(block, *zip(*self.blocks)))
-        return [np.concatenate([p[j] for p in parts]) for j in range(len(parts[0]))]
+        pool, futures = evaluation_pool(), []
+        try:
+            for start, batch in self.blocks:
+                futures.append(pool.submit(block, start, batch))
+            for f in futures:
+                f.result()
+        finally:
+            wait(futures)   # on an error too: no block may write into its buffers after this call
+        return [np.concatenate([b.res[j] for _, b in self.blocks]) for j in range(len(self.blocks[0][1].res))]

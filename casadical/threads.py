@@ -183,18 +183,32 @@ def evaluation_threads() -> int:
     return n
 
 
-_pool: tuple | None = None   # (pid, size, ThreadPoolExecutor) of evaluation_pool()
+_pool: tuple | None = None   # (size, ThreadPoolExecutor) of evaluation_pool()
 
 
 def evaluation_pool():
-    """The process-wide pool of :func:`evaluation_threads` threads (made again after a fork or a new setting)."""
+    """The process-wide pool of at least :func:`evaluation_threads` threads.
+
+    A larger setting makes a larger pool; the old one is never shut down (a
+    caller may still be queuing its blocks there): once nothing refers to
+    it, its threads finish their work and end. Callers submit one task per
+    block, so a pool larger than the setting runs no more threads than that.
+    """
     global _pool
     n = evaluation_threads()
     with _lock:
-        if _pool is None or _pool[0] != os.getpid() or _pool[1] != n:
+        if _pool is None or _pool[0] < n:
             from concurrent.futures import ThreadPoolExecutor
 
-            if _pool is not None and _pool[0] == os.getpid():
-                _pool[2].shutdown(wait=False)
-            _pool = (os.getpid(), n, ThreadPoolExecutor(n, thread_name_prefix="casadical-eval"))
-        return _pool[2]
+            _pool = (n, ThreadPoolExecutor(n, thread_name_prefix="casadical-eval"))
+        return _pool[1]
+
+
+def _after_fork_in_child() -> None:
+    """A forked child has none of its parent's threads: a lock held by one of them, or its pool, is void."""
+    global _lock, _pool
+    _lock, _pool = threading.RLock(), None
+
+
+if hasattr(os, "register_at_fork"):
+    os.register_at_fork(after_in_child=_after_fork_in_child)

@@ -3,6 +3,8 @@ batches of poses are evaluated in blocks, side by side, to the same bits."""
 
 from __future__ import annotations
 
+import os
+
 import numpy as np
 import pytest
 import scipy.linalg  # noqa: F401  (a second OpenBLAS: the limit must reach every loaded library)
@@ -11,8 +13,8 @@ from threadpoolctl import threadpool_limits
 from casadical import cli
 from casadical.errors import SettingError
 from casadical.robot import load_robot
-from casadical.threads import (ENV, EVAL_ENV, EVAL_MAX, blas_threads, evaluation_threads, get_threads,
-                               limited_threads, set_threads)
+from casadical.threads import (ENV, EVAL_ENV, EVAL_MAX, blas_threads, evaluation_pool, evaluation_threads,
+                               get_threads, limited_threads, set_threads)
 
 
 #: libraries that can run 2 threads: a BLAS built single-threaded (SCS's, loaded with cvxpy by other
@@ -174,12 +176,77 @@ def test_blocks_give_the_same_bits_as_one_batch(monkeypatch, name):
 
 
 def test_small_batches_and_compiled_code_stay_in_one_block(monkeypatch):
+    from arms import ARM3
+
+    from casadical import jitcache
     from casadical.model import BLOCK_MIN, Model
+    from casadical.robot import robot_from_dict
 
     monkeypatch.setenv(EVAL_ENV, "4")
     model = Model(load_robot("ur10"), "kinematic", jit=False)
     assert not hasattr(model._batch("fk", 2 * BLOCK_MIN - 1), "blocks")
     assert len(model._batch("fk", 4 * BLOCK_MIN).blocks) == 4
+    if jitcache.compiler() is not None:   # compiled: one block whatever the size
+        compiled = Model(robot_from_dict(ARM3), "kinematic", jit=True)
+        assert not hasattr(compiled._batch("fk", 4 * BLOCK_MIN), "blocks")
+
+
+def test_a_new_setting_while_another_thread_evaluates(monkeypatch):
+    """A thread that raises the thread count makes a larger pool while another thread evaluates: the
+    evaluating thread never finds its pool shut down, and its numbers stay the same."""
+    import threading
+    import time
+
+    from casadical.model import Model
+
+    monkeypatch.setenv(EVAL_ENV, "2")
+    model = Model(load_robot("ur10"), "kinematic+compliance", jit=False)
+    q = np.random.default_rng(1).uniform(-1, 1, (600, 6))
+    expect = model.predict(q)
+    stop, errors = threading.Event(), []
+
+    def flip():
+        for k in range(60):
+            os.environ[EVAL_ENV] = str(2 + k % 5)
+            evaluation_pool()
+            time.sleep(0.002)
+        stop.set()
+
+    flipper = threading.Thread(target=flip)
+    flipper.start()
+    try:
+        while not stop.is_set():
+            if not np.array_equal(model.predict(q), expect):
+                errors.append("different numbers")
+    finally:
+        flipper.join()
+    assert not errors
+
+
+def test_a_block_that_fails_is_waited_for(monkeypatch):
+    """When one block fails, the call still waits for the others before it raises: none of them may go on
+    writing into the model's buffers after the call is over."""
+    import time
+
+    from casadical.model import Model, _Batch
+
+    monkeypatch.setenv(EVAL_ENV, "2")
+    model = Model(load_robot("ur10"), "kinematic", jit=False)
+    q = np.random.default_rng(2).uniform(-1, 1, (400, 6))
+    blocks = model._batch("fk", 400).blocks
+    real, finished = _Batch.evaluate, []
+
+    def evaluate(self, *inputs):
+        if self is blocks[0][1]:   # the first block fails at once, the second is still at work
+            raise RuntimeError("this block fails")
+        time.sleep(0.3)
+        real(self, *inputs)
+        finished.append(self)
+
+    monkeypatch.setattr(_Batch, "evaluate", evaluate)
+    with pytest.raises(RuntimeError, match="this block fails"):
+        model.predict(q)
+    assert finished == [blocks[1][1]]
 
 
 @pytest.mark.parametrize("value", ["two", "0", "-1", "1.5"])
@@ -219,8 +286,12 @@ def test_blocks_after_a_fork(monkeypatch):
     out = ctx.Queue()
     child = ctx.Process(target=lambda: out.put(model.predict(q)))  # fork: nothing is pickled but the result
     child.start()
-    got = out.get(timeout=60)
-    child.join(timeout=60)
+    try:
+        got = out.get(timeout=60)
+        child.join(timeout=60)
+    finally:
+        if child.is_alive():
+            child.kill()
     assert child.exitcode == 0 and np.array_equal(got, expect)
 
 

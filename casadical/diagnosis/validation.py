@@ -95,8 +95,8 @@ def solve_identified(A: np.ndarray, b: np.ndarray, rel: float = 1e-3) -> np.ndar
 def _eigh(M: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """``np.linalg.eigh`` of a stack of matrices, its parts in the evaluation threads (LAPACK lets go of
     the GIL; each matrix is decomposed alone, so the results are the same bits)."""
-    k = min(evaluation_threads(), len(M) // 8) if M.ndim == 3 else 1
-    if k < 2:
+    k = min(evaluation_threads(), len(M) // 8) if M.ndim == 3 and M.size * M.shape[-1] >= 2e5 else 1
+    if k < 2:   # (a small stack: the threads would cost more than they save)
         return np.linalg.eigh(M)
     parts = list(evaluation_pool().map(np.linalg.eigh, np.array_split(M, k)))
     return np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
