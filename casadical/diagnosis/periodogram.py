@@ -61,7 +61,8 @@ def periodogram(q: np.ndarray, s: np.ndarray, w: np.ndarray, joint: int, max_har
     cols = np.stack([S, C, np.broadcast_to(base[:, 0], S.shape), np.broadcast_to(base[:, 1], S.shape)], axis=1)
     G = np.einsum("hin,hjn->hij", cols, cols)
     b = np.einsum("hin,n->hi", cols, y)
-    coef = np.einsum("hij,hj->hi", np.linalg.pinv(G), b)   # least squares of every harmonic in one batch
+    # least squares of every harmonic in one batch, with lstsq's cutoff (singular values below 4 eps of the largest)
+    coef = np.einsum("hij,hj->hi", np.linalg.pinv(G, rcond=4 * np.finfo(float).eps), b)
     fit_sq = np.einsum("hi,hi->h", coef, b)          # |A c|^2 = c^T A^T y at the least-squares solution
     power[:] = fit_sq / total
     amp[:] = np.hypot(coef[:, 0], coef[:, 1])
