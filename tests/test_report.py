@@ -257,6 +257,61 @@ def test_a_figure_a_child_cannot_draw_is_drawn_here():
     assert render(jobs, processes=2) == render(jobs)
 
 
+def _lines(prefix: str, n: int) -> list:
+    from casadical.report.figures import figure, styled
+
+    @styled
+    def line(k):
+        fig, ax = figure(3, 2)
+        ax[0, 0].plot([0, 1], [0, k])
+        return fig
+
+    return [(lambda k=k: line(k), f"{prefix}{k}", f"{prefix} figure {k}") for k in range(n)]
+
+
+def test_figures_where_no_child_process_can_be_made(monkeypatch):
+    """No semaphores or shared memory (some containers): this process draws every figure."""
+    import concurrent.futures
+
+    from casadical.report.figures import render
+
+    def no_pool(*args, **kwargs):
+        raise OSError(38, "Function not implemented")
+
+    jobs = _lines("f", 4)
+    expect = render(jobs)
+    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", no_pool)
+    assert render(jobs, processes=3) == expect
+
+
+def test_two_reports_drawn_at_once_keep_their_own_figures():
+    """Two threads drawing in processes at the same time: each page gets its own figures, in order."""
+    import threading
+
+    from casadical.report.figures import render
+
+    jobs = {name: _lines(name, 6) for name in ("a", "b")}
+    out, errors = {}, []
+
+    def draw(name):
+        try:
+            for _ in range(3):
+                out.setdefault(name, []).append(render(jobs[name], processes=3))
+        except Exception as e:  # noqa: BLE001
+            errors.append(e)
+
+    threads = [threading.Thread(target=draw, args=(name,), daemon=True) for name in jobs]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join(timeout=120)
+    assert not any(t.is_alive() for t in threads), "a drawing process hangs"
+    assert not errors
+    for name, pages in out.items():
+        for svgs in pages:
+            assert [f'aria-label="{name} figure {k}"' in svg for k, svg in enumerate(svgs)] == [True] * 6
+
+
 def test_diagnosis_report_steps_with_short_labels_and_full_specs(diagnosis_page):
     report, html, page = diagnosis_page
     rows = [r for r in page.table("steps") if r.get("#", "").isdigit()]

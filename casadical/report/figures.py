@@ -15,6 +15,7 @@ import html
 import io
 import re
 import sys
+import threading
 
 import numpy as np
 from matplotlib import rc_context
@@ -128,6 +129,9 @@ def to_svg(fig: Figure, key: str, label: str) -> str:
 
 
 _JOBS: list = []   # what the processes of render() draw (inherited through fork, never pickled)
+#: held by render() while it draws: matplotlib is not thread-safe, and a child forked while another thread
+#: draws could inherit a lock that thread held and never get it (the call would hang)
+_DRAWING = threading.RLock()
 
 
 def _draw(jobs, indices) -> list[str]:
@@ -151,10 +155,23 @@ def render(jobs: list[tuple], processes: int = 1) -> list[str]:
         A figure or a function making one, its key and its label (:func:`to_svg`).
     processes : int
         Draw in this many processes: this one and ``processes - 1`` forked
-        children, each a share of the figures (Linux only: elsewhere, or if
-        a child fails, this process draws them). matplotlib holds the GIL,
-        so threads would not help. The SVG is the same either way.
+        children, each a share of the figures (Linux only). matplotlib holds
+        the GIL, so threads would not help. The SVG is the same either way.
+        Where no child process can be made, or a child fails, this process
+        draws its share.
+
+    Notes
+    -----
+    Calls from several threads draw one after the other. Other matplotlib
+    drawing in another thread while this forks could leave a child waiting
+    for a lock forever: draw elsewhere with ``processes=1``.
     """
+    with _DRAWING:
+        return _render(jobs, processes)
+
+
+def _render(jobs: list[tuple], processes: int) -> list[str]:
+    global _JOBS
     n = len(jobs)
     if processes < 2 or n < 2 or not sys.platform.startswith("linux"):   # fork is safe on Linux only
         return _draw(jobs, range(n))
@@ -163,26 +180,29 @@ def render(jobs: list[tuple], processes: int = 1) -> list[str]:
 
     k = min(processes, n)
     shares = [list(range(i, n, k)) for i in range(k)]   # interleaved: the costly figures are spread
-    global _JOBS
-    _JOBS = jobs
-    out: list = [None] * n
     try:
-        with ProcessPoolExecutor(k - 1, mp_context=multiprocessing.get_context("fork")) as pool:
-            futures = []
+        pool = ProcessPoolExecutor(k - 1, mp_context=multiprocessing.get_context("fork"))
+    except (OSError, ValueError, ImportError):   # no semaphores or shared memory here: draw them all in this one
+        return _draw(jobs, range(n))
+    with pool:
+        futures = []
+        _JOBS = jobs   # the children are forked at the first submit and take _JOBS as it is then
+        try:
             for share in shares[1:]:
                 try:
                     futures.append((share, pool.submit(_draw_inherited, share)))
                 except Exception:  # noqa: BLE001  (no child process here: this one draws its share)
                     futures.append((share, None))
-            done = [(shares[0], _draw(jobs, shares[0]))]
-            for share, fut in futures:
-                try:
-                    done.append((share, fut.result() if fut else _draw(jobs, share)))
-                except Exception:  # noqa: BLE001  (a child that failed, or none: its share is drawn here)
-                    done.append((share, _draw(jobs, share)))
-        for share, svgs in done:
-            for i, svg in zip(share, svgs):
-                out[i] = svg
-    finally:
-        _JOBS = []
+        finally:
+            _JOBS = []
+        done = [(shares[0], _draw(jobs, shares[0]))]
+        for share, fut in futures:
+            try:
+                done.append((share, fut.result() if fut else _draw(jobs, share)))
+            except Exception:  # noqa: BLE001  (a child that failed: its share is drawn here)
+                done.append((share, _draw(jobs, share)))
+    out: list = [None] * n
+    for share, svgs in done:
+        for i, svg in zip(share, svgs):
+            out[i] = svg
     return out
