@@ -18,7 +18,8 @@ files: wall time and CPU time (user + system, with its children), median of
 
 Every diagnosis of the same data must give the same report: the script
 compares each run's JSON with the first one's (every number but the run
-time) and stops if one differs.
+time), each HTML page with the first one's (but the run time), and the
+``--transfer`` runs with each other, and stops if one differs.
 
 Usage::
 
@@ -40,6 +41,7 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
 import argparse  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
+import re  # noqa: E402
 import statistics  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
@@ -80,6 +82,11 @@ def same_report(a: dict, b: dict) -> bool:
     return strip(a) == strip(b)
 
 
+def page(path: Path) -> str:
+    """An HTML report without its run time."""
+    return re.sub(r"Run time [0-9.]+ s", "Run time", path.read_text(encoding="utf-8"))
+
+
 def run_pass(args, tmp: Path, label: str, reference: dict) -> list[dict]:
     rows = []
     for name, cmd, extra in steps(tmp, not args.no_transfer):
@@ -89,12 +96,19 @@ def run_pass(args, tmp: Path, label: str, reference: dict) -> list[dict]:
             if extra.get("CASADICAL_CACHE") == "(new)":
                 env["CASADICAL_CACHE"] = tempfile.mkdtemp(dir=tmp)
             times.append(wall(cmd, env))
-            if "diagnose" in cmd and "--transfer" not in cmd:
+            if "diagnose" in cmd:
+                kind = "transfer" if "--transfer" in cmd else "report"
                 report = json.loads((tmp / "report.json").read_text())
-                if not reference:
-                    reference.update(report)
-                elif not same_report(reference, report):
-                    raise SystemExit(f"{name}: the report differs from the first diagnosis's")
+                if kind not in reference:
+                    reference[kind] = report
+                elif not same_report(reference[kind], report):
+                    raise SystemExit(f"{name}: the report differs from the first one's")
+                if "--html" in cmd:
+                    html = page(tmp / "report.html")
+                    if kind + ".html" not in reference:
+                        reference[kind + ".html"] = html
+                    elif html != reference[kind + ".html"]:
+                        raise SystemExit(f"{name}: the HTML page differs from the first one's")
         w, c = statistics.median(t[0] for t in times), statistics.median(t[1] for t in times)
         rows.append({"pass": label, "step": name, "wall_s": w, "cpu_s": c, "load": os.getloadavg()[0]})
         print(f"| {name} | {w:.2f} s | {c:.2f} s | {rows[-1]['load']:.2f} |", flush=True)
