@@ -37,7 +37,8 @@ Evaluating a model on many poses (CasADi, which releases the GIL) is a
 different matter: each thread takes its own block of poses and nothing
 waits on anything until the blocks are done, so no thread spins on a busy
 machine. The same threads share out the diagnosis' stacks of small
-eigendecompositions (one per cross-validation fold). :func:`evaluation_threads` says how many threads do it:
+eigendecompositions (one per cross-validation fold).
+:func:`evaluation_threads` says how many threads do it:
 ``CASADICAL_EVAL_THREADS`` (a whole number ``n >= 1``), else the cores this
 process may use, at most :data:`EVAL_MAX`.
 """
