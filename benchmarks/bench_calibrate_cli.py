@@ -53,6 +53,7 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
 import argparse  # noqa: E402
+import contextlib  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import resource  # noqa: E402
@@ -164,6 +165,18 @@ def baseline(kind: str, data_csv: str, spec: str, free_json: str, out: str) -> N
 
 
 # --- the benchmark --------------------------------------------------------------------------------------
+
+
+@contextlib.contextmanager
+def busy_core(on: bool = True):
+    """One other CPU-bound process (a Python busy loop) while inside, if ``on``."""
+    spinner = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if on else None
+    try:
+        yield
+    finally:
+        if spinner is not None:
+            spinner.kill()
+            spinner.wait()
 
 
 def wall(cmd: list[str], env: dict) -> tuple[float, float]:
@@ -290,13 +303,8 @@ def main() -> int:
         passes = [("as is", False)] + ([] if args.no_busy else [("one busy core", True)])
         for label, busy in passes:
             print(f"\n{label}:\n\n{head}\n|---:|---|---|---:|---:|---:|---:|---:|---:|", flush=True)
-            spinner = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if busy else None
-            try:
+            with busy_core(busy):
                 rows += run_table(args, Path(tmp), label)
-            finally:
-                if spinner is not None:
-                    spinner.kill()
-                    spinner.wait()
     summary(rows)
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=2))

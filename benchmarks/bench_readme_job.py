@@ -43,12 +43,11 @@ import json  # noqa: E402
 import math  # noqa: E402
 import re  # noqa: E402
 import statistics  # noqa: E402
-import subprocess  # noqa: E402
 import sys  # noqa: E402
 import tempfile  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-from bench_calibrate_cli import wall  # noqa: E402
+from bench_calibrate_cli import busy_core, wall  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 DATA = HERE.parent / "problems" / "datasets" / "ur10-ipa"
@@ -153,13 +152,8 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         for label, busy in [("as is", False)] + ([] if args.no_busy else [("one busy core", True)]):
             print(f"\n{label}:\n\n| step | wall (median) | CPU (median) | load |\n|---|---:|---:|---:|", flush=True)
-            spinner = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if busy else None
-            try:
+            with busy_core(busy):
                 rows += run_pass(args, Path(tmp), label, reference)
-            finally:
-                if spinner is not None:
-                    spinner.kill()
-                    spinner.wait()
     summary(rows)
     if args.json:
         Path(args.json).write_text(json.dumps(rows, indent=2))
