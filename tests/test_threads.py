@@ -104,11 +104,13 @@ def test_bad_python_values(bad):
         limited_threads(bad)
 
 
-def test_cli_bad_environment_is_one_line(monkeypatch, capsys, tmp_path):
-    monkeypatch.setenv(ENV, "many")
+@pytest.mark.parametrize("variable", [ENV, EVAL_ENV])
+def test_cli_bad_environment_is_one_line(monkeypatch, capsys, tmp_path, variable):
+    """Said before any work, even by a command that would evaluate only compiled code or nothing at all."""
+    monkeypatch.setenv(variable, "many")
     rc = cli.main(["candidates", "ys100", "-n", "3", "--out", str(tmp_path / "c.csv")])
     err = capsys.readouterr().err
-    assert rc == 2 and err.count("\n") == 1 and ENV in err
+    assert rc == 2 and err.count("\n") == 1 and variable in err
     assert not (tmp_path / "c.csv").exists()
     assert threads() == {2}
 
@@ -254,15 +256,6 @@ def test_bad_evaluation_threads_value(monkeypatch, value):
     monkeypatch.setenv(EVAL_ENV, value)
     with pytest.raises(SettingError, match=EVAL_ENV):
         evaluation_threads()
-
-
-def test_cli_bad_evaluation_threads_is_one_line(monkeypatch, capsys, tmp_path):
-    """Said before any work, even by a command that would evaluate only compiled code or nothing at all."""
-    monkeypatch.setenv(EVAL_ENV, "many")
-    rc = cli.main(["candidates", "ys100", "-n", "3", "--out", str(tmp_path / "c.csv")])
-    err = capsys.readouterr().err
-    assert rc == 2 and err.count("\n") == 1 and EVAL_ENV in err
-    assert not (tmp_path / "c.csv").exists()
 
 
 def test_default_evaluation_threads(monkeypatch):
