@@ -65,6 +65,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
+from bench_plan_poses import Busy  # noqa: E402  (this folder is on sys.path when run as a script)
 
 HERE = Path(__file__).resolve().parent
 SERIES = HERE.parent / "problems" / "datasets" / "ur10-ipa" / "series_b.csv"
@@ -165,18 +166,6 @@ def baseline(kind: str, data_csv: str, spec: str, free_json: str, out: str) -> N
 
 
 # --- the benchmark --------------------------------------------------------------------------------------
-
-
-@contextlib.contextmanager
-def busy_core(on: bool = True):
-    """One other CPU-bound process (a Python busy loop) while inside, if ``on``."""
-    spinner = subprocess.Popen([sys.executable, "-c", "while True: pass"]) if on else None
-    try:
-        yield
-    finally:
-        if spinner is not None:
-            spinner.kill()
-            spinner.wait()
 
 
 def wall(cmd: list[str], env: dict) -> tuple[float, float]:
@@ -303,7 +292,7 @@ def main() -> int:
         passes = [("as is", False)] + ([] if args.no_busy else [("one busy core", True)])
         for label, busy in passes:
             print(f"\n{label}:\n\n{head}\n|---:|---|---|---:|---:|---:|---:|---:|---:|", flush=True)
-            with busy_core(busy):
+            with Busy() if busy else contextlib.nullcontext():
                 rows += run_table(args, Path(tmp), label)
     summary(rows)
     if args.json:

@@ -39,6 +39,7 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
 import argparse  # noqa: E402
+import contextlib  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import re  # noqa: E402
@@ -47,11 +48,15 @@ import sys  # noqa: E402
 import tempfile  # noqa: E402
 from pathlib import Path  # noqa: E402
 
-from bench_calibrate_cli import busy_core, wall  # noqa: E402
+from bench_calibrate_cli import wall  # noqa: E402
+from bench_plan_poses import Busy  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 DATA = HERE.parent / "problems" / "datasets" / "ur10-ipa"
 TARGET_S, TARGET_RUNS, BUSY_RATIO = 10.0, 4.0, 2.0
+#: the rows the targets are computed from
+SPLIT, JOB, NO_HTML, YARDSTICK = ("split (300 of 1,495 poses)", "diagnose --json --html --out",
+                                  "diagnose --json --out (no HTML)", "calibrate --model kinematic (the yardstick)")
 
 
 def steps(tmp: Path, transfer: bool) -> list[tuple[str, list[str], dict]]:
@@ -61,29 +66,26 @@ def steps(tmp: Path, transfer: bool) -> list[tuple[str, list[str], dict]]:
     diag = [*exe, "diagnose", "ur10", cal, "--validate", val, "--json", str(tmp / "report.json"), "--out",
             str(tmp / "final.json"), "--force", "--quiet"]
     html = ["--html", str(tmp / "report.html")]
-    rows = [("split (300 of 1,495 poses)", [*exe, "split", str(DATA / "series_b.csv"), "-n", "300", "--seed", "0",
-                                            "--out-cal", cal, "--out-val", val, "--force"], {}),
-            ("diagnose --json --html --out", diag + html, {}),
-            ("diagnose --json --out (no HTML)", diag, {}),
+    rows = [(SPLIT, [*exe, "split", str(DATA / "series_b.csv"), "-n", "300", "--seed", "0", "--out-cal", cal,
+                     "--out-val", val, "--force"], {}),
+            (JOB, diag + html, {}),
+            (NO_HTML, diag, {}),
             ("diagnose, one evaluation thread", diag + html, {"CASADICAL_EVAL_THREADS": "1"}),
             ("diagnose, empty cache of compiled functions", diag + html, {"CASADICAL_CACHE": "(new)"}),
-            ("calibrate --model kinematic (the yardstick)", [*exe, "calibrate", "ur10", cal, "--model", "kinematic",
-                                                             "--out", str(tmp / "kin.json"), "--force"], {})]
+            (YARDSTICK, [*exe, "calibrate", "ur10", cal, "--model", "kinematic", "--out", str(tmp / "kin.json"),
+                         "--force"], {})]
     if transfer:
         rows.insert(3, ("diagnose --html --transfer series A", diag + html + ["--transfer",
                                                                               str(DATA / "series_a.csv")], {}))
     return rows
 
 
-def same_report(a: dict, b: dict) -> bool:
-    """Equal reports: every value but the run time."""
-    strip = lambda d: {k: v for k, v in d.items() if k != "time_s"}  # noqa: E731
-    return strip(a) == strip(b)
-
-
-def page(path: Path) -> str:
-    """An HTML report without its run time."""
-    return re.sub(r"Run time [0-9.]+ s", "Run time", path.read_text(encoding="utf-8"))
+def outputs(tmp: Path, html: bool) -> dict:
+    """A diagnosis' report (every value but the run time) and its HTML page (but the run time)."""
+    out = {"report": {k: v for k, v in json.loads((tmp / "report.json").read_text()).items() if k != "time_s"}}
+    if html:
+        out["HTML page"] = re.sub(r"Run time [0-9.]+ s", "Run time", (tmp / "report.html").read_text(encoding="utf-8"))
+    return out
 
 
 def run_pass(args, tmp: Path, label: str, reference: dict) -> list[dict]:
@@ -95,19 +97,10 @@ def run_pass(args, tmp: Path, label: str, reference: dict) -> list[dict]:
             if extra.get("CASADICAL_CACHE") == "(new)":
                 env["CASADICAL_CACHE"] = tempfile.mkdtemp(dir=tmp)
             times.append(wall(cmd, env))
-            if "diagnose" in cmd:
-                kind = "transfer" if "--transfer" in cmd else "report"
-                report = json.loads((tmp / "report.json").read_text())
-                if kind not in reference:
-                    reference[kind] = report
-                elif not same_report(reference[kind], report):
-                    raise SystemExit(f"{name}: the report differs from the first one's")
-                if "--html" in cmd:
-                    html = page(tmp / "report.html")
-                    if kind + ".html" not in reference:
-                        reference[kind + ".html"] = html
-                    elif html != reference[kind + ".html"]:
-                        raise SystemExit(f"{name}: the HTML page differs from the first one's")
+            if "diagnose" in cmd:   # the same data must give the same outputs (--transfer: among themselves)
+                for what, value in outputs(tmp, "--html" in cmd).items():
+                    if reference.setdefault((what, "--transfer" in cmd), value) != value:
+                        raise SystemExit(f"{name}: the {what} differs from the first one's")
         w, c = statistics.median(t[0] for t in times), statistics.median(t[1] for t in times)
         rows.append({"pass": label, "step": name, "wall_s": w, "cpu_s": c, "load": os.getloadavg()[0]})
         print(f"| {name} | {w:.2f} s | {c:.2f} s | {rows[-1]['load']:.2f} |", flush=True)
@@ -120,8 +113,7 @@ def summary(rows: list[dict]) -> None:
 
     print("\ntargets (issue 12):")
     for label in dict.fromkeys(r["pass"] for r in rows):
-        split, job = t(label, steps(Path("."), True)[0][0]), t(label, "diagnose --json --html --out")
-        plain, kin = t(label, "diagnose --json --out (no HTML)"), t(label, "calibrate --model kinematic (the yardstick)")
+        split, job, plain, kin = (t(label, step) for step in (SPLIT, JOB, NO_HTML, YARDSTICK))
         total = split + job
         print(f"  {label}: README job {total:.2f} s (target <= {TARGET_S:.0f} s: "
               f"{'met' if total <= TARGET_S else 'NOT met'}); {total / kin:.1f} kinematic calibrate runs of "
@@ -152,7 +144,7 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         for label, busy in [("as is", False)] + ([] if args.no_busy else [("one busy core", True)]):
             print(f"\n{label}:\n\n| step | wall (median) | CPU (median) | load |\n|---|---:|---:|---:|", flush=True)
-            with busy_core(busy):
+            with Busy() if busy else contextlib.nullcontext():
                 rows += run_pass(args, Path(tmp), label, reference)
     summary(rows)
     if args.json:
