@@ -193,11 +193,7 @@ class ResultStore:
     def finished(self) -> set[int]:
         """Repetitions whose rows are in the folder (those the backend lost, all ``lost``, are not)."""
         _, pq = arrow()
-        done: set[int] = set()
-        for p in self.parts():
-            t = pq.read_table(p, columns=["repetition", "status"])
-            done.update(r for r, s in zip(t.column(0).to_pylist(), t.column(1).to_pylist()) if s != "lost")
-        return done
+        return set().union(*(_computed(pq.read_table(p, columns=["repetition", "status"])) for p in self.parts()))
 
     def append(self, rows: list[dict]) -> Path:
         """Write the rows of finished repetitions as one new part (atomically)."""
@@ -221,16 +217,13 @@ class ResultStore:
         """
         pa, pq = arrow()
         parts = [pq.read_table(p, schema=schema()) for p in self.parts()]
-        computed = [{r for r, s in zip(t.column("repetition").to_pylist(), t.column("status").to_pylist())
-                     if s != "lost"} for t in parts]
-        later: list[set] = [set()] * len(parts)      # repetitions computed in the parts after each
-        for k in range(len(parts) - 2, -1, -1):
-            later[k] = later[k + 1] | computed[k + 1]
+        computed = [_computed(t) for t in parts]
+        done = set().union(*computed)
         tables, seen = [], set()
         for k, t in enumerate(parts):
             reps = np.asarray(t.column("repetition").to_numpy())
-            # lost here but computed in a later part: that part's rows
-            keep = ~np.isin(reps, list(seen | (later[k] - computed[k])))
+            # not yet taken, and computed here or nowhere (lost here but computed elsewhere: those rows)
+            keep = ~np.isin(reps, list(seen | (done - computed[k])))
             seen.update(reps[keep].tolist())
             tables.append(t.filter(pa.array(keep)) if not keep.all() else t)
         if not tables:
@@ -282,3 +275,9 @@ def _read_manifest(path: Path) -> dict | None:
 
 __all__ = ["LOCK", "MANIFEST", "PROTOCOL_COPY", "ResultStore", "arrow", "differing_columns", "manifest_of",
            "schema"]
+
+
+def _computed(table) -> set[int]:
+    """Repetitions a table (of a part) holds computed, not ``lost``."""
+    return {r for r, s in zip(table.column("repetition").to_pylist(), table.column("status").to_pylist())
+            if s != "lost"}
