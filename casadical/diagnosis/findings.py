@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import functools
 import math
 
 import numpy as np
@@ -76,7 +77,7 @@ class UnexplainedLog:
 def describe(findings: list[Finding], support: dict, before: dict, final: CalibrationResult,
              cal: Measurements) -> None:
     """Fill each accepted finding's parameters, evidence and figure from the final model."""
-    view = None   # the final model's residuals and joint angle directions on the calibration poses
+    view = functools.cache(lambda: joint_view(final, cal))   # made once, by the first figure that needs it
     for f in findings:
         cand = f.candidate
         if cand not in support:
@@ -90,8 +91,6 @@ def describe(findings: list[Finding], support: dict, before: dict, final: Calibr
             text += "; " + "; ".join(h.text() for h in checks["halves"])
         size = what(cand, final, cal)
         f.evidence = text + (("; " + size) if size else "")
-        if view is None and cand.joint is not None and cand.cause != "thermal_expansion":
-            view = joint_view(final, cal)
         f.plot = residual_plot(cand, before.get(cand, final), final, cal, view)
 
 

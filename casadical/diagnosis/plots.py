@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
 from ..data import Measurements
@@ -13,11 +15,11 @@ ARCSEC = np.degrees(1.0) * 3600
 
 
 def residual_plot(cand: Candidate, before: CalibrationResult, after: CalibrationResult, d: Measurements,
-                  view: tuple | None = None) -> dict:
+                  view: Callable[[], tuple] | None = None) -> dict:
     """Joint causes: the partial residual (what the fit leaves plus the fitted effect, as the joint's
     angle error) with the fitted effect as a curve. Thermal expansion and drift: the residual before and after.
 
-    ``view``: :func:`joint_view` of ``after`` on ``d`` when it is at hand (one per model, not per figure).
+    ``view``: a function giving :func:`joint_view` of ``after`` on ``d`` (shared by the figures of one model).
     """
     if cand.cause in ("thermal_expansion", "drift"):
         if cand.cause == "thermal_expansion":
@@ -35,7 +37,7 @@ def residual_plot(cand: Candidate, before: CalibrationResult, after: Calibration
                 "xlabel": xlabel, "ylabel": ylabel}
     j, m, p = cand.joint, after.model, after.parameters
     cov = m.covariates(d)
-    resid, directions = view or joint_view(after, d)
+    resid, directions = view() if view else joint_view(after, d)
     s, _ = joint_errors(resid, directions[:, :, j - 1])
     q = d.q[:, j - 1]
     value = p[cand.parameter_names()[0]].value

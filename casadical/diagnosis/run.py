@@ -43,6 +43,7 @@ from .candidates import Candidate, compose_spec
 from .findings import UnexplainedLog, describe
 from .periodic import halves, resolution
 from .periodogram import Periodogram, joint_errors, periodogram
+from .plots import joint_view
 from .report import DiagnosisReport, Finding, Step
 from .screening import Scored, Screen, ambiguous
 from .settings import DiagnosisSettings
@@ -185,10 +186,8 @@ class _Diagnosis:
         out.append(Candidate("drift"))  # time_s, or the row order
         # periodograms of the projected residuals (the same while the fit is the same)
         if self._periodograms_of is not current:
-            model, p = current.model, current.parameters
             # a joint angle error moves the tool point along the derivative w.r.t. the joint's angle
-            _, _, JA = model.predict_angle_jacobian(self.cal.q, p.values, model.covariates(self.cal), current.base0)
-            resid = current.residuals(self.cal)
+            resid, JA = joint_view(current, self.cal)
             self.periodograms = []
             for j in range(1, self.robot.n + 1):
                 s, w = joint_errors(resid, JA[:, :, j - 1])
@@ -368,7 +367,7 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
                         "(lines " + listing([d["line"] for d in final.downweighted], 10) + "): likely bad measurements")
     study = None
     if other is not None:
-        study = transfer_mod.findings_study(dg, final, parametric, accepted, geometric, other, s, say)
+        study = transfer_mod.findings_study(dg, final, parametric, accepted, geometric, other)
     plots = {"val_errors_nominal_mm": (dg.nominal.errors(val) * 1000).tolist(),
              "val_errors_final_mm": (final_errors * 1000).tolist()}
     return DiagnosisReport(robot.name, dg.steps, dg.findings, final_spec, final_val, final, dg.periodograms, plots,

@@ -109,13 +109,13 @@ def study(final: CalibrationResult, kinematic: CalibrationResult, without: Calla
 
 
 def findings_study(dg, final: CalibrationResult, parametric: CalibrationResult, accepted: list[Candidate],
-                   geometric: bool, other: Measurements, settings, progress: Callable[[str], None]) -> TransferStudy:
+                   geometric: bool, other: Measurements) -> TransferStudy:
     """Take a diagnosis (``dg``: its findings, fits and kinematic model) to ``other``; set each finding's verdict.
 
     ``parametric`` is the model of the named causes (``final`` without a black box); a named finding is
     judged against the model refitted without it, structure kept out against the model refitted with it.
     """
-    s = settings
+    s = dg.s
     named = [k for k, f in enumerate(dg.findings) if f.in_model and f.cause not in ("geometric", "unexplained")]
     n_refit = s.transfer_refit_poses or min(len(dg.cal), len(other) // 2)
     if not s.transfer_base_poses < len(other) or not n_refit < len(other):
@@ -137,7 +137,7 @@ def findings_study(dg, final: CalibrationResult, parametric: CalibrationResult, 
         return dg.fit(compose_spec(rest, geometric), start=parametric)
 
     out = study(final, dg.kinematic, without, len(dg.findings), other, s.transfer_base_poses, n_refit, s.seed,
-                progress)
+                dg.say)
     # the named causes alone there (the final model unless a black box was added)
     named_only = out.final if parametric is final else travel(parametric, other, out.split)
     for k, f in enumerate(dg.findings):
