@@ -162,6 +162,11 @@ def blas_threads() -> dict[str, int]:
         return {os.path.basename(lib.filepath): lib.get_num_threads() for lib in _libraries()}
 
 
+def usable_cores() -> int:
+    """The cores this process may run on (its CPU affinity where the system has one)."""
+    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
+
+
 def evaluation_threads() -> int:
     """Threads that evaluate one large batch of poses (:class:`casadical.model.Model`), each its own block.
 
@@ -173,8 +178,7 @@ def evaluation_threads() -> int:
     """
     text = os.environ.get(EVAL_ENV, "").strip()
     if not text:
-        cores = len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-        return max(1, min(cores, EVAL_MAX))
+        return max(1, min(usable_cores(), EVAL_MAX))
     try:
         n = int(text)
     except ValueError:

@@ -18,7 +18,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .errors import CorrelationWarning
+from .errors import CorrelationWarning, listing
 
 
 @dataclass
@@ -91,9 +91,8 @@ def warn_problems(unc: Uncertainty, params, threshold: float = 0.95,
     notes = []
     pairs = [pr for pr in unc.strong_pairs(threshold) if frozenset(pr[:2]) not in expected]
     if pairs:
-        shown = ", ".join(f"{a}~{b} ({c:+.3f})" for a, b, c in pairs[:5])
-        more = f" and {len(pairs) - 5} more" if len(pairs) > 5 else ""
-        notes.append(f"strongly correlated parameters: {shown}{more}; their individual values are "
+        shown = listing([f"{a}~{b} ({c:+.3f})" for a, b, c in pairs], 5)
+        notes.append(f"strongly correlated parameters: {shown}; their individual values are "
                      "uncertain (add poses that move them differently)")
     for name in unc.names:
         p = params[name]

@@ -15,7 +15,6 @@ stores each repetition once, whichever worker finished it.
 from __future__ import annotations
 
 import logging
-import os
 import secrets
 import time
 from dataclasses import dataclass
@@ -24,6 +23,7 @@ from typing import Callable
 
 from .. import __version__
 from ..errors import CasadicalError, InputError
+from ..threads import usable_cores
 from .protocol import Study
 from .store import ResultStore
 from .task import error_rows, run_task
@@ -160,10 +160,6 @@ def _distributed():
     return distributed
 
 
-def _cores() -> int:
-    return len(os.sched_getaffinity(0)) if hasattr(os, "sched_getaffinity") else (os.cpu_count() or 1)
-
-
 def _run_dask(study: Study, todo: list[int], finished, report: RunReport, workers, scheduler, client,
               on_start) -> None:
     distributed = _distributed()
@@ -176,7 +172,7 @@ def _run_dask(study: Study, todo: list[int], finished, report: RunReport, worker
                 raise InputError(f"cannot reach the Dask scheduler: {e}", file=scheduler) from e
             report.backend = scheduler
         elif client is None:
-            own_cluster = distributed.LocalCluster(n_workers=workers or _cores(), threads_per_worker=1,
+            own_cluster = distributed.LocalCluster(n_workers=workers or usable_cores(), threads_per_worker=1,
                                                    processes=True, dashboard_address=":0",
                                                    silence_logs=logging.ERROR)
             client = own_client = distributed.Client(own_cluster)

@@ -136,9 +136,6 @@ class ReferencedTerm(ErrorTerm):
     def reference_covariate(self) -> str:
         return self.covariates[0]
 
-    def spec(self) -> str:
-        return self.name
-
     def settings(self) -> dict:
         return {"t_ref": self.t_ref}
 

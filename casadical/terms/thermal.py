@@ -8,7 +8,7 @@ from ..errors import ModelError
 from ..kinematics import Geometry
 from ..parameters import Parameter
 from ..robot import Robot
-from .base import Context, ErrorTerm, ReferencedTerm, register
+from .base import Context, ReferencedTerm, register
 
 
 @register
@@ -44,8 +44,6 @@ class ThermalExpansion(ReferencedTerm):
         if bad:
             raise ModelError(f"term thermal_expansion: links {bad} do not exist on {robot.name} "
                              f"(links 1..{robot.n})")
-
-    spec = ErrorTerm.spec    # joints = links with their own coefficient (None: one for the whole arm)
 
     def settings(self) -> dict:
         return {"t_ref": self.t_ref, "joints": self.joints}
