@@ -9,12 +9,12 @@ turn into a traceback or into predictions that are NaN or wrong.
 
 from __future__ import annotations
 
-import math
 from typing import Any
 
 import numpy as np
 
 from .errors import CalibrationFileError, ModelError, RobotFileError, listing
+from .files import finite_number
 from .model import assemble_terms, parse_spec
 from .robot import Robot, robot_from_dict
 
@@ -98,7 +98,7 @@ def _check_settings(settings: Any, terms: list, err) -> None:
                 if not isinstance(v, str):
                     raise err(f"{key}.{k}", f"must be a string, got {_kind(v)}")
             elif isinstance(default, (int, float)) and not isinstance(default, bool):
-                if not _finite(v):
+                if not finite_number(v):
                     raise err(f"{key}.{k}", f"must be a finite number, got {v!r}")
                 if k not in SIGNED_SETTINGS and not v > 0:
                     raise err(f"{key}.{k}", f"must be positive, got {v!r}")
@@ -126,9 +126,9 @@ def _check_parameters(entries: Any, names: list[str], spec: str, err) -> None:
         seen[name] = i
         if "value" not in e:
             raise err(f"{at}.value", f"missing value of {name}")
-        if not _finite(e["value"]):
+        if not finite_number(e["value"]):
             raise err(f"{at}.value", f"value of {name} must be a finite number, got {e['value']!r}")
-        if e.get("std") is not None and not (_finite(e["std"]) and e["std"] >= 0):
+        if e.get("std") is not None and not (finite_number(e["std"]) and e["std"] >= 0):
             raise err(f"{at}.std", f"std of {name} must be null or a finite number >= 0, got {e['std']!r}")
         if "fixed" in e and not isinstance(e["fixed"], bool):
             raise err(f"{at}.fixed", f"must be true or false, got {e['fixed']!r}")
@@ -143,7 +143,7 @@ def _check_parameters(entries: Any, names: list[str], spec: str, err) -> None:
 
 
 def _check_base0(base0: Any, err) -> None:
-    if not isinstance(base0, list) or len(base0) != 12 or not all(_finite(x) for x in base0):
+    if not isinstance(base0, list) or len(base0) != 12 or not all(finite_number(x) for x in base0):
         raise err("base0", "must be a list of 12 finite numbers (rotation row-major, translation in m)")
     R = np.array(base0[:9], dtype=float).reshape(3, 3)
     if np.abs(R.T @ R - np.eye(3)).max() > 1e-6 or np.linalg.det(R) <= 0:
@@ -161,7 +161,7 @@ def _check_stats(stats: Any, err) -> None:
     for k in STATS_KEYS:
         v = stats.get(k)
         ok = (isinstance(v, int) and not isinstance(v, bool) and v >= 0) if k == "n_poses" \
-            else (_finite(v) and v >= 0)
+            else (finite_number(v) and v >= 0)
         if not ok:
             raise err(f"calibration.{k}", f"must be a {'whole' if k == 'n_poses' else 'finite'} number >= 0, "
                                           f"got {v!r}")
@@ -177,7 +177,7 @@ def _check_robust(robust: Any, err) -> None:
         raise err("robust.loss", f"must be 'pseudo-huber' or 'none', got {loss!r}")
     if loss != "none":
         for k in ("c", "sigma_mm"):
-            if not (_finite(robust.get(k)) and robust[k] > 0):
+            if not (finite_number(robust.get(k)) and robust[k] > 0):
                 raise err(f"robust.{k}", f"must be a finite number > 0, got {robust.get(k)!r}")
     down = robust.get("downweighted", [])
     if not isinstance(down, list) or not all(isinstance(d, dict) for d in down):
@@ -196,27 +196,17 @@ def _check_coverage(coverage: Any, err) -> None:
     n = None
     for key in ("q_min_deg", "q_max_deg"):
         v = coverage[key]
-        if not isinstance(v, list) or not all(_finite(x) for x in v) or (n is not None and len(v) != n):
+        if not isinstance(v, list) or not all(finite_number(x) for x in v) or (n is not None and len(v) != n):
             raise err(f"coverage.{key}", "must be a list of finite numbers, one per joint")
         n = len(v)
     poses = coverage["poses_deg"]
     if not isinstance(poses, list) or not poses:
         raise err("coverage.poses_deg", f"must be a non-empty list of poses, got {_kind(poses)}")
     for i, pose in enumerate(poses):
-        if not isinstance(pose, list) or len(pose) != n or not all(_finite(x) for x in pose):
+        if not isinstance(pose, list) or len(pose) != n or not all(finite_number(x) for x in pose):
             raise err(f"coverage.poses_deg[{i}]", f"must be a list of {n} finite numbers (degrees)")
-    if not _finite(coverage["spacing_deg"]):
+    if not finite_number(coverage["spacing_deg"]):
         raise err("coverage.spacing_deg", f"must be a finite number, got {coverage['spacing_deg']!r}")
-
-
-def _finite(x: Any) -> bool:
-    """A JSON number (not a boolean) that is finite."""
-    if isinstance(x, bool) or not isinstance(x, (int, float)):
-        return False
-    try:
-        return math.isfinite(x)
-    except OverflowError:   # an integer too large for a float
-        return False
 
 
 def _kind(x: Any) -> str:

@@ -10,6 +10,7 @@ replaced only when the caller says so.
 from __future__ import annotations
 
 import contextlib
+import math
 import os
 import tempfile
 import tomllib
@@ -121,3 +122,13 @@ def named_toml(spec: str | Path, folder: Path, missing: str) -> Path:
         known = ", ".join(sorted(p.stem for p in folder.glob("*.toml")))
         raise InputError(missing.format(known=known), file=str(spec))
     return path
+
+
+def finite_number(x) -> bool:
+    """A number read from a file (JSON or TOML; not a boolean) that is finite."""
+    if isinstance(x, bool) or not isinstance(x, (int, float)):
+        return False
+    try:
+        return math.isfinite(x)
+    except OverflowError:   # an integer too large for a float
+        return False

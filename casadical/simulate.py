@@ -17,7 +17,7 @@ import numpy as np
 
 from .data import Measurements
 from .errors import InputError
-from .files import named_toml, read_toml
+from .files import finite_number, named_toml, read_toml
 from .kinematics import base_pose_matrix
 from .model import Model, pose_to_base0
 from .robot import PROBLEMS, Robot, _Validator, load_robot
@@ -349,13 +349,6 @@ class TomlValidator(_Validator):
         return out
 
 
-def _finite_number(x) -> bool:
-    try:
-        return not isinstance(x, bool) and isinstance(x, (int, float)) and math.isfinite(x)
-    except OverflowError:   # an integer beyond the range of a float
-        return False
-
-
 def resolve_path(spec: str, relative_to: str | Path) -> str:
     """A file named in a TOML file: relative to that file's folder if it exists there, else as given."""
     beside = Path(relative_to).parent / spec
@@ -378,7 +371,7 @@ def effects_from_table(t: dict, robot: Robot, file: str, table: str = "truth") -
                          file=file, column=f"{table}.periodic_deg")
     for i, item in enumerate(t.get("periodic_deg", [])):
         where = f"{table}.periodic_deg[{i + 1}]"
-        if not isinstance(item, list) or len(item) != 4 or not all(_finite_number(x) for x in item):
+        if not isinstance(item, list) or len(item) != 4 or not all(finite_number(x) for x in item):
             raise InputError(f"must be [joint, harmonic, amplitude_deg, phase_deg], got {item!r}",
                              file=file, column=where)
         j, h, amp, ph = item
