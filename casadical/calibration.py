@@ -417,11 +417,6 @@ def _solve(problem: CalibrationProblem, x0: np.ndarray, solver: str, opts: dict)
     return s.solve(problem, x0), s.name
 
 
-def base_rotation(result: CalibrationResult) -> np.ndarray:
-    """Rotation of the robot base frame in the measurement frame (3x3)."""
-    return result.base_matrix()[:3, :3]
-
-
 def compensator_data(result: CalibrationResult, data: Measurements) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """What a residual compensator of ``result`` learns from: features, residuals, poses to train on.
 
@@ -431,7 +426,7 @@ def compensator_data(result: CalibrationResult, data: Measurements) -> tuple[np.
     """
     m = result.model
     X = features(data.q, m.torques(data.q, result.parameters.values, m.covariates(data)))
-    Y = result.residuals(data) @ base_rotation(result)     # rows: R^T r, the robot base frame
+    Y = result.residuals(data) @ result.base_matrix()[:3, :3]   # rows: R^T r, the robot base frame
     keep = np.ones(len(X), bool)
     for d in result.downweighted:
         keep &= data.lines != d["line"]

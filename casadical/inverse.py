@@ -413,8 +413,6 @@ class _Equations:
         return Rotation.from_matrix(R @ self.R_goal[index].transpose(0, 2, 1)).as_rotvec()
 
 
-
-
 def _at(targets: Measurements, index: np.ndarray, q: np.ndarray) -> Measurements:
     """Rows ``index`` of the targets with joints ``q`` (rad); covariates and row order kept."""
     sub = targets.subset(index)

@@ -171,13 +171,10 @@ class CalibrationProblem:
         nom, s = self.params.nominal[f], self.params.scales[f]
         return (self.params.lower[f] - nom) / s, (self.params.upper[f] - nom) / s
 
-    def _chunks(self):
-        return pose_chunks(self.n_poses)
-
     def residuals(self, values: np.ndarray) -> np.ndarray:
         """Stacked residuals (m), shape (3N,)."""
         out = np.empty((self.n_poses, 3))
-        for s in self._chunks():
+        for s in pose_chunks(self.n_poses):
             out[s] = self.model.predict(self.q[s], values, self.cov[s], self.base0) - self.xyz[s]
         return out.ravel()
 
@@ -190,7 +187,7 @@ class CalibrationProblem:
         g = np.zeros(nf)
         r_all = np.empty((self.n_poses, 3))
         u2_all, w_all = np.empty(self.n_poses), np.empty(self.n_poses)
-        for s in self._chunks():
+        for s in pose_chunks(self.n_poses):
             xyz, J = self.model.predict_jacobian(self.q[s], values, self.cov[s], self.base0)
             r = xyz - self.xyz[s]
             r_all[s] = r

@@ -79,10 +79,9 @@ def cmd_plan_poses(args) -> int:
     check_distinct_poses(data, args.m)
     # compiling the model (~1.5 s) pays only for large pools; the model decides whether it can
     model = Model(robot, args.model, jit=None if N >= JIT_MIN_CANDIDATES else False)
-    cov = model.covariates(data)
     t0 = time.perf_counter()
     try:
-        problem = design_problem(model, data.q, cov)
+        problem = design_problem(model, data.q, model.covariates(data))
     except IdentifiabilityError as e:
         raise InputError(str(e), file=args.candidates) from e
     t_jac = time.perf_counter() - t0

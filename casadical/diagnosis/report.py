@@ -11,7 +11,6 @@ from .periodogram import Periodogram
 from .statistics import NestedTest
 
 
-
 def finite(x: float | None) -> float | None:
     return float(x) if x is not None and math.isfinite(x) else None
 

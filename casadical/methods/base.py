@@ -153,7 +153,6 @@ class MethodResult:
                 "details": _jsonable(self.info)}
 
 
-
 def _jsonable(o):
     if isinstance(o, dict):
         return {str(k): _jsonable(v) for k, v in o.items()}
