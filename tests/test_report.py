@@ -237,36 +237,30 @@ def test_figures_drawn_in_processes_are_the_same_page(diagnosis_page, calibratio
     assert calibration_html(result, data, processes=3) == html
 
 
-def test_a_figure_a_child_cannot_draw_is_drawn_here():
-    """A child process that fails leaves its share to this process: nothing is missing or out of order."""
-    import os
-
-    from casadical.report.figures import figure, render, styled
-
-    parent = os.getpid()
-
-    @styled
-    def line(k):
-        if os.getpid() != parent and k % 2:
-            raise RuntimeError("this child cannot draw")
-        fig, ax = figure(3, 2)
-        ax[0, 0].plot([0, 1], [0, k])
-        return fig
-
-    jobs = [(lambda k=k: line(k), f"f{k}", f"figure {k}") for k in range(5)]
-    assert render(jobs, processes=2) == render(jobs)
-
-
-def _lines(prefix: str, n: int) -> list:
+def _lines(prefix: str, n: int, fails=lambda k: False) -> list:
+    """Jobs of ``n`` small figures for render(); ``fails(k)``: figure k raises instead of drawing."""
     from casadical.report.figures import figure, styled
 
     @styled
     def line(k):
+        if fails(k):
+            raise RuntimeError("this process cannot draw")
         fig, ax = figure(3, 2)
         ax[0, 0].plot([0, 1], [0, k])
         return fig
 
     return [(lambda k=k: line(k), f"{prefix}{k}", f"{prefix} figure {k}") for k in range(n)]
+
+
+def test_a_figure_a_child_cannot_draw_is_drawn_here():
+    """A child process that fails leaves its share to this process: nothing is missing or out of order."""
+    import os
+
+    from casadical.report.figures import render
+
+    parent = os.getpid()
+    jobs = _lines("f", 5, fails=lambda k: os.getpid() != parent and k % 2)
+    assert render(jobs, processes=2) == render(jobs)
 
 
 def test_figures_where_no_child_process_can_be_made(monkeypatch):
