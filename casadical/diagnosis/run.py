@@ -74,6 +74,7 @@ class _Diagnosis:
         self.unexplained = UnexplainedLog()
         self.before: dict[Candidate, CalibrationResult] = {}   # fit before each finding, by its cause
         self.support: dict[Candidate, tuple] = {}               # (test, cv before, cv after, checks) by cause
+        self._val_errors: dict[int, tuple] = {}                 # id of a fit -> (fit, its validation errors)
 
     # -- fitting ---------------------------------------------------------------
 
@@ -86,6 +87,16 @@ class _Diagnosis:
             values = start if isinstance(start, dict) else {p.name: p.value for p in start.parameters}
             st = {n: v for n, v in values.items() if n in model.parameters and not n.startswith("base_")}
         return calibrate(self.robot, self.cal, model, "lm", start=st, warn=False, robust=loss or self.s.robust)
+
+    def val_errors(self, res: CalibrationResult) -> np.ndarray:
+        """Position errors (m) of a fit on the validation poses, predicted once per fit."""
+        hit = self._val_errors.get(id(res))
+        if hit is None or hit[0] is not res:
+            hit = self._val_errors[id(res)] = (res, res.errors(self.val))
+        return hit[1]
+
+    def val_stats(self, res: CalibrationResult) -> ErrorStats:
+        return ErrorStats.of(self.val_errors(res))
 
     def deviance(self, res: CalibrationResult, loss: RobustLoss) -> float:
         """Twice the loss of ``res`` on the calibration poses under ``loss`` (SSR for least squares)."""
@@ -102,7 +113,7 @@ class _Diagnosis:
     def run(self) -> tuple[CalibrationResult, list[Candidate], bool]:
         self.say("step 1: nominal model (base pose only)")
         nominal = self.nominal = self.fit("nominal")
-        self.steps.append(Step("nominal", nominal.calibration, nominal.stats(self.val), True))
+        self.steps.append(Step("nominal", nominal.calibration, self.val_stats(nominal), True))
         self.say(f"  validation mean {self.steps[-1].validation.mean_mm:.4f} mm (judge only)")
         self.say("step 2: geometric (kinematic) calibration")
         kin = self.kinematic = self.fit("kinematic")
@@ -112,7 +123,7 @@ class _Diagnosis:
         cv0, cv1 = (by_kind(Linearized.of(r, self.cal).cv(self.schemes), mask) for r in (nominal, kin))
         worse = not_better(cv0, cv1)
         ok = test.log10_p < math.log10(self.s.alpha) and test.delta_bic < 0 and not worse
-        kv = kin.stats(self.val)
+        kv = self.val_stats(kin)
         reason = "; ".join([f"not significant ({test.text()})"] * (test.log10_p >= math.log10(self.s.alpha))
                            + [f"BIC does not improve ({test.delta_bic:+.1f})"] * (test.delta_bic >= 0)
                            + ([cv_failure(worse, cv0, cv1)] if worse else []))
@@ -151,7 +162,7 @@ class _Diagnosis:
             accepted.append(cand)
             current = new_fit
             # the step and the finding's gain judge the full fit, not the one-step fit that decided
-            full = current.stats(self.val)
+            full = self.val_stats(current)
             next(f for f in self.findings if f.candidate == cand).gain_mm += step.validation.mean_mm - full.mean_mm
             step.calibration, step.validation = current.calibration, full
         else:
@@ -221,7 +232,7 @@ class _Diagnosis:
                 scr = Screen(current, accepted, cands, geometric, self.cal, self.val)
                 mask = self.mask(current)
                 base = scr.fit()
-                baseline = (mask, base, by_kind(base.lin.cv(self.schemes), mask), current.stats(self.val))
+                baseline = (mask, base, by_kind(base.lin.cv(self.schemes), mask), self.val_stats(current))
             else:
                 scr = scr.with_candidates(cands)
             scored = scr.scores(cands)
@@ -357,7 +368,7 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
         final, final_spec = blackbox_step(current, final_spec, cal, val, dg.schemes, s, dg.steps, dg.findings, say)
     describe(dg.findings, dg.support, dg.before, final, cal)
     dg.findings += list(dg.unexplained.by_joint.values())
-    final_errors = final.errors(val)
+    final_errors = dg.val_errors(final)
     final_val = ErrorStats.of(final_errors)
     if final.uncertainty is not None:
         dg.notes.append(f"remaining calibration residual {final.uncertainty.sigma * 1000:.4f} mm per axis (rms); "
@@ -368,7 +379,7 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
     study = None
     if other is not None:
         study = transfer_mod.findings_study(dg, final, parametric, accepted, geometric, other)
-    plots = {"val_errors_nominal_mm": (dg.nominal.errors(val) * 1000).tolist(),
+    plots = {"val_errors_nominal_mm": (dg.val_errors(dg.nominal) * 1000).tolist(),
              "val_errors_final_mm": (final_errors * 1000).tolist()}
     return DiagnosisReport(robot.name, dg.steps, dg.findings, final_spec, final_val, final, dg.periodograms, plots,
                            dg.notes, time.perf_counter() - t0,
