@@ -76,8 +76,7 @@ class Page:
     title: str
     parts: list[str] = field(default_factory=list)
     footnotes: list[str] = field(default_factory=list)
-    n_figures: int = 0
-    _figures: list[tuple] = field(default_factory=list)   # (index in parts, figure or maker, anchor, caption, N)
+    _figures: list[tuple] = field(default_factory=list)   # (index in parts, figure or maker, anchor, caption)
 
     def heading(self, text: str, level: int = 2, anchor: str | None = None) -> None:
         ident = f' id="{esc(anchor)}"' if anchor else ""
@@ -146,10 +145,9 @@ class Page:
         ``fig``: a figure, or a function that makes it: then it is drawn only
         by :meth:`html`, possibly in another process.
         """
-        self.n_figures += 1
-        self._figures.append((len(self.parts), fig, anchor, caption, self.n_figures))
+        self._figures.append((len(self.parts), fig, anchor, caption))
         self.parts.append("")   # the figure, drawn by html()
-        return self.ref(anchor, f"figure {self.n_figures}")
+        return self.ref(anchor, f"figure {len(self._figures)}")
 
     @staticmethod
     def ref(anchor: str, text: str) -> Raw:
@@ -163,8 +161,8 @@ class Page:
 
     def html(self, processes: int = 1) -> str:
         """The document; ``processes`` > 1 draws the figures in that many processes (:func:`.figures.render`)."""
-        svgs = render([(fig, anchor, caption) for _, fig, anchor, caption, _ in self._figures], processes)
-        for (i, _, anchor, caption, n), svg in zip(self._figures, svgs):
+        svgs = render([(fig, anchor, caption) for _, fig, anchor, caption in self._figures], processes)
+        for n, ((i, _, anchor, caption), svg) in enumerate(zip(self._figures, svgs), start=1):
             self.parts[i] = (f'<figure id="{esc(anchor)}">{svg}<figcaption><b>Figure {n}.</b> {esc(caption)}'
                              "</figcaption></figure>")
         notes = ""
