@@ -146,7 +146,8 @@ def _check_base0(base0: Any, err) -> None:
     if not isinstance(base0, list) or len(base0) != 12 or not all(finite_number(x) for x in base0):
         raise err("base0", "must be a list of 12 finite numbers (rotation row-major, translation in m)")
     R = np.array(base0[:9], dtype=float).reshape(3, 3)
-    if np.abs(R.T @ R - np.eye(3)).max() > 1e-6 or np.linalg.det(R) <= 0:
+    # a rotation's entries lie in [-1, 1]: checked first, so a huge number cannot overflow the product
+    if np.abs(R).max() > 1 + 1e-6 or np.abs(R.T @ R - np.eye(3)).max() > 1e-6 or np.linalg.det(R) <= 0:
         raise err("base0", "its first 9 numbers are not a rotation matrix (row-major)")
 
 

@@ -346,6 +346,7 @@ def _set(path, value):
     (_set(["parameters"], {}), "parameters"),
     (_set(["base0"], [1, 2]), "base0"),
     (_set(["base0"], [2.0] * 12), "base0"),
+    (_set(["base0", 0], 1e200), "base0"),     # found by the slow fuzz test (R^T R overflowed)
     (_set(["base0"], KeyError), "base0"),
     (_set(["model"], 5), "model"),
     (_set(["model"], "kinematic+compliance[9]"), "model"),
