@@ -24,6 +24,35 @@ def test_help(cmd, capsys):
     assert "usage: casadical" in capsys.readouterr().out
 
 
+def test_compare_help_lists_every_method(capsys):
+    """The method names are filled in when the help is shown (the parser is built without the methods)."""
+    from casadical.methods import method_names
+
+    with pytest.raises(SystemExit):
+        main(["compare", "--help"])
+    out = " ".join(capsys.readouterr().out.split())
+    assert "{names}" not in out
+    assert out.count(", ".join(method_names())) == 2   # the description and --methods
+
+
+def test_commands_without_a_model_start_without_casadi(tmp_path):
+    """``split`` and ``--help`` import neither CasADi nor the methods; the package's names still resolve."""
+    code = ("import sys, casadical, casadical.cli as c\n"
+            f"c.main(['split', {str(tmp_path / 'd.csv')!r}, '-n', '2', '--out-cal', {str(tmp_path / 'c.csv')!r}, "
+            f"'--out-val', {str(tmp_path / 'v.csv')!r}])\n"
+            "print(sorted(m for m in ('casadi', 'casadical.methods', 'casadical.calibration') if m in sys.modules))\n"
+            "print(all(getattr(casadical, n) is not None for n in casadical.__all__), 'Model' in dir(casadical))\n")
+    (tmp_path / "d.csv").write_text("q1_deg,q2_deg,x_mm,y_mm,z_mm\n" + "".join(f"{k},0,1,2,3\n" for k in range(5)))
+    r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
+    assert r.returncode == 0, r.stderr
+    assert r.stdout.splitlines()[-2:] == ["[]", "True True"]
+    import casadical
+
+    assert set(casadical.__all__) == set(casadical._EXPORTS) | {"__version__"}
+    with pytest.raises(AttributeError, match="no attribute 'nosuch'"):
+        casadical.nosuch  # noqa: B018
+
+
 def test_inspect_shows_identifiability(capsys):
     assert main(["inspect", "ys100", "--poses", "60"]) == 0
     out = capsys.readouterr().out

@@ -29,7 +29,21 @@ class UsageError(CasadicalError):
 
 
 class _Parser(argparse.ArgumentParser):
-    """argparse with one-line usage errors (the usage itself is one ``--help`` away)."""
+    """argparse with one-line usage errors (the usage itself is one ``--help`` away).
+
+    A command may set ``complete_help`` on its parser: a function of the
+    parser called once before its help is shown, to fill in what is costly
+    to know when every command's parser is built (``compare`` imports every
+    method to list them).
+    """
+
+    complete_help = None
+
+    def format_help(self) -> str:
+        if self.complete_help is not None:
+            complete, self.complete_help = self.complete_help, None
+            complete(self)
+        return super().format_help()
 
     def error(self, message: str):  # type: ignore[override]
         raise UsageError(f"{self.prog}: {message} (see {self.prog} --help)")

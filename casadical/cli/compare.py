@@ -4,27 +4,21 @@ from __future__ import annotations
 
 import sys
 
-from ..checks import check_poses
-from ..data import Measurements
-from ..methods import method_names
-from ..methods.base import MethodResult
-from ..methods.compare import compare, format_table, parse_methods, plot, pyplot, to_json
 from .common import (Status, add_checks, add_force, add_json, add_quiet, add_urdf_chain, check_options, check_outputs,
                      robot_from_args, write_json)
 
 
 def register(sub) -> None:
-    names = ", ".join(method_names())
     p = sub.add_parser(
         "compare", help="run the seed papers' calibration methods side by side",
         description="Run calibration methods on the same data and print the seeds' accuracy table "
                     "(mean / max / std of the position error in mm, calibration and validation poses) "
-                    f"with the time per method. Methods: {names}.")
+                    "with the time per method. Methods: {names}.")
     p.add_argument("robot", metavar="ROBOT", help="built-in robot (ys100, hh800, ur10), robot TOML or URDF file")
     p.add_argument("cal", metavar="CAL.csv", help="calibration poses (with x_mm, y_mm, z_mm)")
     p.add_argument("--validate", metavar="VAL.csv", help="validation poses, never used for fitting")
     add_json(p, "the results")
-    p.add_argument("--methods", default="", help=f"comma-separated methods (default all: {names})")
+    methods = p.add_argument("--methods", default="", help="comma-separated methods (default all: {names})")
     p.add_argument("--extra", metavar="EXTRA.csv",
                    help="further measured poses the network methods train on (the TLBO paper's Q2)")
     p.add_argument("--plot", metavar="OUT.png", help="per-pose error bars per method (PNG, needs matplotlib)")
@@ -35,8 +29,22 @@ def register(sub) -> None:
     add_force(p)
     p.set_defaults(func=cmd_compare)
 
+    def complete_help(parser) -> None:   # the names need every method imported: only for --help
+        from ..methods import method_names
+
+        names = ", ".join(method_names())
+        parser.description = parser.description.format(names=names)
+        methods.help = methods.help.format(names=names)
+
+    p.complete_help = complete_help
+
 
 def cmd_compare(args) -> int:
+    from ..checks import check_poses
+    from ..data import Measurements
+    from ..methods.base import MethodResult
+    from ..methods.compare import compare, format_table, parse_methods, plot, pyplot, to_json
+
     methods = parse_methods(args.methods)        # bad names fail before any work
     inputs = [args.cal, args.validate, args.extra]
     check_outputs({"--json": args.json, "--plot": args.plot}, [args.robot, *inputs], args.force)
