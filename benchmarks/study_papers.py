@@ -173,7 +173,7 @@ def experiment_ca(n_robots: int, plots: str | None) -> dict:
         path = os.path.join(plots, "study_ca.png")
         plot([main[m] for m in ("Nominal", "KM", "SKCM-GA", "SKCM-CA")],
              {"calibration": main_sets["calibration"], "validation": main_sets["validation"]}, path,
-             "CA paper protocol (ca-ys100)")
+             "CA paper protocol (ca-ys100)", overwrite=True)
         say(f"\nplot -> {path}")
     return {"paper": CA_PAPER, "ours": ours, "per_seed": per_seed}
 
@@ -238,7 +238,7 @@ def experiment_ga(n_splits: int, plots: str | None) -> dict:
         if plots:
             path = os.path.join(plots, "study_ga.png")
             plot([res[m] for m in ("KM", "SKCM", "GA-RBF")], {"calibration": cal, "validation": val}, path,
-                 "GA paper protocol, GA-selected poses")
+                 "GA paper protocol, GA-selected poses", overwrite=True)
             say(f"plot -> {path}")
     say(f"\n### {n_splits} random 20/50 splits of the pool\n")
     rng = np.random.default_rng(proto.seed)
@@ -342,7 +342,7 @@ def experiment_tlbo(n_robots: int, plots: str | None, protocol: str = "tlbo-hh80
         path = os.path.join(plots, f"study_{protocol.replace('-', '_')}.png")
         plot([main[m] for m in ("KM", "SKCM", "NN-SKCM", "TLBO-NN-SKCM")],
              {"calibration": main_sets["calibration"], "validation": main_sets["validation"]}, path,
-             f"TLBO paper protocol ({protocol})")
+             f"TLBO paper protocol ({protocol})", overwrite=True)
         say(f"\nplot -> {path}")
     return {"paper": TLBO_PAPER, "ours": ours, "per_seed": per_seed}
 
