@@ -86,8 +86,8 @@ class Ipopt(Solver):
         # acceptable_iter: near the optimum the objective's rounding can hide every decrease (sum of hundreds
         # of squares); the dual infeasibility then stalls above tol and each iteration backtracks ~30 times
         # (README split, 300 poses: 10 of 15 iterations, 300 objective evaluations). 5 iterations in a row at
-        # IPOPT's acceptable level (NLP error <= acceptable_tol, 1e-6 in mm^2) end such a stall; where none
-        # occurs the result is the same to the bit (docs/benchmarks.md)
+        # IPOPT's acceptable level (NLP error <= acceptable_tol, 1e-6 in mm^2) end such a stall; in the cases
+        # measured without a stall the result is the same to the bit (docs/benchmarks.md)
         opts = {"print_time": False, "no_nlp_grad": True, "calc_lam_p": False,
                 "ipopt": {"print_level": 0, "sb": "yes", "max_iter": self.max_iter, "tol": self.tol,
                           "acceptable_iter": ACCEPTABLE_ITER, "obj_scaling_factor": 1e6, **self.options}}
