@@ -1,9 +1,8 @@
 """casadical: calibration of industrial robot arms with CasADi and IPOPT."""
 
-from __future__ import annotations
-
-import importlib
-from typing import TYPE_CHECKING
+import typing as _typing
+from importlib import import_module as _import_module
+from importlib.util import find_spec as _find_spec
 
 __version__ = "0.1.0"
 
@@ -16,22 +15,25 @@ _EXPORTS = {"CalibrationResult": "calibration", "calibrate": "calibration", "loa
 __all__ = ["CalibrationResult", "CasadicalError", "Measurements", "calibrate", "load_calibration", "Model", "Parameter",
            "Parameters", "Robot", "load_robot", "parse_spec", "__version__"]
 
-if TYPE_CHECKING:
+if _typing.TYPE_CHECKING:
     from .calibration import CalibrationResult, calibrate, load_calibration
     from .data import Measurements
     from .errors import CasadicalError
     from .model import Model, parse_spec
     from .parameters import Parameter, Parameters
     from .robot import Robot, load_robot
-
-
-def __getattr__(name: str):
-    module = _EXPORTS.get(name)
-    if module is None:
-        raise AttributeError(f"module 'casadical' has no attribute {name!r}")
-    value = getattr(importlib.import_module(f".{module}", __name__), name)
-    globals()[name] = value
-    return value
+else:
+    def __getattr__(name: str):
+        """A public name, or a submodule (``casadical.simulate`` after ``import casadical``, as before)."""
+        module = _EXPORTS.get(name)
+        if module is not None:
+            value = getattr(_import_module(f".{module}", __name__), name)
+        elif not name.startswith("_") and _find_spec(f"{__name__}.{name}") is not None:
+            value = _import_module(f".{name}", __name__)
+        else:
+            raise AttributeError(f"module 'casadical' has no attribute {name!r}")
+        globals()[name] = value
+        return value
 
 
 def __dir__() -> list[str]:

@@ -173,24 +173,40 @@ def test_real_ur10_series_b_held_out():
     assert held.mean_mm < 0.6 * nominal.mean_mm
 
 
-def test_ipopt_stops_where_rounding_stalls_it():
-    """On the README's split (300 real poses) IPOPT reaches the optimum in a few iterations; then the
-    objective's rounding hides every decrease, and with IPOPT's own acceptable_iter (15) it backtracks
-    ~30 times per iteration for 10 more. casadical ends such a stall at the acceptable level: the same
-    optimum as LM, in far fewer iterations."""
+def test_ipopt_stops_where_rounding_stalls_it(monkeypatch):
+    """On the README's split (300 real poses) the robust loss's first IPOPT solve reaches the optimum in a
+    few iterations; then the objective's rounding hides every decrease, and with IPOPT's own
+    acceptable_iter (15) it backtracks ~30 times per iteration for 10 more. casadical ends such a stall at
+    the acceptable level: the same optimum as LM, in far fewer iterations."""
+    from casadical.solvers.ipopt import Ipopt
+
+    solves = []
+    solve = Ipopt.solve
+
+    def recorded(self, problem, x0=None):   # every solve of the noise-scale loop, not only the last
+        res = solve(self, problem, x0)
+        solves.append((res.status, res.iterations))
+        return res
+
+    monkeypatch.setattr(Ipopt, "solve", recorded)
     robot = load_robot("ur10")
     data = Measurements.read_csv(UR10_B, n_joints=6, require_positions=True)
     cal = data.subset(np.sort(np.random.default_rng(0).permutation(len(data))[:300]))
     lm = calibrate(robot, cal, "kinematic", "lm", warn=False)
-    ours = calibrate(robot, cal, "kinematic", "ipopt", warn=False)
-    stalled = calibrate(robot, cal, "kinematic", "ipopt", warn=False,
-                        solver_options={"options": {"acceptable_iter": 15}})
-    assert stalled.solver.iterations >= 12    # the premise: this data stalls IPOPT
-    assert ours.solver.success and ours.solver.iterations <= 8
+    runs = {}
+    for name, options in (("ours", {}), ("ipopt's", {"options": {"acceptable_iter": 15}})):
+        solves.clear()
+        result = calibrate(robot, cal, "kinematic", "ipopt", warn=False, solver_options=options)
+        runs[name] = (result, list(solves))
+    ours, ours_solves = runs["ours"]
+    stalled, stalled_solves = runs["ipopt's"]
+    assert max(it for _, it in stalled_solves) >= 12           # the premise: this data stalls IPOPT
+    assert ("Solved_To_Acceptable_Level" in {s for s, _ in ours_solves}) and ours.solver.success
+    assert sum(it for _, it in ours_solves) <= sum(it for _, it in stalled_solves) - 8
     for other in (ours, stalled):
         dv = np.abs(other.parameters.values - lm.parameters.values) / lm.parameters.scales
         assert dv.max() < 1e-6
-        assert other.solver.cost == pytest.approx(lm.solver.cost, rel=1e-8)
+        assert other.solver.cost <= lm.solver.cost * (1 + 1e-8)   # no worse than LM's optimum
 
 
 def test_too_few_poses_says_how_many():

@@ -29,6 +29,8 @@ def _commands(text: str, fenced: bool) -> list[str]:
         lines = [line for block in re.findall(r"```[a-z]*\n(.*?)```", text, re.S)
                  for line in block.replace("\\\n", " ").splitlines()]
         pieces = [re.sub(r"\s+#.*$", "", p).strip() for line in lines for p in re.split(r"\s*&&\s*", line.strip())]
+        # a shell prompt and environment settings before the command: "$ VAR=1 casadical ..."
+        pieces = [re.sub(r"^(\$\s+)?(\w+=\S*\s+)*", "", p) for p in pieces]
     else:
         pieces = [m.replace("\\|", "|") for m in re.findall(r"`(casadical [^`]+)`", text)]
     return [p for p in pieces if len(p.split()) > 1 and p.split()[0] == "casadical" and p.split()[1] in COMMANDS]

@@ -38,7 +38,11 @@ class Ipopt(Solver):
     ----------
     max_iter : int
     tol : float
-        IPOPT's convergence tolerance, on the objective in mm^2.
+        IPOPT's convergence tolerance, on the objective in mm^2. A solve
+        also ends after ``ACCEPTABLE_ITER`` (5) iterations in a row at
+        IPOPT's acceptable level (``acceptable_tol``, 1e-6): where the
+        objective's rounding stalls it near the optimum. For a tighter
+        ``tol`` to hold, pass ``options={"acceptable_iter": 15}`` or more.
     hessian : {"gauss-newton", "exact"}
     options : dict
         Further IPOPT options (``{"print_level": 5}`` to watch it).
