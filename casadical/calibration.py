@@ -21,7 +21,7 @@ from __future__ import annotations
 
 import math
 import warnings
-from dataclasses import replace
+from dataclasses import fields, replace
 
 import numpy as np
 
@@ -38,7 +38,7 @@ from .problem import CalibrationProblem, RobustLoss, jacobian_factor, pose_chunk
 from .result import CalibrationResult, ErrorStats, load_calibration, restore_term
 from .robot import Robot
 from .simulate import sample_poses
-from .solvers import make_solver
+from .solvers import Ipopt, make_solver
 from .terms import ErrorTerm, ReferencedTerm, make_term
 from .threads import limited_threads
 from .terms.rbf_compensator import RBFCompensator, features
@@ -155,7 +155,9 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         ``auto`` runs Levenberg-Marquardt and hands over to IPOPT if the
         solution leaves the parameter bounds.
     solver_options : dict, optional
-        Settings of the solver dataclass (e.g. ``{"max_iter": 50}``).
+        Settings of the solver dataclass (e.g. ``{"max_iter": 50}``); with
+        ``auto``, Levenberg-Marquardt's, of which IPOPT takes those it has
+        (``max_iter``).
     fix : tuple of str
         Parameters to hold at their start values.
     start : dict, optional
@@ -362,6 +364,8 @@ def _solve_robust(problem: CalibrationProblem, x: np.ndarray, solver: str, opts:
     return res, name
 
 
+#: settings IPOPT shares with Levenberg-Marquardt, passed on by ``solver="auto"``
+IPOPT_FIELDS = {f.name for f in fields(Ipopt) if not f.name.startswith("_")}
 #: a structural combination of the nominal model is identified when its std is below this share of its scale
 SEPARATED_STD = 0.1
 
@@ -409,7 +413,8 @@ def _solve(problem: CalibrationProblem, x0: np.ndarray, solver: str, opts: dict)
         lo, hi = problem.bounds_x()
         if np.any(res.x < lo) or np.any(res.x > hi):
             lm_time = res.solve_time_s
-            res = make_solver("ipopt").solve(problem, res.x)
+            shared = {k: v for k, v in opts.items() if k in IPOPT_FIELDS}   # --max-iter holds for both
+            res = make_solver("ipopt", **shared).solve(problem, res.x)
             res.solve_time_s += lm_time
             return res, "levenberg-marquardt+ipopt"
         return res, "levenberg-marquardt"

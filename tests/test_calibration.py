@@ -209,6 +209,18 @@ def test_ipopt_stops_where_rounding_stalls_it(monkeypatch):
         assert other.solver.cost <= lm.solver.cost * (1 + 1e-8)   # no worse than LM's optimum
 
 
+def test_auto_hands_max_iter_to_ipopt():
+    """``auto`` runs LM, then IPOPT where LM leaves the bounds (this robot's compliances go negative): a
+    ``max_iter`` setting holds for both."""
+    robot = load_robot("ur10")
+    data = Measurements.read_csv(UR10_B, n_joints=6, require_positions=True)
+    cal = data.subset(np.sort(np.random.default_rng(0).permutation(len(data))[:200]))
+    free = calibrate(robot, cal, "kinematic+compliance", "auto", warn=False)
+    capped = calibrate(robot, cal, "kinematic+compliance", "auto", warn=False, solver_options={"max_iter": 3})
+    assert free.solver_name == "levenberg-marquardt+ipopt" and free.solver.iterations > 3   # IPOPT ran, past 3
+    assert capped.solver.iterations == 3 and not capped.solver.success
+
+
 def test_too_few_poses_says_how_many():
     robot = load_robot("ys100")
     data, _ = simulate(robot, 8, Effects(), seed=1)
