@@ -53,7 +53,6 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
 import argparse  # noqa: E402
-import contextlib  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import resource  # noqa: E402
@@ -65,7 +64,7 @@ import time  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 import numpy as np  # noqa: E402
-from bench_plan_poses import Busy  # noqa: E402  (this folder is on sys.path when run as a script)
+from bench_plan_poses import passes  # noqa: E402  (this folder is on sys.path when run as a script)
 
 HERE = Path(__file__).resolve().parent
 SERIES = HERE.parent / "problems" / "datasets" / "ur10-ipa" / "series_b.csv"
@@ -289,10 +288,9 @@ def main() -> int:
     head = ("| poses | model | method | wall (median) | CPU (median) | RMS cal (mm) | RMS val (mm) | "
             "max dp vs IPOPT | load |")
     with tempfile.TemporaryDirectory() as tmp:
-        passes = [("as is", False)] + ([] if args.no_busy else [("one busy core", True)])
-        for label, busy in passes:
+        for label, context in passes(args.no_busy):
             print(f"\n{label}:\n\n{head}\n|---:|---|---|---:|---:|---:|---:|---:|---:|", flush=True)
-            with Busy() if busy else contextlib.nullcontext():
+            with context():
                 rows += run_table(args, Path(tmp), label)
     summary(rows)
     if args.json:

@@ -35,6 +35,7 @@ shared machine other users' jobs change the figures; rerun when they are high.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import os
 import resource
@@ -109,6 +110,12 @@ class Busy:
     def __exit__(self, *exc):
         self.proc.terminate()
         self.proc.wait()
+
+
+def passes(no_busy: bool) -> list[tuple[str, type]]:
+    """The passes of a side-by-side table, each (label, context to run it in): as the machine is, then
+    beside one busy core (unless ``no_busy``)."""
+    return [("as is", contextlib.nullcontext)] + ([] if no_busy else [("one busy core", Busy)])
 
 
 def _baseline_checkout(git: str, commit: str, where: Path) -> Path:

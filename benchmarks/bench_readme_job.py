@@ -39,7 +39,6 @@ for _v in ("OPENBLAS_NUM_THREADS", "OMP_NUM_THREADS", "MKL_NUM_THREADS"):
     os.environ.setdefault(_v, "1")
 
 import argparse  # noqa: E402
-import contextlib  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import re  # noqa: E402
@@ -49,7 +48,7 @@ import tempfile  # noqa: E402
 from pathlib import Path  # noqa: E402
 
 from bench_calibrate_cli import wall  # noqa: E402
-from bench_plan_poses import Busy  # noqa: E402
+from bench_plan_poses import passes  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
 DATA = HERE.parent / "problems" / "datasets" / "ur10-ipa"
@@ -142,9 +141,9 @@ def main() -> int:
     rows: list[dict] = []
     reference: dict = {}
     with tempfile.TemporaryDirectory() as tmp:
-        for label, busy in [("as is", False)] + ([] if args.no_busy else [("one busy core", True)]):
+        for label, context in passes(args.no_busy):
             print(f"\n{label}:\n\n| step | wall (median) | CPU (median) | load |\n|---|---:|---:|---:|", flush=True)
-            with Busy() if busy else contextlib.nullcontext():
+            with context():
                 rows += run_pass(args, Path(tmp), label, reference)
     summary(rows)
     if args.json:
