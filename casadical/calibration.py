@@ -88,8 +88,6 @@ def set_references(terms: list[ErrorTerm], data: Measurements) -> None:
     for t in terms:
         if isinstance(t, ReferencedTerm):
             col = data.get(t.reference_covariate)
-            if col is None and t.reference_covariate == "time_s":
-                col = data.rows  # row order is time order
             if col is not None:
                 t.t_ref = float(np.mean(col))
 
@@ -125,8 +123,10 @@ def _merge(prior: list[ErrorTerm], new: list[ErrorTerm]) -> tuple[list[ErrorTerm
 
 
 def _named_free(params: Parameters, named: set[str], new_params: set[str]) -> list[str]:
-    """Parameters re-estimated when a calibration is taken further: base, named terms, new ones."""
-    return [p.name for p in params if p.group == "base" or p.term in named or p.name in new_params]
+    """Parameters re-estimated when a calibration is taken further: base, named terms (``tool``: the tool
+    offset), new ones."""
+    return [p.name for p in params if p.group == "base" or p.term in named or p.name in new_params
+            or (p.group == "tool" and "tool" in named)]
 
 
 @limited_threads()
@@ -191,31 +191,43 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     notes: list[str] = []
 
     # --- the model and the free set
+    free_tool = False
     if isinstance(model, Model):
         terms, built = model.terms, model
     else:
-        terms, built = parse_spec(model), None
+        items = [i.strip() for i in model.split("+")]
+        free_tool = "tool" in items   # base+tool: the tool offset is estimated too (a re-mounted probe)
+        terms, built = parse_spec("+".join(i for i in items if i != "tool") or "nominal"), None
     want_rbf = any(isinstance(t, RBFCompensator) and t.network is None for t in terms)
     terms = [t for t in terms if not (isinstance(t, RBFCompensator) and t.network is None)]
     if prior is not None:
         merged, named = _merge(list(prior.model.terms), terms)
+        # what describes the session the calibration was measured in (drift, a session compensator) is not
+        # the robot's: it is dropped, unless the model names it (then it is estimated for these poses)
+        dropped = [t for t in merged if t.session and t.name not in named]
+        merged = [t for t in merged if t not in dropped]
+        if dropped:
+            notes.append(f"{', '.join(t.spec() for t in dropped)} dropped: "
+                         f"{'it belongs' if len(dropped) == 1 else 'they belong'} to the measurement session of the "
+                         "calibration, not to the robot; name it in the model to estimate it for these poses")
+            if warn:
+                warnings.warn(notes[-1], CasadicalWarning, stacklevel=2)
         geometric = prior.model.geometric_free or "geometric" in named
+        session = [t for t in merged if t.session]     # named again: estimated for these poses, from zero
+        set_references(session, data)
         # the same terms: the calibration's own model (its symbolic build and evaluators) serves again
-        model = prior.model if spec_of(merged, geometric) == prior.model.spec else \
+        model = prior.model if spec_of(merged, geometric) == prior.model.spec and not session else \
             Model(robot, [t for t in merged if t.name != "geometric" or geometric], jit=prior.model.jit)
         old = {p.name for p in prior.parameters}
         params = model.parameters.copy()
         new_params = {p.name for p in params if p.name not in old}
-        free = set(_named_free(params, named, new_params))
-        session = {t.name for t in merged if t.session}
+        free = set(_named_free(params, named | ({"tool"} if free_tool else set()), new_params))
         for p in params:
-            if p.name in old and not (p.term in session and p.term not in named):
+            if p.name in old and p.term not in {t.name for t in session}:
                 src = prior.parameters[p.name]
                 p.value, p.std, p.identifiable = src.value, src.std, src.identifiable
             p.fixed = p.name not in free
-            if p.fixed and p.term in session:
-                p.reason = "belongs to the session the calibration was measured in; starts from zero here"
-            elif p.fixed:
+            if p.fixed:
                 p.reason = "kept from the calibration"
             elif p.name in old and prior.parameters[p.name].fixed and p.group != "base":
                 # what the calibration could not identify stays put unless these poses can
@@ -225,6 +237,10 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         kept = set()
         model = built if built is not None else model_for(robot, terms, data)
         params = model.parameters.copy()
+        if free_tool:
+            for p in params.select(term="geometric"):
+                if p.group == "tool":
+                    p.fixed, p.reason = False, ""
     unknown = [n for n in list(fix) + list(start or {}) if n not in params]
     if unknown:
         names = params.names

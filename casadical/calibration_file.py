@@ -58,7 +58,7 @@ def validate_calibration_document(doc: Any, path: str) -> None:
     if not isinstance(doc["model"], str):
         raise err("model", f"must be a model specification string, got {_kind(doc['model'])}")
     terms = _terms(robot, doc["model"], err)
-    _check_settings(doc.get("terms", {}), terms, err)
+    _check_settings(doc.get("terms", {}), terms, err, robot.n)
     _check_parameters(doc["parameters"], [p.name for t in terms for p in t.parameters(robot)],
                       doc["model"], err)
     _check_base0(doc["base0"], err)
@@ -78,11 +78,17 @@ def _terms(robot: Robot, spec: str, err) -> list:
         raise err("model", str(e)) from e
 
 
-def _check_settings(settings: Any, terms: list, err) -> None:
+def legacy_spec(term, n_joints: int) -> str:
+    """The key older files gave a term's settings: a drift or a thermal expansion of the whole arm was written
+    with every joint (``drift[1,2,3,4,5,6]``)."""
+    return f"{term.name}[{','.join(str(j) for j in range(1, n_joints + 1))}]"
+
+
+def _check_settings(settings: Any, terms: list, err, n: int) -> None:
     if not isinstance(settings, dict):
         raise err("terms", f"must be an object of term settings, got {_kind(settings)}")
     # keyed by each term's specification (older files: by its name)
-    by_name = {t.name: t for t in terms} | {t.spec(): t for t in terms}
+    by_name = {t.name: t for t in terms} | {t.spec(): t for t in terms} | {legacy_spec(t, n): t for t in terms}
     for name, values in settings.items():
         key = f"terms.{name}"
         if name not in by_name:
@@ -94,7 +100,10 @@ def _check_settings(settings: Any, terms: list, err) -> None:
             if k not in known:
                 raise err(f"{key}.{k}", f"unknown setting (known: {', '.join(known)})")
             default = known[k]
-            if isinstance(default, str):
+            if isinstance(default, bool):
+                if not isinstance(v, bool):
+                    raise err(f"{key}.{k}", f"must be true or false, got {v!r}")
+            elif isinstance(default, str):
                 if not isinstance(v, str):
                     raise err(f"{key}.{k}", f"must be a string, got {_kind(v)}")
             elif isinstance(default, (int, float)) and not isinstance(default, bool):

@@ -25,7 +25,7 @@ from .files import atomic_open
 _Q = re.compile(r"^q([1-9]\d*)_deg$")
 _Q_LIKE = re.compile(r"^q\d+_deg$")
 XYZ = ("x_mm", "y_mm", "z_mm")
-NUMERIC_OPTIONAL = ("payload_kg", "temperature_c", "time_s")
+NUMERIC_OPTIONAL = ("payload_kg", "temperature_c", "time_s", "source_row")
 
 
 @dataclass
@@ -40,7 +40,9 @@ class Measurements:
     path : str
         Where the data came from (for error messages).
     rows : ndarray of int
-        Each pose's row in the original measurement order.
+        Each pose's row in the original measurement order (0-based; from the
+        column ``source_row``, 1-based, when the file has it, as ``split``
+        writes it).
     moves : ndarray, shape (N, n_joints)
         Sign of each joint's last move before the pose, in the original order
         (the columns ``move1..moveN`` when the file has them, as ``split``
@@ -67,7 +69,8 @@ class Measurements:
         # row order is time order: keep each pose's original position and the direction of
         # its joints' last move, so subsets (splits, cross-validation folds) keep them
         if self.rows is None:
-            self.rows = np.arange(len(self))
+            source = self.get("source_row")
+            self.rows = source.astype(int) - 1 if source is not None else np.arange(len(self))
         if self.lines is None:
             self.lines = self.rows + 2
         if self.moves is None:
@@ -124,6 +127,28 @@ class Measurements:
         """Rows ``index`` (mask or integer array), order kept as given."""
         return Measurements({k: v[index] for k, v in self.columns.items()}, self.path,
                             self.rows[index], self.moves[index], self.lines[index], set(self.checked))
+
+    def with_row_times(self, spacing_s: float) -> "Measurements":
+        """A copy whose ``time_s`` is each pose's row in the measurement order times ``spacing_s``.
+
+        For files without times whose rows are known to be in time order at
+        a regular spacing (``--row-spacing-s``); casadical never takes row
+        numbers for times otherwise.
+
+        Raises
+        ------
+        DataFileError
+            The file has a ``time_s`` column already, or the spacing is not
+            a positive number.
+        """
+        if not (math.isfinite(spacing_s) and spacing_s > 0):
+            raise DataFileError(f"the row spacing must be a positive number of seconds, got {spacing_s!r}",
+                                file=self.path)
+        if "time_s" in self.columns:
+            raise DataFileError("has a time_s column already: a row spacing would replace the measured times; "
+                                "drop --row-spacing-s", file=self.path, row=1, column="time_s")
+        return Measurements({**self.columns, "time_s": self.rows * float(spacing_s)}, self.path, self.rows,
+                            self.moves, self.lines, set(self.checked))
 
     def with_positions(self, xyz_m: np.ndarray, prefix_existing: str = "measured_") -> "Measurements":
         """A copy whose ``x_mm, y_mm, z_mm`` are ``xyz_m``; existing ones are renamed."""

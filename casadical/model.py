@@ -26,7 +26,7 @@ import casadi as ca
 import numpy as np
 
 from . import jitcache
-from .errors import CasadicalWarning, ModelError
+from .errors import CasadicalWarning, DataFileError, ModelError
 from .kinematics import Geometry, base_pose_matrix, chain_angles, compose, forward, rpy_pose
 from .parameters import Parameters
 from .robot import Robot
@@ -476,8 +476,14 @@ class Model:
         """Covariate matrix (N, n_cov) of a :class:`~casadical.data.Measurements`.
 
         Missing columns take defaults: the robot's payload, the thermal
-        reference temperature, the row index for ``time_s``; ``move<j>`` is
-        the sign of joint j's last move in row order (0 for the first row).
+        reference temperature; ``move<j>`` is the sign of joint j's last move
+        in row order (0 for the first row). Time is never made up: a term
+        driven by ``time_s`` (drift) needs the column.
+
+        Raises
+        ------
+        DataFileError
+            ``data`` lacks the ``time_s`` a term of the model needs.
         """
         N = len(data)
         out = self.default_covariates(N)
@@ -486,7 +492,11 @@ class Model:
             if col is not None:
                 out[:, k] = col
             elif name == "time_s":
-                out[:, k] = data.rows  # row order is time order
+                owner = next(t for t in self.terms if name in t.covariates)
+                raise DataFileError(f"has no time_s column, which the {owner.spec()} term of the model needs (the "
+                                    "time of each pose, in seconds); add it, or, if the rows are in time order at "
+                                    "a known spacing, say so with --row-spacing-s SECONDS "
+                                    "(Measurements.with_row_times)", file=data.path, row=1, column="time_s")
             elif name.startswith("move"):
                 out[:, k] = data.moves[:, int(name[4:]) - 1]
         return out

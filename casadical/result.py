@@ -18,7 +18,7 @@ import numpy as np
 
 from . import __version__
 from .data import Measurements
-from .calibration_file import validate_calibration_document
+from .calibration_file import legacy_spec, validate_calibration_document
 from .coverage import Coverage
 from .errors import CalibrationFileError, CasadicalError, InputError, listing
 from .files import atomic_write
@@ -264,7 +264,8 @@ def load_calibration(path: str | Path) -> CalibrationResult:
     try:
         robot = robot_from_dict(doc["robot"], path)
         settings = doc.get("terms", {})
-        terms = [restore_term(t, settings.get(t.spec(), settings.get(t.name, {}))) for t in parse_spec(doc["model"])]
+        terms = [restore_term(t, settings.get(t.spec(), settings.get(t.name, settings.get(legacy_spec(t, robot.n), {}))))
+                 for t in parse_spec(doc["model"])]
         model = Model(robot, terms)
         params = model.parameters.copy()
         for entry in doc["parameters"]:
@@ -293,6 +294,7 @@ def load_calibration(path: str | Path) -> CalibrationResult:
 def restore_term(term: ErrorTerm, settings: dict) -> ErrorTerm:
     """``term`` (from a model specification) rebuilt with the settings a calibration saved."""
     allowed = inspect.signature(type(term).__init__).parameters
+    settings = {**getattr(type(term), "LEGACY", {}), **settings}   # what files older than a setting meant
     kwargs = {k: v for k, v in settings.items() if k in allowed and k not in ("joints", "harmonics")}
     if not kwargs:
         return term

@@ -42,6 +42,9 @@ class Effects:
         Relative scale error ``s`` of joint readings (angle ``(1 + s) q``).
     backlash : dict of int to float
         Half the play (rad); the sign follows the joint's gravity torque.
+    backlash_motion : dict of int to float
+        Half the play (rad) taken up by the direction of the joint's last
+        move (in row order): the output trails its motor.
     cubic : dict of int to float
         Progressive stiffness: a further deflection ``k3 tau^3`` (rad/(N m)^3)
         of the joint, by 1-based joint (negative: the joint stiffens with load).
@@ -53,8 +56,9 @@ class Effects:
         Range of the ``temperature_c`` column when ``thermal_alpha`` is set
         (a slow drift in row order).
     drift : sequence of 3 floats
-        Velocity (m per second of ``time_s``, or per row) at which the
-        measured points drift.
+        Velocity (m per second of ``time_s``) at which the measured points
+        drift; the simulated data then get a ``time_s`` column, one pose a
+        second.
     noise : float
         Std of the measurement noise per axis (m).
     base_xyz, base_rpy : sequence of 3 floats
@@ -67,6 +71,7 @@ class Effects:
     periodic: list[tuple[int, int, float, float]] = field(default_factory=list)
     encoder_scale: dict[int, float] = field(default_factory=dict)
     backlash: dict[int, float] = field(default_factory=dict)
+    backlash_motion: dict[int, float] = field(default_factory=dict)
     cubic: dict[int, float] = field(default_factory=dict)
     thermal_alpha: float = 0.0
     thermal_links: dict[int, float] = field(default_factory=dict)
@@ -107,6 +112,8 @@ def true_model(robot: Robot, effects: Effects, rng: np.random.Generator,
         terms.append(make_term("encoder_scale", joints=sorted(effects.encoder_scale)))
     if effects.backlash:
         terms.append(make_term("backlash", joints=sorted(effects.backlash)))
+    if effects.backlash_motion:
+        terms.append(make_term("backlash_motion", joints=sorted(effects.backlash_motion)))
     if effects.cubic:
         terms.append(make_term("nonlinear_stiffness", joints=sorted(effects.cubic)))
     lo, hi = effects.temperature
@@ -135,6 +142,8 @@ def true_model(robot: Robot, effects: Effects, rng: np.random.Generator,
         values[idx(f"escale{j}")] = s
     for j, b in effects.backlash.items():
         values[idx(f"backlash{j}")] = b
+    for j, b in effects.backlash_motion.items():
+        values[idx(f"backlash_m{j}")] = b
     for j, k3 in effects.cubic.items():
         values[idx(f"cubic{j}")] = k3
     if effects.thermal_alpha:
@@ -233,6 +242,8 @@ def simulate(robot: Robot, q: np.ndarray | int, effects: Effects | None = None, 
         lo, hi = effects.temperature
         drift = np.linspace(lo, hi, len(q)) + rng.normal(0, 0.05 * (hi - lo), len(q))
         extra["temperature_c"] = np.clip(drift, lo, hi)
+    if any(effects.drift):   # one pose a second
+        extra["time_s"] = np.arange(len(q), dtype=float)
     data = Measurements.from_arrays(q, None, **extra)
     xyz = truth.predict(data) + rng.normal(0.0, effects.noise, size=(len(q), 3))
     return data.with_positions(xyz), truth
@@ -299,7 +310,7 @@ def load_protocol(spec: str | Path) -> Protocol:
 
 #: keys of a protocol's ``[truth]`` table
 TRUTH_KEYS = {"length_sigma_mm", "angle_sigma_deg", "noise_mm", "stiffness", "periodic_deg", "encoder_scale",
-              "backlash_deg", "thermal_alpha", "thermal_links", "cubic", "base_xyz_m", "base_rpy_deg"}
+              "backlash_deg", "backlash_motion_deg", "thermal_alpha", "thermal_links", "cubic", "base_xyz_m", "base_rpy_deg"}
 #: keys of a protocol's ``[workspace]`` table
 WORKSPACE_KEYS = {"floor_z_m", "box_min_m", "box_max_m"}
 
@@ -365,6 +376,7 @@ def effects_from_table(t: dict, robot: Robot, file: str, table: str = "truth") -
         if k <= 0:
             raise InputError(f"stiffness must be positive, got {k}", file=file, column=f"{table}.stiffness.{j}")
     backlash = v.per_joint(t, "backlash_deg", table, n)
+    backlash_motion = v.per_joint(t, "backlash_motion_deg", table, n)
     periodic = []
     if not isinstance(t.get("periodic_deg", []), list):
         raise InputError(f"must be a list of [joint, harmonic, amplitude_deg, phase_deg], got {t['periodic_deg']!r}",
@@ -386,6 +398,7 @@ def effects_from_table(t: dict, robot: Robot, file: str, table: str = "truth") -
         periodic=periodic,
         encoder_scale=v.per_joint(t, "encoder_scale", table, n),
         backlash={j: math.radians(b) for j, b in backlash.items()},
+        backlash_motion={j: math.radians(b) for j, b in backlash_motion.items()},
         thermal_alpha=v.number(t, "thermal_alpha", table, default=0.0),
         thermal_links=v.per_joint(t, "thermal_links", table, n),
         cubic=v.per_joint(t, "cubic", table, n),

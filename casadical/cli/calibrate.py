@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from .common import (add_checks, add_force, add_urdf_chain, check_options, check_outputs, int_at_least,
-                     robot_or_calibration, write_text)
+from .common import (add_checks, add_force, add_row_spacing, add_urdf_chain, check_options, check_outputs,
+                     int_at_least, robot_or_calibration, timed, write_text)
 
 
 def register(sub) -> None:
@@ -34,6 +34,7 @@ def register(sub) -> None:
                    help="loss: huber (pseudo-Huber with the noise scale from the data: bad measurements are "
                         "down-weighted and reported) or none (plain least squares); default %(default)s")
     p.add_argument("--fix", default="", help="comma-separated parameters to hold at nominal (default: none)")
+    add_row_spacing(p)
     add_checks(p)
     add_urdf_chain(p)
     add_force(p)
@@ -47,7 +48,7 @@ def run(args) -> int:
     check_outputs({"--out": args.out, "--html": args.html}, [args.robot, args.data], args.force)
     robot = robot_or_calibration(args.robot, args)
     n = robot.model.robot.n if isinstance(robot, CalibrationResult) else robot.n
-    data = Measurements.read_csv(args.data, n_joints=n, require_positions=True)
+    data = timed(Measurements.read_csv(args.data, n_joints=n, require_positions=True), args)
     opts = {"max_iter": args.max_iter} if args.max_iter else {}
     result = calibrate(robot, data, args.model, args.solver, solver_options=opts,
                        fix=tuple(f.strip() for f in args.fix.split(",") if f.strip()), robust=args.robust,

@@ -178,6 +178,22 @@ def add_checks(p: argparse.ArgumentParser, mismatch: bool = False) -> None:
                        help="accept measured poses the calibration predicts far worse than its own (a warning)")
 
 
+def add_row_spacing(p: argparse.ArgumentParser) -> None:
+    """``--row-spacing-s``: the rows of a file without ``time_s`` are in time order at this spacing."""
+    p.add_argument("--row-spacing-s", type=float_in(0, math.inf), metavar="SECONDS",
+                   help="the poses of files without a time_s column were measured in row order, this many seconds "
+                        "apart (time_s = row x SECONDS; split's source_row gives the row): what a drift needs. "
+                        "Without it such files have no time, and no drift is fitted")
+
+
+def timed(data, args):
+    """``data`` with times from its rows if ``--row-spacing-s`` was given and it has no ``time_s``."""
+    spacing = getattr(args, "row_spacing_s", None)
+    if spacing is None or "time_s" in data.columns:
+        return data
+    return data.with_row_times(spacing)
+
+
 def add_urdf_chain(p: argparse.ArgumentParser) -> None:
     """``--urdf-base``, ``--urdf-tip``, ``--urdf-tool``: which chain of a URDF robot file is read."""
     g = p.add_argument_group("URDF robot (ROBOT a .urdf file; defaults: the root link, the deepest leaf, its "

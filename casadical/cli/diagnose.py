@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from .common import (Status, add_checks, add_force, add_quiet, add_urdf_chain, check_options, check_outputs, float_in,
-                     int_at_least, robot_from_args, write_json, write_text)
+from .common import (Status, add_checks, add_force, add_quiet, add_row_spacing, add_urdf_chain, check_options,
+                     check_outputs, float_in, int_at_least, robot_from_args, timed, write_json, write_text)
 
 
 def register(sub) -> None:
@@ -44,6 +44,7 @@ def register(sub) -> None:
                    help="loss of every fit, as for calibrate (default: %(default)s)")
     p.add_argument("--no-blackbox", action="store_true", help="skip the black-box compensator step")
     p.add_argument("--seed", type=int, default=0, help="seed of the cross-validation folds (default: %(default)s)")
+    add_row_spacing(p)
     add_checks(p)
     add_quiet(p)
     add_urdf_chain(p)
@@ -58,7 +59,9 @@ def run(args) -> int:
     check_outputs({"--json": args.json, "--html": args.html, "--out": args.out},
                   [args.robot, args.data, args.validate, args.transfer], args.force)
     robot = robot_from_args(args.robot, args)
-    read = lambda path: Measurements.read_csv(path, n_joints=robot.n, require_positions=True)  # noqa: E731
+    def read(path):
+        return timed(Measurements.read_csv(path, n_joints=robot.n, require_positions=True), args)
+
     cal, val = read(args.data), read(args.validate)
     other = read(args.transfer) if args.transfer else None
     settings = DiagnosisSettings(alpha=args.alpha, max_harmonic=args.max_harmonic, max_rounds=args.max_rounds,

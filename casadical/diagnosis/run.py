@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from typing import Callable
 
 import numpy as np
@@ -32,12 +32,13 @@ from ..calibration import calibrate, model_for
 from ..checks import check_poses
 from ..data import Measurements
 from ..errors import listing
+from ..physics import sign_changes, value_violations, violations
 from ..problem import RobustLoss
 from ..result import CalibrationResult, ErrorStats
 from ..robot import Robot
 from ..threads import limited_threads
 from . import transfer as transfer_mod
-from .backward import drop_redundant
+from .backward import drop_redundant, drop_unphysical
 from .blackbox import blackbox_step
 from .candidates import Candidate, compose_spec
 from .findings import UnexplainedLog, describe
@@ -75,6 +76,8 @@ class _Diagnosis:
         self.before: dict[Candidate, CalibrationResult] = {}   # fit before each finding, by its cause
         self.support: dict[Candidate, tuple] = {}               # (test, cv before, cv after, checks) by cause
         self._val_errors: dict[int, tuple] = {}                 # id of a fit -> (fit, its validation errors)
+        self._torques: tuple | None = None                      # (fit, gravity torques of the cal poses)
+        self.history: list[tuple[list[Candidate], CalibrationResult]] = []   # each accepted model, in order
 
     # -- fitting ---------------------------------------------------------------
 
@@ -108,6 +111,17 @@ class _Diagnosis:
         r = res.residuals(self.cal)
         return res.loss.weight(np.einsum("ij,ij->i", r, r)) >= 0.5
 
+    def torques(self, res: CalibrationResult) -> np.ndarray:
+        """Gravity torques (N m) of the calibration poses under a fit, computed once per fit."""
+        if self._torques is None or self._torques[0] is not res:
+            m = res.model
+            self._torques = (res, m.torques(self.cal.q, res.parameters.values, m.covariates(self.cal)))
+        return self._torques[1]
+
+    def cv(self, res: CalibrationResult, mask: np.ndarray) -> dict:
+        """Held-out means (mm) by kind of fold of a fit, linearised at it, over the poses of ``mask``."""
+        return by_kind(Linearized.of(res, self.cal).cv(self.schemes), mask)
+
     # -- the procedure ---------------------------------------------------------
 
     def run(self) -> tuple[CalibrationResult, list[Candidate], bool]:
@@ -139,6 +153,7 @@ class _Diagnosis:
         else:
             current, geometric = nominal, False
         accepted: list[Candidate] = []
+        self.history.append(([], current))
         for rnd in range(self.s.max_rounds):
             self.say(f"round {rnd + 1}: screening candidate causes")
             new = self.round(current, accepted, geometric)
@@ -150,17 +165,37 @@ class _Diagnosis:
             new_fit = self.fit(compose_spec(accepted + [cand], geometric), start=start)
             test = nested_test(self.deviance(current, current.loss), int(current.parameters.free.sum()),
                                self.deviance(new_fit, current.loss), int(new_fit.parameters.free.sum()), self.n_eq)
+            reasons = []
             if test.log10_p >= level or test.delta_bic >= 0:
+                reasons.append(f"not significant once fitted in full ({test.text()})")
+            # the full fit must be physics, and must not do worse where the model extrapolates
+            broken = violations(new_fit, self.cal, cand.parameter_names(), alpha=self.s.alpha)
+            if broken:
+                reasons.append("not physics once fitted in full: " + "; ".join(v.text for v in broken))
+            mask = self.mask(current)
+            cv0, cv1 = self.cv(current, mask), self.cv(new_fit, mask)
+            worse = [k for k in ("time", "joint") if cv1[k] > cv0[k]]
+            if worse:
+                reasons.append("fitted in full it does worse where the model extrapolates: "
+                               + ", ".join(f"{k} {cv0[k]:.4f} -> {cv1[k]:.4f} mm" for k in worse))
+            if reasons:
                 step.accepted, step.test = False, test
-                step.reason = f"not significant once fitted in full ({test.text()})"
+                step.reason = "; ".join(reasons)
                 self.say(f"    {cand.label()}: {step.reason}")
                 self.findings.pop()
-                self.support.pop(cand, None)
+                support = self.support.pop(cand, None)
                 self.unexplained.excluded_causes.add(cand)
+                if broken and not reasons[0].startswith("not significant") and cand.joint is not None \
+                        and support is not None:
+                    # real structure that is not this cause: reported, kept out of the model
+                    self.unexplained.add(cand, {p.name: p.value for p in new_fit.parameters}, support[0],
+                                         support[1], support[2], support[3],
+                                         step.validation.mean_mm - self.val_stats(new_fit).mean_mm, step.reason)
                 continue
             self.before[cand] = current
             accepted.append(cand)
             current = new_fit
+            self.history.append((list(accepted), current))
             # the step and the finding's gain judge the full fit, not the one-step fit that decided
             full = self.val_stats(current)
             next(f for f in self.findings if f.candidate == cand).gain_mm += step.validation.mean_mm - full.mean_mm
@@ -172,7 +207,40 @@ class _Diagnosis:
         if len(accepted) > 1:
             self.say("final check: is every cause still needed?")
             current, accepted = drop_redundant(self, current, accepted, geometric)
+        if accepted:
+            self.say("final check: is every cause still physics?")
+            current, accepted = drop_unphysical(self, current, accepted, geometric)
+        current, accepted = self.never_worse(current, accepted)
         return current, accepted, geometric
+
+    def never_worse(self, current: CalibrationResult, accepted: list[Candidate]
+                    ) -> tuple[CalibrationResult, list[Candidate]]:
+        """The final model never does worse than the kinematic one where it must extrapolate (time- and
+        joint-blocked folds); if it would, the latest accepted model that does not is final, and a note says
+        why."""
+        if not accepted or not self.steps[1].accepted:
+            return current, accepted
+        mask = self.mask(current)
+        ref = self.cv(self.kinematic, mask)
+
+        def worse(res):
+            cv = self.cv(res, mask)
+            return [f"{k} {ref[k]:.4f} -> {cv[k]:.4f} mm" for k in ("time", "joint") if cv[k] > ref[k]]
+
+        bad = worse(current)
+        if not bad:
+            return current, accepted
+        for earlier, fit in reversed(self.history[:-1]):
+            if set(earlier) <= set(accepted) and (not earlier or not worse(fit)):
+                dropped = [a for a in accepted if a not in earlier]
+                for a in dropped:
+                    self.drop_finding(a)
+                self.notes.append("the model with every cause did worse than the kinematic model where it must "
+                                  "extrapolate (held-out mean " + ", ".join(bad) + "); the final model is the "
+                                  "last one that does not, without " + ", ".join(a.label() for a in dropped))
+                self.say(f"  {self.notes[-1]}")
+                return fit, list(earlier)
+        return current, accepted
 
     def drop_finding(self, cand: Candidate) -> None:
         """Remove the finding of ``cand`` and what is kept for it."""
@@ -194,7 +262,8 @@ class _Diagnosis:
             out.append(Candidate("thermal_expansion"))
             out += [Candidate("thermal_expansion", j) for j, jt in enumerate(self.robot.joints, start=1)
                     if abs(jt.a) + abs(jt.d) + abs(jt.b or 0.0) > 0]
-        out.append(Candidate("drift"))  # time_s, or the row order
+        if self.cal.get("time_s") is not None:   # a drift needs the poses' times: never the row numbers
+            out.append(Candidate("drift"))
         # periodograms of the projected residuals (the same while the fit is the same)
         if self._periodograms_of is not current:
             # a joint angle error moves the tool point along the derivative w.r.t. the joint's angle
@@ -212,7 +281,14 @@ class _Diagnosis:
             hs = set(ranked) | ({1} if (j, 1) not in self.unexplained.excluded else set())
             out += [Candidate("joint_periodic", j, h) for h in sorted(hs)]
         return [c for c in out if c not in have and c not in self.unexplained.excluded_causes and not (
-            c.cause == "backlash" and any(a.cause == "backlash" and a.joint == c.joint for a in accepted))]
+            c.cause == "backlash" and (any(a.cause == "backlash" and a.joint == c.joint for a in accepted)
+                                       or not self.sign_changes(current, c)))]
+
+    def sign_changes(self, current: CalibrationResult, cand: Candidate) -> bool:
+        """Backlash needs its sign source to change sign in the data: otherwise it is a joint offset."""
+        j = cand.joint
+        signs = self.cal.moves[:, j - 1] if cand.source == "motion" else np.sign(self.torques(current)[:, j - 1])
+        return sign_changes(signs, "")[0]
 
     def max_harmonic(self) -> int:
         return min(self.s.max_harmonic, max(len(self.cal) // 3, 1))
@@ -281,6 +357,12 @@ class _Diagnosis:
                     reasons.append(cv_failure(worse, cv0, cv1))
                 checks = self.joint_checks(scr, fit, cand) if significant else {}
                 reasons += checks.pop("reasons", [])
+                # the one-step fit's values must already be physics (bounds, a spring that does not turn back)
+                names = cand.parameter_names()
+                values = {n: replace(scr.params[n], value=fit.values.get(n, scr.params[n].value)) for n in names}
+                broken = value_violations(values, names, self.torques(current), self.cal.moves)
+                if broken:
+                    reasons.append("not physics: " + "; ".join(v.text for v in broken))
                 vstats = ErrorStats.of(scr.validation_errors(fit))
                 step = Step(compose_spec(accepted + [cand], geometric),
                             ErrorStats.of(np.linalg.norm(fit.lin.r, axis=1)), vstats, False, cand, test,
@@ -288,7 +370,7 @@ class _Diagnosis:
                 self.steps.append(step)
                 if reasons:
                     self.say(f"    rejected: {step.reason}")
-                    if cand.cause in JOINT_CAUSES and significant:
+                    if significant and (cand.cause in JOINT_CAUSES or (broken and cand.joint is not None)):
                         pending.append((cand, fit.values, test, cv0, cv1, checks, cur_val.mean_mm - vstats.mean_mm,
                                         "; ".join(reasons)))
                     continue

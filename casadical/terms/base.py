@@ -136,6 +136,9 @@ class ReferencedTerm(ErrorTerm):
     def reference_covariate(self) -> str:
         return self.covariates[0]
 
+    def bind(self, robot: Robot) -> None:
+        """Nothing per joint to resolve (its spec stays ``drift``, not ``drift[1,...,n]``)."""
+
     def settings(self) -> dict:
         return {"t_ref": self.t_ref}
 
