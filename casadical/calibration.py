@@ -35,11 +35,13 @@ from .identifiability import Identifiability, analyse, triangular_factor
 from .model import Model, parse_spec, pose_to_base0, spec_of
 from .parameters import Parameters
 from .problem import CalibrationProblem, RobustLoss, jacobian_factor, pose_chunks
-from .result import CalibrationResult, ErrorStats, load_calibration, restore_term
+from .calibration_file import restore_term
+from .result import CalibrationResult, ErrorStats, load_calibration
 from .robot import Robot
+from .sessions import session_index
 from .simulate import sample_poses
 from .solvers import Ipopt, make_solver
-from .terms import ErrorTerm, ReferencedTerm, make_term
+from .terms import ErrorTerm, ReferencedTerm, SessionLocal, make_term
 from .threads import limited_threads
 from .terms.rbf_compensator import RBFCompensator, features
 from .uncertainty import from_normal, warn_problems
@@ -84,19 +86,65 @@ def _loss(robust: str | RobustLoss | None) -> RobustLoss:
 
 
 def set_references(terms: list[ErrorTerm], data: Measurements) -> None:
-    """Terms driven by a covariate take its mean over the data as their reference."""
+    """Terms driven by a covariate take its mean over the data as their reference (a term of one session:
+    over that session's poses)."""
     for t in terms:
-        if isinstance(t, ReferencedTerm):
-            col = data.get(t.reference_covariate)
-            if col is not None:
+        inner = t.inner if isinstance(t, SessionLocal) else t
+        if isinstance(inner, ReferencedTerm):
+            col = data.get(inner.reference_covariate)
+            if col is not None and isinstance(t, SessionLocal):
+                col = col[data.sessions == t.session_name] if data.sessions is not None else col[:0]
+            if col is not None and len(col):
                 t.t_ref = float(np.mean(col))
 
 
-def model_for(robot: Robot, spec: str | list[ErrorTerm], data: Measurements, jit: bool | None = None) -> Model:
-    """The model of ``spec`` for ``data``: terms driven by a covariate referenced to its mean there."""
+def with_sessions(terms: list[ErrorTerm], data: Measurements, tools: bool | list[str] = False) -> list[ErrorTerm]:
+    """``terms`` with a base pose per session (:class:`~casadical.terms.sessions.SessionFrames`) when ``data``
+    holds several sessions; ``tools``: every session other than the first (True), or those named, has its own
+    tool too."""
+    names = data.session_names
+    terms = [t for t in terms if t.name != "sessions"]
+    if len(names) < 2:
+        if tools:
+            raise InputError("a tool per session needs data of several sessions (several files, or a session "
+                             "column)", file=data.path)
+        return terms
+    own = names[1:] if tools is True else list(tools or [])
+    return terms + [make_term("sessions", names=names, tools=own)]
+
+
+def robot_frame(model: Model, params: Parameters, data: Measurements) -> np.ndarray:
+    """The model's tool points of ``data``'s poses in the robot base frame (m), every session's (its base
+    parameters at zero)."""
+    frames = model.term("sessions")
+    if frames is not None:
+        frames.references = {}
+    return model.predict(data.q, params.values, model.covariates(data), pose_to_base0(np.eye(4)))
+
+
+def align_sessions(model: Model, data: Measurements, start: np.ndarray, xyz: np.ndarray) -> np.ndarray:
+    """The closed-form alignment of each session's robot-frame points ``start`` to its measurements ``xyz``.
+
+    Sets the reference pose of every session other than the first in the
+    model's sessions term; returns the first session's (``base0``).
+    """
+    frames = model.term("sessions")
+    if frames is None:
+        return pose_to_base0(align(start, xyz))
+    idx = session_index(data)
+    for s in frames.names[1:]:
+        frames.set_reference(s, pose_to_base0(align(start[idx[s]], xyz[idx[s]])))
+    first = idx[frames.names[0]]
+    return pose_to_base0(align(start[first], xyz[first]))
+
+
+def model_for(robot: Robot, spec: str | list[ErrorTerm], data: Measurements, jit: bool | None = None,
+              session_tools: bool | list[str] = False) -> Model:
+    """The model of ``spec`` for ``data``: terms driven by a covariate referenced to its mean there, and a base
+    pose per session (``session_tools``: a tool too) when ``data`` holds several sessions."""
     terms = parse_spec(spec) if isinstance(spec, str) else spec
     set_references(terms, data)
-    return Model(robot, terms, jit=jit)
+    return Model(robot, with_sessions(terms, data, session_tools), jit=jit)
 
 
 def _merge(prior: list[ErrorTerm], new: list[ErrorTerm]) -> tuple[list[ErrorTerm], set[str]]:
@@ -134,7 +182,8 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
               solver: str = "ipopt", *, solver_options: dict | None = None, fix: tuple[str, ...] = (),
               start: dict[str, float] | None = None, check_identifiability: bool = True,
               warn: bool = True, robust: str | RobustLoss = "huber", allow_outside_limits: bool = False,
-              angles_are_degrees: bool = False, positions_are_mm: bool = False) -> CalibrationResult:
+              angles_are_degrees: bool = False, positions_are_mm: bool = False,
+              session_tools: bool | list[str] = False) -> CalibrationResult:
     """Identify the parameters of ``model`` from measured poses.
 
     Parameters
@@ -172,6 +221,10 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     allow_outside_limits, angles_are_degrees, positions_are_mm : bool
         Overrides of the plausibility checks of the poses
         (:func:`casadical.checks.check_poses`).
+    session_tools : bool or list of str
+        With data of several sessions (``data.sessions``; each has its own
+        base pose): every session other than the first (True), or the named
+        ones, has its own tool offset too (the probe was re-mounted).
 
     Raises
     ------
@@ -204,7 +257,8 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         merged, named = _merge(list(prior.model.terms), terms)
         # what describes the session the calibration was measured in (drift, a session compensator) is not
         # the robot's: it is dropped, unless the model names it (then it is estimated for these poses)
-        dropped = [t for t in merged if t.session and t.name not in named]
+        dropped = [t for t in merged if t.session and (t.name not in named or isinstance(t, SessionLocal)
+                                                       or t.name == "sessions")]
         merged = [t for t in merged if t not in dropped]
         if dropped:
             notes.append(f"{', '.join(t.spec() for t in dropped)} dropped: "
@@ -215,6 +269,8 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         geometric = prior.model.geometric_free or "geometric" in named
         session = [t for t in merged if t.session]     # named again: estimated for these poses, from zero
         set_references(session, data)
+        merged = with_sessions(merged, data, session_tools)
+        session += [t for t in merged if t.name == "sessions"]
         # the same terms: the calibration's own model (its symbolic build and evaluators) serves again
         model = prior.model if spec_of(merged, geometric) == prior.model.spec and not session else \
             Model(robot, [t for t in merged if t.name != "geometric" or geometric], jit=prior.model.jit)
@@ -235,7 +291,7 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         kept = {p.name for p in params if p.fixed} - set(fix)   # their std too comes from the calibration
     else:
         kept = set()
-        model = built if built is not None else model_for(robot, terms, data)
+        model = built if built is not None else model_for(robot, terms, data, session_tools=session_tools)
         params = model.parameters.copy()
         if free_tool:
             for p in params.select(term="geometric"):
@@ -252,14 +308,14 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     q, xyz, cov = data.q, data.xyz, model.covariates(data)
 
     # --- base pose: closed-form alignment of the start model's predictions to the measurements
-    for k in ("x", "y", "z", "roll", "pitch", "yaw"):
-        params[f"base_{k}"].value = 0.0
-    eye = pose_to_base0(np.eye(4))
-    start_xyz = model.predict(q, params.values, cov, eye)
+    for p in params:
+        if p.group == "base":
+            p.value = 0.0
+    start_xyz = robot_frame(model, params, data)
     check_poses(data, robot, allow_outside_limits=allow_outside_limits, angles_are_degrees=angles_are_degrees,
                 positions_are_mm=positions_are_mm, predicted=start_xyz)
-    T = align(start_xyz, xyz)
-    base0 = pose_to_base0(T)
+    base0 = align_sessions(model, data, start_xyz, xyz)
+    cov = model.covariates(data)
 
     # --- identifiability
     ident = None
@@ -348,15 +404,17 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
             if lin.weights[i] >= DOWNWEIGHT_REPORT:
                 break
             down.append({"line": int(data.lines[i]), "residual_mm": float(norms[i] * 1000),
-                         "weight": float(lin.weights[i])})
+                         "weight": float(lin.weights[i]), **({"file": data.file(i)} if data.sources is not None else {})})
         if down:
             notes.append(f"the robust loss set aside {len(down)} pose(s) of {data.path} whose residual exceeds "
                          f"{math.sqrt(DOWNWEIGHT_REPORT ** -2 - 1) * loss.c:.1f} times the noise scale of "
                          f"{problem.loss.sigma * 1000:.4f} mm (lines "
-                         + listing([d["line"] for d in down], 10)
+                         + listing([f"{d['file']}:{d['line']}" if "file" in d else d["line"] for d in down], 10)
                          + "): likely bad measurements; check them, or pass --robust none to fit them anyway")
+    by_session = {s: ErrorStats.of(norms[idx]) for s, idx in session_index(data).items()} \
+        if len(data.session_names) > 1 else {}
     result = CalibrationResult(model, params, base0, res, name, ident, unc, ErrorStats.of(norms), notes,
-                               problem.loss, down, Coverage.of(data.q_deg))
+                               problem.loss, down, Coverage.of(data.q_deg), by_session)
     if want_rbf:
         result = fit_compensator(result, data, warn=warn)
     return result
@@ -450,7 +508,8 @@ def compensator_data(result: CalibrationResult, data: Measurements) -> tuple[np.
     Y = result.residuals(data) @ result.base_matrix()[:3, :3]   # rows: R^T r, the robot base frame
     keep = np.ones(len(X), bool)
     for d in result.downweighted:
-        keep &= data.lines != d["line"]
+        keep &= (data.lines != d["line"]) | (data.sources != d["file"] if "file" in d and data.sources is not None
+                                             else False)
     return X, Y, keep
 
 

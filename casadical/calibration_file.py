@@ -9,6 +9,7 @@ turn into a traceback or into predictions that are NaN or wrong.
 
 from __future__ import annotations
 
+import inspect
 from typing import Any
 
 import numpy as np
@@ -16,6 +17,7 @@ import numpy as np
 from .errors import CalibrationFileError, ModelError, RobotFileError, listing
 from .files import finite_number
 from .model import assemble_terms, parse_spec
+from .terms import ErrorTerm, SessionLocal
 from .robot import Robot, robot_from_dict
 
 STATS_KEYS = ("n_poses", "mean_mm", "max_mm", "std_mm", "rms_mm")
@@ -59,12 +61,17 @@ def validate_calibration_document(doc: Any, path: str) -> None:
         raise err("model", f"must be a model specification string, got {_kind(doc['model'])}")
     terms = _terms(robot, doc["model"], err)
     _check_settings(doc.get("terms", {}), terms, err, robot.n)
+    try:
+        terms = assemble_terms(restored_terms(doc["model"], doc.get("terms", {}), robot.n), robot)
+    except ModelError as e:
+        raise err("terms", str(e)) from e
     _check_parameters(doc["parameters"], [p.name for t in terms for p in t.parameters(robot)],
                       doc["model"], err)
     _check_base0(doc["base0"], err)
     _check_stats(doc.get("calibration"), err)
     _check_robust(doc.get("robust"), err)
     _check_coverage(doc.get("coverage"), err)
+    _check_sessions(doc.get("sessions"), err)
     notes = doc.get("notes", [])
     if not isinstance(notes, list) or not all(isinstance(n, str) for n in notes):
         raise err("notes", "must be a list of strings")
@@ -76,6 +83,25 @@ def _terms(robot: Robot, spec: str, err) -> list:
         return assemble_terms(parse_spec(spec), robot)
     except ModelError as e:
         raise err("model", str(e)) from e
+
+
+def restored_terms(spec: str, settings: dict, n_joints: int) -> list[ErrorTerm]:
+    """The terms of a calibration's model specification with the settings it saved (by each term's
+    specification; older files: by its name, or :func:`legacy_spec`)."""
+    return [restore_term(t, settings.get(t.spec(), settings.get(t.name, settings.get(legacy_spec(t, n_joints), {}))))
+            for t in parse_spec(spec)]
+
+
+def restore_term(term: ErrorTerm, settings: dict) -> ErrorTerm:
+    """``term`` (from a model specification) rebuilt with the settings a calibration saved."""
+    if isinstance(term, SessionLocal):
+        return SessionLocal(restore_term(term.inner, settings), term.session_name)
+    allowed = inspect.signature(type(term).__init__).parameters
+    settings = {**getattr(type(term), "LEGACY", {}), **settings}   # what files older than a setting meant
+    kwargs = {k: v for k, v in settings.items() if k in allowed and k not in ("joints", "harmonics")}
+    if not kwargs:
+        return term
+    return type(term)(joints=term.joints, **kwargs)   # a term with settings besides its joints takes joints
 
 
 def legacy_spec(term, n_joints: int) -> str:
@@ -192,6 +218,19 @@ def _check_robust(robust: Any, err) -> None:
     down = robust.get("downweighted", [])
     if not isinstance(down, list) or not all(isinstance(d, dict) for d in down):
         raise err("robust.downweighted", "must be a list of objects (line, residual_mm, weight)")
+
+
+def _check_sessions(sessions: Any, err) -> None:
+    """The sessions of a calibration of several (optional): their names and errors."""
+    if sessions is None:
+        return
+    if not isinstance(sessions, list):
+        raise err("sessions", f"must be a list of session objects, got {_kind(sessions)}")
+    for i, s in enumerate(sessions):
+        if not isinstance(s, dict) or not isinstance(s.get("name"), str):
+            raise err(f"sessions[{i}].name", "missing or not a string")
+        if s.get("calibration") is not None:
+            _check_stats(s["calibration"], lambda key, message: err(f"sessions[{i}].{key}", message))
 
 
 def _check_coverage(coverage: Any, err) -> None:

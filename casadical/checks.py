@@ -79,7 +79,9 @@ def check_poses(data: Measurements, robot: Robot, *, allow_outside_limits: bool 
         if predicted is None:
             from .model import Model
             predicted = Model(robot, "nominal", jit=False).predict(data.q)
-        check_position_units(data, predicted, allow=positions_are_mm)
+        from .sessions import session_index
+        for idx in session_index(data).values():    # each session in its own tracker frame
+            check_position_units(data.subset(idx), np.asarray(predicted)[idx], allow=positions_are_mm)
     data.checked.add(key)
 
 

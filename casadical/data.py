@@ -53,6 +53,14 @@ class Measurements:
     checked : set
         Plausibility checks this data passed (or was allowed to skip) by
         :func:`casadical.checks.check_poses`; subsets keep it.
+    sessions : ndarray of str or None
+        Each pose's measurement session (tracker placement, day, probe
+        mount): from the ``session`` column, or given by
+        :func:`casadical.sessions.combine` (one session per file). None:
+        the data are one session.
+    sources : ndarray of str or None
+        Each pose's file, where the data come from several
+        (:func:`casadical.sessions.combine`); None: all from ``path``.
     """
 
     columns: dict[str, np.ndarray]
@@ -61,6 +69,8 @@ class Measurements:
     moves: np.ndarray | None = None
     lines: np.ndarray | None = None
     checked: set = field(default_factory=set, repr=False, compare=False)
+    sessions: np.ndarray | None = None
+    sources: np.ndarray | None = None
     _n_joints: int = field(init=False)
 
     def __post_init__(self) -> None:
@@ -73,6 +83,8 @@ class Measurements:
             self.rows = source.astype(int) - 1 if source is not None else np.arange(len(self))
         if self.lines is None:
             self.lines = self.rows + 2
+        if self.sessions is None and "session" in self.columns:
+            self.sessions = np.array([session_name(x) for x in self.columns["session"]], dtype=object)
         if self.moves is None:
             given = [self.get(f"move{j}") for j in range(1, self._n_joints + 1)]
             if self._n_joints and all(m is not None for m in given):
@@ -116,6 +128,17 @@ class Measurements:
         """Line of pose ``i`` in its file (header = line 1), for error messages."""
         return int(self.lines[i])
 
+    def file(self, i: int) -> str:
+        """The file pose ``i`` comes from."""
+        return self.path if self.sources is None else str(self.sources[i])
+
+    @property
+    def session_names(self) -> list[str]:
+        """The sessions of the data in order of first appearance ([] for data of one session)."""
+        if self.sessions is None:
+            return []
+        return list(dict.fromkeys(self.sessions.tolist()))
+
     def get(self, name: str) -> np.ndarray | None:
         """A numeric column, or None if absent."""
         col = self.columns.get(name)
@@ -126,7 +149,14 @@ class Measurements:
     def subset(self, index) -> "Measurements":
         """Rows ``index`` (mask or integer array), order kept as given."""
         return Measurements({k: v[index] for k, v in self.columns.items()}, self.path,
-                            self.rows[index], self.moves[index], self.lines[index], set(self.checked))
+                            self.rows[index], self.moves[index], self.lines[index], set(self.checked),
+                            None if self.sessions is None else self.sessions[index],
+                            None if self.sources is None else self.sources[index])
+
+    def with_columns(self, columns: dict[str, np.ndarray]) -> "Measurements":
+        """The same poses (rows, moves, lines, sessions, sources, checks) with other columns."""
+        return Measurements(columns, self.path, self.rows, self.moves, self.lines, set(self.checked),
+                            self.sessions, self.sources)
 
     def with_row_times(self, spacing_s: float) -> "Measurements":
         """A copy whose ``time_s`` is each pose's row in the measurement order times ``spacing_s``.
@@ -147,8 +177,7 @@ class Measurements:
         if "time_s" in self.columns:
             raise DataFileError("has a time_s column already: a row spacing would replace the measured times; "
                                 "drop --row-spacing-s", file=self.path, row=1, column="time_s")
-        return Measurements({**self.columns, "time_s": self.rows * float(spacing_s)}, self.path, self.rows,
-                            self.moves, self.lines, set(self.checked))
+        return self.with_columns({**self.columns, "time_s": self.rows * float(spacing_s)})
 
     def with_positions(self, xyz_m: np.ndarray, prefix_existing: str = "measured_") -> "Measurements":
         """A copy whose ``x_mm, y_mm, z_mm`` are ``xyz_m``; existing ones are renamed."""
@@ -157,7 +186,9 @@ class Measurements:
             cols[prefix_existing + k if k in XYZ else k] = v
         for i, c in enumerate(XYZ):
             cols[c] = np.asarray(xyz_m)[:, i] * 1000.0
-        return Measurements(cols, self.path, self.rows, self.moves, self.lines)
+        out = self.with_columns(cols)
+        out.checked = set()
+        return out
 
     # --- I/O --------------------------------------------------------------------
 
@@ -356,6 +387,17 @@ def _check_units(data: Measurements) -> None:
         warnings.warn(f"{data.path}: every joint reading is within +-6.3: "
                       "these look like radians, but _deg columns must hold degrees", DataWarning,
                       stacklevel=3)
+
+
+_NOT_IN_NAME = re.compile(r"[^A-Za-z0-9_.-]+")
+
+
+def session_name(value) -> str:
+    """A session's name as model specifications and reports use it: letters, digits, ``_ . -`` (anything
+    else becomes ``_``; a whole number read as 2.0 is ``2``)."""
+    if isinstance(value, (float, np.floating)) and float(value).is_integer():
+        value = int(value)
+    return _NOT_IN_NAME.sub("_", str(value).strip()) or "_"
 
 
 def _fmt(x) -> str:

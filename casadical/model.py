@@ -30,7 +30,7 @@ from .errors import CasadicalWarning, DataFileError, ModelError
 from .kinematics import Geometry, base_pose_matrix, chain_angles, compose, forward, rpy_pose
 from .parameters import Parameters
 from .robot import Robot
-from .terms import REGISTRY, Context, ErrorTerm, make_term
+from .terms import REGISTRY, Context, ErrorTerm, SessionLocal, make_term
 from .threads import evaluation_pool, evaluation_threads
 
 #: batches of this many poses or more run compiled code, compiled once per machine and kept in the disk cache
@@ -46,7 +46,7 @@ MAP_CHUNK = 256
 #: (casadical.threads.evaluation_threads); UR10 `fk_jac_angles` on the VM, 2 cores: 300 poses 9.9 -> 5.4 ms,
 #: 150 poses 5.0 ms either way
 BLOCK_MIN = 100
-_SPEC_ITEM = re.compile(r"^\s*([a-z_]+)\s*(?:\[([^\]]*)\])?\s*$")
+_SPEC_ITEM = re.compile(r"^\s*([a-z_]+)\s*(?:\[([^\]]*)\])?\s*(?:@\s*([A-Za-z0-9_.-]+))?\s*$")
 
 
 def parse_spec(spec: str) -> list[ErrorTerm]:
@@ -55,7 +55,8 @@ def parse_spec(spec: str) -> list[ErrorTerm]:
     ``nominal`` (or ``base``) means the nominal geometry with only the base
     pose estimated. ``kinematic`` (alias ``geometric``) frees every
     geometric parameter. Per-joint terms take ``[j,...]``; ``periodic``
-    takes ``[joint:harmonic,...]``.
+    takes ``[joint:harmonic,...]``. ``@session`` after a term makes it a
+    term of that measurement session only (``drift@B``).
     """
     terms: list[ErrorTerm] = []
     for item in spec.split("+"):
@@ -63,8 +64,10 @@ def parse_spec(spec: str) -> list[ErrorTerm]:
         if not m:
             raise ModelError(f"cannot read model item {item!r} in {spec!r}; "
                              "expected e.g. kinematic+compliance[2,3]+periodic[2:1]")
-        name, args = m.group(1), m.group(2)
+        name, args, session = m.group(1), m.group(2), m.group(3)
         if name in ("nominal", "base"):
+            if session:
+                raise ModelError(f"{item!r}: the base pose of each session is always estimated; drop @{session}")
             continue
         if name not in REGISTRY:
             raise ModelError(f"unknown model item {name!r} in {spec!r}; known: nominal, "
@@ -80,7 +83,8 @@ def parse_spec(spec: str) -> list[ErrorTerm]:
                     kwargs["joints"] = [int(a) for a in args.split(",")]
             except ValueError as e:
                 raise ModelError(f"cannot read the arguments of {item!r}: {e}") from e
-        terms.append(make_term(name, **kwargs))
+        term = make_term(name, **kwargs)
+        terms.append(SessionLocal(term, session) if session else term)
     return terms
 
 
@@ -98,7 +102,8 @@ def assemble_terms(terms: list[ErrorTerm], robot: Robot) -> list[ErrorTerm]:
         A term is given twice, or does not fit the robot.
     """
     geo = [t for t in terms if t.name == "geometric"]
-    out = (geo[:1] or [make_term("geometric")]) + [t for t in terms if t.name != "geometric"]
+    frames = [t for t in terms if t.name == "sessions"]   # right after the geometry: the base and tool it selects
+    out = (geo[:1] or [make_term("geometric")]) + frames + [t for t in terms if t.name not in ("geometric", "sessions")]
     seen = set()
     for t in out:
         if t.spec() in seen:
@@ -203,8 +208,10 @@ class Model:
                 offsets[j - 1] = offsets[j - 1] + off
         chain = [a + o for a, o in zip(angles, offsets)]
         frames = forward(robot, chain, geom)
-        R0 = ca.reshape(b0[:9], 3, 3).T  # row-major input
-        base = compose((R0, b0[9:12]), rpy_pose(*geom.base))
+        R0, t0 = ca.reshape(b0[:9], 3, 3).T, b0[9:12]  # row-major input
+        for t in self.terms:
+            R0, t0 = t.reference(ctx, R0, t0)
+        base = compose((R0, t0), rpy_pose(*geom.base))
         point = frames.tool[1]
         for t in self.terms:
             off = t.robot_frame_offset(ctx)
@@ -499,6 +506,9 @@ class Model:
                                     "(Measurements.with_row_times)", file=data.path, row=1, column="time_s")
             elif name.startswith("move"):
                 out[:, k] = data.moves[:, int(name[4:]) - 1]
+        for t in self.terms:
+            for name, values in t.covariate_values(data).items():
+                out[:, self.covariate_names.index(name)] = values
         return out
 
     def term(self, name: str) -> ErrorTerm | None:

@@ -225,7 +225,7 @@ def inside_bounds(params, names: list[str]) -> list[Violation]:
             continue
         bound = p.lower if side == "lower" else p.upper
         where = "at" if abs(p.value - bound) <= tol else ("below" if side == "lower" else "above")
-        meaning = _MEANING.get(n.rstrip("0123456789"), {}).get(side, "")
+        meaning = _MEANING.get(n.split("@")[0].rstrip("0123456789"), {}).get(side, "")
         out.append(Violation("bounds", (n,), f"{n} = {_show(p, p.value)} is {where} its {side} bound "
                                              f"{_show(p, bound)}{meaning}"))
     return out

@@ -8,7 +8,6 @@ writes (INTERFACE.md section 4).
 
 from __future__ import annotations
 
-import inspect
 import json
 import math
 from dataclasses import dataclass, field
@@ -18,18 +17,17 @@ import numpy as np
 
 from . import __version__
 from .data import Measurements
-from .calibration_file import legacy_spec, validate_calibration_document
+from .calibration_file import restored_terms, validate_calibration_document
 from .coverage import Coverage
 from .errors import CalibrationFileError, CasadicalError, InputError, listing
 from .files import atomic_write
 from .identifiability import Identifiability
 from .kinematics import matrix_to_rpy
-from .model import Model, base0_to_pose, parse_spec
+from .model import Model, base0_to_pose
 from .parameters import Parameters
 from .problem import RobustLoss
 from .robot import robot_from_dict, robot_to_dict
 from .solvers import SolverResult
-from .terms import ErrorTerm
 from .uncertainty import Uncertainty
 
 
@@ -84,6 +82,9 @@ class CalibrationResult:
         ``{"line": file line, "residual_mm": ..., "weight": ...}``.
     coverage : Coverage or None
         The joint ranges and poses the calibration saw (for extrapolation warnings).
+    by_session : dict of str to ErrorStats
+        Errors on the calibration poses of each session (calibrations of
+        several sessions only).
     """
 
     model: Model
@@ -98,6 +99,7 @@ class CalibrationResult:
     loss: RobustLoss = field(default_factory=RobustLoss)
     downweighted: list[dict] = field(default_factory=list)
     coverage: Coverage | None = None
+    by_session: dict = field(default_factory=dict)
 
     # --- using the model ------------------------------------------------------
 
@@ -117,6 +119,18 @@ class CalibrationResult:
     def stats(self, data: Measurements) -> ErrorStats:
         return ErrorStats.of(self.errors(data))
 
+    @property
+    def sessions(self) -> list[str]:
+        """The measurement sessions the calibration fitted, the primary one first ([] for one session)."""
+        frames = self.model.term("sessions")
+        return list(frames.names) if frames is not None else []
+
+    def session_stats(self, data: Measurements) -> dict[str, ErrorStats]:
+        """Errors on ``data`` per session (data of one session: ``{"": stats}``)."""
+        from .sessions import session_index
+        e = self.errors(data)
+        return {s: ErrorStats.of(e[idx]) for s, idx in session_index(data).items()}
+
     def _check_joints(self, data: Measurements) -> None:
         if data.n_joints != self.model.robot.n:
             raise InputError(f"has {data.n_joints} joint columns but the robot has {self.model.robot.n} "
@@ -124,16 +138,23 @@ class CalibrationResult:
 
     # --- derived quantities ---------------------------------------------------
 
-    def base_matrix(self) -> np.ndarray:
-        """Robot base in the measurement frame, 4x4."""
+    def base_matrix(self, session: str | None = None) -> np.ndarray:
+        """Robot base in the measurement frame (of ``session``; default: the primary one), 4x4."""
         from .kinematics import base_pose_matrix
         p = self.parameters
-        return base0_to_pose(self.base0) @ base_pose_matrix([p[f"base_{k}"].value for k in "xyz"],
-                                                             [p[f"base_{k}"].value for k in ("roll", "pitch", "yaw")])
+        sessions = self.sessions
+        if session is None or not sessions or session == sessions[0]:
+            ref, at = self.base0, ""
+        elif session in sessions:
+            ref, at = self.model.term("sessions").references[session], f"@{session}"
+        else:
+            raise InputError(f"no session {session!r} in this calibration (sessions: {', '.join(sessions)})")
+        return base0_to_pose(ref) @ base_pose_matrix([p[f"base_{k}{at}"].value for k in "xyz"],
+                                                     [p[f"base_{k}{at}"].value for k in ("roll", "pitch", "yaw")])
 
-    def base_pose(self) -> tuple[np.ndarray, np.ndarray]:
-        """Robot base in the measurement frame: translation (m) and roll-pitch-yaw (rad)."""
-        T = self.base_matrix()
+    def base_pose(self, session: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Robot base in the measurement frame (of ``session``): translation (m) and roll-pitch-yaw (rad)."""
+        T = self.base_matrix(session)
         return T[:3, 3], matrix_to_rpy(T[:3, :3])
 
     def stiffness(self) -> dict[int, tuple[float, float]]:
@@ -167,9 +188,11 @@ class CalibrationResult:
         if self.uncertainty is not None:
             lines.append(f"residual sigma {self.uncertainty.sigma * 1000:.4f} mm per axis, "
                          f"{self.uncertainty.dof} degrees of freedom")
-        xyz, rpy = self.base_pose()
-        lines.append("base in the measurement frame: xyz [" + ", ".join(f"{v * 1000:.3f}" for v in xyz)
-                     + "] mm, rpy [" + ", ".join(f"{math.degrees(v):.4f}" for v in rpy) + "] deg")
+        for s in self.sessions or [None]:
+            xyz, rpy = self.base_pose(s)
+            lines.append(f"base in the measurement frame{f' of session {s}' if s else ''}: xyz ["
+                         + ", ".join(f"{v * 1000:.3f}" for v in xyz)
+                         + "] mm, rpy [" + ", ".join(f"{math.degrees(v):.4f}" for v in rpy) + "] deg")
         lines += ["", "identified parameters (angles in deg, lengths in mm):",
                   self.parameters.table(show_fixed=True)]
         st = self.stiffness()
@@ -182,6 +205,9 @@ class CalibrationResult:
                 lines.append(f"  k{j} = {k:.4e} N m/rad" + (f"  (std {sk:.2e})" if math.isfinite(sk) else ""))
         if self.calibration is not None:
             lines += ["", "calibration poses: " + self.calibration.line()]
+        for s, st in self.by_session.items():
+            tool = " (its own tool)" if s in self.model.term("sessions").tools else ""
+            lines.append(f"  session {s}{tool}: " + st.line())
         if self.loss.robust:
             lines.append(f"robust loss: pseudo-Huber, noise scale {self.loss.sigma * 1000:.4f} mm per axis, "
                          f"linear beyond {self.loss.c:g} sigma; "
@@ -226,6 +252,16 @@ class CalibrationResult:
         }
         if self.coverage is not None:
             doc["coverage"] = self.coverage.to_dict()
+        if self.sessions:
+            tools = self.model.term("sessions").tools
+            doc["sessions"] = []
+            for s in self.sessions:
+                xyz, rpy = self.base_pose(s)
+                entry = {"name": s, "own_tool": s in tools,
+                         "base_pose": {"xyz_m": xyz.tolist(), "rpy_deg": np.degrees(rpy).tolist()}}
+                if s in self.by_session:
+                    entry["calibration"] = self.by_session[s].to_dict()
+                doc["sessions"].append(entry)
         if self.solver is not None:
             doc["solver"] = {"name": self.solver_name, "status": self.solver.status,
                              "iterations": self.solver.iterations, "solve_time_s": self.solver.solve_time_s,
@@ -263,10 +299,7 @@ def load_calibration(path: str | Path) -> CalibrationResult:
     validate_calibration_document(doc, path)
     try:
         robot = robot_from_dict(doc["robot"], path)
-        settings = doc.get("terms", {})
-        terms = [restore_term(t, settings.get(t.spec(), settings.get(t.name, settings.get(legacy_spec(t, robot.n), {}))))
-                 for t in parse_spec(doc["model"])]
-        model = Model(robot, terms)
+        model = Model(robot, restored_terms(doc["model"], doc.get("terms", {}), robot.n))
         params = model.parameters.copy()
         for entry in doc["parameters"]:
             if entry.get("derived"):
@@ -286,16 +319,7 @@ def load_calibration(path: str | Path) -> CalibrationResult:
         raise CalibrationFileError(f"not a calibration JSON written by casadical ({e})", file=path) from e
     model.parameters = params
     cal = doc.get("calibration")
+    by_session = {e["name"]: ErrorStats(**e["calibration"]) for e in doc.get("sessions") or [] if e.get("calibration")}
     return CalibrationResult(model, params, base0, calibration=ErrorStats(**cal) if cal else None,
                              notes=doc.get("notes", []), loss=loss, downweighted=rob.get("downweighted", []),
-                             coverage=coverage)
-
-
-def restore_term(term: ErrorTerm, settings: dict) -> ErrorTerm:
-    """``term`` (from a model specification) rebuilt with the settings a calibration saved."""
-    allowed = inspect.signature(type(term).__init__).parameters
-    settings = {**getattr(type(term), "LEGACY", {}), **settings}   # what files older than a setting meant
-    kwargs = {k: v for k, v in settings.items() if k in allowed and k not in ("joints", "harmonics")}
-    if not kwargs:
-        return term
-    return type(term)(joints=term.joints, **kwargs)   # a term with settings besides its joints takes joints
+                             coverage=coverage, by_session=by_session)

@@ -10,7 +10,7 @@ the identification or the diagnosis to find it.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -98,6 +98,27 @@ class Truth:
     def predict(self, data: Measurements) -> np.ndarray:
         """Noise-free true positions (m) of the poses in ``data``."""
         return self.model.predict(data.q, self.values, self.model.covariates(data), self.base0)
+
+
+def another_session(truth: Truth, base_xyz=(0.0, 0.0, 0.0), base_rpy=(0.0, 0.0, 0.0),
+                    tool_shift=(0.0, 0.0, 0.0), drift=(0.0, 0.0, 0.0), t_ref: float = 0.0) -> Truth:
+    """The same robot measured in another session: the tracker elsewhere (``base_xyz`` m, ``base_rpy`` rad),
+    the probe re-mounted (its point moved by ``tool_shift``, m, in the flange frame), and a drift of that
+    session (m/s of ``time_s``, from ``t_ref``) instead of the truth's own."""
+    terms = [t for t in truth.model.terms if t.name != "drift"]
+    if any(drift):
+        terms.append(make_term("drift", t_ref=t_ref))
+    model = Model(truth.model.robot, [t for t in terms if t.name != "geometric"] + [make_term("geometric")])
+    values = model.parameters.nominal.copy()
+    for i, name in enumerate(truth.model.parameters.names):
+        if name in model.parameters and not name.startswith("drift"):
+            values[model.parameters.index(name)] = truth.values[i]
+    for k, d, v in zip("xyz", tool_shift, drift):
+        values[model.parameters.index(f"tool_{k}")] += d
+        if any(drift):
+            values[model.parameters.index(f"drift_{k}")] = v
+    return Truth(model, values, pose_to_base0(base_pose_matrix(base_xyz, base_rpy)),
+                 replace(truth.effects, drift=tuple(drift)))
 
 
 def true_model(robot: Robot, effects: Effects, rng: np.random.Generator,

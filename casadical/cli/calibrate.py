@@ -12,11 +12,15 @@ def register(sub) -> None:
                                    "terms joined by '+') from DATA.csv; the base pose is always estimated. "
                                    "Writes CAL.json and prints a summary. With a calibration JSON in place of "
                                    "ROBOT, only what MODEL names is estimated again (base: the base pose "
-                                   "alone; kinematic: the geometry) and every other value is kept: how a "
-                                   "calibration is taken to a new measurement series or tracker set-up.")
+                                   "alone; kinematic: the geometry; base+tool: the base pose and the tool) "
+                                   "and every other value is kept: how a calibration is taken to a new "
+                                   "measurement series or tracker set-up. Several DATA files are several "
+                                   "measurement sessions of one robot (as is a file with a session column): each "
+                                   "has its own base pose, the robot's parameters are shared.")
     p.add_argument("robot", metavar="ROBOT",
                    help="built-in robot, robot TOML or URDF file, or a calibration JSON to take further")
-    p.add_argument("data", metavar="DATA.csv", help="measured poses (q1_deg, ..., x_mm, y_mm, z_mm)")
+    p.add_argument("data", metavar="DATA.csv", nargs="+",
+                   help="measured poses (q1_deg, ..., x_mm, y_mm, z_mm); several files: one session each")
     p.add_argument("--model", default="kinematic+compliance",
                    help="error model, e.g. kinematic, kinematic+compliance, "
                         "kinematic+compliance[2,3]+periodic[2:1] (default: %(default)s)")
@@ -34,6 +38,9 @@ def register(sub) -> None:
                    help="loss: huber (pseudo-Huber with the noise scale from the data: bad measurements are "
                         "down-weighted and reported) or none (plain least squares); default %(default)s")
     p.add_argument("--fix", default="", help="comma-separated parameters to hold at nominal (default: none)")
+    p.add_argument("--session-tool", action="store_true",
+                   help="with several sessions: each session after the first has its own tool offset too (the "
+                        "probe was re-mounted between them)")
     add_row_spacing(p)
     add_checks(p)
     add_urdf_chain(p)
@@ -43,16 +50,16 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from ..calibration import CalibrationResult, calibrate
-    from ..data import Measurements
+    from ..sessions import read_sessions
 
-    check_outputs({"--out": args.out, "--html": args.html}, [args.robot, args.data], args.force)
+    check_outputs({"--out": args.out, "--html": args.html}, [args.robot, *args.data], args.force)
     robot = robot_or_calibration(args.robot, args)
     n = robot.model.robot.n if isinstance(robot, CalibrationResult) else robot.n
-    data = timed(Measurements.read_csv(args.data, n_joints=n, require_positions=True), args)
+    data = timed(read_sessions(args.data, n_joints=n, require_positions=True), args)
     opts = {"max_iter": args.max_iter} if args.max_iter else {}
     result = calibrate(robot, data, args.model, args.solver, solver_options=opts,
                        fix=tuple(f.strip() for f in args.fix.split(",") if f.strip()), robust=args.robust,
-                       **check_options(args))
+                       session_tools=args.session_tool, **check_options(args))
     result.save(args.out, overwrite=args.force)
     print(result.summary())
     print(f"\ncalibration -> {args.out}")

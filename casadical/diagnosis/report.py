@@ -90,6 +90,11 @@ class Finding:
         Gains on another series (``diagnose --transfer``).
     plot : dict
         Data of the residual plot against the cause's variable.
+    scope : str or None
+        ``robot``: one value serves every session (data of several
+        sessions); ``session``: a property of one session (its own
+        parameters, ``@session``; a drift), kept out of what a calibration
+        carries to other data.
     """
 
     candidate: Candidate
@@ -103,6 +108,7 @@ class Finding:
     holds_up: dict = field(default_factory=dict)
     transfer: dict = field(default_factory=dict)
     plot: dict = field(default_factory=dict)
+    scope: str | None = None
 
     @property
     def cause(self) -> str:
@@ -111,6 +117,8 @@ class Finding:
     def to_dict(self) -> dict:
         d = self.candidate.to_dict()
         d.update(gain_mm=self.gain_mm, evidence=self.evidence, in_model=self.in_model)
+        if self.scope is not None:
+            d["scope"] = self.scope
         if self.where:
             d["where"] = self.where
         if self.potential_gain_mm is not None:
@@ -142,6 +150,8 @@ class DiagnosisReport:
         on the calibration poses: what ``diagnose --out`` writes.
     transfer : dict
         The final and the kinematic model taken to another series, if asked.
+    final_sessions : dict of str to ErrorStats
+        With several sessions: the final model's validation errors in each.
     """
 
     robot: str
@@ -157,6 +167,7 @@ class DiagnosisReport:
     kinematic_validation: ErrorStats | None = None
     transfer: dict = field(default_factory=dict)
     settings: dict = field(default_factory=dict)
+    final_sessions: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         params = []
@@ -176,6 +187,8 @@ class DiagnosisReport:
             "time_s": self.time_s,
             "settings": self.settings,
         }
+        if self.final_sessions:
+            doc["final"]["sessions"] = {s: st.to_dict() for s, st in self.final_sessions.items()}
         if self.transfer:
             doc["transfer"] = self.transfer
         return doc
@@ -200,6 +213,8 @@ class DiagnosisReport:
         v = self.final_validation
         lines += ["", f"final model {self.final_model}: validation mean {v.mean_mm:.4f}, "
                       f"max {v.max_mm:.4f}, rms {v.rms_mm:.4f} mm"]
+        lines += [f"  session {s}: validation mean {st.mean_mm:.4f}, max {st.max_mm:.4f}, rms {st.rms_mm:.4f} mm"
+                  for s, st in self.final_sessions.items()]
         if self.transfer:
             lines.append(self.transfer["text"])
         lines += [f"note: {n}" for n in self.notes]

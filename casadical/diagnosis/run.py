@@ -58,6 +58,8 @@ from .validation import (Linearized, by_kind, cv_failure, cv_record, cv_text, ex
 #: half-range estimates are biased by the structure still unmodelled in each half, so the test is not
 #: applied to them.)
 JOINT_CAUSES = ("joint_periodic", "encoder_scale")
+#: the kinds of fold where a model must extrapolate: a step may not make them worse
+EXTRAPOLATING = ("time", "joint", "session")
 
 
 class _Diagnosis:
@@ -66,7 +68,9 @@ class _Diagnosis:
         self.robot, self.cal, self.val, self.s = robot, cal, val, settings
         self.say = progress
         self.n_eq = 3 * len(cal)
-        self.schemes = schemes(cal.q, cal.rows, settings.folds, settings.seed, joint_levers(robot, cal))
+        self.schemes = schemes(cal.q, cal.rows, settings.folds, settings.seed, joint_levers(robot, cal),
+                               sessions=cal.sessions)
+        self.sessions = cal.session_names      # [] for one session
         self.steps: list[Step] = []
         self.findings: list[Finding] = []
         self.notes: list[str] = []
@@ -84,7 +88,7 @@ class _Diagnosis:
     def fit(self, spec: str, start: CalibrationResult | dict | None = None, loss: RobustLoss | None = None
             ) -> CalibrationResult:
         """Calibrate ``spec`` on the calibration poses (LM), from ``start``'s values (a result or a dict)."""
-        model = model_for(self.robot, spec, self.cal, jit=False)
+        model = model_for(self.robot, spec, self.cal, jit=False, session_tools=self.s.session_tools)
         st = None
         if start is not None:
             values = start if isinstance(start, dict) else {p.name: p.value for p in start.parameters}
@@ -174,7 +178,7 @@ class _Diagnosis:
                 reasons.append("not physics once fitted in full: " + "; ".join(v.text for v in broken))
             mask = self.mask(current)
             cv0, cv1 = self.cv(current, mask), self.cv(new_fit, mask)
-            worse = [k for k in ("time", "joint") if cv1[k] > cv0[k]]
+            worse = [k for k in EXTRAPOLATING if k in cv0 and cv1[k] > cv0[k]]
             if worse:
                 reasons.append("fitted in full it does worse where the model extrapolates: "
                                + ", ".join(f"{k} {cv0[k]:.4f} -> {cv1[k]:.4f} mm" for k in worse))
@@ -225,7 +229,7 @@ class _Diagnosis:
 
         def worse(res):
             cv = self.cv(res, mask)
-            return [f"{k} {ref[k]:.4f} -> {cv[k]:.4f} mm" for k in ("time", "joint") if cv[k] > ref[k]]
+            return [f"{k} {ref[k]:.4f} -> {cv[k]:.4f} mm" for k in EXTRAPOLATING if k in ref and cv[k] > ref[k]]
 
         bad = worse(current)
         if not bad:
@@ -262,7 +266,14 @@ class _Diagnosis:
             out.append(Candidate("thermal_expansion"))
             out += [Candidate("thermal_expansion", j) for j, jt in enumerate(self.robot.joints, start=1)
                     if abs(jt.a) + abs(jt.d) + abs(jt.b or 0.0) > 0]
-        if self.cal.get("time_s") is not None:   # a drift needs the poses' times: never the row numbers
+        if len(self.sessions) > 1:
+            # a cause of one session only: the physical causes of each joint, and a drift (of one session by
+            # nature: with several sessions only its own)
+            out += [replace(c, session=s) for c in out if c.cause in ("joint_compliance", "encoder_scale", "backlash")
+                    for s in self.sessions]
+            if self.cal.get("time_s") is not None:
+                out += [Candidate("drift", session=s) for s in self.sessions]
+        elif self.cal.get("time_s") is not None:   # a drift needs the poses' times: never the row numbers
             out.append(Candidate("drift"))
         # periodograms of the projected residuals (the same while the fit is the same)
         if self._periodograms_of is not current:
@@ -288,6 +299,8 @@ class _Diagnosis:
         """Backlash needs its sign source to change sign in the data: otherwise it is a joint offset."""
         j = cand.joint
         signs = self.cal.moves[:, j - 1] if cand.source == "motion" else np.sign(self.torques(current)[:, j - 1])
+        if cand.session is not None:
+            signs = signs[self.cal.sessions == cand.session]
         return sign_changes(signs, "")[0]
 
     def max_harmonic(self) -> int:
@@ -305,7 +318,7 @@ class _Diagnosis:
             cands = self.candidates(current, accepted)
             # screening again (after setting structure aside) reuses the linearisation and the baseline
             if scr is None:
-                scr = Screen(current, accepted, cands, geometric, self.cal, self.val)
+                scr = Screen(current, accepted, cands, geometric, self.cal, self.val, self.s.session_tools)
                 mask = self.mask(current)
                 base = scr.fit()
                 baseline = (mask, base, by_kind(base.lin.cv(self.schemes), mask), self.val_stats(current))
@@ -450,6 +463,9 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
         final, final_spec = blackbox_step(current, final_spec, cal, val, dg.schemes, s, dg.steps, dg.findings, say)
     describe(dg.findings, dg.support, dg.before, final, cal)
     dg.findings += list(dg.unexplained.by_joint.values())
+    for f in dg.findings:   # of the robot (one value serves every session) or of one session
+        f.scope = f.candidate.scope or ("robot" if len(dg.sessions) > 1 and f.in_model
+                                        and f.cause != "unexplained" else None)
     final_errors = dg.val_errors(final)
     final_val = ErrorStats.of(final_errors)
     if final.uncertainty is not None:
@@ -457,7 +473,8 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
                         f"validation rms {final_val.rms_mm / math.sqrt(3):.4f} mm per axis")
     if final.downweighted:
         dg.notes.append(f"the robust loss set aside {len(final.downweighted)} calibration pose(s) of {cal.path} "
-                        "(lines " + listing([d["line"] for d in final.downweighted], 10) + "): likely bad measurements")
+                        "(lines " + listing([f"{d['file']}:{d['line']}" if "file" in d else d["line"]
+                                             for d in final.downweighted], 10) + "): likely bad measurements")
     study = None
     if other is not None:
         study = transfer_mod.findings_study(dg, final, parametric, accepted, geometric, other)
@@ -466,4 +483,5 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
     return DiagnosisReport(robot.name, dg.steps, dg.findings, final_spec, final_val, final, dg.periodograms, plots,
                            dg.notes, time.perf_counter() - t0,
                            next(st.validation for st in dg.steps if st.model == "kinematic"),
-                           study.to_dict() if study is not None else {}, asdict(s))
+                           study.to_dict() if study is not None else {}, asdict(s),
+                           final.session_stats(val) if len(dg.sessions) > 1 else {})

@@ -38,6 +38,9 @@ class DiagnosisSettings:
         With another series: poses on which the geometry is refitted there
         (default: as many as the calibration poses, at most half the series).
     seed : int
+    session_tools : bool
+        With several sessions: each session after the first has its own
+        tool offset too (the probe was re-mounted).
     """
 
     alpha: float = 0.001
@@ -51,6 +54,7 @@ class DiagnosisSettings:
     transfer_base_poses: int = 30
     transfer_refit_poses: int | None = None
     seed: int = 0
+    session_tools: bool = False
 
     def __post_init__(self) -> None:
         if not 0 < self.alpha < 1 or not 0 < self.stability_alpha < 1:

@@ -109,6 +109,15 @@ class ErrorTerm:
         """
         return None
 
+    def reference(self, ctx: Context, R0, t0):
+        """The reference pose the base parameters deviate from, per pose (default: ``base0``, unchanged)."""
+        return R0, t0
+
+    def covariate_values(self, data) -> dict:
+        """Values of covariates this term makes from the data itself rather than reads from a column
+        (e.g. a pose's session), by name (default: none)."""
+        return {}
+
     def spec(self) -> str:
         """The text that re-creates this term in a model specification."""
         if self.joints is None:
