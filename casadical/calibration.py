@@ -37,6 +37,7 @@ from .parameters import Parameters
 from .problem import CalibrationProblem, RobustLoss, jacobian_factor, pose_chunks
 from .result import CalibrationResult, ErrorStats, load_calibration, restore_term
 from .robot import Robot
+from .significance import FitStatistics, warn_not_significant
 from .simulate import sample_poses
 from .solvers import Ipopt, make_solver
 from .terms import ErrorTerm, ReferencedTerm, make_term
@@ -342,6 +343,7 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         if not warn:
             warnings.simplefilter("ignore")
         notes += warn_problems(unc, params, expected=expected)
+        notes += warn_not_significant(model, params, unc.dof)     # a term's parameters the poses do not determine
     down = []
     if loss.robust:
         for i in np.argsort(-norms):
@@ -356,7 +358,7 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
                          + listing([d["line"] for d in down], 10)
                          + "): likely bad measurements; check them, or pass --robust none to fit them anyway")
     result = CalibrationResult(model, params, base0, res, name, ident, unc, ErrorStats.of(norms), notes,
-                               problem.loss, down, Coverage.of(data.q_deg))
+                               problem.loss, down, Coverage.of(data.q_deg), statistics=FitStatistics.of(unc))
     if want_rbf:
         result = fit_compensator(result, data, warn=warn)
     return result

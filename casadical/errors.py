@@ -102,6 +102,10 @@ class CorrelationWarning(CasadicalWarning):
     """Identified parameters are strongly correlated or sit at a bound."""
 
 
+class SignificanceWarning(CasadicalWarning):
+    """Parameters of an error term are not significant: the poses do not determine what the term models."""
+
+
 def listing(items, k: int = 8) -> str:
     """The first ``k`` items, comma separated, and how many more there are (for messages)."""
     items = [str(x) for x in items]
