@@ -45,6 +45,7 @@ from __future__ import annotations
 import math
 import warnings
 from dataclasses import dataclass
+from functools import lru_cache
 from statistics import NormalDist
 
 from .errors import SignificanceWarning, listing
@@ -109,8 +110,14 @@ def t_two_sided_p(t: float, dof: float) -> float:
     return betainc(dof / 2.0, 0.5, dof / (dof + t * t))
 
 
+@lru_cache(maxsize=4096)
 def t_critical(level: float = LEVEL, dof: float = math.inf) -> float:
-    """The two-sided critical value: P(|T| <= t) = ``level`` (``dof`` ``inf``: the normal's)."""
+    """The two-sided critical value: P(|T| <= t) = ``level`` (``dof`` ``inf``: the normal's).
+
+    Newton's method on the p-value from the Cornish-Fisher expansion (a few
+    steps: a calibration inside a diagnosis asks it hundreds of times), with
+    bisection as the fallback.
+    """
     if not 0.0 < level < 1.0:
         raise ValueError(f"confidence level must lie in (0, 1), got {level}")
     z = NormalDist().inv_cdf(0.5 + level / 2.0)
@@ -118,13 +125,24 @@ def t_critical(level: float = LEVEL, dof: float = math.inf) -> float:
         return z
     if not dof > 0:
         return math.nan
-    alpha = 1.0 - level
-    lo, hi = 0.0, max(z, 1.0)
-    while t_two_sided_p(hi, dof) > alpha:
+    alpha, v = 1.0 - level, float(dof)
+    t = (z + (z ** 3 + z) / (4 * v) + (5 * z ** 5 + 16 * z ** 3 + 3 * z) / (96 * v ** 2)
+         + (3 * z ** 7 + 19 * z ** 5 + 17 * z ** 3 - 15 * z) / (384 * v ** 3))
+    log_c = math.lgamma((v + 1) / 2) - math.lgamma(v / 2) - 0.5 * math.log(v * math.pi)
+    for _ in range(20):
+        if not (t > 0 and math.isfinite(t)):
+            break
+        density = math.exp(log_c - (v + 1) / 2 * math.log1p(t * t / v))
+        new = t + (t_two_sided_p(t, v) - alpha) / (2.0 * density)
+        if abs(new - t) <= 1e-14 * t:
+            return new
+        t = new
+    lo, hi = 0.0, max(z, 1.0)                   # bisection: p falls monotonically with t
+    while t_two_sided_p(hi, v) > alpha:
         lo, hi = hi, 2.0 * hi
-    for _ in range(200):                        # bisection: p falls monotonically with t
+    for _ in range(200):
         mid = 0.5 * (lo + hi)
-        if t_two_sided_p(mid, dof) > alpha:
+        if t_two_sided_p(mid, v) > alpha:
             lo = mid
         else:
             hi = mid
@@ -289,7 +307,7 @@ _MEANING = {
     "joint_compliance": ("the stiffness of {joints} is", "measure poses that load {them}"),
     "nonlinear_stiffness": ("the progressive part of the spring of {joints} is",
                             "measure poses that load {them} more"),
-    "joint_periodic": ("this periodic error of {joints} is", "measure poses spread over {their} range"),
+    "joint_periodic": ("the periodic error at {harmonics} is", "measure poses spread over {their} range"),
     "encoder_scale": ("the encoder scale of {joints} is", "measure poses over more of {their} range"),
     "backlash": ("the backlash of {joints} is", "measure poses whose gravity torque changes sign on {them}"),
     "backlash_motion": ("the backlash of {joints} is", "measure poses approached from both directions"),
@@ -309,7 +327,7 @@ def _groups(params: list[Parameter]) -> dict:
     for p in params:
         key = p.joint
         if p.term == "joint_periodic" and "_" in p.name:
-            key = (p.joint, p.name.rsplit("_", 1)[1][1:])     # gear2_s17 -> (2, "17")
+            key = (p.joint, int(p.name.rsplit("_", 1)[1][1:]))     # gear2_s17 -> (2, 17)
         out.setdefault(key, []).append(p)
     return out
 
@@ -327,9 +345,11 @@ def significance_notes(model, params: Parameters, tests: dict[str, ParameterTest
         if term.name in UNNOTED_TERMS:
             continue
         own = [p for p in params.select(term=term.name) if p.name in tests]
-        weak, strong = [], []
-        for group in _groups(own).values():
-            (strong if any(tests[p.name].significant for p in group) else weak).append(group)
+        weak, strong, weak_keys = [], [], []
+        for key, group in _groups(own).items():
+            significant = any(tests[p.name].significant for p in group)
+            (strong if significant else weak).append(group)
+            weak_keys += [] if significant else [key]
         if not weak:
             continue
         names = [p for g in weak for p in g]
@@ -340,14 +360,19 @@ def significance_notes(model, params: Parameters, tests: dict[str, ParameterTest
         verb = "is" if len(names) == 1 else "are"
         js = sorted({p.joint for p in names if p.joint is not None})
         what, do = _MEANING.get(term.name, ("the effect of {joints} is", "measure poses that show it"))
-        if js:
+        if term.name == "joint_periodic":
+            one = len(weak_keys) == 1
+            what = what.format(harmonics=", ".join(f"{h} cycles per turn of joint {j}" for j, h in weak_keys))
+            do = do.format(their="its joint's" if len(js) == 1 else "their joints'")
+            drop = f"drop {'it' if one else 'them'} from the model"
+        elif js:
             one = len(js) == 1
             what = what.format(joints=_joints(js))
             do = do.format(them="it" if one else "them", their="its" if one else "their")
             drop = f"drop {'the joint' if one else 'those joints'} from the model"
         else:
             what, do, drop = f"the {term.name} effect is", "measure poses that show it", "drop the term"
-        keep = _reduced_spec(model, term, [p for g in strong for p in g])
+        keep = _reduced_spec(model, term, [p for g in strong for p in g], weak_keys)
         notes.append(f"{term.name}: {said} {verb} not significant ({100 * level:g} % level): {what} not "
                      f"determined by these poses; {drop}{f' ({keep})' if keep else ''} or {do}")
     return notes
@@ -361,14 +386,17 @@ def warn_not_significant(model, params: Parameters, dof: float, level: float = L
     return notes
 
 
-def _reduced_spec(model, term, kept: list[Parameter]) -> str:
-    """The model specification without the joints of ``term`` that have no significant parameter."""
-    if term.joints is None or term.name == "joint_periodic" or not term.spec().startswith(f"{term.name}["):
+def _reduced_spec(model, term, kept: list[Parameter], dropped: list) -> str:
+    """The model specification without what of ``term`` has no significant parameter ('' if not expressible)."""
+    if term.name == "joint_periodic":
+        left = [jh for jh in term.harmonics if jh not in dropped]
+        part = f"{term.name}[{','.join(f'{j}:{h}' for j, h in left)}]" if left else ""
+    elif term.joints is not None and term.spec().startswith(f"{term.name}["):
+        joints = sorted({p.joint for p in kept if p.joint is not None})
+        part = f"{term.name}[{','.join(map(str, joints))}]" if joints else ""
+    else:
         return ""
-    joints = sorted({p.joint for p in kept if p.joint is not None})
-    part = f"{term.name}[{','.join(map(str, joints))}]" if joints else ""
-    spec = model.spec.replace(term.spec(), part)
-    return spec.replace("++", "+").strip("+")
+    return model.spec.replace(term.spec(), part).replace("++", "+").strip("+")
 
 
 def parameter_table(params: Parameters, tests: dict[str, ParameterTest]) -> str:

@@ -73,6 +73,35 @@ def test_relative_std_interval_and_stiffness_interval_by_hand():
     assert stiffness_interval((-2e-8, -1e-9)) is None
 
 
+def test_notes_name_what_to_drop_for_each_kind_of_term():
+    """By hand, no fit: a joint, a harmonic, a whole term; the geometry is never the subject of a note."""
+    from casadical.model import Model
+    from casadical.significance import significance_notes
+
+    model = Model(robot_from_dict(ARM4), "kinematic+compliance[2,3]+periodic[2:1,2:17,3:2]+encoder_scale[3]+drift")
+    params = model.parameters.copy()
+    strong = {"c2": 3e-7, "gear2_s1": 1e-4, "gear3_c2": 1e-4, "drift_x": 1e-6}   # t = 10
+    for p in params:
+        p.fixed = False
+        p.value = p.nominal + strong.get(p.name, 0.1 * p.scale)     # t = 0.1 unless strong
+        p.std = strong[p.name] / 10 if p.name in strong else p.scale
+    params["gear2_c17"].value = 0.0
+    notes = significance_notes(model, params, parameter_tests(params, dof=200))
+    assert not any(n.startswith("geometric") for n in notes)
+    by = {n.split(":")[0]: n for n in notes}
+    assert set(by) == {"joint_compliance", "joint_periodic", "encoder_scale"}, notes
+    assert by["joint_compliance"].startswith("joint_compliance: c3 (t = 0.10) is not significant (95 % level): the "
+                                             "stiffness of joint 3 is not determined by these poses; drop the joint "
+                                             "from the model (kinematic+joint_compliance[2]+")
+    # a harmonic is named when neither its sine nor its cosine is significant
+    assert "gear2_s17 (t = 0.10) and gear2_c17 (t = 0.00) are not significant" in by["joint_periodic"]
+    assert "the periodic error at 17 cycles per turn of joint 2 is not determined" in by["joint_periodic"]
+    assert "joint_periodic[2:1,3:2]" in by["joint_periodic"] and "gear3" not in by["joint_periodic"]
+    assert "+encoder_scale[3]" not in by["encoder_scale"].split("(")[-1]       # the model without it
+    # drift: one term of three components, significant when any is
+    assert "drift" not in by
+
+
 def test_log_likelihood_aic_bic_formulas():
     """Gaussian log-likelihood of the residuals in mm with the ML variance; k = free parameters."""
     rng = np.random.default_rng(0)
