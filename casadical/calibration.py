@@ -30,7 +30,7 @@ from .checks import check_poses
 from .coverage import Coverage
 from .data import Measurements
 from .errors import (CasadicalWarning, ConvergenceWarning, IdentifiabilityError, IdentifiabilityWarning, InputError,
-                     SolverError, listing)
+                     PhysicsWarning, SolverError, listing)
 from .identifiability import Identifiability, analyse, triangular_factor
 from .model import Model, parse_spec, pose_to_base0, spec_of
 from .parameters import Parameters
@@ -39,6 +39,8 @@ from .calibration_file import restore_term
 from .result import CalibrationResult, ErrorStats, load_calibration
 from .robot import Robot
 from .sessions import session_index
+from .physics import term_causes, violations
+from .significance import FitStatistics, warn_not_significant
 from .simulate import sample_poses
 from .solvers import Ipopt, make_solver
 from .terms import ErrorTerm, ReferencedTerm, SessionLocal, make_term
@@ -398,6 +400,7 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         if not warn:
             warnings.simplefilter("ignore")
         notes += warn_problems(unc, params, expected=expected)
+        notes += warn_not_significant(model, params, unc.dof)     # a term's parameters the poses do not determine
     down = []
     if loss.robust:
         for i in np.argsort(-norms):
@@ -414,10 +417,27 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     by_session = {s: ErrorStats.of(norms[idx]) for s, idx in session_index(data).items()} \
         if len(data.session_names) > 1 else {}
     result = CalibrationResult(model, params, base0, res, name, ident, unc, ErrorStats.of(norms), notes,
-                               problem.loss, down, Coverage.of(data.q_deg), by_session)
+                               problem.loss, down, Coverage.of(data.q_deg), by_session,
+                               statistics=FitStatistics.of(unc))
+    for note in physics_notes(result, data):
+        result.notes.append(note)
+        if warn:
+            warnings.warn(note, PhysicsWarning, stacklevel=2)
     if want_rbf:
         result = fit_compensator(result, data, warn=warn)
     return result
+
+
+def physics_notes(result: CalibrationResult, data: Measurements) -> list[str]:
+    """Notes on the terms that, as fitted, are not the physical cause their names say
+    (:mod:`casadical.physics`: told apart from the geometry, meaningful over the data; bounds and significance
+    have notes of their own)."""
+    out = []
+    for cause in term_causes(result):
+        for v in violations(result, data, cause.parameters):
+            if v.rule in ("geometry", "physics"):
+                out.append(f"{cause.label}: not physics as fitted: {v.text}")
+    return out
 
 
 def _solve_robust(problem: CalibrationProblem, x: np.ndarray, solver: str, opts: dict, estimate_scale: bool):

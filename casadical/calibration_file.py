@@ -21,6 +21,10 @@ from .terms import ErrorTerm, SessionLocal
 from .robot import Robot, robot_from_dict
 
 STATS_KEYS = ("n_poses", "mean_mm", "max_mm", "std_mm", "rms_mm")
+#: largest count of equations or parameters a file may give (beyond, no float holds it exactly)
+MAX_COUNT = 2 ** 53
+#: keys of ``statistics`` (the fit's size, noise and information criteria)
+FIT_KEYS = ("n_equations", "n_parameters", "dof", "sigma_mm", "log_likelihood", "aic", "bic", "level", "t_critical")
 #: term settings that may be zero or negative (all other numeric settings must be positive)
 SIGNED_SETTINGS = {"t_ref"}
 
@@ -69,6 +73,8 @@ def validate_calibration_document(doc: Any, path: str) -> None:
                       doc["model"], err)
     _check_base0(doc["base0"], err)
     _check_stats(doc.get("calibration"), err)
+    _check_fit_statistics(doc.get("statistics"), err)
+    _check_validation(doc.get("validation"), err)
     _check_robust(doc.get("robust"), err)
     _check_coverage(doc.get("coverage"), err)
     _check_sessions(doc.get("sessions"), err)
@@ -171,6 +177,7 @@ def _check_parameters(entries: Any, names: list[str], spec: str, err) -> None:
             raise err(f"{at}.identifiable", f"must be true, false or null, got {e['identifiable']!r}")
         if "reason" in e and not isinstance(e["reason"], str):
             raise err(f"{at}.reason", f"must be a string, got {_kind(e['reason'])}")
+        _check_test(e, at, name, err)
     missing = [n for n in names if n not in seen]
     if missing:
         raise err("parameters", f"has {len(seen)} of the {len(names)} parameters of model {spec}; missing "
@@ -186,21 +193,71 @@ def _check_base0(base0: Any, err) -> None:
         raise err("base0", "its first 9 numbers are not a rotation matrix (row-major)")
 
 
-def _check_stats(stats: Any, err) -> None:
+def _check_stats(stats: Any, err, key: str = "calibration", extra: tuple[str, ...] = ()) -> None:
     if stats is None:
         return
+    known = extra + STATS_KEYS
     if not isinstance(stats, dict):
-        raise err("calibration", f"must be an object ({', '.join(STATS_KEYS)}) or null, got {_kind(stats)}")
+        raise err(key, f"must be an object ({', '.join(known)}) or null, got {_kind(stats)}")
     for k in stats:
-        if k not in STATS_KEYS:
-            raise err(f"calibration.{k}", f"unknown key (known: {', '.join(STATS_KEYS)})")
+        if k not in known:
+            raise err(f"{key}.{k}", f"unknown key (known: {', '.join(known)})")
     for k in STATS_KEYS:
         v = stats.get(k)
         ok = (isinstance(v, int) and not isinstance(v, bool) and v >= 0) if k == "n_poses" \
             else (finite_number(v) and v >= 0)
         if not ok:
-            raise err(f"calibration.{k}", f"must be a {'whole' if k == 'n_poses' else 'finite'} number >= 0, "
-                                          f"got {v!r}")
+            raise err(f"{key}.{k}", f"must be a {'whole' if k == 'n_poses' else 'finite'} number >= 0, "
+                                    f"got {v!r}")
+
+
+def _check_validation(validation: Any, err) -> None:
+    """Errors on held-out poses (``calibrate --validate``): the file and the error statistics."""
+    _check_stats(validation, err, "validation", ("file",))
+    if validation is not None and not isinstance(validation.get("file", ""), str):
+        raise err("validation.file", f"must be a string (the validation file), got {_kind(validation['file'])}")
+
+
+def _check_fit_statistics(stats: Any, err) -> None:
+    """The fit's size, noise and information criteria (files before them have none; null for a fitted network)."""
+    if stats is None:
+        return
+    if not isinstance(stats, dict):
+        raise err("statistics", f"must be an object ({', '.join(FIT_KEYS)}) or null, got {_kind(stats)}")
+    for k in stats:
+        if k not in FIT_KEYS:
+            raise err(f"statistics.{k}", f"unknown key (known: {', '.join(FIT_KEYS)})")
+    for k in FIT_KEYS:
+        if k not in stats:
+            raise err(f"statistics.{k}", "missing key")
+        v = stats[k]
+        if k in ("n_equations", "n_parameters", "dof"):
+            low = 1 if k != "n_parameters" else 0
+            if not (isinstance(v, int) and not isinstance(v, bool) and low <= v <= MAX_COUNT):
+                raise err(f"statistics.{k}", f"must be a whole number from {low} to {MAX_COUNT:.0e}, got {v!r}")
+        elif not finite_number(v):
+            raise err(f"statistics.{k}", f"must be a finite number, got {v!r}")
+        elif k in ("sigma_mm", "t_critical") and not 0 < v < 1e6 or k == "level" and not 0 < v < 1:
+            raise err(f"statistics.{k}", f"must be {'in (0, 1)' if k == 'level' else 'in (0, 1e6)'}, got {v!r}")
+    if stats["dof"] != stats["n_equations"] - stats["n_parameters"]:
+        raise err("statistics.dof", f"must be n_equations - n_parameters = "
+                                    f"{stats['n_equations'] - stats['n_parameters']}, got {stats['dof']!r}")
+
+
+def _check_test(e: dict, at: str, name: str, err) -> None:
+    """A parameter's t, p, significance, interval and relative std: each null or of its type."""
+    for k in ("t", "p", "relative_std"):
+        v = e.get(k)
+        if v is not None and not (finite_number(v) and (k == "t" or v >= 0) and (k != "p" or v <= 1)):
+            want = {"t": "a finite number", "p": "a number in [0, 1]", "relative_std": "a finite number >= 0"}[k]
+            raise err(f"{at}.{k}", f"{k} of {name} must be null or {want}, got {v!r}")
+    if e.get("significant") is not None and not isinstance(e["significant"], bool):
+        raise err(f"{at}.significant", f"must be true, false or null, got {e['significant']!r}")
+    ci = e.get("ci95")
+    if ci is not None and not (isinstance(ci, list) and len(ci) == 2
+                               and all(x is None or finite_number(x) for x in ci)):
+        raise err(f"{at}.ci95", f"confidence interval of {name} must be null or [low, high] (numbers or null), "
+                                f"got {ci!r}")
 
 
 def _check_robust(robust: Any, err) -> None:

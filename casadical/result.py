@@ -18,6 +18,7 @@ import numpy as np
 from . import __version__
 from .data import Measurements
 from .calibration_file import restored_terms, validate_calibration_document
+from .checks import check_calibration_fits, check_poses
 from .coverage import Coverage
 from .errors import CalibrationFileError, CasadicalError, InputError, listing
 from .files import atomic_write
@@ -27,6 +28,8 @@ from .model import Model, base0_to_pose
 from .parameters import Parameters
 from .problem import RobustLoss
 from .robot import robot_from_dict, robot_to_dict
+from .significance import (LEVEL, FitStatistics, ParameterTest, parameter_table, parameter_tests, stiffness_interval,
+                           t_critical)
 from .solvers import SolverResult
 from .uncertainty import Uncertainty
 
@@ -54,6 +57,29 @@ class ErrorStats:
     def line(self) -> str:
         return (f"mean {self.mean_mm:.4f}  max {self.max_mm:.4f}  std {self.std_mm:.4f}  "
                 f"rms {self.rms_mm:.4f} mm over {self.n_poses} poses")
+
+
+@dataclass
+class Validation:
+    """Errors of a calibration on held-out poses (:meth:`CalibrationResult.validate`).
+
+    Attributes
+    ----------
+    file : str
+        The validation poses' file.
+    stats : ErrorStats
+    """
+
+    file: str
+    stats: ErrorStats
+
+    def to_dict(self) -> dict:
+        """The calibration JSON's ``validation``: the file and its error statistics (mm)."""
+        return {"file": self.file, **self.stats.to_dict()}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Validation":
+        return cls(str(d.get("file", "")), ErrorStats(**{k: d[k] for k in ErrorStats.__dataclass_fields__}))
 
 
 @dataclass
@@ -85,6 +111,11 @@ class CalibrationResult:
     by_session : dict of str to ErrorStats
         Errors on the calibration poses of each session (calibrations of
         several sessions only).
+    statistics : FitStatistics or None
+        Size, noise, log-likelihood, AIC and BIC of the fit (None when the
+        model holds a fitted network, whose parameters are not counted).
+    validation : Validation or None
+        Errors on held-out poses, once :meth:`validate` has run.
     """
 
     model: Model
@@ -100,6 +131,8 @@ class CalibrationResult:
     downweighted: list[dict] = field(default_factory=list)
     coverage: Coverage | None = None
     by_session: dict = field(default_factory=dict)
+    statistics: FitStatistics | None = None
+    validation: Validation | None = None
 
     # --- using the model ------------------------------------------------------
 
@@ -173,6 +206,68 @@ class CalibrationResult:
             out[p.joint] = (k, sk)
         return out
 
+    # --- significance and held-out poses -------------------------------------
+
+    def significance(self, level: float = LEVEL) -> dict[str, ParameterTest]:
+        """Each free parameter tested against its nominal value: t, p, significance, interval, relative std.
+
+        Student's t with the fit's degrees of freedom (the normal
+        distribution when they are not known); see :mod:`casadical.significance`.
+        """
+        return parameter_tests(self.parameters, self._dof(), level)
+
+    def _dof(self) -> float:
+        """The fit's degrees of freedom (``inf`` when not known: tests on the normal distribution)."""
+        dof = self.statistics.dof if self.statistics is not None else \
+            self.uncertainty.dof if self.uncertainty is not None else math.inf
+        return dof if dof > 0 else math.inf
+
+    def stiffness_intervals(self, level: float = LEVEL) -> dict[int, tuple[float, float] | None]:
+        """Confidence interval of each stiffness k_j = 1/c_j (N m/rad) from its compliance's.
+
+        ``(1/c_hi, 1/c_lo)``; the upper end is ``inf`` when the compliance
+        interval reaches 0, and the interval None when it lies at or below 0
+        (or c_j has no usable standard error).
+        """
+        tests = self.significance(level)
+        return {j: stiffness_interval(tests[f"c{j}"].ci) if f"c{j}" in tests else None for j in self.stiffness()}
+
+    def validate(self, data: Measurements, *, name: str | None = None, allow_mismatch: bool = False,
+                 allow_outside_limits: bool = False, angles_are_degrees: bool = False,
+                 positions_are_mm: bool = False) -> ErrorStats:
+        """Errors on held-out poses, kept in :attr:`validation` (and written to the JSON).
+
+        The poses pass the plausibility checks of every command
+        (:func:`casadical.checks.check_poses`) and the check ``predict``
+        makes that they belong to this calibration (a mean error a hundred
+        times its own: :func:`casadical.checks.check_calibration_fits`).
+
+        Parameters
+        ----------
+        data : Measurements
+            Poses with measured positions, never used in the fit.
+        name : str, optional
+            What the calibration is called in messages (its file).
+        allow_mismatch, allow_outside_limits, angles_are_degrees, positions_are_mm : bool
+            Overrides of those checks.
+
+        Raises
+        ------
+        DataFileError
+            Naming the validation file (and row and column) and the override.
+        """
+        if not data.has_positions:
+            raise InputError("has no measured positions (x_mm, y_mm, z_mm): validation poses need them",
+                             file=data.path)
+        xyz = self.predict(data)
+        check_poses(data, self.model.robot, predicted=xyz, allow_outside_limits=allow_outside_limits,
+                    angles_are_degrees=angles_are_degrees, positions_are_mm=positions_are_mm)
+        errors = np.linalg.norm(xyz - data.xyz, axis=1)
+        check_calibration_fits(errors, data, name or f"of {self.model.robot.name}",
+                               self.calibration.mean_mm if self.calibration else None, allow_mismatch)
+        self.validation = Validation(data.path, ErrorStats.of(errors))
+        return self.validation.stats
+
     # --- reports --------------------------------------------------------------
 
     def summary(self) -> str:
@@ -193,21 +288,29 @@ class CalibrationResult:
             lines.append(f"base in the measurement frame{f' of session {s}' if s else ''}: xyz ["
                          + ", ".join(f"{v * 1000:.3f}" for v in xyz)
                          + "] mm, rpy [" + ", ".join(f"{math.degrees(v):.4f}" for v in rpy) + "] deg")
-        lines += ["", "identified parameters (angles in deg, lengths in mm):",
-                  self.parameters.table(show_fixed=True)]
+        tests = self.significance()
+        lines += ["", "identified parameters (angles in deg, lengths in mm; t = deviation/std, significant at "
+                      f"{100 * LEVEL:g} % when |t| > {t_critical(LEVEL, self._dof()):.3g}; rel.std = std/|deviation|):",
+                  parameter_table(self.parameters, tests)]
         st = self.stiffness()
         if st:
             lines += ["", "joint stiffness k = 1/c:"]
+            intervals = self.stiffness_intervals()
             for j, (k, sk) in st.items():
                 if not math.isfinite(k):
                     lines.append(f"  k{j}: {_NOT_POSITIVE.format(j=j, c=self.parameters[f'c{j}'].value)}")
                     continue
-                lines.append(f"  k{j} = {k:.4e} N m/rad" + (f"  (std {sk:.2e})" if math.isfinite(sk) else ""))
+                lines.append(f"  k{j} = {k:.4e} N m/rad" + (f"  (std {sk:.2e})" if math.isfinite(sk) else "")
+                             + _stiffness_words(intervals.get(j), tests.get(f"c{j}")))
+        if self.statistics is not None:
+            lines += ["", self.statistics.line()]
         if self.calibration is not None:
             lines += ["", "calibration poses: " + self.calibration.line()]
         for s, st in self.by_session.items():
             tool = " (its own tool)" if s in self.model.term("sessions").tools else ""
             lines.append(f"  session {s}{tool}: " + st.line())
+        if self.validation is not None:
+            lines.append(f"validation poses ({self.validation.file}): " + self.validation.stats.line())
         if self.loss.robust:
             lines.append(f"robust loss: pseudo-Huber, noise scale {self.loss.sigma * 1000:.4f} mm per axis, "
                          f"linear beyond {self.loss.c:g} sigma; "
@@ -221,16 +324,20 @@ class CalibrationResult:
     def to_dict(self) -> dict:
         """The calibration JSON of INTERFACE.md section 4 (plus what rebuilds the model)."""
         params = []
+        tests = self.significance()
         for p in self.parameters:
             params.append({"name": p.name, "value": p.to_display(p.value),
                            "std": p.to_display(p.std) if math.isfinite(p.std) else None,
                            "identifiable": bool(p.identifiable) if p.identifiable is not None else not p.fixed,
                            "unit": p.display_unit, "nominal": p.to_display(p.nominal), "fixed": p.fixed,
-                           "reason": p.reason, "term": p.term, "joint": p.joint})
+                           "reason": p.reason, "term": p.term, "joint": p.joint,
+                           **_test_entry(tests.get(p.name), p.to_display)})
+        intervals = self.stiffness_intervals()
         for j, (k, sk) in self.stiffness().items():
             entry = {"name": f"k{j}", "value": k if math.isfinite(k) else None,
                      "std": sk if math.isfinite(sk) else None,
-                     "identifiable": True, "unit": "N*m/rad", "derived": f"1/c{j}", "joint": j}
+                     "identifiable": True, "unit": "N*m/rad", "derived": f"1/c{j}", "joint": j,
+                     **_test_entry(tests.get(f"c{j}"), None, intervals.get(j))}
             if not math.isfinite(k):
                 entry["reason"] = _NOT_POSITIVE.format(j=j, c=self.parameters[f"c{j}"].value)
             params.append(entry)
@@ -270,6 +377,9 @@ class CalibrationResult:
             doc["uncertainty"] = {"sigma_mm": self.uncertainty.sigma * 1000, "dof": self.uncertainty.dof,
                                   "names": self.uncertainty.names,
                                   "correlation": np.round(self.uncertainty.correlation, 6).tolist()}
+        doc["statistics"] = self.statistics.to_dict() if self.statistics is not None else None
+        if self.validation is not None:
+            doc["validation"] = self.validation.to_dict()
         return doc
 
     def save(self, path: str | Path, overwrite: bool = False) -> None:
@@ -279,6 +389,34 @@ class CalibrationResult:
 
 _NOT_POSITIVE = ("no positive stiffness: compliance c{j} = {c:.3g} rad/(N*m) is not above 0, the joint is "
                  "stiffer than these poses and loads can tell")
+
+
+def _test_entry(test: ParameterTest | None, display, interval: tuple[float, float] | None = None) -> dict:
+    """A parameter entry's t, p, significance, interval (display units) and relative std; nulls if not tested.
+
+    ``display`` converts SI to display units; None for a derived stiffness,
+    whose ``interval`` is given (its compliance's test says the rest).
+    """
+    if test is None:
+        return {"t": None, "p": None, "significant": None, "ci95": None, "relative_std": None}
+    if display is not None:
+        interval = (display(test.ci[0]), display(test.ci[1]))
+    ci = None if interval is None else [v if math.isfinite(v) else None for v in interval]
+    return {"t": test.t, "p": test.p, "significant": test.significant, "ci95": ci,
+            "relative_std": test.relative_std if math.isfinite(test.relative_std) else None}
+
+
+def _stiffness_words(interval: tuple[float, float] | None, test: ParameterTest | None) -> str:
+    """The summary's interval and significance of a stiffness (from its compliance's)."""
+    if test is None:
+        return ""
+    level = f"{100 * test.level:g} %"
+    if interval is None:
+        where = f", {level} interval: none positive"
+    else:
+        hi = f"{interval[1]:.3g}" if math.isfinite(interval[1]) else "unbounded (c's interval reaches 0)"
+        where = f", {level} interval {interval[0]:.3g} .. {hi}"
+    return where + ("" if test.significant else f"; not significant (t = {test.t:.2f})")
 
 
 def _json_default(o):
@@ -315,6 +453,7 @@ def load_calibration(path: str | Path) -> CalibrationResult:
         loss = RobustLoss("huber", float(rob.get("c", 3.0)), float(rob["sigma_mm"]) / 1000) \
             if rob.get("loss", "none") != "none" else RobustLoss()
         coverage = Coverage.from_dict(doc["coverage"]) if doc.get("coverage") else None
+        extra = _statistics_of(doc)
     except (KeyError, TypeError, ValueError, CasadicalError) as e:
         raise CalibrationFileError(f"not a calibration JSON written by casadical ({e})", file=path) from e
     model.parameters = params
@@ -322,4 +461,26 @@ def load_calibration(path: str | Path) -> CalibrationResult:
     by_session = {e["name"]: ErrorStats(**e["calibration"]) for e in doc.get("sessions") or [] if e.get("calibration")}
     return CalibrationResult(model, params, base0, calibration=ErrorStats(**cal) if cal else None,
                              notes=doc.get("notes", []), loss=loss, downweighted=rob.get("downweighted", []),
-                             coverage=coverage, by_session=by_session)
+                             coverage=coverage, by_session=by_session, **extra)
+
+
+def _statistics_of(doc: dict) -> dict:
+    """The fit statistics and validation of a calibration JSON.
+
+    Files written before ``statistics`` existed have the same numbers in
+    ``uncertainty`` (residual sigma, degrees of freedom, free parameters):
+    taken from there, so their parameters are tested with the fit's degrees
+    of freedom too. ``statistics: null`` (a model with a fitted network) stays None.
+    """
+    stats, val = doc.get("statistics"), doc.get("validation")
+    if "statistics" not in doc:
+        unc = doc.get("uncertainty")
+        try:
+            dof, names, sigma = int(unc["dof"]), list(unc["names"]), float(unc["sigma_mm"])
+            if 0 < dof < 2 ** 53 and 0 < sigma < 1e6:
+                stats = {"n_equations": dof + len(names), "n_parameters": len(names), "sigma_mm": sigma}
+        except (KeyError, TypeError, ValueError, OverflowError):
+            pass        # nothing usable: the tests fall back on the normal distribution
+    return {"statistics": FitStatistics.from_dict(stats) if stats else None,
+            "validation": Validation.from_dict(val) if val else None}
+

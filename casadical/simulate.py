@@ -19,8 +19,9 @@ from .data import Measurements
 from .errors import InputError
 from .files import finite_number, named_toml, read_toml
 from .kinematics import base_pose_matrix
+from .loading import load_robot
 from .model import Model, pose_to_base0
-from .robot import PROBLEMS, Robot, _Validator, load_robot
+from .robot import PROBLEMS, Robot, _Validator
 from .terms import make_term
 
 

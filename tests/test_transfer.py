@@ -75,6 +75,8 @@ def test_cli_transfer_and_rbf_compensator(tmp_path, capsys):
                  "--out", str(out), "--solver", "lm"]) == 0
     doc = json.loads(out.read_text())
     assert doc["model"] == "kinematic+rbf_compensator" and doc["terms"]["rbf_compensator"]["network"]
+    # the network's weights are not counted: no AIC or BIC (null, not a misleading number)
+    assert doc["statistics"] is None and "AIC" not in capsys.readouterr().out
     with_rbf = load_calibration(out)
     plain = calibrate(robot, cal, "kinematic", "lm", warn=False)
     assert with_rbf.stats(val).mean_mm < 0.85 * plain.stats(val).mean_mm

@@ -41,8 +41,11 @@ def register(sub) -> None:
     p.add_argument("--session-tool", action="store_true",
                    help="with several sessions: each session after the first has its own tool offset too (the "
                         "probe was re-mounted between them)")
+    p.add_argument("--validate", metavar="VAL.csv",
+                   help="held-out poses, never fitted: their errors (mean, max, rms mm) are printed, written to "
+                        "CAL.json ('validation') and shown in the HTML report")
     add_row_spacing(p)
-    add_checks(p)
+    add_checks(p, mismatch=True)
     add_urdf_chain(p)
     add_force(p)
     p.set_defaults(func=run)
@@ -50,16 +53,23 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from ..calibration import CalibrationResult, calibrate
+    from ..data import Measurements
     from ..sessions import read_sessions
 
-    check_outputs({"--out": args.out, "--html": args.html}, [args.robot, *args.data], args.force)
+    check_outputs({"--out": args.out, "--html": args.html}, [args.robot, *args.data, args.validate], args.force)
     robot = robot_or_calibration(args.robot, args)
     n = robot.model.robot.n if isinstance(robot, CalibrationResult) else robot.n
     data = timed(read_sessions(args.data, n_joints=n, require_positions=True), args)
+    # read before the fit: a malformed file stops the command before the work
+    val = timed(Measurements.read_csv(args.validate, n_joints=n, require_positions=True), args) \
+        if args.validate else None
     opts = {"max_iter": args.max_iter} if args.max_iter else {}
     result = calibrate(robot, data, args.model, args.solver, solver_options=opts,
                        fix=tuple(f.strip() for f in args.fix.split(",") if f.strip()), robust=args.robust,
                        session_tools=args.session_tool, **check_options(args))
+    if val is not None:     # the checks predict makes, then the held-out errors, before anything is written
+        result.validate(val, name=f"fitted to {' '.join(args.data)}", allow_mismatch=args.allow_mismatch,
+                        **check_options(args))
     result.save(args.out, overwrite=args.force)
     print(result.summary())
     print(f"\ncalibration -> {args.out}")
@@ -70,6 +80,7 @@ def run(args) -> int:
         if isinstance(robot, CalibrationResult):    # the calibration taken further: the error it starts from
             before = calibrate(robot, data, "base", "lm", warn=False, robust=args.robust)
             label = f"{args.robot} with its base pose re-estimated"
-        write_text(args.html, calibration_html(result, data, before, label, processes=evaluation_threads()), args.force)
+        write_text(args.html, calibration_html(result, data, before, label, processes=evaluation_threads(),
+                                               validation=val), args.force)
         print(f"html report -> {args.html}")
     return 0

@@ -213,7 +213,7 @@ def _triple(text: str) -> tuple[float, float, float]:
 
 def robot_from_args(spec: str, args):
     """The robot ``spec`` names (built-in, TOML or URDF), with the chain options of :func:`add_urdf_chain`."""
-    from ..robot import load_robot
+    from ..loading import load_robot
 
     return load_robot(spec, tip=args.urdf_tip, base=args.urdf_base, tool=args.urdf_tool)
 
