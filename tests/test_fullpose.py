@@ -217,3 +217,56 @@ def test_tool_orientation_without_orientation_data_is_an_error():
     assert res.model.spec == "kinematic+tool_orientation"
     with pytest.raises(InputError, match="and no --position-only"):
         calibrate(robot, full, "kinematic+tool_orientation", "lm", warn=False, position_only=True)
+
+
+def test_compensate_holds_the_targets_probe_orientation():
+    """Targets that are full poses the calibrated model reaches at known joints: compensate finds those joints."""
+    from casadical import load_robot
+    from casadical.inverse import compensate
+    robot = load_robot("ur10")
+    eff = Effects(noise=20e-6, orientation_noise=math.radians(0.005), tool_rpy=(0.0, 0.0, -1.5708))
+    data, truth = simulate(robot, 80, eff, seed=1)
+    cal = calibrate(robot, data, "kinematic", "lm", warn=False)
+    prog, _ = simulate(robot, 10, truth=truth, seed=2)
+    q_true = prog.q + np.radians(np.random.default_rng(3).normal(0, 0.3, prog.q.shape))
+    want = Measurements.from_arrays(q_true)
+    targets = Measurements.from_arrays(prog.q, cal.predict(want)).with_orientations(cal.predict_rotations(want))
+    res = compensate(cal, targets)
+    assert res.probe and "probe orientation of the targets" in res.held and "probe orientation held" in res.summary()
+    assert np.degrees(np.abs(res.q - q_true)).max() < 1e-6
+    # the nominal flange orientation instead: other joints (that orientation is not the targets')
+    alone = compensate(cal, targets, orientation=False)
+    assert not alone.probe and np.degrees(np.abs(alone.q - q_true)).max() > 0.01
+    # a position-only calibration has no probe mounting to hold the targets' orientation with
+    flat = calibrate(robot, data, "kinematic", "lm", warn=False, position_only=True)
+    with pytest.raises(InputError, match="column 'rx_deg': holds the probe orientation.*--position-only"):
+        compensate(flat, targets)
+    assert compensate(flat, targets, orientation=False).converged.all()
+
+
+def test_cli_full_pose_calibrate_predict_and_position_only(tmp_path, capsys):
+    from casadical.cli import main
+    robot = robot_from_dict(ARM7, "arm")
+    data, truth = simulate(robot, 60, EFFECTS, seed=4, floor_z=-10.0)
+    val, _ = simulate(robot, 20, truth=truth, seed=40, floor_z=-10.0)
+    (tmp_path / "arm.toml").write_text(__import__("arms").to_toml(ARM7))
+    data.write_csv(tmp_path / "cal.csv")
+    val.write_csv(tmp_path / "val.csv")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["calibrate", str(tmp_path / "arm.toml"), str(tmp_path / "cal.csv"), "--model", "kinematic",
+                     "--solver", "lm", "--out", str(tmp_path / "full.json")]) == 0
+        out = capsys.readouterr().out
+        assert "model kinematic+tool_orientation" in out and "full pose: positions and orientations" in out
+        assert main(["predict", str(tmp_path / "full.json"), str(tmp_path / "val.csv"), "--out",
+                     str(tmp_path / "pred.csv")]) == 0
+        assert "error against the measured orientations: mean" in capsys.readouterr().out
+        pred = Measurements.read_csv(tmp_path / "pred.csv", n_joints=7)
+        assert "measured_rx_deg" in pred.columns
+        e = Rotation.from_matrix(np.einsum("nji,njk->nik", pred.rotations, truth.predict_rotations(val))).magnitude()
+        assert np.degrees(e).max() < 0.01
+        assert main(["calibrate", str(tmp_path / "arm.toml"), str(tmp_path / "cal.csv"), "--model", "kinematic",
+                     "--solver", "lm", "--position-only", "--out", str(tmp_path / "pos.json")]) == 0
+        out = capsys.readouterr().out
+        assert "model kinematic\n" in out and "full pose" not in out and "orientation:" not in out
+        assert "orientation" not in json.loads((tmp_path / "pos.json").read_text())

@@ -13,7 +13,10 @@ def register(sub) -> None:
                                    "Writes CAL.json and prints a summary. With a calibration JSON in place of "
                                    "ROBOT, only what MODEL names is estimated again (base: the base pose "
                                    "alone; kinematic: the geometry) and every other value is kept: how a "
-                                   "calibration is taken to a new measurement series or tracker set-up.")
+                                   "calibration is taken to a new measurement series or tracker set-up. Data with "
+                                   "a measured orientation (rx_deg, ry_deg, rz_deg) are calibrated on the full "
+                                   "pose (unless --position-only): the probe's mounting on the flange is estimated "
+                                   "too.")
     p.add_argument("robot", metavar="ROBOT",
                    help="built-in robot, robot TOML or URDF file, or a calibration JSON to take further")
     p.add_argument("data", metavar="DATA.csv", help="measured poses (q1_deg, ..., x_mm, y_mm, z_mm)")
@@ -34,6 +37,10 @@ def register(sub) -> None:
                    help="loss: huber (pseudo-Huber with the noise scale from the data: bad measurements are "
                         "down-weighted and reported) or none (plain least squares); default %(default)s")
     p.add_argument("--fix", default="", help="comma-separated parameters to hold at nominal (default: none)")
+    p.add_argument("--position-only", action="store_true",
+                   help="calibrate on the measured positions alone; without it, data with a measured orientation "
+                        "(rx_deg, ry_deg, rz_deg) are calibrated on the full pose, position and orientation "
+                        "weighted by their noise scales from the data")
     add_checks(p)
     add_urdf_chain(p)
     add_force(p)
@@ -51,7 +58,7 @@ def run(args) -> int:
     opts = {"max_iter": args.max_iter} if args.max_iter else {}
     result = calibrate(robot, data, args.model, args.solver, solver_options=opts,
                        fix=tuple(f.strip() for f in args.fix.split(",") if f.strip()), robust=args.robust,
-                       **check_options(args))
+                       position_only=args.position_only, **check_options(args))
     result.save(args.out, overwrite=args.force)
     print(result.summary())
     print(f"\ncalibration -> {args.out}")
@@ -60,7 +67,8 @@ def run(args) -> int:
         from ..threads import evaluation_threads
         before, label = None, "nominal model, base pose fitted"
         if isinstance(robot, CalibrationResult):    # the calibration taken further: the error it starts from
-            before = calibrate(robot, data, "base", "lm", warn=False, robust=args.robust)
+            before = calibrate(robot, data, "base", "lm", warn=False, robust=args.robust,
+                               position_only=args.position_only)
             label = f"{args.robot} with its base pose re-estimated"
         write_text(args.html, calibration_html(result, data, before, label, processes=evaluation_threads()), args.force)
         print(f"html report -> {args.html}")
