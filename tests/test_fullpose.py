@@ -270,3 +270,25 @@ def test_cli_full_pose_calibrate_predict_and_position_only(tmp_path, capsys):
         out = capsys.readouterr().out
         assert "model kinematic\n" in out and "full pose" not in out and "orientation:" not in out
         assert "orientation" not in json.loads((tmp_path / "pos.json").read_text())
+
+
+def test_diagnosis_fits_the_full_pose_and_reports_orientation():
+    """A compliant joint hidden in full-pose data: found with the full-pose loss; every full fit reports its
+    orientation error on the validation poses; --position-only is the diagnosis as it was."""
+    from casadical import load_robot
+    from casadical.diagnosis import DiagnosisSettings, diagnose
+    robot = load_robot("ys100")
+    eff = Effects(stiffness={3: 1.2e6}, orientation_noise=math.radians(0.003), tool_rpy=(0.2, -0.3, 1.0))
+    cal, truth = simulate(robot, 80, eff, seed=1)
+    val, _ = simulate(robot, 200, truth=truth, seed=501)
+    rep = diagnose(robot, cal, val, DiagnosisSettings(seed=1, blackbox=False))
+    assert [(f.cause, f.candidate.joint) for f in rep.findings] == [("geometric", None), ("joint_compliance", 3)]
+    assert rep.final.full_pose and rep.final.has_orientation
+    full = [s for s in rep.steps if s.accepted]
+    assert all(s.orientation is not None for s in full) and full[-1].orientation.mean_deg < 0.01
+    doc = rep.to_dict()
+    assert "orientation" in doc["final"] and "orientation" in doc["steps"][0]
+    assert "val deg" in rep.text() and any(n.startswith("full pose:") for n in rep.notes)
+    flat = diagnose(robot, cal, val, DiagnosisSettings(seed=1, blackbox=False, position_only=True))
+    assert not flat.final.has_orientation and "orientation" not in flat.to_dict()["final"]
+    assert "val deg" not in flat.text()
