@@ -20,7 +20,8 @@ def register(sub) -> None:
                                    "Robots with 6 joints or more keep the flange orientation the nominal model "
                                    "has at the programmed joints, or, when TARGETS.csv has rx_deg, ry_deg, rz_deg "
                                    "and CAL.json is a full-pose calibration, put the probe in that orientation "
-                                   "(measurement frame); the remaining freedom takes the least joint change. JOINTS.csv holds the input columns with corrected q*_deg, plus "
+                                   "(measurement frame); the remaining freedom takes the least joint change. "
+                                   "JOINTS.csv holds the input columns with corrected q*_deg, plus "
                                    "programmed_q*_deg, dq*_deg, residual_mm (and orientation_error_deg). "
                                    "A row that is not reached or needs a joint beyond its limit is an error; "
                                    "nothing is written then.")
