@@ -12,6 +12,12 @@ Inputs of every model function, per pose:
 - ``base0``: the reference base pose, 12 numbers (rotation row-major, then
   translation, metres); the ``base_*`` parameters are small deviations from
   it, so a tracker metres away at any rotation is no difficulty.
+
+A full-pose model (term ``tool_orientation``, :attr:`Model.orientation`)
+also gives the probe's rotation, from the same base composition as the
+point; its ``pose_*`` Functions take the measured rotation ``Rm`` (9
+numbers, row-major) after these, already turned by the reference mounting
+R0 that the calibration keeps, so no Function depends on R0.
 """
 
 from __future__ import annotations
