@@ -41,7 +41,7 @@ from .identifiability import Identifiability, analyse, triangular_factor
 from .model import Model, parse_spec, pose_to_base0, spec_of
 from .parameters import Parameters
 from .problem import ROT_WEIGHT_PRIOR, CalibrationProblem, RobustLoss, jacobian_factor, pose_chunks
-from .result import AngleStats, CalibrationResult, ErrorStats, load_calibration, restore_term
+from .result import CalibrationResult, ErrorStats, load_calibration, restore_term
 from .robot import Robot
 from .simulate import sample_poses
 from .solvers import Ipopt, make_solver
