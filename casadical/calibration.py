@@ -15,6 +15,12 @@ measurement series), ``kinematic+compliance`` the geometry and compliances.
 The parameters minimise a robust loss by default (pseudo-Huber, noise scale
 from the data, :class:`casadical.problem.RobustLoss`): a bad tracker shot is
 down-weighted and reported by its file line instead of pulling the model.
+
+Data with a measured orientation (``rx_deg, ry_deg, rz_deg``: a 6-DoF probe)
+are calibrated on the full pose unless ``position_only``: the model gains
+the probe's mounting rotation (term ``tool_orientation``, always estimated
+like the base pose) and each pose's loss takes its position and orientation
+residuals weighted by their noise scales, both estimated from the data.
 """
 
 from __future__ import annotations
@@ -34,7 +40,7 @@ from .errors import (CasadicalWarning, ConvergenceWarning, IdentifiabilityError,
 from .identifiability import Identifiability, analyse, triangular_factor
 from .model import Model, parse_spec, pose_to_base0, spec_of
 from .parameters import Parameters
-from .problem import CalibrationProblem, RobustLoss, jacobian_factor, pose_chunks
+from .problem import ROT_WEIGHT_PRIOR, CalibrationProblem, RobustLoss, jacobian_factor, pose_chunks
 from .calibration_file import restore_term
 from .result import CalibrationResult, ErrorStats, load_calibration
 from .robot import Robot
@@ -46,6 +52,7 @@ from .solvers import Ipopt, make_solver
 from .terms import ErrorTerm, ReferencedTerm, SessionLocal, make_term
 from .threads import limited_threads
 from .terms.rbf_compensator import RBFCompensator, features
+from .terms.tool_orientation import ToolOrientation
 from .uncertainty import from_normal, warn_problems
 
 __all__ = ["CalibrationResult", "ErrorStats", "calibrate", "load_calibration"]
@@ -58,19 +65,25 @@ ROBUST_LOOPS = 6
 _GENERIC: dict = {}
 
 
-def _generic_identifiable(model: Model, params: Parameters, cov: np.ndarray, seed: int = 0) -> list[str]:
+def _generic_identifiable(model: Model, params: Parameters, cov: np.ndarray, seed: int = 0,
+                          full_pose: bool = False) -> list[str]:
     """Parameters identifiable from many random poses (what a good pose set could reach).
 
     Cached per robot, model and free set: diagnosis and comparisons calibrate
-    the same structure many times.
+    the same structure many times. ``full_pose``: with the orientation rows.
     """
     varies = tuple(bool(np.ptp(cov[:, k]) > 0) for k in range(cov.shape[1]))
-    key = (id(model.robot), model.spec, tuple(params.free), varies)
+    key = (id(model.robot), model.spec, tuple(params.free), varies) + ((True,) if full_pose else ())
     if key not in _GENERIC:
         rng = np.random.default_rng(seed)
         q = sample_poses(model.robot, 200, rng, floor_z=None)
         c = cov[rng.integers(len(cov), size=len(q))]
-        _, J = model.predict_jacobian(q, params.nominal, c)
+        if full_pose:   # measured = predicted orientation: the rows of the orientation residual at zero
+            P = model.probe_rotation(q, params.nominal, c)
+            _, J, _, Jo = model.pose_jacobian(q, P, params.nominal, c)
+            J = np.concatenate([J, ROT_WEIGHT_PRIOR * Jo], axis=1)
+        else:
+            _, J = model.predict_jacobian(q, params.nominal, c)
         if len(_GENERIC) > 256:
             _GENERIC.clear()
         _GENERIC[key] = (model.robot, analyse(J, params).identifiable)  # robot kept: its id stays unique
@@ -183,9 +196,9 @@ def _named_free(params: Parameters, named: set[str], new_params: set[str]) -> li
 def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str | Model = "kinematic+compliance",
               solver: str = "ipopt", *, solver_options: dict | None = None, fix: tuple[str, ...] = (),
               start: dict[str, float] | None = None, check_identifiability: bool = True,
-              warn: bool = True, robust: str | RobustLoss = "huber", allow_outside_limits: bool = False,
-              angles_are_degrees: bool = False, positions_are_mm: bool = False,
-              session_tools: bool | list[str] = False) -> CalibrationResult:
+              warn: bool = True, robust: str | RobustLoss = "huber", position_only: bool = False,
+              allow_outside_limits: bool = False, angles_are_degrees: bool = False,
+              positions_are_mm: bool = False, session_tools: bool | list[str] = False) -> CalibrationResult:
     """Identify the parameters of ``model`` from measured poses.
 
     Parameters
@@ -197,7 +210,9 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         the base pose alone; ``kinematic``: the geometry; terms the
         calibration lacks are added), every other value is kept.
     data : Measurements
-        Must contain measured positions.
+        Must contain measured positions. With measured orientations
+        (``rx_deg, ry_deg, rz_deg``) the calibration is on the full pose (see
+        ``position_only``).
     model : str or Model
         Specification such as ``"kinematic+compliance"`` or a built model.
         ``+rbf_compensator`` fits a Gaussian RBF network to what the model
@@ -219,7 +234,16 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     robust : {"huber", "none"} or RobustLoss
         The loss: pseudo-Huber on each pose's residual with the noise scale
         estimated from the data (default), or plain least squares. A
-        RobustLoss with its ``sigma`` set keeps that noise scale.
+        RobustLoss with its ``sigma`` set keeps that noise scale (for full
+        pose, with ``sigma_rot`` too).
+    position_only : bool
+        Calibrate on the positions alone even when the data have measured
+        orientations. Otherwise such data are calibrated on the full pose:
+        the model gains the probe's mounting rotation (``tool_roll,
+        tool_pitch, tool_yaw`` from a reference R0 found in closed form, both
+        always estimated like the base pose), and each pose's loss is the
+        pseudo-Huber of ``|r_p|^2 + k^2 |r_o|^2`` with ``k = sigma /
+        sigma_rot``, the two noise scales estimated from the data.
     allow_outside_limits, angles_are_degrees, positions_are_mm : bool
         Overrides of the plausibility checks of the poses
         (:func:`casadical.checks.check_poses`).
@@ -244,6 +268,9 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
                          file=data.path)
     loss = _loss(robust)
     notes: list[str] = []
+    full_pose = data.has_orientation and not position_only
+    if full_pose:
+        measured_rot = data.rotations   # all three columns, or an error naming the missing one
 
     # --- the model and the free set
     free_tool = False
@@ -253,6 +280,15 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         items = [i.strip() for i in model.split("+")]
         free_tool = "tool" in items   # base+tool: the tool offset is estimated too (a re-mounted probe)
         terms, built = parse_spec("+".join(i for i in items if i != "tool") or "nominal"), None
+    named_orientation = any(isinstance(t, ToolOrientation) for t in terms)
+    if named_orientation and not full_pose and prior is None:
+        raise InputError(f"model item tool_orientation needs measured orientations (rx_deg, ry_deg, rz_deg) "
+                         f"{'and no --position-only' if data.has_orientation else 'in the data'}", file=data.path)
+    if full_pose and not named_orientation:
+        # the probe's mounting rotation: what full-pose data add to any model
+        terms = list(terms) + [make_term("tool_orientation")]
+        if built is not None:
+            built = Model(robot, [t for t in terms if t.name != "geometric" or built.geometric_free], jit=built.jit)
     want_rbf = any(isinstance(t, RBFCompensator) and t.network is None for t in terms)
     terms = [t for t in terms if not (isinstance(t, RBFCompensator) and t.network is None)]
     if prior is not None:
@@ -268,6 +304,8 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
                          "calibration, not to the robot; name it in the model to estimate it for these poses")
             if warn:
                 warnings.warn(notes[-1], CasadicalWarning, stacklevel=2)
+        if full_pose:   # the probe's mounting is estimated again, like the base pose
+            named.add("tool_orientation")
         geometric = prior.model.geometric_free or "geometric" in named
         session = [t for t in merged if t.session]     # named again: estimated for these poses, from zero
         set_references(session, data)
@@ -318,20 +356,35 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
                 positions_are_mm=positions_are_mm, predicted=start_xyz)
     base0 = align_sessions(model, data, start_xyz, xyz)
     cov = model.covariates(data)
+    # --- full pose: the probe's reference mounting R0 in closed form too, at the aligned base
+    tool0, rot = (prior.tool0 if prior is not None else None), None
+    if full_pose:
+        mount = [params[f"tool_{k}"] for k in ("roll", "pitch", "yaw")]
+        if all(not p.fixed for p in mount):
+            for p in mount:
+                p.value = 0.0
+        if tool0 is None or any(not p.fixed for p in mount):
+            tool0 = mean_mounting(model.probe_rotation(q, params.values, cov, base0), measured_rot)
+        rot = measured_rot @ tool0.T
 
     # --- identifiability
     ident = None
+    per_pose = 6 if full_pose else 3
     if check_identifiability:
-        generic = _generic_identifiable(model, params, cov)
+        generic = _generic_identifiable(model, params, cov, full_pose=full_pose)
         needed = len(generic)
-        if 3 * len(q) <= needed:
+        if per_pose * len(q) <= needed:
             raise IdentifiabilityError(
-                f"{len(q)} poses give {3 * len(q)} equations for the {needed} identifiable parameters of "
-                f"model {model.spec}: at least {needed // 3 + 1} poses are needed, and 3-5 times that for a "
-                "reliable fit")
+                f"{len(q)} poses give {per_pose * len(q)} equations for the {needed} identifiable parameters of "
+                f"model {model.spec}: at least {needed // per_pose + 1} poses are needed, and 3-5 times that for "
+                "a reliable fit")
         # structural question, at nominal values: at a perturbed start exact redundancies only look near-exact
-        R = jacobian_factor(model, q, params.nominal, cov, base0)
-        ident = analyse(R, params, n_equations=3 * len(q))
+        nominal = params.nominal
+        if full_pose:   # the mounting's deviations have no nominal: at the reference R0
+            for k in ("roll", "pitch", "yaw"):
+                nominal[params.index(f"tool_{k}")] = params[f"tool_{k}"].value
+        R = jacobian_factor(model, q, nominal, cov, base0, rot)
+        ident = analyse(R, params, n_equations=per_pose * len(q))
         lost = [u for u in ident.unidentifiable if u.name in generic]
         if lost:
             names = ", ".join(f"{u.name} ({u.reason})" for u in lost[:6])
@@ -345,14 +398,16 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
                 u.reason = "structurally " + u.reason if not u.reason.startswith("has no") else u.reason
         ident.apply(params)
 
-    problem = CalibrationProblem(model, params, q, xyz, cov, base0, loss)
+    problem = CalibrationProblem(model, params, q, xyz, cov, base0, loss, rot)
     if len(problem.free) == 0:
         raise IdentifiabilityError("no free parameter left to identify")
 
-    # --- solve; with the robust loss, re-estimate the noise scale until it settles
+    # --- solve; with the robust loss, re-estimate the noise scale until it settles (full pose: both scales,
+    # for the weighting, with either loss)
     opts = solver_options or {}
-    res, name = _solve_robust(problem, problem.x_from_values(params.values), solver, opts,
-                              loss.robust and not math.isfinite(loss.sigma))
+    estimate = (not (math.isfinite(loss.sigma) and math.isfinite(loss.sigma_rot)) if full_pose
+                else loss.robust and not math.isfinite(loss.sigma))
+    res, name = _solve_robust(problem, problem.x_from_values(params.values), solver, opts, estimate)
     expected: frozenset = frozenset()    # correlations said in a note, not warned about again
     if ident is not None and np.isfinite(res.cost):
         # a combination of other parameters in the nominal model that the fitted terms tell apart (the tilt
@@ -365,12 +420,13 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
             expected = frozenset(frozenset((n, c)) for n, cs in partners.items() for c in cs)
             params.values = values
             ident.free(list(partners), params)
+            fitted = [t.spec() for t in model.terms[1:] if not isinstance(t, ToolOrientation)]
             notes.append(f"{', '.join(partners)}: a combination of other parameters in the nominal model, but "
-                         f"the fitted terms ({', '.join(t.spec() for t in model.terms[1:])}) tell them apart on "
+                         f"the fitted terms ({', '.join(fitted)}) tell them apart on "
                          "these poses (std below a tenth of the typical size): identified; they stay strongly "
                          f"correlated with {', '.join(sorted({c for cs in partners.values() for c in cs}))}")
             first = res
-            problem = CalibrationProblem(model, params, q, xyz, cov, base0, problem.loss)
+            problem = CalibrationProblem(model, params, q, xyz, cov, base0, problem.loss, rot)
             res, name = _solve_robust(problem, problem.x_from_values(params.values), solver, opts, False)
             res.solve_time_s += first.solve_time_s
             res.setup_time_s += first.setup_time_s
@@ -388,8 +444,9 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     # --- uncertainty, errors, the poses the loss set aside
     lin = problem.linearize(values)
     norms = np.linalg.norm(lin.r, axis=1)
-    unc = from_normal(lin.A, float(lin.weights @ norms ** 2), 3 * len(q), problem.scale,
-                      [params.names[i] for i in problem.free])
+    # full pose: the orientation rows count as equations, in position units (weighted by k)
+    unc = from_normal(lin.A, float(lin.weights @ (lin.u2 if full_pose else norms ** 2)), per_pose * len(q),
+                      problem.scale, [params.names[i] for i in problem.free])
     for n, s in zip(unc.names, unc.std):
         params[n].std = float(s)
     for i in np.flatnonzero(~params.free):
@@ -403,22 +460,29 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         notes += warn_not_significant(model, params, unc.dof)     # a term's parameters the poses do not determine
     down = []
     if loss.robust:
-        for i in np.argsort(-norms):
+        for i in np.argsort(-(lin.u2 if full_pose else norms)):
             if lin.weights[i] >= DOWNWEIGHT_REPORT:
                 break
             down.append({"line": int(data.lines[i]), "residual_mm": float(norms[i] * 1000),
                          "weight": float(lin.weights[i]), **({"file": data.file(i)} if data.sources is not None else {})})
+            if full_pose:
+                down[-1]["orientation_deg"] = math.degrees(float(np.linalg.norm(lin.r_rot[i])))
         if down:
+            scale = (f"{problem.loss.sigma * 1000:.4f} mm" if not full_pose else
+                     f"{problem.loss.sigma * 1000:.4f} mm and {math.degrees(problem.loss.sigma_rot):.4f} deg")
             notes.append(f"the robust loss set aside {len(down)} pose(s) of {data.path} whose residual exceeds "
                          f"{math.sqrt(DOWNWEIGHT_REPORT ** -2 - 1) * loss.c:.1f} times the noise scale of "
-                         f"{problem.loss.sigma * 1000:.4f} mm (lines "
+                         f"{scale} (lines "
                          + listing([f"{d['file']}:{d['line']}" if "file" in d else d["line"] for d in down], 10)
                          + "): likely bad measurements; check them, or pass --robust none to fit them anyway")
     by_session = {s: ErrorStats.of(norms[idx]) for s, idx in session_index(data).items()} \
         if len(data.session_names) > 1 else {}
     result = CalibrationResult(model, params, base0, res, name, ident, unc, ErrorStats.of(norms), notes,
-                               problem.loss, down, Coverage.of(data.q_deg), by_session,
-                               statistics=FitStatistics.of(unc))
+                               problem.loss, down, Coverage.of(data.q_deg), by_session=by_session,
+                               statistics=FitStatistics.of(unc), tool0=tool0 if model.orientation else None)
+    if result.has_orientation and data.has_orientation:
+        result.orientation = result.orientation_stats(data)
+    result.full_pose = full_pose
     for note in physics_notes(result, data):
         result.notes.append(note)
         if warn:
@@ -434,17 +498,35 @@ def physics_notes(result: CalibrationResult, data: Measurements) -> list[str]:
     have notes of their own)."""
     out = []
     for cause in term_causes(result):
-        for v in violations(result, data, cause.parameters):
+        free = [n for n in cause.parameters if not result.parameters[n].fixed]   # the fixed: said by the analysis
+        for v in violations(result, data, free) if free else ():
             if v.rule in ("geometry", "physics"):
                 out.append(f"{cause.label}: not physics as fitted: {v.text}")
     return out
+
+def mean_mounting(probe: np.ndarray, measured: np.ndarray) -> np.ndarray:
+    """The constant rotation ``M`` (3x3) minimising ``sum |probe_i M - measured_i|^2`` (Frobenius), closed form.
+
+    The chordal mean of ``probe_i^T measured_i``: their sum projected on the
+    rotations (SVD). Starts the probe's mounting rotation as :func:`align`
+    starts the base pose.
+    """
+    U, _, Vt = np.linalg.svd(np.einsum("nji,njk->ik", probe, measured))
+    return U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))]) @ Vt
 
 
 def _solve_robust(problem: CalibrationProblem, x: np.ndarray, solver: str, opts: dict, estimate_scale: bool):
     """Solve; with ``estimate_scale``, re-estimate the robust loss's noise scale until it settles."""
     res, name, solve_time, setup_time = None, "", 0.0, 0.0
     for _ in range(ROBUST_LOOPS if estimate_scale else 1):
-        if estimate_scale:
+        if estimate_scale and problem.full_pose:   # each kind's own robust scale: they weigh the two parts
+            rp, ro = problem.residual_norms(problem.values_from_x(x))
+            new = problem.loss.with_scales_from(rp, ro)
+            if res is not None and max(abs(new.sigma / problem.loss.sigma - 1),
+                                       abs(new.sigma_rot / problem.loss.sigma_rot - 1)) < 0.05:
+                break
+            problem.loss = new
+        elif estimate_scale:
             norms = np.linalg.norm(problem.residuals(problem.values_from_x(x)).reshape(-1, 3), axis=1)
             new = problem.loss.with_sigma_from(norms)
             if res is not None and abs(new.sigma / problem.loss.sigma - 1) < 0.05:
@@ -476,7 +558,7 @@ def separated(problem: CalibrationProblem, values: np.ndarray, ident: Identifiab
     """
     model, params = problem.model, problem.params
     cands = [u.name for u in ident.unidentifiable if u.confounded_with]
-    if not cands or all(t.name == "geometric" for t in model.terms):
+    if not cands or all(t.name in ("geometric", "tool_orientation") for t in model.terms):
         return []
     f = problem.free
     cols = np.concatenate([f, [params.index(n) for n in cands]])
@@ -485,14 +567,14 @@ def separated(problem: CalibrationProblem, values: np.ndarray, ident: Identifiab
 
     def blocks():   # weighted, scaled Jacobian columns (free ones first), pose chunk by pose chunk
         for s in pose_chunks(problem.n_poses):
-            xyz, J = model.predict_jacobian(problem.q[s], values, problem.cov[s], problem.base0)
-            u2 = np.einsum("ij,ij->i", xyz - problem.xyz[s], xyz - problem.xyz[s])
+            r, J, _ = problem.weighted_jacobian(values, s)
+            u2 = np.einsum("ij,ij->i", r, r)
             w = problem.loss.weight(u2)
             ssr[0] += float(w @ u2)
             yield J[:, :, cols] * scale * np.sqrt(w)[:, None, None]
 
     R = triangular_factor(blocks(), len(cols))
-    sigma = math.sqrt(ssr[0] / max(3 * problem.n_poses - len(f), 1))
+    sigma = math.sqrt(ssr[0] / max(problem.equations_per_pose * problem.n_poses - len(f), 1))
     out = []
     for j, name in enumerate(cands):
         perp = float(np.linalg.norm(R[len(f):, len(f) + j]))     # the column beyond the free columns' span
@@ -545,7 +627,8 @@ def with_compensator(result: CalibrationResult, network, data: Measurements, not
             src.reason
     out = CalibrationResult(model, params, result.base0, result.solver, result.solver_name,
                             result.identifiability, result.uncertainty, None, list(result.notes) + [note],
-                            result.loss, result.downweighted, result.coverage)
+                            result.loss, result.downweighted, result.coverage, by_session=result.by_session,
+                            tool0=result.tool0, orientation=result.orientation, full_pose=result.full_pose)
     out.calibration = out.stats(data)
     return out
 

@@ -78,6 +78,7 @@ def validate_calibration_document(doc: Any, path: str) -> None:
     _check_robust(doc.get("robust"), err)
     _check_coverage(doc.get("coverage"), err)
     _check_sessions(doc.get("sessions"), err)
+    _check_orientation(doc.get("orientation"), any(t.name == "tool_orientation" for t in terms), err)
     notes = doc.get("notes", [])
     if not isinstance(notes, list) or not all(isinstance(n, str) for n in notes):
         raise err("notes", "must be a list of strings")
@@ -288,6 +289,42 @@ def _check_sessions(sessions: Any, err) -> None:
             raise err(f"sessions[{i}].name", "missing or not a string")
         if s.get("calibration") is not None:
             _check_stats(s["calibration"], lambda key, message: err(f"sessions[{i}].{key}", message))
+
+def _check_orientation(orientation: Any, has_term: bool, err) -> None:
+    """A full-pose calibration's probe mounting (required with the term tool_orientation, and only then)."""
+    if orientation is None:
+        if has_term:
+            raise err("orientation", "missing key: the model has the probe orientation (tool_orientation)")
+        return
+    if not has_term:
+        raise err("orientation", "the model has no probe orientation (tool_orientation); remove this key")
+    if not isinstance(orientation, dict):
+        raise err("orientation", f"must be an object (tool0, ...), got {_kind(orientation)}")
+    tool0 = orientation.get("tool0")
+    if not isinstance(tool0, list) or len(tool0) != 9 or not all(finite_number(x) for x in tool0):
+        raise err("orientation.tool0", "must be a list of 9 finite numbers (a rotation, row-major)")
+    R = np.array(tool0, dtype=float).reshape(3, 3)
+    if np.abs(R).max() > 1 + 1e-6 or np.abs(R.T @ R - np.eye(3)).max() > 1e-6 or np.linalg.det(R) <= 0:
+        raise err("orientation.tool0", "is not a rotation matrix (row-major)")
+    for k in ("sigma_mm", "sigma_deg"):
+        v = orientation.get(k)
+        if v is not None and not (finite_number(v) and v > 0):
+            raise err(f"orientation.{k}", f"must be null or a finite number > 0, got {v!r}")
+    if (orientation.get("sigma_mm") is None) != (orientation.get("sigma_deg") is None):
+        raise err("orientation.sigma_deg", "sigma_mm and sigma_deg must be given together")
+    if "full_pose" in orientation and not isinstance(orientation["full_pose"], bool):
+        raise err("orientation.full_pose", f"must be true or false, got {orientation['full_pose']!r}")
+    stats = orientation.get("calibration")
+    if stats is not None:
+        keys = ("n_poses", "mean_deg", "max_deg", "std_deg", "rms_deg")
+        if not isinstance(stats, dict) or set(stats) != set(keys):
+            raise err("orientation.calibration", f"must be null or an object of {', '.join(keys)}")
+        for k in keys:
+            v = stats[k]
+            ok = (isinstance(v, int) and not isinstance(v, bool) and v >= 0) if k == "n_poses" \
+                else (finite_number(v) and v >= 0)
+            if not ok:
+                raise err(f"orientation.calibration.{k}", f"must be a finite number >= 0, got {v!r}")
 
 
 def _check_coverage(coverage: Any, err) -> None:

@@ -3,7 +3,9 @@
 One row per pose, in measurement order: ``q1_deg..qN_deg``, optionally
 ``x_mm, y_mm, z_mm`` (a file without them is a list of poses to predict or
 plan with), and optional ``payload_kg``, ``temperature_c``, ``time_s``.
-Other columns are kept as they are.
+Where a 6-DoF probe measured the full pose, ``rx_deg, ry_deg, rz_deg`` hold
+the probe's orientation in the measurement frame, ``R = Rx(rx) Ry(ry)
+Rz(rz)`` (intrinsic XYZ), degrees. Other columns are kept as they are.
 """
 
 from __future__ import annotations
@@ -25,6 +27,8 @@ from .files import atomic_open
 _Q = re.compile(r"^q([1-9]\d*)_deg$")
 _Q_LIKE = re.compile(r"^q\d+_deg$")
 XYZ = ("x_mm", "y_mm", "z_mm")
+#: measured orientation of the probe, measurement frame: R = Rx(rx) Ry(ry) Rz(rz) (intrinsic XYZ), degrees
+RXYZ = ("rx_deg", "ry_deg", "rz_deg")
 NUMERIC_OPTIONAL = ("payload_kg", "temperature_c", "time_s", "source_row")
 
 
@@ -124,6 +128,29 @@ class Measurements:
             raise DataFileError("has no measured positions (columns x_mm, y_mm, z_mm)", file=self.path)
         return np.column_stack([self.columns[c] for c in XYZ]) / 1000.0
 
+    @property
+    def has_orientation(self) -> bool:
+        """True when the poses have a measured orientation (``rx_deg, ry_deg, rz_deg``)."""
+        return all(self.get(c) is not None for c in RXYZ)
+
+    @property
+    def rotations(self) -> np.ndarray:
+        """Measured orientations of the probe in the measurement frame, shape (N, 3, 3).
+
+        ``R = Rx(rx) Ry(ry) Rz(rz)`` (intrinsic XYZ) of the columns ``rx_deg,
+        ry_deg, rz_deg``.
+
+        Raises
+        ------
+        DataFileError
+            The data have none, or only some, of the three columns (naming the first missing one).
+        """
+        missing = [c for c in RXYZ if self.get(c) is None]
+        if missing:
+            what = "has only some of" if len(missing) < 3 else "has no measured orientation:"
+            raise DataFileError(f"{what} rx_deg, ry_deg, rz_deg", file=self.path, column=missing[0])
+        return rotation_matrices(np.column_stack([self.columns[c] for c in RXYZ]))
+
     def line(self, i: int) -> int:
         """Line of pose ``i`` in its file (header = line 1), for error messages."""
         return int(self.lines[i])
@@ -189,6 +216,16 @@ class Measurements:
         out = self.with_columns(cols)
         out.checked = set()
         return out
+
+    def with_orientations(self, R: np.ndarray, prefix_existing: str = "measured_") -> "Measurements":
+        """A copy whose ``rx_deg, ry_deg, rz_deg`` hold the rotations ``R`` (N, 3, 3); existing ones are renamed."""
+        cols: dict[str, np.ndarray] = {}
+        for k, v in self.columns.items():
+            cols[prefix_existing + k if k in RXYZ else k] = v
+        angles = rotation_angles(R)
+        for i, c in enumerate(RXYZ):
+            cols[c] = angles[:, i]
+        return Measurements(cols, self.path, self.rows, self.moves, self.lines)
 
     # --- I/O --------------------------------------------------------------------
 
@@ -286,10 +323,15 @@ def _check_header(first: list[str] | None, path: str, n_joints: int | None, requ
     if present and len(present) < 3:
         missing = [c for c in XYZ if c not in seen][0]
         raise DataFileError("has only some of x_mm, y_mm, z_mm", file=path, row=1, column=missing)
+    turned = [c for c in RXYZ if c in seen]
+    if turned and len(turned) < 3:
+        missing = [c for c in RXYZ if c not in seen][0]
+        raise DataFileError("has only some of rx_deg, ry_deg, rz_deg (the measured orientation)", file=path, row=1,
+                            column=missing)
     if require_positions and not present:
         raise DataFileError("has no measured positions: columns x_mm, y_mm, z_mm are required here",
                             file=path, row=1, column="x_mm")
-    numeric = {f"q{i}_deg" for i in qs} | set(present) | {c for c in NUMERIC_OPTIONAL if c in seen}
+    numeric = {f"q{i}_deg" for i in qs} | set(present) | set(turned) | {c for c in NUMERIC_OPTIONAL if c in seen}
     return header, numeric
 
 
@@ -398,6 +440,17 @@ def session_name(value) -> str:
     if isinstance(value, (float, np.floating)) and float(value).is_integer():
         value = int(value)
     return _NOT_IN_NAME.sub("_", str(value).strip()) or "_"
+
+def rotation_matrices(angles_deg: np.ndarray) -> np.ndarray:
+    """Rotations ``Rx(rx) Ry(ry) Rz(rz)`` (intrinsic XYZ) of angles (deg, shape (N, 3)), shape (N, 3, 3)."""
+    from scipy.spatial.transform import Rotation   # here: scipy's import costs every command's start-up
+    return Rotation.from_euler("XYZ", np.asarray(angles_deg, float).reshape(-1, 3), degrees=True).as_matrix()
+
+
+def rotation_angles(R: np.ndarray) -> np.ndarray:
+    """The angles (deg, shape (N, 3)) ``rx, ry, rz`` with ``R = Rx(rx) Ry(ry) Rz(rz)`` (intrinsic XYZ)."""
+    from scipy.spatial.transform import Rotation
+    return Rotation.from_matrix(np.asarray(R, float).reshape(-1, 3, 3)).as_euler("XYZ", degrees=True)
 
 
 def _fmt(x) -> str:

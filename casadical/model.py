@@ -12,6 +12,12 @@ Inputs of every model function, per pose:
 - ``base0``: the reference base pose, 12 numbers (rotation row-major, then
   translation, metres); the ``base_*`` parameters are small deviations from
   it, so a tracker metres away at any rotation is no difficulty.
+
+A full-pose model (term ``tool_orientation``, :attr:`Model.orientation`)
+also gives the probe's rotation, from the same base composition as the
+point; its ``pose_*`` Functions take the measured rotation ``Rm`` (9
+numbers, row-major) after these, already turned by the reference mounting
+R0 that the calibration keeps, so no Function depends on R0.
 """
 
 from __future__ import annotations
@@ -225,8 +231,16 @@ class Model:
         tau = ca.vertcat(*ctx.torques()) if robot.n else ca.SX.zeros(0)
         dq = ca.vertcat(*[ca.SX(o) if not isinstance(o, ca.SX) else o for o in offsets])
         flange = ca.mtimes(base[0], frames.tool[0])  # flange (last link) rotation, measurement frame
+        # full pose: the probe's rotation, from the same base composition as the point (the flange, every term,
+        # times the probe's mounting); without the reference mounting R0, which the data carry (Model docstring)
+        probe = flange
+        for t in self.terms:
+            r = t.tool_rotation(ctx)
+            if r is not None:
+                probe = ca.mtimes(probe, r)
+        self.orientation = probe is not flange
         self._sym = {"q": q, "p": p, "c": c, "b0": b0, "xyz": xyz, "tau": tau, "dq": dq, "flange": flange,
-                     "chain": chain, "geom": geom, "R": base[0]}
+                     "chain": chain, "geom": geom, "R": base[0], "probe": probe}
         self._graphs: dict = {}
         self._fk: ca.Function | None = None
         self._fk_jac: ca.Function | None = None
@@ -265,6 +279,10 @@ class Model:
                 Jr = ca.mtimes(Js.T, r)
                 H = ca.mtimes(Js.T, Js) / root - delta / root ** 3 * ca.mtimes(Jr, Jr.T)
                 g = (lsq, [ca.triu(H)], (1, 3, 5), (0,))
+        elif which.startswith("pose_"):
+            g = self._pose_graph(which)
+        elif which == "probe":
+            g = (ins, [S["probe"]], (1, 3), ())
         elif which == "fk":
             g = (ins, [xyz], (1, 3), ())
         elif which == "fk_jac_angles":
@@ -290,6 +308,48 @@ class Model:
             raise ModelError(f"no per-pose function {which!r}")
         self._graphs[which] = g
         return g
+
+    def _pose_graph(self, which: str) -> tuple:
+        """The full-pose per-pose Functions: position and orientation residuals, loss, gradient, Gauss-Newton.
+
+        Extra inputs after ``(q, p, cov, base0)``: ``y`` (measured point, m; loss Functions only), ``Rm`` (9
+        numbers, row-major: the measured probe rotation times the transpose of the reference mounting R0),
+        then for the loss ``delta`` (robust loss) and ``k`` (m/rad: the orientation residual's weight
+        relative to the position residual, the ratio of their noise scales).
+        """
+        if not self.orientation:
+            raise ModelError(f"model {self.spec} has no probe orientation (term tool_orientation): no {which!r}")
+        S = self._sym
+        q, p, c, b0, xyz = S["q"], S["p"], S["c"], S["b0"], S["xyz"]
+        ins = [q, p, c, b0]
+        Rm = ca.SX.sym("Rm", 9)
+        E = ca.mtimes(ca.reshape(Rm, 3, 3), S["probe"])     # reshape of a row-major matrix: its transpose
+        # the rotation vector of E = Rm^T R_pred for small angles (exact to third order): vee of its skew part
+        ro = 0.5 * ca.vertcat(E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1])
+        if which == "pose_fk":
+            return ins + [Rm], [xyz, ro], (1, 3), ()
+        if which == "pose_fk_jac":
+            return (ins + [Rm], [xyz, ca.densify(ca.jacobian(xyz, p)), ro, ca.densify(ca.jacobian(ro, p))],
+                    (1, 3), ())
+        y = ca.SX.sym("y", 3)
+        delta, k = ca.SX.sym("delta"), ca.SX.sym("k")
+        # one pose's residual: position (m) and orientation (rad) in position units, |r_p|^2 + k^2 |r_o|^2 =
+        # sp^2 (|r_p|^2 / sp^2 + |r_o|^2 / so^2) with k = sp / so; the pseudo-Huber loss on the sum
+        r = ca.vertcat(xyz - y, k * ro)
+        u2 = ca.dot(r, r)
+        root = ca.sqrt(1 + delta * u2)
+        cost = u2 / (root + 1)
+        lsq = ins + [y, Rm, delta, k]
+        if which == "pose_cost":
+            return lsq, [cost], (1, 3, 6, 7), (0,)
+        if which == "pose_grad":
+            return lsq, [cost, ca.gradient(cost, p)], (1, 3, 6, 7), (0, 1)
+        if which == "pose_gn_hess":
+            Js = ca.jacobian(r, p)
+            Jr = ca.mtimes(Js.T, r)
+            H = ca.mtimes(Js.T, Js) / root - delta / root ** 3 * ca.mtimes(Jr, Jr.T)
+            return lsq, [ca.triu(H)], (1, 3, 6, 7), (0,)
+        raise ModelError(f"no per-pose function {which!r}")
 
     @property
     def fk(self) -> ca.Function:
@@ -322,7 +382,8 @@ class Model:
 
     def per_pose_function(self, which: str, jit: bool | str = False) -> ca.Function:
         """One of the per-pose Functions (``fk``, ``fk_jac``, ``fk_jac_angles``, ``cost``, ``grad``, ``gn_hess``,
-        ``tau``, ``dq``, ``fk_q_jac``, ``flange``, ``flange_jac``).
+        ``tau``, ``dq``, ``fk_q_jac``, ``flange``, ``flange_jac``; full-pose models also ``probe``, ``pose_fk``,
+        ``pose_fk_jac``, ``pose_cost``, ``pose_grad``, ``pose_gn_hess``).
 
         ``jit``: False for CasADi's virtual machine; True for compiled code,
         from the disk cache (:mod:`casadical.jitcache`) or compiled now and
@@ -446,6 +507,39 @@ class Model:
         R, Jw = self._batch("flange_jac", N)(q, p, cov, b0)
         return (R.reshape(N, 3, 3).transpose(0, 2, 1),
                 Jw.reshape(N, self.robot.n, 3).transpose(0, 2, 1))
+
+    def probe_rotation(self, q, params=None, cov=None, base0=None) -> np.ndarray:
+        """Rotation of the probe in the measurement frame without its reference mounting R0 (N, 3, 3).
+
+        Base rotation x flange rotation (every term) x the mounting deviation
+        (``tool_roll, tool_pitch, tool_yaw``); times R0 (kept with the
+        calibration: :meth:`CalibrationResult.predict_rotations`) it is the
+        probe's orientation. Full-pose models only.
+        """
+        if not self.orientation:
+            raise ModelError(f"model {self.spec} has no probe orientation (term tool_orientation)")
+        N, q, p, cov, b0 = self._inputs(q, params, cov, base0)
+        return self._batch("probe", N)(q, p, cov, b0)[0].reshape(N, 3, 3).transpose(0, 2, 1)
+
+    def pose_residuals(self, q, Rm, params=None, cov=None, base0=None) -> tuple[np.ndarray, np.ndarray]:
+        """Positions (N, 3) and orientation residuals (N, 3, rad) against ``Rm`` (N, 3, 3).
+
+        ``Rm``: measured probe rotations times the transpose of the reference
+        mounting R0. The residual is the rotation vector of ``Rm^T R``
+        (``R``: :meth:`probe_rotation`) for small angles, the vector of its
+        skew-symmetric part. Full-pose models only.
+        """
+        N, q, p, cov, b0 = self._inputs(q, params, cov, base0)
+        xyz, ro = self._batch("pose_fk", N)(q, p, cov, b0, np.asarray(Rm, float).reshape(N, 9))
+        return xyz, ro
+
+    def pose_jacobian(self, q, Rm, params=None, cov=None, base0=None
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`pose_residuals` and their Jacobians w.r.t. the parameters: xyz, J (N, 3, P), r_o, J_o (N, 3, P)."""
+        N, q, p, cov, b0 = self._inputs(q, params, cov, base0)
+        xyz, J, ro, Jo = self._batch("pose_fk_jac", N)(q, p, cov, b0, np.asarray(Rm, float).reshape(N, 9))
+        P = len(self.parameters)
+        return (xyz, J.reshape(N, P, 3).transpose(0, 2, 1), ro, Jo.reshape(N, P, 3).transpose(0, 2, 1))
 
     def torques(self, q, params=None, cov=None) -> np.ndarray:
         """Gravity torques (N m) at every joint, shape (N, n)."""

@@ -83,6 +83,37 @@ class Validation:
 
 
 @dataclass
+class AngleStats:
+    """Orientation error statistics over poses (deg): the angle of ``R_meas^T R_pred`` per pose."""
+
+    n_poses: int
+    mean_deg: float
+    max_deg: float
+    std_deg: float
+    rms_deg: float
+
+    @classmethod
+    def of(cls, angles_rad: np.ndarray) -> "AngleStats":
+        e = np.degrees(np.asarray(angles_rad, float))
+        return cls(len(e), float(e.mean()), float(e.max()), float(e.std()), float(np.sqrt((e ** 2).mean())))
+
+    def to_dict(self, n_poses: bool = True) -> dict:
+        """The statistics (deg), with the number of poses unless ``n_poses`` is False."""
+        d = {"mean_deg": self.mean_deg, "max_deg": self.max_deg, "std_deg": self.std_deg, "rms_deg": self.rms_deg}
+        return {"n_poses": self.n_poses, **d} if n_poses else d
+
+    def line(self) -> str:
+        return (f"mean {self.mean_deg:.4f}  max {self.max_deg:.4f}  std {self.std_deg:.4f}  "
+                f"rms {self.rms_deg:.4f} deg over {self.n_poses} poses")
+
+
+def rotation_angles_between(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Angle (rad) of ``A_i^T B_i`` for rotations ``A, B`` (N, 3, 3), exact at any size."""
+    from scipy.spatial.transform import Rotation   # here: scipy's import costs every command's start-up
+    return Rotation.from_matrix(np.einsum("nji,njk->nik", A, B)).magnitude()
+
+
+@dataclass
 class CalibrationResult:
     """A calibrated model (statsmodels-style results object).
 
@@ -116,6 +147,18 @@ class CalibrationResult:
         model holds a fitted network, whose parameters are not counted).
     validation : Validation or None
         Errors on held-out poses, once :meth:`validate` has run.
+    tool0 : ndarray, shape (3, 3), or None
+        Full-pose models (term ``tool_orientation``): the probe's reference
+        mounting R0 on the flange, which ``tool_roll, tool_pitch, tool_yaw``
+        deviate from (as ``base0`` for the base pose); None for a
+        position-only model.
+    orientation : AngleStats or None
+        Orientation errors on the calibration poses (full-pose models with
+        measured orientations).
+    full_pose : bool
+        The loss had the orientation residuals (False: fitted on positions
+        alone, e.g. a full-pose calibration taken further with
+        ``position_only``).
     """
 
     model: Model
@@ -133,8 +176,43 @@ class CalibrationResult:
     by_session: dict = field(default_factory=dict)
     statistics: FitStatistics | None = None
     validation: Validation | None = None
+    tool0: np.ndarray | None = None
+    orientation: AngleStats | None = None
+    full_pose: bool = False
 
     # --- using the model ------------------------------------------------------
+
+    @property
+    def has_orientation(self) -> bool:
+        """True when the model predicts the probe's orientation (a full-pose calibration)."""
+        return self.model.orientation and self.tool0 is not None
+
+    def tool_rotation(self) -> np.ndarray:
+        """The probe's mounting rotation on the flange (3x3): ``Rz(tool_yaw) Ry(tool_pitch) Rx(tool_roll) R0``."""
+        from .kinematics import base_pose_matrix
+        self._check_orientation()
+        p = self.parameters
+        D = base_pose_matrix([0.0, 0.0, 0.0], [p[f"tool_{k}"].value for k in ("roll", "pitch", "yaw")])[:3, :3]
+        return D @ self.tool0
+
+    def predict_rotations(self, data: Measurements) -> np.ndarray:
+        """Predicted probe orientations in the measurement frame (N, 3, 3), every term and covariate included."""
+        self._check_joints(data)
+        self._check_orientation()
+        return self.model.probe_rotation(data.q, self.parameters.values, self.model.covariates(data),
+                                         self.base0) @ self.tool0
+
+    def orientation_errors(self, data: Measurements) -> np.ndarray:
+        """Orientation error per pose (rad): the angle of ``R_meas^T R_pred``."""
+        return rotation_angles_between(data.rotations, self.predict_rotations(data))
+
+    def orientation_stats(self, data: Measurements) -> AngleStats:
+        return AngleStats.of(self.orientation_errors(data))
+
+    def _check_orientation(self) -> None:
+        if not self.has_orientation:
+            raise InputError(f"calibration of model {self.model.spec} has no probe orientation: it was "
+                             "calibrated on positions alone (full pose needs data with rx_deg, ry_deg, rz_deg)")
 
     def predict(self, data: Measurements) -> np.ndarray:
         """Predicted tool positions (m, (N, 3)) with every term and the rows' covariates."""
@@ -311,6 +389,15 @@ class CalibrationResult:
             lines.append(f"  session {s}{tool}: " + st.line())
         if self.validation is not None:
             lines.append(f"validation poses ({self.validation.file}): " + self.validation.stats.line())
+        if self.orientation is not None:
+            lines.append("orientation:       " + self.orientation.line())
+        if self.has_orientation:
+            mount = np.degrees(matrix_to_rpy(self.tool_rotation()))
+            lines.append("probe mounting on the flange: rpy [" + ", ".join(f"{v:.4f}" for v in mount) + "] deg")
+        if self.full_pose:
+            lines.append(f"full pose: positions and orientations weighted by their noise scales from the data, "
+                         f"{self.loss.sigma * 1000:.4f} mm and {math.degrees(self.loss.sigma_rot):.4f} deg per "
+                         f"axis (1 deg weighs as {self.loss.rot_weight * math.pi / 180 * 1000:.3g} mm)")
         if self.loss.robust:
             lines.append(f"robust loss: pseudo-Huber, noise scale {self.loss.sigma * 1000:.4f} mm per axis, "
                          f"linear beyond {self.loss.c:g} sigma; "
@@ -369,6 +456,15 @@ class CalibrationResult:
                 if s in self.by_session:
                     entry["calibration"] = self.by_session[s].to_dict()
                 doc["sessions"].append(entry)
+        if self.has_orientation:    # only full-pose models: a position-only calibration's JSON is as it was
+            fitted = self.full_pose and math.isfinite(self.loss.sigma_rot)
+            doc["orientation"] = {
+                "tool0": [float(x) for x in self.tool0.ravel()],
+                "tool_rotation": {"rpy_deg": np.degrees(matrix_to_rpy(self.tool_rotation())).tolist()},
+                "full_pose": bool(self.full_pose),
+                "sigma_mm": self.loss.sigma * 1000 if fitted else None,
+                "sigma_deg": math.degrees(self.loss.sigma_rot) if fitted else None,
+                "calibration": self.orientation.to_dict() if self.orientation else None}
         if self.solver is not None:
             doc["solver"] = {"name": self.solver_name, "status": self.solver.status,
                              "iterations": self.solver.iterations, "solve_time_s": self.solver.solve_time_s,
@@ -454,6 +550,16 @@ def load_calibration(path: str | Path) -> CalibrationResult:
             if rob.get("loss", "none") != "none" else RobustLoss()
         coverage = Coverage.from_dict(doc["coverage"]) if doc.get("coverage") else None
         extra = _statistics_of(doc)
+        ori = doc.get("orientation")
+        tool0, angles, full_pose = None, None, False
+        if ori:
+            tool0 = np.asarray(ori["tool0"], dtype=float).reshape(3, 3)
+            angles = AngleStats(**ori["calibration"]) if ori.get("calibration") else None
+            full_pose = bool(ori.get("full_pose", False))
+            if ori.get("sigma_deg") is not None:
+                import dataclasses
+                loss = dataclasses.replace(loss, sigma=float(ori["sigma_mm"]) / 1000,
+                                           sigma_rot=math.radians(float(ori["sigma_deg"])))
     except (KeyError, TypeError, ValueError, CasadicalError) as e:
         raise CalibrationFileError(f"not a calibration JSON written by casadical ({e})", file=path) from e
     model.parameters = params
@@ -461,7 +567,8 @@ def load_calibration(path: str | Path) -> CalibrationResult:
     by_session = {e["name"]: ErrorStats(**e["calibration"]) for e in doc.get("sessions") or [] if e.get("calibration")}
     return CalibrationResult(model, params, base0, calibration=ErrorStats(**cal) if cal else None,
                              notes=doc.get("notes", []), loss=loss, downweighted=rob.get("downweighted", []),
-                             coverage=coverage, by_session=by_session, **extra)
+                             coverage=coverage, by_session=by_session, tool0=tool0, orientation=angles,
+                             full_pose=full_pose, **extra)
 
 
 def _statistics_of(doc: dict) -> dict:

@@ -64,6 +64,13 @@ class Effects:
         Std of the measurement noise per axis (m).
     base_xyz, base_rpy : sequence of 3 floats
         Pose of the robot base in the measurement frame (m, rad).
+    orientation_noise : float or None
+        Full pose: std of the measured orientation's noise per axis (rad);
+        the data then have ``rx_deg, ry_deg, rz_deg`` (the probe's orientation,
+        intrinsic XYZ). None (default): positions only.
+    tool_rpy : sequence of 3 floats
+        Full pose: the probe's mounting rotation on the flange, fixed-axis
+        roll-pitch-yaw ``Rz(yaw) Ry(pitch) Rx(roll)`` (rad).
     """
 
     length_sigma: float = 0.5e-3
@@ -81,6 +88,8 @@ class Effects:
     noise: float = 20e-6
     base_xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
     base_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    orientation_noise: float | None = None
+    tool_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 @dataclass
@@ -99,6 +108,14 @@ class Truth:
     def predict(self, data: Measurements) -> np.ndarray:
         """Noise-free true positions (m) of the poses in ``data``."""
         return self.model.predict(data.q, self.values, self.model.covariates(data), self.base0)
+
+    def predict_rotations(self, data: Measurements) -> np.ndarray:
+        """Noise-free true probe orientations (N, 3, 3) of the poses in ``data`` (full-pose truths)."""
+        return self.model.probe_rotation(data.q, self.values, self.model.covariates(data), self.base0)
+
+    def tool_rotation(self) -> np.ndarray:
+        """The true probe mounting on the flange (3x3)."""
+        return base_pose_matrix((0.0, 0.0, 0.0), self.effects.tool_rpy)[:3, :3]
 
 
 def another_session(truth: Truth, base_xyz=(0.0, 0.0, 0.0), base_rpy=(0.0, 0.0, 0.0),
@@ -146,6 +163,8 @@ def true_model(robot: Robot, effects: Effects, rng: np.random.Generator,
                                t_ref=(lo + hi) / 2 if t_ref is None else t_ref))
     if any(effects.drift):
         terms.append(make_term("drift"))
+    if effects.orientation_noise is not None:   # the probe's mounting: tool_* hold the whole rotation (R0 = I)
+        terms.append(make_term("tool_orientation"))
     model = Model(robot, terms)
     values = model.parameters.nominal.copy()
     for i, p in enumerate(model.parameters):
@@ -175,6 +194,9 @@ def true_model(robot: Robot, effects: Effects, rng: np.random.Generator,
     for k, v in zip("xyz", effects.drift):
         if any(effects.drift):
             values[idx(f"drift_{k}")] = v
+    if effects.orientation_noise is not None:
+        for k, v in zip(("roll", "pitch", "yaw"), effects.tool_rpy):
+            values[idx(f"tool_{k}")] = v
     base0 = pose_to_base0(base_pose_matrix(effects.base_xyz, effects.base_rpy))
     return Truth(model, values, base0, effects)
 
@@ -246,8 +268,10 @@ def simulate(robot: Robot, q: np.ndarray | int, effects: Effects | None = None, 
     Returns
     -------
     data : Measurements
-        With ``x_mm, y_mm, z_mm`` in the measurement frame, and
-        ``temperature_c`` when thermal expansion is simulated.
+        With ``x_mm, y_mm, z_mm`` in the measurement frame,
+        ``temperature_c`` when thermal expansion is simulated, and ``rx_deg,
+        ry_deg, rz_deg`` with ``effects.orientation_noise`` (drawn after the
+        positions' noise: the positions are those of the same seed without).
     truth : Truth
     """
     rng = np.random.default_rng(seed)
@@ -268,7 +292,12 @@ def simulate(robot: Robot, q: np.ndarray | int, effects: Effects | None = None, 
         extra["time_s"] = np.arange(len(q), dtype=float)
     data = Measurements.from_arrays(q, None, **extra)
     xyz = truth.predict(data) + rng.normal(0.0, effects.noise, size=(len(q), 3))
-    return data.with_positions(xyz), truth
+    data = data.with_positions(xyz)
+    if effects.orientation_noise is not None:
+        from scipy.spatial.transform import Rotation
+        turn = Rotation.from_rotvec(rng.normal(0.0, effects.orientation_noise, size=(len(q), 3))).as_matrix()
+        data = data.with_orientations(truth.predict_rotations(data) @ turn)
+    return data, truth
 
 
 # --- protocols ---------------------------------------------------------------------

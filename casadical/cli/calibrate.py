@@ -16,7 +16,9 @@ def register(sub) -> None:
                                    "and every other value is kept: how a calibration is taken to a new "
                                    "measurement series or tracker set-up. Several DATA files are several "
                                    "measurement sessions of one robot (as is a file with a session column): each "
-                                   "has its own base pose, the robot's parameters are shared.")
+                                   "has its own base pose, the robot's parameters are shared. Data with a measured "
+                                   "orientation (rx_deg, ry_deg, rz_deg) are calibrated on the full pose (unless "
+                                   "--position-only): the probe's mounting on the flange is estimated too.")
     p.add_argument("robot", metavar="ROBOT",
                    help="built-in robot, robot TOML or URDF file, or a calibration JSON to take further")
     p.add_argument("data", metavar="DATA.csv", nargs="+",
@@ -44,6 +46,10 @@ def register(sub) -> None:
     p.add_argument("--validate", metavar="VAL.csv",
                    help="held-out poses, never fitted: their errors (mean, max, rms mm) are printed, written to "
                         "CAL.json ('validation') and shown in the HTML report")
+    p.add_argument("--position-only", action="store_true",
+                   help="calibrate on the measured positions alone; without it, data with a measured orientation "
+                        "(rx_deg, ry_deg, rz_deg) are calibrated on the full pose, position and orientation "
+                        "weighted by their noise scales from the data")
     add_row_spacing(p)
     add_checks(p, mismatch=True)
     add_urdf_chain(p)
@@ -66,7 +72,7 @@ def run(args) -> int:
     opts = {"max_iter": args.max_iter} if args.max_iter else {}
     result = calibrate(robot, data, args.model, args.solver, solver_options=opts,
                        fix=tuple(f.strip() for f in args.fix.split(",") if f.strip()), robust=args.robust,
-                       session_tools=args.session_tool, **check_options(args))
+                       session_tools=args.session_tool, position_only=args.position_only, **check_options(args))
     if val is not None:     # the checks predict makes, then the held-out errors, before anything is written
         result.validate(val, name=f"fitted to {' '.join(args.data)}", allow_mismatch=args.allow_mismatch,
                         **check_options(args))
@@ -78,7 +84,8 @@ def run(args) -> int:
         from ..threads import evaluation_threads
         before, label = None, "nominal model, base pose fitted"
         if isinstance(robot, CalibrationResult):    # the calibration taken further: the error it starts from
-            before = calibrate(robot, data, "base", "lm", warn=False, robust=args.robust)
+            before = calibrate(robot, data, "base", "lm", warn=False, robust=args.robust,
+                               position_only=args.position_only)
             label = f"{args.robot} with its base pose re-estimated"
         write_text(args.html, calibration_html(result, data, before, label, processes=evaluation_threads(),
                                                validation=val), args.force)

@@ -48,6 +48,10 @@ def register(sub) -> None:
     p.add_argument("--robust", default="huber", choices=["huber", "none"],
                    help="loss of every fit, as for calibrate (default: %(default)s)")
     p.add_argument("--no-blackbox", action="store_true", help="skip the black-box compensator step")
+    p.add_argument("--position-only", action="store_true",
+                   help="fit on the positions alone; without it, data with a measured orientation (rx_deg, ry_deg, "
+                        "rz_deg) are fitted on the full pose, as by calibrate (the screening of candidates works on "
+                        "the positions either way)")
     p.add_argument("--seed", type=int, default=0, help="seed of the cross-validation folds (default: %(default)s)")
     p.add_argument("--session-tool", action="store_true",
                    help="with several sessions: each session after the first has its own tool offset too (the "
@@ -85,6 +89,7 @@ def run(args) -> int:
     other = read(args.transfer) if args.transfer else None
     settings = DiagnosisSettings(alpha=args.alpha, max_harmonic=args.max_harmonic, max_rounds=args.max_rounds,
                                  blackbox=not args.no_blackbox, seed=args.seed, robust=args.robust,
+                                 position_only=args.position_only,
                                  transfer_base_poses=args.transfer_base_poses,
                                  transfer_refit_poses=args.transfer_refit_poses, session_tools=args.session_tool)
     status = Status(args.quiet)

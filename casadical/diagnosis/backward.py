@@ -71,7 +71,7 @@ def drop_redundant(dg, current: CalibrationResult, accepted: list[Candidate], ge
         rest = [a for a in accepted if a != cand]
         refit = dg.fit(compose_spec(rest, geometric), start=current)
         full = nested_test(dg.deviance(refit, current.loss), int(refit.parameters.free.sum()),
-                           dg.deviance(current, current.loss), int(current.parameters.free.sum()), dg.n_eq)
+                           dg.deviance(current, current.loss), int(current.parameters.free.sum()), dg.n_fit_eq)
         if full.log10_p < level and full.delta_bic < 0:
             break       # the one-step estimate was too pessimistic: it is still supported
         dg.drop_finding(cand)

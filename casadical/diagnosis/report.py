@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from ..result import CalibrationResult, ErrorStats
+from ..result import AngleStats, CalibrationResult, ErrorStats
 from .candidates import Candidate
 from .periodogram import Periodogram
 from .statistics import NestedTest
@@ -34,6 +34,9 @@ class Step:
         (``random``, ``time``, ``joint``), before (``*_before``) and with the step.
     reason : str
         Why it was not accepted (or how it ended, for an unexplained structure).
+    orientation : AngleStats or None
+        Full pose: the orientation errors on the validation poses (full fits only, not the one-step fits of
+        candidates that were not accepted).
     """
 
     model: str
@@ -44,10 +47,13 @@ class Step:
     test: NestedTest | None = None
     cv_mm: dict = field(default_factory=dict)
     reason: str = ""
+    orientation: AngleStats | None = None
 
     def to_dict(self) -> dict:
         d = {"model": self.model, "validation": self.validation.to_dict(n_poses=False),
              "calibration": self.calibration.to_dict(n_poses=False), "accepted": self.accepted}
+        if self.orientation is not None:
+            d["orientation"] = self.orientation.to_dict(n_poses=False)
         if self.candidate is not None:
             d["candidate"] = self.candidate.to_dict()
         if self.test is not None:
@@ -168,6 +174,7 @@ class DiagnosisReport:
     transfer: dict = field(default_factory=dict)
     settings: dict = field(default_factory=dict)
     final_sessions: dict = field(default_factory=dict)
+    final_orientation: AngleStats | None = None
 
     def to_dict(self) -> dict:
         params = []
@@ -189,16 +196,21 @@ class DiagnosisReport:
         }
         if self.final_sessions:
             doc["final"]["sessions"] = {s: st.to_dict() for s, st in self.final_sessions.items()}
+        if self.final_orientation is not None:
+            doc["final"]["orientation"] = self.final_orientation.to_dict(n_poses=False)
         if self.transfer:
             doc["transfer"] = self.transfer
         return doc
 
     def text(self) -> str:
+        pose = any(s.orientation is not None for s in self.steps)   # full pose: the orientation's mean too
         lines = [f"diagnosis of {self.robot} ({self.time_s:.1f} s)", "",
-                 f"{'model':<58}{'val mean':>10}{'val max':>10}{'val rms':>10}  accepted"]
+                 f"{'model':<58}{'val mean':>10}{'val max':>10}{'val rms':>10}" + (f"{'val deg':>10}" if pose else "")
+                 + "  accepted"]
         for s in self.steps:
             v = s.validation
-            lines.append(f"{s.model[:57]:<58}{v.mean_mm:>10.4f}{v.max_mm:>10.4f}{v.rms_mm:>10.4f}  "
+            deg = ((f"{s.orientation.mean_deg:>10.4f}" if s.orientation is not None else f"{'-':>10}") if pose else "")
+            lines.append(f"{s.model[:57]:<58}{v.mean_mm:>10.4f}{v.max_mm:>10.4f}{v.rms_mm:>10.4f}{deg}  "
                          f"{'yes' if s.accepted else 'no'}")
         lines += ["", "findings (values of the final model):"]
         if not [f for f in self.findings if f.cause != "geometric"]:
@@ -215,6 +227,10 @@ class DiagnosisReport:
                       f"max {v.max_mm:.4f}, rms {v.rms_mm:.4f} mm"]
         lines += [f"  session {s}: validation mean {st.mean_mm:.4f}, max {st.max_mm:.4f}, rms {st.rms_mm:.4f} mm"
                   for s, st in self.final_sessions.items()]
+        if self.final_orientation is not None:
+            o = self.final_orientation
+            lines.append(f"full pose: orientation on the validation poses mean {o.mean_deg:.4f}, max {o.max_deg:.4f}, "
+                         f"rms {o.rms_deg:.4f} deg")
         if self.transfer:
             lines.append(self.transfer["text"])
         lines += [f"note: {n}" for n in self.notes]

@@ -34,7 +34,7 @@ from ..data import Measurements
 from ..errors import listing
 from ..physics import sign_changes, value_violations, violations
 from ..problem import RobustLoss
-from ..result import CalibrationResult, ErrorStats
+from ..result import AngleStats, CalibrationResult, ErrorStats
 from ..robot import Robot
 from ..threads import limited_threads
 from . import transfer as transfer_mod
@@ -67,7 +67,10 @@ class _Diagnosis:
                  progress: Callable[[str], None]):
         self.robot, self.cal, self.val, self.s = robot, cal, val, settings
         self.say = progress
-        self.n_eq = 3 * len(cal)
+        self.n_eq = 3 * len(cal)          # the screening and its linearised tests: positions
+        # full pose (data with orientations): every full fit, and the tests on their losses, have 6 equations a pose
+        self.full_pose = cal.has_orientation and not settings.position_only
+        self.n_fit_eq = (6 if self.full_pose else 3) * len(cal)
         self.schemes = schemes(cal.q, cal.rows, settings.folds, settings.seed, joint_levers(robot, cal),
                                sessions=cal.sessions)
         self.sessions = cal.session_names      # [] for one session
@@ -88,12 +91,14 @@ class _Diagnosis:
     def fit(self, spec: str, start: CalibrationResult | dict | None = None, loss: RobustLoss | None = None
             ) -> CalibrationResult:
         """Calibrate ``spec`` on the calibration poses (LM), from ``start``'s values (a result or a dict)."""
-        model = model_for(self.robot, spec, self.cal, jit=False, session_tools=self.s.session_tools)
+        model = model_for(self.robot, spec + ("+tool_orientation" if self.full_pose else ""), self.cal, jit=False,
+                          session_tools=self.s.session_tools)
         st = None
         if start is not None:
             values = start if isinstance(start, dict) else {p.name: p.value for p in start.parameters}
             st = {n: v for n, v in values.items() if n in model.parameters and not n.startswith("base_")}
-        return calibrate(self.robot, self.cal, model, "lm", start=st, warn=False, robust=loss or self.s.robust)
+        return calibrate(self.robot, self.cal, model, "lm", start=st, warn=False, robust=loss or self.s.robust,
+                         position_only=self.s.position_only)
 
     def val_errors(self, res: CalibrationResult) -> np.ndarray:
         """Position errors (m) of a fit on the validation poses, predicted once per fit."""
@@ -105,15 +110,27 @@ class _Diagnosis:
     def val_stats(self, res: CalibrationResult) -> ErrorStats:
         return ErrorStats.of(self.val_errors(res))
 
+    def val_angles(self, res: CalibrationResult) -> AngleStats | None:
+        """Orientation errors of a full-pose fit on the validation poses (None without orientations)."""
+        if not (res.has_orientation and self.val.has_orientation):
+            return None
+        return AngleStats.of(res.orientation_errors(self.val))
+
+    def u2(self, res: CalibrationResult, loss: RobustLoss) -> np.ndarray:
+        """Squared residual norm of each calibration pose under ``loss``: full pose, ``|r_p|^2 + k^2 |r_o|^2``."""
+        r = res.residuals(self.cal)
+        u2 = np.einsum("ij,ij->i", r, r)
+        if res.full_pose and math.isfinite(loss.rot_weight):
+            u2 = u2 + (loss.rot_weight * res.orientation_errors(self.cal)) ** 2
+        return u2
+
     def deviance(self, res: CalibrationResult, loss: RobustLoss) -> float:
         """Twice the loss of ``res`` on the calibration poses under ``loss`` (SSR for least squares)."""
-        r = res.residuals(self.cal)
-        return 2.0 * float(loss.rho(np.einsum("ij,ij->i", r, r)).sum())
+        return 2.0 * float(loss.rho(self.u2(res, loss)).sum())
 
     def mask(self, res: CalibrationResult) -> np.ndarray:
         """Poses that count in held-out means: those the robust loss did not set aside."""
-        r = res.residuals(self.cal)
-        return res.loss.weight(np.einsum("ij,ij->i", r, r)) >= 0.5
+        return res.loss.weight(self.u2(res, res.loss)) >= 0.5
 
     def torques(self, res: CalibrationResult) -> np.ndarray:
         """Gravity torques (N m) of the calibration poses under a fit, computed once per fit."""
@@ -131,12 +148,13 @@ class _Diagnosis:
     def run(self) -> tuple[CalibrationResult, list[Candidate], bool]:
         self.say("step 1: nominal model (base pose only)")
         nominal = self.nominal = self.fit("nominal")
-        self.steps.append(Step("nominal", nominal.calibration, self.val_stats(nominal), True))
+        self.steps.append(Step("nominal", nominal.calibration, self.val_stats(nominal), True,
+                               orientation=self.val_angles(nominal)))
         self.say(f"  validation mean {self.steps[-1].validation.mean_mm:.4f} mm (judge only)")
         self.say("step 2: geometric (kinematic) calibration")
         kin = self.kinematic = self.fit("kinematic")
         test = nested_test(self.deviance(nominal, kin.loss), int(nominal.parameters.free.sum()),
-                           self.deviance(kin, kin.loss), int(kin.parameters.free.sum()), self.n_eq)
+                           self.deviance(kin, kin.loss), int(kin.parameters.free.sum()), self.n_fit_eq)
         mask = self.mask(kin)
         cv0, cv1 = (by_kind(Linearized.of(r, self.cal).cv(self.schemes), mask) for r in (nominal, kin))
         worse = not_better(cv0, cv1)
@@ -146,7 +164,7 @@ class _Diagnosis:
                            + [f"BIC does not improve ({test.delta_bic:+.1f})"] * (test.delta_bic >= 0)
                            + ([cv_failure(worse, cv0, cv1)] if worse else []))
         self.steps.append(Step("kinematic", kin.calibration, kv, ok, Candidate("geometric"), test,
-                               cv_record(cv0, cv1), reason))
+                               cv_record(cv0, cv1), reason, self.val_angles(kin)))
         self.say(f"  validation mean {kv.mean_mm:.4f} mm ({test.text()})")
         if ok:
             gain = self.steps[0].validation.mean_mm - kv.mean_mm
@@ -168,7 +186,8 @@ class _Diagnosis:
             # the one-step fit decided; the full fit (noise scale re-estimated) must confirm the significance
             new_fit = self.fit(compose_spec(accepted + [cand], geometric), start=start)
             test = nested_test(self.deviance(current, current.loss), int(current.parameters.free.sum()),
-                               self.deviance(new_fit, current.loss), int(new_fit.parameters.free.sum()), self.n_eq)
+                               self.deviance(new_fit, current.loss), int(new_fit.parameters.free.sum()),
+                               self.n_fit_eq)
             reasons = []
             if test.log10_p >= level or test.delta_bic >= 0:
                 reasons.append(f"not significant once fitted in full ({test.text()})")
@@ -204,6 +223,7 @@ class _Diagnosis:
             full = self.val_stats(current)
             next(f for f in self.findings if f.candidate == cand).gain_mm += step.validation.mean_mm - full.mean_mm
             step.calibration, step.validation = current.calibration, full
+            step.orientation = self.val_angles(current)
         else:
             if self.s.max_rounds:
                 self.notes.append(f"stopped at the safety cap of {self.s.max_rounds} rounds while causes were "
@@ -456,6 +476,11 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
     for d in [cal, val] + ([other] if other is not None else []):
         check_poses(d, robot, **checks)     # the joint count first
     dg = _Diagnosis(robot, cal, val, s, say)
+    if dg.full_pose:
+        dg.notes.append("full pose: every fit is on the measured positions and orientations, weighted by their noise "
+                        "scales from the data (as calibrate); the screening of candidate causes, its tests and the "
+                        "cross-validation folds work on the positions; --position-only fits the positions alone")
+        say("full pose: the fits weigh the measured orientations too (--position-only: positions alone)")
     current, accepted, geometric = dg.run()
     parametric = current
     final, final_spec = current, compose_spec(accepted, geometric)
@@ -484,4 +509,5 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
                            dg.notes, time.perf_counter() - t0,
                            next(st.validation for st in dg.steps if st.model == "kinematic"),
                            study.to_dict() if study is not None else {}, asdict(s),
-                           final.session_stats(val) if len(dg.sessions) > 1 else {})
+                           final_sessions=final.session_stats(val) if len(dg.sessions) > 1 else {},
+                           final_orientation=dg.val_angles(final))

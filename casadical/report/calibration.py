@@ -45,7 +45,8 @@ def calibration_html(result: CalibrationResult, data: Measurements, before: Cali
         One HTML document (inline CSS and SVG, no script, no network).
     """
     if before is None:
-        before = calibrate(result.model.robot, data, "nominal", "lm", warn=False, robust="huber" if result.loss.robust else "none")
+        before = calibrate(result.model.robot, data, "nominal", "lm", warn=False,
+                           robust="huber" if result.loss.robust else "none", position_only=not result.full_pose)
     robot = result.model.robot.name
     page = Page(f"casadical calibration: {robot}, {result.model.spec}")
     r0, r1 = before.residuals(data) * 1000, result.residuals(data) * 1000
@@ -70,6 +71,15 @@ def calibration_html(result: CalibrationResult, data: Measurements, before: Cali
                [[before_label, str(e0.n_poses), num(e0.mean_mm), num(e0.max_mm), num(e0.std_mm), num(e0.rms_mm)],
                 [Raw("calibrated: " + model_label(page, _short(result.model.spec), result.model.spec)),
                  str(e1.n_poses), num(e1.mean_mm), num(e1.max_mm), num(e1.std_mm), num(e1.rms_mm)]])
+    if result.has_orientation and before.has_orientation and data.has_orientation:
+        a0, a1 = before.orientation_stats(data), result.orientation_stats(data)
+        page.para("Orientation of the probe (angle between the measured and the predicted orientation; the "
+                  "calibration weighed it against the position by their noise scales):")
+        page.table(["model", "poses", "mean deg", "max deg", "std deg", "rms deg"],
+                   [[before_label, str(a0.n_poses), num(a0.mean_deg), num(a0.max_deg), num(a0.std_deg),
+                     num(a0.rms_deg)],
+                    [Raw("calibrated: " + model_label(page, _short(result.model.spec), result.model.spec)),
+                     str(a1.n_poses), num(a1.mean_deg), num(a1.max_deg), num(a1.std_deg), num(a1.rms_deg)]])
     ref = page.figure(partial(_distribution, n0, n1, before_label),
                       "fig-errors", "Distribution of the position error over the calibration poses, before "
                       "and after: histogram (left) and cumulative share of poses (right).")
@@ -154,6 +164,13 @@ def _summary(result: CalibrationResult) -> list[tuple[str, str]]:
                                 f"beyond {result.loss.c:g} sigma")))
     else:
         out.append(("loss", "least squares"))
+    if result.full_pose:
+        out.append(("full pose", esc(f"positions and orientations, weighted by their noise scales from the data: "
+                                     f"{result.loss.sigma * 1000:.4f} mm and {math.degrees(result.loss.sigma_rot):.4f}"
+                                     " deg per axis")))
+    if result.orientation is not None:
+        out.append(("orientation", esc(f"mean {result.orientation.mean_deg:.4f} deg, max "
+                                       f"{result.orientation.max_deg:.4f} deg on the calibration poses")))
     if result.uncertainty is not None:
         u = result.uncertainty
         out.append(("residual", esc(f"{u.sigma * 1000:.4f} mm per axis (rms), {u.dof} degrees of freedom")))

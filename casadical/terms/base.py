@@ -117,6 +117,13 @@ class ErrorTerm:
         """Values of covariates this term makes from the data itself rather than reads from a column
         (e.g. a pose's session), by name (default: none)."""
         return {}
+    def tool_rotation(self, ctx: Context):
+        """Rotation (3x3) of the measured probe in the last link frame (default: none).
+
+        Only full-pose models have one (:mod:`casadical.terms.tool_orientation`);
+        it turns the measured orientation, never the measured point.
+        """
+        return None
 
     def spec(self) -> str:
         """The text that re-creates this term in a model specification."""
