@@ -198,7 +198,8 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
               start: dict[str, float] | None = None, check_identifiability: bool = True,
               warn: bool = True, robust: str | RobustLoss = "huber", position_only: bool = False,
               allow_outside_limits: bool = False, angles_are_degrees: bool = False,
-              positions_are_mm: bool = False, session_tools: bool | list[str] = False) -> CalibrationResult:
+              positions_are_mm: bool = False, session_tools: bool | list[str] = False,
+              keep_compensator: bool = False) -> CalibrationResult:
     """Identify the parameters of ``model`` from measured poses.
 
     Parameters
@@ -216,7 +217,9 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     model : str or Model
         Specification such as ``"kinematic+compliance"`` or a built model.
         ``+rbf_compensator`` fits a Gaussian RBF network to what the model
-        leaves (in the robot base frame) and adds it to the model.
+        leaves (in the robot base frame) and adds it to the model;
+        ``+gp_compensator`` a Gaussian process of the joint readings per
+        session, applied where it knows (:mod:`casadical.accuracy`).
     solver : {"ipopt", "lm", "gn", "auto"}
         ``auto`` runs Levenberg-Marquardt and hands over to IPOPT if the
         solution leaves the parameter bounds.
@@ -251,6 +254,11 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         With data of several sessions (``data.sessions``; each has its own
         base pose): every session other than the first (True), or the named
         ones, has its own tool offset too (the probe was re-mounted).
+    keep_compensator : bool
+        Taking a calibration further: keep its session compensator
+        (``gp_compensator``, which a transfer drops like every term of the
+        calibration's session), as when the new poses are of the same
+        session (a new tracker set-up in the middle of it).
 
     Raises
     ------
@@ -290,13 +298,16 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         if built is not None:
             built = Model(robot, [t for t in terms if t.name != "geometric" or built.geometric_free], jit=built.jit)
     want_rbf = any(isinstance(t, RBFCompensator) and t.network is None for t in terms)
-    terms = [t for t in terms if not (isinstance(t, RBFCompensator) and t.network is None)]
+    want_gp = any(t.name == "gp_compensator" and getattr(t, "gp", 0) is None for t in terms)
+    terms = [t for t in terms if not (isinstance(t, RBFCompensator) and t.network is None)
+             and not (t.name == "gp_compensator" and getattr(t, "gp", 0) is None)]
     if prior is not None:
         merged, named = _merge(list(prior.model.terms), terms)
         # what describes the session the calibration was measured in (drift, a session compensator) is not
         # the robot's: it is dropped, unless the model names it (then it is estimated for these poses)
         dropped = [t for t in merged if t.session and (t.name not in named or isinstance(t, SessionLocal)
-                                                       or t.name == "sessions")]
+                                                       or t.name == "sessions")
+                   and not (keep_compensator and t.name == "gp_compensator")]
         merged = [t for t in merged if t not in dropped]
         if dropped:
             notes.append(f"{', '.join(t.spec() for t in dropped)} dropped: "
@@ -489,6 +500,13 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
             warnings.warn(note, PhysicsWarning, stacklevel=2)
     if want_rbf:
         result = fit_compensator(result, data, warn=warn)
+    if want_gp:
+        from .accuracy import fit_layer, layer_coverage, with_layer
+        gps, _ = fit_layer(result, data)
+        result = with_layer(result, gps, data, "gp_compensator: a Gaussian process of the residual per session, "
+                                               "applied where it knows")
+        known, total = layer_coverage(result, data)
+        result.notes[-1] += f" ({known} of the {total} calibration poses)"
     return result
 
 
@@ -608,18 +626,32 @@ def compensator_data(result: CalibrationResult, data: Measurements) -> tuple[np.
     m = result.model
     X = features(data.q, m.torques(data.q, result.parameters.values, m.covariates(data)))
     Y = result.residuals(data) @ result.base_matrix()[:3, :3]   # rows: R^T r, the robot base frame
-    keep = np.ones(len(X), bool)
+    return X, Y, learning_mask(result, data)
+
+
+def learning_mask(result: CalibrationResult, data: Measurements) -> np.ndarray:
+    """The poses of ``data`` a compensator learns from: those the robust loss did not set aside."""
+    keep = np.ones(len(data), bool)
     for d in result.downweighted:
-        keep &= (data.lines != d["line"]) | (data.sources != d["file"] if "file" in d and data.sources is not None
-                                             else False)
-    return X, Y, keep
+        at = data.lines == d["line"]
+        if "file" in d and data.sources is not None:
+            at &= data.sources == d["file"]
+        keep &= ~at
+    return keep
 
 
 def with_compensator(result: CalibrationResult, network, data: Measurements, note: str) -> CalibrationResult:
     """``result`` with a fitted network added to its model as a ``rbf_compensator`` term."""
     m = result.model
     model = Model(m.robot, list(m.terms if m.geometric_free else m.terms[1:])
-                  + [make_term("rbf_compensator", network=network)])
+                  + [make_term("rbf_compensator", network=network)], jit=m.jit)
+    return rebuilt(result, model, data, note)
+
+
+def rebuilt(result: CalibrationResult, model: Model, data: Measurements, note: str) -> CalibrationResult:
+    """``result`` with another model holding the same parameters (a compensator added): every value, std and
+    flag kept, its errors on ``data`` anew, ``note`` added; no fit statistics (a network's weights are not
+    counted)."""
     params = model.parameters.copy()
     for p in params:
         src = result.parameters[p.name]

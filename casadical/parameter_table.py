@@ -88,7 +88,7 @@ class ParameterTable:
         return "\n".join(lines) + "\n"
 
 
-def parameter_table(source: "CalibrationResult | Robot") -> ParameterTable:
+def parameter_table(source: "CalibrationResult | Robot", description: str | None = None) -> ParameterTable:
     """The parameter table of a calibration (identified vs nominal) or of a robot (nominal only).
 
     Rows, in order: every link parameter in the robot's convention, the tool
@@ -118,7 +118,7 @@ def parameter_table(source: "CalibrationResult | Robot") -> ParameterTable:
     rows += [_row(p, calibrated) for p in params if p.term == "joint_compliance"]
     for j, (k, sk) in stiffness.items():
         rows.append(TableRow(j, f"k{j}", "N*m/rad", math.nan, k, math.nan, sk, True, False, f"derived: 1/c{j}"))
-    return ParameterTable(robot.name, robot.convention, model, rows)
+    return ParameterTable(robot.name, robot.convention, description or model, rows)
 
 
 def _row(p: Parameter, calibrated: bool) -> TableRow:

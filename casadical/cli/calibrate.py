@@ -40,6 +40,9 @@ def register(sub) -> None:
                    help="loss: huber (pseudo-Huber with the noise scale from the data: bad measurements are "
                         "down-weighted and reported) or none (plain least squares); default %(default)s")
     p.add_argument("--fix", default="", help="comma-separated parameters to hold at nominal (default: none)")
+    p.add_argument("--keep-compensator", action="store_true",
+                   help="with a calibration JSON in place of ROBOT: keep its session compensator (gp_compensator), "
+                        "which is dropped otherwise like every term of the session it was fitted on")
     p.add_argument("--session-tool", action="store_true",
                    help="with several sessions: each session after the first has its own tool offset too (the "
                         "probe was re-mounted between them)")
@@ -72,7 +75,8 @@ def run(args) -> int:
     opts = {"max_iter": args.max_iter} if args.max_iter else {}
     result = calibrate(robot, data, args.model, args.solver, solver_options=opts,
                        fix=tuple(f.strip() for f in args.fix.split(",") if f.strip()), robust=args.robust,
-                       session_tools=args.session_tool, position_only=args.position_only, **check_options(args))
+                       session_tools=args.session_tool, position_only=args.position_only,
+                       keep_compensator=args.keep_compensator, **check_options(args))
     if val is not None:     # the checks predict makes, then the held-out errors, before anything is written
         result.validate(val, name=f"fitted to {' '.join(args.data)}", allow_mismatch=args.allow_mismatch,
                         **check_options(args))

@@ -237,6 +237,36 @@ def check_options(args) -> dict:
             "positions_are_mm": args.positions_are_mm}
 
 
+# --- what a calibration holds of its session -----------------------------------------
+
+def warn_session_terms(cal, data, cal_file: str) -> None:
+    """A calibration holding terms of its measurement session(s), applied to poses not named as of one of them:
+    a warning that says which terms and how to take the calibration to another session."""
+    import warnings
+
+    from ..errors import DataWarning
+
+    terms = [t.spec() for t in cal.model.terms if t.session and t.name not in ("sessions", "gp_compensator")]
+    named = data.sessions is not None and set(data.session_names) <= set(cal.sessions)
+    if terms and not named:
+        warnings.warn(f"{data.path}: {cal_file} holds {', '.join(terms)}, of the measurement session it was fitted "
+                      "on; it is applied to these poses as if they were of that session (with their own time_s). "
+                      f"If they are not, take the calibration to them first: calibrate {cal_file} "
+                      f"{data.path} --model base (which drops what belongs to a session)", DataWarning, stacklevel=2)
+
+
+def compensator_line(cal, data) -> str:
+    """Where the session compensator (the accuracy layer) applied, in words ('' without one)."""
+    from ..accuracy import layer_coverage
+
+    known, total = layer_coverage(cal, data)
+    if not total:
+        return ""
+    return (f"session compensator (a Gaussian process of the residual): applied at {known} of {total} poses; "
+            f"at the other {total - known} it does not know the residual (too far from the poses it learnt from) and "
+            "the physical model stands alone")
+
+
 # --- progress ------------------------------------------------------------------------
 
 

@@ -6,7 +6,7 @@ import math
 
 import numpy as np
 
-from .common import add_checks, add_force, check_options, check_outputs, float_in, int_at_least
+from .common import add_checks, add_force, check_options, check_outputs, compensator_line, float_in, int_at_least
 
 #: below this many rows CasADi's virtual machine beats compiling the model (~3 s once per run)
 JIT_MIN_ROWS = 10_000
@@ -61,5 +61,8 @@ def run(args) -> int:
         cal.coverage.warn(np.degrees(result.q), targets.lines, args.targets)
     result.joints().write_csv(args.out, overwrite=args.force)
     print(result.summary())
+    line = compensator_line(cal, targets)
+    if line:
+        print(line.replace("poses", "targets"))
     print(f"corrected joints -> {args.out}")
     return 0

@@ -47,7 +47,8 @@ def register(sub) -> None:
                         "(default: %(default)s)")
     p.add_argument("--robust", default="huber", choices=["huber", "none"],
                    help="loss of every fit, as for calibrate (default: %(default)s)")
-    p.add_argument("--no-blackbox", action="store_true", help="skip the black-box compensator step")
+    p.add_argument("--no-blackbox", "--no-layer", action="store_true",
+                   help="skip the accuracy layer (a session compensator of what the named causes leave)")
     p.add_argument("--position-only", action="store_true",
                    help="fit on the positions alone; without it, data with a measured orientation (rx_deg, ry_deg, "
                         "rz_deg) are fitted on the full pose, as by calibrate (the screening of candidates works on "

@@ -6,8 +6,8 @@ import math
 
 import numpy as np
 
-from .common import (add_checks, add_force, add_json, add_urdf_chain, check_options, check_outputs, int_at_least,
-                     robot_from_args, robot_or_calibration, write_json)
+from .common import (add_checks, add_force, add_json, add_urdf_chain, check_options, check_outputs, compensator_line,
+                     int_at_least, robot_from_args, robot_or_calibration, warn_session_terms, write_json)
 
 
 def register(sub) -> None:
@@ -122,6 +122,8 @@ def run_predict(args) -> int:
         angles = cal.orientation_stats(data)
     if cal is not None and cal.coverage is not None:
         cal.coverage.warn(data.q_deg, data.lines, args.poses)
+    if cal is not None:
+        warn_session_terms(cal, data, args.model)
     out = data.with_positions(xyz)
     if cal is not None and cal.has_orientation:   # a full-pose calibration: the probe's orientation too
         out = out.with_orientations(cal.predict_rotations(data))
@@ -132,4 +134,9 @@ def run_predict(args) -> int:
         print(f"error against the measured positions ({how}): {stats.line()}")
     if angles is not None:
         print(f"error against the measured orientations: {angles.line()}")
+    if cal is not None:
+        line = compensator_line(cal, data)
+        if line:
+            print(line)
     return 0
+

@@ -13,10 +13,14 @@ harmonics and from geometry and agree over the two halves of the joint's
 range (:mod:`.periodic`); structure that passes the statistics but not
 these checks is reported as ``unexplained`` and kept out of the model.
 At the end every accepted cause is tested again against the final model
-(:mod:`.backward`). The validation poses judge every step and are never
-used to accept one. A black box fitted last (:mod:`.blackbox`) tells how
-much structure no named cause explains; :mod:`.transfer` takes the
-findings to another series.
+(:mod:`.backward`) and must still be physics (:mod:`casadical.physics`);
+the final model never does worse than the kinematic one where it must
+extrapolate. With several sessions every physical cause is asked whether
+one value serves every session (the robot's) or only one session's own
+(the session's). The validation poses judge every step and are never used
+to accept one. The accuracy layer last (:mod:`.layer`: a session
+compensator that applies where it knows) takes what no named cause
+explains; :mod:`.transfer` takes the findings to another series.
 """
 
 from __future__ import annotations
@@ -39,7 +43,7 @@ from ..robot import Robot
 from ..threads import limited_threads
 from . import transfer as transfer_mod
 from .backward import drop_redundant, drop_unphysical
-from .blackbox import blackbox_step
+from .layer import layer_step
 from .candidates import Candidate, compose_spec
 from .findings import UnexplainedLog, describe
 from .periodic import halves, resolution
@@ -485,11 +489,11 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
     parametric = current
     final, final_spec = current, compose_spec(accepted, geometric)
     if s.blackbox:
-        final, final_spec = blackbox_step(current, final_spec, cal, val, dg.schemes, s, dg.steps, dg.findings, say)
+        final, final_spec = layer_step(current, final_spec, cal, val, dg.schemes, s, dg.steps, dg.findings, say)
     describe(dg.findings, dg.support, dg.before, final, cal)
     dg.findings += list(dg.unexplained.by_joint.values())
     for f in dg.findings:   # of the robot (one value serves every session) or of one session
-        f.scope = f.candidate.scope or ("robot" if len(dg.sessions) > 1 and f.in_model
+        f.scope = f.scope or f.candidate.scope or ("robot" if len(dg.sessions) > 1 and f.in_model
                                         and f.cause != "unexplained" else None)
     final_errors = dg.val_errors(final)
     final_val = ErrorStats.of(final_errors)

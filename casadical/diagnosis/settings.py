@@ -26,7 +26,8 @@ class DiagnosisSettings:
     confirm : int
         Candidates fitted for real per round and tier (best scores first).
     blackbox : bool
-        Try a black-box compensator on what remains.
+        Try the accuracy layer on what remains (a session compensator:
+        :mod:`casadical.diagnosis.layer`).
     stability_alpha : float
         Level of the test that a periodic error's amplitude and phase agree
         on the two halves of the joint's range.

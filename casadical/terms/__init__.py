@@ -5,7 +5,7 @@ such as ``"kinematic+compliance[2,3]+periodic[2:1]"`` (see
 :func:`casadical.model.parse_spec`).
 """
 
-from . import (backlash, compliance, drift, encoder_scale, geometric, nonlinear_stiffness,  # noqa: F401
+from . import (backlash, compliance, drift, encoder_scale, geometric, gp_compensator, nonlinear_stiffness,  # noqa: F401
                periodic, rbf_compensator, sessions, thermal, tool_orientation)
 from .base import REGISTRY, Context, ErrorTerm, ReferencedTerm, register
 from .local import SessionLocal

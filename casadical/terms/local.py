@@ -39,7 +39,15 @@ class SessionLocal(ErrorTerm):
 
     @property
     def covariates(self) -> tuple[str, ...]:  # type: ignore[override]
-        return tuple(self.inner.covariates) + (indicator(self.session_name),)
+        return tuple(self.rename(c) for c in self.inner.covariates) + (indicator(self.session_name),)
+
+    def rename(self, covariate: str) -> str:
+        """A covariate of the inner term's own (``gp_gate``) is this session's (``gp_gate@B``)."""
+        return f"{covariate}@{self.session_name}" if covariate in getattr(self.inner, "own_covariates", ()) else \
+            covariate
+
+    def covariate_values(self, data) -> dict:
+        return {self.rename(k): v for k, v in self.inner.covariate_values(data).items()}
 
     @property
     def t_ref(self) -> float:
@@ -73,7 +81,8 @@ class SessionLocal(ErrorTerm):
     def _local(self, ctx: Context) -> Context:
         ctx.torques()    # computed once, shared with the inner term's view
         names = [p.name for p in self.inner.parameters(ctx.robot)]
-        return replace(ctx, p={**ctx.p, **{n: ctx.p[self.suffix(n)] for n in names}})
+        return replace(ctx, p={**ctx.p, **{n: ctx.p[self.suffix(n)] for n in names}},
+                       cov={**ctx.cov, **{c: ctx.cov[self.rename(c)] for c in self.inner.covariates}})
 
     def joint_offsets(self, ctx: Context) -> dict:
         h = ctx.cov[indicator(self.session_name)]

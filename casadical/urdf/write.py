@@ -35,7 +35,7 @@ NOT_IN_URDF = ("joint compliance (stiffness)", "periodic gear errors", "encoder 
                "closed loops and couplings other than <mimic>")
 
 
-def robot_to_urdf(source: "CalibrationResult | Robot") -> str:
+def robot_to_urdf(source: "CalibrationResult | Robot", description: str | None = None) -> str:
     """URDF text of a calibration's geometric model (or of a robot's nominal one).
 
     Parameters
@@ -43,6 +43,11 @@ def robot_to_urdf(source: "CalibrationResult | Robot") -> str:
     source : CalibrationResult or Robot
         A calibration: the identified link parameters, base pose and tool;
         a robot: its nominal values.
+    description : str, optional
+        What the geometry is, for the file's comment (default: the
+        calibration's model and the terms the file leaves out); see
+        :func:`casadical.equivalent.geometric_equivalent` for a model with
+        terms a URDF cannot carry.
 
     Returns
     -------
@@ -58,6 +63,7 @@ def robot_to_urdf(source: "CalibrationResult | Robot") -> str:
         following another (URDF's ``<mimic>``).
     """
     robot, geom, base, model = _geometry(source)
+    model = description or model
     n = robot.n
     if robot.loop is not None:
         raise ModelError(f"{robot.name}: the four-bar loop driving joint {robot.loop.joint} cannot be written "

@@ -1,0 +1,123 @@
+"""The accuracy layer: a session compensator on top of the physical model, and where it holds.
+
+The named causes make the physical model: what holds for the robot, in
+any session. What they leave is partly structure of the session (the
+tracker's own errors, the state of the robot that day) that no cause
+explains but that predicts other poses of the same session. The accuracy
+layer learns it with a Gaussian process of the joint readings
+(:class:`casadical.compensators.gp.ResidualGP`, one per session), in the
+robot base frame of each pose's session, and adds it to the model as a
+``gp_compensator`` term (``gp_compensator@<session>`` with several
+sessions). It applies only where its predictive uncertainty says it knows
+the residual; elsewhere the physical model stands alone, and
+:func:`layer_coverage` says at how many poses that was.
+
+:func:`held_out` judges the layer as the diagnosis judges every step: on
+cross-validation folds (random, time-blocked, joint-blocked, each session
+left out), with the hyperparameters of the fit on all poses and the
+process conditioned on each fold's training poses only.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from .calibration import learning_mask, rebuilt
+from .compensators.gp import MAX_STD_RATIO, ResidualGP
+from .data import Measurements
+from .model import Model
+from .result import CalibrationResult
+from .sessions import session_index
+from .terms import SessionLocal, make_term
+from .threads import limited_threads
+
+#: a session's process learns from at most this many of its poses (drawn at random): its cost grows with the cube
+#: of the poses, in the fit and in every held-out fold, and its size in the model with their number
+MAX_POSES = 600
+
+
+def layer_data(result: CalibrationResult, data: Measurements) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What the layer learns from: joint readings (rad), residuals (measured minus predicted, m) in the robot
+    base frame of each pose's session, and the poses to learn from (those the robust loss did not set aside)."""
+    r = result.residuals(data)
+    Y = np.empty_like(r)
+    for s, idx in session_index(data).items():
+        R = result.base_matrix(s or None)[:3, :3]
+        Y[idx] = r[idx] @ R                 # rows: R^T r
+    return data.q, Y, learning_mask(result, data)
+
+
+def fit_layer(result: CalibrationResult, data: Measurements, max_std_ratio: float = MAX_STD_RATIO,
+              seed: int = 0) -> tuple[dict[str | None, ResidualGP], dict[str | None, np.ndarray]]:
+    """A Gaussian process of the residual per session (key None for data of one session), and the poses of
+    ``data`` each learnt from."""
+    X, Y, keep = layer_data(result, data)
+    gps: dict[str | None, ResidualGP] = {}
+    rows: dict[str | None, np.ndarray] = {}
+    for s, idx in session_index(data).items():
+        idx = idx[keep[idx]]
+        if len(idx) > MAX_POSES:
+            idx = np.sort(np.random.default_rng(seed).choice(idx, MAX_POSES, replace=False))
+        gps[s or None] = ResidualGP.fit(X[idx], Y[idx], max_std_ratio=max_std_ratio, seed=seed)
+        rows[s or None] = idx
+    return gps, rows
+
+
+def with_layer(result: CalibrationResult, gps: dict[str | None, ResidualGP], data: Measurements,
+               note: str) -> CalibrationResult:
+    """``result`` with the processes added to its model as ``gp_compensator`` terms (the values kept)."""
+    m = result.model
+    terms = [t for t in m.terms if t.name != "gp_compensator"]
+    for s, gp in gps.items():
+        term = make_term("gp_compensator", gp=gp)
+        terms.append(term if s is None else SessionLocal(term, s))
+    return rebuilt(result, Model(m.robot, terms if m.geometric_free else terms[1:], jit=m.jit), data, note)
+
+
+def layer_coverage(result: CalibrationResult, data: Measurements) -> tuple[int, int]:
+    """At how many of ``data``'s poses the result's session compensator applies, of how many it could
+    (the poses of the sessions it has a process for); (0, 0) without one."""
+    known = total = 0
+    for t in result.model.terms:
+        inner = t.inner if isinstance(t, SessionLocal) else t
+        if inner.name != "gp_compensator" or inner.gp is None:
+            continue
+        rows = np.arange(len(data)) if not isinstance(t, SessionLocal) else \
+            np.flatnonzero(data.sessions == t.session_name) if data.sessions is not None else np.arange(0)
+        total += len(rows)
+        known += int(inner.gp.knows(data.q[rows]).sum())
+    return known, total
+
+
+@limited_threads()
+def held_out(gps: dict[str | None, ResidualGP], learnt: dict[str | None, np.ndarray], data: Measurements,
+             Y: np.ndarray, keep: np.ndarray, schemes) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+    """Held-out residual norms (m) without and with the layer, by kind of fold, at the poses of ``keep``.
+
+    Each fold's process is the session's process (hyperparameters of the
+    fit on all poses) conditioned on the poses it learnt from (``learnt``,
+    indices into ``data``) that are among the fold's training poses; where
+    it does not know it adds nothing.
+    """
+    sessions = session_index(data)
+    out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+    idx_keep = np.flatnonzero(keep)
+    for kind in dict.fromkeys(s.kind for s in schemes):
+        group = [s for s in schemes if s.kind == kind]
+        before, after = np.zeros(len(data)), np.zeros(len(data))
+        for scheme in group:
+            for F in scheme.folds:
+                test = np.intersect1d(F, idx_keep)
+                pred = np.zeros((len(test), 3))
+                for s, rows in sessions.items():
+                    own = learnt[s or None]
+                    train = np.setdiff1d(own, F)
+                    at = np.isin(test, rows)
+                    if len(train) >= 10 and at.any():
+                        g = gps[s or None].refit(np.searchsorted(own, train))
+                        x = data.q[test[at]]
+                        pred[at] = g.predict(x) * g.knows(x)[:, None]
+                before[test] += np.linalg.norm(Y[test], axis=1)
+                after[test] += np.linalg.norm(Y[test] - pred, axis=1)
+        out[kind] = (before[idx_keep] / len(group), after[idx_keep] / len(group))
+    return out

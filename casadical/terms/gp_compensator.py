@@ -1,0 +1,77 @@
+"""Session compensator: a Gaussian process of the residual, applied where it knows."""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from ..errors import ModelError
+from ..robot import Robot
+from .base import Context, ErrorTerm, register
+
+
+@register
+class GPCompensator(ErrorTerm):
+    """What the named causes leave, learnt from a session's poses by a Gaussian process, where it knows.
+
+    The process (:class:`casadical.compensators.gp.ResidualGP`) maps the
+    joint readings to the residual in the robot base frame; it is fitted to
+    a calibration's residuals and then frozen (no parameters of its own).
+    Its predictive uncertainty says where it knows: at a pose far from the
+    poses it learnt from it returns to its prior, and there the compensator
+    adds nothing (the covariate ``gp_gate``, 1 where it knows, 0 elsewhere,
+    made from the poses themselves), so the physical model stands alone.
+
+    It belongs to the measurement session it was learnt in (``session``):
+    structure that no named cause explains is mostly of that session (the
+    tracker's own errors, that day's state of the robot), so a transfer
+    drops it (unless asked to keep it) and an export never holds it.
+
+    Parameters
+    ----------
+    gp : ResidualGP or dict, optional
+        The fitted process or its :meth:`~ResidualGP.to_dict`; without one
+        the term adds nothing (``calibrate`` fits it).
+    """
+
+    name = "gp_compensator"
+    aliases = ("gp",)
+    cause = "unexplained"
+    session = True
+    #: covariates of its own (a term of one session renames them, so that each session's process has its own)
+    own_covariates = ("gp_gate",)
+    covariates = ("gp_gate",)
+
+    def __init__(self, joints=None, gp=None):
+        super().__init__(None)
+        if isinstance(gp, dict):
+            from ..compensators.gp import ResidualGP
+            from ..errors import InputError
+            try:
+                gp = ResidualGP.from_dict(gp)
+            except InputError as e:
+                raise ModelError(f"gp_compensator: {e}") from e
+        self.gp = gp
+
+    def spec(self) -> str:
+        return self.name
+
+    def settings(self) -> dict:
+        return {"gp": self.gp.to_dict() if self.gp is not None else None}
+
+    def bind(self, robot: Robot) -> None:
+        super().bind(robot)
+        if self.gp is not None and self.gp.X.shape[1] != robot.n:
+            raise ModelError(f"gp_compensator: the process reads {self.gp.X.shape[1]} joints, {robot.name} has "
+                             f"{robot.n}")
+
+    def robot_frame_offset(self, ctx: Context):
+        if self.gp is None:
+            return None
+        return ctx.cov["gp_gate"] * self.gp.casadi(ca.vertcat(*[ctx.q[i] for i in range(ctx.robot.n)]))
+
+    def covariate_values(self, data) -> dict:
+        """``gp_gate``: 1 at the poses where the process knows the residual, 0 elsewhere."""
+        if self.gp is None:
+            return {"gp_gate": np.zeros(len(data))}
+        return {"gp_gate": self.gp.knows(data.q).astype(float)}
