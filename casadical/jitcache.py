@@ -192,7 +192,7 @@ def _store(folder: Path, filename: str, data: bytes) -> None:
     concurrent writer's rename is harmless."""
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        atomic_write(folder / filename, data, overwrite=True)   # its temporary files end in _PART
+        atomic_write(folder / filename, data, overwrite=True, at_once=True)   # its temporary files end in _PART
     except (OSError, InputError):
         return
     prune(folder)

@@ -41,7 +41,8 @@ def check_outputs(outputs: dict[str, str | None], inputs: Iterable[str | None], 
     ------
     InputError
         An output is an input, two outputs are one file, an output exists
-        (without ``force``) or its folder does not exist.
+        (without ``force``), its folder does not exist or no file can be
+        made in it.
     """
     ins = [Path(i) for i in inputs if i and i != STDOUT and Path(i).exists()]
     seen: dict[Path, str] = {}
@@ -64,6 +65,20 @@ def check_outputs(outputs: dict[str, str | None], inputs: Iterable[str | None], 
                 raise InputError(EXISTS, file=path)
         if not out.parent.exists():
             raise InputError(f"folder {str(out.parent)!r} does not exist", file=path)
+        _check_writable(out, path)
+
+
+def _check_writable(out: Path, path: str) -> None:
+    """A file can be made in the output's folder (tried, then removed): an output that cannot be written
+    fails before the work, not after the other outputs."""
+    import tempfile
+
+    try:
+        fd, probe = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".part", dir=out.parent)
+    except OSError as e:
+        raise InputError(f"cannot write in folder {str(out.parent)!r}: {e.strerror or e}", file=path) from e
+    os.close(fd)
+    os.unlink(probe)
 
 
 def _same(a: Path, b: Path) -> bool:

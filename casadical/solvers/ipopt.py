@@ -18,6 +18,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import SolverError
+from ..interrupts import noticed
 from ..problem import CalibrationProblem
 from .base import Solver, SolverResult
 
@@ -132,7 +133,8 @@ class Ipopt(Solver):
                                problem.base0, pfix, sel_scale, [problem.loss.delta]])
         t1 = time.perf_counter()
         try:
-            sol = solver(x0=x0, p=data, lbx=lbx, ubx=ubx)
+            with noticed():   # CasADi swallows a Ctrl-C and returns the last iterate: raised again here
+                sol = solver(x0=x0, p=data, lbx=lbx, ubx=ubx)
         except RuntimeError as e:
             raise SolverError(f"IPOPT failed: {e}") from e
         elapsed = time.perf_counter() - t1

@@ -150,8 +150,8 @@ class ResultStore:
                                      "anything: choose another --out", file=where)
                 for p in store.parts():
                     p.unlink()
-            atomic_write(path / MANIFEST, json.dumps(new, indent=1), overwrite=True)
-            atomic_write(path / PROTOCOL_COPY, study.text, overwrite=True)
+            atomic_write(path / MANIFEST, json.dumps(new, indent=1), overwrite=True, at_once=True)
+            atomic_write(path / PROTOCOL_COPY, study.text, overwrite=True, at_once=True)
             store.manifest = new
         except BaseException:
             store.close()
@@ -203,7 +203,7 @@ class ResultStore:
         table = pa.Table.from_pylist(rows, schema=schema())
         reps = [r["repetition"] for r in rows]
         path = self.path / f"part-{min(reps):06d}-{max(reps):06d}-{secrets.token_hex(4)}.parquet"
-        with atomic_open(path, "wb") as fh:
+        with atomic_open(path, "wb", at_once=True) as fh:   # kept when the run stops: it resumes from them
             pq.write_table(table, fh)
         return path
 
