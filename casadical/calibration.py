@@ -134,7 +134,8 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
               solver: str = "ipopt", *, solver_options: dict | None = None, fix: tuple[str, ...] = (),
               start: dict[str, float] | None = None, check_identifiability: bool = True,
               warn: bool = True, robust: str | RobustLoss = "huber", allow_outside_limits: bool = False,
-              angles_are_degrees: bool = False, positions_are_mm: bool = False) -> CalibrationResult:
+              angles_are_degrees: bool = False, positions_are_mm: bool = False,
+              allow_mismatch: bool = False) -> CalibrationResult:
     """Identify the parameters of ``model`` from measured poses.
 
     Parameters
@@ -169,9 +170,11 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         The loss: pseudo-Huber on each pose's residual with the noise scale
         estimated from the data (default), or plain least squares. A
         RobustLoss with its ``sigma`` set keeps that noise scale.
-    allow_outside_limits, angles_are_degrees, positions_are_mm : bool
+    allow_outside_limits, angles_are_degrees, positions_are_mm, allow_mismatch : bool
         Overrides of the plausibility checks of the poses
-        (:func:`casadical.checks.check_poses`).
+        (:func:`casadical.checks.check_poses`); ``allow_mismatch``: poses
+        the start model (nominal, or the calibration taken further) misses
+        far beyond what it can mean, even with its base pose fitted to them.
 
     Raises
     ------
@@ -240,8 +243,12 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         params[f"base_{k}"].value = 0.0
     eye = pose_to_base0(np.eye(4))
     start_xyz = model.predict(q, params.values, cov, eye)
+    own = None
+    if prior is not None:
+        own = (robot.source or "taken further", prior.calibration.mean_mm if prior.calibration else None)
     check_poses(data, robot, allow_outside_limits=allow_outside_limits, angles_are_degrees=angles_are_degrees,
-                positions_are_mm=positions_are_mm, predicted=start_xyz)
+                positions_are_mm=positions_are_mm, allow_mismatch=allow_mismatch, predicted=start_xyz,
+                nominal=prior is None, calibration=own)
     T = align(start_xyz, xyz)
     base0 = pose_to_base0(T)
 

@@ -179,7 +179,7 @@ def add_json(p: argparse.ArgumentParser, what: str, required: bool = False) -> N
                        help=f"write {what} as JSON to OUT.json ('-' or nothing: standard output)")
 
 
-def add_checks(p: argparse.ArgumentParser, mismatch: bool = False) -> None:
+def add_checks(p: argparse.ArgumentParser) -> None:
     """The overrides of the plausibility checks of poses (:mod:`casadical.checks`)."""
     g = p.add_argument_group("plausibility checks of the poses (each is an error unless overridden)")
     g.add_argument("--allow-outside-limits", action="store_true",
@@ -188,9 +188,10 @@ def add_checks(p: argparse.ArgumentParser, mismatch: bool = False) -> None:
                    help="the joint readings are degrees although all lie within +-6.3 (which looks like radians)")
     g.add_argument("--positions-are-mm", action="store_true",
                    help="the positions are mm even though their spread does not match the robot's")
-    if mismatch:
-        g.add_argument("--allow-mismatch", action="store_true",
-                       help="accept measured poses the calibration predicts far worse than its own (a warning)")
+    g.add_argument("--allow-mismatch", action="store_true",
+                   help="accept measured poses the model misses far beyond what it can mean, with its base pose "
+                        "fitted: the nominal model by more than 5%% of the robot's reach, a calibration by more "
+                        "than 100 times its own error (a warning)")
 
 
 def add_urdf_chain(p: argparse.ArgumentParser) -> None:
@@ -233,7 +234,7 @@ def robot_or_calibration(spec: str, args):
 def check_options(args) -> dict:
     """Keyword overrides of :func:`casadical.checks.check_poses` from the options of :func:`add_checks`."""
     return {"allow_outside_limits": args.allow_outside_limits, "angles_are_degrees": args.angles_are_degrees,
-            "positions_are_mm": args.positions_are_mm}
+            "positions_are_mm": args.positions_are_mm, "allow_mismatch": args.allow_mismatch}
 
 
 # --- progress ------------------------------------------------------------------------
