@@ -129,6 +129,25 @@ def _named_free(params: Parameters, named: set[str], new_params: set[str]) -> li
     return [p.name for p in params if p.group == "base" or p.term in named or p.name in new_params]
 
 
+def _check_loads(model: Model, robot: Robot, data: Measurements) -> None:
+    """A compliance asked of a robot that carries no mass: no gravity torque can deflect any joint.
+
+    Without it every compliance would be fixed as having "no effect at
+    these poses", which hides the cause (a URDF without ``<inertial>``).
+    """
+    torque_terms = [t.spec() for t in model.terms if t.name in ("joint_compliance", "nonlinear_stiffness")]
+    if not torque_terms:
+        return
+    payload = data.get("payload_kg")
+    carried = robot.payload_mass if payload is None else float(np.max(payload, initial=0.0))
+    if sum(j.mass for j in robot.joints) > 0 or carried > 0:
+        return
+    raise InputError(f"model {model.spec} asks for {', '.join(torque_terms)}, but robot {robot.name} has no link "
+                     "masses and the poses no payload, so no gravity torque deflects a joint; give the links their "
+                     "masses (<inertial> in a URDF, mass_kg in a robot TOML) or the poses a payload_kg column, or "
+                     "leave the compliance out (--model kinematic)", file=robot.source or None)
+
+
 @limited_threads()
 def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str | Model = "kinematic+compliance",
               solver: str = "ipopt", *, solver_options: dict | None = None, fix: tuple[str, ...] = (),
@@ -236,6 +255,7 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     for name, v in (start or {}).items():
         params[name].value = float(v)
     params.fix(fix, reason="fixed by the user")
+    _check_loads(model, robot, data)
     q, xyz, cov = data.q, data.xyz, model.covariates(data)
 
     # --- base pose: closed-form alignment of the start model's predictions to the measurements
@@ -249,7 +269,11 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     check_poses(data, robot, allow_outside_limits=allow_outside_limits, angles_are_degrees=angles_are_degrees,
                 positions_are_mm=positions_are_mm, allow_mismatch=allow_mismatch, predicted=start_xyz,
                 nominal=prior is None, calibration=own)
-    T = align(start_xyz, xyz)
+    where = f"{data.path}: " if data.path else ""
+    try:
+        T = align(start_xyz, xyz)
+    except IdentifiabilityError as e:      # fewer than 3 poses, or all on a line
+        raise IdentifiabilityError(f"{where}{e}") from e
     base0 = pose_to_base0(T)
 
     # --- identifiability
@@ -259,7 +283,7 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         needed = len(generic)
         if 3 * len(q) <= needed:
             raise IdentifiabilityError(
-                f"{len(q)} poses give {3 * len(q)} equations for the {needed} identifiable parameters of "
+                f"{where}{len(q)} poses give {3 * len(q)} equations for the {needed} identifiable parameters of "
                 f"model {model.spec}: at least {needed // 3 + 1} poses are needed, and 3-5 times that for a "
                 "reliable fit")
         # structural question, at nominal values: at a perturbed start exact redundancies only look near-exact

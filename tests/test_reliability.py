@@ -295,3 +295,191 @@ def test_positions_in_mm_declared_as_metres_in_an_import_map(tmp_path, capsys):
     one_error(err, "--map, column 'position_unit'", "km around their centre", 'set position_unit = "mm"')
     assert not (tmp_path / "o.csv").exists()
     assert cli(capsys, "import", src, *base, "--map", "position_unit=mm", "--out", tmp_path / "o.csv")[0] == 0
+
+
+# --- 3. every case one clear line, right rows, bounded work --------------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def study_results(tmp_path_factory):
+    """A finished 2-repetition study of a four-axis arm (serial) and its protocol."""
+    from test_study import write_study
+
+    folder = tmp_path_factory.mktemp("study")
+    protocol = write_study(folder, reps=2)
+    assert main(["study", protocol, "--out", str(folder / "r"), "--serial", "--quiet"]) == 0
+    return Path(protocol), folder / "r"
+
+
+@pytest.mark.parametrize("damage", ["truncated", "empty", "garbage"])
+def test_resuming_a_study_with_a_damaged_part(study_results, tmp_path, capsys, damage):
+    import shutil
+
+    protocol, results = study_results
+    out = tmp_path / "r"
+    shutil.copytree(results, out)
+    part = next(out.glob("part-*.parquet"))
+    part.write_bytes({"truncated": part.read_bytes()[:100], "empty": b"", "garbage": b"garbage\n"}[damage])
+    bigger = tmp_path / protocol.name
+    bigger.write_text(protocol.read_text().replace("repetitions = 2", "repetitions = 3"))
+    shutil.copy(protocol.parent / "arm4-dh.toml", tmp_path)
+    code, _, err = cli(capsys, "study", bigger, "--out", out, "--serial", "--quiet")
+    assert code == 2
+    one_error(err, str(part), "is damaged", "delete it")
+    code, _, err = cli(capsys, "study", "--summary", out)
+    assert code == 2
+    one_error(err, str(part), "is damaged")
+
+
+def test_absurd_repetitions_are_refused_at_once(study_results, tmp_path, capsys):
+    protocol, _ = study_results
+    big = tmp_path / protocol.name
+    big.write_text(protocol.read_text().replace("repetitions = 2", "repetitions = 1000000000"))
+    (tmp_path / "arm4-dh.toml").write_text((protocol.parent / "arm4-dh.toml").read_text())
+    t = time.monotonic()
+    code, _, err = cli(capsys, "study", big, "--out", tmp_path / "r", "--serial")
+    assert code == 2 and time.monotonic() - t < 5
+    one_error(err, str(big), "'repetitions'", "at most 1,000,000")
+    assert not (tmp_path / "r").exists()
+
+
+def test_a_scheduler_that_cannot_be_reached_leaves_nothing(study_results, tmp_path, capsys):
+    pytest.importorskip("distributed")
+    protocol, _ = study_results
+    code, _, err = cli(capsys, "study", protocol, "--out", tmp_path / "r", "--scheduler", "nosuch://host:1", "--quiet")
+    assert code == 2
+    one_error(err, "nosuch://host:1", "cannot reach the Dask scheduler")
+    assert not (tmp_path / "r").exists()
+
+
+URDF_LINK = '<link name="{}"/>'
+URDF_JOINT = ('<joint name="{n}" type="revolute"><parent link="{p}"/><child link="{c}"/><origin xyz="{o}" rpy="0 0 0"/>'
+              '<axis xyz="{ax}"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>')
+
+
+def _urdf(origin2="0 0 0.3") -> str:
+    body = "".join(URDF_LINK.format(x) for x in "abcde")
+    body += URDF_JOINT.format(n="j1", p="a", c="b", o="0 0 0.4", ax="0 0 1")
+    body += "\n" + URDF_JOINT.format(n="j2", p="b", c="c", o=origin2, ax="0 1 0")
+    body += "\n" + URDF_JOINT.format(n="j3", p="c", c="d", o="0 0 0.7", ax="0 1 0")
+    body += '\n<joint name="t" type="fixed"><parent link="d"/><child link="e"/><origin xyz="0.5 0 0"/></joint>'
+    return '<?xml version="1.0"?>\n<robot name="hand-written arm">\n' + body + "\n</robot>\n"
+
+
+def test_urdf_joint_origin_of_1e300(tmp_path, capsys):
+    (tmp_path / "r.urdf").write_text(_urdf("1e300 0 0.3"))
+    code, _, err = cli(capsys, "inspect", tmp_path / "r.urdf")
+    assert code == 2
+    one_error(err, "r.urdf, row 4", "joint 'j2'", "1e+300 m", "metres")
+
+
+def test_compliance_of_a_urdf_without_inertial(tmp_path, capsys):
+    from casadical.robot import load_robot
+
+    (tmp_path / "r.urdf").write_text(_urdf())
+    data, _ = simulate(load_robot(tmp_path / "r.urdf"), 40, Effects(), seed=0, floor_z=None)
+    data.write_csv(tmp_path / "d.csv")
+    code, _, err = cli(capsys, "calibrate", tmp_path / "r.urdf", tmp_path / "d.csv", "--model",
+                       "kinematic+compliance", "--out", tmp_path / "c.json")
+    assert code == 2
+    one_error(err, "r.urdf", "no link masses", "<inertial>", "--model kinematic")
+    assert cli(capsys, "calibrate", tmp_path / "r.urdf", tmp_path / "d.csv", "--model", "kinematic",
+               "--out", tmp_path / "c.json")[0] == 0
+
+
+def test_negative_payload_in_a_data_file(arms, tmp_path, capsys):
+    from casadical.data import Measurements
+
+    robot, data = arms("arm5", 40)
+    d = Measurements.read_csv(data)
+    payload = np.full(len(d), 5.0)
+    payload[3] = -20.0
+    Measurements({**d.columns, "payload_kg": payload}).write_csv(tmp_path / "p.csv")
+    code, _, err = cli(capsys, "calibrate", robot, tmp_path / "p.csv", "--out", tmp_path / "c.json")
+    assert code == 2
+    one_error(err, "p.csv, row 5, column 'payload_kg'", "-20 kg")
+
+
+@pytest.fixture(scope="module")
+def arm_calibration(arms, tmp_path_factory):
+    robot, data = arms("arm4", 60)
+    path = tmp_path_factory.mktemp("cal") / "cal.json"
+    assert main(["calibrate", robot, data, "--model", "kinematic", "--solver", "lm", "--out", str(path)]) == 0
+    return path
+
+
+def test_calibration_from_a_future_version(arm_calibration, tmp_path, capsys):
+    import json
+
+    doc = json.loads(arm_calibration.read_text())
+    doc["casadical_version"] = "99.0"
+    (tmp_path / "future.json").write_text(json.dumps(doc))
+    code, _, err = cli(capsys, "export", tmp_path / "future.json", "--urdf", tmp_path / "r.urdf")
+    assert code == 2
+    one_error(err, "future.json, column 'casadical_version'", "written by casadical 99.0", "update casadical")
+    assert not (tmp_path / "r.urdf").exists()
+
+
+def test_hand_edited_huge_link_length_is_not_exported(arm_calibration, tmp_path, capsys):
+    import json
+
+    doc = json.loads(arm_calibration.read_text())
+    k = next(i for i, p in enumerate(doc["parameters"]) if p["name"] == "a3")
+    doc["parameters"][k]["value"] = 1e308
+    (tmp_path / "huge.json").write_text(json.dumps(doc))
+    code, _, err = cli(capsys, "export", tmp_path / "huge.json", "--urdf", tmp_path / "r.urdf", "--table",
+                       tmp_path / "t.csv")
+    assert code == 2
+    one_error(err, f"huge.json, column 'parameters[{k}].value'", "a3", "length in mm")
+    assert not (tmp_path / "r.urdf").exists() and not (tmp_path / "t.csv").exists()
+
+
+@pytest.mark.parametrize("variable, value", [("CASADICAL_CACHE_MAX_MB", "lots"), ("CASADICAL_CACHE_MAX_MB", "-1"),
+                                             ("CASADICAL_JIT", "maybe")])
+def test_bad_cache_variables_are_errors(monkeypatch, capsys, variable, value):
+    monkeypatch.setenv(variable, value)
+    code, _, err = cli(capsys, "cache", "--info")
+    assert code == 2
+    one_error(err, variable, repr(value))
+
+
+def _oversized(path: Path, sep: str) -> None:
+    """A measurement file whose row 5 has a field too large for Python's csv reader (131,072 characters)."""
+    rows = ["q1_deg,q2_deg,q3_deg,q4_deg,x_mm,y_mm,z_mm"] + [",".join(["1"] * 7)] * 6
+    rows[4] = ",".join(["1", "2" * 200_000] + ["1"] * 5)
+    path.write_text("\n".join(r.replace(",", sep) for r in rows) + "\n")
+
+
+def test_an_oversized_cell_is_reported_in_its_row(tmp_path, capsys):
+    _oversized(tmp_path / "d.csv", ",")
+    code, _, err = cli(capsys, "split", tmp_path / "d.csv", "-n", "2", "--out-cal", tmp_path / "a.csv",
+                       "--out-val", tmp_path / "b.csv")
+    assert code == 2
+    one_error(err, "d.csv, row 5", "field larger than field limit")
+    _oversized(tmp_path / "t.txt", ";")
+    code, _, err = cli(capsys, "import", tmp_path / "t.txt", "--map", "separator=;", "--map",
+                       "joints=q1_deg,q2_deg,q3_deg,q4_deg", "--map", "joint_unit=deg", "--map",
+                       "position=x_mm,y_mm,z_mm", "--map", "position_unit=mm", "--out", tmp_path / "o.csv")
+    assert code == 2
+    one_error(err, "t.txt, row 5", "field larger than field limit")
+
+
+def test_too_few_poses_name_the_file(arms, tmp_path, capsys):
+    robot, data = arms("arm5", 40)
+    lines = Path(data).read_text().splitlines()
+    for n, what in ((6, "poses give"), (3, "at least 3 measured poses")):
+        (tmp_path / f"few{n}.csv").write_text("\n".join(lines[:n]) + "\n")
+        code, _, err = cli(capsys, "calibrate", robot, tmp_path / f"few{n}.csv", "--out", tmp_path / "c.json")
+        assert code == 2
+        one_error(err, f"few{n}.csv: ", what)
+
+
+def test_a_huge_skip_lines_is_bounded_work_and_names_the_key(tmp_path, capsys):
+    _oversized(tmp_path / "t.txt", ";")
+    t = time.monotonic()
+    code, _, err = cli(capsys, "import", tmp_path / "t.txt", "--map", "separator=;", "--map",
+                       "joints=q1_deg,q2_deg,q3_deg,q4_deg", "--map", "joint_unit=deg", "--map",
+                       "position=x_mm,y_mm,z_mm", "--map", "position_unit=mm", "--map", "skip_lines=2147483648",
+                       "--out", tmp_path / "o.csv")
+    assert code == 2 and time.monotonic() - t < 5
+    one_error(err, "--map, column 'skip_lines'", "2,147,483,648", "has 7")

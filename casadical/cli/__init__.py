@@ -15,6 +15,7 @@ in :mod:`casadical.cli.common`.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import traceback
 import warnings
@@ -78,6 +79,14 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
         print(f"casadical: warning: {category.__name__}: {message}", file=sys.stderr)
 
 
+def _check_cache_settings() -> None:
+    """A bad CASADICAL_JIT or CASADICAL_CACHE_MAX_MB is said before any work (casadi is imported only if set)."""
+    if os.environ.get("CASADICAL_JIT") is not None or os.environ.get("CASADICAL_CACHE_MAX_MB") is not None:
+        from ..jitcache import jit_setting, max_bytes
+        jit_setting()
+        max_bytes()
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = build_parser()
     try:
@@ -94,6 +103,7 @@ def main(argv: list[str] | None = None) -> int:
         # SIGTERM takes Ctrl-C's path; every output of the command appears at its end, or none
         with handle_signals(), outputs_together():
             evaluation_threads()     # a bad CASADICAL_EVAL_THREADS is said before any work, whatever the command
+            _check_cache_settings()
             with limited_threads():  # small dense problems: one BLAS thread unless CASADICAL_THREADS says otherwise
                 return int(args.func(args) or 0)
     except CasadicalError as e:

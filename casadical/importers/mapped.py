@@ -145,8 +145,10 @@ def _read_table(path: Path, cmap: ColumnMap) -> _Table | None:
     """Header and data rows (blank lines skipped); None for a file without a header."""
     file = str(path)
     buf = io.StringIO(_decode(path, cmap), newline="")
-    for _ in range(cmap.skip_lines):
-        buf.readline()
+    for skipped in range(cmap.skip_lines):
+        if not buf.readline():       # the end of the file: no work for the rest of a huge skip_lines
+            raise ColumnMapError(f"skips {cmap.skip_lines:,} lines but {file} has {skipped:,}; count the lines before "
+                                 "the header row", file=cmap.origin("skip_lines"), column="skip_lines")
     start, offset = buf.tell(), cmap.skip_lines
     first, first_row = "", offset
     for first_row, line in enumerate(iter(buf.readline, ""), start=offset + 1):
@@ -170,7 +172,8 @@ def _read_table(path: Path, cmap: ColumnMap) -> _Table | None:
                 rows.append(fields)
                 lines.append(offset + reader.line_num)
     except csv.Error as exc:
-        raise DataFileError(f"malformed CSV: {exc}", file=file, row=offset + reader.line_num + 1) from exc
+        # the reader has counted the line at fault (an oversized field, a NUL, a quote open at the end)
+        raise DataFileError(f"malformed CSV: {exc}", file=file, row=offset + reader.line_num) from exc
     if header is None:
         return None
     while header and not header[-1]:
