@@ -162,6 +162,35 @@ def test_a_signal_while_the_report_is_drawn_ends_its_workers(arms, tmp_path, sig
     _nothing_left(tmp_path, "r.json", "r.html", "f.json")
 
 
+def _descendants(pid: int) -> list[int]:
+    kids = _children(pid)
+    return kids + [g for k in kids for g in _descendants(k)]
+
+
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
+def test_sigterm_stops_a_dask_study_and_its_cluster(tmp_path):
+    """SIGTERM while a local Dask cluster runs a study: exit 143 with the one resume line, the cluster's
+    processes end with the command, and the same command resumes from what was stored."""
+    pytest.importorskip("distributed")
+    from test_study import write_study
+
+    protocol = write_study(tmp_path, reps=400)
+    args = ["study", protocol, "--out", "r", "--workers", "2", "--quiet"]
+    p = _start(args, tmp_path)
+    while p.poll() is None and len(_descendants(p.pid)) < 3:      # the nanny and its two workers
+        time.sleep(0.05)
+    time.sleep(1.0)
+    kids = _descendants(p.pid)
+    assert p.poll() is None, "finished before the signal"
+    os.kill(p.pid, signal.SIGTERM)
+    _, err = _finish(p, kids)
+    assert p.returncode == 143, err
+    lines = err.strip().splitlines()
+    assert len(lines) == 1 and lines[0].startswith("casadical: stopped by SIGTERM: ") and "to resume" in lines[0], err
+    time.sleep(0.5)
+    assert not [k for k in kids if _alive(k)], "a Dask process outlived the command"
+
+
 def test_outputs_appear_together_or_not_at_all(tmp_path):
     """Inside an outputs_together block nothing is in place before the end; an interrupt removes it all."""
     a, b = tmp_path / "a.txt", tmp_path / "b.txt"
