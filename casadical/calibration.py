@@ -265,7 +265,8 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     start_xyz = model.predict(q, params.values, cov, eye)
     own = None
     if prior is not None:
-        own = (robot.source or "taken further", prior.calibration.mean_mm if prior.calibration else None)
+        label = robot.source if robot.source.lower().endswith(".json") else f"of robot {robot.name}"
+        own = (label, prior.calibration.mean_mm if prior.calibration else None)
     check_poses(data, robot, allow_outside_limits=allow_outside_limits, angles_are_degrees=angles_are_degrees,
                 positions_are_mm=positions_are_mm, allow_mismatch=allow_mismatch, predicted=start_xyz,
                 nominal=prior is None, calibration=own)

@@ -37,8 +37,8 @@ MISMATCH_FLOOR_MM = 5.0
 #: readings this close to a limit (deg) count as within it (rounding in the file)
 LIMIT_TOLERANCE_DEG = 1e-6
 #: the start model (nominal), its base pose fitted to the poses, may miss them by this share of the robot's
-#: reach on average at most: real data stay below 0.25 % (UR10 series A and B 0.04-0.06 %, the seed papers'
-#: protocols 0.04-0.24 %, the test arms 0.04-0.15 %), another robot's poses give 23-74 % (docs/formats.md)
+#: reach (median over the poses) at most: real data stay below 0.25 % (UR10 series A and B, the seed papers'
+#: protocols, the test arms: 0.22 % at most), another robot's poses give 13 % or more (docs/formats.md)
 REACH_SHARE = 0.05
 
 FLAGS = {"limits": "--allow-outside-limits", "angles": "--angles-are-degrees",

@@ -116,6 +116,41 @@ def noticed() -> Iterator[None]:
             raise KeyboardInterrupt
 
 
+@contextlib.contextmanager
+def deferred() -> Iterator[None]:
+    """Ctrl-C or SIGTERM inside the block is raised when the block ends (a start that must not stop halfway).
+
+    For code that, cut short, leaves what it made beyond reach: a Dask
+    cluster half started cannot be closed, and its workers would complain
+    at exit. Only signals with a Python handler (the default Ctrl-C one, or
+    :func:`handle_signals`') are deferred; in another thread this does
+    nothing.
+    """
+    if not _in_main_thread():
+        yield
+        return
+    got: list[int] = []
+    old = {}
+    for name in ("SIGINT", "SIGTERM", "SIGHUP"):
+        sig = getattr(signal, name, None)
+        prev = signal.getsignal(sig) if sig is not None else None
+        if callable(prev):
+            old[sig] = prev
+            signal.signal(sig, lambda signum, frame: got.append(signum))
+    try:
+        yield
+    finally:
+        for sig, prev in old.items():
+            signal.signal(sig, prev)
+    if got:
+        global _received, last_signal
+        _received += 1
+        last_signal = got[0]
+        if got[0] == signal.SIGINT:
+            raise KeyboardInterrupt
+        raise Terminated(got[0])
+
+
 class _Quiet:
     """sys.stderr without CasADi's ``KeyboardInterruptException`` warning (the interrupt is reported once).
 

@@ -168,9 +168,11 @@ def _descendants(pid: int) -> list[int]:
 
 
 @pytest.mark.skipif(not sys.platform.startswith("linux"), reason="reads /proc")
-def test_sigterm_stops_a_dask_study_and_its_cluster(tmp_path):
-    """SIGTERM while a local Dask cluster runs a study: exit 143 with the one resume line, the cluster's
-    processes end with the command, and the same command resumes from what was stored."""
+@pytest.mark.parametrize("delay", [0.0, 1.0], ids=["while-the-cluster-starts", "while-it-runs"])
+def test_sigterm_stops_a_dask_study_and_its_cluster(tmp_path, delay):
+    """SIGTERM while a local Dask cluster starts or runs a study: exit 143 with the one resume line (a
+    cluster cut short in its start printed tracebacks at exit), and the cluster's processes end with the
+    command."""
     pytest.importorskip("distributed")
     from test_study import write_study
 
@@ -179,7 +181,7 @@ def test_sigterm_stops_a_dask_study_and_its_cluster(tmp_path):
     p = _start(args, tmp_path)
     while p.poll() is None and len(_descendants(p.pid)) < 3:      # the nanny and its two workers
         time.sleep(0.05)
-    time.sleep(1.0)
+    time.sleep(delay)
     kids = _descendants(p.pid)
     assert p.poll() is None, "finished before the signal"
     os.kill(p.pid, signal.SIGTERM)
@@ -280,12 +282,11 @@ def test_another_robots_poses_are_refused_by_diagnose_transfer(arms, tmp_path, c
 
 def test_the_mismatch_rule_never_fires_on_real_data():
     """The bundled UR10 series, every seed-paper protocol's pose sets and the test arms' simulated poses
-    pass (with a margin of 20 to the rule), as does a calibration of series B taken to series A."""
+    pass (with a margin of 10 to the rule), as does a calibration of series B taken to series A."""
     from arms import ARM3, ARM4_BETA, ARM7_DH, ARMS
 
     from casadical import calibrate, load_robot
-    from casadical.alignment import align
-    from casadical.checks import REACH_SHARE, check_poses
+    from casadical.checks import REACH_SHARE, base_fitted_errors, check_poses
     from casadical.data import Measurements
     from casadical.model import Model
     from casadical.robot import PROBLEMS
@@ -303,9 +304,8 @@ def test_the_mismatch_rule_never_fires_on_real_data():
     for robot, data in cases:
         check_poses(data, robot)
         p = Model(robot, "nominal", jit=False).predict(data.q)
-        T = align(p, data.xyz)
-        mean = np.linalg.norm(p @ T[:3, :3].T + T[:3, 3] - data.xyz, axis=1).mean()
-        assert mean < REACH_SHARE / 20 * reach(robot), (robot.name, data.path)
+        median = np.median(base_fitted_errors(p, data.xyz))
+        assert median < REACH_SHARE / 10 * reach(robot), (robot.name, data.path)   # measured: 0.22 % at most
     b, a = cases[1][1], cases[0][1]
     cal = calibrate(load_robot("ur10"), b.subset(np.arange(300)), "kinematic", "lm", warn=False)
     calibrate(cal, a, "base", "lm", warn=False)

@@ -25,6 +25,7 @@ from typing import Callable
 
 from .. import __version__
 from ..errors import CasadicalError, InputError
+from ..interrupts import deferred
 from ..threads import usable_cores
 from .protocol import Study
 from .store import ResultStore
@@ -202,11 +203,14 @@ def _run_dask(study: Study, todo: list[int], finished, report: RunReport, worker
                 client = own_client = _connect(scheduler)
             report.backend = scheduler
         elif client is None:
-            own_cluster = distributed.LocalCluster(n_workers=workers or usable_cores(), threads_per_worker=1,
-                                                   processes=True, dashboard_address=":0",
-                                                   silence_logs=logging.ERROR)
-            client = own_client = distributed.Client(own_cluster)
-            client.register_plugin(_ignore_interrupts(distributed)(), name="casadical-ignore-sigint")
+            # an interrupt while the cluster starts waits until it has started, and is then raised here: a
+            # cluster cut short in its start cannot be closed (its workers would print tracebacks at exit)
+            with deferred():
+                own_cluster = distributed.LocalCluster(n_workers=workers or usable_cores(), threads_per_worker=1,
+                                                       processes=True, dashboard_address=":0",
+                                                       silence_logs=logging.ERROR)
+                client = own_client = distributed.Client(own_cluster)
+                client.register_plugin(_ignore_interrupts(distributed)(), name="casadical-ignore-sigint")
             report.backend = "dask"
         _check_workers(client)
         report.workers = len(client.scheduler_info()["workers"])
