@@ -107,7 +107,7 @@ def run(robot, series: str, data: Measurements, seeds, models: dict) -> list[dic
             cal, val = data.subset(ical), data.subset(ival)
             model = models.setdefault(spec, Model(robot, spec))
             t0 = time.perf_counter()
-            res = calibrate(robot, cal, model, solver, warn=False)
+            res = calibrate(robot, cal, model, solver, warn=False, position_only=True)   # figures of docs/ur10.md
             wall = time.perf_counter() - t0
             held = res.stats(val)
             comp = {}

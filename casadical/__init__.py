@@ -10,7 +10,7 @@ __version__ = "0.1.0"
 #: ``--help``) start without CasADi (PEP 562)
 _EXPORTS = {"CalibrationResult": "calibration", "calibrate": "calibration", "load_calibration": "calibration",
             "Measurements": "data", "CasadicalError": "errors", "Model": "model", "parse_spec": "model",
-            "Parameter": "parameters", "Parameters": "parameters", "Robot": "robot", "load_robot": "robot"}
+            "Parameter": "parameters", "Parameters": "parameters", "Robot": "robot", "load_robot": "loading"}
 
 __all__ = ["CalibrationResult", "CasadicalError", "Measurements", "calibrate", "load_calibration", "Model", "Parameter",
            "Parameters", "Robot", "load_robot", "parse_spec", "__version__"]
@@ -21,7 +21,8 @@ if _typing.TYPE_CHECKING:
     from .errors import CasadicalError
     from .model import Model, parse_spec
     from .parameters import Parameter, Parameters
-    from .robot import Robot, load_robot
+    from .loading import load_robot
+    from .robot import Robot
 else:
     def __getattr__(name: str):
         """A public name, or a submodule (``casadical.simulate`` after ``import casadical``, as before)."""

@@ -15,6 +15,12 @@ measurement series), ``kinematic+compliance`` the geometry and compliances.
 The parameters minimise a robust loss by default (pseudo-Huber, noise scale
 from the data, :class:`casadical.problem.RobustLoss`): a bad tracker shot is
 down-weighted and reported by its file line instead of pulling the model.
+
+Data with a measured orientation (``rx_deg, ry_deg, rz_deg``: a 6-DoF probe)
+are calibrated on the full pose unless ``position_only``: the model gains
+the probe's mounting rotation (term ``tool_orientation``, always estimated
+like the base pose) and each pose's loss takes its position and orientation
+residuals weighted by their noise scales, both estimated from the data.
 """
 
 from __future__ import annotations
@@ -30,18 +36,23 @@ from .checks import check_poses
 from .coverage import Coverage
 from .data import Measurements
 from .errors import (CasadicalWarning, ConvergenceWarning, IdentifiabilityError, IdentifiabilityWarning, InputError,
-                     SolverError, listing)
+                     PhysicsWarning, SolverError, listing)
 from .identifiability import Identifiability, analyse, triangular_factor
 from .model import Model, parse_spec, pose_to_base0, spec_of
 from .parameters import Parameters
-from .problem import CalibrationProblem, RobustLoss, jacobian_factor, pose_chunks
-from .result import CalibrationResult, ErrorStats, load_calibration, restore_term
+from .problem import ROT_WEIGHT_PRIOR, CalibrationProblem, RobustLoss, jacobian_factor, pose_chunks
+from .calibration_file import restore_term
+from .result import CalibrationResult, ErrorStats, load_calibration
 from .robot import Robot
+from .sessions import session_index
+from .physics import term_causes, violations
+from .significance import FitStatistics, warn_not_significant
 from .simulate import sample_poses
 from .solvers import Ipopt, make_solver
-from .terms import ErrorTerm, ReferencedTerm, make_term
+from .terms import ErrorTerm, ReferencedTerm, SessionLocal, make_term
 from .threads import limited_threads
 from .terms.rbf_compensator import RBFCompensator, features
+from .terms.tool_orientation import ToolOrientation
 from .uncertainty import from_normal, warn_problems
 
 __all__ = ["CalibrationResult", "ErrorStats", "calibrate", "load_calibration"]
@@ -54,19 +65,25 @@ ROBUST_LOOPS = 6
 _GENERIC: dict = {}
 
 
-def _generic_identifiable(model: Model, params: Parameters, cov: np.ndarray, seed: int = 0) -> list[str]:
+def _generic_identifiable(model: Model, params: Parameters, cov: np.ndarray, seed: int = 0,
+                          full_pose: bool = False) -> list[str]:
     """Parameters identifiable from many random poses (what a good pose set could reach).
 
     Cached per robot, model and free set: diagnosis and comparisons calibrate
-    the same structure many times.
+    the same structure many times. ``full_pose``: with the orientation rows.
     """
     varies = tuple(bool(np.ptp(cov[:, k]) > 0) for k in range(cov.shape[1]))
-    key = (id(model.robot), model.spec, tuple(params.free), varies)
+    key = (id(model.robot), model.spec, tuple(params.free), varies) + ((True,) if full_pose else ())
     if key not in _GENERIC:
         rng = np.random.default_rng(seed)
         q = sample_poses(model.robot, 200, rng, floor_z=None)
         c = cov[rng.integers(len(cov), size=len(q))]
-        _, J = model.predict_jacobian(q, params.nominal, c)
+        if full_pose:   # measured = predicted orientation: the rows of the orientation residual at zero
+            P = model.probe_rotation(q, params.nominal, c)
+            _, J, _, Jo = model.pose_jacobian(q, P, params.nominal, c)
+            J = np.concatenate([J, ROT_WEIGHT_PRIOR * Jo], axis=1)
+        else:
+            _, J = model.predict_jacobian(q, params.nominal, c)
         if len(_GENERIC) > 256:
             _GENERIC.clear()
         _GENERIC[key] = (model.robot, analyse(J, params).identifiable)  # robot kept: its id stays unique
@@ -84,21 +101,65 @@ def _loss(robust: str | RobustLoss | None) -> RobustLoss:
 
 
 def set_references(terms: list[ErrorTerm], data: Measurements) -> None:
-    """Terms driven by a covariate take its mean over the data as their reference."""
+    """Terms driven by a covariate take its mean over the data as their reference (a term of one session:
+    over that session's poses)."""
     for t in terms:
-        if isinstance(t, ReferencedTerm):
-            col = data.get(t.reference_covariate)
-            if col is None and t.reference_covariate == "time_s":
-                col = data.rows  # row order is time order
-            if col is not None:
+        inner = t.inner if isinstance(t, SessionLocal) else t
+        if isinstance(inner, ReferencedTerm):
+            col = data.get(inner.reference_covariate)
+            if col is not None and isinstance(t, SessionLocal):
+                col = col[data.sessions == t.session_name] if data.sessions is not None else col[:0]
+            if col is not None and len(col):
                 t.t_ref = float(np.mean(col))
 
 
-def model_for(robot: Robot, spec: str | list[ErrorTerm], data: Measurements, jit: bool | None = None) -> Model:
-    """The model of ``spec`` for ``data``: terms driven by a covariate referenced to its mean there."""
+def with_sessions(terms: list[ErrorTerm], data: Measurements, tools: bool | list[str] = False) -> list[ErrorTerm]:
+    """``terms`` with a base pose per session (:class:`~casadical.terms.sessions.SessionFrames`) when ``data``
+    holds several sessions; ``tools``: every session other than the first (True), or those named, has its own
+    tool too."""
+    names = data.session_names
+    terms = [t for t in terms if t.name != "sessions"]
+    if len(names) < 2:
+        if tools:
+            raise InputError("a tool per session needs data of several sessions (several files, or a session "
+                             "column)", file=data.path)
+        return terms
+    own = names[1:] if tools is True else list(tools or [])
+    return terms + [make_term("sessions", names=names, tools=own)]
+
+
+def robot_frame(model: Model, params: Parameters, data: Measurements) -> np.ndarray:
+    """The model's tool points of ``data``'s poses in the robot base frame (m), every session's (its base
+    parameters at zero)."""
+    frames = model.term("sessions")
+    if frames is not None:
+        frames.references = {}
+    return model.predict(data.q, params.values, model.covariates(data), pose_to_base0(np.eye(4)))
+
+
+def align_sessions(model: Model, data: Measurements, start: np.ndarray, xyz: np.ndarray) -> np.ndarray:
+    """The closed-form alignment of each session's robot-frame points ``start`` to its measurements ``xyz``.
+
+    Sets the reference pose of every session other than the first in the
+    model's sessions term; returns the first session's (``base0``).
+    """
+    frames = model.term("sessions")
+    if frames is None:
+        return pose_to_base0(align(start, xyz))
+    idx = session_index(data)
+    for s in frames.names[1:]:
+        frames.set_reference(s, pose_to_base0(align(start[idx[s]], xyz[idx[s]])))
+    first = idx[frames.names[0]]
+    return pose_to_base0(align(start[first], xyz[first]))
+
+
+def model_for(robot: Robot, spec: str | list[ErrorTerm], data: Measurements, jit: bool | None = None,
+              session_tools: bool | list[str] = False) -> Model:
+    """The model of ``spec`` for ``data``: terms driven by a covariate referenced to its mean there, and a base
+    pose per session (``session_tools``: a tool too) when ``data`` holds several sessions."""
     terms = parse_spec(spec) if isinstance(spec, str) else spec
     set_references(terms, data)
-    return Model(robot, terms, jit=jit)
+    return Model(robot, with_sessions(terms, data, session_tools), jit=jit)
 
 
 def _merge(prior: list[ErrorTerm], new: list[ErrorTerm]) -> tuple[list[ErrorTerm], set[str]]:
@@ -125,8 +186,10 @@ def _merge(prior: list[ErrorTerm], new: list[ErrorTerm]) -> tuple[list[ErrorTerm
 
 
 def _named_free(params: Parameters, named: set[str], new_params: set[str]) -> list[str]:
-    """Parameters re-estimated when a calibration is taken further: base, named terms, new ones."""
-    return [p.name for p in params if p.group == "base" or p.term in named or p.name in new_params]
+    """Parameters re-estimated when a calibration is taken further: base, named terms (``tool``: the tool
+    offset), new ones."""
+    return [p.name for p in params if p.group == "base" or p.term in named or p.name in new_params
+            or (p.group == "tool" and "tool" in named)]
 
 
 def _check_loads(model: Model, robot: Robot, data: Measurements) -> None:
@@ -152,9 +215,10 @@ def _check_loads(model: Model, robot: Robot, data: Measurements) -> None:
 def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str | Model = "kinematic+compliance",
               solver: str = "ipopt", *, solver_options: dict | None = None, fix: tuple[str, ...] = (),
               start: dict[str, float] | None = None, check_identifiability: bool = True,
-              warn: bool = True, robust: str | RobustLoss = "huber", allow_outside_limits: bool = False,
-              angles_are_degrees: bool = False, positions_are_mm: bool = False,
-              allow_mismatch: bool = False) -> CalibrationResult:
+              warn: bool = True, robust: str | RobustLoss = "huber", position_only: bool = False,
+              allow_outside_limits: bool = False, angles_are_degrees: bool = False,
+              positions_are_mm: bool = False, allow_mismatch: bool = False,
+              session_tools: bool | list[str] = False) -> CalibrationResult:
     """Identify the parameters of ``model`` from measured poses.
 
     Parameters
@@ -166,7 +230,9 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         the base pose alone; ``kinematic``: the geometry; terms the
         calibration lacks are added), every other value is kept.
     data : Measurements
-        Must contain measured positions.
+        Must contain measured positions. With measured orientations
+        (``rx_deg, ry_deg, rz_deg``) the calibration is on the full pose (see
+        ``position_only``).
     model : str or Model
         Specification such as ``"kinematic+compliance"`` or a built model.
         ``+rbf_compensator`` fits a Gaussian RBF network to what the model
@@ -188,12 +254,25 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     robust : {"huber", "none"} or RobustLoss
         The loss: pseudo-Huber on each pose's residual with the noise scale
         estimated from the data (default), or plain least squares. A
-        RobustLoss with its ``sigma`` set keeps that noise scale.
+        RobustLoss with its ``sigma`` set keeps that noise scale (for full
+        pose, with ``sigma_rot`` too).
+    position_only : bool
+        Calibrate on the positions alone even when the data have measured
+        orientations. Otherwise such data are calibrated on the full pose:
+        the model gains the probe's mounting rotation (``tool_roll,
+        tool_pitch, tool_yaw`` from a reference R0 found in closed form, both
+        always estimated like the base pose), and each pose's loss is the
+        pseudo-Huber of ``|r_p|^2 + k^2 |r_o|^2`` with ``k = sigma /
+        sigma_rot``, the two noise scales estimated from the data.
     allow_outside_limits, angles_are_degrees, positions_are_mm, allow_mismatch : bool
         Overrides of the plausibility checks of the poses
         (:func:`casadical.checks.check_poses`); ``allow_mismatch``: poses
         the start model (nominal, or the calibration taken further) misses
         far beyond what it can mean, even with its base pose fitted to them.
+    session_tools : bool or list of str
+        With data of several sessions (``data.sessions``; each has its own
+        base pose): every session other than the first (True), or the named
+        ones, has its own tool offset too (the probe was re-mounted).
 
     Raises
     ------
@@ -211,33 +290,62 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
                          file=data.path)
     loss = _loss(robust)
     notes: list[str] = []
+    full_pose = data.has_orientation and not position_only
+    if full_pose:
+        measured_rot = data.rotations   # all three columns, or an error naming the missing one
 
     # --- the model and the free set
+    free_tool = False
     if isinstance(model, Model):
         terms, built = model.terms, model
     else:
-        terms, built = parse_spec(model), None
+        items = [i.strip() for i in model.split("+")]
+        free_tool = "tool" in items   # base+tool: the tool offset is estimated too (a re-mounted probe)
+        terms, built = parse_spec("+".join(i for i in items if i != "tool") or "nominal"), None
+    named_orientation = any(isinstance(t, ToolOrientation) for t in terms)
+    if named_orientation and not full_pose and prior is None:
+        raise InputError(f"model item tool_orientation needs measured orientations (rx_deg, ry_deg, rz_deg) "
+                         f"{'and no --position-only' if data.has_orientation else 'in the data'}", file=data.path)
+    if full_pose and not named_orientation:
+        # the probe's mounting rotation: what full-pose data add to any model
+        terms = list(terms) + [make_term("tool_orientation")]
+        if built is not None:
+            built = Model(robot, [t for t in terms if t.name != "geometric" or built.geometric_free], jit=built.jit)
     want_rbf = any(isinstance(t, RBFCompensator) and t.network is None for t in terms)
     terms = [t for t in terms if not (isinstance(t, RBFCompensator) and t.network is None)]
     if prior is not None:
         merged, named = _merge(list(prior.model.terms), terms)
+        # what describes the session the calibration was measured in (drift, a session compensator) is not
+        # the robot's: it is dropped, unless the model names it (then it is estimated for these poses)
+        dropped = [t for t in merged if t.session and (t.name not in named or isinstance(t, SessionLocal)
+                                                       or t.name == "sessions")]
+        merged = [t for t in merged if t not in dropped]
+        if dropped:
+            notes.append(f"{', '.join(t.spec() for t in dropped)} dropped: "
+                         f"{'it belongs' if len(dropped) == 1 else 'they belong'} to the measurement session of the "
+                         "calibration, not to the robot; name it in the model to estimate it for these poses")
+            if warn:
+                warnings.warn(notes[-1], CasadicalWarning, stacklevel=2)
+        if full_pose:   # the probe's mounting is estimated again, like the base pose
+            named.add("tool_orientation")
         geometric = prior.model.geometric_free or "geometric" in named
+        session = [t for t in merged if t.session]     # named again: estimated for these poses, from zero
+        set_references(session, data)
+        merged = with_sessions(merged, data, session_tools)
+        session += [t for t in merged if t.name == "sessions"]
         # the same terms: the calibration's own model (its symbolic build and evaluators) serves again
-        model = prior.model if spec_of(merged, geometric) == prior.model.spec else \
+        model = prior.model if spec_of(merged, geometric) == prior.model.spec and not session else \
             Model(robot, [t for t in merged if t.name != "geometric" or geometric], jit=prior.model.jit)
         old = {p.name for p in prior.parameters}
         params = model.parameters.copy()
         new_params = {p.name for p in params if p.name not in old}
-        free = set(_named_free(params, named, new_params))
-        session = {t.name for t in merged if t.session}
+        free = set(_named_free(params, named | ({"tool"} if free_tool else set()), new_params))
         for p in params:
-            if p.name in old and not (p.term in session and p.term not in named):
+            if p.name in old and p.term not in {t.name for t in session}:
                 src = prior.parameters[p.name]
                 p.value, p.std, p.identifiable = src.value, src.std, src.identifiable
             p.fixed = p.name not in free
-            if p.fixed and p.term in session:
-                p.reason = "belongs to the session the calibration was measured in; starts from zero here"
-            elif p.fixed:
+            if p.fixed:
                 p.reason = "kept from the calibration"
             elif p.name in old and prior.parameters[p.name].fixed and p.group != "base":
                 # what the calibration could not identify stays put unless these poses can
@@ -245,8 +353,12 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         kept = {p.name for p in params if p.fixed} - set(fix)   # their std too comes from the calibration
     else:
         kept = set()
-        model = built if built is not None else model_for(robot, terms, data)
+        model = built if built is not None else model_for(robot, terms, data, session_tools=session_tools)
         params = model.parameters.copy()
+        if free_tool:
+            for p in params.select(term="geometric"):
+                if p.group == "tool":
+                    p.fixed, p.reason = False, ""
     unknown = [n for n in list(fix) + list(start or {}) if n not in params]
     if unknown:
         names = params.names
@@ -259,10 +371,10 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     q, xyz, cov = data.q, data.xyz, model.covariates(data)
 
     # --- base pose: closed-form alignment of the start model's predictions to the measurements
-    for k in ("x", "y", "z", "roll", "pitch", "yaw"):
-        params[f"base_{k}"].value = 0.0
-    eye = pose_to_base0(np.eye(4))
-    start_xyz = model.predict(q, params.values, cov, eye)
+    for p in params:
+        if p.group == "base":
+            p.value = 0.0
+    start_xyz = robot_frame(model, params, data)
     own = None
     if prior is not None:
         label = robot.source if robot.source.lower().endswith(".json") else f"of robot {robot.name}"
@@ -272,24 +384,39 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
                 nominal=prior is None, calibration=own)
     where = f"{data.path}: " if data.path else ""
     try:
-        T = align(start_xyz, xyz)
-    except IdentifiabilityError as e:      # fewer than 3 poses, or all on a line
+        base0 = align_sessions(model, data, start_xyz, xyz)
+    except IdentifiabilityError as e:      # fewer than 3 poses (of a session), or all on a line
         raise IdentifiabilityError(f"{where}{e}") from e
-    base0 = pose_to_base0(T)
+    cov = model.covariates(data)
+    # --- full pose: the probe's reference mounting R0 in closed form too, at the aligned base
+    tool0, rot = (prior.tool0 if prior is not None else None), None
+    if full_pose:
+        mount = [params[f"tool_{k}"] for k in ("roll", "pitch", "yaw")]
+        if all(not p.fixed for p in mount):
+            for p in mount:
+                p.value = 0.0
+        if tool0 is None or any(not p.fixed for p in mount):
+            tool0 = mean_mounting(model.probe_rotation(q, params.values, cov, base0), measured_rot)
+        rot = measured_rot @ tool0.T
 
     # --- identifiability
     ident = None
+    per_pose = 6 if full_pose else 3
     if check_identifiability:
-        generic = _generic_identifiable(model, params, cov)
+        generic = _generic_identifiable(model, params, cov, full_pose=full_pose)
         needed = len(generic)
-        if 3 * len(q) <= needed:
+        if per_pose * len(q) <= needed:
             raise IdentifiabilityError(
-                f"{where}{len(q)} poses give {3 * len(q)} equations for the {needed} identifiable parameters of "
-                f"model {model.spec}: at least {needed // 3 + 1} poses are needed, and 3-5 times that for a "
-                "reliable fit")
+                f"{where}{len(q)} poses give {per_pose * len(q)} equations for the {needed} identifiable parameters "
+                f"of model {model.spec}: at least {needed // per_pose + 1} poses are needed, and 3-5 times that for "
+                "a reliable fit")
         # structural question, at nominal values: at a perturbed start exact redundancies only look near-exact
-        R = jacobian_factor(model, q, params.nominal, cov, base0)
-        ident = analyse(R, params, n_equations=3 * len(q))
+        nominal = params.nominal
+        if full_pose:   # the mounting's deviations have no nominal: at the reference R0
+            for k in ("roll", "pitch", "yaw"):
+                nominal[params.index(f"tool_{k}")] = params[f"tool_{k}"].value
+        R = jacobian_factor(model, q, nominal, cov, base0, rot)
+        ident = analyse(R, params, n_equations=per_pose * len(q))
         lost = [u for u in ident.unidentifiable if u.name in generic]
         if lost:
             names = ", ".join(f"{u.name} ({u.reason})" for u in lost[:6])
@@ -303,14 +430,16 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
                 u.reason = "structurally " + u.reason if not u.reason.startswith("has no") else u.reason
         ident.apply(params)
 
-    problem = CalibrationProblem(model, params, q, xyz, cov, base0, loss)
+    problem = CalibrationProblem(model, params, q, xyz, cov, base0, loss, rot)
     if len(problem.free) == 0:
         raise IdentifiabilityError("no free parameter left to identify")
 
-    # --- solve; with the robust loss, re-estimate the noise scale until it settles
+    # --- solve; with the robust loss, re-estimate the noise scale until it settles (full pose: both scales,
+    # for the weighting, with either loss)
     opts = solver_options or {}
-    res, name = _solve_robust(problem, problem.x_from_values(params.values), solver, opts,
-                              loss.robust and not math.isfinite(loss.sigma))
+    estimate = (not (math.isfinite(loss.sigma) and math.isfinite(loss.sigma_rot)) if full_pose
+                else loss.robust and not math.isfinite(loss.sigma))
+    res, name = _solve_robust(problem, problem.x_from_values(params.values), solver, opts, estimate)
     expected: frozenset = frozenset()    # correlations said in a note, not warned about again
     if ident is not None and np.isfinite(res.cost):
         # a combination of other parameters in the nominal model that the fitted terms tell apart (the tilt
@@ -323,12 +452,13 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
             expected = frozenset(frozenset((n, c)) for n, cs in partners.items() for c in cs)
             params.values = values
             ident.free(list(partners), params)
+            fitted = [t.spec() for t in model.terms[1:] if not isinstance(t, ToolOrientation)]
             notes.append(f"{', '.join(partners)}: a combination of other parameters in the nominal model, but "
-                         f"the fitted terms ({', '.join(t.spec() for t in model.terms[1:])}) tell them apart on "
+                         f"the fitted terms ({', '.join(fitted)}) tell them apart on "
                          "these poses (std below a tenth of the typical size): identified; they stay strongly "
                          f"correlated with {', '.join(sorted({c for cs in partners.values() for c in cs}))}")
             first = res
-            problem = CalibrationProblem(model, params, q, xyz, cov, base0, problem.loss)
+            problem = CalibrationProblem(model, params, q, xyz, cov, base0, problem.loss, rot)
             res, name = _solve_robust(problem, problem.x_from_values(params.values), solver, opts, False)
             res.solve_time_s += first.solve_time_s
             res.setup_time_s += first.setup_time_s
@@ -346,8 +476,9 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     # --- uncertainty, errors, the poses the loss set aside
     lin = problem.linearize(values)
     norms = np.linalg.norm(lin.r, axis=1)
-    unc = from_normal(lin.A, float(lin.weights @ norms ** 2), 3 * len(q), problem.scale,
-                      [params.names[i] for i in problem.free])
+    # full pose: the orientation rows count as equations, in position units (weighted by k)
+    unc = from_normal(lin.A, float(lin.weights @ (lin.u2 if full_pose else norms ** 2)), per_pose * len(q),
+                      problem.scale, [params.names[i] for i in problem.free])
     for n, s in zip(unc.names, unc.std):
         params[n].std = float(s)
     for i in np.flatnonzero(~params.free):
@@ -358,31 +489,76 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         if not warn:
             warnings.simplefilter("ignore")
         notes += warn_problems(unc, params, expected=expected)
+        notes += warn_not_significant(model, params, unc.dof)     # a term's parameters the poses do not determine
     down = []
     if loss.robust:
-        for i in np.argsort(-norms):
+        for i in np.argsort(-(lin.u2 if full_pose else norms)):
             if lin.weights[i] >= DOWNWEIGHT_REPORT:
                 break
             down.append({"line": int(data.lines[i]), "residual_mm": float(norms[i] * 1000),
-                         "weight": float(lin.weights[i])})
+                         "weight": float(lin.weights[i]), **({"file": data.file(i)} if data.sources is not None else {})})
+            if full_pose:
+                down[-1]["orientation_deg"] = math.degrees(float(np.linalg.norm(lin.r_rot[i])))
         if down:
+            scale = (f"{problem.loss.sigma * 1000:.4f} mm" if not full_pose else
+                     f"{problem.loss.sigma * 1000:.4f} mm and {math.degrees(problem.loss.sigma_rot):.4f} deg")
             notes.append(f"the robust loss set aside {len(down)} pose(s) of {data.path} whose residual exceeds "
                          f"{math.sqrt(DOWNWEIGHT_REPORT ** -2 - 1) * loss.c:.1f} times the noise scale of "
-                         f"{problem.loss.sigma * 1000:.4f} mm (lines "
-                         + listing([d["line"] for d in down], 10)
+                         f"{scale} (lines "
+                         + listing([f"{d['file']}:{d['line']}" if "file" in d else d["line"] for d in down], 10)
                          + "): likely bad measurements; check them, or pass --robust none to fit them anyway")
+    by_session = {s: ErrorStats.of(norms[idx]) for s, idx in session_index(data).items()} \
+        if len(data.session_names) > 1 else {}
     result = CalibrationResult(model, params, base0, res, name, ident, unc, ErrorStats.of(norms), notes,
-                               problem.loss, down, Coverage.of(data.q_deg))
+                               problem.loss, down, Coverage.of(data.q_deg), by_session=by_session,
+                               statistics=FitStatistics.of(unc), tool0=tool0 if model.orientation else None)
+    if result.has_orientation and data.has_orientation:
+        result.orientation = result.orientation_stats(data)
+    result.full_pose = full_pose
+    for note in physics_notes(result, data):
+        result.notes.append(note)
+        if warn:
+            warnings.warn(note, PhysicsWarning, stacklevel=2)
     if want_rbf:
         result = fit_compensator(result, data, warn=warn)
     return result
+
+
+def physics_notes(result: CalibrationResult, data: Measurements) -> list[str]:
+    """Notes on the terms that, as fitted, are not the physical cause their names say
+    (:mod:`casadical.physics`: told apart from the geometry, meaningful over the data; bounds and significance
+    have notes of their own)."""
+    out = []
+    for cause in term_causes(result):
+        free = [n for n in cause.parameters if not result.parameters[n].fixed]   # the fixed: said by the analysis
+        for v in violations(result, data, free) if free else ():
+            if v.rule in ("geometry", "physics"):
+                out.append(f"{cause.label}: not physics as fitted: {v.text}")
+    return out
+
+def mean_mounting(probe: np.ndarray, measured: np.ndarray) -> np.ndarray:
+    """The constant rotation ``M`` (3x3) minimising ``sum |probe_i M - measured_i|^2`` (Frobenius), closed form.
+
+    The chordal mean of ``probe_i^T measured_i``: their sum projected on the
+    rotations (SVD). Starts the probe's mounting rotation as :func:`align`
+    starts the base pose.
+    """
+    U, _, Vt = np.linalg.svd(np.einsum("nji,njk->ik", probe, measured))
+    return U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))]) @ Vt
 
 
 def _solve_robust(problem: CalibrationProblem, x: np.ndarray, solver: str, opts: dict, estimate_scale: bool):
     """Solve; with ``estimate_scale``, re-estimate the robust loss's noise scale until it settles."""
     res, name, solve_time, setup_time = None, "", 0.0, 0.0
     for _ in range(ROBUST_LOOPS if estimate_scale else 1):
-        if estimate_scale:
+        if estimate_scale and problem.full_pose:   # each kind's own robust scale: they weigh the two parts
+            rp, ro = problem.residual_norms(problem.values_from_x(x))
+            new = problem.loss.with_scales_from(rp, ro)
+            if res is not None and max(abs(new.sigma / problem.loss.sigma - 1),
+                                       abs(new.sigma_rot / problem.loss.sigma_rot - 1)) < 0.05:
+                break
+            problem.loss = new
+        elif estimate_scale:
             norms = np.linalg.norm(problem.residuals(problem.values_from_x(x)).reshape(-1, 3), axis=1)
             new = problem.loss.with_sigma_from(norms)
             if res is not None and abs(new.sigma / problem.loss.sigma - 1) < 0.05:
@@ -414,7 +590,7 @@ def separated(problem: CalibrationProblem, values: np.ndarray, ident: Identifiab
     """
     model, params = problem.model, problem.params
     cands = [u.name for u in ident.unidentifiable if u.confounded_with]
-    if not cands or all(t.name == "geometric" for t in model.terms):
+    if not cands or all(t.name in ("geometric", "tool_orientation") for t in model.terms):
         return []
     f = problem.free
     cols = np.concatenate([f, [params.index(n) for n in cands]])
@@ -423,14 +599,14 @@ def separated(problem: CalibrationProblem, values: np.ndarray, ident: Identifiab
 
     def blocks():   # weighted, scaled Jacobian columns (free ones first), pose chunk by pose chunk
         for s in pose_chunks(problem.n_poses):
-            xyz, J = model.predict_jacobian(problem.q[s], values, problem.cov[s], problem.base0)
-            u2 = np.einsum("ij,ij->i", xyz - problem.xyz[s], xyz - problem.xyz[s])
+            r, J, _ = problem.weighted_jacobian(values, s)
+            u2 = np.einsum("ij,ij->i", r, r)
             w = problem.loss.weight(u2)
             ssr[0] += float(w @ u2)
             yield J[:, :, cols] * scale * np.sqrt(w)[:, None, None]
 
     R = triangular_factor(blocks(), len(cols))
-    sigma = math.sqrt(ssr[0] / max(3 * problem.n_poses - len(f), 1))
+    sigma = math.sqrt(ssr[0] / max(problem.equations_per_pose * problem.n_poses - len(f), 1))
     out = []
     for j, name in enumerate(cands):
         perp = float(np.linalg.norm(R[len(f):, len(f) + j]))     # the column beyond the free columns' span
@@ -466,7 +642,8 @@ def compensator_data(result: CalibrationResult, data: Measurements) -> tuple[np.
     Y = result.residuals(data) @ result.base_matrix()[:3, :3]   # rows: R^T r, the robot base frame
     keep = np.ones(len(X), bool)
     for d in result.downweighted:
-        keep &= data.lines != d["line"]
+        keep &= (data.lines != d["line"]) | (data.sources != d["file"] if "file" in d and data.sources is not None
+                                             else False)
     return X, Y, keep
 
 
@@ -482,7 +659,8 @@ def with_compensator(result: CalibrationResult, network, data: Measurements, not
             src.reason
     out = CalibrationResult(model, params, result.base0, result.solver, result.solver_name,
                             result.identifiability, result.uncertainty, None, list(result.notes) + [note],
-                            result.loss, result.downweighted, result.coverage)
+                            result.loss, result.downweighted, result.coverage, by_session=result.by_session,
+                            tool0=result.tool0, orientation=result.orientation, full_pose=result.full_pose)
     out.calibration = out.stats(data)
     return out
 

@@ -92,7 +92,9 @@ def check_poses(data: Measurements, robot: Robot, *, allow_outside_limits: bool 
         if predicted is None:
             from .model import Model
             predicted = Model(robot, "nominal", jit=False).predict(data.q)
-        check_position_units(data, predicted, allow=positions_are_mm)
+        from .sessions import session_index
+        for idx in session_index(data).values():    # each session in its own tracker frame
+            check_position_units(data.subset(idx), np.asarray(predicted)[idx], allow=positions_are_mm)
         # with --positions-are-mm the user vouches for points the model's do not match in scale: not judged
         if judge and not positions_are_mm:
             check_model_fits(data, robot, predicted, calibration, allow=allow_mismatch)
@@ -187,8 +189,8 @@ def check_model_fits(data: Measurements, robot: Robot, predicted: np.ndarray,
 
     The model's tool points for the joint readings are moved onto the
     measured points by the best rigid motion (the base pose, in closed
-    form), fitted again on the half of the poses it brings nearest (a few
-    bad readings neither move it nor decide); no calibration of the robot
+    form; one per session), fitted again on the half of the poses it brings
+    nearest (a few bad readings neither move it nor decide); no calibration of the robot
     moves its points further than this leaves them, only nearer. The median
     distance left is judged: for a robot's nominal model it may be
     :data:`REACH_SHARE` of the robot's reach
@@ -214,9 +216,14 @@ def check_model_fits(data: Measurements, robot: Robot, predicted: np.ndarray,
     """
     from .terms.base import reach
 
-    errors = base_fitted_errors(predicted, data.xyz)
-    if errors is None:
+    from .sessions import session_index
+
+    # each session in its own tracker frame: its own base pose
+    parts = [base_fitted_errors(np.asarray(predicted)[idx], data.xyz[idx]) for idx in session_index(data).values()]
+    parts = [e for e in parts if e is not None]
+    if not parts:
         return
+    errors = np.concatenate(parts)
     if calibration is not None:
         check_calibration_fits(errors, data, calibration[0], calibration[1], allow, base_fitted=True)
         return

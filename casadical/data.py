@@ -3,7 +3,9 @@
 One row per pose, in measurement order: ``q1_deg..qN_deg``, optionally
 ``x_mm, y_mm, z_mm`` (a file without them is a list of poses to predict or
 plan with), and optional ``payload_kg``, ``temperature_c``, ``time_s``.
-Other columns are kept as they are.
+Where a 6-DoF probe measured the full pose, ``rx_deg, ry_deg, rz_deg`` hold
+the probe's orientation in the measurement frame, ``R = Rx(rx) Ry(ry)
+Rz(rz)`` (intrinsic XYZ), degrees. Other columns are kept as they are.
 """
 
 from __future__ import annotations
@@ -25,7 +27,9 @@ from .files import atomic_open
 _Q = re.compile(r"^q([1-9]\d*)_deg$")
 _Q_LIKE = re.compile(r"^q\d+_deg$")
 XYZ = ("x_mm", "y_mm", "z_mm")
-NUMERIC_OPTIONAL = ("payload_kg", "temperature_c", "time_s")
+#: measured orientation of the probe, measurement frame: R = Rx(rx) Ry(ry) Rz(rz) (intrinsic XYZ), degrees
+RXYZ = ("rx_deg", "ry_deg", "rz_deg")
+NUMERIC_OPTIONAL = ("payload_kg", "temperature_c", "time_s", "source_row")
 
 
 @dataclass
@@ -40,7 +44,9 @@ class Measurements:
     path : str
         Where the data came from (for error messages).
     rows : ndarray of int
-        Each pose's row in the original measurement order.
+        Each pose's row in the original measurement order (0-based; from the
+        column ``source_row``, 1-based, when the file has it, as ``split``
+        writes it).
     moves : ndarray, shape (N, n_joints)
         Sign of each joint's last move before the pose, in the original order
         (the columns ``move1..moveN`` when the file has them, as ``split``
@@ -51,6 +57,14 @@ class Measurements:
     checked : set
         Plausibility checks this data passed (or was allowed to skip) by
         :func:`casadical.checks.check_poses`; subsets keep it.
+    sessions : ndarray of str or None
+        Each pose's measurement session (tracker placement, day, probe
+        mount): from the ``session`` column, or given by
+        :func:`casadical.sessions.combine` (one session per file). None:
+        the data are one session.
+    sources : ndarray of str or None
+        Each pose's file, where the data come from several
+        (:func:`casadical.sessions.combine`); None: all from ``path``.
     """
 
     columns: dict[str, np.ndarray]
@@ -59,6 +73,8 @@ class Measurements:
     moves: np.ndarray | None = None
     lines: np.ndarray | None = None
     checked: set = field(default_factory=set, repr=False, compare=False)
+    sessions: np.ndarray | None = None
+    sources: np.ndarray | None = None
     _n_joints: int = field(init=False)
 
     def __post_init__(self) -> None:
@@ -67,9 +83,12 @@ class Measurements:
         # row order is time order: keep each pose's original position and the direction of
         # its joints' last move, so subsets (splits, cross-validation folds) keep them
         if self.rows is None:
-            self.rows = np.arange(len(self))
+            source = self.get("source_row")
+            self.rows = source.astype(int) - 1 if source is not None else np.arange(len(self))
         if self.lines is None:
             self.lines = self.rows + 2
+        if self.sessions is None and "session" in self.columns:
+            self.sessions = np.array([session_name(x) for x in self.columns["session"]], dtype=object)
         if self.moves is None:
             given = [self.get(f"move{j}") for j in range(1, self._n_joints + 1)]
             if self._n_joints and all(m is not None for m in given):
@@ -109,9 +128,43 @@ class Measurements:
             raise DataFileError("has no measured positions (columns x_mm, y_mm, z_mm)", file=self.path)
         return np.column_stack([self.columns[c] for c in XYZ]) / 1000.0
 
+    @property
+    def has_orientation(self) -> bool:
+        """True when the poses have a measured orientation (``rx_deg, ry_deg, rz_deg``)."""
+        return all(self.get(c) is not None for c in RXYZ)
+
+    @property
+    def rotations(self) -> np.ndarray:
+        """Measured orientations of the probe in the measurement frame, shape (N, 3, 3).
+
+        ``R = Rx(rx) Ry(ry) Rz(rz)`` (intrinsic XYZ) of the columns ``rx_deg,
+        ry_deg, rz_deg``.
+
+        Raises
+        ------
+        DataFileError
+            The data have none, or only some, of the three columns (naming the first missing one).
+        """
+        missing = [c for c in RXYZ if self.get(c) is None]
+        if missing:
+            what = "has only some of" if len(missing) < 3 else "has no measured orientation:"
+            raise DataFileError(f"{what} rx_deg, ry_deg, rz_deg", file=self.path, column=missing[0])
+        return rotation_matrices(np.column_stack([self.columns[c] for c in RXYZ]))
+
     def line(self, i: int) -> int:
         """Line of pose ``i`` in its file (header = line 1), for error messages."""
         return int(self.lines[i])
+
+    def file(self, i: int) -> str:
+        """The file pose ``i`` comes from."""
+        return self.path if self.sources is None else str(self.sources[i])
+
+    @property
+    def session_names(self) -> list[str]:
+        """The sessions of the data in order of first appearance ([] for data of one session)."""
+        if self.sessions is None:
+            return []
+        return list(dict.fromkeys(self.sessions.tolist()))
 
     def get(self, name: str) -> np.ndarray | None:
         """A numeric column, or None if absent."""
@@ -123,7 +176,35 @@ class Measurements:
     def subset(self, index) -> "Measurements":
         """Rows ``index`` (mask or integer array), order kept as given."""
         return Measurements({k: v[index] for k, v in self.columns.items()}, self.path,
-                            self.rows[index], self.moves[index], self.lines[index], set(self.checked))
+                            self.rows[index], self.moves[index], self.lines[index], set(self.checked),
+                            None if self.sessions is None else self.sessions[index],
+                            None if self.sources is None else self.sources[index])
+
+    def with_columns(self, columns: dict[str, np.ndarray]) -> "Measurements":
+        """The same poses (rows, moves, lines, sessions, sources, checks) with other columns."""
+        return Measurements(columns, self.path, self.rows, self.moves, self.lines, set(self.checked),
+                            self.sessions, self.sources)
+
+    def with_row_times(self, spacing_s: float) -> "Measurements":
+        """A copy whose ``time_s`` is each pose's row in the measurement order times ``spacing_s``.
+
+        For files without times whose rows are known to be in time order at
+        a regular spacing (``--row-spacing-s``); casadical never takes row
+        numbers for times otherwise.
+
+        Raises
+        ------
+        DataFileError
+            The file has a ``time_s`` column already, or the spacing is not
+            a positive number.
+        """
+        if not (math.isfinite(spacing_s) and spacing_s > 0):
+            raise DataFileError(f"the row spacing must be a positive number of seconds, got {spacing_s!r}",
+                                file=self.path)
+        if "time_s" in self.columns:
+            raise DataFileError("has a time_s column already: a row spacing would replace the measured times; "
+                                "drop --row-spacing-s", file=self.path, row=1, column="time_s")
+        return self.with_columns({**self.columns, "time_s": self.rows * float(spacing_s)})
 
     def with_positions(self, xyz_m: np.ndarray, prefix_existing: str = "measured_") -> "Measurements":
         """A copy whose ``x_mm, y_mm, z_mm`` are ``xyz_m``; existing ones are renamed."""
@@ -132,6 +213,18 @@ class Measurements:
             cols[prefix_existing + k if k in XYZ else k] = v
         for i, c in enumerate(XYZ):
             cols[c] = np.asarray(xyz_m)[:, i] * 1000.0
+        out = self.with_columns(cols)
+        out.checked = set()
+        return out
+
+    def with_orientations(self, R: np.ndarray, prefix_existing: str = "measured_") -> "Measurements":
+        """A copy whose ``rx_deg, ry_deg, rz_deg`` hold the rotations ``R`` (N, 3, 3); existing ones are renamed."""
+        cols: dict[str, np.ndarray] = {}
+        for k, v in self.columns.items():
+            cols[prefix_existing + k if k in RXYZ else k] = v
+        angles = rotation_angles(R)
+        for i, c in enumerate(RXYZ):
+            cols[c] = angles[:, i]
         return Measurements(cols, self.path, self.rows, self.moves, self.lines)
 
     # --- I/O --------------------------------------------------------------------
@@ -231,10 +324,15 @@ def _check_header(first: list[str] | None, path: str, n_joints: int | None, requ
     if present and len(present) < 3:
         missing = [c for c in XYZ if c not in seen][0]
         raise DataFileError("has only some of x_mm, y_mm, z_mm", file=path, row=1, column=missing)
+    turned = [c for c in RXYZ if c in seen]
+    if turned and len(turned) < 3:
+        missing = [c for c in RXYZ if c not in seen][0]
+        raise DataFileError("has only some of rx_deg, ry_deg, rz_deg (the measured orientation)", file=path, row=1,
+                            column=missing)
     if require_positions and not present:
         raise DataFileError("has no measured positions: columns x_mm, y_mm, z_mm are required here",
                             file=path, row=1, column="x_mm")
-    numeric = {f"q{i}_deg" for i in qs} | set(present) | {c for c in NUMERIC_OPTIONAL if c in seen}
+    numeric = {f"q{i}_deg" for i in qs} | set(present) | set(turned) | {c for c in NUMERIC_OPTIONAL if c in seen}
     return header, numeric
 
 
@@ -354,6 +452,28 @@ def _check_units(data: Measurements) -> None:
         warnings.warn(f"{data.path}: every joint reading is within +-6.3: "
                       "these look like radians, but _deg columns must hold degrees", DataWarning,
                       stacklevel=3)
+
+
+_NOT_IN_NAME = re.compile(r"[^A-Za-z0-9_.-]+")
+
+
+def session_name(value) -> str:
+    """A session's name as model specifications and reports use it: letters, digits, ``_ . -`` (anything
+    else becomes ``_``; a whole number read as 2.0 is ``2``)."""
+    if isinstance(value, (float, np.floating)) and float(value).is_integer():
+        value = int(value)
+    return _NOT_IN_NAME.sub("_", str(value).strip()) or "_"
+
+def rotation_matrices(angles_deg: np.ndarray) -> np.ndarray:
+    """Rotations ``Rx(rx) Ry(ry) Rz(rz)`` (intrinsic XYZ) of angles (deg, shape (N, 3)), shape (N, 3, 3)."""
+    from scipy.spatial.transform import Rotation   # here: scipy's import costs every command's start-up
+    return Rotation.from_euler("XYZ", np.asarray(angles_deg, float).reshape(-1, 3), degrees=True).as_matrix()
+
+
+def rotation_angles(R: np.ndarray) -> np.ndarray:
+    """The angles (deg, shape (N, 3)) ``rx, ry, rz`` with ``R = Rx(rx) Ry(ry) Rz(rz)`` (intrinsic XYZ)."""
+    from scipy.spatial.transform import Rotation
+    return Rotation.from_matrix(np.asarray(R, float).reshape(-1, 3, 3)).as_euler("XYZ", degrees=True)
 
 
 def _fmt(x) -> str:

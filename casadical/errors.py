@@ -98,8 +98,16 @@ class ExtrapolationWarning(CasadicalWarning):
     """Poses outside the joint ranges (or far from the poses) a calibration was fitted on."""
 
 
+class PhysicsWarning(CasadicalWarning):
+    """A term of the model that, as fitted, is not the physical cause its name says (casadical.physics)."""
+
+
 class CorrelationWarning(CasadicalWarning):
     """Identified parameters are strongly correlated or sit at a bound."""
+
+
+class SignificanceWarning(CasadicalWarning):
+    """Parameters of an error term are not significant: the poses do not determine what the term models."""
 
 
 def listing(items, k: int = 8) -> str:

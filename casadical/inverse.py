@@ -9,7 +9,9 @@ the desired point, starting from the programmed joints:
 - orientation, for robots with 6 joints or more: the flange (last link
   frame) keeps the rotation the nominal model gives at the programmed joints,
   placed at the calibrated base pose (3 more equations): what the programmer
-  taught;
+  taught; or, when the targets give the probe's orientation (``rx_deg,
+  ry_deg, rz_deg``, measurement frame) and the calibration is a full-pose
+  one, the probe takes that orientation through its calibrated mounting;
 - whatever freedom is left (fewer than 6 joints, more than 6, or a singular
   configuration): the smallest joint change ``|q - q_programmed|``.
 
@@ -90,6 +92,9 @@ class CompensationResult:
         Position tolerance (m).
     held : str
         What is held besides the tool point.
+    probe : bool
+        The orientation held is the targets' probe orientation (``rx_deg, ry_deg,
+        rz_deg``), not the nominal flange orientation.
     limits : ndarray, shape (n, 2)
         Joint limits of the readings (rad).
     max_change : float
@@ -107,6 +112,7 @@ class CompensationResult:
     held: str
     limits: np.ndarray
     max_change: float
+    probe: bool = False
 
     @property
     def q0(self) -> np.ndarray:
@@ -191,7 +197,8 @@ class CompensationResult:
                  f"held: {self.held}"]
         if self.orientation_error is not None:
             held = self.orientation_held
-            lines.append(f"flange orientation held on {int(held.sum())} of {len(held)} rows "
+            lines.append(f"{'probe' if self.probe else 'flange'} orientation held on {int(held.sum())} of "
+                         f"{len(held)} rows "
                          f"(largest deviation {np.degrees(self.orientation_error.max()):.3g} deg)")
         return "\n".join(lines)
 
@@ -202,10 +209,12 @@ def output_columns(n: int) -> list[str]:
     return ["programmed_" + c for c in q] + ["d" + c for c in q] + ["residual_mm", "orientation_error_deg"]
 
 
-def held_description(n: int, orientation: bool) -> str:
-    """What :func:`compensate` holds besides the tool point, for ``n`` joints."""
+def held_description(n: int, orientation: bool, probe: bool = False) -> str:
+    """What :func:`compensate` holds besides the tool point, for ``n`` joints (``probe``: the targets' orientation)."""
     if orientation:
-        text = ("the flange orientation of the nominal model at the programmed joints (placed at the "
+        text = ("the probe orientation of the targets (rx_deg, ry_deg, rz_deg), through the calibrated probe "
+                "mounting" if probe else
+                "the flange orientation of the nominal model at the programmed joints (placed at the "
                 "calibrated base)")
         return text + (f"; least joint change for the other {n - 6} degree(s) of freedom" if n > 6 else "")
     if n > 3:
@@ -237,8 +246,12 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
         and is an error. Where holding the orientation would need more (a
         near-singular configuration) the point alone is reached instead.
     orientation : bool, optional
-        Hold the flange orientation of the nominal model at the programmed
-        joints; default: for robots with 6 joints or more.
+        Hold an orientation: the probe orientation of the targets when they
+        have ``rx_deg, ry_deg, rz_deg`` (measurement frame; the calibration
+        must be a full-pose one, whose probe mounting turns it into the
+        flange's), else the flange orientation of the nominal model at the
+        programmed joints; default: for robots with 6 joints or more. False:
+        the point alone (the orientation columns are then ignored).
     check : bool
         Raise :class:`TargetError` for a row that is not reached or whose
         solution is beyond a joint limit (default). With False the result
@@ -280,13 +293,22 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
     if not (tolerance_mm > 0 and max_change_deg > 0 and max_iter >= 1):
         raise InputError(f"tolerance_mm and max_change_deg must be positive and max_iter at least 1, got "
                          f"{tolerance_mm}, {max_change_deg} and {max_iter}")
-    hold = n >= 6 if orientation is None else bool(orientation)
+    probe = targets.has_orientation and orientation is not False
+    if probe and not cal.has_orientation:
+        raise InputError("holds the probe orientation of each target, but the calibration has no probe mounting "
+                         "(it was calibrated on positions alone): calibrate on data with measured orientations, or "
+                         "pass --position-only (orientation=False) to reach the points alone",
+                         file=targets.path, row=1, column="rx_deg")
+    hold = (n >= 6 or probe) if orientation is None else bool(orientation)
     if hold and n < 6:
-        raise InputError(f"the orientation cannot be held with {n} joints: 6 are needed")
+        raise InputError(f"the orientation cannot be held with {n} joints: 6 are needed"
+                         + ("; pass --position-only (orientation=False) to reach the points alone" if probe else ""),
+                         file=targets.path if probe else None, row=1 if probe else None,
+                         column="rx_deg" if probe else None)
     programmed = cal.predict(targets)    # the calibrated tool points at the programmed joints
     check_poses(targets, model.robot, predicted=programmed, **checks)
 
-    eqs = _Equations(cal, targets, hold)
+    eqs = _Equations(cal, targets, hold, probe)
     tol = tolerance_mm * 1e-3
     N = len(targets)
     limit = np.radians(max_change_deg)
@@ -305,11 +327,12 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
     angle = np.linalg.norm(r[:, 3:], axis=1) / ORIENTATION_WEIGHT if hold else None
     start = np.linalg.norm(programmed - targets.xyz, axis=1)
     result = CompensationResult(targets, q, residual, start, angle, iterations, residual <= tol, tol,
-                                held_description(n, hold), model.robot.limits, limit)
+                                held_description(n, hold, probe), model.robot.limits, limit, probe)
     if hold:
         loose = np.flatnonzero(result.converged & ~result.orientation_held)
         if loose.size:
-            warnings.warn(f"{targets.path}: the flange orientation cannot be held within {max_change_deg:g} deg "
+            warnings.warn(f"{targets.path}: the {'probe' if probe else 'flange'} orientation cannot be held within "
+                          f"{max_change_deg:g} deg "
                           f"of the programmed joints on {loose.size} row(s) "
                           f"({listing([targets.line(i) for i in loose], 10)}; up to "
                           f"{np.degrees(angle[loose].max()):.3g} deg off; near a singular configuration?); "
@@ -381,13 +404,16 @@ def _newton_step(J: np.ndarray, r: np.ndarray, to_start: np.ndarray, lam: np.nda
 class _Equations:
     """Residuals and Jacobians of rows ``index`` at joints ``q``: position (m), then weighted orientation."""
 
-    def __init__(self, cal: CalibrationResult, targets: Measurements, hold: bool):
+    def __init__(self, cal: CalibrationResult, targets: Measurements, hold: bool, probe: bool = False):
         self.cal, self.targets, self.model = cal, targets, cal.model
         self.p, self.base0 = cal.parameters.values, cal.base0
         self.cov = self.model.covariates(targets)
         self.goal = targets.xyz
         self.R_goal = None
-        if hold:
+        if hold and probe:
+            # the flange orientation that puts the probe at the target's: probe = flange x mounting
+            self.R_goal = targets.rotations @ cal.tool_rotation().T
+        elif hold:
             # the nominal geometry at the calibrated base: what the programmer taught
             nominal = cal.parameters.nominal
             base = [k for k, prm in enumerate(cal.parameters) if prm.group == "base"]

@@ -12,6 +12,12 @@ Inputs of every model function, per pose:
 - ``base0``: the reference base pose, 12 numbers (rotation row-major, then
   translation, metres); the ``base_*`` parameters are small deviations from
   it, so a tracker metres away at any rotation is no difficulty.
+
+A full-pose model (term ``tool_orientation``, :attr:`Model.orientation`)
+also gives the probe's rotation, from the same base composition as the
+point; its ``pose_*`` Functions take the measured rotation ``Rm`` (9
+numbers, row-major) after these, already turned by the reference mounting
+R0 that the calibration keeps, so no Function depends on R0.
 """
 
 from __future__ import annotations
@@ -26,11 +32,11 @@ import casadi as ca
 import numpy as np
 
 from . import jitcache
-from .errors import CasadicalWarning, ModelError
+from .errors import CasadicalWarning, DataFileError, ModelError
 from .kinematics import Geometry, base_pose_matrix, chain_angles, compose, forward, rpy_pose
 from .parameters import Parameters
 from .robot import Robot
-from .terms import REGISTRY, Context, ErrorTerm, make_term
+from .terms import REGISTRY, Context, ErrorTerm, SessionLocal, make_term
 from .threads import evaluation_pool, evaluation_threads
 
 #: batches of this many poses or more run compiled code, compiled once per machine and kept in the disk cache
@@ -46,7 +52,7 @@ MAP_CHUNK = 256
 #: (casadical.threads.evaluation_threads); UR10 `fk_jac_angles` on the VM, 2 cores: 300 poses 9.9 -> 5.4 ms,
 #: 150 poses 5.0 ms either way
 BLOCK_MIN = 100
-_SPEC_ITEM = re.compile(r"^\s*([a-z_]+)\s*(?:\[([^\]]*)\])?\s*$")
+_SPEC_ITEM = re.compile(r"^\s*([a-z_]+)\s*(?:\[([^\]]*)\])?\s*(?:@\s*([A-Za-z0-9_.-]+))?\s*$")
 
 
 def parse_spec(spec: str) -> list[ErrorTerm]:
@@ -55,7 +61,8 @@ def parse_spec(spec: str) -> list[ErrorTerm]:
     ``nominal`` (or ``base``) means the nominal geometry with only the base
     pose estimated. ``kinematic`` (alias ``geometric``) frees every
     geometric parameter. Per-joint terms take ``[j,...]``; ``periodic``
-    takes ``[joint:harmonic,...]``.
+    takes ``[joint:harmonic,...]``. ``@session`` after a term makes it a
+    term of that measurement session only (``drift@B``).
     """
     terms: list[ErrorTerm] = []
     for item in spec.split("+"):
@@ -63,8 +70,10 @@ def parse_spec(spec: str) -> list[ErrorTerm]:
         if not m:
             raise ModelError(f"cannot read model item {item!r} in {spec!r}; "
                              "expected e.g. kinematic+compliance[2,3]+periodic[2:1]")
-        name, args = m.group(1), m.group(2)
+        name, args, session = m.group(1), m.group(2), m.group(3)
         if name in ("nominal", "base"):
+            if session:
+                raise ModelError(f"{item!r}: the base pose of each session is always estimated; drop @{session}")
             continue
         if name not in REGISTRY:
             raise ModelError(f"unknown model item {name!r} in {spec!r}; known: nominal, "
@@ -80,7 +89,8 @@ def parse_spec(spec: str) -> list[ErrorTerm]:
                     kwargs["joints"] = [int(a) for a in args.split(",")]
             except ValueError as e:
                 raise ModelError(f"cannot read the arguments of {item!r}: {e}") from e
-        terms.append(make_term(name, **kwargs))
+        term = make_term(name, **kwargs)
+        terms.append(SessionLocal(term, session) if session else term)
     return terms
 
 
@@ -98,7 +108,8 @@ def assemble_terms(terms: list[ErrorTerm], robot: Robot) -> list[ErrorTerm]:
         A term is given twice, or does not fit the robot.
     """
     geo = [t for t in terms if t.name == "geometric"]
-    out = (geo[:1] or [make_term("geometric")]) + [t for t in terms if t.name != "geometric"]
+    frames = [t for t in terms if t.name == "sessions"]   # right after the geometry: the base and tool it selects
+    out = (geo[:1] or [make_term("geometric")]) + frames + [t for t in terms if t.name not in ("geometric", "sessions")]
     seen = set()
     for t in out:
         if t.spec() in seen:
@@ -203,8 +214,10 @@ class Model:
                 offsets[j - 1] = offsets[j - 1] + off
         chain = [a + o for a, o in zip(angles, offsets)]
         frames = forward(robot, chain, geom)
-        R0 = ca.reshape(b0[:9], 3, 3).T  # row-major input
-        base = compose((R0, b0[9:12]), rpy_pose(*geom.base))
+        R0, t0 = ca.reshape(b0[:9], 3, 3).T, b0[9:12]  # row-major input
+        for t in self.terms:
+            R0, t0 = t.reference(ctx, R0, t0)
+        base = compose((R0, t0), rpy_pose(*geom.base))
         point = frames.tool[1]
         for t in self.terms:
             off = t.robot_frame_offset(ctx)
@@ -218,8 +231,16 @@ class Model:
         tau = ca.vertcat(*ctx.torques()) if robot.n else ca.SX.zeros(0)
         dq = ca.vertcat(*[ca.SX(o) if not isinstance(o, ca.SX) else o for o in offsets])
         flange = ca.mtimes(base[0], frames.tool[0])  # flange (last link) rotation, measurement frame
+        # full pose: the probe's rotation, from the same base composition as the point (the flange, every term,
+        # times the probe's mounting); without the reference mounting R0, which the data carry (Model docstring)
+        probe = flange
+        for t in self.terms:
+            r = t.tool_rotation(ctx)
+            if r is not None:
+                probe = ca.mtimes(probe, r)
+        self.orientation = probe is not flange
         self._sym = {"q": q, "p": p, "c": c, "b0": b0, "xyz": xyz, "tau": tau, "dq": dq, "flange": flange,
-                     "chain": chain, "geom": geom, "R": base[0]}
+                     "chain": chain, "geom": geom, "R": base[0], "probe": probe}
         self._graphs: dict = {}
         self._fk: ca.Function | None = None
         self._fk_jac: ca.Function | None = None
@@ -258,6 +279,10 @@ class Model:
                 Jr = ca.mtimes(Js.T, r)
                 H = ca.mtimes(Js.T, Js) / root - delta / root ** 3 * ca.mtimes(Jr, Jr.T)
                 g = (lsq, [ca.triu(H)], (1, 3, 5), (0,))
+        elif which.startswith("pose_"):
+            g = self._pose_graph(which)
+        elif which == "probe":
+            g = (ins, [S["probe"]], (1, 3), ())
         elif which == "fk":
             g = (ins, [xyz], (1, 3), ())
         elif which == "fk_jac_angles":
@@ -283,6 +308,48 @@ class Model:
             raise ModelError(f"no per-pose function {which!r}")
         self._graphs[which] = g
         return g
+
+    def _pose_graph(self, which: str) -> tuple:
+        """The full-pose per-pose Functions: position and orientation residuals, loss, gradient, Gauss-Newton.
+
+        Extra inputs after ``(q, p, cov, base0)``: ``y`` (measured point, m; loss Functions only), ``Rm`` (9
+        numbers, row-major: the measured probe rotation times the transpose of the reference mounting R0),
+        then for the loss ``delta`` (robust loss) and ``k`` (m/rad: the orientation residual's weight
+        relative to the position residual, the ratio of their noise scales).
+        """
+        if not self.orientation:
+            raise ModelError(f"model {self.spec} has no probe orientation (term tool_orientation): no {which!r}")
+        S = self._sym
+        q, p, c, b0, xyz = S["q"], S["p"], S["c"], S["b0"], S["xyz"]
+        ins = [q, p, c, b0]
+        Rm = ca.SX.sym("Rm", 9)
+        E = ca.mtimes(ca.reshape(Rm, 3, 3), S["probe"])     # reshape of a row-major matrix: its transpose
+        # the rotation vector of E = Rm^T R_pred for small angles (exact to third order): vee of its skew part
+        ro = 0.5 * ca.vertcat(E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1])
+        if which == "pose_fk":
+            return ins + [Rm], [xyz, ro], (1, 3), ()
+        if which == "pose_fk_jac":
+            return (ins + [Rm], [xyz, ca.densify(ca.jacobian(xyz, p)), ro, ca.densify(ca.jacobian(ro, p))],
+                    (1, 3), ())
+        y = ca.SX.sym("y", 3)
+        delta, k = ca.SX.sym("delta"), ca.SX.sym("k")
+        # one pose's residual: position (m) and orientation (rad) in position units, |r_p|^2 + k^2 |r_o|^2 =
+        # sp^2 (|r_p|^2 / sp^2 + |r_o|^2 / so^2) with k = sp / so; the pseudo-Huber loss on the sum
+        r = ca.vertcat(xyz - y, k * ro)
+        u2 = ca.dot(r, r)
+        root = ca.sqrt(1 + delta * u2)
+        cost = u2 / (root + 1)
+        lsq = ins + [y, Rm, delta, k]
+        if which == "pose_cost":
+            return lsq, [cost], (1, 3, 6, 7), (0,)
+        if which == "pose_grad":
+            return lsq, [cost, ca.gradient(cost, p)], (1, 3, 6, 7), (0, 1)
+        if which == "pose_gn_hess":
+            Js = ca.jacobian(r, p)
+            Jr = ca.mtimes(Js.T, r)
+            H = ca.mtimes(Js.T, Js) / root - delta / root ** 3 * ca.mtimes(Jr, Jr.T)
+            return lsq, [ca.triu(H)], (1, 3, 6, 7), (0,)
+        raise ModelError(f"no per-pose function {which!r}")
 
     @property
     def fk(self) -> ca.Function:
@@ -315,7 +382,8 @@ class Model:
 
     def per_pose_function(self, which: str, jit: bool | str = False) -> ca.Function:
         """One of the per-pose Functions (``fk``, ``fk_jac``, ``fk_jac_angles``, ``cost``, ``grad``, ``gn_hess``,
-        ``tau``, ``dq``, ``fk_q_jac``, ``flange``, ``flange_jac``).
+        ``tau``, ``dq``, ``fk_q_jac``, ``flange``, ``flange_jac``; full-pose models also ``probe``, ``pose_fk``,
+        ``pose_fk_jac``, ``pose_cost``, ``pose_grad``, ``pose_gn_hess``).
 
         ``jit``: False for CasADi's virtual machine; True for compiled code,
         from the disk cache (:mod:`casadical.jitcache`) or compiled now and
@@ -440,6 +508,39 @@ class Model:
         return (R.reshape(N, 3, 3).transpose(0, 2, 1),
                 Jw.reshape(N, self.robot.n, 3).transpose(0, 2, 1))
 
+    def probe_rotation(self, q, params=None, cov=None, base0=None) -> np.ndarray:
+        """Rotation of the probe in the measurement frame without its reference mounting R0 (N, 3, 3).
+
+        Base rotation x flange rotation (every term) x the mounting deviation
+        (``tool_roll, tool_pitch, tool_yaw``); times R0 (kept with the
+        calibration: :meth:`CalibrationResult.predict_rotations`) it is the
+        probe's orientation. Full-pose models only.
+        """
+        if not self.orientation:
+            raise ModelError(f"model {self.spec} has no probe orientation (term tool_orientation)")
+        N, q, p, cov, b0 = self._inputs(q, params, cov, base0)
+        return self._batch("probe", N)(q, p, cov, b0)[0].reshape(N, 3, 3).transpose(0, 2, 1)
+
+    def pose_residuals(self, q, Rm, params=None, cov=None, base0=None) -> tuple[np.ndarray, np.ndarray]:
+        """Positions (N, 3) and orientation residuals (N, 3, rad) against ``Rm`` (N, 3, 3).
+
+        ``Rm``: measured probe rotations times the transpose of the reference
+        mounting R0. The residual is the rotation vector of ``Rm^T R``
+        (``R``: :meth:`probe_rotation`) for small angles, the vector of its
+        skew-symmetric part. Full-pose models only.
+        """
+        N, q, p, cov, b0 = self._inputs(q, params, cov, base0)
+        xyz, ro = self._batch("pose_fk", N)(q, p, cov, b0, np.asarray(Rm, float).reshape(N, 9))
+        return xyz, ro
+
+    def pose_jacobian(self, q, Rm, params=None, cov=None, base0=None
+                      ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`pose_residuals` and their Jacobians w.r.t. the parameters: xyz, J (N, 3, P), r_o, J_o (N, 3, P)."""
+        N, q, p, cov, b0 = self._inputs(q, params, cov, base0)
+        xyz, J, ro, Jo = self._batch("pose_fk_jac", N)(q, p, cov, b0, np.asarray(Rm, float).reshape(N, 9))
+        P = len(self.parameters)
+        return (xyz, J.reshape(N, P, 3).transpose(0, 2, 1), ro, Jo.reshape(N, P, 3).transpose(0, 2, 1))
+
     def torques(self, q, params=None, cov=None) -> np.ndarray:
         """Gravity torques (N m) at every joint, shape (N, n)."""
         N, q, p, cov, _ = self._inputs(q, params, cov, None)
@@ -476,8 +577,14 @@ class Model:
         """Covariate matrix (N, n_cov) of a :class:`~casadical.data.Measurements`.
 
         Missing columns take defaults: the robot's payload, the thermal
-        reference temperature, the row index for ``time_s``; ``move<j>`` is
-        the sign of joint j's last move in row order (0 for the first row).
+        reference temperature; ``move<j>`` is the sign of joint j's last move
+        in row order (0 for the first row). Time is never made up: a term
+        driven by ``time_s`` (drift) needs the column.
+
+        Raises
+        ------
+        DataFileError
+            ``data`` lacks the ``time_s`` a term of the model needs.
         """
         N = len(data)
         out = self.default_covariates(N)
@@ -486,9 +593,16 @@ class Model:
             if col is not None:
                 out[:, k] = col
             elif name == "time_s":
-                out[:, k] = data.rows  # row order is time order
+                owner = next(t for t in self.terms if name in t.covariates)
+                raise DataFileError(f"has no time_s column, which the {owner.spec()} term of the model needs (the "
+                                    "time of each pose, in seconds); add it, or, if the rows are in time order at "
+                                    "a known spacing, say so with --row-spacing-s SECONDS "
+                                    "(Measurements.with_row_times)", file=data.path, row=1, column="time_s")
             elif name.startswith("move"):
                 out[:, k] = data.moves[:, int(name[4:]) - 1]
+        for t in self.terms:
+            for name, values in t.covariate_values(data).items():
+                out[:, self.covariate_names.index(name)] = values
         return out
 
     def term(self, name: str) -> ErrorTerm | None:

@@ -7,6 +7,14 @@ least squares, or a pseudo-Huber loss that grows only linearly beyond a few
 noise standard deviations (:class:`RobustLoss`), so that one bad tracker
 shot cannot pull the model.
 
+Full pose (:attr:`CalibrationProblem.rot` given, a model with the probe's
+orientation): each pose also has an orientation residual ``r_o`` (rad, the
+rotation vector of ``R_meas^T R_pred``), weighted into position units by
+``k = sigma / sigma_rot`` (m/rad), the ratio of the two noise scales
+estimated from the data: the loss is ``rho(|r_p|^2 + k^2 |r_o|^2)``, i.e.
+``rho`` of ``sigma^2 (|r_p|^2 / sigma^2 + |r_o|^2 / sigma_rot^2)``, one
+pseudo-Huber per pose on both parts together.
+
 Large data sets are linearised in chunks of poses: the normal equations
 ``sum w_i J_i^T J_i`` and ``sum w_i J_i^T r_i`` are accumulated, and the
 Jacobian of all poses is never held in memory at once.
@@ -50,11 +58,17 @@ class RobustLoss:
     sigma : float
         Noise standard deviation per axis (m); estimated from the data by
         :meth:`with_sigma_from` (median of the residual norms).
+    sigma_rot : float
+        Full pose only: noise standard deviation of the orientation per axis
+        (rad), estimated with ``sigma`` by :meth:`with_scales_from`; the
+        orientation residual weighs :attr:`rot_weight` = ``sigma / sigma_rot``
+        metres per radian (also for plain least squares).
     """
 
     kind: str = "none"
     c: float = 3.0
     sigma: float = math.nan
+    sigma_rot: float = math.nan
 
     def __post_init__(self) -> None:
         if self.kind not in ("huber", "none"):
@@ -73,6 +87,11 @@ class RobustLoss:
             return 0.0
         return 1.0 / (self.c * self.sigma) ** 2
 
+    @property
+    def rot_weight(self) -> float:
+        """``sigma / sigma_rot`` (m/rad): the orientation residual in position units; nan before both are known."""
+        return self.sigma / self.sigma_rot if self.sigma > 0 and self.sigma_rot > 0 else math.nan
+
     def rho(self, u2: np.ndarray) -> np.ndarray:
         return u2 / (np.sqrt(1.0 + self.delta * u2) + 1.0)
 
@@ -84,6 +103,11 @@ class RobustLoss:
         """The same loss with ``sigma`` estimated robustly from residual norms (m)."""
         med = float(np.median(residual_norms)) if len(residual_norms) else 0.0
         return replace(self, sigma=max(med / CHI3_MEDIAN, 1e-12))
+
+    def with_scales_from(self, position_norms: np.ndarray, rotation_norms: np.ndarray) -> "RobustLoss":
+        """Full pose: ``sigma`` (m) and ``sigma_rot`` (rad) each from its own kind's residual norms (median)."""
+        med = float(np.median(rotation_norms)) if len(rotation_norms) else 0.0
+        return replace(self.with_sigma_from(position_norms), sigma_rot=max(med / CHI3_MEDIAN, 1e-15))
 
 
 @dataclass
@@ -103,6 +127,11 @@ class Linearization:
         (``sum J_i^T J_i`` for least squares).
     g : ndarray, shape (n_free,)
         ``sum w_i J_i^T r_i``, the gradient of ``cost``.
+    r_rot : ndarray, shape (N, 3), or None
+        Full pose: orientation residuals (rad); ``r_i`` above is then the
+        6-vector ``(r_p, k r_o)`` of each pose and ``J_i`` its Jacobian.
+    u2 : ndarray, shape (N,)
+        Squared residual norm of each pose (``|r_p|^2 + k^2 |r_o|^2`` for full pose; m^2).
     """
 
     r: np.ndarray
@@ -110,6 +139,8 @@ class Linearization:
     cost: float
     A: np.ndarray
     g: np.ndarray
+    r_rot: np.ndarray | None = None
+    u2: np.ndarray | None = None
 
 
 @dataclass
@@ -127,6 +158,11 @@ class CalibrationProblem:
         Reference base pose (12 numbers).
     loss : RobustLoss
         Plain least squares by default.
+    rot : ndarray, shape (N, 3, 3), or None
+        Full pose: the measured probe rotations times the transpose of the
+        reference mounting R0 (the model's :meth:`~casadical.model.Model.probe_rotation`
+        is compared with them); the loss then weighs both parts by
+        ``loss.rot_weight``. None: positions only.
     """
 
     model: Model
@@ -136,6 +172,7 @@ class CalibrationProblem:
     cov: np.ndarray
     base0: np.ndarray
     loss: RobustLoss = field(default_factory=RobustLoss)
+    rot: np.ndarray | None = None
 
     @classmethod
     def from_data(cls, model: Model, data: Measurements, params: Parameters | None = None,
@@ -178,8 +215,43 @@ class CalibrationProblem:
             out[s] = self.model.predict(self.q[s], values, self.cov[s], self.base0) - self.xyz[s]
         return out.ravel()
 
+    @property
+    def full_pose(self) -> bool:
+        """True when the loss has the orientation residuals."""
+        return self.rot is not None
+
+    @property
+    def equations_per_pose(self) -> int:
+        return 6 if self.full_pose else 3
+
+    def residual_norms(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """Position residual norms (m) and, for full pose, orientation residual norms (rad), per pose."""
+        if not self.full_pose:
+            return np.linalg.norm(self.residuals(values).reshape(-1, 3), axis=1), None
+        rp, ro = np.empty(self.n_poses), np.empty(self.n_poses)
+        for s in pose_chunks(self.n_poses):
+            xyz, r = self.model.pose_residuals(self.q[s], self.rot[s], values, self.cov[s], self.base0)
+            rp[s], ro[s] = np.linalg.norm(xyz - self.xyz[s], axis=1), np.linalg.norm(r, axis=1)
+        return rp, ro
+
+    def weighted_jacobian(self, values: np.ndarray, s: slice) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
+        """Residual rows and their Jacobian (full parameter vector, SI) of the poses ``s``, in position units.
+
+        Returns ``r`` (n, m), ``J`` (n, m, P) and the orientation residuals
+        (rad) or None: m = 3 (positions), or 6 for full pose, whose rows
+        3-5 are the orientation's times ``loss.rot_weight``.
+        """
+        if not self.full_pose:
+            xyz, J = self.model.predict_jacobian(self.q[s], values, self.cov[s], self.base0)
+            return xyz - self.xyz[s], J, None
+        k = self.loss.rot_weight
+        xyz, J, ro, Jo = self.model.pose_jacobian(self.q[s], self.rot[s], values, self.cov[s], self.base0)
+        return (np.concatenate([xyz - self.xyz[s], k * ro], axis=1), np.concatenate([J, k * Jo], axis=1), ro)
+
     def linearize(self, values: np.ndarray) -> Linearization:
         """Residuals, weights, loss and normal equations at ``values``, accumulated over chunks of poses."""
+        if self.full_pose:
+            return self._linearize_pose(values)
         f = self.free
         scale = self.params.scales[f]
         nf = len(f)
@@ -203,7 +275,30 @@ class CalibrationProblem:
                 # the loss's own curvature along each residual (Triggs' correction of IRLS): the matrix
                 # stays positive semi-definite, w^3 along r_i, and LM converges as fast as for least squares
                 A -= self.loss.delta * (v * (w ** 3)[:, None]).T @ v
-        return Linearization(r_all, w_all, float(self.loss.rho(u2_all).sum()), A, g)
+        return Linearization(r_all, w_all, float(self.loss.rho(u2_all).sum()), A, g, None, u2_all)
+
+    def _linearize_pose(self, values: np.ndarray) -> Linearization:
+        """:meth:`linearize` of the full-pose loss: each pose's 6-vector (r_p, k r_o)."""
+        f = self.free
+        scale = self.params.scales[f]
+        nf = len(f)
+        A = np.zeros((nf, nf))
+        g = np.zeros(nf)
+        r_all, ro_all = np.empty((self.n_poses, 3)), np.empty((self.n_poses, 3))
+        u2_all, w_all = np.empty(self.n_poses), np.empty(self.n_poses)
+        for s in pose_chunks(self.n_poses):
+            r, J, ro = self.weighted_jacobian(values, s)
+            r_all[s], ro_all[s] = r[:, :3], ro
+            Jx = J[:, :, f] * scale                       # (n, 6, nf), scaled variables
+            u2_all[s] = np.einsum("ij,ij->i", r, r)
+            w = w_all[s] = self.loss.weight(u2_all[s])
+            Jw2 = (Jx * np.sqrt(w)[:, None, None]).reshape(-1, nf)
+            A += Jw2.T @ Jw2
+            v = np.einsum("nkp,nk->np", Jx, r)
+            g += v.T @ w
+            if self.loss.delta:
+                A -= self.loss.delta * (v * (w ** 3)[:, None]).T @ v
+        return Linearization(r_all, w_all, float(self.loss.rho(u2_all).sum()), A, g, ro_all, u2_all)
 
     def residuals_jacobian(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Residuals (3N,) and their Jacobian w.r.t. the scaled free variables (3N, n_free).
@@ -216,16 +311,28 @@ class CalibrationProblem:
         return (xyz - self.xyz).ravel(), J[:, :, f].reshape(-1, len(f)) * self.params.scales[f]
 
 
+#: full pose, before the noise scales are known (identifiability): an orientation residual of 1 rad weighs
+#: like a position residual of this many metres (an angle's effect at one metre)
+ROT_WEIGHT_PRIOR = 1.0
+
+
 def jacobian_factor(model: Model, q: np.ndarray, values: np.ndarray, cov: np.ndarray,
-                    base0: np.ndarray) -> np.ndarray:
+                    base0: np.ndarray, rot: np.ndarray | None = None, rot_weight: float = ROT_WEIGHT_PRIOR
+                    ) -> np.ndarray:
     """Triangular factor ``R`` (P x P) with ``R^T R = J^T J`` of the full identification Jacobian.
 
     Computed chunk by chunk (a tall-skinny QR), so that any number of poses
     fits in memory; column inner products, hence every identifiability
-    question, are those of ``J``.
+    question, are those of ``J``. With ``rot`` (full pose, as
+    :attr:`CalibrationProblem.rot`) ``J`` also has the orientation rows,
+    times ``rot_weight`` (m/rad).
     """
-    return triangular_factor((model.predict_jacobian(q[s], values, cov[s], base0)[1] for s in pose_chunks(len(q))),
-                             len(values))
+    if rot is None:
+        blocks = (model.predict_jacobian(q[s], values, cov[s], base0)[1] for s in pose_chunks(len(q)))
+    else:
+        blocks = (np.concatenate([J, rot_weight * Jo], axis=1) for J, Jo in
+                  (model.pose_jacobian(q[s], rot[s], values, cov[s], base0)[1::2] for s in pose_chunks(len(q))))
+    return triangular_factor(blocks, len(values))
 
 
 def pose_chunks(N: int):

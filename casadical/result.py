@@ -8,7 +8,6 @@ writes (INTERFACE.md section 4).
 
 from __future__ import annotations
 
-import inspect
 import json
 import math
 from dataclasses import dataclass, field
@@ -18,18 +17,20 @@ import numpy as np
 
 from . import __version__
 from .data import Measurements
-from .calibration_file import validate_calibration_document
+from .calibration_file import restored_terms, validate_calibration_document
+from .checks import check_calibration_fits, check_poses
 from .coverage import Coverage
 from .errors import CalibrationFileError, CasadicalError, InputError, listing
 from .files import atomic_write
 from .identifiability import Identifiability
 from .kinematics import matrix_to_rpy
-from .model import Model, base0_to_pose, parse_spec
+from .model import Model, base0_to_pose
 from .parameters import Parameters
 from .problem import RobustLoss
 from .robot import robot_from_dict, robot_to_dict
+from .significance import (LEVEL, FitStatistics, ParameterTest, parameter_table, parameter_tests, stiffness_interval,
+                           t_critical)
 from .solvers import SolverResult
-from .terms import ErrorTerm
 from .uncertainty import Uncertainty
 
 
@@ -59,6 +60,60 @@ class ErrorStats:
 
 
 @dataclass
+class Validation:
+    """Errors of a calibration on held-out poses (:meth:`CalibrationResult.validate`).
+
+    Attributes
+    ----------
+    file : str
+        The validation poses' file.
+    stats : ErrorStats
+    """
+
+    file: str
+    stats: ErrorStats
+
+    def to_dict(self) -> dict:
+        """The calibration JSON's ``validation``: the file and its error statistics (mm)."""
+        return {"file": self.file, **self.stats.to_dict()}
+
+    @classmethod
+    def from_dict(cls, d: dict) -> "Validation":
+        return cls(str(d.get("file", "")), ErrorStats(**{k: d[k] for k in ErrorStats.__dataclass_fields__}))
+
+
+@dataclass
+class AngleStats:
+    """Orientation error statistics over poses (deg): the angle of ``R_meas^T R_pred`` per pose."""
+
+    n_poses: int
+    mean_deg: float
+    max_deg: float
+    std_deg: float
+    rms_deg: float
+
+    @classmethod
+    def of(cls, angles_rad: np.ndarray) -> "AngleStats":
+        e = np.degrees(np.asarray(angles_rad, float))
+        return cls(len(e), float(e.mean()), float(e.max()), float(e.std()), float(np.sqrt((e ** 2).mean())))
+
+    def to_dict(self, n_poses: bool = True) -> dict:
+        """The statistics (deg), with the number of poses unless ``n_poses`` is False."""
+        d = {"mean_deg": self.mean_deg, "max_deg": self.max_deg, "std_deg": self.std_deg, "rms_deg": self.rms_deg}
+        return {"n_poses": self.n_poses, **d} if n_poses else d
+
+    def line(self) -> str:
+        return (f"mean {self.mean_deg:.4f}  max {self.max_deg:.4f}  std {self.std_deg:.4f}  "
+                f"rms {self.rms_deg:.4f} deg over {self.n_poses} poses")
+
+
+def rotation_angles_between(A: np.ndarray, B: np.ndarray) -> np.ndarray:
+    """Angle (rad) of ``A_i^T B_i`` for rotations ``A, B`` (N, 3, 3), exact at any size."""
+    from scipy.spatial.transform import Rotation   # here: scipy's import costs every command's start-up
+    return Rotation.from_matrix(np.einsum("nji,njk->nik", A, B)).magnitude()
+
+
+@dataclass
 class CalibrationResult:
     """A calibrated model (statsmodels-style results object).
 
@@ -84,6 +139,26 @@ class CalibrationResult:
         ``{"line": file line, "residual_mm": ..., "weight": ...}``.
     coverage : Coverage or None
         The joint ranges and poses the calibration saw (for extrapolation warnings).
+    by_session : dict of str to ErrorStats
+        Errors on the calibration poses of each session (calibrations of
+        several sessions only).
+    statistics : FitStatistics or None
+        Size, noise, log-likelihood, AIC and BIC of the fit (None when the
+        model holds a fitted network, whose parameters are not counted).
+    validation : Validation or None
+        Errors on held-out poses, once :meth:`validate` has run.
+    tool0 : ndarray, shape (3, 3), or None
+        Full-pose models (term ``tool_orientation``): the probe's reference
+        mounting R0 on the flange, which ``tool_roll, tool_pitch, tool_yaw``
+        deviate from (as ``base0`` for the base pose); None for a
+        position-only model.
+    orientation : AngleStats or None
+        Orientation errors on the calibration poses (full-pose models with
+        measured orientations).
+    full_pose : bool
+        The loss had the orientation residuals (False: fitted on positions
+        alone, e.g. a full-pose calibration taken further with
+        ``position_only``).
     """
 
     model: Model
@@ -98,8 +173,46 @@ class CalibrationResult:
     loss: RobustLoss = field(default_factory=RobustLoss)
     downweighted: list[dict] = field(default_factory=list)
     coverage: Coverage | None = None
+    by_session: dict = field(default_factory=dict)
+    statistics: FitStatistics | None = None
+    validation: Validation | None = None
+    tool0: np.ndarray | None = None
+    orientation: AngleStats | None = None
+    full_pose: bool = False
 
     # --- using the model ------------------------------------------------------
+
+    @property
+    def has_orientation(self) -> bool:
+        """True when the model predicts the probe's orientation (a full-pose calibration)."""
+        return self.model.orientation and self.tool0 is not None
+
+    def tool_rotation(self) -> np.ndarray:
+        """The probe's mounting rotation on the flange (3x3): ``Rz(tool_yaw) Ry(tool_pitch) Rx(tool_roll) R0``."""
+        from .kinematics import base_pose_matrix
+        self._check_orientation()
+        p = self.parameters
+        D = base_pose_matrix([0.0, 0.0, 0.0], [p[f"tool_{k}"].value for k in ("roll", "pitch", "yaw")])[:3, :3]
+        return D @ self.tool0
+
+    def predict_rotations(self, data: Measurements) -> np.ndarray:
+        """Predicted probe orientations in the measurement frame (N, 3, 3), every term and covariate included."""
+        self._check_joints(data)
+        self._check_orientation()
+        return self.model.probe_rotation(data.q, self.parameters.values, self.model.covariates(data),
+                                         self.base0) @ self.tool0
+
+    def orientation_errors(self, data: Measurements) -> np.ndarray:
+        """Orientation error per pose (rad): the angle of ``R_meas^T R_pred``."""
+        return rotation_angles_between(data.rotations, self.predict_rotations(data))
+
+    def orientation_stats(self, data: Measurements) -> AngleStats:
+        return AngleStats.of(self.orientation_errors(data))
+
+    def _check_orientation(self) -> None:
+        if not self.has_orientation:
+            raise InputError(f"calibration of model {self.model.spec} has no probe orientation: it was "
+                             "calibrated on positions alone (full pose needs data with rx_deg, ry_deg, rz_deg)")
 
     def predict(self, data: Measurements) -> np.ndarray:
         """Predicted tool positions (m, (N, 3)) with every term and the rows' covariates."""
@@ -117,6 +230,18 @@ class CalibrationResult:
     def stats(self, data: Measurements) -> ErrorStats:
         return ErrorStats.of(self.errors(data))
 
+    @property
+    def sessions(self) -> list[str]:
+        """The measurement sessions the calibration fitted, the primary one first ([] for one session)."""
+        frames = self.model.term("sessions")
+        return list(frames.names) if frames is not None else []
+
+    def session_stats(self, data: Measurements) -> dict[str, ErrorStats]:
+        """Errors on ``data`` per session (data of one session: ``{"": stats}``)."""
+        from .sessions import session_index
+        e = self.errors(data)
+        return {s: ErrorStats.of(e[idx]) for s, idx in session_index(data).items()}
+
     def _check_joints(self, data: Measurements) -> None:
         if data.n_joints != self.model.robot.n:
             raise InputError(f"has {data.n_joints} joint columns but the robot has {self.model.robot.n} "
@@ -124,16 +249,23 @@ class CalibrationResult:
 
     # --- derived quantities ---------------------------------------------------
 
-    def base_matrix(self) -> np.ndarray:
-        """Robot base in the measurement frame, 4x4."""
+    def base_matrix(self, session: str | None = None) -> np.ndarray:
+        """Robot base in the measurement frame (of ``session``; default: the primary one), 4x4."""
         from .kinematics import base_pose_matrix
         p = self.parameters
-        return base0_to_pose(self.base0) @ base_pose_matrix([p[f"base_{k}"].value for k in "xyz"],
-                                                             [p[f"base_{k}"].value for k in ("roll", "pitch", "yaw")])
+        sessions = self.sessions
+        if session is None or not sessions or session == sessions[0]:
+            ref, at = self.base0, ""
+        elif session in sessions:
+            ref, at = self.model.term("sessions").references[session], f"@{session}"
+        else:
+            raise InputError(f"no session {session!r} in this calibration (sessions: {', '.join(sessions)})")
+        return base0_to_pose(ref) @ base_pose_matrix([p[f"base_{k}{at}"].value for k in "xyz"],
+                                                     [p[f"base_{k}{at}"].value for k in ("roll", "pitch", "yaw")])
 
-    def base_pose(self) -> tuple[np.ndarray, np.ndarray]:
-        """Robot base in the measurement frame: translation (m) and roll-pitch-yaw (rad)."""
-        T = self.base_matrix()
+    def base_pose(self, session: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """Robot base in the measurement frame (of ``session``): translation (m) and roll-pitch-yaw (rad)."""
+        T = self.base_matrix(session)
         return T[:3, 3], matrix_to_rpy(T[:3, :3])
 
     def stiffness(self) -> dict[int, tuple[float, float]]:
@@ -152,6 +284,68 @@ class CalibrationResult:
             out[p.joint] = (k, sk)
         return out
 
+    # --- significance and held-out poses -------------------------------------
+
+    def significance(self, level: float = LEVEL) -> dict[str, ParameterTest]:
+        """Each free parameter tested against its nominal value: t, p, significance, interval, relative std.
+
+        Student's t with the fit's degrees of freedom (the normal
+        distribution when they are not known); see :mod:`casadical.significance`.
+        """
+        return parameter_tests(self.parameters, self._dof(), level)
+
+    def _dof(self) -> float:
+        """The fit's degrees of freedom (``inf`` when not known: tests on the normal distribution)."""
+        dof = self.statistics.dof if self.statistics is not None else \
+            self.uncertainty.dof if self.uncertainty is not None else math.inf
+        return dof if dof > 0 else math.inf
+
+    def stiffness_intervals(self, level: float = LEVEL) -> dict[int, tuple[float, float] | None]:
+        """Confidence interval of each stiffness k_j = 1/c_j (N m/rad) from its compliance's.
+
+        ``(1/c_hi, 1/c_lo)``; the upper end is ``inf`` when the compliance
+        interval reaches 0, and the interval None when it lies at or below 0
+        (or c_j has no usable standard error).
+        """
+        tests = self.significance(level)
+        return {j: stiffness_interval(tests[f"c{j}"].ci) if f"c{j}" in tests else None for j in self.stiffness()}
+
+    def validate(self, data: Measurements, *, name: str | None = None, allow_mismatch: bool = False,
+                 allow_outside_limits: bool = False, angles_are_degrees: bool = False,
+                 positions_are_mm: bool = False) -> ErrorStats:
+        """Errors on held-out poses, kept in :attr:`validation` (and written to the JSON).
+
+        The poses pass the plausibility checks of every command
+        (:func:`casadical.checks.check_poses`) and the check ``predict``
+        makes that they belong to this calibration (a mean error a hundred
+        times its own: :func:`casadical.checks.check_calibration_fits`).
+
+        Parameters
+        ----------
+        data : Measurements
+            Poses with measured positions, never used in the fit.
+        name : str, optional
+            What the calibration is called in messages (its file).
+        allow_mismatch, allow_outside_limits, angles_are_degrees, positions_are_mm : bool
+            Overrides of those checks.
+
+        Raises
+        ------
+        DataFileError
+            Naming the validation file (and row and column) and the override.
+        """
+        if not data.has_positions:
+            raise InputError("has no measured positions (x_mm, y_mm, z_mm): validation poses need them",
+                             file=data.path)
+        xyz = self.predict(data)
+        check_poses(data, self.model.robot, predicted=xyz, allow_outside_limits=allow_outside_limits,
+                    angles_are_degrees=angles_are_degrees, positions_are_mm=positions_are_mm)
+        errors = np.linalg.norm(xyz - data.xyz, axis=1)
+        check_calibration_fits(errors, data, name or f"of {self.model.robot.name}",
+                               self.calibration.mean_mm if self.calibration else None, allow_mismatch)
+        self.validation = Validation(data.path, ErrorStats.of(errors))
+        return self.validation.stats
+
     # --- reports --------------------------------------------------------------
 
     def summary(self) -> str:
@@ -167,21 +361,43 @@ class CalibrationResult:
         if self.uncertainty is not None:
             lines.append(f"residual sigma {self.uncertainty.sigma * 1000:.4f} mm per axis, "
                          f"{self.uncertainty.dof} degrees of freedom")
-        xyz, rpy = self.base_pose()
-        lines.append("base in the measurement frame: xyz [" + ", ".join(f"{v * 1000:.3f}" for v in xyz)
-                     + "] mm, rpy [" + ", ".join(f"{math.degrees(v):.4f}" for v in rpy) + "] deg")
-        lines += ["", "identified parameters (angles in deg, lengths in mm):",
-                  self.parameters.table(show_fixed=True)]
+        for s in self.sessions or [None]:
+            xyz, rpy = self.base_pose(s)
+            lines.append(f"base in the measurement frame{f' of session {s}' if s else ''}: xyz ["
+                         + ", ".join(f"{v * 1000:.3f}" for v in xyz)
+                         + "] mm, rpy [" + ", ".join(f"{math.degrees(v):.4f}" for v in rpy) + "] deg")
+        tests = self.significance()
+        lines += ["", "identified parameters (angles in deg, lengths in mm; t = deviation/std, significant at "
+                      f"{100 * LEVEL:g} % when |t| > {t_critical(LEVEL, self._dof()):.3g}; rel.std = std/|deviation|):",
+                  parameter_table(self.parameters, tests)]
         st = self.stiffness()
         if st:
             lines += ["", "joint stiffness k = 1/c:"]
+            intervals = self.stiffness_intervals()
             for j, (k, sk) in st.items():
                 if not math.isfinite(k):
                     lines.append(f"  k{j}: {_NOT_POSITIVE.format(j=j, c=self.parameters[f'c{j}'].value)}")
                     continue
-                lines.append(f"  k{j} = {k:.4e} N m/rad" + (f"  (std {sk:.2e})" if math.isfinite(sk) else ""))
+                lines.append(f"  k{j} = {k:.4e} N m/rad" + (f"  (std {sk:.2e})" if math.isfinite(sk) else "")
+                             + _stiffness_words(intervals.get(j), tests.get(f"c{j}")))
+        if self.statistics is not None:
+            lines += ["", self.statistics.line()]
         if self.calibration is not None:
             lines += ["", "calibration poses: " + self.calibration.line()]
+        for s, st in self.by_session.items():
+            tool = " (its own tool)" if s in self.model.term("sessions").tools else ""
+            lines.append(f"  session {s}{tool}: " + st.line())
+        if self.validation is not None:
+            lines.append(f"validation poses ({self.validation.file}): " + self.validation.stats.line())
+        if self.orientation is not None:
+            lines.append("orientation:       " + self.orientation.line())
+        if self.has_orientation:
+            mount = np.degrees(matrix_to_rpy(self.tool_rotation()))
+            lines.append("probe mounting on the flange: rpy [" + ", ".join(f"{v:.4f}" for v in mount) + "] deg")
+        if self.full_pose:
+            lines.append(f"full pose: positions and orientations weighted by their noise scales from the data, "
+                         f"{self.loss.sigma * 1000:.4f} mm and {math.degrees(self.loss.sigma_rot):.4f} deg per "
+                         f"axis (1 deg weighs as {self.loss.rot_weight * math.pi / 180 * 1000:.3g} mm)")
         if self.loss.robust:
             lines.append(f"robust loss: pseudo-Huber, noise scale {self.loss.sigma * 1000:.4f} mm per axis, "
                          f"linear beyond {self.loss.c:g} sigma; "
@@ -195,16 +411,20 @@ class CalibrationResult:
     def to_dict(self) -> dict:
         """The calibration JSON of INTERFACE.md section 4 (plus what rebuilds the model)."""
         params = []
+        tests = self.significance()
         for p in self.parameters:
             params.append({"name": p.name, "value": p.to_display(p.value),
                            "std": p.to_display(p.std) if math.isfinite(p.std) else None,
                            "identifiable": bool(p.identifiable) if p.identifiable is not None else not p.fixed,
                            "unit": p.display_unit, "nominal": p.to_display(p.nominal), "fixed": p.fixed,
-                           "reason": p.reason, "term": p.term, "joint": p.joint})
+                           "reason": p.reason, "term": p.term, "joint": p.joint,
+                           **_test_entry(tests.get(p.name), p.to_display)})
+        intervals = self.stiffness_intervals()
         for j, (k, sk) in self.stiffness().items():
             entry = {"name": f"k{j}", "value": k if math.isfinite(k) else None,
                      "std": sk if math.isfinite(sk) else None,
-                     "identifiable": True, "unit": "N*m/rad", "derived": f"1/c{j}", "joint": j}
+                     "identifiable": True, "unit": "N*m/rad", "derived": f"1/c{j}", "joint": j,
+                     **_test_entry(tests.get(f"c{j}"), None, intervals.get(j))}
             if not math.isfinite(k):
                 entry["reason"] = _NOT_POSITIVE.format(j=j, c=self.parameters[f"c{j}"].value)
             params.append(entry)
@@ -226,6 +446,25 @@ class CalibrationResult:
         }
         if self.coverage is not None:
             doc["coverage"] = self.coverage.to_dict()
+        if self.sessions:
+            tools = self.model.term("sessions").tools
+            doc["sessions"] = []
+            for s in self.sessions:
+                xyz, rpy = self.base_pose(s)
+                entry = {"name": s, "own_tool": s in tools,
+                         "base_pose": {"xyz_m": xyz.tolist(), "rpy_deg": np.degrees(rpy).tolist()}}
+                if s in self.by_session:
+                    entry["calibration"] = self.by_session[s].to_dict()
+                doc["sessions"].append(entry)
+        if self.has_orientation:    # only full-pose models: a position-only calibration's JSON is as it was
+            fitted = self.full_pose and math.isfinite(self.loss.sigma_rot)
+            doc["orientation"] = {
+                "tool0": [float(x) for x in self.tool0.ravel()],
+                "tool_rotation": {"rpy_deg": np.degrees(matrix_to_rpy(self.tool_rotation())).tolist()},
+                "full_pose": bool(self.full_pose),
+                "sigma_mm": self.loss.sigma * 1000 if fitted else None,
+                "sigma_deg": math.degrees(self.loss.sigma_rot) if fitted else None,
+                "calibration": self.orientation.to_dict() if self.orientation else None}
         if self.solver is not None:
             doc["solver"] = {"name": self.solver_name, "status": self.solver.status,
                              "iterations": self.solver.iterations, "solve_time_s": self.solver.solve_time_s,
@@ -234,6 +473,9 @@ class CalibrationResult:
             doc["uncertainty"] = {"sigma_mm": self.uncertainty.sigma * 1000, "dof": self.uncertainty.dof,
                                   "names": self.uncertainty.names,
                                   "correlation": np.round(self.uncertainty.correlation, 6).tolist()}
+        doc["statistics"] = self.statistics.to_dict() if self.statistics is not None else None
+        if self.validation is not None:
+            doc["validation"] = self.validation.to_dict()
         return doc
 
     def save(self, path: str | Path, overwrite: bool = False) -> None:
@@ -243,6 +485,34 @@ class CalibrationResult:
 
 _NOT_POSITIVE = ("no positive stiffness: compliance c{j} = {c:.3g} rad/(N*m) is not above 0, the joint is "
                  "stiffer than these poses and loads can tell")
+
+
+def _test_entry(test: ParameterTest | None, display, interval: tuple[float, float] | None = None) -> dict:
+    """A parameter entry's t, p, significance, interval (display units) and relative std; nulls if not tested.
+
+    ``display`` converts SI to display units; None for a derived stiffness,
+    whose ``interval`` is given (its compliance's test says the rest).
+    """
+    if test is None:
+        return {"t": None, "p": None, "significant": None, "ci95": None, "relative_std": None}
+    if display is not None:
+        interval = (display(test.ci[0]), display(test.ci[1]))
+    ci = None if interval is None else [v if math.isfinite(v) else None for v in interval]
+    return {"t": test.t, "p": test.p, "significant": test.significant, "ci95": ci,
+            "relative_std": test.relative_std if math.isfinite(test.relative_std) else None}
+
+
+def _stiffness_words(interval: tuple[float, float] | None, test: ParameterTest | None) -> str:
+    """The summary's interval and significance of a stiffness (from its compliance's)."""
+    if test is None:
+        return ""
+    level = f"{100 * test.level:g} %"
+    if interval is None:
+        where = f", {level} interval: none positive"
+    else:
+        hi = f"{interval[1]:.3g}" if math.isfinite(interval[1]) else "unbounded (c's interval reaches 0)"
+        where = f", {level} interval {interval[0]:.3g} .. {hi}"
+    return where + ("" if test.significant else f"; not significant (t = {test.t:.2f})")
 
 
 def _json_default(o):
@@ -263,9 +533,7 @@ def load_calibration(path: str | Path) -> CalibrationResult:
     validate_calibration_document(doc, path)
     try:
         robot = robot_from_dict(doc["robot"], path)
-        settings = doc.get("terms", {})
-        terms = [restore_term(t, settings.get(t.spec(), settings.get(t.name, {}))) for t in parse_spec(doc["model"])]
-        model = Model(robot, terms)
+        model = Model(robot, restored_terms(doc["model"], doc.get("terms", {}), robot.n))
         params = model.parameters.copy()
         for entry in doc["parameters"]:
             if entry.get("derived"):
@@ -281,19 +549,45 @@ def load_calibration(path: str | Path) -> CalibrationResult:
         loss = RobustLoss("huber", float(rob.get("c", 3.0)), float(rob["sigma_mm"]) / 1000) \
             if rob.get("loss", "none") != "none" else RobustLoss()
         coverage = Coverage.from_dict(doc["coverage"]) if doc.get("coverage") else None
+        extra = _statistics_of(doc)
+        ori = doc.get("orientation")
+        tool0, angles, full_pose = None, None, False
+        if ori:
+            tool0 = np.asarray(ori["tool0"], dtype=float).reshape(3, 3)
+            angles = AngleStats(**ori["calibration"]) if ori.get("calibration") else None
+            full_pose = bool(ori.get("full_pose", False))
+            if ori.get("sigma_deg") is not None:
+                import dataclasses
+                loss = dataclasses.replace(loss, sigma=float(ori["sigma_mm"]) / 1000,
+                                           sigma_rot=math.radians(float(ori["sigma_deg"])))
     except (KeyError, TypeError, ValueError, CasadicalError) as e:
         raise CalibrationFileError(f"not a calibration JSON written by casadical ({e})", file=path) from e
     model.parameters = params
     cal = doc.get("calibration")
+    by_session = {e["name"]: ErrorStats(**e["calibration"]) for e in doc.get("sessions") or [] if e.get("calibration")}
     return CalibrationResult(model, params, base0, calibration=ErrorStats(**cal) if cal else None,
                              notes=doc.get("notes", []), loss=loss, downweighted=rob.get("downweighted", []),
-                             coverage=coverage)
+                             coverage=coverage, by_session=by_session, tool0=tool0, orientation=angles,
+                             full_pose=full_pose, **extra)
 
 
-def restore_term(term: ErrorTerm, settings: dict) -> ErrorTerm:
-    """``term`` (from a model specification) rebuilt with the settings a calibration saved."""
-    allowed = inspect.signature(type(term).__init__).parameters
-    kwargs = {k: v for k, v in settings.items() if k in allowed and k not in ("joints", "harmonics")}
-    if not kwargs:
-        return term
-    return type(term)(joints=term.joints, **kwargs)   # a term with settings besides its joints takes joints
+def _statistics_of(doc: dict) -> dict:
+    """The fit statistics and validation of a calibration JSON.
+
+    Files written before ``statistics`` existed have the same numbers in
+    ``uncertainty`` (residual sigma, degrees of freedom, free parameters):
+    taken from there, so their parameters are tested with the fit's degrees
+    of freedom too. ``statistics: null`` (a model with a fitted network) stays None.
+    """
+    stats, val = doc.get("statistics"), doc.get("validation")
+    if "statistics" not in doc:
+        unc = doc.get("uncertainty")
+        try:
+            dof, names, sigma = int(unc["dof"]), list(unc["names"]), float(unc["sigma_mm"])
+            if 0 < dof < 2 ** 53 and 0 < sigma < 1e6:
+                stats = {"n_equations": dof + len(names), "n_parameters": len(names), "sigma_mm": sigma}
+        except (KeyError, TypeError, ValueError, OverflowError):
+            pass        # nothing usable: the tests fall back on the normal distribution
+    return {"statistics": FitStatistics.from_dict(stats) if stats else None,
+            "validation": Validation.from_dict(val) if val else None}
+

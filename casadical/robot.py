@@ -2,6 +2,11 @@
 
 A :class:`Robot` holds nominal values only, in SI units (m, rad, kg). The
 symbolic model (:mod:`casadical.model`) turns it into CasADi expressions.
+
+This module imports no reader of another file type: the URDF reader
+(:mod:`casadical.urdf`) builds on it, and loading a robot by file type
+(built-in name, TOML, URDF) is :func:`casadical.loading.load_robot`, above
+both (``tests/test_imports.py`` keeps it so).
 """
 
 from __future__ import annotations
@@ -85,7 +90,10 @@ class Robot:
 
     @classmethod
     def load(cls, spec: str | Path) -> "Robot":
-        """Load a built-in robot by name (``ys100``, ``hh800``, ``ur10``) or a TOML file."""
+        """Load a built-in robot by name (``ys100``, ``hh800``, ``ur10``) or a TOML file.
+
+        Any robot file, URDF too: :func:`casadical.load_robot`.
+        """
         return load_robot(spec)
 
 
@@ -103,43 +111,71 @@ _TABLE_KEYS = {
 }
 
 
-def load_robot(spec: str | Path, tip: str | None = None, base: str | None = None,
-               tool: tuple[float, float, float] | None = None) -> Robot:
-    """Load a robot from a built-in name, a TOML path or a URDF path (``.urdf``).
-
-    Parameters
-    ----------
-    spec : str or Path
-    tip, base, tool : optional
-        For a URDF file only: the chain to read (see
-        :func:`casadical.urdf.robot_from_urdf`).
+def robot_file(spec: str | Path) -> Path:
+    """The file of a robot: a built-in name (``ys100``, ``hh800``, ``ur10``) or a path that exists.
 
     Raises
     ------
     RobotFileError
-        Unknown name, unreadable file, or any invalid field (the message
-        names the file, the table and the key; for URDF the line and the
-        element, see :func:`casadical.urdf.robot_from_urdf`).
-    InputError
-        ``tip``, ``base`` or ``tool`` given for a robot that is not a URDF file.
+        Neither a built-in name nor an existing file.
     """
     text_spec = str(spec)
     if text_spec.lower() in BUILTINS and not Path(text_spec).exists():
-        path = BUILTIN_DIR / f"{text_spec.lower()}.toml"
-    else:
-        path = Path(text_spec)
-        if not path.exists():
-            raise RobotFileError(
-                f"no such robot file, and not a built-in robot (built-ins: {', '.join(BUILTINS)})",
-                file=text_spec)
+        return BUILTIN_DIR / f"{text_spec.lower()}.toml"
+    path = Path(text_spec)
+    if not path.exists():
+        raise RobotFileError(f"no such robot file, and not a built-in robot (built-ins: {', '.join(BUILTINS)})",
+                             file=text_spec)
+    return path
+
+
+def robot_from_toml(path: str | Path) -> Robot:
+    """Read a robot TOML file (docs/formats.md section 1).
+
+    Raises
+    ------
+    RobotFileError
+        Unreadable file or any invalid field (the message names the file,
+        the table and the key).
+    """
+    return robot_from_dict(read_toml(path, RobotFileError), str(path))
+
+
+def load_robot(spec: str | Path, tip: str | None = None, base: str | None = None,
+               tool: tuple[float, float, float] | None = None) -> Robot:
+    """Load a built-in robot by name or a robot TOML file.
+
+    Robot files of every type (TOML and URDF) are read by
+    :func:`casadical.load_robot` (:mod:`casadical.loading`), which sits above
+    this module and the URDF reader; this one reads what needs nothing but
+    this module, so that it imports no reader of other file types.
+
+    Parameters
+    ----------
+    spec : str or Path
+    tip, base, tool : None
+        Chain options of a URDF file: refused here (use :func:`casadical.load_robot`).
+
+    Raises
+    ------
+    RobotFileError
+        Unknown name, unreadable file, a URDF file, or any invalid field.
+    InputError
+        ``tip``, ``base`` or ``tool`` given.
+    """
+    path = robot_file(spec)
     if path.suffix.lower() == ".urdf":
-        from .urdf import robot_from_urdf
-        return robot_from_urdf(path, tip=tip, base=base, tool=tool)
+        raise RobotFileError("casadical.robot.load_robot reads built-in robots and TOML files; read a URDF with "
+                             "casadical.load_robot (casadical.loading.load_robot)", file=str(spec))
+    check_not_urdf_options(spec, tip, base, tool)
+    return robot_from_toml(path)
+
+
+def check_not_urdf_options(spec: str | Path, tip, base, tool) -> None:
+    """Refuse the chain options of a URDF file for a robot that is not one (one line)."""
     if (tip, base, tool) != (None, None, None):
-        raise InputError(f"{text_spec}: a tip link, base link or tool point chooses the chain of a URDF file; "
+        raise InputError(f"{spec}: a tip link, base link or tool point chooses the chain of a URDF file; "
                          "this robot is not one (give a .urdf file, or drop those options)")
-    data = read_toml(path, RobotFileError)
-    return robot_from_dict(data, str(path))
 
 
 def robot_from_dict(data: dict[str, Any], file: str = "<dict>") -> Robot:

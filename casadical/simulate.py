@@ -10,7 +10,7 @@ the identification or the diagnosis to find it.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 import numpy as np
@@ -19,8 +19,9 @@ from .data import Measurements
 from .errors import InputError
 from .files import finite_number, named_toml, read_toml
 from .kinematics import base_pose_matrix
+from .loading import load_robot
 from .model import Model, pose_to_base0
-from .robot import PROBLEMS, Robot, _Validator, load_robot
+from .robot import PROBLEMS, Robot, _Validator
 from .terms import make_term
 
 
@@ -42,6 +43,9 @@ class Effects:
         Relative scale error ``s`` of joint readings (angle ``(1 + s) q``).
     backlash : dict of int to float
         Half the play (rad); the sign follows the joint's gravity torque.
+    backlash_motion : dict of int to float
+        Half the play (rad) taken up by the direction of the joint's last
+        move (in row order): the output trails its motor.
     cubic : dict of int to float
         Progressive stiffness: a further deflection ``k3 tau^3`` (rad/(N m)^3)
         of the joint, by 1-based joint (negative: the joint stiffens with load).
@@ -53,12 +57,20 @@ class Effects:
         Range of the ``temperature_c`` column when ``thermal_alpha`` is set
         (a slow drift in row order).
     drift : sequence of 3 floats
-        Velocity (m per second of ``time_s``, or per row) at which the
-        measured points drift.
+        Velocity (m per second of ``time_s``) at which the measured points
+        drift; the simulated data then get a ``time_s`` column, one pose a
+        second.
     noise : float
         Std of the measurement noise per axis (m).
     base_xyz, base_rpy : sequence of 3 floats
         Pose of the robot base in the measurement frame (m, rad).
+    orientation_noise : float or None
+        Full pose: std of the measured orientation's noise per axis (rad);
+        the data then have ``rx_deg, ry_deg, rz_deg`` (the probe's orientation,
+        intrinsic XYZ). None (default): positions only.
+    tool_rpy : sequence of 3 floats
+        Full pose: the probe's mounting rotation on the flange, fixed-axis
+        roll-pitch-yaw ``Rz(yaw) Ry(pitch) Rx(roll)`` (rad).
     """
 
     length_sigma: float = 0.5e-3
@@ -67,6 +79,7 @@ class Effects:
     periodic: list[tuple[int, int, float, float]] = field(default_factory=list)
     encoder_scale: dict[int, float] = field(default_factory=dict)
     backlash: dict[int, float] = field(default_factory=dict)
+    backlash_motion: dict[int, float] = field(default_factory=dict)
     cubic: dict[int, float] = field(default_factory=dict)
     thermal_alpha: float = 0.0
     thermal_links: dict[int, float] = field(default_factory=dict)
@@ -75,6 +88,8 @@ class Effects:
     noise: float = 20e-6
     base_xyz: tuple[float, float, float] = (0.0, 0.0, 0.0)
     base_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    orientation_noise: float | None = None
+    tool_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
 
 
 @dataclass
@@ -94,6 +109,35 @@ class Truth:
         """Noise-free true positions (m) of the poses in ``data``."""
         return self.model.predict(data.q, self.values, self.model.covariates(data), self.base0)
 
+    def predict_rotations(self, data: Measurements) -> np.ndarray:
+        """Noise-free true probe orientations (N, 3, 3) of the poses in ``data`` (full-pose truths)."""
+        return self.model.probe_rotation(data.q, self.values, self.model.covariates(data), self.base0)
+
+    def tool_rotation(self) -> np.ndarray:
+        """The true probe mounting on the flange (3x3)."""
+        return base_pose_matrix((0.0, 0.0, 0.0), self.effects.tool_rpy)[:3, :3]
+
+
+def another_session(truth: Truth, base_xyz=(0.0, 0.0, 0.0), base_rpy=(0.0, 0.0, 0.0),
+                    tool_shift=(0.0, 0.0, 0.0), drift=(0.0, 0.0, 0.0), t_ref: float = 0.0) -> Truth:
+    """The same robot measured in another session: the tracker elsewhere (``base_xyz`` m, ``base_rpy`` rad),
+    the probe re-mounted (its point moved by ``tool_shift``, m, in the flange frame), and a drift of that
+    session (m/s of ``time_s``, from ``t_ref``) instead of the truth's own."""
+    terms = [t for t in truth.model.terms if t.name != "drift"]
+    if any(drift):
+        terms.append(make_term("drift", t_ref=t_ref))
+    model = Model(truth.model.robot, [t for t in terms if t.name != "geometric"] + [make_term("geometric")])
+    values = model.parameters.nominal.copy()
+    for i, name in enumerate(truth.model.parameters.names):
+        if name in model.parameters and not name.startswith("drift"):
+            values[model.parameters.index(name)] = truth.values[i]
+    for k, d, v in zip("xyz", tool_shift, drift):
+        values[model.parameters.index(f"tool_{k}")] += d
+        if any(drift):
+            values[model.parameters.index(f"drift_{k}")] = v
+    return Truth(model, values, pose_to_base0(base_pose_matrix(base_xyz, base_rpy)),
+                 replace(truth.effects, drift=tuple(drift)))
+
 
 def true_model(robot: Robot, effects: Effects, rng: np.random.Generator,
                t_ref: float | None = None) -> Truth:
@@ -107,6 +151,8 @@ def true_model(robot: Robot, effects: Effects, rng: np.random.Generator,
         terms.append(make_term("encoder_scale", joints=sorted(effects.encoder_scale)))
     if effects.backlash:
         terms.append(make_term("backlash", joints=sorted(effects.backlash)))
+    if effects.backlash_motion:
+        terms.append(make_term("backlash_motion", joints=sorted(effects.backlash_motion)))
     if effects.cubic:
         terms.append(make_term("nonlinear_stiffness", joints=sorted(effects.cubic)))
     lo, hi = effects.temperature
@@ -117,6 +163,8 @@ def true_model(robot: Robot, effects: Effects, rng: np.random.Generator,
                                t_ref=(lo + hi) / 2 if t_ref is None else t_ref))
     if any(effects.drift):
         terms.append(make_term("drift"))
+    if effects.orientation_noise is not None:   # the probe's mounting: tool_* hold the whole rotation (R0 = I)
+        terms.append(make_term("tool_orientation"))
     model = Model(robot, terms)
     values = model.parameters.nominal.copy()
     for i, p in enumerate(model.parameters):
@@ -135,6 +183,8 @@ def true_model(robot: Robot, effects: Effects, rng: np.random.Generator,
         values[idx(f"escale{j}")] = s
     for j, b in effects.backlash.items():
         values[idx(f"backlash{j}")] = b
+    for j, b in effects.backlash_motion.items():
+        values[idx(f"backlash_m{j}")] = b
     for j, k3 in effects.cubic.items():
         values[idx(f"cubic{j}")] = k3
     if effects.thermal_alpha:
@@ -144,6 +194,9 @@ def true_model(robot: Robot, effects: Effects, rng: np.random.Generator,
     for k, v in zip("xyz", effects.drift):
         if any(effects.drift):
             values[idx(f"drift_{k}")] = v
+    if effects.orientation_noise is not None:
+        for k, v in zip(("roll", "pitch", "yaw"), effects.tool_rpy):
+            values[idx(f"tool_{k}")] = v
     base0 = pose_to_base0(base_pose_matrix(effects.base_xyz, effects.base_rpy))
     return Truth(model, values, base0, effects)
 
@@ -215,8 +268,10 @@ def simulate(robot: Robot, q: np.ndarray | int, effects: Effects | None = None, 
     Returns
     -------
     data : Measurements
-        With ``x_mm, y_mm, z_mm`` in the measurement frame, and
-        ``temperature_c`` when thermal expansion is simulated.
+        With ``x_mm, y_mm, z_mm`` in the measurement frame,
+        ``temperature_c`` when thermal expansion is simulated, and ``rx_deg,
+        ry_deg, rz_deg`` with ``effects.orientation_noise`` (drawn after the
+        positions' noise: the positions are those of the same seed without).
     truth : Truth
     """
     rng = np.random.default_rng(seed)
@@ -233,9 +288,16 @@ def simulate(robot: Robot, q: np.ndarray | int, effects: Effects | None = None, 
         lo, hi = effects.temperature
         drift = np.linspace(lo, hi, len(q)) + rng.normal(0, 0.05 * (hi - lo), len(q))
         extra["temperature_c"] = np.clip(drift, lo, hi)
+    if any(effects.drift):   # one pose a second
+        extra["time_s"] = np.arange(len(q), dtype=float)
     data = Measurements.from_arrays(q, None, **extra)
     xyz = truth.predict(data) + rng.normal(0.0, effects.noise, size=(len(q), 3))
-    return data.with_positions(xyz), truth
+    data = data.with_positions(xyz)
+    if effects.orientation_noise is not None:
+        from scipy.spatial.transform import Rotation
+        turn = Rotation.from_rotvec(rng.normal(0.0, effects.orientation_noise, size=(len(q), 3))).as_matrix()
+        data = data.with_orientations(truth.predict_rotations(data) @ turn)
+    return data, truth
 
 
 # --- protocols ---------------------------------------------------------------------
@@ -302,7 +364,7 @@ def load_protocol(spec: str | Path) -> Protocol:
 
 #: keys of a protocol's ``[truth]`` table
 TRUTH_KEYS = {"length_sigma_mm", "angle_sigma_deg", "noise_mm", "stiffness", "periodic_deg", "encoder_scale",
-              "backlash_deg", "thermal_alpha", "thermal_links", "cubic", "base_xyz_m", "base_rpy_deg"}
+              "backlash_deg", "backlash_motion_deg", "thermal_alpha", "thermal_links", "cubic", "base_xyz_m", "base_rpy_deg"}
 #: keys of a protocol's ``[workspace]`` table
 WORKSPACE_KEYS = {"floor_z_m", "box_min_m", "box_max_m"}
 
@@ -370,6 +432,7 @@ def effects_from_table(t: dict, robot: Robot, file: str, table: str = "truth") -
         if k <= 0:
             raise InputError(f"stiffness must be positive, got {k}", file=file, column=f"{table}.stiffness.{j}")
     backlash = v.per_joint(t, "backlash_deg", table, n)
+    backlash_motion = v.per_joint(t, "backlash_motion_deg", table, n)
     periodic = []
     if not isinstance(t.get("periodic_deg", []), list):
         raise InputError(f"must be a list of [joint, harmonic, amplitude_deg, phase_deg], got {t['periodic_deg']!r}",
@@ -391,6 +454,7 @@ def effects_from_table(t: dict, robot: Robot, file: str, table: str = "truth") -
         periodic=periodic,
         encoder_scale=v.per_joint(t, "encoder_scale", table, n),
         backlash={j: math.radians(b) for j, b in backlash.items()},
+        backlash_motion={j: math.radians(b) for j, b in backlash_motion.items()},
         thermal_alpha=v.number(t, "thermal_alpha", table, default=0.0),
         thermal_links=v.per_joint(t, "thermal_links", table, n),
         cubic=v.per_joint(t, "cubic", table, n),

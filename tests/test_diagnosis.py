@@ -133,9 +133,40 @@ def test_cli_json_contract_and_html(tmp_path):
 
 @pytest.mark.parametrize("seed", SEEDS)
 def test_drift_of_the_measurement_frame(seed):
-    # 0.6 um per row along x and z: 48 um over the 80 calibration rows
+    # 0.6 um per second along x and z, one pose a second: 48 um over the 80 calibration rows
     rep = run(load_robot("ys100"), Effects(drift=(0.6e-6, 0.0, -0.6e-6)), seed)
     assert_found(rep, "drift")
+
+
+def without_time(data):
+    from casadical.data import Measurements
+    return Measurements({k: v for k, v in data.columns.items() if k != "time_s"}, data.path)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_drift_needs_times(seed, tmp_path, capsys):
+    """The same drift in files without time_s: the row numbers are never taken for times, so no drift is
+    fitted or named; declaring the rows' spacing (--row-spacing-s) finds it again. A model with a drift
+    asked of such a file is one line naming the column."""
+    robot = load_robot("ys100")
+    cal, truth = simulate(robot, 80, Effects(drift=(0.6e-6, 0.0, -0.6e-6)), seed=seed)
+    val, _ = simulate(robot, 200, truth=truth, seed=seed + 500)
+    cal, val = without_time(cal), without_time(val)
+    rep = diagnose(robot, cal, val, DiagnosisSettings(seed=seed))
+    assert "drift" not in [c[0] for c in causes(rep)]
+    paths = {}
+    for name, data in (("cal", cal), ("val", val)):
+        paths[name] = str(tmp_path / f"{name}.csv")
+        data.write_csv(paths[name])
+    out = str(tmp_path / "d.json")
+    assert main(["diagnose", "ys100", paths["cal"], "--validate", paths["val"], "--json", out, "-q",
+                 "--row-spacing-s", "1", "--seed", str(seed)]) == 0
+    assert "drift" in [f["cause"] for f in json.loads(open(out).read())["findings"]]
+    capsys.readouterr()
+    assert main(["calibrate", "ys100", paths["cal"], "--model", "kinematic+drift", "--out",
+                 str(tmp_path / "c.json")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "cal.csv, row 1, column 'time_s'" in err and "--row-spacing-s" in err
 
 
 def test_ambiguous_causes_are_reported():

@@ -403,7 +403,7 @@ def test_urdf_joint_origin_of_1e300(tmp_path, capsys):
 
 
 def test_compliance_of_a_urdf_without_inertial(tmp_path, capsys):
-    from casadical.robot import load_robot
+    from casadical import load_robot
 
     (tmp_path / "r.urdf").write_text(_urdf())
     data, _ = simulate(load_robot(tmp_path / "r.urdf"), 40, Effects(), seed=0, floor_z=None)

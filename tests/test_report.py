@@ -9,6 +9,7 @@ a real headless Chromium (``test_*_in_a_browser``).
 
 from __future__ import annotations
 
+import json
 import math
 import os
 import re
@@ -136,14 +137,15 @@ def simulated(arm: dict, seed: int, n: int, path, effects: Effects, bad: int = 0
 def calibration_page(request, tmp_path_factory):
     name, arm, seed = request.param
     path = tmp_path_factory.mktemp(name) / "poses.csv"
-    robot, data, _, bad_lines = simulated(arm, seed, 60, path, Effects(stiffness={2: 4e5}), bad=2 + seed % 2)
+    robot, data, truth, bad_lines = simulated(arm, seed, 60, path, Effects(stiffness={2: 4e5}), bad=2 + seed % 2)
+    _, val, _, _ = simulated(arm, seed + 50, 40, path.parent / "val.csv", Effects(), truth=truth)
     result = calibrate(robot, data, "kinematic+compliance", warn=False)
-    html = calibration_html(result, data)
-    return result, data, html, Page(html), bad_lines
+    html = calibration_html(result, data, validation=val)
+    return result, data, html, Page(html), bad_lines, val
 
 
 def test_calibration_report_lists_the_bad_measurements_by_file_line(calibration_page):
-    result, data, html, page, bad_lines = calibration_page
+    result, data, html, page, bad_lines, _ = calibration_page
     listed = [int(r["file line"]) for r in page.table("outliers")]
     assert sorted(listed) == sorted(bad_lines.tolist())
     for r in page.table("outliers"):
@@ -153,7 +155,7 @@ def test_calibration_report_lists_the_bad_measurements_by_file_line(calibration_
 
 
 def test_calibration_report_errors_and_gain(calibration_page):
-    result, data, html, page, _ = calibration_page
+    result, data, html, page, _, _ = calibration_page
     before, after = page.table("errors")
     assert before["model"].startswith("nominal model") and after["model"].startswith("calibrated")
     stats = result.stats(data)
@@ -169,7 +171,7 @@ def test_calibration_report_errors_and_gain(calibration_page):
 
 
 def test_calibration_report_parameters_identifiability_and_correlations(calibration_page):
-    result, data, html, page, _ = calibration_page
+    result, data, html, page, _, _ = calibration_page
     params = page.table("parameters")
     assert [r["parameter"] for r in params] == [p.name for p in result.parameters]
     for r in params:
@@ -179,7 +181,8 @@ def test_calibration_report_parameters_identifiability_and_correlations(calibrat
         if p.fixed:
             assert r["status"].startswith("not identifiable" if p.identifiable is False else "held")
         else:
-            assert r["status"] == "identified" and float(r["std"]) == pytest.approx(p.to_display(p.std), rel=0.06)
+            assert r["status"].startswith("identified") and float(r["std"]) == pytest.approx(p.to_display(p.std),
+                                                                                              rel=0.06)
     held = {r["parameter"]: r["held because"] for r in page.table("identifiability")}
     assert held == {p.name: p.reason or "fixed on request" for p in result.parameters if p.fixed}
     stiff = page.table("parameters", 1)
@@ -199,8 +202,55 @@ def test_calibration_report_parameters_identifiability_and_correlations(calibrat
     assert [c for *_, c in listed] == pytest.approx([c for *_, c in expected], abs=1e-3)
 
 
+def test_calibration_report_tests_each_parameter_and_flags_what_is_not_significant(calibration_page):
+    """Columns rel. std, t and the 95 % interval; the rows that are not significant highlighted and said."""
+    result, data, html, page, _, _ = calibration_page
+    tests = result.significance()
+    params = page.table("parameters")
+    assert {"rel. std", "t", "95 % interval"} <= set(params[0])
+    flagged = []
+    for r in params:
+        p, t = result.parameters[r["parameter"]], tests.get(r["parameter"])
+        if t is None:
+            assert r["t"] == r["rel. std"] == r["95 % interval"] == ""
+            continue
+        assert float(r["t"]) == pytest.approx(t.t, abs=0.006)
+        lo, hi = (float(x) for x in r["95 % interval"].split(" \u2013 "))
+        assert (lo, hi) == pytest.approx(tuple(p.to_display(v) for v in t.ci), rel=1e-5, abs=1e-9)
+        assert r["status"] == ("identified" if t.significant else "identified; not significant")
+        flagged += [] if t.significant else [p.name]
+    # highlighted: exactly the rows that are not significant
+    rows = re.findall(r'<tr( class="[^"]*")?><td class="t">([^<]+)</td>', html.split('id="parameters"')[1]
+                      .split("</table>")[0])
+    assert sorted(name for cls, name in rows if "weak" in cls) == sorted(flagged)
+    assert flagged and "tr.weak td{background" in html
+    # the stiffness: its interval from the compliance's
+    for r in page.table("parameters", 1):
+        j = int(r["joint"])
+        iv, t = result.stiffness_intervals()[j], tests.get(f"c{j}")
+        assert r["significant"] == ("yes" if t.significant else "no")
+        lo, hi = r["95 % interval (N m/rad)"].split(" \u2013 ")
+        assert float(lo) == pytest.approx(iv[0], rel=5e-3)
+        assert hi == "unbounded" if math.isinf(iv[1]) else float(hi) == pytest.approx(iv[1], rel=5e-3)
+    f = result.statistics
+    assert f"AIC {f.aic:.2f}, BIC {f.bic:.2f}" in page.text
+
+
+def test_calibration_report_validation_poses(calibration_page):
+    result, data, html, page, _, val = calibration_page
+    before, after = page.table("validation")
+    stats = result.stats(val)
+    assert after["model"] == "calibrated" and int(after["poses"]) == len(val)
+    assert float(after["mean mm"]) == pytest.approx(stats.mean_mm, abs=1e-4)
+    assert float(after["rms mm"]) == pytest.approx(stats.rms_mm, abs=1e-4)
+    assert before["model"].startswith("nominal model") and float(before["mean mm"]) > stats.mean_mm
+    assert f"On {len(val)} validation poses it never saw" in page.text and "val.csv" in page.text
+    # without them: no such section
+    assert 'id="validation"' not in calibration_html(result, data)
+
+
 def test_calibration_report_figures_and_page(calibration_page):
-    result, data, html, page, _ = calibration_page
+    result, data, html, page, _, _ = calibration_page
     assert set(page.figures) == {"fig-errors", "fig-axes", "fig-joints", "fig-correlation"}
     joints = re.search(r'<figure id="fig-joints">(.*?)</figure>', html, re.S).group(1)
     for j in range(1, result.model.robot.n + 1):
@@ -233,8 +283,8 @@ def test_figures_drawn_in_processes_are_the_same_page(diagnosis_page, calibratio
     report, html, _ = diagnosis_page
     assert diagnosis_html(report, processes=2) == html
     assert diagnosis_html(report, processes=5) == html
-    result, data, html, _, _ = calibration_page
-    assert calibration_html(result, data, processes=3) == html
+    result, data, html, _, _, val = calibration_page
+    assert calibration_html(result, data, processes=3, validation=val) == html
 
 
 def _lines(prefix: str, n: int, fails=lambda k: False) -> list:
@@ -379,13 +429,20 @@ def test_diagnosis_report_structure_kept_out(diagnosis_page):
 
 
 def test_cli_calibrate_html(tmp_path, capsys):
-    robot, data, _, bad_lines = simulated(ARM4, 7, 50, tmp_path / "poses.csv", Effects(stiffness={2: 4e5}), bad=1)
+    robot, data, truth, bad_lines = simulated(ARM4, 7, 50, tmp_path / "poses.csv", Effects(stiffness={2: 4e5}),
+                                              bad=1)
+    _, val, _, _ = simulated(ARM4, 8, 30, tmp_path / "val.csv", Effects(), truth=truth)
     out, html = str(tmp_path / "cal.json"), str(tmp_path / "cal.html")
     (tmp_path / "arm4.toml").write_text(to_toml(ARM4))
-    args = ["calibrate", str(tmp_path / "arm4.toml"), data.path, "--out", out, "--html", html]
+    args = ["calibrate", str(tmp_path / "arm4.toml"), data.path, "--out", out, "--html", html, "--validate", val.path]
     assert main(args) == 0
     page = Page(open(html, encoding="utf-8").read())
     assert [int(r["file line"]) for r in page.table("outliers")] == bad_lines.tolist()
+    # --validate: the held-out errors in the report, as in the JSON
+    doc = json.loads(open(out, encoding="utf-8").read())
+    after = page.table("validation")[-1]
+    assert int(after["poses"]) == doc["validation"]["n_poses"] == 30
+    assert float(after["mean mm"]) == pytest.approx(doc["validation"]["mean_mm"], abs=1e-4)
     assert main(args) == 2                                   # never over an existing report
     assert "exists already" in capsys.readouterr().err
     # one file for both outputs: refused before any work
@@ -482,7 +539,7 @@ def assert_readable(seen: dict) -> None:
 
 
 def test_calibration_report_in_a_browser(browser, calibration_page, tmp_path):
-    result, data, html, page, _ = calibration_page
+    result, data, html, page, _, _ = calibration_page
     seen = look(browser, html, tmp_path / "calibration.html")
     assert_readable(seen)
     assert len(seen["svgs"]) == len(page.figures)

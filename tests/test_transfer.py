@@ -75,6 +75,8 @@ def test_cli_transfer_and_rbf_compensator(tmp_path, capsys):
                  "--out", str(out), "--solver", "lm"]) == 0
     doc = json.loads(out.read_text())
     assert doc["model"] == "kinematic+rbf_compensator" and doc["terms"]["rbf_compensator"]["network"]
+    # the network's weights are not counted: no AIC or BIC (null, not a misleading number)
+    assert doc["statistics"] is None and "AIC" not in capsys.readouterr().out
     with_rbf = load_calibration(out)
     plain = calibrate(robot, cal, "kinematic", "lm", warn=False)
     assert with_rbf.stats(val).mean_mm < 0.85 * plain.stats(val).mean_mm
@@ -86,3 +88,29 @@ def test_cli_transfer_and_rbf_compensator(tmp_path, capsys):
     moved = load_calibration(tmp_path / "moved.json")
     assert moved.model.spec == "kinematic+rbf_compensator"
     assert moved.stats(other).mean_mm < 1.3 * with_rbf.stats(val).mean_mm
+
+
+@pytest.mark.parametrize("spec", ["base", "kinematic"])
+def test_transfer_drops_what_belongs_to_the_session(tmp_path, capsys, spec):
+    """A calibration with a drift taken to another series, whose times start anywhere: the drift is the
+    first session's, so it is dropped and the output says so; the robot's values carry, and the error
+    there is the robot's (not the drift run on the other file's clock)."""
+    robot = robot_from_dict(ARM7_DH)
+    eff = Effects(stiffness={2: 2e4}, drift=(2e-6, 0.0, -1e-6))
+    cal, truth = simulate(robot, 120, eff, seed=3, floor_z=None)
+    first = calibrate(robot, cal, "kinematic+compliance[2]+drift", "lm", warn=False)
+    assert first.parameters["drift_x"].value == pytest.approx(2e-6, rel=0.1)
+    other = _series(robot, truth, 80, 13, (1.0, -0.5, 0.2), (0.0, 0.01, 0.7))
+    other.columns["time_s"] = other.columns["time_s"] + 5000.0     # another day's clock
+    first.save(tmp_path / "cal.json")
+    other.write_csv(tmp_path / "other.csv")
+    capsys.readouterr()
+    assert main(["calibrate", str(tmp_path / "cal.json"), str(tmp_path / "other.csv"), "--model", spec,
+                 "--solver", "lm", "--out", str(tmp_path / "moved.json")]) == 0
+    out = capsys.readouterr()
+    assert "drift dropped" in out.out + out.err
+    moved = load_calibration(tmp_path / "moved.json")
+    assert "drift" not in moved.model.spec and not [p for p in moved.parameters if p.term == "drift"]
+    assert moved.parameters["c2"].value == first.parameters["c2"].value
+    # what is left is the drift of the other series itself (2.2 um/s over 80 s: ~0.1 mm), not 5000 s of it
+    assert moved.calibration.mean_mm < 0.2

@@ -526,3 +526,25 @@ def test_cli_urdf_chain_options_refused_with_a_calibration(tmp_path, capsys):
         err = capsys.readouterr().err.strip().splitlines()
         assert len(err) == 1 and str(cal) in err[0] and "a calibration JSON already holds its robot" in err[0]
         assert not any(p.exists() for p in (tmp_path / "p.csv", tmp_path / "c.json", tmp_path / "t.csv"))
+
+
+def test_every_command_that_reads_a_robot_takes_the_chain_options(capsys):
+    """A command whose ROBOT (or MODEL, or CAL.json) may be a robot file takes --urdf-base/-tip/-tool; others not."""
+    from casadical.cli import build_parser
+
+    ap = build_parser()
+    sub = next(a for a in ap._actions if a.dest == "command")
+    chain = {"--urdf-base", "--urdf-tip", "--urdf-tool"}
+    robots = set()
+    for name, p in sub.choices.items():
+        takes_robot = any("robot" in (a.help or "").lower() and "protocol" not in (a.help or "").lower()
+                          for a in p._actions if not a.option_strings)
+        options = {o for a in p._actions for o in a.option_strings}
+        assert (chain <= options) == takes_robot, name
+        assert not (chain & options) or chain <= options, name
+        robots |= {name} if takes_robot else set()
+    assert robots == {"inspect", "predict", "calibrate", "diagnose", "plan-poses", "candidates", "compare", "export"}
+    # a command that reads a calibration only: the options are unknown there (one line)
+    assert main(["compensate", "cal.json", "targets.csv", "--out", "j.csv", "--urdf-tip", "tool0"]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "unrecognized arguments: --urdf-tip tool0" in err[0]

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from .common import (add_checks, add_force, add_urdf_chain, check_options, check_outputs, int_at_least,
-                     robot_or_calibration, write_text)
+from .common import (add_checks, add_force, add_row_spacing, add_urdf_chain, check_options, check_outputs,
+                     int_at_least, robot_or_calibration, timed, write_text)
 
 
 def register(sub) -> None:
@@ -12,11 +12,17 @@ def register(sub) -> None:
                                    "terms joined by '+') from DATA.csv; the base pose is always estimated. "
                                    "Writes CAL.json and prints a summary. With a calibration JSON in place of "
                                    "ROBOT, only what MODEL names is estimated again (base: the base pose "
-                                   "alone; kinematic: the geometry) and every other value is kept: how a "
-                                   "calibration is taken to a new measurement series or tracker set-up.")
+                                   "alone; kinematic: the geometry; base+tool: the base pose and the tool) "
+                                   "and every other value is kept: how a calibration is taken to a new "
+                                   "measurement series or tracker set-up. Several DATA files are several "
+                                   "measurement sessions of one robot (as is a file with a session column): each "
+                                   "has its own base pose, the robot's parameters are shared. Data with a measured "
+                                   "orientation (rx_deg, ry_deg, rz_deg) are calibrated on the full pose (unless "
+                                   "--position-only): the probe's mounting on the flange is estimated too.")
     p.add_argument("robot", metavar="ROBOT",
                    help="built-in robot, robot TOML or URDF file, or a calibration JSON to take further")
-    p.add_argument("data", metavar="DATA.csv", help="measured poses (q1_deg, ..., x_mm, y_mm, z_mm)")
+    p.add_argument("data", metavar="DATA.csv", nargs="+",
+                   help="measured poses (q1_deg, ..., x_mm, y_mm, z_mm); several files: one session each")
     p.add_argument("--model", default="kinematic+compliance",
                    help="error model, e.g. kinematic, kinematic+compliance, "
                         "kinematic+compliance[2,3]+periodic[2:1] (default: %(default)s)")
@@ -34,6 +40,17 @@ def register(sub) -> None:
                    help="loss: huber (pseudo-Huber with the noise scale from the data: bad measurements are "
                         "down-weighted and reported) or none (plain least squares); default %(default)s")
     p.add_argument("--fix", default="", help="comma-separated parameters to hold at nominal (default: none)")
+    p.add_argument("--session-tool", action="store_true",
+                   help="with several sessions: each session after the first has its own tool offset too (the "
+                        "probe was re-mounted between them)")
+    p.add_argument("--validate", metavar="VAL.csv",
+                   help="held-out poses, never fitted: their errors (mean, max, rms mm) are printed, written to "
+                        "CAL.json ('validation') and shown in the HTML report")
+    p.add_argument("--position-only", action="store_true",
+                   help="calibrate on the measured positions alone; without it, data with a measured orientation "
+                        "(rx_deg, ry_deg, rz_deg) are calibrated on the full pose, position and orientation "
+                        "weighted by their noise scales from the data")
+    add_row_spacing(p)
     add_checks(p)
     add_urdf_chain(p)
     add_force(p)
@@ -43,15 +60,21 @@ def register(sub) -> None:
 def run(args) -> int:
     from ..calibration import CalibrationResult, calibrate
     from ..data import Measurements
+    from ..sessions import read_sessions
 
-    check_outputs({"--out": args.out, "--html": args.html}, [args.robot, args.data], args.force)
+    check_outputs({"--out": args.out, "--html": args.html}, [args.robot, *args.data, args.validate], args.force)
     robot = robot_or_calibration(args.robot, args)
     n = robot.model.robot.n if isinstance(robot, CalibrationResult) else robot.n
-    data = Measurements.read_csv(args.data, n_joints=n, require_positions=True)
+    data = timed(read_sessions(args.data, n_joints=n, require_positions=True), args)
+    # read before the fit: a malformed file stops the command before the work
+    val = timed(Measurements.read_csv(args.validate, n_joints=n, require_positions=True), args) \
+        if args.validate else None
     opts = {"max_iter": args.max_iter} if args.max_iter else {}
     result = calibrate(robot, data, args.model, args.solver, solver_options=opts,
                        fix=tuple(f.strip() for f in args.fix.split(",") if f.strip()), robust=args.robust,
-                       **check_options(args))
+                       session_tools=args.session_tool, position_only=args.position_only, **check_options(args))
+    if val is not None:     # the checks predict makes, then the held-out errors, before anything is written
+        result.validate(val, name=f"fitted to {' '.join(args.data)}", **check_options(args))
     result.save(args.out, overwrite=args.force)
     print(result.summary())
     print(f"\ncalibration -> {args.out}")
@@ -60,8 +83,10 @@ def run(args) -> int:
         from ..threads import evaluation_threads
         before, label = None, "nominal model, base pose fitted"
         if isinstance(robot, CalibrationResult):    # the calibration taken further: the error it starts from
-            before = calibrate(robot, data, "base", "lm", warn=False, robust=args.robust)
+            before = calibrate(robot, data, "base", "lm", warn=False, robust=args.robust,
+                               position_only=args.position_only)
             label = f"{args.robot} with its base pose re-estimated"
-        write_text(args.html, calibration_html(result, data, before, label, processes=evaluation_threads()), args.force)
+        write_text(args.html, calibration_html(result, data, before, label, processes=evaluation_threads(),
+                                               validation=val), args.force)
         print(f"html report -> {args.html}")
     return 0

@@ -179,8 +179,13 @@ def add_json(p: argparse.ArgumentParser, what: str, required: bool = False) -> N
                        help=f"write {what} as JSON to OUT.json ('-' or nothing: standard output)")
 
 
-def add_checks(p: argparse.ArgumentParser) -> None:
-    """The overrides of the plausibility checks of poses (:mod:`casadical.checks`)."""
+def add_checks(p: argparse.ArgumentParser, mismatch: bool = True) -> None:
+    """The overrides of the plausibility checks of poses (:mod:`casadical.checks`).
+
+    ``--allow-mismatch`` is one of them on every command (``mismatch`` is
+    accepted for the callers that asked for it when it was ``predict``'s
+    alone).
+    """
     g = p.add_argument_group("plausibility checks of the poses (each is an error unless overridden)")
     g.add_argument("--allow-outside-limits", action="store_true",
                    help="accept joint readings beyond the robot's min_deg/max_deg (a warning)")
@@ -192,6 +197,22 @@ def add_checks(p: argparse.ArgumentParser) -> None:
                    help="accept measured poses the model misses far beyond what it can mean, with its base pose "
                         "fitted: the nominal model by more than 5%% of the robot's reach, a calibration by more "
                         "than 100 times its own error (a warning)")
+
+
+def add_row_spacing(p: argparse.ArgumentParser) -> None:
+    """``--row-spacing-s``: the rows of a file without ``time_s`` are in time order at this spacing."""
+    p.add_argument("--row-spacing-s", type=float_in(0, math.inf), metavar="SECONDS",
+                   help="the poses of files without a time_s column were measured in row order, this many seconds "
+                        "apart (time_s = row x SECONDS; split's source_row gives the row): what a drift needs. "
+                        "Without it such files have no time, and no drift is fitted")
+
+
+def timed(data, args):
+    """``data`` with times from its rows if ``--row-spacing-s`` was given and it has no ``time_s``."""
+    spacing = getattr(args, "row_spacing_s", None)
+    if spacing is None or "time_s" in data.columns:
+        return data
+    return data.with_row_times(spacing)
 
 
 def add_urdf_chain(p: argparse.ArgumentParser) -> None:
@@ -213,7 +234,7 @@ def _triple(text: str) -> tuple[float, float, float]:
 
 def robot_from_args(spec: str, args):
     """The robot ``spec`` names (built-in, TOML or URDF), with the chain options of :func:`add_urdf_chain`."""
-    from ..robot import load_robot
+    from ..loading import load_robot
 
     return load_robot(spec, tip=args.urdf_tip, base=args.urdf_base, tool=args.urdf_tool)
 

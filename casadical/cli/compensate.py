@@ -18,8 +18,10 @@ def register(sub) -> None:
                                    "measurement frame; programmed joints q1_deg..qN_deg as the start) find the "
                                    "joints at which the calibrated model puts the tool point on the target. "
                                    "Robots with 6 joints or more keep the flange orientation the nominal model "
-                                   "has at the programmed joints; the remaining freedom takes the least joint "
-                                   "change. JOINTS.csv holds the input columns with corrected q*_deg, plus "
+                                   "has at the programmed joints, or, when TARGETS.csv has rx_deg, ry_deg, rz_deg "
+                                   "and CAL.json is a full-pose calibration, put the probe in that orientation "
+                                   "(measurement frame); the remaining freedom takes the least joint change. "
+                                   "JOINTS.csv holds the input columns with corrected q*_deg, plus "
                                    "programmed_q*_deg, dq*_deg, residual_mm (and orientation_error_deg). "
                                    "A row that is not reached or needs a joint beyond its limit is an error; "
                                    "nothing is written then.")
@@ -35,7 +37,8 @@ def register(sub) -> None:
                         "error; where holding the orientation would need more, only the point is reached "
                         "(default: %(default)g deg)")
     p.add_argument("--position-only", action="store_true",
-                   help="do not hold the flange orientation: least joint change that reaches the point")
+                   help="hold no orientation (neither the targets' rx_deg, ry_deg, rz_deg nor the nominal flange's): "
+                        "least joint change that reaches the point")
     add_checks(p)
     add_force(p)
     p.set_defaults(func=run)

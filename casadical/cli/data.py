@@ -15,7 +15,8 @@ def register(sub) -> None:
     p = sub.add_parser("split", help="split a measurement file into calibration and validation poses",
                        description="Random split of DATA.csv: N rows for calibration, the rest for "
                                    "validation; both keep the original row order, and columns move1..moveN "
-                                   "keep the direction of each joint's last move in the original sequence.")
+                                   "keep the direction of each joint's last move in the original sequence, "
+                                   "source_row each pose's row in it.")
     p.add_argument("data", metavar="DATA.csv", help="measurement file")
     p.add_argument("-n", type=int_at_least(1), required=True, help="number of calibration poses")
     p.add_argument("--out-cal", required=True, metavar="CAL.csv", help="calibration poses to write")
@@ -73,11 +74,14 @@ def run_split(args) -> int:
                          file=args.data)
     idx = np.sort(np.random.default_rng(args.seed).permutation(n)[: args.n])
     rest = np.setdiff1d(np.arange(n), idx)
-    # the direction of each joint's last move in the original sequence travels with the rows
-    # (a subset cannot recompute it): columns move1..moveN
-    if not any(c.startswith("move") for c in data.columns):
-        data = Measurements({**data.columns, **{f"move{j + 1}": data.moves[:, j] for j in range(data.n_joints)}},
-                            data.path, data.rows, data.moves, data.lines)
+    # the direction of each joint's last move in the original sequence and each pose's place in it travel
+    # with the rows (a subset cannot recompute them): columns move1..moveN and source_row
+    extra = {} if any(c.startswith("move") for c in data.columns) else \
+        {f"move{j + 1}": data.moves[:, j] for j in range(data.n_joints)}
+    if "source_row" not in data.columns:
+        extra["source_row"] = data.rows + 1
+    if extra:
+        data = Measurements({**data.columns, **extra}, data.path, data.rows, data.moves, data.lines)
     data.subset(idx).write_csv(args.out_cal, overwrite=args.force)
     data.subset(rest).write_csv(args.out_val, overwrite=args.force)
     print(f"{len(idx)} poses -> {args.out_cal}, {len(rest)} poses -> {args.out_val} (row order kept)")

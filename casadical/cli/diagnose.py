@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from .common import (Status, add_checks, add_force, add_quiet, add_urdf_chain, check_options, check_outputs, float_in,
-                     int_at_least, robot_from_args, write_json, write_text)
+from .common import (Status, add_checks, add_force, add_quiet, add_row_spacing, add_urdf_chain, check_options,
+                     check_outputs, float_in, int_at_least, robot_from_args, timed, write_json, write_text)
 
 
 def register(sub) -> None:
@@ -16,10 +16,15 @@ def register(sub) -> None:
                                    "blocks, joint-range blocks) as well as interpolate; a periodic error must "
                                    "also be resolved and agree over the halves of its joint's range, or it is "
                                    "reported as unexplained structure. VAL judges every step and never decides; "
-                                   "--transfer takes every finding to another measurement series.")
+                                   "--transfer takes every finding to another measurement series. Several DATA "
+                                   "files are several measurement sessions of one robot: each has its own base "
+                                   "pose, and every cause is asked whether one value serves all sessions (a "
+                                   "cause of the robot) or not (a property of a session).")
     p.add_argument("robot", metavar="ROBOT", help="built-in robot, robot TOML or URDF file")
-    p.add_argument("data", metavar="DATA.csv", help="calibration poses")
-    p.add_argument("--validate", required=True, metavar="VAL.csv", help="validation poses (never fitted, never decide)")
+    p.add_argument("data", metavar="DATA.csv", nargs="+", help="calibration poses; several files: one session each")
+    p.add_argument("--validate", required=True, metavar="VAL.csv", nargs="+",
+                   help="validation poses (never fitted, never decide); with several DATA files one per DATA file "
+                        "in the same order (each of that file's session), or one with a session column")
     p.add_argument("--json", required=True, metavar="REPORT.json", help="write the report as JSON")
     p.add_argument("--html", metavar="REPORT.html", help="also write a self-contained HTML report")
     p.add_argument("--out", metavar="FINAL.json",
@@ -43,7 +48,15 @@ def register(sub) -> None:
     p.add_argument("--robust", default="huber", choices=["huber", "none"],
                    help="loss of every fit, as for calibrate (default: %(default)s)")
     p.add_argument("--no-blackbox", action="store_true", help="skip the black-box compensator step")
+    p.add_argument("--position-only", action="store_true",
+                   help="fit on the positions alone; without it, data with a measured orientation (rx_deg, ry_deg, "
+                        "rz_deg) are fitted on the full pose, as by calibrate (the screening of candidates works on "
+                        "the positions either way)")
     p.add_argument("--seed", type=int, default=0, help="seed of the cross-validation folds (default: %(default)s)")
+    p.add_argument("--session-tool", action="store_true",
+                   help="with several sessions: each session after the first has its own tool offset too (the "
+                        "probe was re-mounted between them)")
+    add_row_spacing(p)
     add_checks(p)
     add_quiet(p)
     add_urdf_chain(p)
@@ -54,17 +67,31 @@ def register(sub) -> None:
 def run(args) -> int:
     from ..data import Measurements
     from ..diagnosis import DiagnosisSettings, diagnose
+    from ..errors import InputError
+    from ..sessions import combine, file_session_names
 
     check_outputs({"--json": args.json, "--html": args.html, "--out": args.out},
-                  [args.robot, args.data, args.validate, args.transfer], args.force)
+                  [args.robot, *args.data, *args.validate, args.transfer], args.force)
     robot = robot_from_args(args.robot, args)
-    read = lambda path: Measurements.read_csv(path, n_joints=robot.n, require_positions=True)  # noqa: E731
-    cal, val = read(args.data), read(args.validate)
+
+    def read(path):
+        return timed(Measurements.read_csv(path, n_joints=robot.n, require_positions=True), args)
+
+    cals, vals = [read(p) for p in args.data], [read(p) for p in args.validate]
+    cal = cals[0] if len(cals) == 1 else combine(cals)
+    if len(vals) == len(cals):     # each validation file is of the session of its DATA file
+        val = vals[0] if len(vals) == 1 else combine(vals, names=file_session_names(args.data))
+    elif len(vals) == 1 and vals[0].sessions is not None:
+        val = vals[0]
+    else:
+        raise InputError(f"{len(cals)} DATA files and {len(vals)} --validate files: give one validation file per "
+                         "DATA file, in the same order, or one with a session column", file=args.validate[0])
     other = read(args.transfer) if args.transfer else None
     settings = DiagnosisSettings(alpha=args.alpha, max_harmonic=args.max_harmonic, max_rounds=args.max_rounds,
                                  blackbox=not args.no_blackbox, seed=args.seed, robust=args.robust,
+                                 position_only=args.position_only,
                                  transfer_base_poses=args.transfer_base_poses,
-                                 transfer_refit_poses=args.transfer_refit_poses)
+                                 transfer_refit_poses=args.transfer_refit_poses, session_tools=args.session_tool)
     status = Status(args.quiet)
     report = diagnose(robot, cal, val, settings, progress=status.timed_line(), other=other,
                       **check_options(args))

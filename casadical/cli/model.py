@@ -28,7 +28,9 @@ def register(sub) -> None:
     p = sub.add_parser("predict", help="predict tool positions for joint readings",
                        description="Predict tool positions. MODEL is a robot (nominal model) or a "
                                    "calibration JSON written by 'calibrate'. OUT.csv holds the input "
-                                   "columns plus x_mm, y_mm, z_mm (measured ones are renamed measured_*).")
+                                   "columns plus x_mm, y_mm, z_mm (measured ones are renamed measured_*), and for "
+                                   "a full-pose calibration the probe's orientation rx_deg, ry_deg, rz_deg "
+                                   "(intrinsic XYZ).")
     p.add_argument("model", metavar="MODEL", help="robot (nominal model) or calibration JSON")
     p.add_argument("poses", metavar="POSES.csv", help="joint readings (q1_deg, ...)")
     p.add_argument("--out", required=True, metavar="OUT.csv", help="output CSV")
@@ -115,11 +117,19 @@ def run_predict(args) -> int:
             check_calibration_fits(errors, data, args.model,
                                    cal.calibration.mean_mm if cal.calibration else None, args.allow_mismatch)
         stats = ErrorStats.of(errors)
+    angles = None
+    if cal is not None and cal.has_orientation and data.has_orientation:
+        angles = cal.orientation_stats(data)
     if cal is not None and cal.coverage is not None:
         cal.coverage.warn(data.q_deg, data.lines, args.poses)
-    data.with_positions(xyz).write_csv(args.out, overwrite=args.force)
+    out = data.with_positions(xyz)
+    if cal is not None and cal.has_orientation:   # a full-pose calibration: the probe's orientation too
+        out = out.with_orientations(cal.predict_rotations(data))
+    out.write_csv(args.out, overwrite=args.force)
     print(f"predicted {len(data)} poses -> {args.out}")
     if stats is not None:
         how = "calibrated model" if cal is not None else "nominal model with its base pose fitted to them"
         print(f"error against the measured positions ({how}): {stats.line()}")
+    if angles is not None:
+        print(f"error against the measured orientations: {angles.line()}")
     return 0

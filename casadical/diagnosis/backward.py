@@ -9,6 +9,11 @@ Gauss-Newton step from the final fit) must fit significantly worse, at the
 same corrected level and by BIC. The weakest cause that fails is refitted
 without it for real; if that confirms, it is dropped and the test runs
 again on the new model.
+
+Then every named cause must still be physics in the final model
+(:mod:`casadical.physics`: inside its bounds, told apart from the geometry,
+significant, physically meaningful over the data): a cause that is not is
+dropped, the model refitted without it, and the check runs again.
 """
 
 from __future__ import annotations
@@ -17,6 +22,7 @@ import math
 
 import numpy as np
 
+from ..physics import violations
 from ..result import CalibrationResult
 from .candidates import Candidate, compose_spec
 from .statistics import NestedTest, nested_test
@@ -65,7 +71,7 @@ def drop_redundant(dg, current: CalibrationResult, accepted: list[Candidate], ge
         rest = [a for a in accepted if a != cand]
         refit = dg.fit(compose_spec(rest, geometric), start=current)
         full = nested_test(dg.deviance(refit, current.loss), int(refit.parameters.free.sum()),
-                           dg.deviance(current, current.loss), int(current.parameters.free.sum()), dg.n_eq)
+                           dg.deviance(current, current.loss), int(current.parameters.free.sum()), dg.n_fit_eq)
         if full.log10_p < level and full.delta_bic < 0:
             break       # the one-step estimate was too pessimistic: it is still supported
         dg.drop_finding(cand)
@@ -75,4 +81,26 @@ def drop_redundant(dg, current: CalibrationResult, accepted: list[Candidate], ge
                         + f" in the model it no longer explains anything ({full.text()})")
         dg.say(f"  dropped {cand.label()}: not needed once the later causes are in the model ({full.text()})")
         current, accepted = refit, rest
+    return current, accepted
+
+
+def drop_unphysical(dg, current: CalibrationResult, accepted: list[Candidate], geometric: bool
+                    ) -> tuple[CalibrationResult, list[Candidate]]:
+    """Drop, one at a time, the named causes the final model holds that break a rule of
+    :mod:`casadical.physics` (the first such cause, in the order accepted), refitting without each."""
+    while accepted:
+        broken = [(c, v) for c in accepted
+                  if (v := violations(current, dg.cal, own_parameters(c, accepted) or c.parameter_names(),
+                                      alpha=dg.s.alpha))]
+        if not broken:
+            break
+        cand, vs = broken[0]
+        rest = [a for a in accepted if a != cand]
+        dg.drop_finding(cand)
+        dg.unexplained.excluded_causes.add(cand)
+        text = "; ".join(v.text for v in vs)
+        dg.notes.append(f"{cand.label()} was dropped at the end: in the final model it is not physics ({text})")
+        dg.say(f"  dropped {cand.label()}: {text}")
+        current = dg.fit(compose_spec(rest, geometric), start=current)
+        accepted = rest
     return current, accepted

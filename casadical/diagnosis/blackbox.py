@@ -59,7 +59,7 @@ def blackbox(current: CalibrationResult, data: Measurements, all_schemes: list[S
     idx = np.flatnonzero(keep)
     cv: dict = {}
     worse = []
-    for kind in KINDS:
+    for kind in [k for k in KINDS if any(x.kind == k for x in all_schemes)]:
         group = [x for x in all_schemes if x.kind == kind]
         before, after = np.zeros(len(X)), np.zeros(len(X))
         for s in group:
@@ -107,7 +107,7 @@ def blackbox_step(current: CalibrationResult, spec: str, cal: Measurements, val:
         Candidate("unexplained"), v0.mean_mm - v1.mean_mm,
         "an RBF network on joint angles and gravity torques removes structure no named cause explains: "
         "held-out mean " + ", ".join(f"{k} {bb.cv_mm[k + '_before']:.4f} -> {bb.cv_mm[k]:.4f} mm"
-                                     for k in KINDS), where="black-box compensator (rbf_compensator)",
+                                     for k in KINDS if k in bb.cv_mm), where="black-box compensator (rbf_compensator)",
         holds_up={"cv_mm": bb.cv_mm}))
     progress(f"black-box compensator accepted: validation mean {v0.mean_mm:.4f} -> {v1.mean_mm:.4f} mm")
     return final, spec

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 #: causes in a few words, for reports
 SHORT = {"geometric": "kinematic", "joint_compliance": "compliance", "nonlinear_stiffness": "progressive stiffness",
@@ -22,12 +22,26 @@ class Candidate:
         For ``thermal_expansion`` a joint means that link's own coefficient.
     source : str or None
         For backlash: ``torque`` or ``motion``.
+    session : str or None
+        A cause of this measurement session only (its own parameters,
+        ``c2@B``), with data of several sessions; None: one value for every
+        session.
     """
 
     cause: str
     joint: int | None = None
     harmonic: int | None = None
     source: str | None = None
+    session: str | None = None
+
+    def shared(self) -> "Candidate":
+        """The same cause with one value for every session."""
+        return replace(self, session=None)
+
+    @property
+    def scope(self) -> str | None:
+        """``session`` for a cause of one session (or a drift, which belongs to its session by nature)."""
+        return "session" if self.session is not None or self.cause == "drift" else None
 
     @property
     def tier(self) -> int:
@@ -49,6 +63,8 @@ class Candidate:
             parts.append(f"h{self.harmonic}" if short else f"harmonic {self.harmonic}")
         if self.source == "motion":
             parts.append("(motion)" if short else "(direction of motion)")
+        if self.session is not None:
+            parts.append(f"@{self.session}" if short else f"in session {self.session}")
         return " ".join(parts)
 
     def to_dict(self) -> dict:
@@ -59,10 +75,14 @@ class Candidate:
             d["harmonic"] = self.harmonic
         if self.source is not None:
             d["source"] = self.source
+        if self.session is not None:
+            d["session"] = self.session
         return d
 
     def parameter_names(self) -> list[str]:
         """Names of the parameters this candidate adds to a model."""
+        if self.session is not None:
+            return [f"{n}@{self.session}" for n in self.shared().parameter_names()]
         j, h = self.joint, self.harmonic
         return {
             "joint_compliance": [f"c{j}"],
@@ -76,7 +96,15 @@ class Candidate:
 
 
 def compose_spec(candidates: list[Candidate], geometric: bool = True) -> str:
-    """Model specification holding every candidate (same terms merged)."""
+    """Model specification holding every candidate (same terms merged; a session's own terms ``...@s``)."""
+    parts = ["kinematic" if geometric else "nominal"] + _terms([c for c in candidates if c.session is None])
+    for s in dict.fromkeys(c.session for c in candidates if c.session is not None):
+        parts += [f"{t}@{s}" for t in _terms([c.shared() for c in candidates if c.session == s])]
+    return "+".join(parts)
+
+
+def _terms(candidates: list[Candidate]) -> list[str]:
+    """The term specifications of candidates of one scope."""
     cubic = sorted({c.joint for c in candidates if c.cause == "nonlinear_stiffness"})
     comp = sorted({c.joint for c in candidates if c.cause == "joint_compliance"} | set(cubic))
     links = sorted({c.joint for c in candidates if c.cause == "thermal_expansion" and c.joint is not None})
@@ -84,7 +112,7 @@ def compose_spec(candidates: list[Candidate], geometric: bool = True) -> str:
     enc = sorted({c.joint for c in candidates if c.cause == "encoder_scale"})
     blt = sorted({c.joint for c in candidates if c.cause == "backlash" and c.source != "motion"})
     blm = sorted({c.joint for c in candidates if c.cause == "backlash" and c.source == "motion"})
-    parts = ["kinematic" if geometric else "nominal"]
+    parts = []
     if comp:
         parts.append(f"joint_compliance[{','.join(map(str, comp))}]")
     if cubic:
@@ -103,7 +131,7 @@ def compose_spec(candidates: list[Candidate], geometric: bool = True) -> str:
         parts.append(f"thermal_expansion[{','.join(map(str, links))}]")
     if any(c.cause == "drift" for c in candidates):
         parts.append("drift")
-    return "+".join(parts)
+    return parts
 
 
 #: How to tell apart two causes that explain the same residual on the data at hand.

@@ -46,16 +46,23 @@ class UnexplainedLog:
             item = {"trend_ppm": v * 1e6, "what": f"a trend along the joint's reading ({v * 1e6:.0f} ppm)"}
         elif cand.cause == "backlash":
             self.excluded_causes.add(cand)
-            v = values[cand.parameter_names()[0]]
-            item = {"half_play_arcsec": math.degrees(v) * 3600,
-                    "what": f"a step with the sign of the joint's {'load' if cand.source != 'motion' else 'motion'} "
-                            f"({math.degrees(v) * 3600:.1f} arcsec)"}
+            v = math.degrees(values[cand.parameter_names()[0]]) * 3600
+            motion = cand.source == "motion"
+            if v >= 0:
+                what = f"a step with the sign of the joint's {'motion' if motion else 'load'} ({v:.1f} arcsec)"
+            elif motion:
+                what = f"a lead of {-v:.1f} arcsec in the direction of the joint's last move (play would trail)"
+            else:
+                what = f"a step of {-v:.1f} arcsec against the sign of the joint's load"
+            item = {"half_play_arcsec": v, "what": what}
         else:
             self.excluded_causes.add(cand)
             c = values.get(f"c{j}", 0.0)
             k = 1 / c if c > 0 else math.inf
-            item = {"load_compliance": c, "what": f"a part that follows the joint's load (as if k = {k:.3g} N m/rad"
-                                                   f"{', progressive' if cand.cause == 'nonlinear_stiffness' else ''})"}
+            item = {"load_compliance": c,
+                    "what": (f"a part that follows the joint's load (as if k = {k:.3g} N m/rad"
+                             f"{', progressive' if cand.cause == 'nonlinear_stiffness' else ''})") if c > 0 else
+                    f"a part that follows the joint's load with the wrong sign (c = {c:.3g} rad/(N m))"}
         f = self.by_joint.get(j)
         if f is None:
             f = self.by_joint[j] = Finding(Candidate("unexplained", j), 0.0, "", in_model=False,
@@ -130,7 +137,6 @@ def what(cand: Candidate, res: CalibrationResult, cal: Measurements) -> str:
         return f"expansion {P[cand.parameter_names()[0]].value * 1e6:.2f} ppm/K of {where}"
     if cand.cause == "drift":
         v = np.array([P[n].value for n in cand.parameter_names()]) * 1e6
-        unit = "s" if cal.get("time_s") is not None else "row"
-        return (f"the measured points move {np.linalg.norm(v):.3g} um per {unit} (x, y, z: "
+        return (f"the measured points move {np.linalg.norm(v):.3g} um per s (x, y, z: "
                 + ", ".join(f"{c:+.3g}" for c in v) + ")")
     return ""

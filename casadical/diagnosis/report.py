@@ -5,7 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from ..result import CalibrationResult, ErrorStats
+from ..result import AngleStats, CalibrationResult, ErrorStats
 from .candidates import Candidate
 from .periodogram import Periodogram
 from .statistics import NestedTest
@@ -34,6 +34,9 @@ class Step:
         (``random``, ``time``, ``joint``), before (``*_before``) and with the step.
     reason : str
         Why it was not accepted (or how it ended, for an unexplained structure).
+    orientation : AngleStats or None
+        Full pose: the orientation errors on the validation poses (full fits only, not the one-step fits of
+        candidates that were not accepted).
     """
 
     model: str
@@ -44,10 +47,13 @@ class Step:
     test: NestedTest | None = None
     cv_mm: dict = field(default_factory=dict)
     reason: str = ""
+    orientation: AngleStats | None = None
 
     def to_dict(self) -> dict:
         d = {"model": self.model, "validation": self.validation.to_dict(n_poses=False),
              "calibration": self.calibration.to_dict(n_poses=False), "accepted": self.accepted}
+        if self.orientation is not None:
+            d["orientation"] = self.orientation.to_dict(n_poses=False)
         if self.candidate is not None:
             d["candidate"] = self.candidate.to_dict()
         if self.test is not None:
@@ -90,6 +96,11 @@ class Finding:
         Gains on another series (``diagnose --transfer``).
     plot : dict
         Data of the residual plot against the cause's variable.
+    scope : str or None
+        ``robot``: one value serves every session (data of several
+        sessions); ``session``: a property of one session (its own
+        parameters, ``@session``; a drift), kept out of what a calibration
+        carries to other data.
     """
 
     candidate: Candidate
@@ -103,6 +114,7 @@ class Finding:
     holds_up: dict = field(default_factory=dict)
     transfer: dict = field(default_factory=dict)
     plot: dict = field(default_factory=dict)
+    scope: str | None = None
 
     @property
     def cause(self) -> str:
@@ -111,6 +123,8 @@ class Finding:
     def to_dict(self) -> dict:
         d = self.candidate.to_dict()
         d.update(gain_mm=self.gain_mm, evidence=self.evidence, in_model=self.in_model)
+        if self.scope is not None:
+            d["scope"] = self.scope
         if self.where:
             d["where"] = self.where
         if self.potential_gain_mm is not None:
@@ -142,6 +156,8 @@ class DiagnosisReport:
         on the calibration poses: what ``diagnose --out`` writes.
     transfer : dict
         The final and the kinematic model taken to another series, if asked.
+    final_sessions : dict of str to ErrorStats
+        With several sessions: the final model's validation errors in each.
     """
 
     robot: str
@@ -157,6 +173,8 @@ class DiagnosisReport:
     kinematic_validation: ErrorStats | None = None
     transfer: dict = field(default_factory=dict)
     settings: dict = field(default_factory=dict)
+    final_sessions: dict = field(default_factory=dict)
+    final_orientation: AngleStats | None = None
 
     def to_dict(self) -> dict:
         params = []
@@ -176,16 +194,23 @@ class DiagnosisReport:
             "time_s": self.time_s,
             "settings": self.settings,
         }
+        if self.final_sessions:
+            doc["final"]["sessions"] = {s: st.to_dict() for s, st in self.final_sessions.items()}
+        if self.final_orientation is not None:
+            doc["final"]["orientation"] = self.final_orientation.to_dict(n_poses=False)
         if self.transfer:
             doc["transfer"] = self.transfer
         return doc
 
     def text(self) -> str:
+        pose = any(s.orientation is not None for s in self.steps)   # full pose: the orientation's mean too
         lines = [f"diagnosis of {self.robot} ({self.time_s:.1f} s)", "",
-                 f"{'model':<58}{'val mean':>10}{'val max':>10}{'val rms':>10}  accepted"]
+                 f"{'model':<58}{'val mean':>10}{'val max':>10}{'val rms':>10}" + (f"{'val deg':>10}" if pose else "")
+                 + "  accepted"]
         for s in self.steps:
             v = s.validation
-            lines.append(f"{s.model[:57]:<58}{v.mean_mm:>10.4f}{v.max_mm:>10.4f}{v.rms_mm:>10.4f}  "
+            deg = ((f"{s.orientation.mean_deg:>10.4f}" if s.orientation is not None else f"{'-':>10}") if pose else "")
+            lines.append(f"{s.model[:57]:<58}{v.mean_mm:>10.4f}{v.max_mm:>10.4f}{v.rms_mm:>10.4f}{deg}  "
                          f"{'yes' if s.accepted else 'no'}")
         lines += ["", "findings (values of the final model):"]
         if not [f for f in self.findings if f.cause != "geometric"]:
@@ -200,6 +225,12 @@ class DiagnosisReport:
         v = self.final_validation
         lines += ["", f"final model {self.final_model}: validation mean {v.mean_mm:.4f}, "
                       f"max {v.max_mm:.4f}, rms {v.rms_mm:.4f} mm"]
+        lines += [f"  session {s}: validation mean {st.mean_mm:.4f}, max {st.max_mm:.4f}, rms {st.rms_mm:.4f} mm"
+                  for s, st in self.final_sessions.items()]
+        if self.final_orientation is not None:
+            o = self.final_orientation
+            lines.append(f"full pose: orientation on the validation poses mean {o.mean_deg:.4f}, max {o.max_deg:.4f}, "
+                         f"rms {o.rms_deg:.4f} deg")
         if self.transfer:
             lines.append(self.transfer["text"])
         lines += [f"note: {n}" for n in self.notes]

@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import math
 import time
-from dataclasses import asdict
+from dataclasses import asdict, replace
 from typing import Callable
 
 import numpy as np
@@ -32,12 +32,13 @@ from ..calibration import calibrate, model_for
 from ..checks import check_poses
 from ..data import Measurements
 from ..errors import listing
+from ..physics import sign_changes, value_violations, violations
 from ..problem import RobustLoss
-from ..result import CalibrationResult, ErrorStats
+from ..result import AngleStats, CalibrationResult, ErrorStats
 from ..robot import Robot
 from ..threads import limited_threads
 from . import transfer as transfer_mod
-from .backward import drop_redundant
+from .backward import drop_redundant, drop_unphysical
 from .blackbox import blackbox_step
 from .candidates import Candidate, compose_spec
 from .findings import UnexplainedLog, describe
@@ -57,6 +58,8 @@ from .validation import (Linearized, by_kind, cv_failure, cv_record, cv_text, ex
 #: half-range estimates are biased by the structure still unmodelled in each half, so the test is not
 #: applied to them.)
 JOINT_CAUSES = ("joint_periodic", "encoder_scale")
+#: the kinds of fold where a model must extrapolate: a step may not make them worse
+EXTRAPOLATING = ("time", "joint", "session")
 
 
 class _Diagnosis:
@@ -64,8 +67,13 @@ class _Diagnosis:
                  progress: Callable[[str], None]):
         self.robot, self.cal, self.val, self.s = robot, cal, val, settings
         self.say = progress
-        self.n_eq = 3 * len(cal)
-        self.schemes = schemes(cal.q, cal.rows, settings.folds, settings.seed, joint_levers(robot, cal))
+        self.n_eq = 3 * len(cal)          # the screening and its linearised tests: positions
+        # full pose (data with orientations): every full fit, and the tests on their losses, have 6 equations a pose
+        self.full_pose = cal.has_orientation and not settings.position_only
+        self.n_fit_eq = (6 if self.full_pose else 3) * len(cal)
+        self.schemes = schemes(cal.q, cal.rows, settings.folds, settings.seed, joint_levers(robot, cal),
+                               sessions=cal.sessions)
+        self.sessions = cal.session_names      # [] for one session
         self.steps: list[Step] = []
         self.findings: list[Finding] = []
         self.notes: list[str] = []
@@ -75,18 +83,22 @@ class _Diagnosis:
         self.before: dict[Candidate, CalibrationResult] = {}   # fit before each finding, by its cause
         self.support: dict[Candidate, tuple] = {}               # (test, cv before, cv after, checks) by cause
         self._val_errors: dict[int, tuple] = {}                 # id of a fit -> (fit, its validation errors)
+        self._torques: tuple | None = None                      # (fit, gravity torques of the cal poses)
+        self.history: list[tuple[list[Candidate], CalibrationResult]] = []   # each accepted model, in order
 
     # -- fitting ---------------------------------------------------------------
 
     def fit(self, spec: str, start: CalibrationResult | dict | None = None, loss: RobustLoss | None = None
             ) -> CalibrationResult:
         """Calibrate ``spec`` on the calibration poses (LM), from ``start``'s values (a result or a dict)."""
-        model = model_for(self.robot, spec, self.cal, jit=False)
+        model = model_for(self.robot, spec + ("+tool_orientation" if self.full_pose else ""), self.cal, jit=False,
+                          session_tools=self.s.session_tools)
         st = None
         if start is not None:
             values = start if isinstance(start, dict) else {p.name: p.value for p in start.parameters}
             st = {n: v for n, v in values.items() if n in model.parameters and not n.startswith("base_")}
-        return calibrate(self.robot, self.cal, model, "lm", start=st, warn=False, robust=loss or self.s.robust)
+        return calibrate(self.robot, self.cal, model, "lm", start=st, warn=False, robust=loss or self.s.robust,
+                         position_only=self.s.position_only)
 
     def val_errors(self, res: CalibrationResult) -> np.ndarray:
         """Position errors (m) of a fit on the validation poses, predicted once per fit."""
@@ -98,27 +110,51 @@ class _Diagnosis:
     def val_stats(self, res: CalibrationResult) -> ErrorStats:
         return ErrorStats.of(self.val_errors(res))
 
+    def val_angles(self, res: CalibrationResult) -> AngleStats | None:
+        """Orientation errors of a full-pose fit on the validation poses (None without orientations)."""
+        if not (res.has_orientation and self.val.has_orientation):
+            return None
+        return AngleStats.of(res.orientation_errors(self.val))
+
+    def u2(self, res: CalibrationResult, loss: RobustLoss) -> np.ndarray:
+        """Squared residual norm of each calibration pose under ``loss``: full pose, ``|r_p|^2 + k^2 |r_o|^2``."""
+        r = res.residuals(self.cal)
+        u2 = np.einsum("ij,ij->i", r, r)
+        if res.full_pose and math.isfinite(loss.rot_weight):
+            u2 = u2 + (loss.rot_weight * res.orientation_errors(self.cal)) ** 2
+        return u2
+
     def deviance(self, res: CalibrationResult, loss: RobustLoss) -> float:
         """Twice the loss of ``res`` on the calibration poses under ``loss`` (SSR for least squares)."""
-        r = res.residuals(self.cal)
-        return 2.0 * float(loss.rho(np.einsum("ij,ij->i", r, r)).sum())
+        return 2.0 * float(loss.rho(self.u2(res, loss)).sum())
 
     def mask(self, res: CalibrationResult) -> np.ndarray:
         """Poses that count in held-out means: those the robust loss did not set aside."""
-        r = res.residuals(self.cal)
-        return res.loss.weight(np.einsum("ij,ij->i", r, r)) >= 0.5
+        return res.loss.weight(self.u2(res, res.loss)) >= 0.5
+
+    def torques(self, res: CalibrationResult) -> np.ndarray:
+        """Gravity torques (N m) of the calibration poses under a fit, computed once per fit."""
+        if self._torques is None or self._torques[0] is not res:
+            m = res.model
+            self._torques = (res, m.torques(self.cal.q, res.parameters.values, m.covariates(self.cal)))
+        return self._torques[1]
+
+    def cv(self, res: CalibrationResult, mask: np.ndarray) -> dict:
+        """Held-out means (mm) by kind of fold of a fit, linearised at it, over the poses of ``mask``."""
+        return by_kind(Linearized.of(res, self.cal).cv(self.schemes), mask)
 
     # -- the procedure ---------------------------------------------------------
 
     def run(self) -> tuple[CalibrationResult, list[Candidate], bool]:
         self.say("step 1: nominal model (base pose only)")
         nominal = self.nominal = self.fit("nominal")
-        self.steps.append(Step("nominal", nominal.calibration, self.val_stats(nominal), True))
+        self.steps.append(Step("nominal", nominal.calibration, self.val_stats(nominal), True,
+                               orientation=self.val_angles(nominal)))
         self.say(f"  validation mean {self.steps[-1].validation.mean_mm:.4f} mm (judge only)")
         self.say("step 2: geometric (kinematic) calibration")
         kin = self.kinematic = self.fit("kinematic")
         test = nested_test(self.deviance(nominal, kin.loss), int(nominal.parameters.free.sum()),
-                           self.deviance(kin, kin.loss), int(kin.parameters.free.sum()), self.n_eq)
+                           self.deviance(kin, kin.loss), int(kin.parameters.free.sum()), self.n_fit_eq)
         mask = self.mask(kin)
         cv0, cv1 = (by_kind(Linearized.of(r, self.cal).cv(self.schemes), mask) for r in (nominal, kin))
         worse = not_better(cv0, cv1)
@@ -128,7 +164,7 @@ class _Diagnosis:
                            + [f"BIC does not improve ({test.delta_bic:+.1f})"] * (test.delta_bic >= 0)
                            + ([cv_failure(worse, cv0, cv1)] if worse else []))
         self.steps.append(Step("kinematic", kin.calibration, kv, ok, Candidate("geometric"), test,
-                               cv_record(cv0, cv1), reason))
+                               cv_record(cv0, cv1), reason, self.val_angles(kin)))
         self.say(f"  validation mean {kv.mean_mm:.4f} mm ({test.text()})")
         if ok:
             gain = self.steps[0].validation.mean_mm - kv.mean_mm
@@ -139,6 +175,7 @@ class _Diagnosis:
         else:
             current, geometric = nominal, False
         accepted: list[Candidate] = []
+        self.history.append(([], current))
         for rnd in range(self.s.max_rounds):
             self.say(f"round {rnd + 1}: screening candidate causes")
             new = self.round(current, accepted, geometric)
@@ -149,22 +186,44 @@ class _Diagnosis:
             # the one-step fit decided; the full fit (noise scale re-estimated) must confirm the significance
             new_fit = self.fit(compose_spec(accepted + [cand], geometric), start=start)
             test = nested_test(self.deviance(current, current.loss), int(current.parameters.free.sum()),
-                               self.deviance(new_fit, current.loss), int(new_fit.parameters.free.sum()), self.n_eq)
+                               self.deviance(new_fit, current.loss), int(new_fit.parameters.free.sum()),
+                               self.n_fit_eq)
+            reasons = []
             if test.log10_p >= level or test.delta_bic >= 0:
+                reasons.append(f"not significant once fitted in full ({test.text()})")
+            # the full fit must be physics, and must not do worse where the model extrapolates
+            broken = violations(new_fit, self.cal, cand.parameter_names(), alpha=self.s.alpha)
+            if broken:
+                reasons.append("not physics once fitted in full: " + "; ".join(v.text for v in broken))
+            mask = self.mask(current)
+            cv0, cv1 = self.cv(current, mask), self.cv(new_fit, mask)
+            worse = [k for k in EXTRAPOLATING if k in cv0 and cv1[k] > cv0[k]]
+            if worse:
+                reasons.append("fitted in full it does worse where the model extrapolates: "
+                               + ", ".join(f"{k} {cv0[k]:.4f} -> {cv1[k]:.4f} mm" for k in worse))
+            if reasons:
                 step.accepted, step.test = False, test
-                step.reason = f"not significant once fitted in full ({test.text()})"
+                step.reason = "; ".join(reasons)
                 self.say(f"    {cand.label()}: {step.reason}")
                 self.findings.pop()
-                self.support.pop(cand, None)
+                support = self.support.pop(cand, None)
                 self.unexplained.excluded_causes.add(cand)
+                if broken and not reasons[0].startswith("not significant") and cand.joint is not None \
+                        and support is not None:
+                    # real structure that is not this cause: reported, kept out of the model
+                    self.unexplained.add(cand, {p.name: p.value for p in new_fit.parameters}, support[0],
+                                         support[1], support[2], support[3],
+                                         step.validation.mean_mm - self.val_stats(new_fit).mean_mm, step.reason)
                 continue
             self.before[cand] = current
             accepted.append(cand)
             current = new_fit
+            self.history.append((list(accepted), current))
             # the step and the finding's gain judge the full fit, not the one-step fit that decided
             full = self.val_stats(current)
             next(f for f in self.findings if f.candidate == cand).gain_mm += step.validation.mean_mm - full.mean_mm
             step.calibration, step.validation = current.calibration, full
+            step.orientation = self.val_angles(current)
         else:
             if self.s.max_rounds:
                 self.notes.append(f"stopped at the safety cap of {self.s.max_rounds} rounds while causes were "
@@ -172,7 +231,40 @@ class _Diagnosis:
         if len(accepted) > 1:
             self.say("final check: is every cause still needed?")
             current, accepted = drop_redundant(self, current, accepted, geometric)
+        if accepted:
+            self.say("final check: is every cause still physics?")
+            current, accepted = drop_unphysical(self, current, accepted, geometric)
+        current, accepted = self.never_worse(current, accepted)
         return current, accepted, geometric
+
+    def never_worse(self, current: CalibrationResult, accepted: list[Candidate]
+                    ) -> tuple[CalibrationResult, list[Candidate]]:
+        """The final model never does worse than the kinematic one where it must extrapolate (time- and
+        joint-blocked folds); if it would, the latest accepted model that does not is final, and a note says
+        why."""
+        if not accepted or not self.steps[1].accepted:
+            return current, accepted
+        mask = self.mask(current)
+        ref = self.cv(self.kinematic, mask)
+
+        def worse(res):
+            cv = self.cv(res, mask)
+            return [f"{k} {ref[k]:.4f} -> {cv[k]:.4f} mm" for k in EXTRAPOLATING if k in ref and cv[k] > ref[k]]
+
+        bad = worse(current)
+        if not bad:
+            return current, accepted
+        for earlier, fit in reversed(self.history[:-1]):
+            if set(earlier) <= set(accepted) and (not earlier or not worse(fit)):
+                dropped = [a for a in accepted if a not in earlier]
+                for a in dropped:
+                    self.drop_finding(a)
+                self.notes.append("the model with every cause did worse than the kinematic model where it must "
+                                  "extrapolate (held-out mean " + ", ".join(bad) + "); the final model is the "
+                                  "last one that does not, without " + ", ".join(a.label() for a in dropped))
+                self.say(f"  {self.notes[-1]}")
+                return fit, list(earlier)
+        return current, accepted
 
     def drop_finding(self, cand: Candidate) -> None:
         """Remove the finding of ``cand`` and what is kept for it."""
@@ -194,7 +286,15 @@ class _Diagnosis:
             out.append(Candidate("thermal_expansion"))
             out += [Candidate("thermal_expansion", j) for j, jt in enumerate(self.robot.joints, start=1)
                     if abs(jt.a) + abs(jt.d) + abs(jt.b or 0.0) > 0]
-        out.append(Candidate("drift"))  # time_s, or the row order
+        if len(self.sessions) > 1:
+            # a cause of one session only: the physical causes of each joint, and a drift (of one session by
+            # nature: with several sessions only its own)
+            out += [replace(c, session=s) for c in out if c.cause in ("joint_compliance", "encoder_scale", "backlash")
+                    for s in self.sessions]
+            if self.cal.get("time_s") is not None:
+                out += [Candidate("drift", session=s) for s in self.sessions]
+        elif self.cal.get("time_s") is not None:   # a drift needs the poses' times: never the row numbers
+            out.append(Candidate("drift"))
         # periodograms of the projected residuals (the same while the fit is the same)
         if self._periodograms_of is not current:
             # a joint angle error moves the tool point along the derivative w.r.t. the joint's angle
@@ -212,7 +312,16 @@ class _Diagnosis:
             hs = set(ranked) | ({1} if (j, 1) not in self.unexplained.excluded else set())
             out += [Candidate("joint_periodic", j, h) for h in sorted(hs)]
         return [c for c in out if c not in have and c not in self.unexplained.excluded_causes and not (
-            c.cause == "backlash" and any(a.cause == "backlash" and a.joint == c.joint for a in accepted))]
+            c.cause == "backlash" and (any(a.cause == "backlash" and a.joint == c.joint for a in accepted)
+                                       or not self.sign_changes(current, c)))]
+
+    def sign_changes(self, current: CalibrationResult, cand: Candidate) -> bool:
+        """Backlash needs its sign source to change sign in the data: otherwise it is a joint offset."""
+        j = cand.joint
+        signs = self.cal.moves[:, j - 1] if cand.source == "motion" else np.sign(self.torques(current)[:, j - 1])
+        if cand.session is not None:
+            signs = signs[self.cal.sessions == cand.session]
+        return sign_changes(signs, "")[0]
 
     def max_harmonic(self) -> int:
         return min(self.s.max_harmonic, max(len(self.cal) // 3, 1))
@@ -229,7 +338,7 @@ class _Diagnosis:
             cands = self.candidates(current, accepted)
             # screening again (after setting structure aside) reuses the linearisation and the baseline
             if scr is None:
-                scr = Screen(current, accepted, cands, geometric, self.cal, self.val)
+                scr = Screen(current, accepted, cands, geometric, self.cal, self.val, self.s.session_tools)
                 mask = self.mask(current)
                 base = scr.fit()
                 baseline = (mask, base, by_kind(base.lin.cv(self.schemes), mask), self.val_stats(current))
@@ -281,6 +390,12 @@ class _Diagnosis:
                     reasons.append(cv_failure(worse, cv0, cv1))
                 checks = self.joint_checks(scr, fit, cand) if significant else {}
                 reasons += checks.pop("reasons", [])
+                # the one-step fit's values must already be physics (bounds, a spring that does not turn back)
+                names = cand.parameter_names()
+                values = {n: replace(scr.params[n], value=fit.values.get(n, scr.params[n].value)) for n in names}
+                broken = value_violations(values, names, self.torques(current), self.cal.moves)
+                if broken:
+                    reasons.append("not physics: " + "; ".join(v.text for v in broken))
                 vstats = ErrorStats.of(scr.validation_errors(fit))
                 step = Step(compose_spec(accepted + [cand], geometric),
                             ErrorStats.of(np.linalg.norm(fit.lin.r, axis=1)), vstats, False, cand, test,
@@ -288,7 +403,7 @@ class _Diagnosis:
                 self.steps.append(step)
                 if reasons:
                     self.say(f"    rejected: {step.reason}")
-                    if cand.cause in JOINT_CAUSES and significant:
+                    if significant and (cand.cause in JOINT_CAUSES or (broken and cand.joint is not None)):
                         pending.append((cand, fit.values, test, cv0, cv1, checks, cur_val.mean_mm - vstats.mean_mm,
                                         "; ".join(reasons)))
                     continue
@@ -363,6 +478,11 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
     for d in [cal, val] + ([other] if other is not None else []):
         check_poses(d, robot, **checks)     # the joint count first
     dg = _Diagnosis(robot, cal, val, s, say)
+    if dg.full_pose:
+        dg.notes.append("full pose: every fit is on the measured positions and orientations, weighted by their noise "
+                        "scales from the data (as calibrate); the screening of candidate causes, its tests and the "
+                        "cross-validation folds work on the positions; --position-only fits the positions alone")
+        say("full pose: the fits weigh the measured orientations too (--position-only: positions alone)")
     current, accepted, geometric = dg.run()
     parametric = current
     final, final_spec = current, compose_spec(accepted, geometric)
@@ -370,6 +490,9 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
         final, final_spec = blackbox_step(current, final_spec, cal, val, dg.schemes, s, dg.steps, dg.findings, say)
     describe(dg.findings, dg.support, dg.before, final, cal)
     dg.findings += list(dg.unexplained.by_joint.values())
+    for f in dg.findings:   # of the robot (one value serves every session) or of one session
+        f.scope = f.candidate.scope or ("robot" if len(dg.sessions) > 1 and f.in_model
+                                        and f.cause != "unexplained" else None)
     final_errors = dg.val_errors(final)
     final_val = ErrorStats.of(final_errors)
     if final.uncertainty is not None:
@@ -377,7 +500,8 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
                         f"validation rms {final_val.rms_mm / math.sqrt(3):.4f} mm per axis")
     if final.downweighted:
         dg.notes.append(f"the robust loss set aside {len(final.downweighted)} calibration pose(s) of {cal.path} "
-                        "(lines " + listing([d["line"] for d in final.downweighted], 10) + "): likely bad measurements")
+                        "(lines " + listing([f"{d['file']}:{d['line']}" if "file" in d else d["line"]
+                                             for d in final.downweighted], 10) + "): likely bad measurements")
     study = None
     if other is not None:
         study = transfer_mod.findings_study(dg, final, parametric, accepted, geometric, other)
@@ -386,4 +510,6 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
     return DiagnosisReport(robot.name, dg.steps, dg.findings, final_spec, final_val, final, dg.periodograms, plots,
                            dg.notes, time.perf_counter() - t0,
                            next(st.validation for st in dg.steps if st.model == "kinematic"),
-                           study.to_dict() if study is not None else {}, asdict(s))
+                           study.to_dict() if study is not None else {}, asdict(s),
+                           final_sessions=final.session_stats(val) if len(dg.sessions) > 1 else {},
+                           final_orientation=dg.val_angles(final))

@@ -20,7 +20,7 @@ from __future__ import annotations
 
 import copy
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
@@ -76,16 +76,22 @@ class Screen:
     than periodic errors; a periodic candidate's columns are the exact
     derivative of the tool point w.r.t. its joint's angle times ``sin`` and
     ``cos`` of its harmonic, so screening again with other harmonics
-    (:meth:`with_candidates`) needs no new model and no new evaluation.
+    (:meth:`with_candidates`) needs no new model and no new evaluation. A
+    candidate of one session (``c2@B``) has its cause's columns at that
+    session's poses and zeros elsewhere.
     """
 
     def __init__(self, current: CalibrationResult, accepted: list[Candidate], cands: list[Candidate],
-                 geometric: bool, cal: Measurements, val: Measurements):
+                 geometric: bool, cal: Measurements, val: Measurements, session_tools: bool = False):
         robot = current.model.robot
         self.current, self.cal, self.val = current, cal, val
-        self.physical = {c for c in cands if c.cause != "joint_periodic"}
+        self.physical = {c.shared() for c in cands if c.cause != "joint_periodic"}
         # drift and thermal terms referenced to the calibration poses, as in the fits (current's model)
-        self.model = big = model_for(robot, compose_spec(accepted + list(self.physical), geometric), cal, jit=False)
+        self.model = big = model_for(robot, compose_spec(accepted + sorted(self.physical, key=str), geometric), cal,
+                                     jit=False, session_tools=session_tools)
+        frames = big.term("sessions")
+        if frames is not None:      # each session's reference pose: the current fit's
+            frames.references = dict(current.model.term("sessions").references)
         params = big.parameters.copy()
         for p in params:
             if p.name in current.parameters:
@@ -107,7 +113,7 @@ class Screen:
 
     def with_candidates(self, cands: list[Candidate]) -> "Screen":
         """The same linearisation screening ``cands`` (other periodic harmonics; no new non-periodic cause)."""
-        extra = {c for c in cands if c.cause != "joint_periodic"} - self.physical
+        extra = {c.shared() for c in cands if c.cause != "joint_periodic"} - self.physical
         if extra:
             raise ValueError(f"not in this screen's model: {sorted(map(str, extra))}")
         new = copy.copy(self)
@@ -115,9 +121,14 @@ class Screen:
         return new
 
     def _set_periodic(self, cands: list[Candidate]) -> None:
-        """Columns, names, scales and parameters: the model's, then each periodic candidate's."""
+        """Columns, names, scales and parameters: the model's, then each periodic candidate's, then each
+        candidate of one session's."""
         J, names, scale = self._model_cols
-        self.periodic = [c for c in cands if c.cause == "joint_periodic" and c.parameter_names()[0] not in names]
+        self.periodic = [c for c in cands if c.cause == "joint_periodic" and c.session is None
+                         and c.parameter_names()[0] not in names]
+        # a session's own candidate: its cause's columns (free in the model) at that session's poses
+        self.local = [c for c in cands if c.session is not None and c.parameter_names()[0] not in names
+                      and all(n in names for n in c.shared().parameter_names())]
         self.params = {p.name: p for p in self.model_params}
         cols = [J]
         for c in self.periodic:
@@ -127,6 +138,14 @@ class Screen:
             scale = np.append(scale, [p.scale for p in ps])
             cols.append(periodic_columns(self.angle_dir[c.joint], self.cal.q[:, c.joint - 1], c.harmonic)
                         * [p.scale for p in ps])
+        for c in self.local:
+            at = (self.cal.sessions == c.session).astype(float)[:, None, None]
+            for shared, local in zip(c.shared().parameter_names(), c.parameter_names()):
+                k = names.index(shared)
+                self.params[local] = replace(self.params[shared], name=local)
+                names = names + [local]
+                scale = np.append(scale, scale[k])
+                cols.append(J[:, :, k:k + 1] * at)
         self.J = np.concatenate(cols, axis=2) if len(cols) > 1 else J
         self.names, self.scale = names, scale
         cur = self.current.parameters
@@ -191,16 +210,20 @@ class Screen:
                                                     self.current.base0)
             self._val = (xyz - self.val.xyz, J[:, :, self.free] * p.scales[self.free], JA)
         r, J, JA = self._val
-        cols = []
-        for n in fit.lin.names:
+
+        def column(n: str) -> np.ndarray:
             if n in self._model_cols[1]:
-                cols.append(J[:, :, self._model_cols[1].index(n)])
-            else:   # a periodic candidate's: gear{j}_{s|c}{h}
-                c = next(c for c in self.periodic if n in c.parameter_names())
-                k = c.parameter_names().index(n)
-                col = periodic_columns(JA[:, :, c.joint - 1], self.val.q[:, c.joint - 1], c.harmonic)[:, :, k]
-                cols.append(col * self.params[n].scale)
-        return np.linalg.norm(r + np.stack(cols, axis=2) @ fit.step, axis=1)
+                return J[:, :, self._model_cols[1].index(n)]
+            local = next((c for c in self.local if n in c.parameter_names()), None)
+            if local is not None:   # a session's own: its cause's column at that session's poses
+                shared = local.shared().parameter_names()[local.parameter_names().index(n)]
+                return column(shared) * (self.val.sessions == local.session).astype(float)[:, None]
+            c = next(c for c in self.periodic if n in c.parameter_names())   # gear{j}_{s|c}{h}
+            k = c.parameter_names().index(n)
+            col = periodic_columns(JA[:, :, c.joint - 1], self.val.q[:, c.joint - 1], c.harmonic)[:, :, k]
+            return col * self.params[n].scale
+
+        return np.linalg.norm(r + np.stack([column(n) for n in fit.lin.names], axis=2) @ fit.step, axis=1)
 
 
 def periodic_columns(direction: np.ndarray, q: np.ndarray, h: int) -> np.ndarray:

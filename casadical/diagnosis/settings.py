@@ -32,12 +32,20 @@ class DiagnosisSettings:
         on the two halves of the joint's range.
     robust : {"huber", "none"}
         Loss of every fit (see :func:`casadical.calibrate`).
+    position_only : bool
+        Fit on the positions alone even when the data have measured
+        orientations (``rx_deg, ry_deg, rz_deg``); otherwise every full fit
+        of such data is a full-pose one (see :func:`casadical.calibrate`).
+        The screening of candidates works on the positions either way.
     transfer_base_poses : int
         With another series: poses on which the base pose is re-estimated there.
     transfer_refit_poses : int or None
         With another series: poses on which the geometry is refitted there
         (default: as many as the calibration poses, at most half the series).
     seed : int
+    session_tools : bool
+        With several sessions: each session after the first has its own
+        tool offset too (the probe was re-mounted).
     """
 
     alpha: float = 0.001
@@ -48,9 +56,11 @@ class DiagnosisSettings:
     blackbox: bool = True
     stability_alpha: float = 0.001
     robust: str = "huber"
+    position_only: bool = False
     transfer_base_poses: int = 30
     transfer_refit_poses: int | None = None
     seed: int = 0
+    session_tools: bool = False
 
     def __post_init__(self) -> None:
         if not 0 < self.alpha < 1 or not 0 < self.stability_alpha < 1:

@@ -55,8 +55,10 @@ class Travel:
 
 
 def travel(model: CalibrationResult, other: Measurements, split: Split) -> Travel:
-    b = calibrate(model, other.subset(split.base_fit), "base", "lm", warn=False)
-    r = calibrate(model, other.subset(split.refit_fit), "kinematic", "lm", warn=False)
+    # on the full pose where the model was fitted on it (and the other series has orientations)
+    b = calibrate(model, other.subset(split.base_fit), "base", "lm", warn=False, position_only=not model.full_pose)
+    r = calibrate(model, other.subset(split.refit_fit), "kinematic", "lm", warn=False,
+                  position_only=not model.full_pose)
     return Travel(b.stats(other.subset(split.base_test)).mean_mm, r.stats(other.subset(split.refit_test)).mean_mm)
 
 

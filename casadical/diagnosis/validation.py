@@ -8,7 +8,12 @@ is really there also predicts where the model has to extrapolate:
 - ``time``: k contiguous blocks of the row order (what was measured later
   is predicted from what was measured before and after);
 - ``joint<j>``: k contiguous blocks of joint j's reading (a range of the
-  joint left out, for every joint).
+  joint left out, for every joint);
+- ``session``, with data of several measurement sessions: each session
+  left out in turn (what holds for the robot predicts a session it was
+  not fitted on; the left-out session's own base pose, which the others
+  cannot tell, stays at the fit on all poses). With several sessions the
+  time blocks are cut within each session.
 
 Each fold is refitted by one Gauss-Newton step from the fit on all poses,
 with the training poses only (exact for a linear model, and the
@@ -45,10 +50,22 @@ def random_scheme(n: int, k: int, seed: int) -> Scheme:
     return Scheme("random", [np.sort(idx[i::k]) for i in range(k)])
 
 
-def time_scheme(rows: np.ndarray, k: int) -> Scheme:
-    """Contiguous blocks of the measurement order (``rows``: each pose's original row)."""
-    order = np.argsort(rows, kind="stable")
-    return Scheme("time", [np.sort(b) for b in np.array_split(order, k)])
+def time_scheme(rows: np.ndarray, k: int, sessions: np.ndarray | None = None) -> Scheme:
+    """Contiguous blocks of the measurement order (``rows``: each pose's original row); with ``sessions``,
+    fold i holds block i of every session."""
+    groups = [np.arange(len(rows))] if sessions is None else \
+        [np.flatnonzero(sessions == s) for s in dict.fromkeys(sessions.tolist())]
+    folds = [[] for _ in range(k)]
+    for g in groups:
+        order = g[np.argsort(rows[g], kind="stable")]
+        for i, b in enumerate(np.array_split(order, k)):
+            folds[i].append(b)
+    return Scheme("time", [np.sort(np.concatenate(f)) for f in folds])
+
+
+def session_scheme(sessions: np.ndarray) -> Scheme:
+    """Each session left out in turn."""
+    return Scheme("session", [np.flatnonzero(sessions == s) for s in dict.fromkeys(sessions.tolist())])
 
 
 def joint_scheme(q: np.ndarray, j: int, k: int) -> Scheme:
@@ -58,8 +75,9 @@ def joint_scheme(q: np.ndarray, j: int, k: int) -> Scheme:
 
 
 def schemes(q: np.ndarray, rows: np.ndarray, k: int, seed: int, lever: np.ndarray | None = None,
-            min_lever: float = 0.05) -> list[Scheme]:
-    """The random, time-blocked and joint-blocked schemes of a data set.
+            min_lever: float = 0.05, sessions: np.ndarray | None = None) -> list[Scheme]:
+    """The random, time-blocked and joint-blocked schemes of a data set (and leave-one-session-out with
+    ``sessions`` of more than one session).
 
     ``lever`` (one per joint): how far the tool point moves when the joint
     turns (e.g. the RMS of ``|d xyz / d q_j|`` over the poses). A joint that
@@ -67,10 +85,13 @@ def schemes(q: np.ndarray, rows: np.ndarray, k: int, seed: int, lever: np.ndarra
     e.g. a flange joint with the probe on its axis) gets no joint-blocked
     scheme: leaving out a range of it tests nothing.
     """
-    out = [random_scheme(len(q), k, seed), time_scheme(rows, k)]
+    several = sessions is not None and len(set(sessions.tolist())) > 1
+    out = [random_scheme(len(q), k, seed), time_scheme(rows, k, sessions if several else None)]
     top = float(np.max(lever)) if lever is not None and len(lever) else 0.0
     out += [joint_scheme(q, j, k) for j in range(1, q.shape[1] + 1)
             if np.ptp(q[:, j - 1]) > 0 and (lever is None or lever[j - 1] >= min_lever * top)]
+    if several:
+        out.append(session_scheme(sessions))
     return out
 
 
@@ -83,7 +104,9 @@ def solve_identified(A: np.ndarray, b: np.ndarray, rel: float = 1e-3) -> np.ndar
     Stacked systems (``A`` of shape (..., p, p), ``b`` (..., p)) are solved
     at once.
     """
-    d = np.sqrt(np.clip(np.diagonal(A, axis1=-2, axis2=-1), 1e-300, None))
+    diag = np.diagonal(A, axis1=-2, axis2=-1)
+    # a column that is zero here (a session's own parameter, its session left out) stays out: scale 1
+    d = np.sqrt(np.where(diag > 0, np.clip(diag, 1e-300, None), 1.0))
     An = A / (d[..., :, None] * d[..., None, :])
     lam, V = _eigh((An + np.swapaxes(An, -1, -2)) / 2)
     keep = lam > np.maximum((rel ** 2) * lam[..., -1:], 1e-300)
@@ -218,26 +241,33 @@ class Linearized:
 
 # --- held-out means by kind of fold, as the diagnosis judges them ----------------------
 
-KINDS = ("random", "time", "joint")
+#: the kinds of fold, in the order reports show them (``session`` only with several sessions)
+KINDS = ("random", "time", "joint", "session")
+
+
+def kinds(cv: CVResult | dict) -> list[str]:
+    """The kinds of fold a result holds."""
+    names = cv.errors if isinstance(cv, CVResult) else cv
+    return [k for k in KINDS if any(n == k or (k == "joint" and n.startswith("joint")) for n in names)]
 
 
 def by_kind(cv: CVResult, mask: np.ndarray) -> dict:
     """Held-out mean error (mm) by kind of fold, over the poses of ``mask``."""
-    return {k: cv.kind_mean_mm(k, mask) for k in KINDS}
+    return {k: cv.kind_mean_mm(k, mask) for k in kinds(cv)}
 
 
 def not_better(cv0: dict, cv1: dict) -> list[str]:
     """Kinds of fold on which the held-out mean error does not drop."""
-    return [k for k in KINDS if not cv1[k] < cv0[k]]
+    return [k for k in cv0 if not cv1[k] < cv0[k]]
 
 
 def cv_record(cv0: dict, cv1: dict) -> dict:
     """The held-out means before and after, for the report."""
-    return {**{f"{k}_before": cv0[k] for k in KINDS}, **{k: cv1[k] for k in KINDS}}
+    return {**{f"{k}_before": cv0[k] for k in cv0}, **{k: cv1[k] for k in cv0}}
 
 
 def cv_text(cv0: dict, cv1: dict) -> str:
-    return ", ".join(f"{k} {cv0[k]:.4f} -> {cv1[k]:.4f} mm" for k in KINDS)
+    return ", ".join(f"{k} {cv0[k]:.4f} -> {cv1[k]:.4f} mm" for k in cv0)
 
 
 def cv_failure(worse: list[str], cv0: dict, cv1: dict) -> str:

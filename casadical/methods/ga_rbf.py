@@ -65,7 +65,7 @@ class GARBF(Method):
 
     def fit(self, inputs: Inputs) -> MethodResult:
         data = inputs.calibration
-        km = calibrate(inputs.robot, data, "kinematic", self.solver, warn=False)
+        km = calibrate(inputs.robot, data, "kinematic", self.solver, warn=False, position_only=True)
         X = compensator_features(km, data, "torques")
         Y = to_frame(km, data, self.frame, km.residuals(data))
         from ..compensators.guard import fit_guarded  # here, not at import: 9 ms of every command's start-up

@@ -97,7 +97,7 @@ def global_start(inputs: Inputs, optimizer: str, joints: list[int], *, model: Mo
     st = dict(start or {})
     st.update({c: 0.0 for c in cnames})
     fixed = tuple(cnames) + tuple(params_box)
-    first = calibrate(robot, data, model, "lm", fix=fixed, start=st, warn=False)
+    first = calibrate(robot, data, model, "lm", fix=fixed, start=st, warn=False, position_only=True)
     params = first.parameters
     q, xyz, cov = data.q, data.xyz, model.covariates(data)
     klo, khi = stiffness_box(params, cnames, k_bounds)
@@ -152,7 +152,8 @@ def global_start(inputs: Inputs, optimizer: str, joints: list[int], *, model: Mo
         entry = {"start": {v.name: (10.0 ** z[k] if v.log_stiffness else float(z[k]))
                            for k, v in enumerate(variables)}, "fitness_mm": None}
         try:
-            res = calibrate(robot, data, model, "ipopt", start=sv, solver_options=solver_options, warn=False)
+            res = calibrate(robot, data, model, "ipopt", start=sv, solver_options=solver_options, warn=False,
+                            position_only=True)
         except SolverError as e:
             entry.update(status=f"failed: {e}")
             starts.append(entry)

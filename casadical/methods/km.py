@@ -24,6 +24,6 @@ class KM(Method):
     solver = "lm"
 
     def fit(self, inputs: Inputs) -> MethodResult:
-        res = calibrate(inputs.robot, inputs.calibration, "kinematic", self.solver, warn=False)
+        res = calibrate(inputs.robot, inputs.calibration, "kinematic", self.solver, warn=False, position_only=True)
         return new_result(res, info={"solver": res.solver_name, "iterations": res.solver.iterations,
                                      "status": res.solver.status})

@@ -69,7 +69,8 @@ class NNSKCM(Method):
 
     def fit(self, inputs: Inputs) -> MethodResult:
         joints = compliant_joints(inputs.robot, self.joints)
-        sk = calibrate(inputs.robot, inputs.calibration, compliance_model(joints), "ipopt", warn=False)
+        sk = calibrate(inputs.robot, inputs.calibration, compliance_model(joints), "ipopt", warn=False,
+                       position_only=True)
         use_extra = self.train_on == "extra" and inputs.extra is not None
         train = inputs.extra if use_extra else inputs.calibration
         X, Y = train.q, to_frame(sk, train, self.frame, sk.residuals(train))

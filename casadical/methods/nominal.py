@@ -21,5 +21,5 @@ class Nominal(Method):
     solver = "lm"
 
     def fit(self, inputs: Inputs) -> MethodResult:
-        res = calibrate(inputs.robot, inputs.calibration, "nominal", self.solver, warn=False)
+        res = calibrate(inputs.robot, inputs.calibration, "nominal", self.solver, warn=False, position_only=True)
         return new_result(res, info={"solver": res.solver_name, "iterations": res.solver.iterations})

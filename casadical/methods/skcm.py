@@ -31,6 +31,7 @@ class SKCM(Method):
 
     def fit(self, inputs: Inputs) -> MethodResult:
         joints = compliant_joints(inputs.robot, self.joints)
-        res = calibrate(inputs.robot, inputs.calibration, compliance_model(joints), self.solver, warn=False)
+        res = calibrate(inputs.robot, inputs.calibration, compliance_model(joints), self.solver, warn=False,
+                        position_only=True)
         return new_result(res, info={"solver": res.solver_name, "iterations": res.solver.iterations,
                                      "status": res.solver.status, "joints": joints})

@@ -48,7 +48,8 @@ def two_phase(inputs: Inputs, optimizer: str, joints: list[int], *, k_bounds=K_B
     cnames = [f"c{j}" for j in joints]
     spec = compliance_model(joints)
     # phase 1 with rigid joints; also settles the base pose and what is identifiable
-    first = calibrate(robot, data, spec, "lm", fix=tuple(cnames), start={c: 0.0 for c in cnames}, warn=False)
+    first = calibrate(robot, data, spec, "lm", fix=tuple(cnames), start={c: 0.0 for c in cnames}, warn=False,
+                      position_only=True)
     model, params, base0 = first.model, first.parameters.copy(), first.base0
     q, xyz, cov = data.q, data.xyz, model.covariates(data)
     lo, hi = stiffness_box(params, cnames, k_bounds)

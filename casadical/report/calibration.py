@@ -18,7 +18,8 @@ AXES = ("x", "y", "z")
 
 
 def calibration_html(result: CalibrationResult, data: Measurements, before: CalibrationResult | None = None,
-                     before_label: str = "nominal model, base pose fitted", processes: int = 1) -> str:
+                     before_label: str = "nominal model, base pose fitted", processes: int = 1,
+                     validation: Measurements | None = None) -> str:
     """A self-contained HTML report of a calibration.
 
     Parameters
@@ -34,6 +35,9 @@ def calibration_html(result: CalibrationResult, data: Measurements, before: Cali
         What ``before`` is, in words.
     processes : int
         Draw the figures in this many processes (:func:`casadical.report.figures.render`).
+    validation : Measurements, optional
+        Held-out poses: the errors of both models on them get a section of
+        their own (without them, the errors ``result.validation`` holds, if any).
 
     Returns
     -------
@@ -41,7 +45,8 @@ def calibration_html(result: CalibrationResult, data: Measurements, before: Cali
         One HTML document (inline CSS and SVG, no script, no network).
     """
     if before is None:
-        before = calibrate(result.model.robot, data, "nominal", "lm", warn=False, robust="huber" if result.loss.robust else "none")
+        before = calibrate(result.model.robot, data, "nominal", "lm", warn=False,
+                           robust="huber" if result.loss.robust else "none", position_only=not result.full_pose)
     robot = result.model.robot.name
     page = Page(f"casadical calibration: {robot}, {result.model.spec}")
     r0, r1 = before.residuals(data) * 1000, result.residuals(data) * 1000
@@ -56,6 +61,9 @@ def calibration_html(result: CalibrationResult, data: Measurements, before: Cali
               f"{100 * drop / e0.mean_mm:.0f} % less). These are errors on the poses the model was fitted to: "
               "judge a model on poses it never saw (<code>casadical predict</code>, <code>casadical "
               "diagnose</code>).", "lead")
+    held_out = _held_out(result, before, before_label, validation)
+    if held_out:
+        page.para(held_out[0], "lead")
     page.pairs(_summary(result))
 
     page.heading("Errors before and after", anchor="errors")
@@ -63,12 +71,26 @@ def calibration_html(result: CalibrationResult, data: Measurements, before: Cali
                [[before_label, str(e0.n_poses), num(e0.mean_mm), num(e0.max_mm), num(e0.std_mm), num(e0.rms_mm)],
                 [Raw("calibrated: " + model_label(page, _short(result.model.spec), result.model.spec)),
                  str(e1.n_poses), num(e1.mean_mm), num(e1.max_mm), num(e1.std_mm), num(e1.rms_mm)]])
+    if result.has_orientation and before.has_orientation and data.has_orientation:
+        a0, a1 = before.orientation_stats(data), result.orientation_stats(data)
+        page.para("Orientation of the probe (angle between the measured and the predicted orientation; the "
+                  "calibration weighed it against the position by their noise scales):")
+        page.table(["model", "poses", "mean deg", "max deg", "std deg", "rms deg"],
+                   [[before_label, str(a0.n_poses), num(a0.mean_deg), num(a0.max_deg), num(a0.std_deg),
+                     num(a0.rms_deg)],
+                    [Raw("calibrated: " + model_label(page, _short(result.model.spec), result.model.spec)),
+                     str(a1.n_poses), num(a1.mean_deg), num(a1.max_deg), num(a1.std_deg), num(a1.rms_deg)]])
     ref = page.figure(partial(_distribution, n0, n1, before_label),
                       "fig-errors", "Distribution of the position error over the calibration poses, before "
                       "and after: histogram (left) and cumulative share of poses (right).")
     page.para(f"The whole distribution moves ({ref}): the median pose error goes from "
               f"{np.median(n0):.4f} mm to {np.median(n1):.4f} mm, "
               f"the worst from {e0.max_mm:.4f} mm to {e1.max_mm:.4f} mm.")
+
+    if held_out:
+        page.heading("Errors on the validation poses", anchor="validation")
+        page.para(held_out[1])
+        page.table(["model", "poses", "mean mm", "max mm", "std mm", "rms mm"], held_out[2])
 
     page.heading("Residuals per axis", anchor="residuals")
     ref_pose = page.figure(partial(_per_pose, data, r0, r1, before_label), "fig-axes",
@@ -82,7 +104,10 @@ def calibration_html(result: CalibrationResult, data: Measurements, before: Cali
     page.heading("Parameters", anchor="parameters")
     page.para("Angles in degrees, lengths in millimetres. Standard errors from the residual scale and the "
               "Jacobian at the solution; greyed rows are held at their value (not identifiable from these poses, "
-              "or fixed on request).")
+              "or fixed on request). Each identified parameter is tested against its nominal value: t = deviation "
+              "/ std, significant at 95 % when its p-value is below 0.05 (Student's t with the fit's degrees of "
+              "freedom); rel. std = std / |deviation|; the 95 % interval is value &plusmn; t<sub>0.975</sub> std. "
+              "<b>Highlighted rows are not significant</b>: these poses do not tell the deviation from zero.")
     parameter_table(page, result)
 
     if result.uncertainty is not None and len(result.uncertainty.names) >= 2:
@@ -139,15 +164,50 @@ def _summary(result: CalibrationResult) -> list[tuple[str, str]]:
                                 f"beyond {result.loss.c:g} sigma")))
     else:
         out.append(("loss", "least squares"))
+    if result.full_pose:
+        out.append(("full pose", esc(f"positions and orientations, weighted by their noise scales from the data: "
+                                     f"{result.loss.sigma * 1000:.4f} mm and {math.degrees(result.loss.sigma_rot):.4f}"
+                                     " deg per axis")))
+    if result.orientation is not None:
+        out.append(("orientation", esc(f"mean {result.orientation.mean_deg:.4f} deg, max "
+                                       f"{result.orientation.max_deg:.4f} deg on the calibration poses")))
     if result.uncertainty is not None:
         u = result.uncertainty
         out.append(("residual", esc(f"{u.sigma * 1000:.4f} mm per axis (rms), {u.dof} degrees of freedom")))
+    if result.statistics is not None:
+        f = result.statistics
+        out.append(("fit statistics", esc(f"log-likelihood {f.log_likelihood:.2f} (residuals in mm), AIC "
+                                          f"{f.aic:.2f}, BIC {f.bic:.2f}; {f.n_parameters} free parameters, "
+                                          f"{f.n_equations} equations (compare models fitted to the same poses "
+                                          "only)")))
     xyz, rpy = result.base_pose()
     out.append(("base pose", esc("xyz " + ", ".join(f"{v * 1000:.3f}" for v in xyz) + " mm; roll, pitch, yaw "
                                  + ", ".join(f"{math.degrees(v):.4f}" for v in rpy) + " deg")))
     free = sum(not p.fixed for p in result.parameters)
     out.append(("parameters", f"{free} identified of {len(result.parameters)}"))
     return out
+
+
+def _held_out(result: CalibrationResult, before: CalibrationResult, before_label: str,
+              validation: Measurements | None):
+    """The lead sentence, the section's text and the table rows of the errors on validation poses; None without."""
+    if validation is None:
+        if result.validation is None:
+            return None
+        v = result.validation.stats
+        rows = [["calibrated", str(v.n_poses), num(v.mean_mm), num(v.max_mm), num(v.std_mm), num(v.rms_mm)]]
+        lead = (f"On {v.n_poses} validation poses it never saw (<code>{esc(result.validation.file)}</code>): mean "
+                f"error {v.mean_mm:.4f} mm, rms {v.rms_mm:.4f} mm.")
+        return lead, "The calibrated model on poses it was not fitted to.", rows
+    v0, v1 = before.stats(validation), result.stats(validation)
+    drop = v0.mean_mm - v1.mean_mm
+    rows = [[label, str(v.n_poses), num(v.mean_mm), num(v.max_mm), num(v.std_mm), num(v.rms_mm)]
+            for label, v in ((before_label, v0), ("calibrated", v1))]
+    lead = (f"On {v1.n_poses} validation poses it never saw (<code>{esc(validation.path)}</code>): mean error "
+            f"{v1.mean_mm:.4f} mm, {gain(drop)} than the {esc(before_label)} ({v0.mean_mm:.4f} mm).")
+    text = ("Both models predict poses they were not fitted to (the base pose of each as fitted above): what "
+            "to expect of the calibrated model elsewhere in the same workspace.")
+    return lead, text, rows
 
 
 def _identifiability(page: Page, result: CalibrationResult) -> None:

@@ -35,6 +35,7 @@ th{background:var(--faint);font-weight:600;white-space:normal;vertical-align:bot
 td.t,th.t{text-align:left}
 td.w,th.w{white-space:normal;min-width:16em;max-width:42em;text-align:left}
 tr.off td{color:var(--muted)}
+tr.weak td{background:#fdf1dc}
 tr.has-detail td{border-bottom:none}
 tr.detail td{font-size:.92em;padding-top:0;max-width:none}
 td small{font-size:.8em}

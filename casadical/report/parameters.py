@@ -12,28 +12,54 @@ from .page import Page, sig
 
 
 def parameter_table(page: Page, result: CalibrationResult) -> None:
-    """Every parameter: nominal, identified, deviation, std, unit, and whether (and why not) identified."""
+    """Every parameter: nominal, identified, deviation, std, its test against nominal, unit, and status.
+
+    The test (:meth:`CalibrationResult.significance`): relative std, t and
+    the 95 % interval (the p-values are in the JSON); a row that is not significant is highlighted and
+    says so in its status.
+    """
+    tests = result.significance()
     rows, classes = [], []
     for p in result.parameters:
         f = p.to_display
+        t = tests.get(p.name)
         if not p.fixed:
-            status = "identified"
+            status = "identified" if t is None or t.significant else "identified; not significant"
         elif p.identifiable is False:
             status = "not identifiable: " + (p.reason or "no reason recorded")
         else:
             status = "held" + (f": {p.reason}" if p.reason else "")
-        rows.append([p.name, p.term, "" if p.joint is None else str(p.joint), sig(f(p.nominal), 6),
+        rows.append([p.name, "" if p.joint is None else str(p.joint), sig(f(p.nominal), 6),
                      sig(f(p.value), 6), sig(f(p.value - p.nominal), 3) if not p.fixed else "",
-                     sig(f(p.std), 2) if math.isfinite(p.std) else "", p.display_unit, status])
-        classes.append("off" if p.fixed else "")
-    page.table(["parameter", "term", "joint", "nominal", "identified", "deviation", "std", "unit", "status"],
-               rows, text_columns=(0, 1, 7), wrap_columns=(8,), row_classes=classes)
+                     sig(f(p.std), 2) if math.isfinite(p.std) else "", *_test_cells(t, f), p.display_unit, status])
+        classes.append("off" if p.fixed else "weak" if t is not None and not t.significant else "")
+    page.table(["parameter", "joint", "nominal", "identified", "deviation", "std", "rel. std", "t",
+                "95 % interval", "unit", "status"],
+               rows, text_columns=(0, 9), wrap_columns=(10,), row_classes=classes)
     stiff = result.stiffness()
     if stiff:
-        page.para("Joint stiffness k = 1/c, from the identified compliance:")
-        page.table(["joint", "k (N m/rad)", "std (N m/rad)"],
-                   [[str(j), sig(k, 4) if math.isfinite(k) else "not positive", sig(sk, 2)]
-                    for j, (k, sk) in stiff.items()])
+        intervals = result.stiffness_intervals()
+        page.para("Joint stiffness k = 1/c, from the identified compliance; its interval is 1/c over the "
+                  "compliance's (unbounded above when that reaches 0):")
+        srows, sclasses = [], []
+        for j, (k, sk) in stiff.items():
+            t = tests.get(f"c{j}")
+            iv = intervals.get(j)
+            srows.append([str(j), sig(k, 4) if math.isfinite(k) else "not positive", sig(sk, 2),
+                          "\u2013" if iv is None else f"{sig(iv[0], 3)} \u2013 "
+                          + (sig(iv[1], 3) if math.isfinite(iv[1]) else "unbounded"),
+                          "" if t is None else "yes" if t.significant else "no"])
+            sclasses.append("weak" if t is not None and not t.significant else "")
+        page.table(["joint", "k (N m/rad)", "std (N m/rad)", "95 % interval (N m/rad)", "significant"], srows,
+                   row_classes=sclasses)
+
+
+def _test_cells(t, f) -> list[str]:
+    """Relative std, t and the interval of one parameter's test (display units); empty when not tested."""
+    if t is None:
+        return ["", "", ""]
+    rel = f"{100 * t.relative_std:.0f} %" if t.relative_std < 10 else "> 999 %"
+    return [rel, f"{t.t:.2f}", f"{sig(f(t.ci[0]), 6)} \u2013 {sig(f(t.ci[1]), 6)}"]
 
 
 def strongest_pairs(result: CalibrationResult, n: int = 12, floor: float = 0.5) -> list[tuple[str, str, float]]:

@@ -5,7 +5,10 @@ parameters, so its size does not grow with the number of poses and one
 built solver serves every data set of the same size. The Hessian is the
 Gauss-Newton one of the (robust) loss (J^T J for plain least squares,
 passed as ``hess_lag``): it is what the least squares structure offers for
-free, and it is positive semi-definite.
+free, and it is positive semi-definite. Full pose: the same on the model's
+``pose_*`` Functions, whose per-pose residual is ``(r_p, k r_o)``
+(:mod:`casadical.problem`), so IPOPT and Levenberg-Marquardt minimise the
+same objective.
 """
 
 from __future__ import annotations
@@ -60,20 +63,25 @@ class Ipopt(Solver):
         model = problem.model
         N, nf = problem.n_poses, len(problem.free)
         # holds the model (an id could be reused); jit: a solver built on the VM is not the compiled one
+        pose = problem.full_pose
         key = (model, N, tuple(problem.free), model._use_jit(N), self.hessian, self.max_iter, self.tol,
-               repr(sorted(self.options.items())))
+               repr(sorted(self.options.items())), pose)
         if key in _BUILT:
             _BUILT.move_to_end(key)
             self._last = _BUILT[key]
             return self._last
         P, nc = len(problem.params), len(model.covariate_names)
         x = ca.MX.sym("x", nf)
-        data = ca.MX.sym("data", model.n_joints * N + 3 * N + nc * N + 12 + 2 * P + 1)
-        parts = ca.vertsplit(data, np.cumsum([0, model.n_joints * N, 3 * N, nc * N, 12, P, P, 1]).tolist())
+        # full pose: the measured rotations (9 per pose) and the orientation's weight k follow
+        sizes = [model.n_joints * N, 3 * N, nc * N, 12, P, P, 1] + ([9 * N, 1] if pose else [])
+        data = ca.MX.sym("data", sum(sizes))
+        parts = ca.vertsplit(data, np.cumsum([0] + sizes).tolist())
         Q = ca.reshape(parts[0], model.n_joints, N)
         XYZ = ca.reshape(parts[1], 3, N)
         C = ca.reshape(parts[2], nc, N)
         base0, pfix, sel_scale, delta = parts[3], parts[4], parts[5], parts[6]
+        # the per-pose loss Functions and their data inputs after (q, p, cov, base0)
+        prefix, tail = ("pose_", [XYZ, ca.reshape(parts[7], 9, N), delta, parts[8]]) if pose else ("", [XYZ, delta])
         E = np.zeros((P, nf))
         E[problem.free, np.arange(nf)] = 1.0
         # p = fixed values (zeros at free entries) + nominal + scale * x at free entries
@@ -84,7 +92,7 @@ class Ipopt(Solver):
         # the objective as an expression graph only where IPOPT differentiates it (the exact Hessian): a
         # compiled library has no derivatives, and compiled it halves a warm 200-pose calibration's CPU time
         exact = self.hessian == "exact"
-        f = model.batch_function("cost", N, compiled=False if exact else None)(Q, p, C, base0, XYZ, delta)
+        f = model.batch_function(prefix + "cost", N, compiled=False if exact else None)(Q, p, C, base0, *tail)
         nlp = {"x": x, "p": data, "f": f}
         # the cost is ~1e-7 m^2: in mm^2 IPOPT's tolerances mean what they say. No nlp_grad: it is only
         # for the multipliers of the data parameters, and compiled per-pose Functions have no derivatives
@@ -97,8 +105,8 @@ class Ipopt(Solver):
                 "ipopt": {"print_level": 0, "sb": "yes", "max_iter": self.max_iter, "tol": self.tol,
                           "acceptable_iter": ACCEPTABLE_ITER, "obj_scaling_factor": 1e6, **self.options}}
         if self.hessian == "gauss-newton":
-            fv, g = model.batch_function("grad", N)(Q, p, C, base0, XYZ, delta)
-            H = model.batch_function("gn_hess", N)(Q, p, C, base0, XYZ, delta)
+            fv, g = model.batch_function(prefix + "grad", N)(Q, p, C, base0, *tail)
+            H = model.batch_function(prefix + "gn_hess", N)(Q, p, C, base0, *tail)
             lam_f = ca.MX.sym("lam_f")
             lam_g = ca.MX.sym("lam_g", 0)
             opts["grad_f"] = ca.Function("nlp_grad_f", [x, data], [fv, ca.mtimes(S.T, g)],
@@ -129,8 +137,11 @@ class Ipopt(Solver):
         f = problem.free
         pfix[f] = problem.params.nominal[f]
         sel_scale[f] = problem.params.scales[f]
-        data = np.concatenate([problem.q.ravel(), problem.xyz.ravel(), problem.cov.ravel(),
-                               problem.base0, pfix, sel_scale, [problem.loss.delta]])
+        data = [problem.q.ravel(), problem.xyz.ravel(), problem.cov.ravel(), problem.base0, pfix, sel_scale,
+                [problem.loss.delta]]
+        if problem.full_pose:   # row-major rotations, as the model's Rm input reads them
+            data += [problem.rot.reshape(-1), [problem.loss.rot_weight]]
+        data = np.concatenate(data)
         t1 = time.perf_counter()
         try:
             with noticed():   # CasADi swallows a Ctrl-C and returns the last iterate: raised again here

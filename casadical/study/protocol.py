@@ -16,9 +16,10 @@ from pathlib import Path
 
 from ..errors import CasadicalError, InputError
 from ..files import named_toml, read_toml
+from ..loading import load_robot
 from ..model import Model
 from ..planning.selectors import METHODS as SELECTORS
-from ..robot import PROBLEMS, Robot, load_robot, robot_from_dict, robot_to_dict
+from ..robot import PROBLEMS, Robot, robot_from_dict, robot_to_dict
 from ..simulate import MAX_POSES, Effects, TomlValidator, effects_from_table, load_protocol, resolve_path, workspace_from_table
 
 STUDY_DIR = PROBLEMS / "studies"

@@ -6,8 +6,9 @@ such as ``"kinematic+compliance[2,3]+periodic[2:1]"`` (see
 """
 
 from . import (backlash, compliance, drift, encoder_scale, geometric, nonlinear_stiffness,  # noqa: F401
-               periodic, rbf_compensator, thermal)
+               periodic, rbf_compensator, sessions, thermal, tool_orientation)
 from .base import REGISTRY, Context, ErrorTerm, ReferencedTerm, register
+from .local import SessionLocal
 
 
 def make_term(name: str, **kwargs) -> ErrorTerm:
@@ -20,4 +21,4 @@ def make_term(name: str, **kwargs) -> ErrorTerm:
     return cls(**kwargs)
 
 
-__all__ = ["REGISTRY", "Context", "ErrorTerm", "ReferencedTerm", "make_term", "register"]
+__all__ = ["REGISTRY", "Context", "ErrorTerm", "ReferencedTerm", "SessionLocal", "make_term", "register"]

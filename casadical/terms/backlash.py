@@ -14,7 +14,15 @@ from .base import Context, ErrorTerm, register
 
 @register
 class Backlash(ErrorTerm):
-    """Joint ``j`` is off by ``+-b_j``, the sign following its load.
+    """Joint ``j`` is off by the half play ``b_j >= 0``, on the side its load takes it.
+
+    Sign convention (docs/diagnosis.md): with the gravity torque as sign
+    source the joint deflects *with* its torque, as a compliant joint does:
+    ``+b sign(tau_j)``. With the last move as sign source the output trails
+    its motor: after a move in the positive direction the joint stands
+    ``b`` short of its reading, ``-b sign(move_j)``. Either way a negative
+    ``b`` (the joint standing against its load, or leading its motor) is
+    not play.
 
     Parameters
     ----------
@@ -22,16 +30,24 @@ class Backlash(ErrorTerm):
         ``torque``: the sign of the joint's gravity torque (a gravity-loaded
         joint rests on one flank of the gear); ``motion``: the sign of the
         last move of the joint, from the row order (covariate ``move<j>``).
+    lag : bool
+        Motion source only: the convention above (True). Calibration files
+        written before it was fixed hold ``+b sign(move_j)`` and are read
+        with ``lag=False`` (:data:`LEGACY`), so they predict as before.
     """
 
     name = "backlash"
     cause = "backlash"
 
-    def __init__(self, joints=None, source: str = "torque"):
+    #: settings of a calibration file that lacks them: files older than the lag convention
+    LEGACY = {"lag": False}
+
+    def __init__(self, joints=None, source: str = "torque", lag: bool = True):
         if source not in ("torque", "motion"):
             raise ModelError(f"backlash source must be 'torque' or 'motion', got {source!r}")
         super().__init__(joints)
         self.source = source
+        self.lag = bool(lag)
 
     @property
     def covariates(self) -> tuple[str, ...]:  # type: ignore[override]
@@ -44,7 +60,7 @@ class Backlash(ErrorTerm):
         return base if self.source == "torque" else base.replace(self.name, "backlash_motion", 1)
 
     def settings(self) -> dict:
-        return {"joints": self.joints, "source": self.source}
+        return {"joints": self.joints, "source": self.source, "lag": self.lag}
 
     @property
     def prefix(self) -> str:
@@ -59,7 +75,8 @@ class Backlash(ErrorTerm):
         if self.source == "torque":
             tau = ctx.torques()
             return {j: ctx.p[f"backlash{j}"] * ca.sign(tau[j - 1]) for j in self.joints}
-        return {j: ctx.p[f"backlash_m{j}"] * ctx.cov[f"move{j}"] for j in self.joints}
+        sign = -1.0 if self.lag else 1.0
+        return {j: sign * ctx.p[f"backlash_m{j}"] * ctx.cov[f"move{j}"] for j in self.joints}
 
 
 @register
@@ -70,5 +87,5 @@ class BacklashMotion(Backlash):
     aliases = ()
     cause = "backlash"
 
-    def __init__(self, joints=None):
-        super().__init__(joints, source="motion")
+    def __init__(self, joints=None, lag: bool = True):
+        super().__init__(joints, source="motion", lag=lag)

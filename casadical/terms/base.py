@@ -109,6 +109,22 @@ class ErrorTerm:
         """
         return None
 
+    def reference(self, ctx: Context, R0, t0):
+        """The reference pose the base parameters deviate from, per pose (default: ``base0``, unchanged)."""
+        return R0, t0
+
+    def covariate_values(self, data) -> dict:
+        """Values of covariates this term makes from the data itself rather than reads from a column
+        (e.g. a pose's session), by name (default: none)."""
+        return {}
+    def tool_rotation(self, ctx: Context):
+        """Rotation (3x3) of the measured probe in the last link frame (default: none).
+
+        Only full-pose models have one (:mod:`casadical.terms.tool_orientation`);
+        it turns the measured orientation, never the measured point.
+        """
+        return None
+
     def spec(self) -> str:
         """The text that re-creates this term in a model specification."""
         if self.joints is None:
@@ -135,6 +151,9 @@ class ReferencedTerm(ErrorTerm):
     @property
     def reference_covariate(self) -> str:
         return self.covariates[0]
+
+    def bind(self, robot: Robot) -> None:
+        """Nothing per joint to resolve (its spec stays ``drift``, not ``drift[1,...,n]``)."""
 
     def settings(self) -> dict:
         return {"t_ref": self.t_ref}

@@ -13,10 +13,12 @@ from .base import ReferencedTerm, register
 class Drift(ReferencedTerm):
     """The measurement frame translates by ``v (t - t_ref)``.
 
-    The time is the ``time_s`` column, or the row index when the file has
-    none (row order is time order). Velocities are in m/s of the covariate.
-    A drift belongs to its measurement session: a calibration taken to
-    other data (``calibrate CAL.json``) starts it from zero.
+    The time is the ``time_s`` column (seconds); a file without one has no
+    drift, unless its rows are declared to be in time order at a known
+    spacing (``--row-spacing-s``, :meth:`Measurements.with_row_times`): the
+    row number is never taken for a time silently. A drift belongs to its
+    measurement session: a calibration taken to other data (``calibrate
+    CAL.json``) drops it.
 
     Parameters
     ----------

@@ -1,0 +1,126 @@
+"""Sessions: several measurement sessions of one robot, each with its own base pose (and tool), the robot's
+parameters shared; the diagnosis tells the robot's causes from a session's."""
+
+import json
+import warnings
+
+import numpy as np
+import pytest
+
+from casadical import calibrate
+from casadical.cli import main
+from casadical.diagnosis import DiagnosisSettings, diagnose
+from casadical.robot import robot_from_dict
+from casadical.sessions import combine
+from casadical.simulate import Effects, another_session, simulate
+
+from arms import ARM5, ARM7_DH, to_toml
+
+SEEDS = [0, 1, 2]
+ARMS = {"seven-axis DH": (ARM7_DH, 2e4), "five-axis DH": (ARM5, 6e4)}
+
+
+def two_sessions(arm, stiffness, seed, n_cal=80, n_val=150, drift=(1.0e-6, 0.0, -1.0e-6)):
+    """Session A, and session B of the same robot: the tracker elsewhere, the probe re-mounted 3-4 mm off,
+    and a drift of its own (one pose a second). The joint 2 compliance is the robot's."""
+    robot = robot_from_dict(arm)
+    a, truth = simulate(robot, n_cal, Effects(stiffness={2: stiffness}), seed=seed, floor_z=None)
+    va, _ = simulate(robot, n_val, truth=truth, seed=seed + 100, floor_z=None)
+    tb = another_session(truth, (1.2, -0.8, 0.1), (0.01, -0.02, 2.2), tool_shift=(0.003, -0.002, 0.004),
+                         drift=drift, t_ref=40.0)
+    b, _ = simulate(robot, n_cal, truth=tb, seed=seed + 1, floor_z=None)
+    vb, _ = simulate(robot, n_val, truth=tb, seed=seed + 101, floor_z=None)
+    for d in (a, va) if any(drift) else ():    # every session has times, or none
+        d.columns["time_s"] = np.arange(len(d), dtype=float)
+    for d, name in ((a, "A.csv"), (va, "A.csv"), (b, "B.csv"), (vb, "B.csv")):
+        d.path = name
+    return robot, combine([a, b]), combine([va, vb]), truth
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+@pytest.mark.parametrize("arm", sorted(ARMS))
+def test_robot_causes_and_session_causes(arm, seed):
+    """The shared compliance is named a cause of the robot, session B's drift a property of session B; each
+    session has its own base pose and (asked) tool, and nothing else is named."""
+    robot, cal, val, truth = two_sessions(*ARMS[arm], seed)
+    rep = diagnose(robot, cal, val, DiagnosisSettings(seed=seed, session_tools=True))
+    named = {(f.candidate.cause, f.candidate.joint, f.candidate.session, f.scope) for f in rep.findings
+             if f.cause != "unexplained"}
+    assert named == {("geometric", None, None, "robot"), ("joint_compliance", 2, None, "robot"),
+                     ("drift", None, "B", "session")}, named
+    final = rep.final
+    assert final.sessions == ["A", "B"]
+    c2 = final.parameters["c2"]
+    assert abs(c2.value - truth.value("c2")) < 4 * c2.std
+    doc = rep.to_dict()
+    scopes = {f["cause"]: f.get("scope") for f in doc["findings"]}
+    assert scopes["drift"] == "session" and scopes["joint_compliance"] == "robot"
+    # each session's validation error is reported
+    assert set(doc["final"]["sessions"]) == {"A", "B"}
+
+
+def test_one_base_pose_per_session_is_what_lets_them_be_fitted_together():
+    """Two sessions with the tracker 1.5 m and 126 deg apart calibrate together to their own errors' size;
+    the sessions' base poses are recovered; a file of the same robot with one base pose could not."""
+    robot, cal, val, truth = two_sessions(ARM7_DH, 2e4, 5, drift=(0.0, 0.0, 0.0))
+    both = calibrate(robot, cal, "kinematic+compliance[2]", "lm", warn=False, session_tools=True)
+    assert both.sessions == ["A", "B"] and both.calibration.mean_mm < 0.05
+    assert set(both.by_session) == {"A", "B"}
+    xyz, rpy = both.base_pose("B")
+    assert np.allclose(xyz, (1.2, -0.8, 0.1), atol=2e-3) and np.allclose(rpy, (0.01, -0.02, 2.2), atol=2e-3)
+    assert both.stats(val).mean_mm < 0.05
+    # without its own tool, session B's re-mounted probe shows
+    shared_tool = calibrate(robot, cal, "kinematic+compliance[2]", "lm", warn=False)
+    assert shared_tool.by_session["B"].mean_mm > 1.0
+
+
+def test_combine_keeps_order_and_names_the_sessions():
+    robot, cal, _, _ = two_sessions(ARM7_DH, 2e4, 0, n_cal=20, n_val=20)
+    assert cal.session_names == ["A", "B"] and list(cal.sessions[:20]) == ["A"] * 20
+    assert np.all(np.diff(cal.rows) > 0)          # measurement order kept, and numbered on
+    a = cal.subset(np.arange(20))
+    b = cal.subset(np.arange(20, 40))
+    b.columns.pop("time_s")
+    with pytest.warns(Warning, match="time_s: not in every file"):
+        both = combine([a, b], names=["day1", "day2"])
+    assert both.session_names == ["A", "B"]       # their own session names win
+    a.sessions = b.sessions = None
+    a.path, b.path = "runs/one.csv", "other/one.csv"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert combine([a, b]).session_names == ["one", "one-2"]
+
+
+def test_cli_several_files_are_sessions(tmp_path, capsys):
+    """calibrate ROBOT A.csv B.csv --session-tool: one robot, a base pose and a tool per session, in the JSON
+    and the summary; predict takes a file of either session (its session column), and an unknown session is
+    one line naming file, row and column."""
+    robot, cal, val, _ = two_sessions(ARM7_DH, 2e4, 3, drift=(0.0, 0.0, 0.0))
+    arm = tmp_path / "arm.toml"
+    arm.write_text(to_toml(ARM7_DH))
+    paths = []
+    for s in ("A", "B"):
+        part = cal.subset(cal.sessions == s)
+        part.sessions = None
+        p = tmp_path / f"{s}.csv"
+        part.write_csv(p)
+        paths.append(str(p))
+    out = tmp_path / "cal.json"
+    assert main(["calibrate", str(arm), *paths, "--model", "kinematic+compliance[2]", "--solver", "lm",
+                 "--session-tool", "--out", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert "session A:" in text and "session B (its own tool):" in text
+    doc = json.loads(out.read_text())
+    assert [s["name"] for s in doc["sessions"]] == ["A", "B"] and doc["sessions"][1]["own_tool"]
+    assert doc["model"] == "kinematic+sessions+joint_compliance[2]"
+    vb = val.subset(val.sessions == "B")
+    vb.columns["session"] = np.array(["B"] * len(vb), dtype=object)
+    vb.write_csv(tmp_path / "vb.csv")
+    assert main(["predict", str(out), str(tmp_path / "vb.csv"), "--out", str(tmp_path / "p.csv")]) == 0
+    assert "mean 0.0" in capsys.readouterr().out
+    vb.columns["session"] = np.array(["C"] * len(vb), dtype=object)
+    vb.write_csv(tmp_path / "vc.csv")
+    assert main(["predict", str(out), str(tmp_path / "vc.csv"), "--out", str(tmp_path / "p2.csv")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert len(err.splitlines()) == 1 and "vc.csv, row 2, column 'session'" in err and "'C'" in err
+
