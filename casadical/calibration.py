@@ -192,14 +192,33 @@ def _named_free(params: Parameters, named: set[str], new_params: set[str]) -> li
             or (p.group == "tool" and "tool" in named)]
 
 
+def _check_loads(model: Model, robot: Robot, data: Measurements) -> None:
+    """A compliance asked of a robot that carries no mass: no gravity torque can deflect any joint.
+
+    Without it every compliance would be fixed as having "no effect at
+    these poses", which hides the cause (a URDF without ``<inertial>``).
+    """
+    torque_terms = [t.spec() for t in model.terms if t.name in ("joint_compliance", "nonlinear_stiffness")]
+    if not torque_terms:
+        return
+    payload = data.get("payload_kg")
+    carried = robot.payload_mass if payload is None else float(np.max(payload, initial=0.0))
+    if sum(j.mass for j in robot.joints) > 0 or carried > 0:
+        return
+    raise InputError(f"model {model.spec} asks for {', '.join(torque_terms)}, but robot {robot.name} has no link "
+                     "masses and the poses no payload, so no gravity torque deflects a joint; give the links their "
+                     "masses (<inertial> in a URDF, mass_kg in a robot TOML) or the poses a payload_kg column, or "
+                     "leave the compliance out (--model kinematic)", file=robot.source or None)
+
+
 @limited_threads()
 def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str | Model = "kinematic+compliance",
               solver: str = "ipopt", *, solver_options: dict | None = None, fix: tuple[str, ...] = (),
               start: dict[str, float] | None = None, check_identifiability: bool = True,
               warn: bool = True, robust: str | RobustLoss = "huber", position_only: bool = False,
               allow_outside_limits: bool = False, angles_are_degrees: bool = False,
-              positions_are_mm: bool = False, session_tools: bool | list[str] = False,
-              keep_compensator: bool = False) -> CalibrationResult:
+              positions_are_mm: bool = False, allow_mismatch: bool = False,
+              session_tools: bool | list[str] = False, keep_compensator: bool = False) -> CalibrationResult:
     """Identify the parameters of ``model`` from measured poses.
 
     Parameters
@@ -247,9 +266,11 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         always estimated like the base pose), and each pose's loss is the
         pseudo-Huber of ``|r_p|^2 + k^2 |r_o|^2`` with ``k = sigma /
         sigma_rot``, the two noise scales estimated from the data.
-    allow_outside_limits, angles_are_degrees, positions_are_mm : bool
+    allow_outside_limits, angles_are_degrees, positions_are_mm, allow_mismatch : bool
         Overrides of the plausibility checks of the poses
-        (:func:`casadical.checks.check_poses`).
+        (:func:`casadical.checks.check_poses`); ``allow_mismatch``: poses
+        the start model (nominal, or the calibration taken further) misses
+        far beyond what it can mean, even with its base pose fitted to them.
     session_tools : bool or list of str
         With data of several sessions (``data.sessions``; each has its own
         base pose): every session other than the first (True), or the named
@@ -356,6 +377,7 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     for name, v in (start or {}).items():
         params[name].value = float(v)
     params.fix(fix, reason="fixed by the user")
+    _check_loads(model, robot, data)
     q, xyz, cov = data.q, data.xyz, model.covariates(data)
 
     # --- base pose: closed-form alignment of the start model's predictions to the measurements
@@ -363,9 +385,18 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         if p.group == "base":
             p.value = 0.0
     start_xyz = robot_frame(model, params, data)
+    own = None
+    if prior is not None:
+        label = robot.source if robot.source.lower().endswith(".json") else f"of robot {robot.name}"
+        own = (label, prior.calibration.mean_mm if prior.calibration else None)
     check_poses(data, robot, allow_outside_limits=allow_outside_limits, angles_are_degrees=angles_are_degrees,
-                positions_are_mm=positions_are_mm, predicted=start_xyz)
-    base0 = align_sessions(model, data, start_xyz, xyz)
+                positions_are_mm=positions_are_mm, allow_mismatch=allow_mismatch, predicted=start_xyz,
+                nominal=prior is None, calibration=own)
+    where = f"{data.path}: " if data.path else ""
+    try:
+        base0 = align_sessions(model, data, start_xyz, xyz)
+    except IdentifiabilityError as e:      # fewer than 3 poses (of a session), or all on a line
+        raise IdentifiabilityError(f"{where}{e}") from e
     cov = model.covariates(data)
     # --- full pose: the probe's reference mounting R0 in closed form too, at the aligned base
     tool0, rot = (prior.tool0 if prior is not None else None), None
@@ -386,8 +417,8 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         needed = len(generic)
         if per_pose * len(q) <= needed:
             raise IdentifiabilityError(
-                f"{len(q)} poses give {per_pose * len(q)} equations for the {needed} identifiable parameters of "
-                f"model {model.spec}: at least {needed // per_pose + 1} poses are needed, and 3-5 times that for "
+                f"{where}{len(q)} poses give {per_pose * len(q)} equations for the {needed} identifiable parameters "
+                f"of model {model.spec}: at least {needed // per_pose + 1} poses are needed, and 3-5 times that for "
                 "a reliable fit")
         # structural question, at nominal values: at a perturbed start exact redundancies only look near-exact
         nominal = params.nominal

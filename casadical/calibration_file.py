@@ -10,10 +10,13 @@ turn into a traceback or into predictions that are NaN or wrong.
 from __future__ import annotations
 
 import inspect
+import math
+import re
 from typing import Any
 
 import numpy as np
 
+from . import __version__
 from .errors import CalibrationFileError, ModelError, RobotFileError, listing
 from .files import finite_number
 from .model import assemble_terms, parse_spec
@@ -69,8 +72,9 @@ def validate_calibration_document(doc: Any, path: str) -> None:
         terms = assemble_terms(restored_terms(doc["model"], doc.get("terms", {}), robot.n), robot)
     except ModelError as e:
         raise err("terms", str(e)) from e
-    _check_parameters(doc["parameters"], [p.name for t in terms for p in t.parameters(robot)],
-                      doc["model"], err)
+    _check_version(doc.get("casadical_version"), err)
+    units = {p.name: p.unit for t in terms for p in t.parameters(robot)}
+    _check_parameters(doc["parameters"], list(units), doc["model"], err, units)
     _check_base0(doc["base0"], err)
     _check_stats(doc.get("calibration"), err)
     _check_fit_statistics(doc.get("statistics"), err)
@@ -146,7 +150,33 @@ def _check_settings(settings: Any, terms: list, err, n: int) -> None:
                     raise err(f"{key}.{k}", f"must be positive, got {v!r}")
 
 
-def _check_parameters(entries: Any, names: list[str], spec: str, err) -> None:
+#: plausible sizes of parameter values by SI unit, as for a robot file's keys (casadical.robot): beyond them a
+#: value is a unit mistake or a slip of the hand, and overflows the model or an exported URDF
+#: (values are in display units: mm and degrees)
+_VALUE_RANGES = {"m": (1e5, "a length in mm"), "rad": (36000.0, "an angle in degrees")}
+
+
+def _check_version(version: Any, err) -> None:
+    """A calibration written by a newer casadical may mean what this one cannot read: refused."""
+    if version is None:
+        return
+    if not isinstance(version, str) or not re.match(r"\d+(\.\d+)*", version):
+        raise err("casadical_version", f"must be a version string such as \"{__version__}\", got {version!r}")
+    if _release(version) > _release(__version__):
+        raise err("casadical_version", f"written by casadical {version}, newer than this casadical {__version__}: "
+                                       "it may hold what this version would read wrongly; update casadical "
+                                       "(pip install -U casadical) to use it")
+
+
+def _release(version: str) -> tuple[int, ...]:
+    """The leading numbers of a version string (``0.10.2rc1`` -> (0, 10, 2)), zeros dropped at the end."""
+    parts = [int(x) for x in re.match(r"\d+(?:\.\d+)*", version).group(0).split(".")]
+    while parts and parts[-1] == 0:
+        parts.pop()
+    return tuple(parts)
+
+
+def _check_parameters(entries: Any, names: list[str], spec: str, err, units: dict[str, str] | None = None) -> None:
     if not isinstance(entries, list):
         raise err("parameters", f"must be a list of parameter objects, got {_kind(entries)}")
     known, seen = set(names), {}
@@ -170,6 +200,9 @@ def _check_parameters(entries: Any, names: list[str], spec: str, err) -> None:
             raise err(f"{at}.value", f"missing value of {name}")
         if not finite_number(e["value"]):
             raise err(f"{at}.value", f"value of {name} must be a finite number, got {e['value']!r}")
+        top, what = _VALUE_RANGES.get((units or {}).get(name, ""), (math.inf, ""))
+        if abs(e["value"]) > top:
+            raise err(f"{at}.value", f"value of {name} is {what} and must lie within +-{top:g}, got {e['value']:g}")
         if e.get("std") is not None and not (finite_number(e["std"]) and e["std"] >= 0):
             raise err(f"{at}.std", f"std of {name} must be null or a finite number >= 0, got {e['std']!r}")
         if "fixed" in e and not isinstance(e["fixed"], bool):

@@ -257,6 +257,7 @@ class Measurements:
         if text:  # columns of words: read again for their exact text
             with _csv_rows(path) as rows:
                 columns.update(_text_columns(rows, header, text))
+        _check_payload(columns.get("payload_kg"), lines, path)
         data = cls(columns, path, lines=np.array(lines))
         if n_joints is None:  # with a robot, casadical.checks judges the units (an error, not a warning)
             _check_units(data)
@@ -338,12 +339,16 @@ def _check_header(first: list[str] | None, path: str, n_joints: int | None, requ
 @contextlib.contextmanager
 def _csv_rows(path: str) -> Iterator[Iterator[list[str]]]:
     """The rows of a CSV file; a file that cannot be read is a DataFileError naming it."""
+    reader = None
     try:
         with open(path, newline="", encoding="utf-8-sig") as fh:
-            yield csv.reader(fh)
+            reader = csv.reader(fh)
+            yield reader
     except FileNotFoundError:
         raise DataFileError("no such file", file=path) from None
-    except (OSError, UnicodeDecodeError, csv.Error) as e:
+    except csv.Error as e:     # an oversized field, a NUL: the reader has counted the line at fault
+        raise DataFileError(f"malformed CSV: {e}", file=path, row=reader.line_num if reader else None) from e
+    except (OSError, UnicodeDecodeError) as e:
         raise DataFileError(f"cannot read: {e}", file=path) from e
 
 
@@ -370,7 +375,9 @@ def _read_body(reader, header: list[str], numeric: set[str], path: str) -> tuple
                     parts[h] = None
         chunk.clear()
 
-    for line, r in enumerate(reader, start=2):
+    end = reader.line_num            # the header's last line
+    for r in reader:
+        line, end = end + 1, reader.line_num   # the record's first line (a quoted field may span lines)
         if not any(x.strip() for x in r):
             continue
         if len(r) != len(header):
@@ -395,6 +402,22 @@ def _text_columns(reader, header: list[str], names: list[str]) -> dict[str, np.n
             for h, i in zip(names, idx):
                 out[h].append(r[i].strip())
     return {h: np.array(v, dtype=object) for h, v in out.items()}
+
+
+#: the largest payload (kg) a file may give (as for a robot file's masses): beyond it a unit mistake
+MAX_PAYLOAD_KG = 1e5
+
+
+def _check_payload(payload: np.ndarray | None, lines: list[int], path: str) -> None:
+    """A payload is a mass: >= 0 (a negative one would lift the arm), and within :data:`MAX_PAYLOAD_KG`."""
+    if payload is None:
+        return
+    bad = np.flatnonzero((payload < 0) | (payload > MAX_PAYLOAD_KG))
+    if len(bad):
+        i = int(bad[0])
+        more = f" ({len(bad)} rows in all)" if len(bad) > 1 else ""
+        raise DataFileError(f"payload {payload[i]:g} kg is not a mass from 0 to {MAX_PAYLOAD_KG:g} kg{more}",
+                            file=path, row=lines[i], column="payload_kg")
 
 
 def _numeric(values: list[str], column: str, path: str, lines: list[int]) -> np.ndarray:

@@ -5,6 +5,12 @@ Every file casadical writes goes through :func:`atomic_write` (or
 same folder and moved into place only when complete, so an interrupted run
 or a full disk never leaves a half-written file, and an existing file is
 replaced only when the caller says so.
+
+Inside :func:`outputs_together` (every command of the command line runs in
+one) the complete temporary files are not moved into place at once but
+kept until the block ends: then all of them are moved, or, if the block
+fails or is interrupted, all are removed. A command's outputs appear
+together or not at all.
 """
 
 from __future__ import annotations
@@ -12,7 +18,9 @@ from __future__ import annotations
 import contextlib
 import math
 import os
+import signal
 import tempfile
+import threading
 import tomllib
 from pathlib import Path
 from typing import IO, Iterator
@@ -22,9 +30,120 @@ from .errors import CasadicalError, InputError
 EXISTS = "exists already; choose another name or pass --force to replace it"
 
 
+class _Staged:
+    """The complete temporary files of an :func:`outputs_together` block, moved into place at its end."""
+
+    def __init__(self):
+        self.files: list[tuple[str, Path, bool]] = []     # (temporary file, target, overwrite)
+
+    def targets(self) -> set[Path]:
+        return {target.resolve() for _, target, _ in self.files}
+
+
+_staged: _Staged | None = None
+_staged_lock = threading.Lock()
+
+
+@contextlib.contextmanager
+def outputs_together() -> Iterator[None]:
+    """Files written inside the block appear together when it ends, or none if it fails.
+
+    Every :func:`atomic_open` (and so :func:`atomic_write`) inside the block,
+    from any thread, writes its temporary file as usual but leaves it under
+    its temporary name; when the block ends without an exception, every
+    such file is moved into place (with signals held back, so Ctrl-C cannot
+    stop it halfway); when it raises (an error, Ctrl-C, SIGTERM) every one
+    is removed and no target is touched. Files written with
+    ``atomic_open(..., at_once=True)`` are not held back (a study's results,
+    the cache of compiled functions). Blocks do not nest: an inner block
+    belongs to the outer one.
+
+    Raises
+    ------
+    InputError
+        A target that must not be replaced appeared meanwhile, or cannot be
+        written; nothing of the block is then left behind.
+    """
+    global _staged
+    with _staged_lock:
+        outer = _staged is not None
+        if not outer:
+            _staged = _Staged()
+        staged = _staged
+    if outer:
+        yield
+        return
+    try:
+        yield
+        with _signals_held():
+            _move_all(staged.files)
+            staged.files = []
+    finally:
+        with _staged_lock:
+            _staged = None
+        for tmp, _, _ in staged.files:
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+
+
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """SIGINT, SIGTERM and SIGHUP wait until the block ends (main thread, where Python can mask them)."""
+    sigs = {getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n)}
+    try:
+        old = signal.pthread_sigmask(signal.SIG_BLOCK, sigs)
+    except (AttributeError, ValueError, OSError):
+        old = None
+    try:
+        yield
+    finally:
+        if old is not None:
+            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
+def _move_all(files: list[tuple[str, Path, bool]]) -> None:
+    """Move staged files into place: all, or (a target appeared meanwhile, a failed move) none of the new ones."""
+    for _, target, overwrite in files:
+        if not overwrite and target.exists():
+            raise InputError(EXISTS, file=str(target))
+    done: list[Path] = []
+    try:
+        for tmp, target, overwrite in files:
+            _place(tmp, target, overwrite)
+            if not overwrite:
+                done.append(target)
+    except BaseException:
+        for target in done:               # created by this block: taken back
+            with contextlib.suppress(OSError):
+                target.unlink()
+        raise
+
+
+def _place(tmp: str, path: Path, overwrite: bool) -> None:
+    """Move the complete temporary file ``tmp`` to ``path`` (never over a file unless ``overwrite``)."""
+    try:
+        if overwrite:
+            os.replace(tmp, path)
+            return
+        try:
+            os.link(tmp, path)        # fails if path appeared meanwhile: never replaces
+        except FileExistsError:
+            raise InputError(EXISTS, file=str(path)) from None
+        except OSError:               # file systems without hard links
+            if path.exists():
+                raise InputError(EXISTS, file=str(path)) from None
+            os.replace(tmp, path)
+    except OSError as e:
+        raise InputError(f"cannot write: {e.strerror or e}", file=str(path)) from e
+    finally:
+        if os.path.exists(tmp):
+            with contextlib.suppress(OSError):
+                os.unlink(tmp)
+
+
 @contextlib.contextmanager
 def atomic_open(path: str | Path, mode: str = "w", overwrite: bool = False,
-                newline: str | None = None, encoding: str | None = "utf-8") -> Iterator[IO]:
+                newline: str | None = None, encoding: str | None = "utf-8", at_once: bool = False) -> Iterator[IO]:
     """Open a temporary file beside ``path``; on success it becomes ``path``.
 
     Parameters
@@ -36,6 +155,10 @@ def atomic_open(path: str | Path, mode: str = "w", overwrite: bool = False,
         (checked when the file is moved into place, so no race either).
     newline, encoding
         As for :func:`open` (text mode only).
+    at_once : bool
+        Move the file into place when it is complete even inside an
+        :func:`outputs_together` block (files that must outlive a failed
+        command: a study's results, the cache of compiled functions).
 
     Raises
     ------
@@ -64,28 +187,26 @@ def atomic_open(path: str | Path, mode: str = "w", overwrite: bool = False,
         umask = os.umask(0)
         os.umask(umask)
         os.chmod(tmp, 0o666 & ~umask)
-        if overwrite:
-            os.replace(tmp, path)
-        else:
-            try:
-                os.link(tmp, path)        # fails if path appeared meanwhile: never replaces
-            except FileExistsError:
-                raise InputError(EXISTS, file=str(path)) from None
-            except OSError:               # file systems without hard links
-                if path.exists():
-                    raise InputError(EXISTS, file=str(path)) from None
-                os.replace(tmp, path)
+        with _staged_lock:
+            staged = None if at_once else _staged
+            if staged is not None:
+                if path.resolve() in staged.targets():
+                    raise InputError("is written twice by one command", file=str(path))
+                staged.files.append((tmp, path, overwrite))
+                tmp = None                # the block moves it into place, or removes it
+        if tmp is not None:
+            _place(tmp, path, overwrite)
     except OSError as e:
         raise InputError(f"cannot write: {e.strerror or e}", file=str(path)) from e
     finally:
-        if os.path.exists(tmp):
+        if tmp is not None and os.path.exists(tmp):
             with contextlib.suppress(OSError):
                 os.unlink(tmp)
 
 
-def atomic_write(path: str | Path, data: str | bytes, overwrite: bool = False) -> None:
+def atomic_write(path: str | Path, data: str | bytes, overwrite: bool = False, at_once: bool = False) -> None:
     """Write ``data`` (text or bytes) to ``path`` atomically; see :func:`atomic_open`."""
-    with atomic_open(path, "wb" if isinstance(data, bytes) else "w", overwrite=overwrite) as fh:
+    with atomic_open(path, "wb" if isinstance(data, bytes) else "w", overwrite=overwrite, at_once=at_once) as fh:
         fh.write(data)
 
 

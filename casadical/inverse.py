@@ -259,8 +259,9 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
     **checks : bool
         Overrides of the plausibility checks of the targets
         (:func:`casadical.checks.check_poses`: ``allow_outside_limits``,
-        ``angles_are_degrees``, ``positions_are_mm``): programmed joints
-        beyond the limits or in radians, target points in metres.
+        ``angles_are_degrees``, ``positions_are_mm``; ``allow_mismatch`` is
+        accepted and has nothing to judge here): programmed joints beyond
+        the limits or in radians, target points in metres.
 
     Returns
     -------

@@ -31,6 +31,7 @@ from __future__ import annotations
 
 import contextlib
 import hashlib
+import math
 import os
 import shutil
 import signal
@@ -40,11 +41,13 @@ import time
 from dataclasses import dataclass
 from functools import cache
 from pathlib import Path
+from typing import TYPE_CHECKING
 
-import casadi as ca
-
-from .errors import CasadicalError, InputError
+from .errors import CasadicalError, InputError, SettingError
 from .files import atomic_write
+
+if TYPE_CHECKING:      # casadi is imported where a function is compiled: the other commands start without it
+    import casadi as ca
 
 #: flags of every compilation: -O1 compiles the large Jacobian and Gauss-Newton Functions in about
 #: 60% of -O2's time and evaluates them as fast (benchmarks/bench_calibrate_cli.py)
@@ -70,12 +73,42 @@ def cache_dir() -> Path:
 
 
 def max_bytes() -> int:
-    """Size limit of the cache folder (``$CASADICAL_CACHE_MAX_MB``, default 256 MB)."""
+    """Size limit of the cache folder (``$CASADICAL_CACHE_MAX_MB``, default 256 MB).
+
+    Raises
+    ------
+    SettingError
+        The variable is not a finite number >= 0 (as for its siblings
+        ``CASADICAL_THREADS`` and ``CASADICAL_EVAL_THREADS``).
+    """
+    text = os.environ.get("CASADICAL_CACHE_MAX_MB")
+    if text is None or not text.strip():
+        return int(DEFAULT_MAX_MB * 1e6)
     try:
-        mb = float(os.environ.get("CASADICAL_CACHE_MAX_MB", DEFAULT_MAX_MB))
+        mb = float(text)
     except ValueError:
-        mb = DEFAULT_MAX_MB
-    return int(max(mb, 0.0) * 1e6)
+        mb = math.nan
+    if not (math.isfinite(mb) and mb >= 0):
+        raise SettingError(f"environment variable CASADICAL_CACHE_MAX_MB must be a number of megabytes >= 0 "
+                           f"(default {DEFAULT_MAX_MB:g}); got {text!r}")
+    return int(mb * 1e6)
+
+
+def jit_setting() -> bool:
+    """``$CASADICAL_JIT``: automatic compilation on (``1``, the default) or off (``0``).
+
+    Raises
+    ------
+    SettingError
+        Any other value (``off`` would otherwise leave it on).
+    """
+    text = os.environ.get("CASADICAL_JIT", "1").strip().lower()
+    if text in ("1", "", "true", "yes", "on"):
+        return True
+    if text in ("0", "false", "no", "off"):
+        return False
+    raise SettingError(f"environment variable CASADICAL_JIT must be 1 (compile model functions, the default) or 0 "
+                       f"(never); got {os.environ['CASADICAL_JIT']!r}")
 
 
 @cache
@@ -94,6 +127,8 @@ def _compiler_id(cc: str) -> str:
 def entry_key(fun: ca.Function, cc: str) -> str:
     """Hash of everything the compiled library depends on (see the module docstring)."""
     h = hashlib.sha256()
+    import casadi as ca
+
     for part in ("casadical-jit-1", ca.__version__, _compiler_id(cc), " ".join(FLAGS), fun.name()):
         h.update(part.encode() + b"\0")
     h.update(fun.serialize().encode())
@@ -143,6 +178,8 @@ def _digest(data: bytes) -> str:
 
 def _load_entry(path: Path, name: str) -> ca.Function | None:
     """A verified entry loaded; a damaged one is deleted (None)."""
+    import casadi as ca
+
     try:
         ok = _digest(path.read_bytes()) == path.stem.rsplit("-", 1)[-1]
     except OSError:  # removed meanwhile by another run's clean-up
@@ -163,6 +200,8 @@ def _load_entry(path: Path, name: str) -> ca.Function | None:
 
 def _compile(fun: ca.Function, folder: Path, key: str, cc: str) -> ca.Function:
     """Compile in a private temporary folder, store the library atomically, load it."""
+    import casadi as ca
+
     name = fun.name()
     with tempfile.TemporaryDirectory(prefix="casadical-jit-") as tmp:
         gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
@@ -192,7 +231,7 @@ def _store(folder: Path, filename: str, data: bytes) -> None:
     concurrent writer's rename is harmless."""
     try:
         folder.mkdir(parents=True, exist_ok=True)
-        atomic_write(folder / filename, data, overwrite=True)   # its temporary files end in _PART
+        atomic_write(folder / filename, data, overwrite=True, at_once=True)   # its temporary files end in _PART
     except (OSError, InputError):
         return
     prune(folder)
@@ -252,6 +291,8 @@ class CacheInfo:
 
 def info() -> CacheInfo:
     """Folder, number and total size of the entries, limit, compiler."""
+    import casadi as ca
+
     entries = [e for e in _entries(cache_dir()) if e[2].suffix == _SUFFIX]
     return CacheInfo(cache_dir(), len(entries), sum(e[1] for e in entries), max_bytes(), compiler(),
                      ca.__version__)

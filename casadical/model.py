@@ -22,7 +22,6 @@ R0 that the calibration keeps, so no Function depends on R0.
 
 from __future__ import annotations
 
-import os
 import re
 import warnings
 from concurrent.futures import wait
@@ -635,7 +634,7 @@ def base0_to_pose(b0: np.ndarray) -> np.ndarray:
 
 def compiler_available() -> bool:
     """True if a C compiler is on PATH and ``CASADICAL_JIT=0`` does not turn automatic compilation off."""
-    return os.environ.get("CASADICAL_JIT", "1") != "0" and jitcache.compiler() is not None
+    return jitcache.jit_setting() and jitcache.compiler() is not None
 
 
 class _Batch:

@@ -303,6 +303,9 @@ def simulate(robot: Robot, q: np.ndarray | int, effects: Effects | None = None, 
 # --- protocols ---------------------------------------------------------------------
 
 PROTOCOL_DIR = PROBLEMS / "protocols"
+#: most poses a protocol's set may ask for (a calibration uses hundreds, a benchmark a few hundred thousand;
+#: beyond this the memory of the simulation, not the work, would be the limit)
+MAX_POSES = 1_000_000
 
 
 @dataclass
@@ -351,7 +354,7 @@ def load_protocol(spec: str | Path) -> Protocol:
         raise InputError("needs at least one pose set", file=str(path), column="sets")
     return Protocol(name=v.string(d, "name", "", default=path.stem), robot=robot,
                     effects=effects_from_table(v.table(d, "truth", ""), robot, str(path)),
-                    sets={k: v.integer(sets, k, "sets", minimum=1) for k in sets},
+                    sets={k: v.integer(sets, k, "sets", minimum=1, maximum=MAX_POSES) for k in sets},
                     seed=v.integer(d, "seed", "", default=0, minimum=0),
                     description=v.string(d, "description", "", default=""),
                     workspace=workspace_from_table(v.table(d, "workspace", ""), str(path)))
@@ -382,7 +385,7 @@ class TomlValidator(_Validator):
         return tab[key]
 
     def integer(self, tab: dict, key: str, table: str, required: bool = False, default=None,
-                minimum: int | None = None):
+                minimum: int | None = None, maximum: int | None = None):
         if key not in tab:
             if required:
                 raise self._err("missing required key", table, key)
@@ -392,6 +395,8 @@ class TomlValidator(_Validator):
             raise self._err(f"must be a whole number, got {x!r}", table, key)
         if minimum is not None and x < minimum:
             raise self._err(f"must be at least {minimum}, got {x}", table, key)
+        if maximum is not None and x > maximum:
+            raise self._err(f"must be at most {maximum:,}, got {x:,}", table, key)
         return x
 
     def nonnegative(self, tab: dict, key: str, table: str, default: float) -> float:

@@ -114,7 +114,9 @@ def test_global_start_finds_a_far_joint_offset():
                                  + rng.normal(0, 2e-5, (len(d), 3))) for d in (cal, val))
     model = Model(ROBOT, [make_term("kinematic", angle_box=math.pi), make_term("joint_compliance", joints=[2, 3, 4, 5])])
     from casadical.calibration import calibrate
-    local = calibrate(ROBOT, cal, model, "ipopt", warn=False)
+    # the nominal model misses these poses by 1.2 m (a third of the reach): a robot file this far off is refused
+    # unless the user says so (issue 21); the override marks the poses, so the method below takes them too
+    local = calibrate(ROBOT, cal, model, "ipopt", warn=False, allow_mismatch=True)
     assert local.stats(val).mean_mm > 10.0
     r = run_method("SKCM-IPOPT-CA", ROBOT, cal, val, seed=1, model=model,
                    params_box={"theta3": (-math.pi, math.pi)}, generations=40)

@@ -2,7 +2,10 @@
 
 Every command exits 0 on success and 2 with one line naming the file, row
 and column at fault on bad input. Anything unexpected is one line too, with
-a request to report it; ``--debug`` shows the traceback.
+a request to report it; ``--debug`` shows the traceback. Ctrl-C and SIGTERM
+(or SIGHUP) stop any command with one line and exit 130 (143, 129); a
+command's output files appear together when it succeeds, or none of them
+(:func:`casadical.files.outputs_together`).
 
 Each command lives in a module of this package with one pattern: a
 ``register(sub)`` that adds its parser and sets ``func``; shared helpers are
@@ -12,12 +15,15 @@ in :mod:`casadical.cli.common`.
 from __future__ import annotations
 
 import argparse
+import os
 import sys
 import traceback
 import warnings
 
 from .. import __version__
 from ..errors import CasadicalError, CasadicalWarning
+from ..files import outputs_together
+from ..interrupts import exit_code, handle_signals
 from ..threads import evaluation_threads, limited_threads
 from . import cache, calibrate, compare, compensate, data, diagnose, export, model, planning, study
 
@@ -73,6 +79,14 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
         print(f"casadical: warning: {category.__name__}: {message}", file=sys.stderr)
 
 
+def _check_cache_settings() -> None:
+    """A bad CASADICAL_JIT or CASADICAL_CACHE_MAX_MB is said before any work (casadi is imported only if set)."""
+    if os.environ.get("CASADICAL_JIT") is not None or os.environ.get("CASADICAL_CACHE_MAX_MB") is not None:
+        from ..jitcache import jit_setting, max_bytes
+        jit_setting()
+        max_bytes()
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = build_parser()
     try:
@@ -86,9 +100,12 @@ def main(argv: list[str] | None = None) -> int:
     old = warnings.showwarning
     warnings.showwarning = _show_warning
     try:
-        evaluation_threads()     # a bad CASADICAL_EVAL_THREADS is said before any work, whatever the command
-        with limited_threads():  # small dense problems: one BLAS thread unless CASADICAL_THREADS says otherwise
-            return int(args.func(args) or 0)
+        # SIGTERM takes Ctrl-C's path; every output of the command appears at its end, or none
+        with handle_signals(), outputs_together():
+            evaluation_threads()     # a bad CASADICAL_EVAL_THREADS is said before any work, whatever the command
+            _check_cache_settings()
+            with limited_threads():  # small dense problems: one BLAS thread unless CASADICAL_THREADS says otherwise
+                return int(args.func(args) or 0)
     except CasadicalError as e:
         print(f"casadical: error: {e}", file=sys.stderr)
         return 2
@@ -100,9 +117,10 @@ def main(argv: list[str] | None = None) -> int:
         print("casadical: error: out of memory; use fewer poses or a machine with more memory",
               file=sys.stderr)
         return 2
-    except KeyboardInterrupt:
-        print("casadical: interrupted; no output was written in part", file=sys.stderr)
-        return 130
+    except KeyboardInterrupt as e:
+        what = "interrupted" if exit_code(e) == 130 else f"stopped by {e.args[0] if e.args else 'a signal'}"
+        print(f"casadical: {what}; no output was written", file=sys.stderr)
+        return exit_code(e)
     except Exception as e:  # noqa: BLE001  (the last line of defence: one line, never a traceback)
         if args.debug:
             traceback.print_exc()

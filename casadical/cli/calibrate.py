@@ -54,7 +54,7 @@ def register(sub) -> None:
                         "(rx_deg, ry_deg, rz_deg) are calibrated on the full pose, position and orientation "
                         "weighted by their noise scales from the data")
     add_row_spacing(p)
-    add_checks(p, mismatch=True)
+    add_checks(p)
     add_urdf_chain(p)
     add_force(p)
     p.set_defaults(func=run)
@@ -78,8 +78,7 @@ def run(args) -> int:
                        session_tools=args.session_tool, position_only=args.position_only,
                        keep_compensator=args.keep_compensator, **check_options(args))
     if val is not None:     # the checks predict makes, then the held-out errors, before anything is written
-        result.validate(val, name=f"fitted to {' '.join(args.data)}", allow_mismatch=args.allow_mismatch,
-                        **check_options(args))
+        result.validate(val, name=f"fitted to {' '.join(args.data)}", **check_options(args))
     result.save(args.out, overwrite=args.force)
     print(result.summary())
     print(f"\ncalibration -> {args.out}")

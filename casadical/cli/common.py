@@ -41,7 +41,8 @@ def check_outputs(outputs: dict[str, str | None], inputs: Iterable[str | None], 
     ------
     InputError
         An output is an input, two outputs are one file, an output exists
-        (without ``force``) or its folder does not exist.
+        (without ``force``), its folder does not exist or no file can be
+        made in it.
     """
     ins = [Path(i) for i in inputs if i and i != STDOUT and Path(i).exists()]
     seen: dict[Path, str] = {}
@@ -64,6 +65,20 @@ def check_outputs(outputs: dict[str, str | None], inputs: Iterable[str | None], 
                 raise InputError(EXISTS, file=path)
         if not out.parent.exists():
             raise InputError(f"folder {str(out.parent)!r} does not exist", file=path)
+        _check_writable(out, path)
+
+
+def _check_writable(out: Path, path: str) -> None:
+    """A file can be made in the output's folder (tried, then removed): an output that cannot be written
+    fails before the work, not after the other outputs."""
+    import tempfile
+
+    try:
+        fd, probe = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".part", dir=out.parent)
+    except OSError as e:
+        raise InputError(f"cannot write in folder {str(out.parent)!r}: {e.strerror or e}", file=path) from e
+    os.close(fd)
+    os.unlink(probe)
 
 
 def _same(a: Path, b: Path) -> bool:
@@ -164,8 +179,13 @@ def add_json(p: argparse.ArgumentParser, what: str, required: bool = False) -> N
                        help=f"write {what} as JSON to OUT.json ('-' or nothing: standard output)")
 
 
-def add_checks(p: argparse.ArgumentParser, mismatch: bool = False) -> None:
-    """The overrides of the plausibility checks of poses (:mod:`casadical.checks`)."""
+def add_checks(p: argparse.ArgumentParser, mismatch: bool = True) -> None:
+    """The overrides of the plausibility checks of poses (:mod:`casadical.checks`).
+
+    ``--allow-mismatch`` is one of them on every command (``mismatch`` is
+    accepted for the callers that asked for it when it was ``predict``'s
+    alone).
+    """
     g = p.add_argument_group("plausibility checks of the poses (each is an error unless overridden)")
     g.add_argument("--allow-outside-limits", action="store_true",
                    help="accept joint readings beyond the robot's min_deg/max_deg (a warning)")
@@ -173,9 +193,10 @@ def add_checks(p: argparse.ArgumentParser, mismatch: bool = False) -> None:
                    help="the joint readings are degrees although all lie within +-6.3 (which looks like radians)")
     g.add_argument("--positions-are-mm", action="store_true",
                    help="the positions are mm even though their spread does not match the robot's")
-    if mismatch:
-        g.add_argument("--allow-mismatch", action="store_true",
-                       help="accept measured poses the calibration predicts far worse than its own (a warning)")
+    g.add_argument("--allow-mismatch", action="store_true",
+                   help="accept measured poses the model misses far beyond what it can mean, with its base pose "
+                        "fitted: the nominal model by more than 5%% of the robot's reach, a calibration by more "
+                        "than 100 times its own error (a warning)")
 
 
 def add_row_spacing(p: argparse.ArgumentParser) -> None:
@@ -234,7 +255,7 @@ def robot_or_calibration(spec: str, args):
 def check_options(args) -> dict:
     """Keyword overrides of :func:`casadical.checks.check_poses` from the options of :func:`add_checks`."""
     return {"allow_outside_limits": args.allow_outside_limits, "angles_are_degrees": args.angles_are_degrees,
-            "positions_are_mm": args.positions_are_mm}
+            "positions_are_mm": args.positions_are_mm, "allow_mismatch": args.allow_mismatch}
 
 
 # --- what a calibration holds of its session -----------------------------------------

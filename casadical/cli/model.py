@@ -34,7 +34,7 @@ def register(sub) -> None:
     p.add_argument("model", metavar="MODEL", help="robot (nominal model) or calibration JSON")
     p.add_argument("poses", metavar="POSES.csv", help="joint readings (q1_deg, ...)")
     p.add_argument("--out", required=True, metavar="OUT.csv", help="output CSV")
-    add_checks(p, mismatch=True)
+    add_checks(p)
     add_urdf_chain(p)
     add_force(p)
     p.set_defaults(func=run_predict)

@@ -6,6 +6,7 @@ import sys
 from pathlib import Path
 
 from ..errors import InputError
+from ..interrupts import exit_code
 from .common import Status, add_quiet, int_at_least
 
 
@@ -102,12 +103,13 @@ def _run(args, study) -> int:
     try:
         report = run_study(study, args.out, backend="serial" if args.serial else "dask", workers=args.workers,
                            scheduler=args.scheduler, force=args.force, progress=progress, on_start=started)
-    except KeyboardInterrupt:
+    except KeyboardInterrupt as e:
         if state["bar"] is not None:
             state["bar"].close()
-        print(f"casadical: interrupted: {state['stored']} of {study.repetitions} repetitions are in {args.out}; "
+        what = "interrupted" if exit_code(e) == 130 else f"stopped by {e.args[0] if e.args else 'a signal'}"
+        print(f"casadical: {what}: {state['stored']} of {study.repetitions} repetitions are in {args.out}; "
               "run the same command again to resume", file=sys.stderr)
-        return 130
+        return exit_code(e)
     finally:
         if state["bar"] is not None:
             state["bar"].close()

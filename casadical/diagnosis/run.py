@@ -472,7 +472,9 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
     **checks : bool
         Overrides of the plausibility checks of the poses
         (:func:`casadical.checks.check_poses`: ``allow_outside_limits``,
-        ``angles_are_degrees``, ``positions_are_mm``).
+        ``angles_are_degrees``, ``positions_are_mm``, ``allow_mismatch``:
+        poses of ``cal``, ``val`` or ``other`` the nominal model misses by
+        more than 5 % of the robot's reach with its base pose fitted).
     """
     t0 = time.perf_counter()
     s = settings or DiagnosisSettings()

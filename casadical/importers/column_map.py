@@ -122,6 +122,12 @@ class ColumnMap:
     keep_if_present: dict[str, str] = field(default_factory=dict)
     others: str = "keep"
     source: str = "<dict>"
+    #: top-level keys given as ``--map key=value`` (errors about them name ``--map``, not the file)
+    overridden: frozenset = frozenset()
+
+    def origin(self, key: str) -> str:
+        """Where ``key`` was set: ``--map`` or the mapping's file (for error messages)."""
+        return "--map" if key in self.overridden else self.source
 
     def key_of(self, column: str) -> str:
         """The mapping key that names source ``column`` (for error messages)."""
@@ -295,7 +301,8 @@ def column_map_from_dict(doc: dict[str, Any], file: str = "<dict>",
         position_unit=units.get("position"), target=target, target_unit=units.get("target"),
         deviation=deviation, deviation_unit=units.get("deviation"), deviation_sign=sign,
         separator=SEPARATORS[separator], decimal=decimal, encoding=encoding, skip_lines=skip,
-        time=time, keep=keep, keep_if_present=keep_if_present, others=others, source=file)
+        time=time, keep=keep, keep_if_present=keep_if_present, others=others, source=file,
+        overridden=frozenset(overrides or ()))
 
 
 # --- loading: files, presets and key=value overrides ---------------------------------------

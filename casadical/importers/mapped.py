@@ -31,7 +31,7 @@ from pathlib import Path
 import numpy as np
 
 from ..data import NUMERIC_OPTIONAL, XYZ, Measurements, looks_like_radians
-from ..errors import DataFileError, DataWarning, InputError, listing
+from ..errors import ColumnMapError, DataFileError, DataWarning, InputError, listing
 from ..files import EXISTS
 from .column_map import DEVIATION_SIGNS, JOINT_UNITS, LENGTH_UNITS, RESERVED, ColumnMap
 
@@ -145,8 +145,10 @@ def _read_table(path: Path, cmap: ColumnMap) -> _Table | None:
     """Header and data rows (blank lines skipped); None for a file without a header."""
     file = str(path)
     buf = io.StringIO(_decode(path, cmap), newline="")
-    for _ in range(cmap.skip_lines):
-        buf.readline()
+    for skipped in range(cmap.skip_lines):
+        if not buf.readline():       # the end of the file: no work for the rest of a huge skip_lines
+            raise ColumnMapError(f"skips {cmap.skip_lines:,} lines but {file} has {skipped:,}; count the lines before "
+                                 "the header row", file=cmap.origin("skip_lines"), column="skip_lines")
     start, offset = buf.tell(), cmap.skip_lines
     first, first_row = "", offset
     for first_row, line in enumerate(iter(buf.readline, ""), start=offset + 1):
@@ -170,7 +172,8 @@ def _read_table(path: Path, cmap: ColumnMap) -> _Table | None:
                 rows.append(fields)
                 lines.append(offset + reader.line_num)
     except csv.Error as exc:
-        raise DataFileError(f"malformed CSV: {exc}", file=file, row=offset + reader.line_num + 1) from exc
+        # the reader has counted the line at fault (an oversized field, a NUL, a quote open at the end)
+        raise DataFileError(f"malformed CSV: {exc}", file=file, row=offset + reader.line_num) from exc
     if header is None:
         return None
     while header and not header[-1]:
@@ -411,6 +414,7 @@ def read_mapped(path: str | os.PathLike[str], column_map: ColumnMap,
         mapped.append(Mapped("joints", t.header[j], f"q{i}_deg",
                              "rad -> deg" if factor != 1.0 else "deg"))
     columns.update(_positions(t, cmap, position_idx, mapped))
+    _check_position_unit(columns, cmap, t)
     if time_idx is not None:
         times = _timestamps(t, time_idx, cmap.time.format)
         if times is not None:
@@ -469,6 +473,29 @@ def _positions(t: _Table, cmap: ColumnMap, idx: dict[str, list[int]],
             op = "+" if sign > 0 else "-"
             mapped.append(Mapped("position", f"{t.header[jt]} {op} {t.header[jd]}", c, note))
     return out
+
+
+#: measured points of one robot spread (RMS distance from their centre) less than this (mm): the largest
+#: arms reach 4 m, laser trackers measure over 80 m at most
+MAX_SPREAD_MM = 1e5
+
+
+def _check_position_unit(columns: dict[str, np.ndarray], cmap: ColumnMap, t: _Table) -> None:
+    """Positions in mm declared as metres: points kilometres apart are no robot's, whatever the tracker."""
+    if not all(c in columns for c in XYZ) or len(t.rows) < 3:
+        return
+    from ..checks import spread
+
+    s = spread(np.column_stack([columns[c] for c in XYZ]))
+    if s <= MAX_SPREAD_MM:
+        return
+    key = "position_unit" if cmap.position else "target_unit"
+    unit = getattr(cmap, key)
+    hint = (f'these look like millimetres: set {key} = "mm"' if unit == "m" and s / 1000 <= MAX_SPREAD_MM
+            else "check the position columns and their unit")
+    raise ColumnMapError(f"the measured points of {t.file} spread {s / 1e6:.4g} km around their centre with "
+                         f'{key} = "{unit}"; one robot\'s points spread a few metres at most: {hint}',
+                         file=cmap.origin(key), column=key)
 
 
 def import_file(src: str | os.PathLike[str], dst: str | os.PathLike[str], column_map: ColumnMap,

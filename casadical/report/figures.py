@@ -10,9 +10,11 @@ share clip-path ids while the output stays the same from run to run.
 
 from __future__ import annotations
 
+import contextlib
 import functools
 import html
 import io
+import os
 import re
 import sys
 import threading
@@ -146,6 +148,43 @@ def _draw_inherited(indices) -> list[str]:
     return _draw(_JOBS, indices)
 
 
+def _child_start(parent: int) -> None:
+    """First thing in a forked figure worker: die with the parent, leave signals to it.
+
+    Linux's ``PR_SET_PDEATHSIG`` sends the worker SIGKILL when the process
+    that forked it ends, however it ends (even killed outright): no worker
+    outlives the command, none waits on a pipe no one reads. Ctrl-C, sent to
+    the terminal's whole process group, is the parent's to handle (it ends
+    the workers); SIGTERM ends a worker at once, without the parent's
+    Python handler.
+    """
+    import os
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    try:
+        import ctypes
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(1, int(signal.SIGKILL), 0, 0, 0)   # PR_SET_PDEATHSIG = 1
+    except (OSError, AttributeError):   # not Linux's C library: the parent's clean-up alone ends the workers
+        pass
+    if os.getppid() != parent:          # the parent ended before the line above took effect
+        os._exit(1)
+
+
+def _end_workers(pool) -> None:
+    """Stop a pool's worker processes now (an interrupt or error in the parent): no waiting for their shares."""
+    processes = list((getattr(pool, "_processes", None) or {}).values())
+    pool.shutdown(wait=False, cancel_futures=True)
+    for p in processes:
+        with contextlib.suppress(Exception):
+            p.kill()
+    for p in processes:
+        with contextlib.suppress(Exception):
+            p.join(5)
+
+
 def render(jobs: list[tuple], processes: int = 1) -> list[str]:
     """``<svg>`` elements of figures, in order.
 
@@ -171,7 +210,6 @@ def render(jobs: list[tuple], processes: int = 1) -> list[str]:
 
 
 def _render(jobs: list[tuple], processes: int) -> list[str]:
-    global _JOBS
     n = len(jobs)
     if processes < 2 or n < 2 or not sys.platform.startswith("linux"):   # fork is safe on Linux only
         return _draw(jobs, range(n))
@@ -181,28 +219,40 @@ def _render(jobs: list[tuple], processes: int) -> list[str]:
     k = min(processes, n)
     shares = [list(range(i, n, k)) for i in range(k)]   # interleaved: the costly figures are spread
     try:
-        pool = ProcessPoolExecutor(k - 1, mp_context=multiprocessing.get_context("fork"))
+        pool = ProcessPoolExecutor(k - 1, mp_context=multiprocessing.get_context("fork"),
+                                   initializer=_child_start, initargs=(os.getpid(),))
     except (OSError, ValueError, ImportError):   # no semaphores or shared memory here: draw them all in this one
         return _draw(jobs, range(n))
-    with pool:
-        futures = []
-        _JOBS = jobs   # the children are forked at the first submit and take _JOBS as it is then
-        try:
-            for share in shares[1:]:
-                try:
-                    futures.append((share, pool.submit(_draw_inherited, share)))
-                except Exception:  # noqa: BLE001  (no child process here: this one draws its share)
-                    futures.append((share, None))
-        finally:
-            _JOBS = []
-        done = [(shares[0], _draw(jobs, shares[0]))]
-        for share, fut in futures:
-            try:
-                done.append((share, fut.result() if fut else _draw(jobs, share)))
-            except Exception:  # noqa: BLE001  (a child that failed: its share is drawn here)
-                done.append((share, _draw(jobs, share)))
+    try:
+        done = _render_in(pool, jobs, shares)
+    except BaseException:          # Ctrl-C, SIGTERM, an error: the workers end with it, now
+        _end_workers(pool)
+        raise
+    pool.shutdown(wait=True)
     out: list = [None] * n
     for share, svgs in done:
         for i, svg in zip(share, svgs):
             out[i] = svg
     return out
+
+
+def _render_in(pool, jobs: list[tuple], shares: list[list[int]]) -> list[tuple[list[int], list[str]]]:
+    """The shares drawn: the first here, the others by ``pool`` (or here, where a worker fails)."""
+    global _JOBS
+    futures = []
+    _JOBS = jobs   # the children are forked at the first submit and take _JOBS as it is then
+    try:
+        for share in shares[1:]:
+            try:
+                futures.append((share, pool.submit(_draw_inherited, share)))
+            except Exception:  # noqa: BLE001  (no child process here: this one draws its share)
+                futures.append((share, None))
+    finally:
+        _JOBS = []
+    done = [(shares[0], _draw(jobs, shares[0]))]
+    for share, fut in futures:
+        try:
+            done.append((share, fut.result() if fut else _draw(jobs, share)))
+        except Exception:  # noqa: BLE001  (a child that failed: its share is drawn here)
+            done.append((share, _draw(jobs, share)))
+    return done

@@ -21,6 +21,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import SolverError
+from ..interrupts import noticed
 from ..problem import CalibrationProblem
 from .base import Solver, SolverResult
 
@@ -143,7 +144,8 @@ class Ipopt(Solver):
         data = np.concatenate(data)
         t1 = time.perf_counter()
         try:
-            sol = solver(x0=x0, p=data, lbx=lbx, ubx=ubx)
+            with noticed():   # CasADi swallows a Ctrl-C and returns the last iterate: raised again here
+                sol = solver(x0=x0, p=data, lbx=lbx, ubx=ubx)
         except RuntimeError as e:
             raise SolverError(f"IPOPT failed: {e}") from e
         elapsed = time.perf_counter() - t1

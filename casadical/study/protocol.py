@@ -20,9 +20,12 @@ from ..loading import load_robot
 from ..model import Model
 from ..planning.selectors import METHODS as SELECTORS
 from ..robot import PROBLEMS, Robot, robot_from_dict, robot_to_dict
-from ..simulate import Effects, TomlValidator, effects_from_table, load_protocol, resolve_path, workspace_from_table
+from ..simulate import MAX_POSES, Effects, TomlValidator, effects_from_table, load_protocol, resolve_path, workspace_from_table
 
 STUDY_DIR = PROBLEMS / "studies"
+#: most repetitions a protocol may ask for (the studies of docs/studies.md run 40-200; a run keeps a few
+#: bytes per repetition, so the bound keeps its memory under a hundred MB)
+MAX_REPETITIONS = 1_000_000
 SOLVERS = ("ipopt", "lm", "gn", "auto")
 _TOP_KEYS = {"name", "description", "protocol", "robot", "seed", "repetitions", "validation_poses",
              "extra_poses", "truth", "workspace", "plan", "method"}
@@ -183,9 +186,9 @@ def load_study(spec: str | Path) -> Study:
         description=v.string(d, "description", "", default=""),
         robot=robot, effects=effects, workspace=workspace,
         seed=v.integer(d, "seed", "", default=seed, minimum=0),
-        repetitions=v.integer(d, "repetitions", "", required=True, minimum=1),
-        validation_poses=v.integer(d, "validation_poses", "", required=True, minimum=1),
-        extra_poses=v.integer(d, "extra_poses", "", default=0, minimum=0),
+        repetitions=v.integer(d, "repetitions", "", required=True, minimum=1, maximum=MAX_REPETITIONS),
+        validation_poses=v.integer(d, "validation_poses", "", required=True, minimum=1, maximum=MAX_POSES),
+        extra_poses=v.integer(d, "extra_poses", "", default=0, minimum=0, maximum=MAX_POSES),
         plans=_plans(d, robot, v),
         methods=_methods(d, robot, v),
         path=file, text=path.read_text(encoding="utf-8", errors="replace"))
@@ -234,9 +237,12 @@ def _plans(d: dict, robot: Robot, v: TomlValidator) -> list[PlanSpec]:
         if raw is None or not sizes or any(isinstance(m, bool) or not isinstance(m, int) or m < 1 for m in sizes):
             raise InputError(f"must be a whole number >= 1 or a list of them, got {raw!r}", file=v.file,
                              column=f"{where}.poses")
+        if max(sizes) > MAX_POSES:
+            raise InputError(f"must be at most {MAX_POSES:,} poses, got {max(sizes):,}", file=v.file,
+                             column=f"{where}.poses")
         if len(set(sizes)) != len(sizes):
             raise InputError(f"lists a number of poses twice: {sizes}", file=v.file, column=f"{where}.poses")
-        pool = v.integer(t, "pool", where, default=None, minimum=1)
+        pool = v.integer(t, "pool", where, default=None, minimum=1, maximum=MAX_POSES)
         if pool is None and selector != "random":
             raise InputError(f"{selector} selects from a pool of candidates: give pool = N", file=v.file,
                              column=f"{where}.pool")

@@ -14,8 +14,10 @@ stores each repetition once, whichever worker finished it.
 
 from __future__ import annotations
 
+import itertools
 import logging
 import secrets
+import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -23,10 +25,14 @@ from typing import Callable
 
 from .. import __version__
 from ..errors import CasadicalError, InputError
+from ..interrupts import deferred
 from ..threads import usable_cores
 from .protocol import Study
 from .store import ResultStore
 from .task import error_rows, run_task
+
+#: tasks submitted to the Dask cluster per worker and not yet finished (the rest wait in this process)
+IN_FLIGHT_PER_WORKER = 4
 
 #: called after each finished repetition with (repetition, its rows); may raise to stop the run
 Progress = Callable[[int, list], None]
@@ -125,10 +131,37 @@ def run_study(study: Study, out: str | Path, *, backend: str = "dask", workers: 
         raise InputError(f"unknown backend {backend!r}; use 'dask' or 'serial'")
     if backend == "dask" and client is None:
         _distributed()            # a missing Dask fails before the results folder is touched
+    own_client = None
+    if backend == "dask" and client is None and scheduler:
+        client = own_client = _connect(scheduler)    # an unreachable scheduler, too
+    created = not Path(out).exists()
+    try:
+        return _run(study, Path(out), backend, workers, scheduler, client, force, progress, flush_s, on_start)
+    except BaseException:
+        # a failed start leaves nothing behind: a folder this run made and no repetition was stored in
+        if created and Path(out).is_dir() and not list(Path(out).glob("part-*.parquet")):
+            shutil.rmtree(out, ignore_errors=True)
+        raise
+    finally:
+        if own_client is not None:
+            own_client.close()
+
+
+def _connect(scheduler: str):
+    """A client of the running Dask cluster at ``scheduler``."""
+    distributed = _distributed()
+    try:
+        return distributed.Client(scheduler, timeout="20s")
+    except (OSError, TimeoutError, ValueError) as e:
+        raise InputError(f"cannot reach the Dask scheduler: {e}", file=scheduler) from e
+
+
+def _run(study: Study, out: Path, backend: str, workers, scheduler, client, force: bool, progress, flush_s: float,
+         on_start) -> RunReport:
     t0 = time.perf_counter()
     with ResultStore.for_study(out, study, force) as store:
         done = store.finished()
-        todo = [r for r in range(study.repetitions) if r not in done]
+        todo = [r for r in range(study.repetitions) if r not in done]   # protocol: at most MAX_REPETITIONS
         report = RunReport(study.repetitions, study.repetitions - len(todo))
         writer = _Writer(store, report, flush_s)
 
@@ -165,28 +198,40 @@ def _run_dask(study: Study, todo: list[int], finished, report: RunReport, worker
     distributed = _distributed()
     own_client = own_cluster = None
     try:
-        if client is None and scheduler:
-            try:
-                client = own_client = distributed.Client(scheduler, timeout="20s")
-            except (OSError, TimeoutError) as e:
-                raise InputError(f"cannot reach the Dask scheduler: {e}", file=scheduler) from e
+        if scheduler:
+            if client is None:
+                client = own_client = _connect(scheduler)
             report.backend = scheduler
         elif client is None:
-            own_cluster = distributed.LocalCluster(n_workers=workers or usable_cores(), threads_per_worker=1,
-                                                   processes=True, dashboard_address=":0",
-                                                   silence_logs=logging.ERROR)
-            client = own_client = distributed.Client(own_cluster)
-            client.register_plugin(_ignore_interrupts(distributed)(), name="casadical-ignore-sigint")
+            # an interrupt while the cluster starts waits until it has started, and is then raised here: a
+            # cluster cut short in its start cannot be closed (its workers would print tracebacks at exit)
+            with deferred():
+                own_cluster = distributed.LocalCluster(n_workers=workers or usable_cores(), threads_per_worker=1,
+                                                       processes=True, dashboard_address=":0",
+                                                       silence_logs=logging.ERROR)
+                client = own_client = distributed.Client(own_cluster)
+                client.register_plugin(_ignore_interrupts(distributed)(), name="casadical-ignore-sigint")
             report.backend = "dask"
         _check_workers(client)
         report.workers = len(client.scheduler_info()["workers"])
         if on_start:
             on_start(report)
         run = secrets.token_hex(4)   # keys of an earlier, interrupted run on the same cluster may linger
-        futures = {client.submit(run_task, study, rep, key=f"casadical-study-{run}-{rep}"): rep for rep in todo}
+        futures: dict = {}
+        pending = iter(todo)
+
+        def submit(rep: int):
+            fut = client.submit(run_task, study, rep, key=f"casadical-study-{run}-{rep}")
+            futures[fut] = rep
+            return fut
+
+        # a bounded number of tasks in flight: the scheduler, the client and this loop hold a few per worker,
+        # not one per repetition (a million repetitions would take gigabytes)
+        first = [submit(rep) for rep in itertools.islice(pending, max(IN_FLIGHT_PER_WORKER * report.workers, 8))]
+        queue = distributed.as_completed(first, with_results=True, raise_errors=False)
         try:
-            for fut, result in distributed.as_completed(futures, with_results=True, raise_errors=False):
-                rep = futures[fut]
+            for fut, result in queue:
+                rep = futures.pop(fut)
                 if fut.status != "finished":
                     # the task itself failed, e.g. it kept killing its workers (KilledWorker): kept as lost
                     # rows, computed again by a resumed run
@@ -194,6 +239,9 @@ def _run_dask(study: Study, todo: list[int], finished, report: RunReport, worker
                                         status="lost")
                 fut.release()
                 finished(rep, result)
+                nxt = next(pending, None)
+                if nxt is not None:
+                    queue.add(submit(nxt))
         finally:
             client.cancel(list(futures))
     finally:

@@ -22,6 +22,7 @@ data-frame library and by Spark or DuckDB on a cluster.
 from __future__ import annotations
 
 import json
+import re
 import secrets
 import warnings
 from datetime import datetime, timezone
@@ -150,8 +151,8 @@ class ResultStore:
                                      "anything: choose another --out", file=where)
                 for p in store.parts():
                     p.unlink()
-            atomic_write(path / MANIFEST, json.dumps(new, indent=1), overwrite=True)
-            atomic_write(path / PROTOCOL_COPY, study.text, overwrite=True)
+            atomic_write(path / MANIFEST, json.dumps(new, indent=1), overwrite=True, at_once=True)
+            atomic_write(path / PROTOCOL_COPY, study.text, overwrite=True, at_once=True)
             store.manifest = new
         except BaseException:
             store.close()
@@ -191,9 +192,14 @@ class ResultStore:
         return sorted(self.path.glob("part-*.parquet"))
 
     def finished(self) -> set[int]:
-        """Repetitions whose rows are in the folder (those the backend lost, all ``lost``, are not)."""
-        _, pq = arrow()
-        return set().union(*(_computed(pq.read_table(p, columns=["repetition", "status"])) for p in self.parts()))
+        """Repetitions whose rows are in the folder (those the backend lost, all ``lost``, are not).
+
+        Raises
+        ------
+        InputError
+            A part file is damaged (truncated, empty, not Parquet, other columns).
+        """
+        return set().union(*(_computed(_read_part(p, columns=["repetition", "status"])) for p in self.parts()))
 
     def append(self, rows: list[dict]) -> Path:
         """Write the rows of finished repetitions as one new part (atomically)."""
@@ -203,7 +209,7 @@ class ResultStore:
         table = pa.Table.from_pylist(rows, schema=schema())
         reps = [r["repetition"] for r in rows]
         path = self.path / f"part-{min(reps):06d}-{max(reps):06d}-{secrets.token_hex(4)}.parquet"
-        with atomic_open(path, "wb") as fh:
+        with atomic_open(path, "wb", at_once=True) as fh:   # kept when the run stops: it resumes from them
             pq.write_table(table, fh)
         return path
 
@@ -215,8 +221,8 @@ class ResultStore:
         and two runs writing at once (which the lock prevents) would
         duplicate it.
         """
-        pa, pq = arrow()
-        parts = [pq.read_table(p, schema=schema()) for p in self.parts()]
+        pa, _ = arrow()
+        parts = [_read_part(p, schema=schema()) for p in self.parts()]
         computed = [_computed(t) for t in parts]
         done = set().union(*computed)
         tables, seen = [], set()
@@ -254,6 +260,24 @@ def differing_columns(a, b) -> list[str]:
         if not same:
             out.append(c)
     return out
+
+
+def _read_part(path: Path, **kwargs):
+    """A part file as a pyarrow Table; a damaged one is one InputError naming it and the way out."""
+    pa, pq = arrow()
+    try:
+        table = pq.read_table(path, **kwargs)
+        if "columns" in kwargs:
+            missing = [c for c in kwargs["columns"] if c not in table.column_names]
+            if missing:
+                raise pa.ArrowInvalid(f"no column {missing[0]!r}")
+        return table
+    except (pa.ArrowException, OSError, KeyError, ValueError) as e:
+        text = str(e).strip().splitlines()[0] if str(e).strip() else type(e).__name__
+        text = re.sub(r"^Could not open Parquet input source '[^']*': ", "", text)
+        raise InputError(f"is damaged and holds no readable results ({text.rstrip('.')}); delete it to run its "
+                         "repetitions again, or pass --force to discard every result and start over",
+                         file=str(path)) from e
 
 
 def _ours(name: str) -> bool:

@@ -45,6 +45,11 @@ _TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
 _PARSE_ERRORS = (KeyError, AttributeError, ValueError, TypeError, IndexError)
 
 
+#: lengths (m) and masses (kg) beyond these are unit mistakes (as for a robot TOML's keys, casadical.robot)
+MAX_LENGTH_M = 100.0
+MAX_MASS_KG = 1e5
+
+
 def robot_from_urdf(path: str | Path, tip: str | None = None, base: str | None = None,
                     tool: tuple[float, float, float] | None = None) -> Robot:
     """Read the serial chain of a URDF file as a robot (modified DH).
@@ -257,12 +262,25 @@ class _Document:
             raise self.error("link", link.name, f"<inertial> mass must be a finite number >= 0, got {inertial.mass}")
         if inertial.origin is not None and not np.isfinite(inertial.origin).all():
             raise self.error("link", link.name, "<inertial> <origin> has a non-finite number")
+        if inertial.mass is not None and inertial.mass > MAX_MASS_KG:
+            raise self.error("link", link.name, f"<inertial> mass {inertial.mass:g} kg is beyond {MAX_MASS_KG:g} kg: "
+                                                "masses in a URDF are kg")
+        if inertial.origin is not None:
+            self._check_length(inertial.origin, "link", link.name, "<inertial> <origin>")
+
+    def _check_length(self, T: np.ndarray, kind: str, name: str, what: str) -> None:
+        far = float(np.abs(T[:3, 3]).max())
+        if far > MAX_LENGTH_M:
+            raise self.error(kind, name, f"{what} xyz has {far:g} m, beyond +-{MAX_LENGTH_M:g} m: lengths in a URDF "
+                                         "are metres (a unit mistake?)")
 
     def check_joint(self, j) -> None:
         if j.type not in _TYPES:
             raise self.error("joint", j.name, f"unknown type {j.type!r} (URDF types: {', '.join(_TYPES)})")
         if j.origin is not None and not np.isfinite(j.origin).all():
             raise self.error("joint", j.name, "<origin> has a non-finite number")
+        if j.origin is not None:
+            self._check_length(j.origin, "joint", j.name, "<origin>")
         if j.type != "fixed":
             if not np.isfinite(j.axis).all():
                 raise self.error("joint", j.name, f"<axis> has a non-finite number: {j.axis.tolist()}")
