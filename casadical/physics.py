@@ -55,6 +55,9 @@ MIN_SIDE_POSES = 5
 MIN_SIDE_SHARE = 0.02
 #: significance level of the Wald test of a cause's parameters
 ALPHA = 0.001
+#: terms that are no cause: the geometry, the probe's mounting, the sessions' base poses (compensators, whose
+#: cause is 'unexplained', are none either)
+NOT_CAUSES = ("geometric", "tool_orientation", "sessions")
 
 
 @dataclass
@@ -104,7 +107,7 @@ def term_causes(result) -> list[Cause]:
     """The causes of a fitted model: every term other than the geometry, split by joint (and harmonic)."""
     out = []
     for t in result.model.terms:
-        if t.name == "geometric":
+        if t.name in NOT_CAUSES or t.cause == "unexplained":
             continue
         names = [p.name for p in t.parameters(result.model.robot)]
         if not names:

@@ -124,3 +124,27 @@ def test_cli_several_files_are_sessions(tmp_path, capsys):
     err = capsys.readouterr().err.strip()
     assert len(err.splitlines()) == 1 and "vc.csv, row 2, column 'session'" in err and "'C'" in err
 
+
+
+def test_a_left_out_session_keeps_the_robot_and_fits_its_own_base():
+    """The session fold of the linearised cross-validation: the robot's parameters come from the other
+    sessions, the left-out session's own (its base pose) from its own poses, exactly as two least-squares
+    fits in turn give them."""
+    from casadical.diagnosis.validation import linear_cv, session_scheme
+
+    rng = np.random.default_rng(0)
+    n = 40
+    sessions = np.array(["A"] * n + ["B"] * n, dtype=object)
+    J = np.zeros((2 * n, 3, 4))
+    J[:, :, :2] = rng.normal(size=(2 * n, 3, 2))              # two robot parameters
+    J[:n, :, 2] = rng.normal(size=(n, 3))                     # session A's own
+    J[n:, :, 3] = rng.normal(size=(n, 3))                     # session B's own
+    r = rng.normal(size=(2 * n, 3))
+    cv = linear_cv(J, r, np.ones(2 * n), [session_scheme(sessions)])
+    for own, F, T in ((2, np.arange(n), np.arange(n, 2 * n)), (3, np.arange(n, 2 * n), np.arange(n))):
+        other = [0, 1, 5 - own]                               # robot + the training session's own
+        d = np.zeros(4)
+        d[other] = np.linalg.lstsq(J[T][:, :, other].reshape(-1, 3), -r[T].reshape(-1), rcond=None)[0]
+        rest = r[F] + J[F] @ d
+        d[own] = np.linalg.lstsq(J[F][:, :, own].reshape(-1, 1), -rest.reshape(-1), rcond=None)[0][0]
+        assert np.allclose(cv.errors["session"][F], np.linalg.norm(r[F] + J[F] @ d, axis=1), atol=1e-9)

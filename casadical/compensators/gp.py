@@ -43,8 +43,10 @@ from scipy.linalg import cho_factor, cho_solve
 from ..errors import InputError
 from ..threads import limited_threads
 
-#: a pose is one where the process knows when its predictive std is below this share of its prior std
-MAX_STD_RATIO = 0.8
+#: a pose is one where the process knows when its predictive std is below this share of its prior std (UR10
+#: series A, 300 poses, seed 1: 86 % of the series' other poses, none of series B's, whose ratio is 1.000 at
+#: every pose; at 0.8 the share in series was 76 % and its held-out mean 0.010 mm worse)
+MAX_STD_RATIO = 0.95
 #: bounds of the length scales (rad)
 LENGTH_BOUNDS = (0.05, 100.0)
 #: the hyperparameters are fitted on at most this many poses (chosen at random), in at most this many iterations
