@@ -148,3 +148,22 @@ def test_a_left_out_session_keeps_the_robot_and_fits_its_own_base():
         rest = r[F] + J[F] @ d
         d[own] = np.linalg.lstsq(J[F][:, :, own].reshape(-1, 1), -rest.reshape(-1), rcond=None)[0][0]
         assert np.allclose(cv.errors["session"][F], np.linalg.norm(r[F] + J[F] @ d, axis=1), atol=1e-9)
+
+
+def test_terms_of_one_session_in_a_calibration():
+    """calibrate with terms of one session (a periodic error and a drift of B): each is fitted at B's poses
+    only, the notes name them by their own parameters, and the JSON reads back to the same predictions."""
+    import tempfile
+    from casadical import load_calibration
+    from casadical.physics import term_causes
+
+    robot, cal, val, _ = two_sessions(ARM7_DH, 2e4, 0)
+    res = calibrate(robot, cal, "kinematic+compliance[2]+joint_periodic[2:3]@B+drift@B", "lm", warn=False,
+                    session_tools=True)
+    labels = [c.label for c in term_causes(res)]
+    assert "periodic error of joint 2, harmonic 3 in session B" in labels and "drift in session B" in labels
+    assert res.parameters["drift_x@B"].value == pytest.approx(1e-6, rel=0.2)
+    with tempfile.TemporaryDirectory() as d:
+        res.save(f"{d}/c.json")
+        again = load_calibration(f"{d}/c.json")
+    assert np.abs(again.predict(val) - res.predict(val)).max() < 1e-12
