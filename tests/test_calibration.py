@@ -173,9 +173,10 @@ def test_real_ur10_series_b_held_out():
     assert held.mean_mm < 0.6 * nominal.mean_mm
 
 
-#: IPOPT's tolerances before issue 21: on the summed objective (mm^2) whatever the number of poses
+#: IPOPT's tolerances before issue 21: on the summed objective (mm^2) whatever the number of poses, and
+#: IPOPT's own tiny_step_tol (10 machine epsilons)
 SUM_TOLERANCES = {"tol": 1e-8, "acceptable_tol": 1e-6, "compl_inf_tol": 1e-4, "acceptable_compl_inf_tol": 1e-2,
-                  "barrier_tol_factor": 10}
+                  "barrier_tol_factor": 10, "tiny_step_tol": 10 * 2.0 ** -52}
 
 
 def _record_ipopt(monkeypatch) -> list:
@@ -247,6 +248,25 @@ def test_ipopt_tolerances_are_per_pose(monkeypatch):
     assert sum(nf for _, _, nf in many_solves) <= 2 * sum(it for _, it, _ in many_solves)   # no line search stalls
     dv = np.abs(many.parameters.values - one.parameters.values) / one.parameters.scales
     assert dv.max() < 1e-6
+
+
+def test_ipopt_ending_on_tiny_steps_is_converged():
+    """IPOPT ends with "Search_Direction_Becomes_Too_Small" after two Newton steps in a row below tiny_step_tol
+    with the barrier parameter at its floor: the best the rounding allows, a converged solve (forced here from
+    LM's optimum: a barrier parameter that cannot fall, every step tiny)."""
+    from casadical.problem import CalibrationProblem
+    from casadical.solvers import make_solver
+
+    robot = load_robot("ys100")
+    data, _ = simulate(robot, 300, Effects(), seed=1)
+    lm = calibrate(robot, data, "kinematic", "lm", warn=False)
+    prob = CalibrationProblem(lm.model, lm.parameters.copy(), data.q, data.xyz, lm.model.covariates(data), lm.base0,
+                              lm.loss)
+    forced = {"tiny_step_tol": 1e10, "tol": 1e-30, "mu_init": 1e-9, "mu_target": 1e-9}
+    x = prob.x_from_values(lm.parameters.values)
+    res = make_solver("ipopt", options=forced).solve(prob, x)
+    assert res.status == "Search_Direction_Becomes_Too_Small" and res.success
+    assert np.abs(res.x - x).max() < 1e-6     # stayed at the optimum (scaled units)
 
 
 def test_auto_hands_max_iter_to_ipopt():
