@@ -75,7 +75,10 @@ def cmd_compare(args) -> int:
                           file=sys.stderr)
             bar.update(1)
 
-        results = compare(robot, cal, val, extra, methods, args.seed, progress=progress)
+        def starting(name: str) -> None:     # the bar says which method runs (some take seconds)
+            bar.set_postfix_str(f"running {name}")
+
+        results = compare(robot, cal, val, extra, methods, args.seed, progress=progress, starting=starting)
     print(file=out)
     print(format_table(results), file=out)
     for r in results:

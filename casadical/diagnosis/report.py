@@ -70,7 +70,7 @@ class Step:
         ``+ session compensator``; the whole model is :attr:`model`."""
         c = self.candidate
         if c is None:
-            return self.model if len(self.model) <= 24 else "nominal"
+            return self.model          # the nominal model
         if c.cause == "geometric":
             return "kinematic"
         if c.cause == "unexplained":
