@@ -22,7 +22,8 @@ Usage::
 
     python benchmarks/study_accuracy.py                       # A and B, seeds 0-2 (about 5 minutes)
     python benchmarks/study_accuracy.py --series b --seeds 0  # one run
-    python benchmarks/study_accuracy.py --json out.json --before /tmp/before
+    python benchmarks/study_accuracy.py --json out.json --before /tmp/before --plot docs/img/ur10_accuracy.png
+    python benchmarks/study_accuracy.py --from-json out.json --plot docs/img/ur10_accuracy.png
 """
 
 from __future__ import annotations
@@ -107,6 +108,9 @@ def one(robot, src: Measurements, other: Measurements, name: str, n: int, seed: 
     if before is not None and (before / f"{name}{seed}_final.json").exists():
         old = load_calibration(before / f"{name}{seed}_final.json")
         old.model.jit = False
+        if old.model.term("drift") is not None and val.get("time_s") is None:
+            # the earlier version took each pose's row in its file for a time: so it judged its own drift
+            cal, val = (Measurements(dict(d.columns)).with_row_times(1.0) for d in (cal, val))
         old_doc = json.loads((before / f"{name}{seed}_report.json").read_text())
         named = [f for f in old_doc["findings"] if f["in_model"] and f["cause"] not in ("geometric", "unexplained")]
         out["before"] = {"final_model": old.model.spec, "val_mm": old.stats(val).mean_mm,
@@ -122,7 +126,12 @@ def main() -> None:
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     ap.add_argument("--before", type=Path, help="folder of an earlier version's final models and reports")
     ap.add_argument("--json", help="write the results here")
+    ap.add_argument("--plot", help="write the side-by-side figure (PNG) here")
+    ap.add_argument("--from-json", help="plot results written before by --json instead of running")
     args = ap.parse_args()
+    if args.from_json:
+        plot(json.loads(Path(args.from_json).read_text()), args.plot)
+        return
     warnings.simplefilter("ignore")
     robot = load_robot("ur10")
     series = {s: Measurements.read_csv(DATA / f"series_{s}.csv", n_joints=6) for s in "ab"}
@@ -150,10 +159,45 @@ def main() -> None:
                       f"causes break a rule: {'; '.join(b['broken_rules'])[:400]}")
     if args.json:
         Path(args.json).write_text(json.dumps(results, indent=1))
+    if args.plot:
+        plot(results, args.plot)
     ok = all(not r["broken_rules"] and r["final_val_mm"] <= r["kinematic_gp_val_mm"]
              and r["across"]["refit_mm"] < r["across"]["kinematic_refit_mm"] and not r["across"]["session_terms_carried"]
              for r in results)
     print(f"\nissue 19's conditions {'hold' if ok else 'do NOT hold'} in all {len(results)} runs")
+
+
+def plot(results: list[dict], path: str) -> None:
+    """Mean error per run: in series (kinematic, kinematic + GP, final) and in the other series with the
+    geometry refitted (kinematic, the physical model frozen), with the earlier version beside."""
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    fig, axes = plt.subplots(1, 2, figsize=(12, 4.2), sharey=True)
+    labels = [f"{r['series'].upper()} {r['seed']}" for r in results]
+    x = np.arange(len(results))
+    panels = [("in the same series (held-out poses)",
+               [("kinematic", "#bbbbbb", lambda r: r["kinematic_val_mm"]),
+                ("kinematic + GP", "#ccbb44", lambda r: r["kinematic_gp_val_mm"]),
+                ("earlier diagnosis", "#ee8866", lambda r: r.get("before", {}).get("val_mm", np.nan)),
+                ("diagnosed (final)", "#4477aa", lambda r: r["final_val_mm"])]),
+              ("other series, geometry refitted there",
+               [("kinematic", "#bbbbbb", lambda r: r["across"]["kinematic_refit_mm"]),
+                ("earlier diagnosis", "#ee8866", lambda r: r.get("before", {}).get("across", {}).get("refit_mm", np.nan)),
+                ("physical model, frozen", "#4477aa", lambda r: r["across"]["refit_mm"])])]
+    for ax, (title, bars) in zip(axes, panels):
+        w = 0.8 / len(bars)
+        for k, (name, colour, value) in enumerate(bars):
+            ax.bar(x + (k - (len(bars) - 1) / 2) * w, [value(r) for r in results], w, color=colour, label=name)
+        ax.set_xticks(x, labels)
+        ax.set_title(title, fontsize=10)
+        ax.set_xlabel("source series, seed (300 calibration poses)")
+        ax.grid(axis="y", alpha=0.3)
+        ax.legend(fontsize=8, frameon=False, loc="upper left", ncol=2)
+    axes[0].set_ylabel("mean position error (mm)")
+    axes[0].set_ylim(0, 1.15 * max(axes[0].get_ylim()[1], axes[1].get_ylim()[1]))
+    fig.tight_layout()
+    fig.savefig(path, dpi=110)
 
 
 if __name__ == "__main__":

@@ -506,7 +506,8 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
             if lin.weights[i] >= DOWNWEIGHT_REPORT:
                 break
             down.append({"line": int(data.lines[i]), "residual_mm": float(norms[i] * 1000),
-                         "weight": float(lin.weights[i]), **({"file": data.file(i)} if data.sources is not None else {})})
+                         "weight": float(lin.weights[i]),
+                         **({"file": data.file(i)} if data.sources is not None else {})})
             if full_pose:
                 down[-1]["orientation_deg"] = math.degrees(float(np.linalg.norm(lin.r_rot[i])))
         if down:

@@ -39,7 +39,7 @@ motor) is not play, and is reported as such.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
@@ -55,6 +55,9 @@ MIN_SIDE_POSES = 5
 MIN_SIDE_SHARE = 0.02
 #: significance level of the Wald test of a cause's parameters
 ALPHA = 0.001
+#: terms that are no cause: the geometry, the probe's mounting, the sessions' base poses (compensators, whose
+#: cause is 'unexplained', are none either)
+NOT_CAUSES = ("geometric", "tool_orientation", "sessions")
 
 
 @dataclass
@@ -73,9 +76,6 @@ class Violation:
     parameters: tuple[str, ...]
     text: str
 
-    def to_dict(self) -> dict:
-        return {"rule": self.rule, "parameters": list(self.parameters), "text": self.text}
-
 
 @dataclass
 class Cause:
@@ -87,8 +87,6 @@ class Cause:
         The term's name (``joint_compliance``, ``backlash``, ...).
     joint : int or None
     parameters : list of str
-    source : str or None
-        For backlash: ``torque`` or ``motion``.
     label : str
         In words, for messages.
     """
@@ -96,33 +94,31 @@ class Cause:
     term: str
     joint: int | None
     parameters: list[str]
-    source: str | None = None
-    label: str = field(default="")
+    label: str
 
 
 def term_causes(result) -> list[Cause]:
-    """The causes of a fitted model: every term other than the geometry, split by joint (and harmonic)."""
+    """The causes of a fitted model: every term other than the geometry, the probe's mounting, the sessions'
+    frames and the compensators, split by joint (and harmonic); a term of one session says which."""
     out = []
     for t in result.model.terms:
-        if t.name == "geometric":
+        if t.name in NOT_CAUSES or t.cause == "unexplained":
             continue
         names = [p.name for p in t.parameters(result.model.robot)]
-        if not names:
-            continue
-        if t.name == "joint_periodic":
-            for j, h in t.harmonics:
-                out.append(Cause(t.name, j, [f"gear{j}_s{h}", f"gear{j}_c{h}"],
-                                 label=f"periodic error of joint {j}, harmonic {h}"))
+        inner = getattr(t, "inner", t)          # a term of one session (SessionLocal)
+        where = f" in session {t.session_name}" if inner is not t else ""
+        if t.name == "joint_periodic":          # (sine, cosine) pairs, in the order of the harmonics
+            for (j, h), pair in zip(inner.harmonics, zip(names[0::2], names[1::2])):
+                out.append(Cause(t.name, j, list(pair), f"periodic error of joint {j}, harmonic {h}{where}"))
         elif t.name == "drift":
-            out.append(Cause(t.name, None, names, label=t.name.replace("_", " ")))
+            out.append(Cause(t.name, None, names, f"drift{where}"))
         else:
-            params = result.parameters
-            source = getattr(t, "source", None)
+            what = "backlash" if t.name.startswith("backlash") else t.name.replace("_", " ")
+            motion = " (direction of motion)" if getattr(inner, "source", None) == "motion" else ""
             for n in names:
-                j = params[n].joint
-                out.append(Cause(t.name, j, [n], source,
-                                 f"{t.name.replace('_', ' ')}{' (direction of motion)' if source == 'motion' else ''}"
-                                 + (f" of joint {j}" if j is not None else "")))
+                j = result.parameters[n].joint
+                out.append(Cause(t.name, j, [n], f"{what}{motion}"
+                                                 + (f" of joint {j}" if j is not None else "") + where))
     return out
 
 

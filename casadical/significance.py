@@ -326,8 +326,8 @@ def _groups(params: list[Parameter]) -> dict:
     out: dict = {}
     for p in params:
         key = p.joint
-        if p.term == "joint_periodic" and "_" in p.name:
-            key = (p.joint, int(p.name.rsplit("_", 1)[1][1:]))     # gear2_s17 -> (2, 17)
+        if p.term == "joint_periodic" and "_" in p.name:            # gear2_s17 (or gear2_s17@B) -> (2, 17)
+            key = (p.joint, int(p.name.split("@")[0].rsplit("_", 1)[1][1:]))
         out.setdefault(key, []).append(p)
     return out
 
@@ -344,7 +344,7 @@ def significance_notes(model, params: Parameters, tests: dict[str, ParameterTest
     for term in model.terms:
         if term.name in UNNOTED_TERMS:
             continue
-        own = [p for p in params.select(term=term.name) if p.name in tests]
+        own = [params[q.name] for q in term.parameters(model.robot) if q.name in tests]   # the term's own
         weak, strong, weak_keys = [], [], []
         for key, group in _groups(own).items():
             significant = any(tests[p.name].significant for p in group)
@@ -388,6 +388,8 @@ def warn_not_significant(model, params: Parameters, dof: float, level: float = L
 
 def _reduced_spec(model, term, kept: list[Parameter], dropped: list) -> str:
     """The model specification without what of ``term`` has no significant parameter ('' if not expressible)."""
+    if hasattr(term, "inner"):      # a term of one session: said without a specification
+        return ""
     if term.name == "joint_periodic":
         left = [jh for jh in term.harmonics if jh not in dropped]
         part = f"{term.name}[{','.join(f'{j}:{h}' for j, h in left)}]" if left else ""

@@ -364,7 +364,8 @@ def load_protocol(spec: str | Path) -> Protocol:
 
 #: keys of a protocol's ``[truth]`` table
 TRUTH_KEYS = {"length_sigma_mm", "angle_sigma_deg", "noise_mm", "stiffness", "periodic_deg", "encoder_scale",
-              "backlash_deg", "backlash_motion_deg", "thermal_alpha", "thermal_links", "cubic", "base_xyz_m", "base_rpy_deg"}
+              "backlash_deg", "backlash_motion_deg", "thermal_alpha", "thermal_links", "cubic", "base_xyz_m",
+              "base_rpy_deg"}
 #: keys of a protocol's ``[workspace]`` table
 WORKSPACE_KEYS = {"floor_z_m", "box_min_m", "box_max_m"}
 

@@ -22,21 +22,9 @@ from casadical.files import atomic_write, outputs_together
 from casadical.robot import robot_from_dict
 from casadical.simulate import Effects, simulate
 
+from test_robust import cli, one_error   # the command line in-process, and its one-line errors
+
 ROOT = Path(__file__).resolve().parent.parent
-
-
-def cli(capsys, *args):
-    """The command line in-process: exit code, stdout, stderr lines."""
-    code = main([str(a) for a in args])
-    out, err = capsys.readouterr()
-    return code, out, [line for line in err.strip().splitlines() if line]
-
-
-def one_error(err, *parts):
-    assert len(err) == 1, err
-    assert err[0].startswith("casadical: error: "), err
-    for part in parts:
-        assert part in err[0], err
 
 
 @functools.cache

@@ -159,3 +159,46 @@ def test_the_base_reference_is_shown_wherever_the_base_parameters_are(tmp_path, 
     one = calibrate(robot, cal.subset(cal.sessions == "A"), "kinematic", "lm", warn=False)
     assert "  = reference pose base0 xyz [" in one.summary()
     assert "the calibration's reference pose base0 (xyz [" in parameter_table(one).to_markdown()
+
+
+def test_a_left_out_session_keeps_the_robot_and_fits_its_own_base():
+    """The session fold of the linearised cross-validation: the robot's parameters come from the other
+    sessions, the left-out session's own (its base pose) from its own poses, exactly as two least-squares
+    fits in turn give them."""
+    from casadical.diagnosis.validation import linear_cv, session_scheme
+
+    rng = np.random.default_rng(0)
+    n = 40
+    sessions = np.array(["A"] * n + ["B"] * n, dtype=object)
+    J = np.zeros((2 * n, 3, 4))
+    J[:, :, :2] = rng.normal(size=(2 * n, 3, 2))              # two robot parameters
+    J[:n, :, 2] = rng.normal(size=(n, 3))                     # session A's own
+    J[n:, :, 3] = rng.normal(size=(n, 3))                     # session B's own
+    r = rng.normal(size=(2 * n, 3))
+    cv = linear_cv(J, r, np.ones(2 * n), [session_scheme(sessions)])
+    for own, F, T in ((2, np.arange(n), np.arange(n, 2 * n)), (3, np.arange(n, 2 * n), np.arange(n))):
+        other = [0, 1, 5 - own]                               # robot + the training session's own
+        d = np.zeros(4)
+        d[other] = np.linalg.lstsq(J[T][:, :, other].reshape(-1, 3), -r[T].reshape(-1), rcond=None)[0]
+        rest = r[F] + J[F] @ d
+        d[own] = np.linalg.lstsq(J[F][:, :, own].reshape(-1, 1), -rest.reshape(-1), rcond=None)[0][0]
+        assert np.allclose(cv.errors["session"][F], np.linalg.norm(r[F] + J[F] @ d, axis=1), atol=1e-9)
+
+
+def test_terms_of_one_session_in_a_calibration():
+    """calibrate with terms of one session (a periodic error and a drift of B): each is fitted at B's poses
+    only, the notes name them by their own parameters, and the JSON reads back to the same predictions."""
+    import tempfile
+    from casadical import load_calibration
+    from casadical.physics import term_causes
+
+    robot, cal, val, _ = two_sessions(ARM7_DH, 2e4, 0)
+    res = calibrate(robot, cal, "kinematic+compliance[2]+joint_periodic[2:3]@B+drift@B", "lm", warn=False,
+                    session_tools=True)
+    labels = [c.label for c in term_causes(res)]
+    assert "periodic error of joint 2, harmonic 3 in session B" in labels and "drift in session B" in labels
+    assert res.parameters["drift_x@B"].value == pytest.approx(1e-6, rel=0.2)
+    with tempfile.TemporaryDirectory() as d:
+        res.save(f"{d}/c.json")
+        again = load_calibration(f"{d}/c.json")
+    assert np.abs(again.predict(val) - res.predict(val)).max() < 1e-12

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
-from .common import (STDOUT, Status, add_checks, add_force, add_quiet, add_row_spacing, add_urdf_chain, check_options,
-                     check_outputs, fold_long_lines, human_stream, int_at_least, robot_or_calibration, timed,
-                     write_text)
+from .common import (STDOUT, Status, add_checks, add_force, add_quiet, add_row_spacing, add_session_tool,
+                     add_urdf_chain, check_options, check_outputs, fold_long_lines, human_stream, int_at_least,
+                     robot_or_calibration, timed, write_text)
 
 
 def register(sub) -> None:
@@ -44,9 +44,7 @@ def register(sub) -> None:
     p.add_argument("--keep-compensator", action="store_true",
                    help="with a calibration JSON in place of ROBOT: keep its session compensator (gp_compensator), "
                         "which is dropped otherwise like every term of the session it was fitted on")
-    p.add_argument("--session-tool", action="store_true",
-                   help="with several sessions: each session after the first has its own tool offset too (the "
-                        "probe was re-mounted between them)")
+    add_session_tool(p)
     p.add_argument("--validate", metavar="VAL.csv",
                    help="held-out poses, never fitted: their errors (mean, max, rms mm) are printed, written to "
                         "CAL.json ('validation') and shown in the HTML report")

@@ -234,6 +234,13 @@ def add_row_spacing(p: argparse.ArgumentParser) -> None:
                         "Without it such files have no time, and no drift is fitted")
 
 
+def add_session_tool(p: argparse.ArgumentParser) -> None:
+    """``--session-tool``: with several sessions, each after the first has its own tool offset."""
+    p.add_argument("--session-tool", action="store_true",
+                   help="with several sessions: each session after the first has its own tool offset too (the "
+                        "probe was re-mounted between them)")
+
+
 def timed(data, args):
     """``data`` with times from its rows if ``--row-spacing-s`` was given and it has no ``time_s``."""
     spacing = getattr(args, "row_spacing_s", None)

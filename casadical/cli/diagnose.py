@@ -3,9 +3,9 @@
 from __future__ import annotations
 
 from ..errors import InputError
-from .common import (STDOUT, Status, add_checks, add_force, add_quiet, add_row_spacing, add_urdf_chain, check_options,
-                     check_outputs, float_in, human_stream, int_at_least, robot_from_args, timed, write_json,
-                     write_text)
+from .common import (STDOUT, Status, add_checks, add_force, add_quiet, add_row_spacing, add_session_tool,
+                     add_urdf_chain, check_options, check_outputs, float_in, human_stream, int_at_least,
+                     robot_from_args, timed, write_json, write_text)
 
 
 def register(sub) -> None:
@@ -62,9 +62,7 @@ def register(sub) -> None:
                         "rz_deg) are fitted on the full pose, as by calibrate (the screening of candidates works on "
                         "the positions either way)")
     p.add_argument("--seed", type=int, default=0, help="seed of the cross-validation folds (default: %(default)s)")
-    p.add_argument("--session-tool", action="store_true",
-                   help="with several sessions: each session after the first has its own tool offset too (the "
-                        "probe was re-mounted between them)")
+    add_session_tool(p)
     add_row_spacing(p)
     add_checks(p)
     add_quiet(p)

@@ -12,8 +12,9 @@ is really there also predicts where the model has to extrapolate:
 - ``session``, with data of several measurement sessions: each session
   left out in turn (what holds for the robot predicts a session it was
   not fitted on; the left-out session's own base pose, which the others
-  cannot tell, stays at the fit on all poses). With several sessions the
-  time blocks are cut within each session.
+  cannot tell, is estimated on its own poses with the robot's values
+  held). With several sessions the time blocks are cut within each
+  session.
 
 Each fold is refitted by one Gauss-Newton step from the fit on all poses,
 with the training poses only (exact for a linear model, and the
@@ -162,7 +163,11 @@ def linear_cv(J: np.ndarray, r: np.ndarray, weights: np.ndarray, all_schemes: li
     all_schemes : list of Scheme
 
     Directions the training poses of a fold cannot determine stay at the
-    fit on all poses (:func:`solve_identified`).
+    fit on all poses (:func:`solve_identified`). Parameters that only the
+    left-out poses inform (a left-out session's own base pose, tool, or
+    terms) are then estimated on those poses themselves, the rest held: the
+    robot's values must come from the other sessions, the session's own
+    from the session, as when a calibration is taken to a new session.
     """
     N, _, p = J.shape
     sw = np.sqrt(weights)[:, None, None]
@@ -173,15 +178,26 @@ def linear_cv(J: np.ndarray, r: np.ndarray, weights: np.ndarray, all_schemes: li
     A, g = J2.T @ J2, J2.T @ r2
     folds = [F for s in all_schemes for F in s.folds]
     AT, gT = np.empty((len(folds), p, p)), np.empty((len(folds), p))
+    owns = []
     for k, F in enumerate(folds):
         JF, rF = Jw[F].reshape(-1, p), rw[F].reshape(-1)
         AT[k], gT[k] = A - JF.T @ JF, g - JF.T @ rF
+        # what only the left-out poses inform: exactly out of the training system (the subtraction leaves
+        # rounding, which the normalisation of solve_identified would blow up)
+        own = np.diag(AT[k]) <= 1e-9 * np.maximum(np.diag(A), 1e-300)
+        AT[k][own, :], AT[k][:, own], gT[k][own] = 0.0, 0.0, 0.0
+        owns.append(own)
     steps = iter(-solve_identified(AT, gT))      # every fold of every scheme in one stacked solve
+    owns = iter(owns)
     out = CVResult()
     for s in all_schemes:
         err = np.empty(N)
         for F in s.folds:
-            err[F] = np.linalg.norm(r[F] + J[F] @ next(steps), axis=1)
+            d, own = next(steps), next(owns)
+            if own.any():   # the left-out poses' own parameters, on those poses
+                JF = Jw[F].reshape(-1, p)
+                d[own] = np.linalg.lstsq(JF[:, own], -(rw[F].reshape(-1) + JF @ d), rcond=None)[0]
+            err[F] = np.linalg.norm(r[F] + J[F] @ d, axis=1)
         out.errors[s.name] = err
     return out
 
