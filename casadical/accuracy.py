@@ -20,6 +20,8 @@ process conditioned on each fold's training poses only.
 
 from __future__ import annotations
 
+from typing import Callable
+
 import numpy as np
 
 from .calibration import learning_mask, rebuilt
@@ -48,9 +50,10 @@ def layer_data(result: CalibrationResult, data: Measurements) -> tuple[np.ndarra
 
 
 def fit_layer(result: CalibrationResult, data: Measurements, max_std_ratio: float = MAX_STD_RATIO,
-              seed: int = 0) -> tuple[dict[str | None, ResidualGP], dict[str | None, np.ndarray]]:
+              seed: int = 0, progress: Callable[[str], None] | None = None
+              ) -> tuple[dict[str | None, ResidualGP], dict[str | None, np.ndarray]]:
     """A Gaussian process of the residual per session (key None for data of one session), and the poses of
-    ``data`` each learnt from."""
+    ``data`` each learnt from; ``progress`` receives a line per session."""
     X, Y, keep = layer_data(result, data)
     gps: dict[str | None, ResidualGP] = {}
     rows: dict[str | None, np.ndarray] = {}
@@ -58,6 +61,9 @@ def fit_layer(result: CalibrationResult, data: Measurements, max_std_ratio: floa
         idx = idx[keep[idx]]
         if len(idx) > MAX_POSES:
             idx = np.sort(np.random.default_rng(seed).choice(idx, MAX_POSES, replace=False))
+        if progress is not None:
+            progress(f"  hyperparameters of the processes{f' of session {s}' if s else ''}: {len(idx)} poses, "
+                     "x, y and z")
         gps[s or None] = ResidualGP.fit(X[idx], Y[idx], max_std_ratio=max_std_ratio, seed=seed)
         rows[s or None] = idx
     return gps, rows
@@ -91,19 +97,22 @@ def layer_coverage(result: CalibrationResult, data: Measurements) -> tuple[int, 
 
 @limited_threads()
 def held_out(gps: dict[str | None, ResidualGP], learnt: dict[str | None, np.ndarray], data: Measurements,
-             Y: np.ndarray, keep: np.ndarray, schemes) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+             Y: np.ndarray, keep: np.ndarray, schemes, progress: Callable[[str], None] | None = None
+             ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
     """Held-out residual norms (m) without and with the layer, by kind of fold, at the poses of ``keep``.
 
     Each fold's process is the session's process (hyperparameters of the
     fit on all poses) conditioned on the poses it learnt from (``learnt``,
     indices into ``data``) that are among the fold's training poses; where
-    it does not know it adds nothing.
+    it does not know it adds nothing. ``progress`` receives a line per kind of fold.
     """
     sessions = session_index(data)
     out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     idx_keep = np.flatnonzero(keep)
     for kind in dict.fromkeys(s.kind for s in schemes):
         group = [s for s in schemes if s.kind == kind]
+        if progress is not None:
+            progress(f"  held-out errors on the {kind} folds ({sum(len(g.folds) for g in group)} folds)")
         before, after = np.zeros(len(data)), np.zeros(len(data))
         for scheme in group:
             for F in scheme.folds:

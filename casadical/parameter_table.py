@@ -58,6 +58,7 @@ class ParameterTable:
     convention: str
     model: str
     rows: list[TableRow]
+    base: str = "base_pose_* = robot base in the measurement frame"
 
     @property
     def heading(self) -> str:
@@ -66,7 +67,7 @@ class ParameterTable:
     @property
     def conventions(self) -> str:
         return (f"{TRANSFORMS[self.convention]}; measured point = base * links * Tx(tool_x) Ty(tool_y) "
-                "Tz(tool_z); angles in deg, lengths in mm; base_pose_* = robot base in the measurement frame")
+                f"Tz(tool_z); angles in deg, lengths in mm; {self.base}")
 
     def to_csv(self) -> str:
         """CSV: one comment line (``#``) with the title, the column names, one line per row; full precision."""
@@ -118,7 +119,26 @@ def parameter_table(source: "CalibrationResult | Robot", description: str | None
     rows += [_row(p, calibrated) for p in params if p.term == "joint_compliance"]
     for j, (k, sk) in stiffness.items():
         rows.append(TableRow(j, f"k{j}", "N*m/rad", math.nan, k, math.nan, sk, True, False, f"derived: 1/c{j}"))
-    return ParameterTable(robot.name, robot.convention, description or model, rows)
+    base = base_words(source) if calibrated else \
+        "base_pose_* = robot base in the measurement frame, the robot file's (nominal)"
+    return ParameterTable(robot.name, robot.convention, description or model, rows, base)
+
+
+def base_words(result: "CalibrationResult") -> str:
+    """What the ``base_pose_*`` rows are: the reference pose of the calibration moved by its fitted deviations (and
+    each other session's base, which the rows do not hold)."""
+    def pose(xyz, rpy) -> str:
+        return (f"xyz [{', '.join(f'{v * 1000:.3f}' for v in xyz)}] mm, rpy "
+                f"[{', '.join(f'{math.degrees(v):.4f}' for v in rpy)}] deg")
+
+    sessions = result.sessions
+    text = ("base_pose_* = robot base in the measurement frame" + (f" of session {sessions[0]}" if sessions else "")
+            + f": the calibration's reference pose base0 ({pose(*result.base_reference())}, the closed-form "
+              "alignment its fit started from) moved by its fitted deviations base_x .. base_yaw")
+    for s in sessions[1:]:
+        text += (f"; session {s}: its reference {pose(*result.base_reference(s))} moved by base_x@{s} .. "
+                 f"base_yaw@{s} gives {pose(*result.base_pose(s))}")
+    return text
 
 
 def _row(p: Parameter, calibrated: bool) -> TableRow:

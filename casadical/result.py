@@ -268,6 +268,35 @@ class CalibrationResult:
         T = self.base_matrix(session)
         return T[:3, 3], matrix_to_rpy(T[:3, :3])
 
+    def base_reference(self, session: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """The reference pose the base parameters ``base_x .. base_yaw`` (of ``session``: ``base_x@S ..``)
+        deviate from: ``base0`` (the primary session's), else the session's reference; translation (m) and
+        roll-pitch-yaw (rad). The base pose is this reference moved by the deviations (:meth:`base_pose`)."""
+        sessions = self.sessions
+        if session is None or not sessions or session == sessions[0]:
+            ref = self.base0
+        elif session in sessions:
+            ref = self.model.term("sessions").references[session]
+        else:
+            raise InputError(f"no session {session!r} in this calibration (sessions: {', '.join(sessions)})")
+        T = base0_to_pose(ref)
+        return T[:3, 3], matrix_to_rpy(T[:3, :3])
+
+    def base_lines(self) -> list[str]:
+        """The base pose of each session in words, with the reference its parameters deviate from."""
+        sessions = self.sessions
+        out = []
+        for s in sessions or [None]:
+            xyz, rpy = self.base_pose(s)
+            rx, rr = self.base_reference(s)
+            at = "" if s is None or s == sessions[0] else f"@{s}"
+            out.append(f"base in the measurement frame{f' of session {s}' if s else ''}: xyz [{_xyz(xyz)}] mm, "
+                       f"rpy [{_rpy(rpy)}] deg")
+            out.append(f"  = reference pose {'base0' if not at else 'of session ' + s} xyz [{_xyz(rx)}] mm, rpy "
+                       f"[{_rpy(rr)}] deg (the closed-form alignment the fit started from), moved by base_x{at} .. "
+                       f"base_yaw{at}")
+        return out
+
     def stiffness(self) -> dict[int, tuple[float, float]]:
         """Joint stiffness k_j = 1 / c_j (N m/rad) with its standard error, compliant joints only.
 
@@ -361,11 +390,7 @@ class CalibrationResult:
         if self.uncertainty is not None:
             lines.append(f"residual sigma {self.uncertainty.sigma * 1000:.4f} mm per axis, "
                          f"{self.uncertainty.dof} degrees of freedom")
-        for s in self.sessions or [None]:
-            xyz, rpy = self.base_pose(s)
-            lines.append(f"base in the measurement frame{f' of session {s}' if s else ''}: xyz ["
-                         + ", ".join(f"{v * 1000:.3f}" for v in xyz)
-                         + "] mm, rpy [" + ", ".join(f"{math.degrees(v):.4f}" for v in rpy) + "] deg")
+        lines += self.base_lines()
         tests = self.significance()
         lines += ["", "identified parameters (angles in deg, lengths in mm; t = deviation/std, significant at "
                       f"{100 * LEVEL:g} % when |t| > {t_critical(LEVEL, self._dof()):.3g}; rel.std = std/|deviation|):",
@@ -485,6 +510,14 @@ class CalibrationResult:
 
 _NOT_POSITIVE = ("no positive stiffness: compliance c{j} = {c:.3g} rad/(N*m) is not above 0, the joint is "
                  "stiffer than these poses and loads can tell")
+
+
+def _xyz(xyz_m) -> str:
+    return ", ".join(f"{v * 1000:.3f}" for v in xyz_m)
+
+
+def _rpy(rpy_rad) -> str:
+    return ", ".join(f"{math.degrees(v):.4f}" for v in rpy_rad)
 
 
 def _test_entry(test: ParameterTest | None, display, interval: tuple[float, float] | None = None) -> dict:

@@ -1,5 +1,6 @@
 """The command line: every command's help, inspect, predict, and one-line errors."""
 
+import json
 import subprocess
 import sys
 
@@ -113,3 +114,80 @@ def test_every_option_has_help_with_its_default():
                   and "default" not in h):
                 missing.append(f"{name} {a.option_strings}: default {a.default!r} not in its help")
     assert not missing, missing
+
+
+# --- outputs on standard output, and what a command needs to write ---------------------------------------------
+
+
+@pytest.fixture(scope="module")
+def poses(tmp_path_factory):
+    """Calibration and validation poses of the YS100 with a compliant joint, and candidate poses."""
+    from casadical import load_robot
+    from casadical.simulate import Effects, simulate
+
+    d = tmp_path_factory.mktemp("poses")
+    robot = load_robot("ys100")
+    cal, truth = simulate(robot, 40, Effects(stiffness={2: 1.5e6}), seed=3)
+    val, _ = simulate(robot, 40, truth=truth, seed=4)
+    cal.write_csv(d / "cal.csv")
+    val.write_csv(d / "val.csv")
+    assert main(["candidates", "ys100", "-n", "300", "--out", str(d / "cand.csv")]) == 0
+    return d
+
+
+#: a command line with --json - for every command that has --json (check: test_every_json_command_is_covered)
+JSON_COMMANDS = {
+    "inspect": ["inspect", "ys100", "--poses", "40"],
+    "compare": ["compare", "ys100", "{d}/cal.csv", "--validate", "{d}/val.csv", "--methods", "KM"],
+    "plan-poses": ["plan-poses", "ys100", "{d}/cand.csv", "-m", "30", "--out", "{d}/sel.csv", "--force"],
+    "diagnose": ["diagnose", "ys100", "{d}/cal.csv", "--validate", "{d}/val.csv", "--max-rounds", "1", "--no-layer",
+                 "--out", "{d}/final.json", "--force"],
+    "cache": ["cache", "--info"],
+}
+
+
+def test_every_json_command_is_covered():
+    import argparse
+
+    from casadical.cli import build_parser
+    sub = next(a for a in build_parser()._actions if isinstance(a, argparse._SubParsersAction))
+    with_json = {name for name, p in sub.choices.items() if any("--json" in a.option_strings for a in p._actions)}
+    assert with_json == set(JSON_COMMANDS)
+
+
+@pytest.mark.parametrize("cmd", sorted(JSON_COMMANDS))
+def test_json_to_standard_output_is_clean_json(cmd, poses):
+    """``--json -``: standard output holds exactly one JSON document; every line for people goes to stderr."""
+    r = run(*[a.format(d=poses) for a in JSON_COMMANDS[cmd]], "--json", "-")
+    assert r.returncode == 0, r.stderr
+    doc = json.loads(r.stdout)
+    assert isinstance(doc, dict) and doc
+    if cmd == "diagnose":       # the report (keys of INTERFACE.md) and the summary beside it, on stderr
+        assert {"steps", "findings", "final"} <= set(doc)
+        assert "findings (sizes in the final model" in r.stderr and "final model -> " in r.stderr
+    if cmd in ("compare", "plan-poses"):
+        assert "standard output" in r.stderr
+
+
+def test_one_output_at_most_on_standard_output(poses):
+    r = run("diagnose", "ys100", f"{poses}/cal.csv", "--validate", f"{poses}/val.csv", "--json", "-", "--html", "-")
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1 and "--json and --html both name standard output" in lines[0]
+
+
+def test_diagnose_needs_one_output_and_no_json_for_html(poses, tmp_path):
+    """--html alone is enough; without --json, --html and --out one line says what to give."""
+    r = run("diagnose", "ys100", f"{poses}/cal.csv", "--validate", f"{poses}/val.csv")
+    lines = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(lines) == 1 and "nothing to write" in lines[0] and "--html" in lines[0]
+    html = tmp_path / "r.html"
+    r = run("diagnose", "ys100", f"{poses}/cal.csv", "--validate", f"{poses}/val.csv", "--html", str(html),
+            "--max-rounds", "1", "--no-layer", "--quiet")
+    assert r.returncode == 0, r.stderr
+    assert html.read_text().startswith("<!DOCTYPE html>") and list(tmp_path.iterdir()) == [html]
+    assert f"html report -> {html}" in r.stdout and "report -> " not in r.stdout.replace("html report -> ", "")
+    # --html -: the page alone on standard output
+    r = run("diagnose", "ys100", f"{poses}/cal.csv", "--validate", f"{poses}/val.csv", "--html", "-",
+            "--max-rounds", "1", "--no-layer", "--quiet")
+    assert r.returncode == 0 and r.stdout.startswith("<!DOCTYPE html>") and r.stdout.rstrip().endswith("</html>")
+    assert "findings (sizes in the final model" in r.stderr

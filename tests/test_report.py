@@ -357,15 +357,29 @@ def test_two_reports_drawn_at_once_keep_their_own_figures():
 
 
 def test_diagnosis_report_steps_with_short_labels_and_full_specs(diagnosis_page):
+    """The accepted steps in one table, the others in a second (folded); each with a short label, the model it
+    extends and its gain against that model; the whole model on hover and in the legend."""
     report, html, page = diagnosis_page
-    rows = [r for r in page.table("steps") if r.get("#", "").isdigit()]
-    assert len(rows) == len(report.steps)
-    for r, s in zip(rows, report.steps):
-        assert float(r["validation mean mm"].split()[0]) == pytest.approx(s.validation.mean_mm, abs=1e-4)
-        assert r["accepted"] == ("yes" if s.accepted else "no")
+    rows = {}
+    for k in range(len(page.tables["steps"])):
+        rows.update({int(r["#"]): r for r in page.table("steps", k) if r.get("#", "").isdigit()})
+    assert sorted(rows) == list(range(1, len(report.steps) + 1))
+    assert any(not s.accepted for s in report.steps)        # both tables are read
+    for i, s in enumerate(report.steps, 1):
+        r = rows[i]
+        assert ("accepted step" in r) == s.accepted
+        label = r["accepted step"] if s.accepted else r["step"]
+        mean, *words = r["validation mean mm"].split()
+        assert float(mean) == pytest.approx(s.validation.mean_mm, abs=1e-4)
+        assert r["extends"] == ("\u2013" if s.parent is None else str(s.parent + 1))
+        if s.parent is not None:      # against the model it extends, as a gain
+            g = report.steps[s.parent].validation.mean_mm - s.validation.mean_mm
+            assert s.gain_mm == pytest.approx(g, abs=1e-12)
+            assert " ".join(words) == (f"{abs(g):.4f} {'better' if g > 0 else 'worse'}" if round(g, 4)
+                                       else f"no change ({abs(g):.4f})")
         # a short label; the whole model on hover and in a footnote
-        assert len(r["step"]) < 40
-        assert s.model in r["step"] or (s.model in page.titles and s.model in page.footnotes)
+        assert len(label) < 40
+        assert s.model in label or (s.model in page.titles and s.model in page.footnotes)
     assert page.footnotes and all(len(f) > 0 for f in page.footnotes)
 
 
@@ -377,7 +391,7 @@ def test_diagnosis_report_names_the_hidden_compliance_with_its_gain(diagnosis_pa
     assert page.h3[f"finding-{k}"] == f"{k}. joint_compliance joint 2: {f.gain_mm:.4f} mm better on validation"
     assert "validation mean -" not in page.text and "&minus;" not in html
     assert f"fig-finding-{k}" in page.figures
-    held = page.tables["findings"]
+    held = page.tables["evidence"]
     assert any(row[0] == "time" and "mm better" in row[3] for t in held for row in t[1:]), held
     # the final parameter table: every parameter, the compliance with its std
     params = page.table("parameters")
@@ -551,3 +565,159 @@ def test_diagnosis_report_in_a_browser(browser, diagnosis_page, tmp_path):
     assert_readable(seen)
     assert len(seen["svgs"]) == len(page.figures)
     assert any(a["text"].startswith("figure") for a in seen["links"])
+
+
+# --- the README job: a report that ends in a decision -------------------------------------------------------
+
+
+def _cli(*args):
+    """The command line in a subprocess, as a user runs it."""
+    import subprocess
+    import sys
+
+    return subprocess.run([sys.executable, "-m", "casadical", *map(str, args)], capture_output=True, text=True)
+
+
+#: the page of the README job before the report put the answer first (HTML 18,465 px tall, the findings at
+#: 5,743 px, after a 56-row steps table); the summary on stdout was 19,724 bytes with a 4,123-character line
+BEFORE_HEIGHT_PX = 18_465
+SERIES_B = os.path.join(os.path.dirname(__file__), "..", "problems", "datasets", "ur10-ipa", "series_b.csv")
+
+
+@pytest.fixture(scope="module")
+def readme_job(tmp_path_factory):
+    """The README's main job: series B split 300 / 1,195 (seed 0), diagnosed with JSON, HTML and the final model."""
+    d = tmp_path_factory.mktemp("readme")
+    r = _cli("split", SERIES_B, "-n", 300, "--seed", 0, "--out-cal", d / "cal.csv", "--out-val", d / "val.csv")
+    assert r.returncode == 0, r.stderr
+    r = _cli("diagnose", "ur10", d / "cal.csv", "--validate", d / "val.csv", "--json", d / "report.json",
+             "--html", d / "report.html", "--out", d / "final.json")
+    assert r.returncode == 0, r.stderr
+    return d, r, json.loads((d / "report.json").read_text())
+
+
+def _signed_gain(text: str) -> list[str]:
+    """Gains written with a sign, or with two: ``--0.0024``, ``-0.0030 mm better``, ``mean -0.0292 mm``."""
+    return re.findall(r"--\d|-\s?\d+\.\d+ mm (?:better|worse)|validation mean -\d|mean [+-]\d+\.\d+ mm with", text)
+
+
+def test_readme_summary_findings_first_and_short(readme_job):
+    d, r, doc = readme_job
+    lines = r.stdout.splitlines()
+    assert max(map(len, lines)) <= 200 and len(lines) <= 70 and len(r.stdout) < 8000, (max(map(len, lines)),
+                                                                                     len(lines))
+    head = next(k for k, x in enumerate(lines) if x.startswith("findings ("))
+    final = next(k for k, x in enumerate(lines) if x.startswith("final model: validation mean"))
+    assert head < final and not any(x.startswith("steps (") for x in lines)    # the steps: --verbose
+    # one row per finding, with what to do under it; the sizes of the final model, the gain against the parent
+    rows = [x for x in lines[head + 2:final] if re.match(r"\s+\d+\s", x)]
+    assert len(rows) == len(doc["findings"])
+    assert sum(x.lstrip().startswith("do: ") for x in lines) == len(doc["findings"])
+    for row, f in zip(rows, doc["findings"]):
+        assert f["summary"]["label"] in row and f["summary"]["size"] in row
+        if f["in_model"]:
+            assert f"{abs(f['gain_mm']):.4f} mm {'better' if f['gain_mm'] > 0 else 'worse'}" in row
+    comp = next(f for f in doc["findings"] if f["cause"] == "joint_compliance")
+    assert re.fullmatch(r"k2 = \d\.\d\de4 N m/rad \+- \d+\.\d %", comp["summary"]["size"])
+    assert "-> " in lines[-1] and f"final model -> {d / 'final.json'}" in r.stdout
+    assert not _signed_gain(r.stdout)
+    # the JSON keeps its keys (INTERFACE.md section 4) and adds the summary
+    assert {"steps", "findings", "final"} <= set(doc)
+    assert all({"cause", "gain_mm", "evidence", "summary"} <= set(f) for f in doc["findings"])
+
+
+def test_readme_each_gain_against_the_model_it_extends(readme_job):
+    """The step tried after the accepted compliance in the same round (encoder scale of joint 1) extends the
+    kinematic model: its gain is against that, not against the row above it."""
+    d, r, doc = readme_job
+    steps = doc["steps"]
+    k = next(i for i, s in enumerate(steps) if s["label"] == "+ compliance j2")
+    assert steps[k]["accepted"] and steps[k]["parent"] == 1
+    sibling = steps[k + 1]
+    assert not sibling["accepted"] and sibling["parent"] == 1 and sibling["label"] == "+ encoder scale j1"
+    assert sibling["gain_mm"] == pytest.approx(steps[1]["validation"]["mean_mm"] - sibling["validation"]["mean_mm"])
+    assert sibling["gain_mm"] > 0 > steps[k]["validation"]["mean_mm"] - sibling["validation"]["mean_mm"]
+    for s in steps[1:]:
+        parent = steps[s["parent"]]
+        assert s["gain_mm"] == pytest.approx(parent["validation"]["mean_mm"] - s["validation"]["mean_mm"])
+
+
+def test_readme_verbose_has_the_steps_and_their_models(readme_job, tmp_path):
+    d, _, _ = readme_job
+    r = _cli("diagnose", "ur10", d / "cal.csv", "--validate", d / "val.csv", "--out", tmp_path / "f.json",
+             "--verbose", "--no-layer")
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    assert max(map(len, lines + r.stderr.splitlines())) <= 200
+    at = {name: next(k for k, x in enumerate(lines) if x.startswith(name))
+          for name in ("findings (", "final model:", "steps (", "models (", "evidence of each")}
+    assert at["findings ("] < at["final model:"] < at["steps ("] < at["models ("] < at["evidence of each"]
+    # every step in the table by its short label, and in the legend by its whole model, never cut
+    legend = "\n".join(lines[at["models ("] + 1:at["evidence of each"]])
+    specs = re.sub(r"\+\n\s+", "+", re.sub(r",\n\s+", ",", legend))
+    doc = json.loads((d / "report.json").read_text())
+    for k, s in enumerate(doc["steps"][:-1], 1):      # (the last: the accuracy layer, not tried here)
+        assert re.search(rf"^\s+{k}\s+{re.escape(s['model'])}$", specs, re.M), s["model"]
+    assert "+ encoder scale j1" in r.stdout and "not accepted: " in r.stdout
+    assert not _signed_gain(r.stdout)
+    assert "fitting joint_compliance joint 2" in r.stderr       # every candidate's progress line
+
+
+def test_readme_page_answers_first_in_a_browser(browser, readme_job):
+    d, _, doc = readme_job
+    text = (d / "report.html").read_text(encoding="utf-8")
+    assert text.index('id="findings"') < text.index('id="errors"') < text.index('id="evidence"') \
+        < text.index('id="steps"')
+    page = Page(text)
+    rows = page.table("findings")
+    assert [r["finding"] for r in rows] == [f["summary"]["label"] for f in doc["findings"]]
+    assert not _signed_gain(page.text)
+    tab = browser.new_page()
+    tab.goto((d / "report.html").as_uri())
+    seen = tab.evaluate("""() => ({height: document.documentElement.scrollHeight,
+        findings: document.getElementById('findings').getBoundingClientRect().top + window.scrollY,
+        steps: document.getElementById('steps').getBoundingClientRect().top + window.scrollY,
+        row: document.querySelector('#findings ~ .scroll tbody tr').getBoundingClientRect().bottom})""")
+    tab.close()
+    # the answer in the first screen (900 px), the evidence below; the page much shorter than before
+    assert seen["findings"] < 400 and seen["row"] < 900 and seen["findings"] < seen["steps"], seen
+    assert seen["height"] < 0.7 * BEFORE_HEIGHT_PX, seen
+
+
+def test_a_rejected_step_after_an_accepted_one_gains_against_its_parent(diagnosis_page):
+    """Constructed: round 1 accepts a compliance (0.30 mm) and then tries an encoder scale on the same kinematic
+    model (0.39 mm): its gain is 0.01 mm better against that model, never 0.09 mm worse against the row above;
+    round 2 tries a backlash that is worse than its parent. Terminal and page say so, in words, without a sign."""
+    from dataclasses import replace
+
+    from casadical.diagnosis import Step
+    from casadical.result import ErrorStats
+
+    report, _, _ = diagnosis_page
+
+    def stats(mean):
+        return ErrorStats(100, mean, 2 * mean, 0.1, 1.1 * mean)
+
+    steps = [Step("nominal", stats(1.0), stats(1.0), True),
+             Step("kinematic", stats(0.4), stats(0.4), True, Candidate("geometric"), parent=0, parent_mm=1.0),
+             Step("kinematic+joint_compliance[2]", stats(0.3), stats(0.3), True, Candidate("joint_compliance", 2),
+                  parent=1, parent_mm=0.4),
+             Step("kinematic+encoder_scale[1]", stats(0.39), stats(0.39), False, Candidate("encoder_scale", 1),
+                  reason="the halves of the joint's range disagree", parent=1, parent_mm=0.4),
+             Step("kinematic+joint_compliance[2]+backlash[3]", stats(0.31), stats(0.3024), False,
+                  Candidate("backlash", 3, source="torque"), reason="BIC does not improve", parent=2, parent_mm=0.3)]
+    made = replace(report, steps=steps)
+    assert [s.gain_mm for s in steps[1:]] == pytest.approx([0.6, 0.1, 0.01, -0.0024])
+    text = made.text(verbose=True)
+    table = text.split("\nsteps (")[1].split("\nmodels (")[0]
+    rows = {int(x.split()[0]): x for x in table.splitlines() if re.match(r"\s+\d\s+(nominal|kinematic|\+)", x)}
+    assert "0.0100 mm better" in rows[4] and "no" == rows[4].split()[-1] and rows[4].split()[5] == "2"
+    assert "0.0024 mm worse" in rows[5] and rows[5].split()[-1] == "no"
+    assert not _signed_gain(text) and "-0.0024" not in text
+    page = Page(diagnosis_html(made))
+    accepted, rejected = page.table("steps", 0), page.table("steps", 1)
+    assert [r["#"] for r in accepted] == ["1", "2", "3"] and [r["#"] for r in rejected] == ["4", "5"]
+    assert rejected[0]["extends"] == "2" and rejected[0]["validation mean mm"] == "0.3900 0.0100 better"
+    assert rejected[1]["extends"] == "3" and rejected[1]["validation mean mm"] == "0.3024 0.0024 worse"
+    assert rejected[0]["why not accepted"] == "the halves of the joint's range disagree"
+    assert not _signed_gain(page.text)

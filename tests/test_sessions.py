@@ -126,6 +126,41 @@ def test_cli_several_files_are_sessions(tmp_path, capsys):
 
 
 
+def test_the_base_reference_is_shown_wherever_the_base_parameters_are(tmp_path, capsys):
+    """base_x .. base_yaw deviate from a reference pose (base0, one per session): the summary, the HTML parameter
+    section and the exported table say which, and the base pose it gives."""
+    import math
+
+    from casadical.parameter_table import parameter_table
+    from casadical.report import calibration_html
+
+    robot, cal, _, _ = two_sessions(ARM7_DH, 2e4, 3, drift=(0.0, 0.0, 0.0))
+    res = calibrate(robot, cal, "kinematic+compliance[2]", "lm", warn=False)
+    text = res.summary()
+    html = calibration_html(res, cal)
+    table = parameter_table(res).to_csv().splitlines()[0]
+    for s in ("A", "B"):
+        (rx, rr), (bx, br) = res.base_reference(s), res.base_pose(s)
+        ref = "xyz [" + ", ".join(f"{v * 1000:.3f}" for v in rx) + "] mm, rpy [" + ", ".join(
+            f"{math.degrees(v):.4f}" for v in rr) + "] deg"
+        pose = "xyz [" + ", ".join(f"{v * 1000:.3f}" for v in bx) + "] mm, rpy [" + ", ".join(
+            f"{math.degrees(v):.4f}" for v in br) + "] deg"
+        at = "" if s == "A" else "@B"
+        line = next(x for x in text.splitlines() if x.startswith(f"base in the measurement frame of session {s}:"))
+        assert pose in line
+        nxt = text.splitlines()[text.splitlines().index(line) + 1]
+        assert ref in nxt and f"base_x{at} .. base_yaw{at}" in nxt
+        assert ref in table and (s == "A" or pose in table)
+        assert f"<code>base_x{at}</code> .. <code>base_yaw{at}</code> deviate from" in html
+        assert ref.replace("[", "").replace("] mm, rpy", " mm, roll, pitch, yaw").replace("] deg", " deg") in html
+    # the references differ: the second session's is not base0
+    assert not np.allclose(res.base_reference("A")[0], res.base_reference("B")[0])
+    # one session: base0
+    one = calibrate(robot, cal.subset(cal.sessions == "A"), "kinematic", "lm", warn=False)
+    assert "  = reference pose base0 xyz [" in one.summary()
+    assert "the calibration's reference pose base0 (xyz [" in parameter_table(one).to_markdown()
+
+
 def test_a_left_out_session_keeps_the_robot_and_fits_its_own_base():
     """The session fold of the linearised cross-validation: the robot's parameters come from the other
     sessions, the left-out session's own (its base pose) from its own poses, exactly as two least-squares

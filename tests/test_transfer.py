@@ -114,3 +114,24 @@ def test_transfer_drops_what_belongs_to_the_session(tmp_path, capsys, spec):
     assert moved.parameters["c2"].value == first.parameters["c2"].value
     # what is left is the drift of the other series itself (2.2 um/s over 80 s: ~0.1 mm), not 5000 s of it
     assert moved.calibration.mean_mm < 0.2
+
+
+def test_diagnose_says_what_the_transfer_study_does(tmp_path, capsys):
+    """Every finding taken to the other series gets a progress line (stderr); --quiet says nothing."""
+    robot = load_robot("ys100")
+    cal, truth = simulate(robot, 60, Effects(stiffness={2: 1.5e6}), seed=5)
+    val, _ = simulate(robot, 60, truth=truth, seed=6)
+    other = _series(robot, truth, 80, 7, (1.0, -0.5, 0.2), (0.0, 0.01, 0.8))
+    for name, d in (("cal", cal), ("val", val), ("other", other)):
+        d.write_csv(tmp_path / f"{name}.csv")
+    args = ["diagnose", "ys100", str(tmp_path / "cal.csv"), "--validate", str(tmp_path / "val.csv"), "--transfer",
+            str(tmp_path / "other.csv"), "--json", str(tmp_path / "r.json"), "--no-layer", "--force"]
+    assert main(args) == 0
+    err = capsys.readouterr().err
+    doc = json.loads((tmp_path / "r.json").read_text())
+    taken = [f for f in doc["findings"] if f.get("transfer")]
+    assert taken and f"transfer: taking the final and the kinematic model to {tmp_path / 'other.csv'}" in err
+    for k, f in enumerate(taken, 1):
+        assert f"transfer: {k} of {len(taken)}, " in err
+    assert main(args + ["--quiet"]) == 0
+    assert capsys.readouterr().err == ""

@@ -2,8 +2,9 @@
 
 from __future__ import annotations
 
-from .common import (add_checks, add_force, add_row_spacing, add_session_tool, add_urdf_chain, check_options,
-                     check_outputs, int_at_least, robot_or_calibration, timed, write_text)
+from .common import (STDOUT, Status, add_checks, add_force, add_quiet, add_row_spacing, add_session_tool,
+                     add_urdf_chain, check_options, check_outputs, fold_long_lines, human_stream, int_at_least,
+                     robot_or_calibration, timed, write_text)
 
 
 def register(sub) -> None:
@@ -53,6 +54,7 @@ def register(sub) -> None:
                         "weighted by their noise scales from the data")
     add_row_spacing(p)
     add_checks(p)
+    add_quiet(p)
     add_urdf_chain(p)
     add_force(p)
     p.set_defaults(func=run)
@@ -71,15 +73,19 @@ def run(args) -> int:
     val = timed(Measurements.read_csv(args.validate, n_joints=n, require_positions=True), args) \
         if args.validate else None
     opts = {"max_iter": args.max_iter} if args.max_iter else {}
-    result = calibrate(robot, data, args.model, args.solver, solver_options=opts,
-                       fix=tuple(f.strip() for f in args.fix.split(",") if f.strip()), robust=args.robust,
-                       session_tools=args.session_tool, position_only=args.position_only,
-                       keep_compensator=args.keep_compensator, **check_options(args))
+    status = Status(args.quiet)
+    with status.slow(f"calibrate: fitting model {args.model} to {len(data)} poses ({args.solver}, robust loss "
+                     f"{args.robust})"):
+        result = calibrate(robot, data, args.model, args.solver, solver_options=opts,
+                           fix=tuple(f.strip() for f in args.fix.split(",") if f.strip()), robust=args.robust,
+                           session_tools=args.session_tool, position_only=args.position_only,
+                           keep_compensator=args.keep_compensator, **check_options(args))
     if val is not None:     # the checks predict makes, then the held-out errors, before anything is written
         result.validate(val, name=f"fitted to {' '.join(args.data)}", **check_options(args))
     result.save(args.out, overwrite=args.force)
-    print(result.summary())
-    print(f"\ncalibration -> {args.out}")
+    out = human_stream(args.html)        # --html -: standard output holds the page alone
+    print(fold_long_lines(result.summary()), file=out)
+    print(f"\ncalibration -> {args.out}", file=out)
     if args.html:
         from ..report import calibration_html
         from ..threads import evaluation_threads
@@ -89,6 +95,6 @@ def run(args) -> int:
                                position_only=args.position_only)
             label = f"{args.robot} with its base pose re-estimated"
         write_text(args.html, calibration_html(result, data, before, label, processes=evaluation_threads(),
-                                               validation=val), args.force)
-        print(f"html report -> {args.html}")
+                                               validation=val, progress=status.line), args.force)
+        print(f"html report -> {'standard output' if args.html == STDOUT else args.html}", file=out)
     return 0

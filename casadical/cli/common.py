@@ -8,13 +8,15 @@ function that runs it. They import from here, never from each other.
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
 import sys
+import threading
 import time
 from pathlib import Path
-from typing import Any, Iterable
+from typing import Any, Iterable, TextIO
 
 from ..errors import InputError
 from ..files import EXISTS, atomic_write
@@ -40,10 +42,14 @@ def check_outputs(outputs: dict[str, str | None], inputs: Iterable[str | None], 
     Raises
     ------
     InputError
-        An output is an input, two outputs are one file, an output exists
+        Two outputs go to standard output, an output is an input, two outputs are one file, an output exists
         (without ``force``), its folder does not exist or no file can be
         made in it.
     """
+    to_stdout = [option for option, path in outputs.items() if path == STDOUT]
+    if len(to_stdout) > 1:
+        raise InputError(f"{' and '.join(to_stdout)} both name standard output ('-'); one output at most can go "
+                         "there")
     ins = [Path(i) for i in inputs if i and i != STDOUT and Path(i).exists()]
     seen: dict[Path, str] = {}
     for option, path in outputs.items():
@@ -86,6 +92,27 @@ def _same(a: Path, b: Path) -> bool:
         return os.path.samefile(a, b)
     except OSError:
         return a.resolve() == b.resolve()
+
+
+def fold_long_lines(text: str, longer_than: int = 180, width: int = 160) -> str:
+    """``text`` with every line longer than ``longer_than`` characters wrapped at ``width`` (a hanging indent):
+    what a terminal shows stays readable; tables narrower than that are left as they are."""
+    import textwrap
+
+    out = []
+    for line in text.splitlines():
+        if len(line) <= longer_than:
+            out.append(line)
+            continue
+        lead = line[:len(line) - len(line.lstrip())]
+        out += textwrap.wrap(line, width=width, subsequent_indent=lead + "    ", break_on_hyphens=False)
+    return "\n".join(out)
+
+
+def human_stream(*outputs: str | None) -> TextIO:
+    """Where a command's lines for people go: standard error when one of its ``outputs`` is standard output
+    (``-``: that stream then holds the output alone, e.g. exactly one JSON document), else standard output."""
+    return sys.stderr if STDOUT in outputs else sys.stdout
 
 
 def write_text(path: str, text: str, force: bool) -> None:
@@ -312,13 +339,43 @@ class Status:
         if not self.quiet:
             print(text, file=sys.stderr, flush=True)
 
-    def timed_line(self):
-        """A line printer that prefixes the time since it was made (for steps of unknown number)."""
+    def timed_line(self, width: int = 160):
+        """A line printer that prefixes the time since it was made (for steps of unknown number); a long line is
+        wrapped at ``width`` characters."""
         t0 = time.perf_counter()
 
         def say(text: str) -> None:
-            self.line(f"[{time.perf_counter() - t0:6.1f} s] {text}")
+            line = f"[{time.perf_counter() - t0:6.1f} s] {text}"
+            if len(line) > width:
+                import textwrap
+
+                lead = " " * (11 + len(text) - len(text.lstrip()) + 4)
+                line = "\n".join(textwrap.wrap(line, width, subsequent_indent=lead, break_on_hyphens=False))
+            self.line(line)
         return say
+
+    @contextlib.contextmanager
+    def slow(self, text: str, after_s: float = 1.0):
+        """A phase that says ``text`` only if it lasts longer than ``after_s`` (then also how long it took): a
+        quick command stays quiet (and an error in it stays one line)."""
+        if self.quiet:
+            yield
+            return
+        t0 = time.perf_counter()
+        said = threading.Event()
+
+        def tell() -> None:
+            said.set()
+            self.line(text)
+        timer = threading.Timer(after_s, tell)
+        timer.daemon = True
+        timer.start()
+        try:
+            yield
+        finally:
+            timer.cancel()
+        if said.is_set():
+            self.line(f"  done in {time.perf_counter() - t0:.1f} s")
 
     def bar(self, total: int | None, desc: str, unit: str = "it"):
         from tqdm.auto import tqdm

@@ -5,7 +5,7 @@ from __future__ import annotations
 import sys
 
 from .common import (Status, add_checks, add_force, add_json, add_quiet, add_urdf_chain, check_options, check_outputs,
-                     robot_from_args, write_json)
+                     human_stream, robot_from_args, write_json)
 
 
 def register(sub) -> None:
@@ -60,10 +60,11 @@ def cmd_compare(args) -> int:
         return data
 
     cal, val, extra = read(args.cal), read(args.validate), read(args.extra)
+    out = human_stream(args.json)       # --json -: standard output holds the JSON alone
     print(f"compare on {robot.name}: {len(cal)} calibration poses ({args.cal})"
           + (f", {len(val)} validation poses ({args.validate})" if val is not None else "")
           + (f", {len(extra)} extra poses ({args.extra})" if extra is not None else "")
-          + f", seed {args.seed}", flush=True)
+          + f", seed {args.seed}", flush=True, file=out)
 
     status = Status(args.quiet)
     with status.bar(len(methods), "methods", unit="method") as bar:
@@ -74,19 +75,22 @@ def cmd_compare(args) -> int:
                           file=sys.stderr)
             bar.update(1)
 
-        results = compare(robot, cal, val, extra, methods, args.seed, progress=progress)
-    print()
-    print(format_table(results))
+        def starting(name: str) -> None:     # the bar says which method runs (some take seconds)
+            bar.set_postfix_str(f"running {name}")
+
+        results = compare(robot, cal, val, extra, methods, args.seed, progress=progress, starting=starting)
+    print(file=out)
+    print(format_table(results), file=out)
     for r in results:
         comp = r.info.get("compensator")
         if isinstance(comp, dict) and not comp.get("kept", True):
-            print(f"note: {r.name}: compensator {comp.get('reason', 'dropped')}")
+            print(f"note: {r.name}: compensator {comp.get('reason', 'dropped')}", file=out)
     if args.json:
         doc = to_json(results, robot=robot.name, calibration_file=args.cal, validation_file=args.validate,
                       extra_file=args.extra, seed=args.seed)
         write_json(args.json, doc, args.force)
-        print(f"\nresults -> {args.json}")
+        print(f"\nresults -> {'standard output' if args.json == '-' else args.json}", file=out)
     if args.plot:
         plot(results, {"calibration": cal, "validation": val}, args.plot, robot.name, overwrite=args.force)
-        print(f"per-pose errors -> {args.plot}")
+        print(f"per-pose errors -> {args.plot}", file=out)
     return 0

@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from .common import (Status, add_checks, add_force, add_quiet, add_row_spacing, add_session_tool, add_urdf_chain,
-                     check_options, check_outputs, float_in, int_at_least, robot_from_args, timed, write_json,
-                     write_text)
+from ..errors import InputError
+from .common import (STDOUT, Status, add_checks, add_force, add_quiet, add_row_spacing, add_session_tool,
+                     add_urdf_chain, check_options, check_outputs, float_in, human_stream, int_at_least,
+                     robot_from_args, timed, write_json, write_text)
 
 
 def register(sub) -> None:
@@ -26,11 +27,17 @@ def register(sub) -> None:
     p.add_argument("--validate", required=True, metavar="VAL.csv", nargs="+",
                    help="validation poses (never fitted, never decide); with several DATA files one per DATA file "
                         "in the same order (each of that file's session), or one with a session column")
-    p.add_argument("--json", required=True, metavar="REPORT.json", help="write the report as JSON")
-    p.add_argument("--html", metavar="REPORT.html", help="also write a self-contained HTML report")
+    p.add_argument("--json", metavar="REPORT.json",
+                   help="write the report as JSON ('-': standard output, which then holds the JSON alone)")
+    p.add_argument("--html", metavar="REPORT.html",
+                   help="write a self-contained HTML report, findings first ('-': standard output)")
     p.add_argument("--out", metavar="FINAL.json",
-                   help="also write the final model as a calibration JSON (compensator included), for predict, "
-                        "compensate, export and calibrate FINAL.json")
+                   help="write the final model as a calibration JSON (compensator included), for predict, "
+                        "compensate, export and calibrate FINAL.json (at least one of --json, --html, --out)")
+    p.add_argument("--verbose", "-v", action="store_true",
+                   help="print the evidence too: every step with its gain against the model it extends, each "
+                        "model's full specification, why a step was not accepted, each finding's checks; and "
+                        "every candidate's progress line")
     p.add_argument("--transfer", metavar="OTHER.csv",
                    help="another measurement series of the same robot: report each finding's gain there, with "
                         "the base pose re-estimated on a few of its poses and with the geometry refitted")
@@ -67,9 +74,10 @@ def register(sub) -> None:
 def run(args) -> int:
     from ..data import Measurements
     from ..diagnosis import DiagnosisSettings, diagnose
-    from ..errors import InputError
     from ..sessions import combine, file_session_names
 
+    if not (args.json or args.html or args.out):
+        raise InputError("nothing to write: give --json REPORT.json, --html REPORT.html and/or --out FINAL.json")
     check_outputs({"--json": args.json, "--html": args.html, "--out": args.out},
                   [args.robot, *args.data, *args.validate, args.transfer], args.force)
     robot = robot_from_args(args.robot, args)
@@ -93,18 +101,34 @@ def run(args) -> int:
                                  transfer_base_poses=args.transfer_base_poses,
                                  transfer_refit_poses=args.transfer_refit_poses, session_tools=args.session_tool)
     status = Status(args.quiet)
-    report = diagnose(robot, cal, val, settings, progress=status.timed_line(), other=other,
+    say = status.timed_line()
+    report = diagnose(robot, cal, val, settings, progress=say if args.verbose else _brief(say), other=other,
                       **check_options(args))
-    print(report.text())
-    write_json(args.json, report.to_dict(), args.force)
-    print(f"\nreport -> {args.json}")
+    out = human_stream(args.json, args.html)      # '-': stdout holds that output alone, the words go to stderr
+    print(report.text(verbose=args.verbose), file=out)
+    print(file=out)
+    if args.json:
+        write_json(args.json, report.to_dict(), args.force)
+        print(f"report -> {'standard output' if args.json == STDOUT else args.json}", file=out)
     if args.html:
         from ..report import diagnosis_html  # matplotlib: imported only for the HTML report
         from ..threads import evaluation_threads
 
-        write_text(args.html, diagnosis_html(report, processes=evaluation_threads()), args.force)
-        print(f"html report -> {args.html}")
+        write_text(args.html, diagnosis_html(report, processes=evaluation_threads(), progress=say), args.force)
+        print(f"html report -> {'standard output' if args.html == STDOUT else args.html}", file=out)
     if args.out:
         report.final.save(args.out, overwrite=args.force)
-        print(f"final model -> {args.out}")
+        print(f"final model -> {args.out}", file=out)
     return 0
+
+
+def _brief(say):
+    """Progress without the line of every candidate tried (``--verbose`` shows them): the steps, the rounds,
+    what was accepted or dropped, and every phase of a second or more."""
+    def brief(text: str) -> None:
+        t = text.lstrip()
+        detail = text.startswith("    ") and not t.startswith(("accepted", "dropped"))
+        if detail or t.startswith(("fitting ", "no cause is supported")):
+            return
+        say(text)
+    return brief

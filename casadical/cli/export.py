@@ -52,7 +52,8 @@ def run(args) -> int:
     description = None
     if isinstance(source, CalibrationResult) and not args.as_fitted:
         # the best geometric model: a model with terms a URDF cannot carry is reproduced by its geometry alone
-        eq = geometric_equivalent(source, args.payload_kg)
+        with status.slow("export: fitting the geometry that reproduces the calibration's full model over its poses"):
+            eq = geometric_equivalent(source, args.payload_kg)
         description = f"calibration {args.source}, model {source.model.spec}: {eq.text()}"
         status.line(f"exported: {eq.text()}")
         source = eq.result

@@ -11,8 +11,8 @@ import numpy as np
 from ..errors import IdentifiabilityError, InputError
 from ..files import atomic_open
 from ..planning.selectors import METHODS
-from .common import (add_checks, add_force, add_json, add_urdf_chain, check_options, check_outputs, float_in,
-                     int_at_least, robot_from_args, write_json)
+from .common import (Status, add_checks, add_force, add_json, add_quiet, add_urdf_chain, check_options, check_outputs,
+                     float_in, human_stream, int_at_least, robot_from_args, write_json)
 
 
 def register(sub) -> None:
@@ -38,6 +38,7 @@ def register(sub) -> None:
                    help="solver of the continuous relaxation (default: %(default)s)")
     add_json(p, "the summary")
     add_checks(p)
+    add_quiet(p)
     add_urdf_chain(p)
     add_force(p)
     p.set_defaults(func=cmd_plan_poses)
@@ -79,9 +80,11 @@ def cmd_plan_poses(args) -> int:
     check_distinct_poses(data, args.m)
     # compiling the model (~1.5 s) pays only for large pools; the model decides whether it can
     model = Model(robot, args.model, jit=None if N >= JIT_MIN_CANDIDATES else False)
+    status = Status(args.quiet)      # a phase says what it does once it has taken a second
     t0 = time.perf_counter()
     try:
-        problem = design_problem(model, data.q, model.covariates(data))
+        with status.slow(f"plan-poses: the model's Jacobian at the {N} candidate poses (model {model.spec})"):
+            problem = design_problem(model, data.q, model.covariates(data))
     except IdentifiabilityError as e:
         raise InputError(str(e), file=args.candidates) from e
     t_jac = time.perf_counter() - t0
@@ -93,23 +96,26 @@ def cmd_plan_poses(args) -> int:
                          file=args.candidates)
     settings = PlanSettings(relaxation=args.relaxation)
     try:
-        res = select_poses(model, None, args.m, args.method, seed=args.seed, settings=settings,
-                           problem=problem)
+        with status.slow(f"plan-poses: selecting {args.m} of {N} poses ({args.method}, {problem.n_parameters} "
+                         "parameters)"):
+            res = select_poses(model, None, args.m, args.method, seed=args.seed, settings=settings,
+                               problem=problem)
     except (IdentifiabilityError, InputError) as e:
         if getattr(e, "file", None):
             raise
         raise InputError(str(e), file=args.candidates) from e
     res.jacobian_time_s = t_jac
     lines = _write_rows(args.candidates, res.indices, args.out, args.force)
+    out = human_stream(args.json)         # --json -: standard output holds the JSON alone
     print(f"model {model.spec} on {robot.name}: {problem.n_parameters} identifiable parameters "
-          f"from {N} candidates in {args.candidates}")
-    print(res.summary())
-    print(f"selected rows -> {args.out}")
+          f"from {N} candidates in {args.candidates}", file=out)
+    print(res.summary(), file=out)
+    print(f"selected rows -> {args.out}", file=out)
     if args.json:
         doc = {"robot": robot.name, "model": model.spec, "candidates": args.candidates,
                "file_lines": lines, **res.to_dict()}
         write_json(args.json, doc, args.force)
-        print(f"summary -> {args.json}")
+        print(f"summary -> {'standard output' if args.json == '-' else args.json}", file=out)
     return 0
 
 

@@ -69,6 +69,7 @@ def drop_redundant(dg, current: CalibrationResult, accepted: list[Candidate], ge
             break
         cand, test = max(failing, key=lambda ct: ct[1].log10_p)
         rest = [a for a in accepted if a != cand]
+        dg.say(f"  {cand.label()} may no longer be needed: the model refitted without it")
         refit = dg.fit(compose_spec(rest, geometric), start=current)
         full = nested_test(dg.deviance(refit, current.loss), int(refit.parameters.free.sum()),
                            dg.deviance(current, current.loss), int(current.parameters.free.sum()), dg.n_fit_eq)

@@ -33,22 +33,25 @@ MIN_POSES = 20
 
 
 def layer_step(current: CalibrationResult, spec: str, cal: Measurements, val: Measurements, all_schemes,
-               settings, steps: list[Step], findings: list[Finding], progress: Callable[[str], None]
-               ) -> tuple[CalibrationResult, str]:
-    """Fit and judge the accuracy layer on ``current`` (model ``spec``); record it in ``steps`` (and
-    ``findings`` when kept); returns the final model and its specification."""
+               settings, steps: list[Step], findings: list[Finding], progress: Callable[[str], None],
+               parent: int | None = None) -> tuple[CalibrationResult, str]:
+    """Fit and judge the accuracy layer on ``current`` (model ``spec``, the model of step ``parent``, None when
+    no step holds it); record it in ``steps`` (and ``findings`` when kept); returns the final model and its
+    specification."""
     X, Y, keep = layer_data(current, cal)
     v0 = current.stats(val)
+    link = {"parent": parent, "parent_mm": v0.mean_mm}     # its gain: against the model it extends
     name = spec + "+gp_compensator"
     few = [s for s, n in _per_session(cal, keep).items() if n < MIN_POSES]
     if few:
         reason = f"too few poses for a session compensator ({', '.join(s or 'the data' for s in few)})"
-        steps.append(Step(name, current.calibration, v0, False, Candidate("unexplained"), reason=reason))
+        steps.append(Step(name, current.calibration, v0, False, Candidate("unexplained"), reason=reason,
+                          **link))
         progress(f"accuracy layer not tried: {reason}")
         return current, spec
     progress("accuracy layer: a Gaussian process of what remains, per session")
-    gps, learnt = fit_layer(current, cal, seed=settings.seed)
-    cv = held_out(gps, learnt, cal, Y, keep, all_schemes)
+    gps, learnt = fit_layer(current, cal, seed=settings.seed, progress=progress)
+    cv = held_out(gps, learnt, cal, Y, keep, all_schemes, progress=progress)
     cv_mm = {}
     for kind in (k for k in KINDS if k in cv):
         cv_mm[f"{kind}_before"], cv_mm[kind] = (float(np.mean(x) * 1000) for x in cv[kind])
@@ -64,13 +67,14 @@ def layer_step(current: CalibrationResult, spec: str, cal: Measurements, val: Me
     if reasons:
         reason = "; ".join(reasons)
         steps.append(Step(name, current.calibration, v0, False, Candidate("unexplained"), cv_mm=cv_mm,
-                          reason=reason))
+                          reason=reason, **link))
         progress(f"accuracy layer rejected: {reason}")
         return current, spec
+    progress("  the final model with the session compensator, on the validation poses")
     final = with_layer(current, gps, cal, "gp_compensator: the session compensator of the accuracy layer")
     v1 = final.stats(val)
     known, total = layer_coverage(final, val)
-    steps.append(Step(name, final.calibration, v1, True, Candidate("unexplained"), cv_mm=cv_mm))
+    steps.append(Step(name, final.calibration, v1, True, Candidate("unexplained"), cv_mm=cv_mm, **link))
     scales = {s or "": np.degrees(g.length_scales).round(1).tolist() for s, g in gps.items()}
     findings.append(Finding(
         Candidate("unexplained"), v0.mean_mm - v1.mean_mm,

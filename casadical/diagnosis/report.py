@@ -37,6 +37,14 @@ class Step:
     orientation : AngleStats or None
         Full pose: the orientation errors on the validation poses (full fits only, not the one-step fits of
         candidates that were not accepted).
+    parent : int or None
+        Index (in the report's steps) of the model this step extends: the
+        last accepted model when it was tried. None for the nominal model, and
+        for a step after the final check changed the model (``parent_mm`` still
+        holds that model's validation mean).
+    parent_mm : float or None
+        Validation mean (mm) of the model this step extends: its gain is
+        measured against it (:attr:`gain_mm`).
     """
 
     model: str
@@ -48,10 +56,31 @@ class Step:
     cv_mm: dict = field(default_factory=dict)
     reason: str = ""
     orientation: AngleStats | None = None
+    parent: int | None = None
+    parent_mm: float | None = None
+
+    @property
+    def gain_mm(self) -> float | None:
+        """Drop of the validation mean from the model this step extends to this step (None for the first)."""
+        return None if self.parent_mm is None else self.parent_mm - self.validation.mean_mm
+
+    @property
+    def label(self) -> str:
+        """A few words: ``nominal``, ``kinematic``, ``+ compliance j2``, ``+ periodic j2 h17``, ``+ drift @B``,
+        ``+ session compensator``; the whole model is :attr:`model`."""
+        c = self.candidate
+        if c is None:
+            return self.model          # the nominal model
+        if c.cause == "geometric":
+            return "kinematic"
+        if c.cause == "unexplained":
+            return "+ session compensator"
+        return "+ " + c.label(short=True)
 
     def to_dict(self) -> dict:
         d = {"model": self.model, "validation": self.validation.to_dict(n_poses=False),
-             "calibration": self.calibration.to_dict(n_poses=False), "accepted": self.accepted}
+             "calibration": self.calibration.to_dict(n_poses=False), "accepted": self.accepted,
+             "label": self.label, "parent": self.parent, "gain_mm": finite(self.gain_mm)}
         if self.orientation is not None:
             d["orientation"] = self.orientation.to_dict(n_poses=False)
         if self.candidate is not None:
@@ -185,7 +214,8 @@ class DiagnosisReport:
         doc = {
             "robot": self.robot,
             "steps": [s.to_dict() for s in self.steps],
-            "findings": [f.to_dict() for f in self.findings],
+            "findings": [{**f.to_dict(), "summary": {k: v for k, v in row.items() if k != "gain"}}
+                         for f, row in zip(self.findings, self.decision())],
             "final": {"model": self.final_model, "validation": self.final_validation.to_dict(n_poses=False),
                       "parameters": params,
                       "robust": {"sigma_mm": self.final.loss.sigma * 1000 if self.final.loss.robust else None,
@@ -202,36 +232,109 @@ class DiagnosisReport:
             doc["transfer"] = self.transfer
         return doc
 
-    def text(self) -> str:
-        pose = any(s.orientation is not None for s in self.steps)   # full pose: the orientation's mean too
-        lines = [f"diagnosis of {self.robot} ({self.time_s:.1f} s)", "",
-                 f"{'model':<58}{'val mean':>10}{'val max':>10}{'val rms':>10}" + (f"{'val deg':>10}" if pose else "")
-                 + "  accepted"]
-        for s in self.steps:
-            v = s.validation
-            deg = ((f"{s.orientation.mean_deg:>10.4f}" if s.orientation is not None else f"{'-':>10}") if pose else "")
-            lines.append(f"{s.model[:57]:<58}{v.mean_mm:>10.4f}{v.max_mm:>10.4f}{v.rms_mm:>10.4f}{deg}  "
-                         f"{'yes' if s.accepted else 'no'}")
-        lines += ["", "findings (values of the final model):"]
+    def decision(self) -> list[dict]:
+        """One row per finding, what to act on: label, where, size (final model), gain, scope, what to do."""
+        from . import decision as d
+
+        return [{"label": d.label(f), "where": d.where(f), "size": d.size(f, self.final), "gain": d.gain(f),
+                 "scope": d.scope(f), "action": d.action(f, self)} for f in self.findings]
+
+    def summary(self) -> str:
+        """The short report: findings (what to do about each), the final model's errors, notes."""
+        return self.text(verbose=False)
+
+    def text(self, verbose: bool = True) -> str:
+        """The report in words: the findings and the final model first, then (``verbose``) the evidence: every
+        step with its gain against the model it extends, each model's full specification, the checks."""
+        from . import decision as d
+
+        accepted = sum(s.accepted for s in self.steps)
+        lines = [f"diagnosis of {self.robot}: {len(self.steps)} models tried, {accepted} accepted "
+                 f"({self.time_s:.1f} s)", ""]
+        n_val = self.final_validation.n_poses
+        lines.append(f"findings (sizes in the final model; gains on the {n_val} validation poses, each against the "
+                     "model it extends):")
+        decided = self.decision()
+        rows = [[str(k), r["label"], r["where"], r["size"], r["gain"], r["scope"]] for k, r in enumerate(decided, 1)]
+        if not rows:
+            lines.append("  none")
+        else:
+            table = d.table(["#", "finding", "where", "size", "gain on validation", "scope"], rows, right=(0,))
+            lines.append(table[0])
+            for line, row in zip(table[1:], decided):      # each finding, and what to do under it
+                lines.append(line)
+                lines += d.wrap(row["action"], " " * 9, " " * 5 + "do: ")
         if not [f for f in self.findings if f.cause != "geometric"]:
-            lines.append("  none beyond the geometry")
-        for f in self.findings:
-            head = f"validation mean -{f.gain_mm:.4f} mm" if f.in_model else "not in the final model"
-            lines.append(f"  {f.label()}: {head}. {f.evidence}")
-            for a in f.ambiguous_with:
-                lines.append(f"    ambiguous with {a['label']}: {a['tell_apart']}")
-            if f.transfer:
-                lines.append(f"    on {self.transfer.get('file', 'the other series')}: {f.transfer['text']}")
+            lines.append("  no cause beyond the geometry")
+        lines += [""] + self._final_lines()
+        if verbose:
+            lines += [""] + self._steps_lines() + [""] + self._evidence_lines()
+        lines += [""] + [x for n in self.notes for x in d.wrap(n, "      ", "note: ")]
+        if not verbose:
+            lines += ["", "the evidence (every step with its gain, each model's full specification, the checks): "
+                          "--verbose, the JSON and the HTML report"]
+        return "\n".join(lines)
+
+    def _final_lines(self) -> list[str]:
+        from . import decision as d
+
         v = self.final_validation
-        lines += ["", f"final model {self.final_model}: validation mean {v.mean_mm:.4f}, "
-                      f"max {v.max_mm:.4f}, rms {v.rms_mm:.4f} mm"]
-        lines += [f"  session {s}: validation mean {st.mean_mm:.4f}, max {st.max_mm:.4f}, rms {st.rms_mm:.4f} mm"
-                  for s, st in self.final_sessions.items()]
+        out = [f"final model: validation mean {v.mean_mm:.4f} mm, max {v.max_mm:.4f} mm, rms {v.rms_mm:.4f} mm "
+               f"on {v.n_poses} poses never fitted"]
+        k, nominal = self.kinematic_validation, (self.steps[0].validation if self.steps else None)
+        against = []
+        if k is not None:
+            against.append(f"the kinematic model's {k.mean_mm:.4f} mm ({d.gain_words(k.mean_mm - v.mean_mm)})")
+        if nominal is not None:
+            against.append(f"the nominal model's {nominal.mean_mm:.4f} mm "
+                           f"({d.gain_words(nominal.mean_mm - v.mean_mm)})")
+        if against:
+            out.append("  against " + " and ".join(against))
+        for s, st in self.final_sessions.items():
+            out.append(f"  session {s}: validation mean {st.mean_mm:.4f} mm, max {st.max_mm:.4f} mm, rms "
+                       f"{st.rms_mm:.4f} mm ({st.n_poses} poses)")
         if self.final_orientation is not None:
             o = self.final_orientation
-            lines.append(f"full pose: orientation on the validation poses mean {o.mean_deg:.4f}, max {o.max_deg:.4f}, "
-                         f"rms {o.rms_deg:.4f} deg")
+            out.append(f"  orientation (full pose): mean {o.mean_deg:.4f} deg, max {o.max_deg:.4f} deg, rms "
+                       f"{o.rms_deg:.4f} deg")
         if self.transfer:
-            lines.append(self.transfer["text"])
-        lines += [f"note: {n}" for n in self.notes]
-        return "\n".join(lines)
+            out += d.wrap(self.transfer["text"], "    ", "  ")
+        out += d.wrap_spec(self.final_model, "    ", "  model: ")
+        return out
+
+    def _steps_lines(self) -> list[str]:
+        from . import decision as d
+
+        pose = any(s.orientation is not None for s in self.steps)   # full pose: the orientation's mean too
+        head = ["#", "step", "extends", "val mean", "gain against it", "val max", "val rms"] + \
+            (["val deg"] if pose else []) + ["accepted"]
+        rows = []
+        for k, s in enumerate(self.steps, 1):
+            v = s.validation
+            rows.append([str(k), s.label, "-" if s.parent is None else str(s.parent + 1), f"{v.mean_mm:.4f}",
+                         d.gain_words(s.gain_mm), f"{v.max_mm:.4f}", f"{v.rms_mm:.4f}"]
+                        + ([f"{s.orientation.mean_deg:.4f}" if s.orientation is not None else "-"] if pose else [])
+                        + ["yes" if s.accepted else "no"])
+        out = ["steps (validation errors in mm judge and never decide; each gain is against the model the step "
+               "extends):"]
+        out += d.table(head, rows, right=(0, 2, 3, 5, 6) + ((7,) if pose else ()))
+        out += ["", "models (each step's full specification, and why a step was not accepted):"]
+        for k, s in enumerate(self.steps, 1):
+            out += d.wrap_spec(s.model, " " * 6, f"{k:>4}  ")
+            if s.reason:
+                out += d.wrap(s.reason, " " * 10, " " * 6 + ("not accepted: " if not s.accepted else ""))
+        return out
+
+    def _evidence_lines(self) -> list[str]:
+        from . import decision as d
+
+        out = ["evidence of each finding (values of the final model):"]
+        for k, f in enumerate(self.findings, 1):
+            head = f"validation mean {d.gain_words(f.gain_mm)}" if f.in_model else "not in the final model"
+            out += d.wrap(f"{f.label()}: {head}. {f.evidence}", " " * 6, f"{k:>4}  ")
+            for a in f.ambiguous_with:
+                out += d.wrap(f"ambiguous with {a['label']}: {a['tell_apart']}", " " * 8, " " * 6)
+            if f.transfer:
+                out += d.wrap(f"on {self.transfer.get('file', 'the other series')}: {f.transfer['text']}", " " * 8,
+                              " " * 6)
+        return out

@@ -89,6 +89,11 @@ class _Diagnosis:
         self._val_errors: dict[int, tuple] = {}                 # id of a fit -> (fit, its validation errors)
         self._torques: tuple | None = None                      # (fit, gravity torques of the cal poses)
         self.history: list[tuple[list[Candidate], CalibrationResult]] = []   # each accepted model, in order
+        self._step_of: list[tuple[CalibrationResult, int]] = []               # each accepted fit and its step
+
+    def step_of(self, res: CalibrationResult) -> int | None:
+        """Index of the step whose model ``res`` is (None for a fit no step holds: a final-check refit)."""
+        return next((k for fit, k in self._step_of if fit is res), None)
 
     # -- fitting ---------------------------------------------------------------
 
@@ -154,6 +159,7 @@ class _Diagnosis:
         nominal = self.nominal = self.fit("nominal")
         self.steps.append(Step("nominal", nominal.calibration, self.val_stats(nominal), True,
                                orientation=self.val_angles(nominal)))
+        self._step_of.append((nominal, 0))
         self.say(f"  validation mean {self.steps[-1].validation.mean_mm:.4f} mm (judge only)")
         self.say("step 2: geometric (kinematic) calibration")
         kin = self.kinematic = self.fit("kinematic")
@@ -168,7 +174,9 @@ class _Diagnosis:
                            + [f"BIC does not improve ({test.delta_bic:+.1f})"] * (test.delta_bic >= 0)
                            + ([cv_failure(worse, cv0, cv1)] if worse else []))
         self.steps.append(Step("kinematic", kin.calibration, kv, ok, Candidate("geometric"), test,
-                               cv_record(cv0, cv1), reason, self.val_angles(kin)))
+                               cv_record(cv0, cv1), reason, self.val_angles(kin), parent=0,
+                               parent_mm=self.steps[0].validation.mean_mm))
+        self._step_of.append((kin, 1))
         self.say(f"  validation mean {kv.mean_mm:.4f} mm ({test.text()})")
         if ok:
             gain = self.steps[0].validation.mean_mm - kv.mean_mm
@@ -188,6 +196,7 @@ class _Diagnosis:
             cand, start, level = new
             step = next(s for s in reversed(self.steps) if s.accepted)
             # the one-step fit decided; the full fit (noise scale re-estimated) must confirm the significance
+            self.say(f"  {cand.label()}: the full fit")
             new_fit = self.fit(compose_spec(accepted + [cand], geometric), start=start)
             test = nested_test(self.deviance(current, current.loss), int(current.parameters.free.sum()),
                                self.deviance(new_fit, current.loss), int(new_fit.parameters.free.sum()),
@@ -222,6 +231,7 @@ class _Diagnosis:
             self.before[cand] = current
             accepted.append(cand)
             current = new_fit
+            self._step_of.append((current, self.steps.index(step)))
             self.history.append((list(accepted), current))
             # the step and the finding's gain judge the full fit, not the one-step fit that decided
             full = self.val_stats(current)
@@ -401,9 +411,11 @@ class _Diagnosis:
                 if broken:
                     reasons.append("not physics: " + "; ".join(v.text for v in broken))
                 vstats = ErrorStats.of(scr.validation_errors(fit))
+                # its gain is against the model it extends (the current fit), never against a sibling
                 step = Step(compose_spec(accepted + [cand], geometric),
                             ErrorStats.of(np.linalg.norm(fit.lin.r, axis=1)), vstats, False, cand, test,
-                            cv_record(cv0, cv1), "; ".join(reasons))
+                            cv_record(cv0, cv1), "; ".join(reasons), parent=self.step_of(current),
+                            parent_mm=cur_val.mean_mm)
                 self.steps.append(step)
                 if reasons:
                     self.say(f"    rejected: {step.reason}")
@@ -491,7 +503,9 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
     parametric = current
     final, final_spec = current, compose_spec(accepted, geometric)
     if s.blackbox:
-        final, final_spec = layer_step(current, final_spec, cal, val, dg.schemes, s, dg.steps, dg.findings, say)
+        final, final_spec = layer_step(current, final_spec, cal, val, dg.schemes, s, dg.steps, dg.findings, say,
+                                       parent=dg.step_of(current))
+    say("findings: their values, evidence and figures in the final model")
     describe(dg.findings, dg.support, dg.before, final, cal)
     dg.findings += list(dg.unexplained.by_joint.values())
     for f in dg.findings:   # of the robot (one value serves every session) or of one session

@@ -25,6 +25,7 @@ from ..data import Measurements
 from ..errors import InputError
 from ..result import CalibrationResult
 from .candidates import Candidate, compose_spec
+from .decision import gain_words
 
 
 @dataclass
@@ -92,18 +93,27 @@ def finding_gain(with_it: Travel, without: Travel) -> dict:
     else:
         verdict = "transfers" if gb > 0 and gr > 0 else ("does not transfer" if gb <= 0 and gr <= 0 else "mixed")
     return {"base_gain_mm": gb, "refit_gain_mm": gr, "verdict": verdict,
-            "text": f"{verdict}: mean {'-' if gb >= 0 else '+'}{abs(gb):.4f} mm with the base re-estimated, "
-                    f"{'-' if gr >= 0 else '+'}{abs(gr):.4f} mm with the geometry refitted"}
+            "text": f"{verdict}: {gain_words(gb)} with the base re-estimated, {gain_words(gr)} with the geometry "
+                    "refitted"}
 
 
 def study(final: CalibrationResult, kinematic: CalibrationResult, without: Callable[[int], CalibrationResult | None],
           n_findings: int, other: Measurements, n_base: int, n_refit: int, seed: int,
-          progress: Callable[[str], None]) -> TransferStudy:
-    """Take ``final``, ``kinematic`` and ``without(k)`` (the final model fitted without finding k) to ``other``."""
+          progress: Callable[[str], None], labels: list[str] | None = None, todo: list[int] | None = None
+          ) -> TransferStudy:
+    """Take ``final``, ``kinematic`` and ``without(k)`` (the final model fitted without finding k) to ``other``.
+
+    ``labels``: what is taken there for each finding, in a few words, and ``todo``: the findings ``without`` gives
+    a model for, for the progress lines (one per finding taken there).
+    """
     split = Split.of(len(other), n_base, n_refit, seed)
-    progress(f"transfer: taking the final and the kinematic model to {other.path}")
+    progress(f"transfer: taking the final and the kinematic model to {other.path} (base pose re-estimated on "
+             f"{n_base} poses, geometry refitted on {n_refit})")
     out = TransferStudy(other.path, split, travel(final, other, split), travel(kinematic, other, split))
-    for k in range(n_findings):
+    ks = list(range(n_findings)) if todo is None else todo
+    for i, k in enumerate(ks, 1):
+        if labels is not None:
+            progress(f"transfer: {i} of {len(ks)}, {labels[k]}, fitted here and taken there")
         model = without(k)
         if model is not None:
             out.gains[k] = travel(model, other, split)
@@ -138,9 +148,14 @@ def findings_study(dg, final: CalibrationResult, parametric: CalibrationResult, 
                                                          and a.cause == "nonlinear_stiffness")]
         return dg.fit(compose_spec(rest, geometric), start=parametric)
 
+    todo = [k for k, f in enumerate(dg.findings) if k in named or (f.cause == "unexplained" and not f.in_model)]
+    labels = [f"{f.label()}: the model without it" if f.in_model else
+              f"the structure kept out of joint {f.candidate.joint}: the model with it" for f in dg.findings]
     out = study(final, dg.kinematic, without, len(dg.findings), other, s.transfer_base_poses, n_refit, s.seed,
-                dg.say)
+                dg.say, labels=labels, todo=todo)
     # the named causes alone there (the final model unless a black box was added)
+    if parametric is not final:
+        dg.say("transfer: the named causes alone, without the session compensator")
     named_only = out.final if parametric is final else travel(parametric, other, out.split)
     for k, f in enumerate(dg.findings):
         if k in out.gains:

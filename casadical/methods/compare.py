@@ -37,7 +37,8 @@ def parse_methods(text: str | Iterable[str] | None) -> list[str]:
 
 def compare(robot: Robot, cal: Measurements, val: Measurements | None = None, extra: Measurements | None = None,
             methods: str | Iterable[str] | None = None, seed: int = 0, settings: dict | None = None,
-            progress: Callable[[MethodResult], None] | None = None) -> list[MethodResult]:
+            progress: Callable[[MethodResult], None] | None = None,
+            starting: Callable[[str], None] | None = None) -> list[MethodResult]:
     """Run methods on the same data (same seed each), in the order given.
 
     Parameters
@@ -53,12 +54,16 @@ def compare(robot: Robot, cal: Measurements, val: Measurements | None = None, ex
         Per-method settings, ``{name: {setting: value}}``.
     progress : callable, optional
         Called with each result as it is ready.
+    starting : callable, optional
+        Called with each method's name before it runs (a method may take a while).
     """
     names = parse_methods(methods)
     settings = settings or {}
     out = []
     for name in names:
         method = make_method(name, **settings.get(name, {}))
+        if starting is not None:
+            starting(name)
         res = method.run(Inputs(robot, cal, extra, int(seed)), val)
         out.append(res)
         if progress is not None:

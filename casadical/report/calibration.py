@@ -19,7 +19,7 @@ AXES = ("x", "y", "z")
 
 def calibration_html(result: CalibrationResult, data: Measurements, before: CalibrationResult | None = None,
                      before_label: str = "nominal model, base pose fitted", processes: int = 1,
-                     validation: Measurements | None = None) -> str:
+                     validation: Measurements | None = None, progress=None) -> str:
     """A self-contained HTML report of a calibration.
 
     Parameters
@@ -38,6 +38,8 @@ def calibration_html(result: CalibrationResult, data: Measurements, before: Cali
     validation : Measurements, optional
         Held-out poses: the errors of both models on them get a section of
         their own (without them, the errors ``result.validation`` holds, if any).
+    progress : callable, optional
+        Receives a line of text before and after the figures are drawn.
 
     Returns
     -------
@@ -145,7 +147,7 @@ def calibration_html(result: CalibrationResult, data: Measurements, before: Cali
     if result.notes:
         page.heading("Notes", anchor="notes")
         page.items([esc(n) for n in result.notes])
-    return page.html(processes)
+    return page.html(processes, progress)
 
 
 def _short(spec: str) -> str:
@@ -180,9 +182,15 @@ def _summary(result: CalibrationResult) -> list[tuple[str, str]]:
                                           f"{f.aic:.2f}, BIC {f.bic:.2f}; {f.n_parameters} free parameters, "
                                           f"{f.n_equations} equations (compare models fitted to the same poses "
                                           "only)")))
-    xyz, rpy = result.base_pose()
-    out.append(("base pose", esc("xyz " + ", ".join(f"{v * 1000:.3f}" for v in xyz) + " mm; roll, pitch, yaw "
-                                 + ", ".join(f"{math.degrees(v):.4f}" for v in rpy) + " deg")))
+    sessions = result.sessions
+    for s in sessions or [None]:
+        xyz, rpy = result.base_pose(s)
+        at = "" if s is None or s == sessions[0] else f"@{s}"
+        out.append((f"base pose{f', session {s}' if s else ''}",
+                    esc("xyz " + ", ".join(f"{v * 1000:.3f}" for v in xyz) + " mm; roll, pitch, yaw "
+                        + ", ".join(f"{math.degrees(v):.4f}" for v in rpy) + " deg")
+                    + Page.ref("parameters", f" (the reference pose {'base0' if not at else 'of ' + s} moved by "
+                                             f"base_x{at} .. base_yaw{at})")))
     free = sum(not p.fixed for p in result.parameters)
     out.append(("parameters", f"{free} identified of {len(result.parameters)}"))
     return out

@@ -25,14 +25,17 @@ def short_label(cand) -> str:
 
 
 def step_label(step: Step) -> str:
-    c = step.candidate
-    if c is None or c.cause == "geometric":
-        return short_label(c)
-    return "+ " + short_label(c)
+    """A step in a few words (:attr:`Step.label`): ``kinematic``, ``+ compliance j2``, ``+ session compensator``."""
+    return step.label
 
 
-def diagnosis_html(report: DiagnosisReport, processes: int = 1) -> str:
+def diagnosis_html(report: DiagnosisReport, processes: int = 1, progress=None) -> str:
     """A self-contained HTML report of a diagnosis (inline CSS and SVG, no script, no network).
+
+    The answer first: the findings with what to do about each and the final
+    model's errors fill the first screen; the evidence (each finding's
+    checks and figure, the steps, the structure kept out, the transfer, the
+    periodograms, the parameters) follows.
 
     Parameters
     ----------
@@ -40,34 +43,39 @@ def diagnosis_html(report: DiagnosisReport, processes: int = 1) -> str:
         What :func:`casadical.diagnosis.diagnose` returned.
     processes : int
         Draw the figures in this many processes (:func:`casadical.report.figures.render`).
+    progress : callable, optional
+        Receives a line of text before and after the figures are drawn.
     """
     page = Page(f"casadical diagnosis: {report.robot}")
     v = report.final_validation
     final = model_label(page, _final_label(report), report.final_model)
     page.heading(f"Diagnosis of {report.robot}", 1)
-    text = (f"Final model {final}: validation mean {v.mean_mm:.4f} mm, max {v.max_mm:.4f} mm, rms "
-            f"{v.rms_mm:.4f} mm over {v.n_poses} validation poses that were never fitted and never decided "
-            "anything")
+    text = (f"Final model {final}: validation mean {v.mean_mm:.4f} mm over {v.n_poses} validation poses that were "
+            "never fitted and never decided anything")
     k = report.kinematic_validation
     if k is not None:
         text += f"; {gain(k.mean_mm - v.mean_mm)} than the kinematic calibration ({k.mean_mm:.4f} mm)"
     nominal = report.steps[0].validation if report.steps else None
     if nominal is not None:
         text += f" and {gain(nominal.mean_mm - v.mean_mm)} than the nominal model ({nominal.mean_mm:.4f} mm)"
-    page.para(text + f". Run time {report.time_s:.1f} s.", "lead")
     named = [f for f in report.findings if f.in_model and f.cause not in ("geometric", "unexplained")]
     kept_out = [f for f in report.findings if not f.in_model]
-    page.para(f"{len(named)} cause(s) named beyond the geometry; {len(kept_out)} joint(s) with structure that "
-              "holds up statistically but not as a cause, kept out of the model.")
-    sections = [("steps", "Steps"), ("findings", "Findings"), ("unexplained", "Structure kept out of the model"),
-                ("transfer", "On another series"), ("periodograms", "What is left"),
-                ("parameters", "Final parameters"), ("notes", "Notes and settings")]
+    page.para(text + f". {len(named)} cause(s) named beyond the geometry, {len(kept_out)} joint(s) with structure "
+              f"kept out of the model; {len(report.steps)} models tried in {report.time_s:.1f} s.", "lead")
+
+    _decision(page, report)
+    _errors(page, report)
+    sections = [("evidence", "Evidence for each finding"), ("steps", "Steps"),
+                ("unexplained", "Structure kept out of the model"), ("transfer", "On another series"),
+                ("periodograms", "What is left"), ("parameters", "Final parameters"),
+                ("notes", "Notes and settings")]
     present = {"unexplained": bool(kept_out), "transfer": bool(report.transfer),
-               "periodograms": bool(report.periodograms)}
+               "periodograms": bool(report.periodograms), "evidence": bool(report.findings)}
+    page.para("The evidence behind them, further down:")
     page.items([page.ref(a, t) for a, t in sections if present.get(a, True)], "ol")
 
-    _steps(page, report)
     _findings(page, report)
+    _steps(page, report)
     if kept_out:
         _kept_out(page, report, kept_out)
     if report.transfer:
@@ -82,51 +90,133 @@ def diagnosis_html(report: DiagnosisReport, processes: int = 1) -> str:
     page.heading("Final parameters", anchor="parameters")
     page.para("The final model fitted on the calibration poses (what <code>diagnose --out</code> writes). "
               "Angles in degrees, lengths in millimetres; greyed rows are held.")
-    parameter_table(page, report.final)
+    parameter_table(page, report.final, fold=True)
     page.heading("Notes and settings", anchor="notes")
     page.items([esc(n) for n in report.notes])
     page.pairs([(k, esc(str(v))) for k, v in report.settings.items()])
-    return page.html(processes)
+    return page.html(processes, progress)
 
 
 def _final_label(report: DiagnosisReport) -> str:
     named = sum(f.in_model and f.cause not in ("geometric", "unexplained") for f in report.findings)
     bb = any(f.in_model and f.cause == "unexplained" for f in report.findings)
     base = "kinematic" if any(f.cause == "geometric" for f in report.findings) else "nominal"
-    return base + (f" + {named} cause(s)" if named else "") + (" + black box" if bb else "")
+    return base + (f" + {named} cause(s)" if named else "") + (" + session compensator" if bb else "")
+
+
+# --- the answer: findings and what to do, the final model's errors ----------------------
+
+
+def _decision(page: Page, report: DiagnosisReport) -> None:
+    page.heading("Findings: what to do", anchor="findings")
+    if not report.findings:
+        page.para("Nothing: not even the geometry is supported by the calibration data.")
+        return
+    evidence = _evidence_anchors(report)
+    rows, classes, actions = [], [], []
+    for k, (f, row) in enumerate(zip(report.findings, report.decision()), 1):
+        anchor = evidence.get(id(f))
+        name = page.ref(anchor, row["label"]) if anchor else row["label"]
+        g = gain(f.gain_mm) if f.in_model else "kept out"
+        rows.append([str(k), name, row["where"], row["size"].replace(" +- ", " \u00b1 "), g, row["scope"]])
+        classes.append("" if f.in_model else "off")
+        actions.append("What to do: " + row["action"])
+    page.para(f"Each cause the data support, with its size in the final model (&plusmn; its standard error), its "
+              f"gain on the {report.final_validation.n_poses} validation poses (against the model it extends), "
+              "whether it is a property of the robot or of the measurement session, and under it what to do about it. "
+              "Greyed: structure kept out of the model.")
+    page.table(["#", "finding", "where", "size", "gain on validation", "scope"], rows,
+               text_columns=(1, 2, 3, 4, 5), row_classes=classes, details=actions)
+
+
+def _evidence_anchors(report: DiagnosisReport) -> dict[int, str]:
+    """Where each finding's evidence is on the page (by id of the finding)."""
+    out = {id(f): f"finding-{k}" for k, f in enumerate([f for f in report.findings if f.in_model], 1)}
+    out.update({id(f): "unexplained" for f in report.findings if not f.in_model})
+    return out
+
+
+def _errors(page: Page, report: DiagnosisReport) -> None:
+    page.heading("Errors of the final model", anchor="errors")
+    v = report.final_validation
+    pose = report.final_orientation is not None
+    models = [("nominal (base pose fitted)", report.steps[0].validation if report.steps else None),
+              ("kinematic", report.kinematic_validation), ("final", v)]
+    rows = []
+    for name, st in models:
+        if st is None:
+            continue
+        rows.append([name, str(st.n_poses), num(st.mean_mm), num(st.max_mm), num(st.rms_mm),
+                     gain(st.mean_mm - v.mean_mm) if name != "final" else ""])
+    for s, st in report.final_sessions.items():
+        rows.append([f"final, session {s}", str(st.n_poses), num(st.mean_mm), num(st.max_mm), num(st.rms_mm), ""])
+    page.table(["model, on the validation poses", "poses", "mean mm", "max mm", "rms mm", "final against it"],
+               rows, text_columns=(0, 5))
+    extra = []
+    if pose:
+        o = report.final_orientation
+        extra.append(f"Orientation of the probe (full pose): mean {o.mean_deg:.4f} deg, max {o.max_deg:.4f} deg, "
+                     f"rms {o.rms_deg:.4f} deg.")
+    if report.transfer:
+        t = report.transfer
+        extra.append(esc(f"On {_name(t['file'])}: {t['final']['base_mm']:.4f} mm with the base pose re-estimated "
+                         f"(kinematic {t['kinematic']['base_mm']:.4f}), {t['final']['refit_mm']:.4f} mm with the "
+                         f"geometry refitted (kinematic {t['kinematic']['refit_mm']:.4f}): ")
+                     + page.ref("transfer", "details") + ".")
+    if extra:
+        page.para(" ".join(extra))
 
 
 # --- steps ---------------------------------------------------------------------------
 
 
+def _held_cells(s: Step) -> list:
+    cv = s.cv_mm or {}
+    return [Raw(num(cv.get(k)) + (f"<br><small>{gain(_drop(cv, k), unit='')}</small>"
+                                  if _drop(cv, k) is not None else "")) for k in KINDS]
+
+
+def _val_cell(s: Step) -> Raw:
+    vm = num(s.validation.mean_mm)
+    if s.gain_mm is not None:
+        vm += f"<br><small>{gain(s.gain_mm, unit='')}</small>"
+    return Raw(vm)
+
+
 def _steps(page: Page, report: DiagnosisReport) -> None:
     page.heading("Steps", anchor="steps")
-    rows, classes, reasons = [], [], []
-    current = None
-    for i, s in enumerate(report.steps, 1):
-        cv = s.cv_mm or {}
-        held = [Raw(num(cv.get(k)) + (f"<br><small>{gain(_drop(cv, k), unit='')}</small>"
-                                      if _drop(cv, k) is not None else "")) for k in KINDS]
-        vm = num(s.validation.mean_mm)
-        if current is not None:
-            vm += f"<br><small>{gain(current - s.validation.mean_mm, unit='')}</small>"
-        rows.append([str(i), model_label(page, step_label(s), s.model), num(s.calibration.rms_mm), *held, Raw(vm),
-                     num(s.validation.max_mm), num(s.validation.rms_mm), "yes" if s.accepted else "no"])
-        classes.append("" if s.accepted else "off")
-        reasons.append(s.reason)
-        if s.accepted:
-            current = s.validation.mean_mm
-    page.para("Each step adds one cause to the model before it; a step is accepted only on the calibration poses "
-              "(significance and held-out means on folds that interpolate, follow time, and extrapolate over "
-              "joint ranges). The validation columns judge and never decide. Under each mean, its gain (mm) on "
-              "the model before: the last accepted step. Hover over a step for its whole model, or see the "
-              "footnotes; why a step was not accepted is written under it.")
-    page.table(["#", "step", "calibration rms mm", "held-out mean, random folds, mm", "held-out mean, time folds, mm",
-                "held-out mean, joint folds, mm", "validation mean mm", "validation max mm", "validation rms mm",
-                "accepted"], rows, text_columns=(1, 9), row_classes=classes, details=reasons)
-    acc = [s for s in report.steps if s.accepted and s.candidate is not None]
-    if acc:
-        ref = page.figure(partial(_along_steps, acc), "fig-steps",
+    number = {id(s): k for k, s in enumerate(report.steps, 1)}
+    acc = [s for s in report.steps if s.accepted]
+    rejected = [s for s in report.steps if not s.accepted]
+
+    def extends(s: Step) -> str:
+        return "\u2013" if s.parent is None else str(s.parent + 1)
+
+    page.para("Each step extends a model by one cause; it is accepted only on the calibration poses (significance "
+              "and held-out means on folds that interpolate, follow time, and extrapolate over joint ranges). The "
+              "validation columns judge and never decide. Under each mean, its gain (mm) against the model the "
+              "step extends (column <i>extends</i>: that model's step). Hover over a step for its whole model, or "
+              "see the footnotes.")
+    page.table(["#", "accepted step", "extends", "calibration rms mm", "held-out mean, random folds, mm",
+                "held-out mean, time folds, mm", "held-out mean, joint folds, mm", "validation mean mm",
+                "validation max mm", "validation rms mm"],
+               [[str(number[id(s)]), model_label(page, step_label(s), s.model), extends(s),
+                 num(s.calibration.rms_mm), *_held_cells(s), _val_cell(s), num(s.validation.max_mm),
+                 num(s.validation.rms_mm)] for s in acc], text_columns=(1,))
+    if rejected:
+        better = sum(1 for s in rejected if (s.gain_mm or 0) > 0)
+        page.para(f"{len(rejected)} candidate steps were not accepted ({better} of them would have lowered this "
+                  "series' validation mean: a gain here is no reason to accept a cause that does not hold up where "
+                  "the model must extrapolate).")
+        with page.folded(f"The {len(rejected)} steps not accepted, each against the model it extends, and why"):
+            page.table(["#", "step", "extends", "held-out mean, random folds, mm", "held-out mean, time folds, mm",
+                        "held-out mean, joint folds, mm", "validation mean mm", "why not accepted"],
+                       [[str(number[id(s)]), model_label(page, step_label(s), s.model), extends(s), *_held_cells(s),
+                         _val_cell(s), s.reason] for s in rejected], text_columns=(1,), wrap_columns=(7,),
+                       row_classes=["off"] * len(rejected))
+    steps = [s for s in acc if s.candidate is not None]
+    if steps:
+        ref = page.figure(partial(_along_steps, steps), "fig-steps",
                           "Validation mean error and held-out means on the calibration poses along the accepted "
                           f"steps (the nominal model, not shown: {report.steps[0].validation.mean_mm:.4f} mm).")
         page.para(f"How the error falls along the accepted steps: {ref}.")
@@ -175,7 +265,7 @@ def _per_pose(e0: np.ndarray, e1: np.ndarray):
 
 
 def _findings(page: Page, report: DiagnosisReport) -> None:
-    page.heading("Findings", anchor="findings")
+    page.heading("Evidence for each finding", anchor="evidence")
     shown = [f for f in report.findings if f.in_model]
     if len(shown) <= 1:
         page.para("No cause beyond the geometry: the kinematic model explains the data down to what the "
@@ -204,12 +294,15 @@ def _findings(page: Page, report: DiagnosisReport) -> None:
             page.details("The evidence in words", f.evidence)
         elif f.evidence:
             page.para(esc(f.evidence))
-        if "cv_mm" in hu:
-            page.table(["held-out folds", "before mm", "with it mm", "gain"],
-                       [[kind, num(hu["cv_mm"].get(f"{kind}_before")), num(hu["cv_mm"].get(kind)),
-                         gain(_drop(hu["cv_mm"], kind))] for kind in KINDS], text_columns=(0, 3))
-        if hu.get("halves"):
-            _halves_table(page, hu["halves"])
+        if "cv_mm" in hu or hu.get("halves"):
+            with page.folded("Held-out means by kind of fold" + (" and the two halves" if hu.get("halves") else "")):
+                if "cv_mm" in hu:
+                    page.table(["held-out folds", "before mm", "with it mm", "gain"],
+                               [[kind, num(hu["cv_mm"].get(f"{kind}_before")), num(hu["cv_mm"].get(kind)),
+                                 gain(_drop(hu["cv_mm"], kind))] for kind in KINDS if kind in hu["cv_mm"]
+                                or f"{kind}_before" in hu["cv_mm"]], text_columns=(0, 3))
+                if hu.get("halves"):
+                    _halves_table(page, hu["halves"])
         if f.plot:
             page.figure(partial(_finding_plot, f), f"fig-{anchor}", _finding_caption(f))
 
@@ -312,8 +405,8 @@ def _kept_out(page: Page, report: DiagnosisReport, kept: list[Finding]) -> None:
     rows = [[f"joint {f.candidate.joint}", s.get("what", ""), s.get("why", "")]
             for f in kept for s in f.holds_up.get("structures", [])]
     if rows:
-        page.para("Why each was kept out:")
-        page.table(["where", "structure", "why kept out"], rows, text_columns=(0, 1), wrap_columns=(2,))
+        with page.folded(f"Why each of the {len(rows)} structures was kept out"):
+            page.table(["where", "structure", "why kept out"], rows, text_columns=(0, 1), wrap_columns=(2,))
 
 
 def _transfer(page: Page, report: DiagnosisReport) -> None:

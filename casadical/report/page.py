@@ -8,8 +8,10 @@ the page never does; figures scale down to the page width.
 
 from __future__ import annotations
 
+import contextlib
 import html
 import math
+import time
 from dataclasses import dataclass, field
 from typing import Callable
 
@@ -55,6 +57,9 @@ details{margin:.3em 0 .6em;max-width:75em}summary{cursor:pointer;color:var(--mut
 
 esc = html.escape
 
+#: more model specifications than this are folded (a click, or a link to one, opens them)
+FOLD_FOOTNOTES = 12
+
 
 class Raw(str):
     """HTML that is already escaped (a link, an abbreviation)."""
@@ -95,6 +100,16 @@ class Page:
     def details(self, summary: str, text: str) -> None:
         """Text folded under a one-line summary (a click opens it)."""
         self.parts.append(f"<details><summary>{esc(summary)}</summary><p class='muted'>{esc(text)}</p></details>")
+
+    @contextlib.contextmanager
+    def folded(self, summary: str):
+        """What is added inside the ``with`` block is folded under a one-line summary (a click opens it): the
+        evidence a reader opens on demand takes no room on the page."""
+        self.parts.append(f"<details><summary>{esc(summary)}</summary>")
+        try:
+            yield
+        finally:
+            self.parts.append("</details>")
 
     def pairs(self, entries: list[tuple[str, str]]) -> None:
         """Label / HTML value pairs, aligned."""
@@ -160,17 +175,28 @@ class Page:
             self.footnotes.append(text)
         return self.footnotes.index(text) + 1
 
-    def html(self, processes: int = 1) -> str:
-        """The document; ``processes`` > 1 draws the figures in that many processes (:func:`.figures.render`)."""
+    def html(self, processes: int = 1, progress: Callable[[str], None] | None = None) -> str:
+        """The document; ``processes`` > 1 draws the figures in that many processes (:func:`.figures.render`);
+        ``progress`` receives a line before and after the figures are drawn."""
+        say = progress or (lambda _: None)
+        if self._figures:
+            say(f"html report: drawing {len(self._figures)} figures"
+                + (f" in {processes} processes" if processes > 1 and len(self._figures) > 1 else ""))
+        t0 = time.perf_counter()
         svgs = render([(fig, anchor, caption) for _, fig, anchor, caption in self._figures], processes)
+        if self._figures:
+            say(f"html report: figures drawn in {time.perf_counter() - t0:.1f} s")
         for n, ((i, _, anchor, caption), svg) in enumerate(zip(self._figures, svgs), start=1):
             self.parts[i] = (f'<figure id="{esc(anchor)}">{svg}<figcaption><b>Figure {n}.</b> {esc(caption)}'
                              "</figcaption></figure>")
         notes = ""
         if self.footnotes:
-            notes = ('<h2 id="footnotes">Model specifications</h2><ol class="notes">'
-                     + "".join(f'<li id="fn{k}"><code>{esc(t)}</code></li>' for k, t in enumerate(self.footnotes, 1))
-                     + "</ol>")
+            items = ('<ol class="notes">' + "".join(f'<li id="fn{k}"><code>{esc(t)}</code></li>'
+                                                  for k, t in enumerate(self.footnotes, 1)) + "</ol>")
+            if len(self.footnotes) > FOLD_FOOTNOTES:   # a long legend opens on a click (or on a link to it)
+                items = (f"<details><summary>The full specification of each of the {len(self.footnotes)} models "
+                         f"named by a short label above</summary>{items}</details>")
+            notes = '<h2 id="footnotes">Model specifications</h2>' + items
         return ("<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
                 "<meta name='viewport' content='width=device-width, initial-scale=1'>"
                 f"<title>{esc(self.title)}</title><style>{CSS}</style></head><body>\n"

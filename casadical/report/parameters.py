@@ -8,16 +8,43 @@ import numpy as np
 
 from ..result import CalibrationResult
 from .figures import figure, styled
-from .page import Page, sig
+from .page import Page, esc, sig
 
 
-def parameter_table(page: Page, result: CalibrationResult) -> None:
+def base_reference(page: Page, result: CalibrationResult) -> None:
+    """What the ``base_*`` rows are relative to: each session's reference pose, and the base pose they give."""
+    sessions = result.sessions
+
+    def pose(xyz, rpy) -> str:
+        return (f"xyz {', '.join(f'{v * 1000:.3f}' for v in xyz)} mm, roll, pitch, yaw "
+                f"{', '.join(f'{math.degrees(v):.4f}' for v in rpy)} deg")
+
+    entries = []
+    for s in sessions or [None]:
+        at = "" if s is None or s == sessions[0] else f"@{s}"
+        name = "<code>base0</code>" if not at else f"the reference of session {esc(s)}"
+        entries.append((f"session {esc(s)}: " if s else "") + f"<code>base_x{at}</code> .. <code>base_yaw{at}</code> "
+                       f"deviate from {name}: {pose(*result.base_reference(s))}; the base pose they give: "
+                       f"<b>{pose(*result.base_pose(s))}</b>")
+    lead = ("The base parameters are deviations from a reference pose of the robot base in the measurement frame "
+            "(kept in the calibration JSON: the closed-form alignment the fit started from), never from the "
+            "robot file's base. ")
+    if len(entries) == 1:
+        page.para(lead + entries[0] + ".")
+    else:
+        page.para(lead + "One per session:")
+        page.items(entries)
+
+
+def parameter_table(page: Page, result: CalibrationResult, fold: bool = False) -> None:
     """Every parameter: nominal, identified, deviation, std, its test against nominal, unit, and status.
 
     The test (:meth:`CalibrationResult.significance`): relative std, t and
     the 95 % interval (the p-values are in the JSON); a row that is not significant is highlighted and
-    says so in its status.
+    says so in its status. First the reference pose the ``base_*`` rows deviate from (:func:`base_reference`);
+    ``fold``: the long table folded under a one-line summary (a click opens it).
     """
+    base_reference(page, result)
     tests = result.significance()
     rows, classes = [], []
     for p in result.parameters:
@@ -33,9 +60,13 @@ def parameter_table(page: Page, result: CalibrationResult) -> None:
                      sig(f(p.value), 6), sig(f(p.value - p.nominal), 3) if not p.fixed else "",
                      sig(f(p.std), 2) if math.isfinite(p.std) else "", *_test_cells(t, f), p.display_unit, status])
         classes.append("off" if p.fixed else "weak" if t is not None and not t.significant else "")
-    page.table(["parameter", "joint", "nominal", "identified", "deviation", "std", "rel. std", "t",
-                "95 % interval", "unit", "status"],
-               rows, text_columns=(0, 9), wrap_columns=(10,), row_classes=classes)
+    header = ["parameter", "joint", "nominal", "identified", "deviation", "std", "rel. std", "t", "95 % interval",
+              "unit", "status"]
+    if fold:
+        with page.folded(f"All {len(rows)} parameters: nominal, identified, deviation, std, test against nominal"):
+            page.table(header, rows, text_columns=(0, 9), wrap_columns=(10,), row_classes=classes)
+    else:
+        page.table(header, rows, text_columns=(0, 9), wrap_columns=(10,), row_classes=classes)
     stiff = result.stiffness()
     if stiff:
         intervals = result.stiffness_intervals()

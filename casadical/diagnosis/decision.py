@@ -1,0 +1,229 @@
+"""What a diagnosis means for the robot: each finding in a few words, its size and what to do about it.
+
+The reports (terminal summary, HTML page, JSON) open with one row per
+finding: a short label, where it lives, its size in the final model (with
+its relative standard error), its gain on the validation poses, whether it
+is of the robot or of the measurement session, and one line saying what to
+do. These functions make those cells from a :class:`~.report.Finding` and
+the final model; they never compute anything the diagnosis did not decide.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+if TYPE_CHECKING:
+    from ..result import CalibrationResult
+    from .report import DiagnosisReport, Finding
+
+#: the width prose is wrapped to in the terminal; tables are narrower than :data:`MAX_LINE`
+WIDTH = 132
+#: no line of the terminal output is longer than this
+MAX_LINE = 200
+
+
+def wrap(text: str, indent: str = "", first: str | None = None, width: int = WIDTH) -> list[str]:
+    """``text`` as lines of at most ``width`` characters (``first`` prefixes the first line, ``indent`` the others).
+
+    Long words without spaces (a model specification) are broken after ``+`` and ``,``; a word longer than a
+    whole line, anywhere.
+    """
+    first = indent if first is None else first
+    tokens: list[tuple[str, str]] = []           # (piece, what joins it to the one before)
+    for w in text.split():
+        pieces = re.split(r"(?<=[+,])(?=\S)", w) if len(w) > 40 else [w]
+        room = max(width - len(indent), 20)
+        pieces = [p[k:k + room] for p in pieces for k in range(0, len(p), room)]
+        tokens += [(p, " " if k == 0 else "") for k, p in enumerate(pieces)]
+    lines, line, started = [], first, False
+    for piece, glue in tokens:
+        add = (glue if started else "") + piece
+        if started and len(line) + len(add) > width:
+            lines.append(line)
+            line = indent + piece
+        else:
+            line += add
+        started = True
+    lines.append(line)
+    return [x.rstrip() for x in lines]
+
+
+def wrap_spec(spec: str, indent: str = "", first: str = "", width: int = WIDTH) -> list[str]:
+    """A model specification on lines of at most ``width`` characters, broken after ``+`` and ``,``."""
+    return wrap(spec, indent, first, width)
+
+
+def gain_words(drop_mm: float | None, digits: int = 4, unit: str = " mm") -> str:
+    """A drop of an error in words, never a signed number: ``0.0292 mm better``, ``0.0030 mm worse``."""
+    if drop_mm is None or not math.isfinite(drop_mm):
+        return "-"
+    if round(drop_mm, digits) == 0:
+        return "no change"
+    return f"{abs(drop_mm):.{digits}f}{unit} {'better' if drop_mm > 0 else 'worse'}"
+
+
+def g3(x: float) -> str:
+    """Three significant digits, a power of ten written short: ``5.38e4``, ``0.0123``."""
+    return re.sub(r"e([+-])0*(\d)", lambda m: "e" + ("-" if m.group(1) == "-" else "") + m.group(2), f"{x:.3g}")
+
+
+def relative(std: float, value: float) -> str:
+    """`` +- 6.2 %``: a standard error relative to its value ('' when unknown)."""
+    if not (math.isfinite(std) and math.isfinite(value)) or value == 0:
+        return ""
+    r = 100 * abs(std / value)
+    return f" +- {r:.1f} %" if r < 10 else f" +- {r:.0f} %" if r < 1000 else " +- > 999 %"
+
+
+def label(f: "Finding") -> str:
+    """A finding in a few words: ``geometry``, ``compliance j2``, ``periodic j2 h17``, ``drift @B``,
+    ``session compensator``, ``unexplained j1``."""
+    c = f.candidate
+    if c.cause == "geometric":
+        return "geometry"
+    if c.cause == "unexplained":
+        return "session compensator" if f.in_model else f"unexplained j{c.joint}" if c.joint else "unexplained"
+    return c.label(short=True)
+
+
+def where(f: "Finding") -> str:
+    """Where a finding lives: ``joint 2``, ``link 3``, ``measurement frame, session B``, ..."""
+    c = f.candidate
+    if c.cause == "geometric":
+        return "links, base and tool"
+    if c.cause == "unexplained":
+        if f.in_model:
+            sessions = [s for s in (f.holds_up or {}).get("length_scales_deg", {}) if s]
+            return "what the causes leave" + (f", sessions {', '.join(sessions)}" if len(sessions) > 1 else "")
+        return f"joint {c.joint}" if c.joint else ""
+    if c.cause == "thermal_expansion":
+        text = "every link" if c.joint is None else f"link {c.joint}"
+    elif c.cause == "drift":
+        text = "measurement frame"
+    else:
+        text = f"joint {c.joint}"
+    if c.cause == "backlash":
+        text += ", by the last move" if c.source == "motion" else ", by the load"
+    return text + (f", session {c.session}" if c.session is not None else "")
+
+
+def size(f: "Finding", final: "CalibrationResult") -> str:
+    """The finding's size in the final model, with its relative standard error."""
+    c = f.candidate
+    if c.cause == "geometric":
+        n = sum(1 for p in final.parameters if p.term == "geometric" and not p.fixed and not p.name.startswith(
+            "base_"))
+        return f"{n} link and tool parameters"
+    if c.cause == "unexplained":
+        hu = f.holds_up or {}
+        if f.in_model:
+            k, n = hu.get("validation_known", [None, None])
+            return f"applies at {k} of {n} validation poses" if n else "a Gaussian process per session"
+        items = hu.get("structures", [])
+        if not items:
+            return ""
+        big = max(items, key=lambda x: x.get("amplitude_arcsec", 0.0))
+        return big.get("what", "") + (f" and {len(items) - 1} more" if len(items) > 1 else "")
+    names = c.parameter_names()
+    if any(n not in final.parameters.names for n in names):
+        return ""
+    P = [final.parameters[n] for n in names]
+    v = np.array([p.value for p in P])
+    s = np.array([p.std for p in P])
+    if c.cause == "joint_compliance":
+        if v[0] <= 0:
+            return f"{names[0]} = {g3(v[0])} rad/(N m), not positive"
+        return f"k{c.joint} = {g3(1 / v[0])} N m/rad{relative(s[0], v[0])}"
+    if c.cause == "nonlinear_stiffness":
+        how = "stiffens" if v[1] < 0 else "softens"
+        return f"cubic term {g3(v[1])} rad/(N m)^3{relative(s[1], v[1])}: {how} with load"
+    if c.cause == "joint_periodic":
+        amp = math.hypot(*v)
+        std = math.sqrt(((v * s) ** 2).sum()) / amp if amp > 0 else math.nan
+        return f"{c.harmonic} cycles/turn, {math.degrees(amp) * 3600:.1f} arcsec{relative(std, amp)}"
+    if c.cause == "encoder_scale":
+        return f"{v[0] * 1e6:.0f} ppm{relative(s[0], v[0])}"
+    if c.cause == "backlash":
+        return f"half play {math.degrees(v[0]) * 3600:.1f} arcsec{relative(s[0], v[0])}"
+    if c.cause == "thermal_expansion":
+        return f"{v[0] * 1e6:.2f} ppm/K{relative(s[0], v[0])}"
+    if c.cause == "drift":
+        speed = float(np.linalg.norm(v))
+        std = math.sqrt(((v * s) ** 2).sum()) / speed if speed > 0 else math.nan
+        return f"{g3(speed * 1e6)} um/s{relative(std, speed)}"
+    return ""
+
+
+def gain(f: "Finding") -> str:
+    """Its gain on the validation poses, in words (``kept out`` for structure left out of the model)."""
+    return gain_words(f.gain_mm) if f.in_model else "kept out"
+
+
+def scope(f: "Finding") -> str:
+    """``robot``, ``session``, or ``one session`` for a cause data of one session could not place."""
+    if f.scope:
+        return f.scope
+    if f.cause == "geometric":
+        return "robot"
+    return "one session" if f.in_model else "-"
+
+
+def action(f: "Finding", report: "DiagnosisReport") -> str:
+    """What to do about a finding, in one line."""
+    c = f.candidate
+    other = _name(report.transfer.get("file", "")) if report.transfer else ""
+    if c.cause == "geometric":
+        return ("use the calibrated geometry: export writes it as URDF and a DH table (compensate uses the full "
+                "model)")
+    if c.cause == "unexplained" and f.in_model:
+        return ("applies in this session where it knows; compensate and predict use it; a transfer to another "
+                "session drops it (scope session)")
+    if c.cause == "unexplained":
+        j = c.joint
+        gain_here = gain_words(f.potential_gain_mm)
+        return (f"not in the model (it would give {gain_here} here): measure joint {j} over a wider range or in "
+                "another session to tell")
+    if f.scope == "session":
+        return "re-measure it in each session; it is never carried to other data (scope session)"
+    amb = f"; ambiguous with {', '.join(_short(a) for a in f.ambiguous_with)} (see the evidence)" \
+        if f.ambiguous_with else ""
+    if f.scope == "robot":
+        return "compensate with the full model; it holds in other sessions (scope robot)" + amb
+    verdict = (f.transfer or {}).get("verdict")
+    if verdict == "transfers":
+        return f"compensate with the full model; it holds on {other} too (transfers)" + amb
+    if verdict == "mixed":
+        return (f"compensate with the full model, with care: on {other} it helps one way only (mixed); check it "
+                "in another session") + amb
+    if verdict == "does not transfer":
+        return (f"keep it to this session: on {other} the model does better without it (does not transfer)"
+                + amb)
+    if verdict == "no difference":
+        return f"compensate with the full model; on {other} it makes no difference" + amb
+    return "compensate with the full model; whether it holds in other sessions: --transfer OTHER.csv" + amb
+
+
+def _short(a: dict) -> str:
+    """A candidate of an ambiguity (its dict) in a few words."""
+    from .candidates import Candidate
+
+    return Candidate(**{k: a[k] for k in ("cause", "joint", "harmonic", "source", "session") if k in a}).label(
+        short=True)
+
+
+def _name(path: str) -> str:
+    return path.replace("\\", "/").rsplit("/", 1)[-1]
+
+
+def table(header: list[str], rows: list[list[str]], indent: str = "  ", right: tuple[int, ...] = ()) -> list[str]:
+    """A plain-text table: columns as wide as their widest cell (``right``: right-aligned columns)."""
+    widths = [max(len(str(x)) for x in col) for col in zip(header, *rows)]
+
+    def line(cells):
+        return indent + "  ".join(str(x).rjust(w) if k in right else str(x).ljust(w)
+                                  for k, (x, w) in enumerate(zip(cells, widths))).rstrip()
+    return [line(header)] + [line(r) for r in rows]
