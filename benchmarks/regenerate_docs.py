@@ -28,7 +28,7 @@ Usage::
     python benchmarks/regenerate_docs.py --reuse out/docs-runs   # use saved outputs, run nothing
 
 ``tests/test_docs_generated.py`` checks the markers (fast) and, under ``pytest -m slow``, runs the
-check job by job. All jobs take about 20 minutes on 2 cores at load 5-8 (docs/benchmarks.md, "Docs that
+check job by job. All jobs take 11-20 minutes on 2 cores (load 1-8; docs/benchmarks.md, "Docs that
 cannot drift", has the time of each); the guide itself is run by ``tests/test_guide.py``.
 """
 

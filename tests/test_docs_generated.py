@@ -5,7 +5,7 @@
 check the markers (every block registered, named with its job's command, a table; every registered block
 quoted once) and that the comparison catches a changed figure and ignores a changed timing. Under
 ``pytest -m slow`` each job runs with its documented seeds and arguments and every block it fills must
-match, timings aside: about 20 minutes on 2 cores at load 5-8 for all of them (``-k`` picks jobs; the times per job
+match, timings aside: 11-20 minutes on 2 cores (load 1-8) for all of them (``-k`` picks jobs; the times per job
 are in docs/benchmarks.md, "Docs that cannot drift").
 """
 
