@@ -148,7 +148,9 @@ def case_b(n_robots: int) -> Tally:
             for solver, name in (("lm", "Levenberg-Marquardt from nominal"), ("ipopt", "IPOPT from nominal")):
                 t0 = time.perf_counter()
                 try:
-                    r = calibrate(robot, cal, model, solver, warn=False)
+                    # the nominal model misses these poses by a third of the reach: the robot file is this far
+                    # off on purpose (issue 21's check refuses it unless told; marked, the poses pass below too)
+                    r = calibrate(robot, cal, model, solver, warn=False, allow_mismatch=True)
                     v = r.stats(val).mean_mm
                 except Exception:   # noqa: BLE001 - a failed local solve counts as a failure
                     v = math.inf
@@ -160,7 +162,8 @@ def case_b(n_robots: int) -> Tally:
             for th in rng.uniform(-math.pi, math.pi, 10):
                 t1 = time.perf_counter()
                 try:
-                    r = calibrate(robot, cal, model, "ipopt", start={f"theta{joint}": th}, warn=False)
+                    r = calibrate(robot, cal, model, "ipopt", start={f"theta{joint}": th}, warn=False,
+                                  allow_mismatch=True)
                 except Exception:   # noqa: BLE001
                     tally.add("IPOPT from one random offset", val_mm=math.inf, time_s=time.perf_counter() - t1)
                     continue

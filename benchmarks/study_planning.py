@@ -232,7 +232,12 @@ def simulation(out_dir: str, reps: int) -> dict:
                   f"{a['p90']:.4f} | {b['mean']:.4f} / {b['median']:.4f} / {b['p90']:.4f} "
                   f"| {100 * r[k]['doptimal_wins']:.0f} % | {r[k]['ratio_median']:.3f} "
                   f"| {r[k]['reduction_of_average_pct']:.1f} % |")
-        print(f"<!-- {name}: certified D-efficiency of the D-optimal sets: {r['d_efficiency']} -->")
+    print("\n### Simulation: certified D-efficiency of the D-optimal sets over the repetitions\n")
+    print("| configuration | lowest | median | highest |")
+    print("|---|---|---|---|")
+    for name, r in out.items():
+        e = r["d_efficiency"]
+        print(f"| {name} | {e['min']:.4f} | {e['median']:.4f} | {e['max']:.4f} |")
     for r in out.values():
         r.pop("per_rep")
     return out

@@ -170,8 +170,8 @@ def stiffness_table(rows: list[dict]) -> str:
 
 
 def paired(rows: list[dict]) -> str:
-    """Held-out change from adding compliance, split by split (same calibration and held-out poses)."""
-    out = []
+    """Held-out change from adding compliance, split by split (same calibration and held-out poses): a table."""
+    out = ["| series, cal poses | comparison | mean (mm) | rms (mm) | max (mm) |", "|---|---|---|---|---|"]
     for series in ("B", "A"):
         for n_cal in sorted({r["n_cal"] for r in rows if r["series"] == series}):
             for spec, ref in PAIRS:
@@ -185,21 +185,26 @@ def paired(rows: list[dict]) -> str:
                 parts = []
                 for k in ("mean_mm", "rms_mm", "max_mm"):
                     d = [comp[s][k] - base[s][k] for s in seeds]
-                    parts.append(f"{k[:-3]} {min(d):+.4f} .. {max(d):+.4f}")
-                out.append(f"  series {series}, {n_cal} poses, {spec} - {ref} (mm, min .. max over "
-                           f"{len(seeds)} splits): " + "; ".join(parts))
+                    parts.append(f"{min(d):+.4f} .. {max(d):+.4f}")
+                out.append(f"| {series}, {n_cal} | {spec} - {ref} | " + " | ".join(parts) + " |")
     return "\n".join(out)
 
 
-def torque_context(robot, data: Measurements) -> str:
-    """Gravity torques over the data (nominal model, the robot file's masses)."""
+def torques(robot, data: Measurements) -> tuple[np.ndarray, np.ndarray]:
+    """Largest and median |gravity torque| per joint over the data (nominal model, the robot file's masses)."""
     m = Model(robot, KC, jit=False)
-    tau = m.torques(data.q, m.parameters.values, m.covariates(data))
-    lines = []
-    for j in range(1, robot.n + 1):
-        t = np.abs(tau[:, j - 1])
-        lines.append(f"  joint {j}: |tau| max {t.max():.1f} N m, median {np.median(t):.1f} N m")
-    return "\n".join(lines)
+    tau = np.abs(m.torques(data.q, m.parameters.values, m.covariates(data)))
+    return tau.max(axis=0), np.median(tau, axis=0)
+
+
+def torque_table(contexts: dict) -> str:
+    series = list(contexts)
+    out = ["| joint | " + " | ".join(f"series {s}: largest (N m) | median (N m)" for s in series) + " |",
+           "|---:|" + "---:|---:|" * len(series)]
+    for j in range(len(next(iter(contexts.values()))[0])):
+        out.append(f"| {j + 1} | " + " | ".join(f"{contexts[s][0][j]:.1f} | {contexts[s][1][j]:.1f}"
+                                                for s in series) + " |")
+    return "\n".join(out)
 
 
 def main(argv=None) -> int:
@@ -218,7 +223,7 @@ def main(argv=None) -> int:
     for series in args.series:
         data = Measurements.read_csv(DATA / f"series_{series.lower()}.csv", n_joints=6)
         print(f"\nseries {series}: {len(data)} poses")
-        contexts[series] = torque_context(robot, data)
+        contexts[series] = torques(robot, data)
         models: dict = {}  # one model per specification, reused over splits (JIT compiled once)
         rows += run(robot, series, data, args.seeds, models)
 
@@ -228,12 +233,15 @@ def main(argv=None) -> int:
           "held-out poses; calibrate() wall time of the first split (includes the JIT compile of a new model at \n"
           "300+ poses) and the median over splits; solve = the solver's own time:\n")
     print(table(rows))
-    print("\nEffect of compliance on the held-out errors, split by split:\n" + paired(rows))
+    print(f"\nEffect of compliance on the held-out errors, split by split: the change from the model without to "
+          f"the model with compliance, smallest .. largest over the {len(args.seeds)} splits (same calibration "
+          "and held-out poses; negative = better):\n")
+    print(paired(rows))
     print("\nIdentified joint compliance (kinematic+compliance), joints the identifiability analysis kept "
           "free:\n")
     print(stiffness_table(rows))
-    for series, text in contexts.items():
-        print(f"\nGravity torques over series {series} (nominal model, no payload):\n{text}")
+    print("\nGravity torques over the data, |tau| per joint (nominal model, the robot file's masses, no payload):\n")
+    print(torque_table(contexts))
     fixed = sorted({n for r in rows if r["model"] == KC for n in r["fixed"]})  # union over splits
     print(f"\nfixed in kinematic+compliance runs (not identifiable from these poses): {', '.join(fixed)}")
     statuses = sorted({(r["solver"], r["status"]) for r in rows})
