@@ -11,7 +11,6 @@ are in docs/benchmarks.md, "Docs that cannot drift").
 
 from __future__ import annotations
 
-import re
 import sys
 from pathlib import Path
 
