@@ -410,7 +410,8 @@ def parameter_table(params: Parameters, tests: dict[str, ParameterTest]) -> str:
     """
     level = next(iter(tests.values())).level if tests else LEVEL
     lo, hi = f"[{(1 - level) / 2:g}", f"{1 - (1 - level) / 2:g}]"
-    head = (f"{'name':<14}{'nominal':>12}{'value':>12}{'deviation':>12}{'std':>11}{'rel.std':>8}{'t':>8}"
+    w = max([14] + [len(p.name) + 2 for p in params])     # a session's own parameters have long names (base_x@B)
+    head = (f"{'name':<{w}}{'nominal':>12}{'value':>12}{'deviation':>12}{'std':>11}{'rel.std':>8}{'t':>8}"
             f"{lo:>12}{hi:>12}  {'unit':<10}status")
     lines = [head, "-" * len(head)]
     for p in params:
@@ -425,7 +426,7 @@ def parameter_table(params: Parameters, tests: dict[str, ParameterTest]) -> str:
         rel = "-" if t is None else (f"{100 * t.relative_std:.0f}%" if t.relative_std < 10 else ">999%")
         tv = "-" if t is None else f"{t.t:.2f}"
         ci = ("-", "-") if t is None else (_num(f(t.ci[0])), _num(f(t.ci[1])))
-        lines.append(f"{p.name:<14}{_num(f(p.nominal)):>12}{_num(f(p.value)):>12}{_num(f(p.value - p.nominal)):>12}"
+        lines.append(f"{p.name:<{w}}{_num(f(p.nominal)):>12}{_num(f(p.value)):>12}{_num(f(p.value - p.nominal)):>12}"
                      f"{_num(std, 4):>11}{rel:>8}{tv:>8}{ci[0]:>12}{ci[1]:>12}  {p.display_unit:<10}{status}")
     return "\n".join(lines)
 
