@@ -191,3 +191,19 @@ def test_diagnose_needs_one_output_and_no_json_for_html(poses, tmp_path):
             "--max-rounds", "1", "--no-layer", "--quiet")
     assert r.returncode == 0 and r.stdout.startswith("<!DOCTYPE html>") and r.stdout.rstrip().endswith("</html>")
     assert "findings (sizes in the final model" in r.stderr
+
+
+def test_predict_renames_measured_orientations_it_does_not_predict(tmp_path):
+    """predict with a position-only calibration on poses with a measured orientation: the output's x_mm.. are the
+    model's, and the measured rx_deg.. are renamed measured_rx_deg.. like the measured positions (an rx_deg left
+    beside the model's point would be taken for a target orientation by compensate)."""
+    import csv
+    from pathlib import Path
+    series_b = Path(__file__).resolve().parent.parent / "problems" / "datasets" / "ur10-ipa" / "series_b.csv"
+    cal, val = tmp_path / "cal.csv", tmp_path / "val.csv"
+    assert main(["split", str(series_b), "-n", "200", "--out-cal", str(cal), "--out-val", str(val)]) == 0
+    assert main(["calibrate", "ur10", str(cal), "--model", "kinematic", "--position-only", "--solver", "lm",
+                 "--out", str(tmp_path / "c.json")]) == 0
+    assert main(["predict", str(tmp_path / "c.json"), str(val), "--out", str(tmp_path / "p.csv")]) == 0
+    header = next(csv.reader(open(tmp_path / "p.csv")))
+    assert "rx_deg" not in header and {"measured_rx_deg", "measured_x_mm", "x_mm"} <= set(header)

@@ -92,7 +92,7 @@ def run_predict(args) -> int:
     from ..alignment import align
     from ..calibration import CalibrationResult, ErrorStats
     from ..checks import check_calibration_fits, check_poses
-    from ..data import Measurements
+    from ..data import RXYZ, Measurements
     from ..model import Model
 
     check_outputs({"--out": args.out}, [args.model, args.poses], args.force)
@@ -127,6 +127,10 @@ def run_predict(args) -> int:
     out = data.with_positions(xyz)
     if cal is not None and cal.has_orientation:   # a full-pose calibration: the probe's orientation too
         out = out.with_orientations(cal.predict_rotations(data))
+    elif data.has_orientation:
+        # measured orientations are renamed as the measured positions are: an rx_deg beside the model's x_mm would
+        # read as the model's (compensate takes it for the target orientation)
+        out = out.with_columns({f"measured_{k}" if k in RXYZ else k: v for k, v in out.columns.items()})
     out.write_csv(args.out, overwrite=args.force)
     print(f"predicted {len(data)} poses -> {args.out}")
     if stats is not None:
