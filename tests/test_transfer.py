@@ -135,3 +135,18 @@ def test_diagnose_says_what_the_transfer_study_does(tmp_path, capsys):
         assert f"transfer: {k} of {len(taken)}, " in err
     assert main(args + ["--quiet"]) == 0
     assert capsys.readouterr().err == ""
+
+
+def test_predict_warns_when_a_session_term_meets_another_file(tmp_path, capsys):
+    """predict with a calibration holding a drift, on a file not named as of its session: a warning names the
+    term and how to take the calibration there first."""
+    robot = robot_from_dict(ARM7_DH)
+    cal, truth = simulate(robot, 80, Effects(drift=(1e-6, 0.0, 0.0)), seed=5, floor_z=None)
+    calibrate(robot, cal, "kinematic+drift", "lm", warn=False).save(tmp_path / "cal.json")
+    other, _ = simulate(robot, 20, truth=truth, seed=6, floor_z=None)
+    other.write_csv(tmp_path / "other.csv")
+    capsys.readouterr()
+    assert main(["predict", str(tmp_path / "cal.json"), str(tmp_path / "other.csv"), "--out",
+                 str(tmp_path / "p.csv")]) == 0
+    err = capsys.readouterr().err
+    assert "holds drift, of the measurement session it was fitted on" in err and "--model base" in err
