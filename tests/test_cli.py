@@ -132,6 +132,9 @@ def poses(tmp_path_factory):
     cal.write_csv(d / "cal.csv")
     val.write_csv(d / "val.csv")
     assert main(["candidates", "ys100", "-n", "300", "--out", str(d / "cand.csv")]) == 0
+    (d / "study.toml").write_text('name = "one"\nprotocol = "ca-ys100"\nseed = 1\nrepetitions = 1\n'
+                                  'validation_poses = 20\n[[plan]]\nmethod = "random"\nposes = 25\n'
+                                  '[[method]]\nmethod = "Nominal"\n[[method]]\nmethod = "KM"\n')
     return d
 
 
@@ -143,6 +146,7 @@ JSON_COMMANDS = {
     "diagnose": ["diagnose", "ys100", "{d}/cal.csv", "--validate", "{d}/val.csv", "--max-rounds", "1", "--no-layer",
                  "--out", "{d}/final.json", "--force"],
     "cache": ["cache", "--info"],
+    "study": ["study", "{d}/study.toml", "--out", "{d}/study-results", "--serial"],
 }
 
 
@@ -165,8 +169,12 @@ def test_json_to_standard_output_is_clean_json(cmd, poses):
     if cmd == "diagnose":       # the report (keys of INTERFACE.md) and the summary beside it, on stderr
         assert {"steps", "findings", "final"} <= set(doc)
         assert "findings (sizes in the final model" in r.stderr and "final model -> " in r.stderr
-    if cmd in ("compare", "plan-poses"):
+    if cmd in ("compare", "plan-poses", "study"):
         assert "standard output" in r.stderr
+    if cmd == "study":          # the table people read, and the same rows in the JSON
+        assert "| random | 25 | KM | 1/1 |" in r.stderr
+        assert [(row["method"], row["ok"]) for row in doc["rows"]] == [("Nominal", 1), ("KM", 1)]
+        assert doc["baseline"] == "Nominal" and doc["rows"][1]["win_rate"] in (0.0, 0.5, 1.0)
 
 
 def test_one_output_at_most_on_standard_output(poses):

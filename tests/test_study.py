@@ -10,6 +10,7 @@ the client midway and resumes.
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import subprocess
@@ -435,6 +436,25 @@ def test_cli_run_resume_summary_and_plots(tmp_path, capsys):
         assert (tmp_path / "plots" / name).read_bytes()[:4] == b"\x89PNG"
     assert main(["study", "--summary", out, "--plot-dir", plots]) == 2          # plots exist: --force
     assert "exists already" in capsys.readouterr().err
+    # a run's --force discards the results: an output that exists is refused there even with --force
+    assert main(["study", path, "--out", out, "--serial", "--quiet", "--plot-dir", plots, "--force"]) == 2
+    assert "study --summary RESULTS ... --force" in capsys.readouterr().err
+    assert sorted(set(raw_repetitions(out))) == [0, 1]                           # the results are still there
+
+
+def test_cli_summary_as_json(tmp_path, capsys):
+    path = write_study(tmp_path, reps=2, poses="[20, 30]")
+    out, doc = str(tmp_path / "r"), tmp_path / "s.json"
+    assert main(["study", path, "--out", out, "--serial", "--quiet", "--json", str(doc)]) == 0
+    run = json.loads(doc.read_text())
+    assert run["run"]["computed"] == 2 and run["results"] == out
+    assert main(["study", path, "--out", out, "--serial", "--quiet", "--json", str(doc), "--force"]) == 2
+    assert main(["study", "--summary", out, "--json", str(doc), "--force"]) == 0
+    summary = json.loads(doc.read_text())
+    assert "run" not in summary and summary["rows"] == run["rows"]
+    table = capsys.readouterr().out
+    for row in summary["rows"]:                 # the JSON holds what the table shows
+        assert f"| {row['plan']} | {row['n_poses']} | {row['method']} | {row['ok']}/{row['runs']} |" in table
 
 
 @pytest.mark.parametrize("args, words", [

@@ -7,7 +7,7 @@ from pathlib import Path
 
 from ..errors import InputError
 from ..interrupts import exit_code
-from .common import Status, add_quiet, int_at_least
+from .common import Status, add_json, add_quiet, check_outputs, human_stream, int_at_least, write_json
 
 
 def register(sub) -> None:
@@ -30,6 +30,7 @@ def register(sub) -> None:
     p.add_argument("--metric", default="val_mean_mm",
                    help="float column to compare (default: %(default)s; e.g. val_true_mean_mm)")
     p.add_argument("--plot-dir", metavar="DIR", help="write errors.png (and poses.png) into DIR (created)")
+    add_json(p, "the comparison table (and, after a run, what the run did)")
     add_quiet(p)
     p.add_argument("--force", action="store_true",
                    help="discard the results RESULTS holds (of this or another protocol) and start over; "
@@ -48,7 +49,7 @@ def cmd_study(args) -> int:
                                 ("--scheduler", args.scheduler), ("--serial", args.serial)) if v]
         if given:
             raise InputError(f"study --summary takes RESULTS only, not {', '.join(given)}")
-        _check_plot_dir(args)
+        _check_outputs(args)
         return _summary(args, args.summary)
     if not args.protocol or not args.out:
         raise InputError("study: give PROTOCOL.toml and --out RESULTS to run a study, or --summary RESULTS")
@@ -60,16 +61,23 @@ def cmd_study(args) -> int:
     if args.baseline and args.baseline.strip().lower() not in {m.name.lower() for m in study.methods}:
         raise InputError(f"--baseline: no method {args.baseline!r} in this study; its methods: "
                          + ", ".join(m.name for m in study.methods), file=study.path)
-    _check_plot_dir(args)
+    _check_outputs(args)
     return _run(args, study)
 
 
-def _check_plot_dir(args) -> None:
-    if args.plot_dir and not args.force:
-        for name in ("errors.png", "poses.png"):
-            if (Path(args.plot_dir) / name).exists():
-                raise InputError("exists already; choose another --plot-dir or pass --force to replace it",
-                                 file=str(Path(args.plot_dir) / name))
+def _check_outputs(args) -> None:
+    """--json and --plot-dir, before any work. In a run --force also discards the results, so there an output
+    that exists is refused whatever --force says (``study --summary RESULTS ... --force`` replaces it)."""
+    running = not args.summary
+    existing = [Path(args.json)] if args.json and args.json != "-" else []
+    existing += [Path(args.plot_dir) / name for name in ("errors.png", "poses.png")] if args.plot_dir else []
+    for path in existing:
+        if path.exists() and path.is_file() and (running or not args.force):
+            raise InputError("exists already; " + (
+                "choose another path, or replace it after the run with 'study --summary RESULTS ... --force' "
+                "(in a run, --force discards the results)" if running else
+                "choose another path or pass --force to replace it"), file=str(path))
+    check_outputs({"--json": args.json}, [args.protocol] if args.protocol else [], args.force)
     if args.plot_dir:
         from ..methods.compare import pyplot
         pyplot()                   # a missing matplotlib fails before the work
@@ -114,22 +122,31 @@ def _run(args, study) -> int:
         if state["bar"] is not None:
             state["bar"].close()
     print(f"{report.computed} repetitions in {report.time_s:.1f} s ({report.error_rows} rows with errors); "
-          f"{report.skipped + report.computed} of {report.repetitions} in {args.out}")
-    return _summary(args, args.out)
+          f"{report.skipped + report.computed} of {report.repetitions} in {args.out}", file=human_stream(args.json))
+    run = {"results": args.out, "computed": report.computed, "skipped": report.skipped,
+           "repetitions": report.repetitions, "error_rows": report.error_rows, "time_s": report.time_s}
+    return _summary(args, args.out, run)
 
 
 def _workers(n: int) -> str:
     return f"{n} worker" + ("" if n == 1 else "s")
 
 
-def _summary(args, results: str) -> int:
+def _summary(args, results: str, run: dict | None = None) -> int:
     from ..study import plot_summary, summarize
 
+    out = human_stream(args.json)          # --json -: standard output holds the JSON alone
     summary = summarize(results, baseline=args.baseline, metric=args.metric)
-    print()
-    print(summary.table())
+    print(file=out)
+    print(summary.table(), file=out)
     if args.plot_dir:
         Path(args.plot_dir).mkdir(parents=True, exist_ok=True)
         for path in plot_summary(summary, args.plot_dir, overwrite=args.force):
-            print(f"plot -> {path}")
+            print(f"plot -> {path}", file=out)
+    if args.json:
+        doc = {"results": results, **summary.to_dict()}
+        if run is not None:
+            doc["run"] = run
+        write_json(args.json, doc, args.force)
+        print(f"summary -> {'standard output' if args.json == '-' else args.json}", file=out)
     return 0

@@ -11,7 +11,7 @@ the same poses and is judged on the same validation poses.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
 import numpy as np
@@ -66,6 +66,11 @@ class Summary:
     repetitions: int
     rows: list[SummaryRow]
     values: dict = field(default_factory=dict, repr=False)
+
+    def to_dict(self) -> dict:
+        """The table as JSON-ready data (``win_rate`` None for the baseline; NaN where no repetition succeeded)."""
+        return {"name": self.name, "metric": self.metric, "baseline": self.baseline,
+                "repetitions": self.repetitions, "rows": [asdict(r) for r in self.rows]}
 
     def table(self) -> str:
         """Markdown table."""
