@@ -87,6 +87,9 @@ class Measurements:
             self.rows = source.astype(int) - 1 if source is not None else np.arange(len(self))
         if self.lines is None:
             self.lines = self.rows + 2
+        payload = self.columns.get("payload_kg")
+        if payload is not None and payload.dtype.kind in "fiu":    # read from a file or made in memory
+            _check_payload(payload, self.lines, self.path)
         if self.sessions is None and "session" in self.columns:
             self.sessions = np.array([session_name(x) for x in self.columns["session"]], dtype=object)
         if self.moves is None:
@@ -257,7 +260,6 @@ class Measurements:
         if text:  # columns of words: read again for their exact text
             with _csv_rows(path) as rows:
                 columns.update(_text_columns(rows, header, text))
-        _check_payload(columns.get("payload_kg"), lines, path)
         data = cls(columns, path, lines=np.array(lines))
         if n_joints is None:  # with a robot, casadical.checks judges the units (an error, not a warning)
             _check_units(data)

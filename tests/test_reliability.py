@@ -17,7 +17,9 @@ import numpy as np
 import pytest
 from arms import ARM4, ARM5, to_toml
 
+from casadical import load_robot
 from casadical.cli import main
+from casadical.errors import DataFileError
 from casadical.files import atomic_write, outputs_together
 from casadical.robot import robot_from_dict
 from casadical.simulate import Effects, simulate
@@ -411,12 +413,34 @@ def test_negative_payload_in_a_data_file(arms, tmp_path, capsys):
 
     robot, data = arms("arm5", 40)
     d = Measurements.read_csv(data)
-    payload = np.full(len(d), 5.0)
-    payload[3] = -20.0
-    Measurements({**d.columns, "payload_kg": payload}).write_csv(tmp_path / "p.csv")
+    Measurements({**d.columns, "payload_kg": np.full(len(d), 5.0)}).write_csv(tmp_path / "p.csv")
+    lines = (tmp_path / "p.csv").read_text().splitlines()
+    col = lines[0].split(",").index("payload_kg")
+    cells = lines[4].split(",")
+    cells[col] = "-20"                                              # row 5 of the file
+    lines[4] = ",".join(cells)
+    (tmp_path / "p.csv").write_text("\n".join(lines) + "\n")
     code, _, err = cli(capsys, "calibrate", robot, tmp_path / "p.csv", "--out", tmp_path / "c.json")
     assert code == 2
     one_error(err, "p.csv, row 5, column 'payload_kg'", "-20 kg")
+    with pytest.raises(DataFileError, match="row 5, column 'payload_kg'.*-20 kg"):     # made in memory, too
+        Measurements({**d.columns, "payload_kg": np.where(np.arange(len(d)) == 3, -20.0, 5.0)})
+    with pytest.raises(DataFileError, match="-3 kg"):
+        simulate(load_robot(robot), 10, Effects(), seed=0, payload_kg=-3.0)
+
+
+def test_simulate_leaves_no_folder_behind_when_the_protocol_fails(tmp_path, capsys):
+    """A protocol whose workspace keeps too few poses fails in the work: --out-dir is not made."""
+    text = (Path(__file__).parents[1] / "problems" / "protocols" / "ca-ys100.toml").read_text()
+    (tmp_path / "p.toml").write_text(text.replace("floor_z_m = 0.0", "floor_z_m = 50.0"))
+    code, _, err = cli(capsys, "simulate", tmp_path / "p.toml", "--out-dir", tmp_path / "new" / "sim")
+    assert code == 2
+    one_error(err, "too few poses")
+    assert not (tmp_path / "new").exists()
+    (tmp_path / "file").write_text("x")
+    code, _, err = cli(capsys, "simulate", "ca-ys100", "--out-dir", tmp_path / "file")
+    assert code == 2
+    one_error(err, "file", "names a file, not a folder")
 
 
 @pytest.fixture(scope="module")

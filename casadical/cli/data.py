@@ -95,9 +95,15 @@ def run_simulate(args) -> int:
     out = Path(args.out_dir)
     outputs = {f"{name}.csv": str(out / f"{name}.csv") for name in proto.sets}
     outputs["truth.json"] = str(out / "truth.json")
-    out.mkdir(parents=True, exist_ok=True)
-    check_outputs(outputs, [args.protocol], args.force)
+    if out.exists() and not out.is_dir():
+        raise InputError("--out-dir names a file, not a folder", file=args.out_dir)
+    if out.is_dir():
+        check_outputs(outputs, [args.protocol], args.force)
     sets, truth = proto.generate(args.seed)
+    try:                              # made only now: a protocol that fails leaves no empty folder behind
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise InputError(f"cannot make the folder: {e.strerror or e}", file=args.out_dir) from e
     for name, data in sets.items():
         data.write_csv(out / f"{name}.csv", overwrite=args.force)
         print(f"{name}: {len(data)} poses -> {out / (name + '.csv')}")
