@@ -245,6 +245,20 @@ def test_another_robots_poses_are_refused_by_calibrate(arms, tmp_path, capsys):
     assert code == 0 and any("allowed by --allow-mismatch" in line for line in err)
 
 
+def test_another_robots_poses_are_refused_by_predict_with_the_robot(arms, tmp_path, capsys):
+    """``predict ROBOT OTHER.csv``: the nominal model judges the poses as calibrate's does."""
+    robot, data = arms("arm4", 60)
+    assert cli(capsys, "predict", robot, data, "--out", tmp_path / "own.csv")[0] == 0
+    other = _palletiser_poses(tmp_path)
+    code, _, err = cli(capsys, "predict", robot, other, "--out", tmp_path / "p.csv")
+    assert code == 2
+    one_error(err, other, "the nominal model of robot four-axis palletiser", "do not belong together",
+              "--allow-mismatch")
+    assert not (tmp_path / "p.csv").exists()
+    code, _, err = cli(capsys, "predict", robot, other, "--out", tmp_path / "p.csv", "--allow-mismatch")
+    assert code == 0 and any("allowed by --allow-mismatch" in line for line in err)
+
+
 def test_another_robots_poses_are_refused_by_a_calibration_taken_further(arms, tmp_path, capsys):
     """``calibrate CAL.json OTHER.csv --model base``: the base pose alone cannot bring them near."""
     robot, data = arms("arm4", 60)

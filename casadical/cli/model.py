@@ -106,7 +106,9 @@ def run_predict(args) -> int:
         model = Model(robot, "nominal")
         data = Measurements.read_csv(args.poses, n_joints=robot.n)
         xyz = model.predict(data.q, cov=model.covariates(data))
-    check_poses(data, robot, predicted=xyz, **check_options(args))
+    # a robot's nominal model judges the poses as calibrate does (another robot's poses are refused); a
+    # calibration's predictions are judged below against its own error
+    check_poses(data, robot, predicted=xyz, nominal=cal is None, **check_options(args))
     stats = None
     if data.has_positions:
         if cal is None:   # the robot file's base is not the tracker's: compare after a best-fit base
