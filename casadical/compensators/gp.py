@@ -35,11 +35,12 @@ compensator does nothing and the physical model stands alone.
 
 from __future__ import annotations
 
+import hashlib
 import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve
+from scipy.linalg import cho_factor, cho_solve, solve_triangular
 
 from ..errors import InputError
 from ..threads import limited_threads
@@ -100,6 +101,7 @@ class ResidualGP:
             self._chol.append(cho_factor(K, lower=True))
             alpha.append(cho_solve(self._chol[a], Z[:, a]))
         self.alpha = np.column_stack(alpha)
+        self._ratios: dict = {}                   # std_ratio's last answers
 
     # --- fitting ------------------------------------------------------------------
 
@@ -168,15 +170,25 @@ class ResidualGP:
 
     def std_ratio(self, X: np.ndarray) -> np.ndarray:
         """Predictive std of each pose over the prior std, the largest of the three components (0: known
-        exactly, 1: unknown)."""
-        X = np.asarray(X, float)
+        exactly, 1: unknown).
+
+        The last few answers are kept, by the poses' bytes: a diagnosis asks again for the same poses (the
+        gate of every model evaluation), and at 10,000 poses of a 600-pose process an answer costs 0.7 s.
+        """
+        X = np.ascontiguousarray(X, float)
+        key = (X.shape, hashlib.blake2b(X.tobytes(), digest_size=16).digest())
+        if key in self._ratios:
+            return self._ratios[key].copy()
         out = np.zeros(len(X))
         for a in range(3):
-            Ks = self.kernel(X, self.X, a)
-            v = cho_solve(self._chol[a], Ks.T)
-            var = self.signal_var[a] - np.einsum("ij,ji->i", Ks, v)
+            # k** - k*^T K^-1 k* = s^2 - |L^-1 k*|^2: one triangular solve (half of cho_solve's two)
+            v = solve_triangular(self._chol[a][0], self.kernel(X, self.X, a).T, lower=True, check_finite=False)
+            var = self.signal_var[a] - np.einsum("ij,ij->j", v, v)
             out = np.maximum(out, np.sqrt(np.clip(var, 0.0, None) / self.signal_var[a]))
-        return out
+        if len(self._ratios) >= 4:
+            self._ratios.pop(next(iter(self._ratios)))
+        self._ratios[key] = out
+        return out.copy()
 
     def knows(self, X: np.ndarray) -> np.ndarray:
         """Poses where the process knows the residual (every component's predictive std below
