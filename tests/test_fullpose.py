@@ -86,6 +86,37 @@ def test_lm_and_ipopt_agree_on_the_full_pose_objective():
     assert max(abs(p.parameters[n].value - a.parameters[n].value) / a.parameters[n].scale for n in common) > 1e-3
 
 
+@pytest.mark.parametrize("arm, spec", [(ARM7, "kinematic"), (ARM5, "kinematic+joint_compliance[2]")],
+                         ids=["mdh7", "dh5-compliance"])
+def test_exported_urdf_holds_the_probe_orientation(tmp_path, capsys, arm, spec):
+    """The URDF of a full-pose calibration, read by yourdfpy: tool_point's axes are the probe's, as the
+    calibration predicts them (its geometry as fitted, or the best geometry of a compliant model)."""
+    import yourdfpy
+
+    from casadical.cli import main
+
+    robot = robot_from_dict(arm, "arm")
+    data, _ = _data(robot, 3)
+    res = calibrate(robot, data, spec, "lm", warn=False)
+    res.save(tmp_path / "c.json")
+    assert main(["export", str(tmp_path / "c.json"), "--urdf", str(tmp_path / "c.urdf")]) == 0
+    capsys.readouterr()
+    u = yourdfpy.URDF.load(str(tmp_path / "c.urdf"), load_meshes=False)
+    angles, gaps = [], []
+    predicted = res.predict_rotations(data)
+    xyz = res.predict(data)
+    for q, R, p in zip(data.q, predicted, xyz):
+        u.update_cfg(q)
+        T = u.get_transform("tool_point", "measurement_frame")
+        angles.append(Rotation.from_matrix(T[:3, :3].T @ R).magnitude())
+        gaps.append(np.linalg.norm(T[:3, 3] - p))
+    if spec == "kinematic":          # exactly the calibration's model
+        assert max(angles) < 1e-9 and max(gaps) < 1e-9
+    else:                            # the best geometry: near the full model, and the probe's axes, not the flange's
+        assert math.degrees(max(angles)) < 0.01 and max(gaps) < 1e-3
+    assert math.degrees(Rotation.from_matrix(res.tool_rotation()).magnitude()) > 30
+
+
 def test_position_only_is_unchanged_by_orientation_columns():
     """--position-only on full-pose data gives the same bits as the same data without the columns."""
     robot = robot_from_dict(ARM5, "arm")

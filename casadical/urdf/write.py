@@ -5,8 +5,9 @@ The file has a root link ``world`` (gravity along its -z), the robot base
 ``measurement_frame``, the frame the points were measured in (the
 calibrated base pose). At joint readings q, the transform from
 ``measurement_frame`` to ``tool_point`` is casadical's geometric model of
-the measured point; joint angles are the readings themselves (the constant
-offsets theta sit in the joint origins).
+the measured point (and, for a full-pose calibration, its axes are the
+probe's: the mounting rotation is in ``tool_joint``); joint angles are the
+readings themselves (the constant offsets theta sit in the joint origins).
 
 The XML is built with the standard library's ElementTree: yourdfpy reads
 URDF well but its writer drops ``<mimic>`` and comments.
@@ -53,7 +54,8 @@ def robot_to_urdf(source: "CalibrationResult | Robot", description: str | None =
     -------
     str
         URDF whose ``tool_point`` link, seen from ``measurement_frame`` at
-        joint angles q, is where the geometric model puts the measured point.
+        joint angles q, is where the geometric model puts the measured point
+        (oriented as the probe, for a calibration with measured orientations).
         Link masses and centres of mass are written as inertials.
 
     Raises
@@ -73,6 +75,8 @@ def robot_to_urdf(source: "CalibrationResult | Robot", description: str | None =
     frames = forward(robot, [0.0] * n, geom)
     links = [pose_matrix(p) for p in frames.link]
     tool = pose_matrix(frames.tool)
+    if not isinstance(source, Robot) and source.has_orientation:
+        tool[:3, :3] = tool[:3, :3] @ source.tool_rotation()    # tool_point's axes are the probe's
     # the frame each joint turns: its link frame before the turn
     turn = []
     for i in range(n):
@@ -135,7 +139,8 @@ def _mimic(robot: Robot, i: int) -> tuple[int, float] | None:
 def _comment(robot: Robot, model: str) -> str:
     return (f"\n  {robot.name}: geometric model written by casadical {__version__} ({model}).\n"
             "  At joint readings q (radians; the constant offsets theta are in the joint origins), link\n"
-            "  'tool_point' seen from 'measurement_frame' is the measured point; 'world' has gravity along -z.\n"
+            "  'tool_point' seen from 'measurement_frame' is the measured point (its axes the probe's, for a\n"
+            "  full-pose calibration); 'world' has gravity along -z.\n"
             "  A URDF cannot carry, so this file does not contain: " + ", ".join(NOT_IN_URDF) + ".\n"
             "  Inertia tensors, effort and velocity limits are unknown to casadical and written as 0.\n")
 
