@@ -387,6 +387,20 @@ def test_a_scheduler_that_cannot_be_reached_leaves_nothing(study_results, tmp_pa
     assert not (tmp_path / "r").exists()
 
 
+def test_a_refused_scheduler_says_it_is_trying_and_leaves_nothing(study_results, tmp_path, capsys, monkeypatch):
+    """A TCP address nothing listens at: Dask retries until the timeout, and the user is told so at once."""
+    pytest.importorskip("distributed")
+    from casadical.study import runner
+
+    monkeypatch.setattr(runner, "CONNECT_TIMEOUT_S", 1)
+    protocol, _ = study_results
+    code, _, err = cli(capsys, "study", protocol, "--out", tmp_path / "r", "--scheduler", "tcp://127.0.0.1:1")
+    assert code == 2
+    assert any("connecting to the Dask scheduler at tcp://127.0.0.1:1 (trying for up to 1 s)" in line for line in err)
+    assert "cannot reach the Dask scheduler" in err[-1] and "tcp://127.0.0.1:1" in err[-1]
+    assert not (tmp_path / "r").exists()
+
+
 URDF_LINK = '<link name="{}"/>'
 URDF_JOINT = ('<joint name="{n}" type="revolute"><parent link="{p}"/><child link="{c}"/><origin xyz="{o}" rpy="0 0 0"/>'
               '<axis xyz="{ax}"/><limit lower="-2" upper="2" effort="1" velocity="1"/></joint>')

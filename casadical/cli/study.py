@@ -108,6 +108,9 @@ def _run(args, study) -> int:
         if state["errors"]:
             state["bar"].set_postfix(error_rows=state["errors"])
 
+    if args.scheduler:          # Dask retries a refused connection until its timeout: say why nothing moves
+        from ..study.runner import CONNECT_TIMEOUT_S
+        status.line(f"connecting to the Dask scheduler at {args.scheduler} (trying for up to {CONNECT_TIMEOUT_S} s)")
     try:
         report = run_study(study, args.out, backend="serial" if args.serial else "dask", workers=args.workers,
                            scheduler=args.scheduler, force=args.force, progress=progress, on_start=started)

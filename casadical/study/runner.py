@@ -147,11 +147,15 @@ def run_study(study: Study, out: str | Path, *, backend: str = "dask", workers: 
             own_client.close()
 
 
+#: how long a client tries to reach a running Dask cluster (Dask retries a refused connection until then)
+CONNECT_TIMEOUT_S = 20
+
+
 def _connect(scheduler: str):
     """A client of the running Dask cluster at ``scheduler``."""
     distributed = _distributed()
     try:
-        return distributed.Client(scheduler, timeout="20s")
+        return distributed.Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
     except (OSError, TimeoutError, ValueError) as e:
         raise InputError(f"cannot reach the Dask scheduler: {e}", file=scheduler) from e
 
