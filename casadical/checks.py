@@ -314,3 +314,62 @@ def check_distinct_poses(data: Measurements, m: int) -> None:
         raise DataFileError(f"has only {distinct} distinct pose(s) among its {len(data)} rows: cannot select "
                             f"{m} different poses; add candidates spread over the joint ranges",
                             file=data.path)
+
+
+def repeated_rows(first: Measurements, second: Measurements) -> np.ndarray:
+    """Which rows of ``second`` are rows of ``first``: the same joint readings and the same measured point, to
+    the last digit (a pose measured again differs in its point; a row copied does not). None without measured
+    points."""
+    def keys(d: Measurements) -> np.ndarray:
+        a = np.ascontiguousarray(np.column_stack([d.q, d.xyz]), dtype=float) + 0.0     # -0.0 reads as 0.0
+        return a.view(np.dtype((np.void, a.dtype.itemsize * a.shape[1]))).ravel()
+
+    # without measured points two files may well hold one joint program (targets measured in two sessions)
+    if not (first.has_positions and second.has_positions) or first.n_joints != second.n_joints:
+        return np.zeros(len(second), bool)
+    return np.isin(keys(second), keys(first))
+
+
+def check_held_out(cal: Measurements, val: Measurements) -> None:
+    """Validation poses must not be calibration poses: an error on a pose the fit has seen is not held out.
+
+    Raises
+    ------
+    DataFileError
+        Every validation pose is a calibration pose (the same file given twice, or its copy).
+
+    Warns
+    -----
+    DataWarning
+        Some are: how many, and the first one's row.
+    """
+    _apart(cal, val, ("is a calibration pose of", "are calibration poses of"), "errors on them are not held out",
+           "validate on poses the calibration did not use (casadical split makes both)")
+
+
+def check_sessions_apart(parts: list[Measurements]) -> None:
+    """Sessions must be different measurements: a file given twice (or its copy) counts its poses twice and
+    makes every uncertainty too small."""
+    for j, later in enumerate(parts):
+        for earlier in parts[:j]:
+            _apart(earlier, later, ("is also in", "are also in"), "the same measurements given twice count twice",
+                   "give each session's file once")
+
+
+def _apart(first: Measurements, second: Measurements, relation: tuple[str, str], why: str, fix: str) -> None:
+    key = ("apart", id(first), len(first))       # once per pair: a command checks before its work, the library again
+    if key in second.checked:
+        return
+    shared = repeated_rows(first, second)
+    what = "the same joint readings and measured point" + (", the same file given twice" if first.path == second.path
+                                                           else "")
+    if shared.all() and len(shared):
+        raise DataFileError(f"every one of its {len(second)} poses {relation[0]} {first.path} ({what}): {why}; {fix}",
+                            file=second.path)
+    second.checked.add(key)
+    if shared.any():
+        i = int(np.flatnonzero(shared)[0])
+        where = f"row {second.lines[i]}" + (f" of {second.sources[i]}" if second.sources is not None else "")
+        warnings.warn(str(InputError(f"{int(shared.sum())} of its {len(second)} poses (the first in {where}) "
+                                     f"{relation[1]} {first.path} ({what}): {why}", file=second.path)),
+                      DataWarning, stacklevel=3)

@@ -73,7 +73,9 @@ def combine(parts: list[Measurements], names: list[str] | None = None) -> Measur
     Raises
     ------
     DataFileError
-        The parts have different joints, or two parts give one session name.
+        The parts have different joints, two parts give one session name, or
+        one part's poses are all another's (:func:`casadical.checks.check_sessions_apart`;
+        some of them: a warning).
     """
     if not parts:
         raise DataFileError("no measurement file given")
@@ -83,6 +85,8 @@ def combine(parts: list[Measurements], names: list[str] | None = None) -> Measur
         if p.n_joints != n:
             raise DataFileError(f"has {p.n_joints} joint columns, {parts[0].path} has {n}: the sessions of one "
                                 "calibration must be of one robot", file=p.path, row=1)
+    from .checks import check_sessions_apart
+    check_sessions_apart(parts)      # a file given twice (or its copy) would count its poses twice
     common = [c for c in parts[0].columns if all(c in p.columns for p in parts[1:])]
     dropped = sorted({c for p in parts for c in p.columns} - set(common) - {"session"})
     if dropped:

@@ -554,3 +554,56 @@ def test_a_huge_skip_lines_is_bounded_work_and_names_the_key(tmp_path, capsys):
                        "--out", tmp_path / "o.csv")
     assert code == 2 and time.monotonic() - t < 5
     one_error(err, "--map, column 'skip_lines'", "2,147,483,648", "has 7")
+
+
+# --- the same measurements twice ----------------------------------------------------------------------------
+
+
+def test_validation_poses_that_are_calibration_poses(arms, tmp_path, capsys):
+    """``--validate`` with the calibration file (or a copy) is an error: nothing would be held out; some shared
+    rows are a warning with their count and the first one's row. calibrate, diagnose and compare alike."""
+    import shutil
+
+    robot, data = arms("arm5", 60)
+    _, val = arms("arm5", 40, 1)
+    shutil.copy(data, tmp_path / "copy.csv")
+    for cmd in (["calibrate", robot, data, "--out", tmp_path / "c.json"],
+                ["diagnose", robot, data, "--json", tmp_path / "r.json", "--quiet"],
+                ["compare", robot, data, "--methods", "KM"]):
+        code, _, err = cli(capsys, *cmd, "--validate", tmp_path / "copy.csv")
+        assert code == 2, cmd
+        one_error(err, "copy.csv", "every one of its 60 poses is a calibration pose of", "not held out",
+                  "casadical split")
+        assert not (tmp_path / "c.json").exists() and not (tmp_path / "r.json").exists()
+    # 5 calibration rows among the validation poses: a warning naming them, the rest is done
+    lines = Path(val).read_text().splitlines()
+    (tmp_path / "mixed.csv").write_text("\n".join(lines[:11] + Path(data).read_text().splitlines()[3:8]
+                                                  + lines[11:]) + "\n")
+    code, _, err = cli(capsys, "calibrate", robot, data, "--out", tmp_path / "c.json", "--validate",
+                       tmp_path / "mixed.csv")
+    assert code == 0
+    assert any("mixed.csv: 5 of its 45 poses (the first in row 12) are calibration poses of" in e for e in err), err
+
+
+def test_a_session_given_twice(arms, tmp_path, capsys):
+    """The same file (or its copy) as two sessions would count every pose twice: an error. Two sessions that
+    measured one joint program (the same readings, other points) are what sessions are for."""
+    import shutil
+
+    from casadical.data import Measurements
+
+    robot, data = arms("arm5", 60)
+    shutil.copy(data, tmp_path / "b.csv")
+    code, _, err = cli(capsys, "calibrate", robot, data, data, "--out", tmp_path / "c.json")
+    assert code == 2
+    one_error(err, "every one of its 60 poses is also in", "the same file given twice", "count twice")
+    code, _, err = cli(capsys, "calibrate", robot, data, tmp_path / "b.csv", "--out", tmp_path / "c.json")
+    assert code == 2
+    one_error(err, "b.csv", "every one of its 60 poses is also in", "count twice")
+    d = Measurements.read_csv(data)
+    moved = dict(d.columns)
+    for axis in ("x_mm", "y_mm", "z_mm"):       # the same joint program, measured again from elsewhere
+        moved[axis] = d.columns[axis] + 250.0 + np.random.default_rng(0).normal(0, 0.01, len(d))
+    Measurements(moved).write_csv(tmp_path / "again.csv")
+    code, _, err = cli(capsys, "calibrate", robot, data, tmp_path / "again.csv", "--out", tmp_path / "c.json")
+    assert code == 0 and not any("also in" in e for e in err)

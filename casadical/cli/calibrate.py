@@ -63,6 +63,7 @@ def register(sub) -> None:
 def run(args) -> int:
     from ..calibration import CalibrationResult, calibrate
     from ..data import Measurements
+    from ..checks import check_held_out
     from ..sessions import read_sessions
 
     check_outputs({"--out": args.out, "--html": args.html}, [args.robot, *args.data, args.validate], args.force)
@@ -72,6 +73,8 @@ def run(args) -> int:
     # read before the fit: a malformed file stops the command before the work
     val = timed(Measurements.read_csv(args.validate, n_joints=n, require_positions=True), args) \
         if args.validate else None
+    if val is not None:
+        check_held_out(data, val)          # before the fit: validation poses it has seen would judge nothing
     opts = {"max_iter": args.max_iter} if args.max_iter else {}
     status = Status(args.quiet)
     with status.slow(f"calibrate: fitting model {args.model} to {len(data)} poses ({args.solver}, robust loss "

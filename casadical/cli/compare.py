@@ -40,7 +40,7 @@ def register(sub) -> None:
 
 
 def cmd_compare(args) -> int:
-    from ..checks import check_poses
+    from ..checks import check_held_out, check_poses
     from ..data import Measurements
     from ..methods.base import MethodResult
     from ..methods.compare import compare, format_table, parse_methods, plot, pyplot, to_json
@@ -60,6 +60,9 @@ def cmd_compare(args) -> int:
         return data
 
     cal, val, extra = read(args.cal), read(args.validate), read(args.extra)
+    for seen in (cal, extra):            # before the work: validation poses a method has fitted judge nothing
+        if val is not None and seen is not None:
+            check_held_out(seen, val)
     out = human_stream(args.json)       # --json -: standard output holds the JSON alone
     print(f"compare on {robot.name}: {len(cal)} calibration poses ({args.cal})"
           + (f", {len(val)} validation poses ({args.validate})" if val is not None else "")

@@ -14,6 +14,7 @@ from typing import Callable, Iterable
 import numpy as np
 
 from .. import __version__
+from ..checks import check_held_out
 from ..data import Measurements
 from ..errors import CasadicalError
 from ..files import atomic_open
@@ -56,9 +57,19 @@ def compare(robot: Robot, cal: Measurements, val: Measurements | None = None, ex
         Called with each result as it is ready.
     starting : callable, optional
         Called with each method's name before it runs (a method may take a while).
+
+    Raises
+    ------
+    DataFileError
+        Every validation pose is a calibration (or extra) pose (:func:`casadical.checks.check_held_out`;
+        some of them: a warning).
     """
     names = parse_methods(methods)
     settings = settings or {}
+    if val is not None:              # validation poses a method has fitted would judge nothing
+        for seen in (cal, extra):
+            if seen is not None:
+                check_held_out(seen, val)
     out = []
     for name in names:
         method = make_method(name, **settings.get(name, {}))
