@@ -347,6 +347,13 @@ def check_held_out(cal: Measurements, val: Measurements) -> None:
            "validate on poses the calibration did not use (casadical split makes both)")
 
 
+def check_other_series(cal: Measurements, other: Measurements) -> None:
+    """A series findings are taken to (``diagnose --transfer``) must not be the calibration poses: refitted and
+    judged there, a transfer would only repeat the calibration."""
+    _apart(cal, other, ("is a calibration pose of", "are calibration poses of"),
+           "a transfer to them is no test of another series", "give the file of another measurement series")
+
+
 def check_sessions_apart(parts: list[Measurements]) -> None:
     """Sessions must be different measurements: a file given twice (or its copy) counts its poses twice and
     makes every uncertainty too small."""

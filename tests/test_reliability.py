@@ -575,6 +575,12 @@ def test_validation_poses_that_are_calibration_poses(arms, tmp_path, capsys):
         one_error(err, "copy.csv", "every one of its 60 poses is a calibration pose of", "not held out",
                   "casadical split")
         assert not (tmp_path / "c.json").exists() and not (tmp_path / "r.json").exists()
+    _, other = arms("arm5", 50, 2)
+    code, _, err = cli(capsys, "diagnose", robot, data, "--validate", other, "--transfer", tmp_path / "copy.csv",
+                       "--json", tmp_path / "r.json", "--quiet")
+    assert code == 2
+    one_error(err, "copy.csv", "every one of its 60 poses is a calibration pose of", "no test of another series")
+    assert not (tmp_path / "r.json").exists()
     # 5 calibration rows among the validation poses: a warning naming them, the rest is done
     lines = Path(val).read_text().splitlines()
     (tmp_path / "mixed.csv").write_text("\n".join(lines[:11] + Path(data).read_text().splitlines()[3:8]

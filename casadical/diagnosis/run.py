@@ -33,7 +33,7 @@ from typing import Callable
 import numpy as np
 
 from ..calibration import calibrate, model_for
-from ..checks import check_held_out, check_poses
+from ..checks import check_held_out, check_other_series, check_poses
 from ..data import Measurements
 from ..errors import listing
 from ..physics import sign_changes, value_violations, violations
@@ -491,8 +491,8 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
     Raises
     ------
     DataFileError
-        Every validation pose is a calibration pose (:func:`casadical.checks.check_held_out`; some of them:
-        a warning), or a check of the poses fails.
+        Every validation (or ``other``) pose is a calibration pose (:func:`casadical.checks.check_held_out`,
+        :func:`~casadical.checks.check_other_series`; some of them: a warning), or a check of the poses fails.
     """
     t0 = time.perf_counter()
     s = settings or DiagnosisSettings()
@@ -500,6 +500,8 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
     for d in [cal, val] + ([other] if other is not None else []):
         check_poses(d, robot, **checks)     # the joint count first
     check_held_out(cal, val)                # validation poses the fits have seen would judge nothing
+    if other is not None:
+        check_other_series(cal, other)
     dg = _Diagnosis(robot, cal, val, s, say)
     if dg.full_pose:
         dg.notes.append("full pose: every fit is on the measured positions and orientations, weighted by their noise "
