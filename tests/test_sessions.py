@@ -202,3 +202,32 @@ def test_terms_of_one_session_in_a_calibration():
         res.save(f"{d}/c.json")
         again = load_calibration(f"{d}/c.json")
     assert np.abs(again.predict(val) - res.predict(val)).max() < 1e-12
+
+
+def test_the_urdf_of_sessions_is_in_the_first_sessions_frame(tmp_path, capsys):
+    """A calibration of two sessions exported: measurement_frame is session A's tracker frame (yourdfpy's forward
+    kinematics is the calibration's prediction of A's poses), and the file says so."""
+    import yourdfpy
+
+    robot, cal, val, _ = two_sessions(ARM5, 6e4, 4, drift=(0.0, 0.0, 0.0))
+    res = calibrate(robot, cal, "kinematic", "lm", warn=False)
+    res.save(tmp_path / "c.json")
+    assert main(["export", str(tmp_path / "c.json"), "--urdf", str(tmp_path / "c.urdf")]) == 0
+    capsys.readouterr()
+    text = (tmp_path / "c.urdf").read_text()
+    assert "'measurement_frame' is the measurement frame of session A, the calibration's first of A, B" in text
+    u = yourdfpy.URDF.load(str(tmp_path / "c.urdf"), load_meshes=False)
+    va = val.subset(val.sessions == "A")
+    xyz = []
+    for q in va.q:
+        u.update_cfg(q)
+        xyz.append(u.get_transform("tool_point", "measurement_frame")[:3, 3])
+    assert np.abs(np.array(xyz) - res.predict(va)).max() < 1e-9
+    vb = val.subset(val.sessions == "B")
+    xyz_b = []
+    for q in vb.q:
+        u.update_cfg(q)
+        xyz_b.append(u.get_transform("tool_point", "measurement_frame")[:3, 3])
+    # near what was measured in A's frame (the kinematic model leaves the compliance: mm), a metre off B's
+    assert np.linalg.norm(np.array(xyz) - va.xyz, axis=1).mean() < 0.01
+    assert np.linalg.norm(np.array(xyz_b) - vb.xyz, axis=1).mean() > 0.5

@@ -86,7 +86,8 @@ def robot_to_urdf(source: "CalibrationResult | Robot", description: str | None =
             turn.append((links[i - 1] if i else np.eye(4)) @ _rz(geom.theta[i]))
 
     root = ET.Element("robot", name=robot.name)
-    root.append(ET.Comment(_comment(robot, model)))
+    sessions = [] if isinstance(source, Robot) else source.sessions
+    root.append(ET.Comment(_comment(robot, model, sessions)))
     down = robot.gravity / np.linalg.norm(robot.gravity)
     _link(root, "world")
     _link(root, "base_link")
@@ -136,11 +137,13 @@ def _mimic(robot: Robot, i: int) -> tuple[int, float] | None:
     return int(nz[0]), float(row[nz[0]])
 
 
-def _comment(robot: Robot, model: str) -> str:
+def _comment(robot: Robot, model: str, sessions: list[str]) -> str:
+    where = (f"  'measurement_frame' is the measurement frame of session {sessions[0]}, the calibration's first of "
+             f"{', '.join(sessions)}\n  (every session's base pose is in the parameter table).\n" if sessions else "")
     return (f"\n  {robot.name}: geometric model written by casadical {__version__} ({model}).\n"
             "  At joint readings q (radians; the constant offsets theta are in the joint origins), link\n"
             "  'tool_point' seen from 'measurement_frame' is the measured point (its axes the probe's, for a\n"
-            "  full-pose calibration); 'world' has gravity along -z.\n"
+            "  full-pose calibration); 'world' has gravity along -z.\n" + where +
             "  A URDF cannot carry, so this file does not contain: " + ", ".join(NOT_IN_URDF) + ".\n"
             "  Inertia tensors, effort and velocity limits are unknown to casadical and written as 0.\n")
 
