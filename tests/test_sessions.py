@@ -231,3 +231,35 @@ def test_the_urdf_of_sessions_is_in_the_first_sessions_frame(tmp_path, capsys):
     # near what was measured in A's frame (the kinematic model leaves the compliance: mm), a metre off B's
     assert np.linalg.norm(np.array(xyz) - va.xyz, axis=1).mean() < 0.01
     assert np.linalg.norm(np.array(xyz_b) - vb.xyz, axis=1).mean() > 0.5
+
+
+def test_poses_without_a_session_column_are_said_to_be_in_the_first_sessions_frame(tmp_path, capsys):
+    """predict and compensate with a calibration of sessions A and B, on a file with no session column: a warning
+    before the work says its rows are taken in A's frame and how to choose B's; B's poses so read then miss by
+    the distance between the trackers (the mismatch error), and with their session column they are predicted."""
+    robot, cal, val, _ = two_sessions(ARM5, 6e4, 5, drift=(0.0, 0.0, 0.0))
+    arm = tmp_path / "arm.toml"
+    arm.write_text(to_toml(ARM5))
+    paths = []
+    for s in ("A", "B"):
+        part = cal.subset(cal.sessions == s)
+        part.sessions = None
+        paths.append(str(tmp_path / f"{s}.csv"))
+        part.write_csv(paths[-1])
+    assert main(["calibrate", str(arm), *paths, "--model", "kinematic", "--solver", "lm",
+                 "--out", str(tmp_path / "c.json")]) == 0
+    vb = val.subset(val.sessions == "B")
+    vb.sessions = None
+    vb.write_csv(tmp_path / "vb.csv")
+    capsys.readouterr()
+    assert main(["predict", str(tmp_path / "c.json"), str(tmp_path / "vb.csv"), "--out", str(tmp_path / "p.csv")]) == 2
+    err = capsys.readouterr().err
+    assert ("vb.csv: has no 'session' column; " in err and "holds the sessions A, B, so its rows are taken in the "
+            "measurement frame of the first, A; add a 'session' column" in err and "mean error of" in err)
+    assert main(["compensate", str(tmp_path / "c.json"), str(tmp_path / "vb.csv"), "--out", str(tmp_path / "j.csv"),
+                 "--position-only"]) == 2
+    assert "frame of the first, A" in capsys.readouterr().err
+    vb.columns["session"] = np.array(["B"] * len(vb), dtype=object)
+    vb.write_csv(tmp_path / "vb2.csv")
+    assert main(["predict", str(tmp_path / "c.json"), str(tmp_path / "vb2.csv"), "--out", str(tmp_path / "p.csv")]) == 0
+    assert "'session' column" not in capsys.readouterr().err

@@ -6,7 +6,8 @@ import math
 
 import numpy as np
 
-from .common import add_checks, add_force, check_options, check_outputs, compensator_line, float_in, int_at_least
+from .common import (add_checks, add_force, check_options, check_outputs, compensator_line, float_in, int_at_least,
+                     warn_session_frame)
 
 #: below this many rows CasADi's virtual machine beats compiling the model (~3 s once per run)
 JIT_MIN_ROWS = 10_000
@@ -52,6 +53,7 @@ def run(args) -> int:
     check_outputs({"--out": args.out}, [args.cal, args.targets], args.force)
     cal = load_calibration(args.cal)
     targets = Measurements.read_csv(args.targets, n_joints=cal.model.robot.n)
+    warn_session_frame(cal, targets, args.cal)
     if len(targets) < JIT_MIN_ROWS:
         cal.model.jit = False
     result = compensate(cal, targets, tolerance_mm=args.tolerance_mm, max_iter=args.max_iter,

@@ -7,7 +7,8 @@ import math
 import numpy as np
 
 from .common import (add_checks, add_force, add_json, add_urdf_chain, check_options, check_outputs, compensator_line,
-                     int_at_least, robot_from_args, robot_or_calibration, warn_session_terms, write_json)
+                     int_at_least, robot_from_args, robot_or_calibration, warn_session_frame, warn_session_terms,
+                     write_json)
 
 
 def register(sub) -> None:
@@ -100,6 +101,7 @@ def run_predict(args) -> int:
     if isinstance(source, CalibrationResult):
         cal, robot = source, source.model.robot
         data = Measurements.read_csv(args.poses, n_joints=robot.n)
+        warn_session_frame(cal, data, args.model)
         xyz = cal.predict(data)
     else:
         cal, robot = None, source
