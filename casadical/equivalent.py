@@ -51,6 +51,9 @@ class GeometricEquivalent:
     payload_kg : float
         The payload the full model was evaluated at.
     n_poses : int
+    payload_matters : bool
+        The full model's tool points depend on the payload (a compliance, a
+        progressive spring): the payload chooses the geometry.
     """
 
     result: CalibrationResult
@@ -59,6 +62,7 @@ class GeometricEquivalent:
     session_terms: list[str]
     payload_kg: float
     n_poses: int
+    payload_matters: bool = False
 
     def text(self) -> str:
         """What was exported, in words (for the command line and the files' headers)."""
@@ -120,6 +124,10 @@ def geometric_equivalent(cal: CalibrationResult, payload_kg: float | None = None
     if "payload_kg" in full.covariate_names:
         cov[:, full.covariate_names.index("payload_kg")] = payload
     xyz = full.predict(q, values, cov, cal.base0)
+    unloaded = cov.copy()
+    if "payload_kg" in full.covariate_names:
+        unloaded[:, full.covariate_names.index("payload_kg")] = 0.0 if payload > 0 else 100.0
+    matters = bool(np.abs(full.predict(q, values, unloaded, cal.base0) - xyz).max() > 1e-9)
     target = Measurements.from_arrays(q, xyz, payload_kg=np.full(len(q), payload))
     if cal.has_orientation:   # a full-pose calibration: the geometry reproduces the probe's orientation too
         target = target.with_orientations(full.probe_rotation(q, values, cov, cal.base0) @ cal.tool0)
@@ -133,4 +141,4 @@ def geometric_equivalent(cal: CalibrationResult, payload_kg: float | None = None
                     warn=False, allow_outside_limits=True, robust=cal.loss.kind)
     departure = ErrorStats.of(np.linalg.norm(geo.predict(target) - xyz, axis=1))
     return GeometricEquivalent(geo, departure, specs, [t.spec() for t in session if t.name != "sessions"], payload,
-                               len(q))
+                               len(q), matters)

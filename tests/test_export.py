@@ -166,6 +166,28 @@ def test_export_needs_an_output_and_says_what_urdf_cannot_carry(tmp_path, capsys
     assert not table.exists() and not urdf.exists()
 
 
+def test_payload_is_the_load_the_geometry_is_refitted_at(tmp_path, capsys, calibration):
+    """--payload-kg chooses the best geometry of a compliant model (another load, another geometry); with
+    --as-fitted or a robot it has no meaning (one line), and with a model that no load changes it is a warning."""
+    cal_path, _, data = calibration
+    urdfs = {}
+    for kg in ("0", "110"):
+        urdfs[kg] = tmp_path / f"p{kg}.urdf"
+        assert main(["export", str(cal_path), "--urdf", str(urdfs[kg]), "--payload-kg", kg, "-q"]) == 0
+    assert urdfs["0"].read_text() != urdfs["110"].read_text()
+    for args, words in ((["--as-fitted"], "give one of the two"), ([], "is a robot")):
+        source = str(cal_path) if args else "ys100"
+        assert main(["export", source, "--urdf", str(tmp_path / "x.urdf"), "--payload-kg", "5", *args]) == 2
+        err = capsys.readouterr().err.strip().splitlines()
+        assert len(err) == 1 and "--payload-kg" in err[0] and words in err[0]
+        assert not (tmp_path / "x.urdf").exists()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        calibrate(load_robot("ys100"), data, "kinematic").save(tmp_path / "kin.json")
+    assert main(["export", str(tmp_path / "kin.json"), "--urdf", str(tmp_path / "k.urdf"), "--payload-kg", "5"]) == 0
+    assert "--payload-kg 5: no effect" in capsys.readouterr().err
+
+
 def test_nominal_robot_table(tmp_path):
     out = tmp_path / "ur10.csv"
     assert main(["export", "ur10", "--table", str(out), "-q"]) == 0

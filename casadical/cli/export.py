@@ -2,9 +2,10 @@
 
 from __future__ import annotations
 
-from ..errors import InputError
 import math
+import warnings
 
+from ..errors import DataWarning, InputError
 from .common import (Status, add_force, add_quiet, add_urdf_chain, check_outputs, float_in, robot_or_calibration,
                      write_text)
 
@@ -48,6 +49,10 @@ def run(args) -> int:
         raise InputError("nothing to write: give --urdf OUT.urdf, --table OUT.csv and/or --markdown OUT.md")
     check_outputs(outputs, [args.source], args.force)
     source = robot_or_calibration(args.source, args)
+    if args.payload_kg is not None and (args.as_fitted or not isinstance(source, CalibrationResult)):
+        raise InputError("--payload-kg is the load the best geometry is refitted at: "
+                         + ("--as-fitted exports the geometry as it was fitted; give one of the two" if args.as_fitted
+                            else f"{args.source} is a robot, whose nominal geometry is exported as it is; leave it out"))
     status = Status(args.quiet)
     description = None
     if isinstance(source, CalibrationResult) and not args.as_fitted:
@@ -55,6 +60,9 @@ def run(args) -> int:
         with status.slow("export: fitting the geometry that reproduces the calibration's full model over its poses"):
             eq = geometric_equivalent(source, args.payload_kg)
         description = f"calibration {args.source}, model {source.model.spec}: {eq.text()}"
+        if args.payload_kg is not None and not eq.payload_matters:
+            warnings.warn(f"--payload-kg {args.payload_kg:g}: no effect, the model of {args.source} ({source.model.spec}) "
+                          "has no term that depends on the payload", DataWarning)
         status.line(f"exported: {eq.text()}")
         source = eq.result
     texts = {}   # everything is built before anything is written
