@@ -318,8 +318,8 @@ def check_distinct_poses(data: Measurements, m: int) -> None:
 
 def repeated_rows(first: Measurements, second: Measurements) -> np.ndarray:
     """Which rows of ``second`` are rows of ``first``: the same joint readings and the same measured point, to
-    the last digit (a pose measured again differs in its point; a row copied does not). None without measured
-    points."""
+    the last digit (a pose measured again differs in its point; a row copied does not). None of them where either
+    has no measured points."""
     def keys(d: Measurements) -> np.ndarray:
         a = np.ascontiguousarray(np.column_stack([d.q, d.xyz]), dtype=float) + 0.0     # -0.0 reads as 0.0
         return a.view(np.dtype((np.void, a.dtype.itemsize * a.shape[1]))).ravel()

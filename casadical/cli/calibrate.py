@@ -62,8 +62,8 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from ..calibration import CalibrationResult, calibrate
-    from ..data import Measurements
     from ..checks import check_held_out
+    from ..data import Measurements
     from ..sessions import read_sessions
 
     check_outputs({"--out": args.out, "--html": args.html}, [args.robot, *args.data, args.validate], args.force)
