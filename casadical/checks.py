@@ -347,6 +347,51 @@ def check_held_out(cal: Measurements, val: Measurements) -> None:
            "validate on poses the calibration did not use (casadical split makes both)")
 
 
+def check_validation_frames(val: Measurements, errors_m: np.ndarray, own_mean_mm: float, allow: bool = False) -> None:
+    """Each session's validation poses must be in that session's measurement frame.
+
+    With several sessions, validation poses are matched to sessions by their
+    ``session`` column or by the order of the files; a file given out of order
+    is judged in another tracker frame. The nominal model with each session's
+    base pose fitted to its calibration poses misses poses in the right frame
+    by about what it misses its own poses by, and poses in another frame by
+    metres.
+
+    Parameters
+    ----------
+    val : Measurements
+    errors_m : ndarray
+        Position errors (m) of that model on ``val``.
+    own_mean_mm : float
+        Its mean error on its own (the calibration) poses.
+    allow : bool
+        Accept them anyway (a warning).
+
+    Raises
+    ------
+    DataFileError
+        A session's validation poses are missed by more than 100 times the model's own error and 5 mm.
+    """
+    from .sessions import session_index
+
+    limit = max(MISMATCH_FACTOR * own_mean_mm, MISMATCH_FLOOR_MM)
+    for s, idx in session_index(val).items():
+        mean = float(np.mean(errors_m[idx])) * 1000.0 if len(idx) else 0.0
+        if not (mean > limit or not math.isfinite(mean)):
+            continue
+        file = str(val.sources[idx[0]]) if val.sources is not None else val.path
+        what = (f"the validation poses{f' of session {s}' if s else ''} are missed by {mean:.4g} mm on average by the "
+                f"nominal model with the base pose fitted to the calibration poses{f' of {s}' if s else ''} "
+                f"({own_mean_mm:.3g} mm on those): they are not in that measurement frame"
+                + ("; --validate files are taken in the order of the DATA files, or by their session column"
+                   if s else ""))
+        if allow:
+            warnings.warn(str(InputError(what + f"; allowed by {FLAGS['mismatch']}", file=file)), DataWarning,
+                          stacklevel=3)
+            continue
+        raise DataFileError(what + f"; pass {FLAGS['mismatch']} to use them anyway", file=file)
+
+
 def check_other_series(cal: Measurements, other: Measurements) -> None:
     """A series findings are taken to (``diagnose --transfer``) must not be the calibration poses: refitted and
     judged there, a transfer would only repeat the calibration."""

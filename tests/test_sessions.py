@@ -263,3 +263,22 @@ def test_poses_without_a_session_column_are_said_to_be_in_the_first_sessions_fra
     vb.write_csv(tmp_path / "vb2.csv")
     assert main(["predict", str(tmp_path / "c.json"), str(tmp_path / "vb2.csv"), "--out", str(tmp_path / "p.csv")]) == 0
     assert "'session' column" not in capsys.readouterr().err
+
+
+def test_validation_files_out_of_order_are_an_error():
+    """With two sessions, validation poses labelled with the other session (--validate files out of order) would
+    be judged in the other tracker's frame, metres off: one error naming the session, before the rounds; the
+    override goes on with a warning."""
+    from casadical.errors import DataFileError
+
+    robot, cal, val, _ = two_sessions(ARM5, 6e4, 6, drift=(0.0, 0.0, 0.0))
+    swapped = val.subset(np.arange(len(val)))
+    swapped.sessions = np.where(val.sessions == "A", "B", "A").astype(object)
+    settings = DiagnosisSettings(max_rounds=1, blackbox=False)
+    with pytest.raises(DataFileError, match=r"validation poses of session [AB] are missed by \d+ mm on average.*in the "
+                                            r"order of the DATA files.*--allow-mismatch"):
+        diagnose(robot, cal, swapped, settings)
+    with pytest.warns(Warning, match="allowed by --allow-mismatch"):
+        rep = diagnose(robot, cal, swapped, settings, allow_mismatch=True)
+    assert rep.steps[0].validation.mean_mm > 500
+    assert diagnose(robot, cal, val, settings).steps[0].validation.mean_mm < 50        # in order: no complaint

@@ -33,7 +33,7 @@ from typing import Callable
 import numpy as np
 
 from ..calibration import calibrate, model_for
-from ..checks import check_held_out, check_other_series, check_poses
+from ..checks import check_held_out, check_other_series, check_poses, check_validation_frames
 from ..data import Measurements
 from ..errors import listing
 from ..physics import sign_changes, value_violations, violations
@@ -68,9 +68,10 @@ EXTRAPOLATING = ("time", "joint", "session")
 
 class _Diagnosis:
     def __init__(self, robot: Robot, cal: Measurements, val: Measurements, settings: DiagnosisSettings,
-                 progress: Callable[[str], None]):
+                 progress: Callable[[str], None], allow_mismatch: bool = False):
         self.robot, self.cal, self.val, self.s = robot, cal, val, settings
         self.say = progress
+        self.allow_mismatch = allow_mismatch
         self.n_eq = 3 * len(cal)          # the screening and its linearised tests: positions
         # full pose (data with orientations): every full fit, and the tests on their losses, have 6 equations a pose
         self.full_pose = cal.has_orientation and not settings.position_only
@@ -160,6 +161,8 @@ class _Diagnosis:
         self.steps.append(Step("nominal", nominal.calibration, self.val_stats(nominal), True,
                                orientation=self.val_angles(nominal)))
         self._step_of.append((nominal, 0))
+        # each session's validation poses in its own tracker frame (files out of order would be judged in another)
+        check_validation_frames(self.val, self.val_errors(nominal), nominal.calibration.mean_mm, self.allow_mismatch)
         self.say(f"  validation mean {self.steps[-1].validation.mean_mm:.4f} mm (judge only)")
         self.say("step 2: geometric (kinematic) calibration")
         kin = self.kinematic = self.fit("kinematic")
@@ -502,7 +505,7 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
     check_held_out(cal, val)                # validation poses the fits have seen would judge nothing
     if other is not None:
         check_other_series(cal, other)
-    dg = _Diagnosis(robot, cal, val, s, say)
+    dg = _Diagnosis(robot, cal, val, s, say, checks.get("allow_mismatch", False))
     if dg.full_pose:
         dg.notes.append("full pose: every fit is on the measured positions and orientations, weighted by their noise "
                         "scales from the data (as calibrate); the screening of candidate causes, its tests and the "
