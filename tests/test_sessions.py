@@ -263,6 +263,10 @@ def test_poses_without_a_session_column_are_said_to_be_in_the_first_sessions_fra
     vb.write_csv(tmp_path / "vb2.csv")
     assert main(["predict", str(tmp_path / "c.json"), str(tmp_path / "vb2.csv"), "--out", str(tmp_path / "p.csv")]) == 0
     assert "'session' column" not in capsys.readouterr().err
+    # calibrate --validate with the sessions' data: the same word before the fit
+    assert main(["calibrate", str(arm), *paths, "--model", "kinematic", "--solver", "lm", "--validate",
+                 str(tmp_path / "vb.csv"), "--out", str(tmp_path / "c2.json")]) == 2
+    assert "the calibration holds the sessions A, B, so its rows are taken in" in capsys.readouterr().err
 
 
 def test_validation_files_out_of_order_are_an_error():

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from .common import (STDOUT, Status, add_checks, add_force, add_quiet, add_row_spacing, add_session_tool,
                      add_urdf_chain, check_options, check_outputs, fold_long_lines, human_stream, int_at_least,
-                     robot_or_calibration, timed, write_text)
+                     robot_or_calibration, timed, warn_session_frame, write_text)
 
 
 def register(sub) -> None:
@@ -75,6 +75,7 @@ def run(args) -> int:
         if args.validate else None
     if val is not None:
         check_held_out(data, val)          # before the fit: validation poses it has seen would judge nothing
+        warn_session_frame(data.session_names, val, "the calibration")
     opts = {"max_iter": args.max_iter} if args.max_iter else {}
     status = Status(args.quiet)
     with status.slow(f"calibrate: fitting model {args.model} to {len(data)} poses ({args.solver}, robust loss "

@@ -310,18 +310,18 @@ def warn_session_terms(cal, data, cal_file: str) -> None:
                       f"{data.path} --model base (which drops what belongs to a session)", DataWarning, stacklevel=2)
 
 
-def warn_session_frame(cal, data, cal_file: str) -> None:
-    """A calibration of several sessions applied to poses with no ``session`` column: they are taken in the first
-    session's measurement frame; a warning that says so and how to choose another (before the work: a file of
-    another session then misses by metres)."""
+def warn_session_frame(sessions: list[str], data, holder: str) -> None:
+    """A calibration of several ``sessions`` applied to poses with no ``session`` column: they are taken in the
+    first session's measurement frame; a warning that says so and how to choose another (before the work: a file
+    of another session then misses by metres). ``holder``: what holds the sessions, for the message."""
     import warnings
 
     from ..errors import DataWarning
 
-    if len(cal.sessions) > 1 and data.sessions is None:
-        warnings.warn(f"{data.path}: has no 'session' column; {cal_file} holds the sessions "
-                      f"{', '.join(cal.sessions)}, so its rows are taken in the measurement frame of the first, "
-                      f"{cal.sessions[0]}; add a 'session' column to use another's", DataWarning, stacklevel=2)
+    if len(sessions) > 1 and data.sessions is None:
+        warnings.warn(f"{data.path}: has no 'session' column; {holder} holds the sessions {', '.join(sessions)}, so "
+                      f"its rows are taken in the measurement frame of the first, {sessions[0]}; add a 'session' "
+                      "column to use another's", DataWarning, stacklevel=2)
 
 
 def compensator_line(cal, data) -> str:

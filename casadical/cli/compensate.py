@@ -53,7 +53,7 @@ def run(args) -> int:
     check_outputs({"--out": args.out}, [args.cal, args.targets], args.force)
     cal = load_calibration(args.cal)
     targets = Measurements.read_csv(args.targets, n_joints=cal.model.robot.n)
-    warn_session_frame(cal, targets, args.cal)
+    warn_session_frame(cal.sessions, targets, args.cal)
     if len(targets) < JIT_MIN_ROWS:
         cal.model.jit = False
     result = compensate(cal, targets, tolerance_mm=args.tolerance_mm, max_iter=args.max_iter,

@@ -101,7 +101,7 @@ def run_predict(args) -> int:
     if isinstance(source, CalibrationResult):
         cal, robot = source, source.model.robot
         data = Measurements.read_csv(args.poses, n_joints=robot.n)
-        warn_session_frame(cal, data, args.model)
+        warn_session_frame(cal.sessions, data, args.model)
         xyz = cal.predict(data)
     else:
         cal, robot = None, source
