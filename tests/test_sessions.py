@@ -37,6 +37,19 @@ def two_sessions(arm, stiffness, seed, n_cal=80, n_val=150, drift=(1.0e-6, 0.0, 
     return robot, combine([a, b]), combine([va, vb]), truth
 
 
+def session_files(arm, cal, folder):
+    """The arm's robot TOML and one CSV per session of ``cal`` (A.csv, B.csv, no session column)."""
+    robot_file = folder / "arm.toml"
+    robot_file.write_text(to_toml(arm))
+    paths = []
+    for s in ("A", "B"):
+        part = cal.subset(cal.sessions == s)
+        part.sessions = None
+        paths.append(str(folder / f"{s}.csv"))
+        part.write_csv(paths[-1])
+    return robot_file, paths
+
+
 @pytest.mark.parametrize("seed", SEEDS)
 @pytest.mark.parametrize("arm", sorted(ARMS))
 def test_robot_causes_and_session_causes(arm, seed):
@@ -96,15 +109,7 @@ def test_cli_several_files_are_sessions(tmp_path, capsys):
     and the summary; predict takes a file of either session (its session column), and an unknown session is
     one line naming file, row and column."""
     robot, cal, val, _ = two_sessions(ARM7_DH, 2e4, 3, drift=(0.0, 0.0, 0.0))
-    arm = tmp_path / "arm.toml"
-    arm.write_text(to_toml(ARM7_DH))
-    paths = []
-    for s in ("A", "B"):
-        part = cal.subset(cal.sessions == s)
-        part.sessions = None
-        p = tmp_path / f"{s}.csv"
-        part.write_csv(p)
-        paths.append(str(p))
+    arm, paths = session_files(ARM7_DH, cal, tmp_path)
     out = tmp_path / "cal.json"
     assert main(["calibrate", str(arm), *paths, "--model", "kinematic+compliance[2]", "--solver", "lm",
                  "--session-tool", "--out", str(out)]) == 0
@@ -238,14 +243,7 @@ def test_poses_without_a_session_column_are_said_to_be_in_the_first_sessions_fra
     before the work says its rows are taken in A's frame and how to choose B's; B's poses so read then miss by
     the distance between the trackers (the mismatch error), and with their session column they are predicted."""
     robot, cal, val, _ = two_sessions(ARM5, 6e4, 5, drift=(0.0, 0.0, 0.0))
-    arm = tmp_path / "arm.toml"
-    arm.write_text(to_toml(ARM5))
-    paths = []
-    for s in ("A", "B"):
-        part = cal.subset(cal.sessions == s)
-        part.sessions = None
-        paths.append(str(tmp_path / f"{s}.csv"))
-        part.write_csv(paths[-1])
+    arm, paths = session_files(ARM5, cal, tmp_path)
     assert main(["calibrate", str(arm), *paths, "--model", "kinematic", "--solver", "lm",
                  "--out", str(tmp_path / "c.json")]) == 0
     vb = val.subset(val.sessions == "B")
