@@ -151,7 +151,7 @@ def test_library_entry_points_check_and_take_overrides():
     # allowed once at the entry point, the calibrations inside the diagnosis (subsets, folds) do not re-check
     quick = DiagnosisSettings(max_harmonic=2, max_rounds=1, blackbox=False)
     with pytest.warns(DataWarning, match="outside joint 2"):
-        rep = diagnose(robot, with_columns(data, q2_deg=q), data, quick, allow_outside_limits=True)
+        rep = diagnose(robot, with_columns(data, q2_deg=q), sim("arm5", 1)[1], quick, allow_outside_limits=True)
     assert rep.steps[0].model == "nominal"
 
 
