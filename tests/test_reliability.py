@@ -613,3 +613,16 @@ def test_a_session_given_twice(arms, tmp_path, capsys):
     Measurements(moved).write_csv(tmp_path / "again.csv")
     code, _, err = cli(capsys, "calibrate", robot, data, tmp_path / "again.csv", "--out", tmp_path / "c.json")
     assert code == 0 and not any("also in" in e for e in err)
+
+
+def test_row_spacing_on_a_file_with_times_says_the_times_are_used(arms, tmp_path, capsys):
+    from casadical.data import Measurements
+
+    robot, data = arms("arm5", 40)
+    d = Measurements.read_csv(data)
+    Measurements({**d.columns, "time_s": np.arange(len(d)) * 7.0}).write_csv(tmp_path / "t.csv")
+    code, _, err = cli(capsys, "calibrate", robot, tmp_path / "t.csv", "--model", "kinematic", "--row-spacing-s", "2",
+                       "--out", tmp_path / "c.json")
+    assert code == 0
+    assert any("t.csv: has a time_s column, whose times are used; --row-spacing-s applies to files without one" in e
+               for e in err), err

@@ -244,7 +244,14 @@ def add_session_tool(p: argparse.ArgumentParser) -> None:
 def timed(data, args):
     """``data`` with times from its rows if ``--row-spacing-s`` was given and it has no ``time_s``."""
     spacing = getattr(args, "row_spacing_s", None)
-    if spacing is None or "time_s" in data.columns:
+    if spacing is None:
+        return data
+    if "time_s" in data.columns:
+        import warnings
+
+        from ..errors import DataWarning
+        warnings.warn(f"{data.path}: has a time_s column, whose times are used; --row-spacing-s applies to files "
+                      "without one", DataWarning, stacklevel=2)
         return data
     return data.with_row_times(spacing)
 
