@@ -626,3 +626,12 @@ def test_row_spacing_on_a_file_with_times_says_the_times_are_used(arms, tmp_path
     assert code == 0
     assert any("t.csv: has a time_s column, whose times are used; --row-spacing-s applies to files without one" in e
                for e in err), err
+
+
+def test_keep_compensator_needs_a_calibration_with_one(arms, arm_calibration, tmp_path, capsys):
+    robot, data = arms("arm4", 60)
+    for source, words in ((robot, "give a calibration JSON in place of ROBOT"), (arm_calibration, "has none")):
+        code, _, err = cli(capsys, "calibrate", source, data, "--model", "base", "--keep-compensator",
+                           "--out", tmp_path / "c.json")
+        assert code == 2
+        one_error(err, "--keep-compensator", words)

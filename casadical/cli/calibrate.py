@@ -64,10 +64,15 @@ def run(args) -> int:
     from ..calibration import CalibrationResult, calibrate
     from ..checks import check_held_out
     from ..data import Measurements
+    from ..errors import InputError
     from ..sessions import read_sessions
 
     check_outputs({"--out": args.out, "--html": args.html}, [args.robot, *args.data, args.validate], args.force)
     robot = robot_or_calibration(args.robot, args)
+    if args.keep_compensator and not (isinstance(robot, CalibrationResult) and robot.model.term("gp_compensator")):
+        raise InputError("--keep-compensator keeps the session compensator of a calibration taken further: "
+                         + (f"{args.robot} has none" if isinstance(robot, CalibrationResult)
+                            else "give a calibration JSON in place of ROBOT"))
     n = robot.model.robot.n if isinstance(robot, CalibrationResult) else robot.n
     data = timed(read_sessions(args.data, n_joints=n, require_positions=True), args)
     # read before the fit: a malformed file stops the command before the work
