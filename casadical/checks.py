@@ -347,7 +347,8 @@ def check_held_out(cal: Measurements, val: Measurements) -> None:
            "validate on poses the calibration did not use (casadical split makes both)")
 
 
-def check_validation_frames(val: Measurements, errors_m: np.ndarray, own_mean_mm: float, allow: bool = False) -> None:
+def check_validation_frames(val: Measurements, errors_m: np.ndarray, own_mean_mm: float, allow: bool = False,
+                            what: str = "validation poses") -> None:
     """Each session's validation poses must be in that session's measurement frame.
 
     With several sessions, validation poses are matched to sessions by their
@@ -366,6 +367,8 @@ def check_validation_frames(val: Measurements, errors_m: np.ndarray, own_mean_mm
         Its mean error on its own (the calibration) poses.
     allow : bool
         Accept them anyway (a warning).
+    what : str
+        What the poses are, for the message.
 
     Raises
     ------
@@ -380,16 +383,16 @@ def check_validation_frames(val: Measurements, errors_m: np.ndarray, own_mean_mm
         if not (mean > limit or not math.isfinite(mean)):
             continue
         file = str(val.sources[idx[0]]) if val.sources is not None else val.path
-        what = (f"the validation poses{f' of session {s}' if s else ''} are missed by {mean:.4g} mm on average by the "
+        text = (f"the {what}{f' of session {s}' if s else ''} are missed by {mean:.4g} mm on average by the "
                 f"nominal model with the base pose fitted to the calibration poses{f' of {s}' if s else ''} "
                 f"({own_mean_mm:.3g} mm on those): they are not in that measurement frame"
                 + ("; --validate files are taken in the order of the DATA files, or by their session column"
                    if s else ""))
         if allow:
-            warnings.warn(str(InputError(what + f"; allowed by {FLAGS['mismatch']}", file=file)), DataWarning,
+            warnings.warn(str(InputError(text + f"; allowed by {FLAGS['mismatch']}", file=file)), DataWarning,
                           stacklevel=3)
             continue
-        raise DataFileError(what + f"; pass {FLAGS['mismatch']} to use them anyway", file=file)
+        raise DataFileError(text + f"; pass {FLAGS['mismatch']} to use them anyway", file=file)
 
 
 def check_other_series(cal: Measurements, other: Measurements) -> None:

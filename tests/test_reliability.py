@@ -635,3 +635,31 @@ def test_keep_compensator_needs_a_calibration_with_one(arms, arm_calibration, tm
                            "--out", tmp_path / "c.json")
         assert code == 2
         one_error(err, "--keep-compensator", words)
+
+
+def test_compare_refuses_poses_of_another_tracker_set_up(arms, tmp_path, capsys):
+    """compare --validate / --extra in another measurement frame (the tracker moved) are judged by metres: one
+    line before the work; --allow-mismatch lets them through with a warning."""
+    robot, data = arms("arm5", 60)
+    _, val = arms("arm5", 40, 1)
+    moved, _ = simulate(robot_from_dict(ARM5, "arm5"), 40, Effects(base_xyz=(1.5, -0.5, 0.3),
+                                                                   base_rpy=(0.0, 0.0, 1.0)), seed=9)
+    moved.write_csv(tmp_path / "moved.csv")
+    for option in ("--validate", "--extra"):
+        args = ["--validate", val] if option == "--extra" else []
+        code, _, err = cli(capsys, "compare", robot, data, *args, option, tmp_path / "moved.csv", "--methods", "KM")
+        assert code == 2
+        one_error(err, "moved.csv", f"the {'extra' if option == '--extra' else 'validation'} poses are missed by",
+                  "not in that measurement frame", "--allow-mismatch")
+    code, _, err = cli(capsys, "compare", robot, data, "--validate", tmp_path / "moved.csv", "--methods", "KM",
+                       "--allow-mismatch")
+    assert code == 0 and any("allowed by --allow-mismatch" in e for e in err)
+
+
+def test_transfer_options_need_a_transfer(arms, tmp_path, capsys):
+    robot, data = arms("arm5", 60)
+    _, val = arms("arm5", 40, 1)
+    code, _, err = cli(capsys, "diagnose", robot, data, "--validate", val, "--transfer-base-poses", "10",
+                       "--json", tmp_path / "r.json")
+    assert code == 2
+    one_error(err, "--transfer-base-poses", "give --transfer OTHER.csv")

@@ -40,7 +40,7 @@ def register(sub) -> None:
 
 
 def cmd_compare(args) -> int:
-    from ..checks import check_held_out, check_poses
+    from ..checks import check_held_out, check_poses, check_validation_frames
     from ..data import Measurements
     from ..methods.base import MethodResult
     from ..methods.compare import compare, format_table, parse_methods, plot, pyplot, to_json
@@ -63,6 +63,14 @@ def cmd_compare(args) -> int:
     for seen in (cal, extra):            # before the work: validation poses a method has fitted judge nothing
         if val is not None and seen is not None:
             check_held_out(seen, val)
+    if val is not None or extra is not None:
+        # in the calibration poses' measurement frame: the nominal model, its base pose fitted to them, misses the
+        # others by about what it misses its own by (another tracker set-up: by metres)
+        from ..calibration import calibrate
+        nominal = calibrate(robot, cal, "nominal", "lm", warn=False)
+        for d, what in ((val, "validation poses"), (extra, "extra poses")):
+            if d is not None:
+                check_validation_frames(d, nominal.errors(d), nominal.calibration.mean_mm, args.allow_mismatch, what)
     out = human_stream(args.json)       # --json -: standard output holds the JSON alone
     print(f"compare on {robot.name}: {len(cal)} calibration poses ({args.cal})"
           + (f", {len(val)} validation poses ({args.validate})" if val is not None else "")

@@ -41,8 +41,8 @@ def register(sub) -> None:
     p.add_argument("--transfer", metavar="OTHER.csv",
                    help="another measurement series of the same robot: report each finding's gain there, with "
                         "the base pose re-estimated on a few of its poses and with the geometry refitted")
-    p.add_argument("--transfer-base-poses", type=int_at_least(6), default=30,
-                   help="poses of OTHER.csv the base pose is re-estimated on (default: %(default)s)")
+    p.add_argument("--transfer-base-poses", type=int_at_least(6), default=None,
+                   help="poses of OTHER.csv the base pose is re-estimated on (default: 30)")
     p.add_argument("--transfer-refit-poses", type=int_at_least(10), default=None,
                    help="poses of OTHER.csv the geometry is refitted on (default: as many as DATA.csv has, at most "
                         "half of OTHER.csv)")
@@ -80,6 +80,9 @@ def run(args) -> int:
         raise InputError("nothing to write: give --json REPORT.json, --html REPORT.html and/or --out FINAL.json")
     check_outputs({"--json": args.json, "--html": args.html, "--out": args.out},
                   [args.robot, *args.data, *args.validate, args.transfer], args.force)
+    if not args.transfer and (args.transfer_base_poses is not None or args.transfer_refit_poses is not None):
+        raise InputError("--transfer-base-poses and --transfer-refit-poses are for the transfer study: give "
+                         "--transfer OTHER.csv, or leave them out")
     robot = robot_from_args(args.robot, args)
 
     def read(path):
@@ -98,7 +101,7 @@ def run(args) -> int:
     settings = DiagnosisSettings(alpha=args.alpha, max_harmonic=args.max_harmonic, max_rounds=args.max_rounds,
                                  blackbox=not args.no_blackbox, seed=args.seed, robust=args.robust,
                                  position_only=args.position_only,
-                                 transfer_base_poses=args.transfer_base_poses,
+                                 transfer_base_poses=args.transfer_base_poses or DiagnosisSettings.transfer_base_poses,
                                  transfer_refit_poses=args.transfer_refit_poses, session_tools=args.session_tool)
     status = Status(args.quiet)
     say = status.timed_line()
