@@ -177,6 +177,24 @@ def test_json_to_standard_output_is_clean_json(cmd, poses):
         assert doc["baseline"] == "Nominal" and doc["rows"][1]["win_rate"] in (0.0, 0.5, 1.0)
 
 
+@pytest.mark.parametrize("args", [
+    ["calibrate", "ys100", "{d}/cal.csv", "--out", "-"],
+    ["diagnose", "ys100", "{d}/cal.csv", "--validate", "{d}/val.csv", "--out", "-"],
+    ["split", "{d}/cal.csv", "-n", "10", "--out-cal", "-", "--out-val", "v.csv"],
+    ["candidates", "ys100", "-n", "20", "--out", "-"],
+    ["plan-poses", "ys100", "{d}/cand.csv", "-m", "30", "--out", "-"],
+    ["compare", "ys100", "{d}/cal.csv", "--validate", "{d}/val.csv", "--methods", "KM", "--plot", "-"],
+], ids=lambda a: a[0])
+def test_a_file_output_named_dash_is_refused(poses, tmp_path, monkeypatch, capsys, args):
+    """'-' means standard output; an output that is a file (a calibration, poses, a plot) cannot go there: one line
+    before the work, and no file named '-' (it was written silently)."""
+    monkeypatch.chdir(tmp_path)
+    assert main([a.format(d=poses) for a in args]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and " -: this output is a file" in err[0] and "./-" in err[0], err
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_one_output_at_most_on_standard_output(poses):
     r = run("diagnose", "ys100", f"{poses}/cal.csv", "--validate", f"{poses}/val.csv", "--json", "-", "--html", "-")
     lines = r.stderr.strip().splitlines()

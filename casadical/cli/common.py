@@ -27,6 +27,10 @@ STDOUT = "-"
 # --- outputs -----------------------------------------------------------------------
 
 
+#: outputs that ``-`` sends to standard output (text written by :func:`write_text`); any other output is a file
+STDOUT_OPTIONS = frozenset({"--json", "--html", "--urdf", "--table", "--markdown"})
+
+
 def check_outputs(outputs: dict[str, str | None], inputs: Iterable[str | None], force: bool) -> None:
     """Refuse, before any work, outputs that would lose something the user has.
 
@@ -42,11 +46,16 @@ def check_outputs(outputs: dict[str, str | None], inputs: Iterable[str | None], 
     Raises
     ------
     InputError
-        Two outputs go to standard output, an output is an input, two outputs are one file, an output exists
+        Two outputs go to standard output, an output that is a file is ``-`` (:data:`STDOUT_OPTIONS`), an output
+        is an input, two outputs are one file, an output exists
         (without ``force``), its folder does not exist or no file can be
         made in it.
     """
     to_stdout = [option for option, path in outputs.items() if path == STDOUT]
+    for option in to_stdout:
+        if option not in STDOUT_OPTIONS:
+            raise InputError(f"{option} -: this output is a file, and only {', '.join(sorted(STDOUT_OPTIONS))} can "
+                             "go to standard output; give a file name (./- for a file named '-')")
     if len(to_stdout) > 1:
         raise InputError(f"{' and '.join(to_stdout)} both name standard output ('-'); one output at most can go "
                          "there")
