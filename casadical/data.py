@@ -292,6 +292,10 @@ class Measurements:
         return cls(cols)
 
 
+#: the columns read by name (besides q1_deg ..): a header that is one of them in other letter case is an error
+_KNOWN = frozenset(XYZ) | frozenset(RXYZ) | frozenset(NUMERIC_OPTIONAL) | {"session"}
+
+
 def _check_header(first: list[str] | None, path: str, n_joints: int | None, require_positions: bool
                   ) -> tuple[list[str], set[str]]:
     """The header row checked (see :meth:`Measurements.read_csv`); its names and the numeric columns."""
@@ -310,6 +314,9 @@ def _check_header(first: list[str] | None, path: str, n_joints: int | None, requ
             raise DataFileError(f"duplicated header name (fields {seen[h] + 1} and {i + 1})",
                                 file=path, row=1, column=h)
         seen[h] = i
+        if h != h.lower() and (h.lower() in _KNOWN or _Q.match(h.lower())):
+            # an extra column is kept and not read: 'Payload_kg' would be a payload silently left out
+            raise DataFileError(f"column names are lower case: write {h.lower()!r}", file=path, row=1, column=h)
     qs = sorted(int(m.group(1)) for h in header if (m := _Q.match(h)))
     if not qs:
         raise DataFileError("has no joint columns: expected q1_deg, q2_deg, ...", file=path, row=1)

@@ -105,3 +105,15 @@ def test_rows_read_in_chunks_keep_every_value_and_name_the_bad_row(tmp_path, mon
     with pytest.raises(DataFileError, match=r"decimal comma") as e:
         Measurements.read_csv(path, n_joints=3)
     assert f"row {k + 1}" in str(e.value) and "q2_deg" in str(e.value)
+
+
+@pytest.mark.parametrize("name", ["X_MM", "Payload_kg", "Q1_deg", "Session", "TIME_S"])
+def test_a_known_column_in_other_letter_case_is_an_error(tmp_path, name):
+    """An unknown column is kept and not read: 'Payload_kg' would be a payload silently left out."""
+    header = ["q1_deg", "q2_deg", "x_mm", "y_mm", "z_mm"]
+    lower = name.lower()
+    header = [name if h == lower else h for h in header] if lower in header else header + [name]
+    (tmp_path / "d.csv").write_text(",".join(header) + "\n" + ",".join(["1"] * len(header)) + "\n")
+    with pytest.raises(DataFileError, match=f"d.csv, row 1, column '{name}': column names are lower case: "
+                                            f"write '{lower}'"):
+        Measurements.read_csv(tmp_path / "d.csv")
