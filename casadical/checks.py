@@ -290,8 +290,7 @@ def check_calibration_fits(errors_m: np.ndarray, data: Measurements, calibration
         is judged (a few bad readings do not decide), and the message says so.
     """
     mean = float(np.median(errors_m) if base_fitted else np.mean(errors_m)) * 1000.0
-    limit = max(MISMATCH_FACTOR * (own_mean_mm or 0.0), MISMATCH_FLOOR_MM)
-    if not (mean > limit or not math.isfinite(mean)):
+    if not _beyond_its_own(mean, own_mean_mm):
         return
     own = f"{own_mean_mm:.3g} mm on its own poses" if own_mean_mm is not None else "no error of its own recorded"
     if base_fitted:
@@ -305,6 +304,12 @@ def check_calibration_fits(errors_m: np.ndarray, data: Measurements, calibration
         warnings.warn(str(InputError(what, file=data.path)), DataWarning, stacklevel=3)
         return
     raise DataFileError(what + f"; pass {FLAGS['mismatch']} to use them anyway", file=data.path)
+
+
+def _beyond_its_own(mean_mm: float, own_mean_mm: float | None) -> bool:
+    """A model's mean error on poses is beyond anything it can mean there: over :data:`MISMATCH_FACTOR` times its
+    error on its own poses and over :data:`MISMATCH_FLOOR_MM` (or not finite)."""
+    return mean_mm > max(MISMATCH_FACTOR * (own_mean_mm or 0.0), MISMATCH_FLOOR_MM) or not math.isfinite(mean_mm)
 
 
 def check_distinct_poses(data: Measurements, m: int) -> None:
@@ -377,10 +382,9 @@ def check_validation_frames(val: Measurements, errors_m: np.ndarray, own_mean_mm
     """
     from .sessions import session_index
 
-    limit = max(MISMATCH_FACTOR * own_mean_mm, MISMATCH_FLOOR_MM)
     for s, idx in session_index(val).items():
         mean = float(np.mean(errors_m[idx])) * 1000.0 if len(idx) else 0.0
-        if not (mean > limit or not math.isfinite(mean)):
+        if not _beyond_its_own(mean, own_mean_mm):
             continue
         file = str(val.sources[idx[0]]) if val.sources is not None else val.path
         text = (f"the {what}{f' of session {s}' if s else ''} are missed by {mean:.4g} mm on average by the "
