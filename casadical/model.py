@@ -24,7 +24,6 @@ from __future__ import annotations
 
 import re
 import warnings
-from concurrent.futures import wait
 from dataclasses import dataclass
 
 import casadi as ca
@@ -35,8 +34,10 @@ from .errors import CasadicalWarning, DataFileError, ModelError
 from .kinematics import Geometry, base_pose_matrix, chain_angles, compose, forward, rpy_pose
 from .parameters import Parameters
 from .robot import Robot
-from .terms import REGISTRY, Context, ErrorTerm, SessionLocal, make_term
-from .threads import evaluation_pool, evaluation_threads
+from .superset import Mapping, outputs as superset_outputs
+from .terms import REGISTRY, Context, ErrorTerm, SessionLocal, covariate_names, make_term
+from .batch import BLOCK_MIN, Batch as _Batch, Blocks as _Blocks, batch  # noqa: F401 (names the tests use)
+from .threads import evaluation_threads
 
 #: batches of this many poses or more run compiled code, compiled once per machine and kept in the disk cache
 #: (casadical.jitcache); smaller ones use it only if the cache has it. Measured on the UR10 kinematic model
@@ -47,10 +48,6 @@ JIT_MIN_POSES = 100
 #: poses holds every pose's summed outputs at once (the Gauss-Newton matrix: ~700 numbers per UR10 pose,
 #: 1.1 GB at 200,000 poses); a map of chunks holds one chunk's and one sum per chunk
 MAP_CHUNK = 256
-#: a batch on CasADi's virtual machine is evaluated in blocks of at least this many poses, one per thread
-#: (casadical.threads.evaluation_threads); UR10 `fk_jac_angles` on the VM, 2 cores: 300 poses 9.9 -> 5.4 ms,
-#: 150 poses 5.0 ms either way
-BLOCK_MIN = 100
 _SPEC_ITEM = re.compile(r"^\s*([a-z_]+)\s*(?:\[([^\]]*)\])?\s*(?:@\s*([A-Za-z0-9_.-]+))?\s*$")
 
 
@@ -167,19 +164,14 @@ class Model:
             for p in self.parameters:
                 if p.term == "geometric" and p.group != "base":
                     p.fixed, p.reason = True, "nominal model"
-        cov: list[str] = []
-        for t in self.terms:
-            for c in t.covariates:
-                if c not in cov:
-                    cov.append(c)
-        if "payload_kg" not in cov:
-            cov.insert(0, "payload_kg")
-        self.covariate_names: list[str] = cov
+        self.covariate_names: list[str] = covariate_names(self.terms)
         self.jit = jit
         self._base0: np.ndarray | None = None
         self._maps: dict = {}
         self._compiled: dict = {}
         self._build()
+        # where the model is in its robot's superset (casadical.superset); None: its own graph evaluates it
+        self._mapping = Mapping.of(self) if jit is not False else None
 
     # --- construction -------------------------------------------------------------
 
@@ -434,20 +426,16 @@ class Model:
 
     def _batch(self, which: str, N: int) -> "_Batch | _Blocks":
         jit = self._use_jit(N)
-        # compiled code is ~10x faster than the VM: its blocks would be too small to gain from threads
         compiled = self.per_pose_function(which, jit).class_name() == "External"
-        k = 1 if compiled else max(1, min(evaluation_threads(), N // BLOCK_MIN))
-        key = (which, N, jit, k)
+        key = (which, N, jit, compiled or evaluation_threads())
         b = self._maps.get(key)
         if b is None:
             if len(self._maps) > 32:  # many distinct batch sizes: keep memory bounded
                 self._maps.clear()
-            if k == 1:
+            if compiled:
                 b = _Batch(self.batch_function(which, N), N)
-            else:   # bounds of k blocks of (nearly) equal size, evaluated side by side
-                cuts = [N * i // k for i in range(k + 1)]
-                maps = {n: self.batch_function(which, n, compiled=jit) for n in {c - a for a, c in zip(cuts, cuts[1:])}}
-                b = _Blocks([(a, _Batch(maps[c - a], c - a)) for a, c in zip(cuts, cuts[1:])], self._graph(which)[2])
+            else:
+                b = batch(lambda n: self.batch_function(which, n, compiled=jit), N, self._graph(which)[2], False)
             self._maps[key] = b
         return b
 
@@ -465,14 +453,29 @@ class Model:
         b0 = self.base0_nominal() if base0 is None else np.asarray(base0, dtype=float)
         return N, q, p, cov, b0
 
+    def _superset(self, which: str, N: int, q, p, cov, b0, Rm=None):
+        """``which`` of N poses through the robot's superset (:func:`casadical.superset.outputs`), or None when
+        the model's own graph evaluates it: ``jit=False``, no compiler, a model the superset cannot express, or
+        a batch below ``JIT_MIN_POSES`` while nothing of the superset is compiled."""
+        if self._mapping is None or not (jitcache.compiler() if self.jit is True else compiler_available()):
+            return None
+        return superset_outputs(self, which, q, p, cov, b0, Rm, compile=self.jit is True or N >= JIT_MIN_POSES,
+                                required=False)
+
     def predict(self, q, params=None, cov=None, base0=None) -> np.ndarray:
         """Tool point positions (m), shape (N, 3), for readings ``q`` (rad, (N, n))."""
         N, q, p, cov, b0 = self._inputs(q, params, cov, base0)
+        out = self._superset("fk", N, q, p, cov, b0)
+        if out is not None:
+            return out[:, :3]
         return self._batch("fk", N)(q, p, cov, b0)[0]
 
     def predict_jacobian(self, q, params=None, cov=None, base0=None) -> tuple[np.ndarray, np.ndarray]:
         """Positions (N, 3) and their Jacobian w.r.t. the full parameter vector (N, 3, P)."""
         N, q, p, cov, b0 = self._inputs(q, params, cov, base0)
+        out = self._superset("jac", N, q, p, cov, b0)
+        if out is not None:
+            return out[0][:, :3], out[1][:, :3]
         xyz, J = self._batch("fk_jac", N)(q, p, cov, b0)
         # CasADi is column-major: each pose's 3 x P block arrives transposed
         return xyz, J.reshape(N, len(self.parameters), 3).transpose(0, 2, 1)
@@ -482,6 +485,9 @@ class Model:
         """Positions (N, 3), their Jacobian w.r.t. the parameters (N, 3, P) and w.r.t. an offset added to
         each joint's chain angle (N, 3, n)."""
         N, q, p, cov, b0 = self._inputs(q, params, cov, base0)
+        out = self._superset("jac", N, q, p, cov, b0)
+        if out is not None:
+            return out[0][:, :3], out[1][:, :3], out[2][:, :3]
         xyz, J, JA = self._batch("fk_jac_angles", N)(q, p, cov, b0)
         return (xyz, J.reshape(N, len(self.parameters), 3).transpose(0, 2, 1),
                 JA.reshape(N, self.robot.n, 3).transpose(0, 2, 1))
@@ -529,14 +535,28 @@ class Model:
         skew-symmetric part. Full-pose models only.
         """
         N, q, p, cov, b0 = self._inputs(q, params, cov, base0)
-        xyz, ro = self._batch("pose_fk", N)(q, p, cov, b0, np.asarray(Rm, float).reshape(N, 9))
+        Rm = np.asarray(Rm, float).reshape(N, 9)
+        if not self.orientation:
+            raise ModelError(f"model {self.spec} has no probe orientation (term tool_orientation): no 'pose_fk'")
+        out = self._superset("pose_fk", N, q, p, cov, b0, Rm)
+        if out is not None:
+            return out[:, :3], out[:, 3:]
+        xyz, ro = self._batch("pose_fk", N)(q, p, cov, b0, Rm)
         return xyz, ro
 
     def pose_jacobian(self, q, Rm, params=None, cov=None, base0=None
                       ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`pose_residuals` and their Jacobians w.r.t. the parameters: xyz, J (N, 3, P), r_o, J_o (N, 3, P)."""
         N, q, p, cov, b0 = self._inputs(q, params, cov, base0)
-        xyz, J, ro, Jo = self._batch("pose_fk_jac", N)(q, p, cov, b0, np.asarray(Rm, float).reshape(N, 9))
+        Rm = np.asarray(Rm, float).reshape(N, 9)
+        if not self.orientation:
+            raise ModelError(f"model {self.spec} has no probe orientation (term tool_orientation): no "
+                             "'pose_fk_jac'")
+        out = self._superset("pose_jac", N, q, p, cov, b0, Rm)
+        if out is not None:
+            y, J, _ = out
+            return y[:, :3], J[:, :3], y[:, 3:], J[:, 3:]
+        xyz, J, ro, Jo = self._batch("pose_fk_jac", N)(q, p, cov, b0, Rm)
         P = len(self.parameters)
         return (xyz, J.reshape(N, P, 3).transpose(0, 2, 1), ro, Jo.reshape(N, P, 3).transpose(0, 2, 1))
 
@@ -635,70 +655,3 @@ def base0_to_pose(b0: np.ndarray) -> np.ndarray:
 def compiler_available() -> bool:
     """True if a C compiler is on PATH and ``CASADICAL_JIT=0`` does not turn automatic compilation off."""
     return jitcache.jit_setting() and jitcache.compiler() is not None
-
-
-class _Batch:
-    """A mapped Function evaluated in place on preallocated numpy buffers.
-
-    The parameter vector and ``base0`` are broadcast to every pose
-    (``reduce_in``), and results are written straight into numpy memory:
-    converting large CasADi matrices costs more than evaluating them.
-    """
-
-    def __init__(self, F: ca.Function, N: int):
-        self.F, self.N = F, N
-        self.buf, self.trigger = self.F.buffer()
-        self.args = []
-        for i in range(self.F.n_in()):
-            sp = self.F.sparsity_in(i)
-            shape = (sp.size2(), sp.size1())  # column-major storage = row-major transpose
-            a = np.zeros(shape)
-            self.args.append(a)
-            self.buf.set_arg(i, memoryview(a))
-        self.res = []
-        for i in range(self.F.n_out()):
-            sp = self.F.sparsity_out(i)
-            r = np.zeros((sp.size2(), sp.size1()))
-            self.res.append(r)
-            self.buf.set_res(i, memoryview(r))
-
-    def __call__(self, *inputs) -> list[np.ndarray]:
-        self.evaluate(*inputs)
-        return [r.copy() for r in self.res]
-
-    def evaluate(self, *inputs) -> None:
-        """Evaluate into the buffers (``self.res``, valid until the next evaluation)."""
-        for a, x in zip(self.args, inputs):
-            a.reshape(-1)[:] = np.asarray(x, dtype=float).reshape(-1)
-        self.trigger()
-
-
-class _Blocks:
-    """A batch as consecutive blocks of poses, each a :class:`_Batch` of its own, evaluated in threads.
-
-    CasADi releases the GIL while it evaluates, and each block has its own
-    buffers (its own work memory), so the blocks run side by side. Every
-    pose is computed alone by the same code: the results are the same bits
-    as one batch's. Outputs are per pose (no sums), stacked pose by pose.
-    """
-
-    def __init__(self, blocks: list[tuple[int, _Batch]], bcast: tuple):
-        self.blocks, self.bcast = blocks, set(bcast)
-
-    def __call__(self, *inputs) -> list[np.ndarray]:
-        N = sum(b.N for _, b in self.blocks)
-        inputs = [np.asarray(x, dtype=float) if i in self.bcast else np.asarray(x, dtype=float).reshape(N, -1)
-                  for i, x in enumerate(inputs)]
-
-        def block(start: int, batch: _Batch) -> None:
-            batch.evaluate(*(x if i in self.bcast else x[start:start + batch.N] for i, x in enumerate(inputs)))
-
-        pool, futures = evaluation_pool(), []
-        try:
-            for start, batch in self.blocks:
-                futures.append(pool.submit(block, start, batch))
-            for f in futures:
-                f.result()
-        finally:
-            wait(futures)   # on an error too: no block may write into its buffers after this call
-        return [np.concatenate([b.res[j] for _, b in self.blocks]) for j in range(len(self.blocks[0][1].res))]

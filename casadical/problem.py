@@ -234,6 +234,18 @@ class CalibrationProblem:
             rp[s], ro[s] = np.linalg.norm(xyz - self.xyz[s], axis=1), np.linalg.norm(r, axis=1)
         return rp, ro
 
+    def cost(self, values: np.ndarray) -> float:
+        """The loss at ``values`` (m^2): ``sum rho(u2)`` over the poses, without the Jacobian."""
+        if not self.full_pose:
+            r = self.residuals(values).reshape(-1, 3)
+            return float(self.loss.rho(np.einsum("ij,ij->i", r, r)).sum())
+        total, k2 = 0.0, self.loss.rot_weight ** 2
+        for s in pose_chunks(self.n_poses):
+            xyz, ro = self.model.pose_residuals(self.q[s], self.rot[s], values, self.cov[s], self.base0)
+            r = xyz - self.xyz[s]
+            total += float(self.loss.rho(np.einsum("ij,ij->i", r, r) + k2 * np.einsum("ij,ij->i", ro, ro)).sum())
+        return total
+
     def weighted_jacobian(self, values: np.ndarray, s: slice) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """Residual rows and their Jacobian (full parameter vector, SI) of the poses ``s``, in position units.
 

@@ -101,7 +101,7 @@ class _Diagnosis:
     def fit(self, spec: str, start: CalibrationResult | dict | None = None, loss: RobustLoss | None = None
             ) -> CalibrationResult:
         """Calibrate ``spec`` on the calibration poses (LM), from ``start``'s values (a result or a dict)."""
-        model = model_for(self.robot, spec + ("+tool_orientation" if self.full_pose else ""), self.cal, jit=False,
+        model = model_for(self.robot, spec + ("+tool_orientation" if self.full_pose else ""), self.cal,
                           session_tools=self.s.session_tools)
         st = None
         if start is not None:

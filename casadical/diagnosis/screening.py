@@ -88,7 +88,7 @@ class Screen:
         self.physical = {c.shared() for c in cands if c.cause != "joint_periodic"}
         # drift and thermal terms referenced to the calibration poses, as in the fits (current's model)
         self.model = big = model_for(robot, compose_spec(accepted + sorted(self.physical, key=str), geometric), cal,
-                                     jit=False, session_tools=session_tools)
+                                     session_tools=session_tools)
         frames = big.term("sessions")
         if frames is not None:      # each session's reference pose: the current fit's
             frames.references = dict(current.model.term("sessions").references)

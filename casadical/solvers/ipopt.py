@@ -1,18 +1,26 @@
 """IPOPT through CasADi ``nlpsol``, with bounds (e.g. positive, bounded compliance).
 
-The NLP is built on the mapped model Function with the data as NLP
-parameters, so its size does not grow with the number of poses and one
-built solver serves every data set of the same size. The Hessian is the
-Gauss-Newton one of the (robust) loss (J^T J for plain least squares,
-passed as ``hess_lag``): it is what the least squares structure offers for
-free, and it is positive semi-definite. Full pose: the same on the model's
-``pose_*`` Functions, whose per-pose residual is ``(r_p, k r_o)``
-(:mod:`casadical.problem`), so IPOPT and Levenberg-Marquardt minimise the
-same objective.
+The Hessian is the Gauss-Newton one of the (robust) loss (J^T J for plain
+least squares): what the least squares structure offers for free, and
+positive semi-definite. IPOPT's objective, gradient and Hessian are
+callbacks on the problem's own linearisation
+(:meth:`casadical.problem.CalibrationProblem.linearize`: the model's
+Jacobian, ``J^T W J`` in numpy), the matrix Levenberg-Marquardt uses, so
+both minimise the same objective (full pose too: each pose's residual is
+``(r_p, k r_o)``); one linearisation per iterate serves the gradient and
+the Hessian, and a line-search trial needs the loss alone. The model is
+evaluated as every calibration evaluates it (compiled once per robot,
+:mod:`casadical.superset`): no function is compiled per model, and a built
+solver serves every problem with the same number of free parameters.
+
+With ``hessian="exact"`` the objective is the mapped model Function with
+the data as NLP parameters, and IPOPT takes CasADi's exact Hessian of it.
 """
 
 from __future__ import annotations
 
+import math
+import threading
 import time
 from collections import OrderedDict
 from dataclasses import dataclass, field
@@ -26,8 +34,9 @@ from ..problem import CalibrationProblem
 from .base import Solver, SolverResult
 
 #: built solvers shared by every Ipopt instance of the process, least recently used dropped first: the
-#: robust loop of a calibration, and a diagnosis calibrating the same model many times, re-solve problems
-#: of the same model, size and free set, and building one costs 0.05-0.5 s
+#: robust loop of a calibration, and a diagnosis calibrating many models, re-solve problems of the same
+#: number of free parameters (the exact Hessian: of the same model, size and free set; building one costs
+#: 0.05-0.5 s)
 _BUILT: OrderedDict = OrderedDict()
 MAX_BUILT = 4
 #: consecutive iterations at IPOPT's acceptable level that end a solve (IPOPT's default: 15)
@@ -78,13 +87,72 @@ class Ipopt(Solver):
     name = "ipopt"
     _last: object = field(default=None, repr=False, compare=False)  # the solver of the last solve (its stats)
 
+    def _options(self, N: int) -> dict:
+        """IPOPT's options for N poses (the comments say why each is what it is)."""
+        # The objective in mm^2 (OBJ_SCALE). No nlp_grad: it is only for the multipliers of the data
+        # parameters.
+        # Tests per pose (issue 21). IPOPT's tol, acceptable_tol and the tolerance of each barrier problem
+        # (barrier_tol_factor * mu) bound the gradient of the objective, a sum over the N poses: a fixed bound
+        # is N times tighter per pose at N poses. Near the optimum the last decreases it asks for fall below
+        # the rounding of the summed objective, the line search backtracks 10-37 times per iteration, and only
+        # IPOPT's watchdog, the acceptable rule or max_iter end it (YS100 kinematic fitted to a compliant arm,
+        # from nominal: 6 iterations to the optimum, then 200,000 poses ran to max_iter, 2,677 objective
+        # evaluations, 579 s). Per pose (times N on the sum) a test means the same at any N and stays far
+        # above the rounding (300 real UR10 poses repeated 20 times take the iterations of the 300). The
+        # complementarity keeps its test on the summed loss (compl_inf_tol is on the unscaled objective, m^2):
+        # it sets the barrier parameter's floor, min(tol, compl_inf_tol in mm^2) / (barrier_tol_factor + 1),
+        # and with it how close a parameter on its bound ends, as before.
+        # Per pose the objective's rounding can still hide the decrease of the last Newton step where the
+        # residuals are large (a misfit): on 2,000 poses of that arm (the ca-ys100 truth) the robust loop's
+        # first solve reached 7e-8 mm^2 per pose in 4 iterations, then backtracked 20-26 times per iteration
+        # for 5 more (138 objective evaluations). tiny_step_tol: a step below TINY_STEP of every parameter's
+        # typical size cannot matter to a calibration, and IPOPT takes it unchecked (there: 5 iterations, 6
+        # evaluations); two in a row at the barrier parameter's floor end the solve, converged.
+        # acceptable_iter: 5 iterations in a row at IPOPT's acceptable level end a stall should one remain
+        # (docs/benchmarks.md)
+        return {"print_time": False, "no_nlp_grad": True, "calc_lam_p": False,
+                "ipopt": {"print_level": 0, "sb": "yes", "max_iter": self.max_iter, "tol": self.tol * N,
+                          "acceptable_tol": ACCEPTABLE_TOL * N, "compl_inf_tol": self.tol / OBJ_SCALE,
+                          "acceptable_compl_inf_tol": ACCEPTABLE_TOL / OBJ_SCALE,
+                          "barrier_tol_factor": BARRIER_TOL_FACTOR * N, "tiny_step_tol": TINY_STEP,
+                          "acceptable_iter": ACCEPTABLE_ITER, "obj_scaling_factor": OBJ_SCALE, **self.options}}
+
     def _build(self, problem: CalibrationProblem):
+        """The built solver and, for the Gauss-Newton Hessian, its callbacks' view of the problem."""
+        if self.hessian == "exact":
+            return self._build_exact(problem), None
+        if self.hessian != "gauss-newton":
+            raise SolverError(f"unknown Hessian option {self.hessian!r}: use 'gauss-newton' or 'exact'")
+        N, nf = problem.n_poses, len(problem.free)
+        # a built solver holds its callbacks' state: one per thread
+        key = (nf, N, self.max_iter, self.tol, repr(sorted(self.options.items())), threading.get_ident())
+        if key in _BUILT:
+            _BUILT.move_to_end(key)
+        else:
+            at = _Iterates()
+            cbs = [_Callback(kind, at, nf) for kind in ("f", "grad_f", "hess_l")]
+            x, p = ca.MX.sym("x", nf), ca.MX.sym("p", 0)
+            lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", 0)
+            opts = self._options(N)
+            opts["grad_f"] = ca.Function("nlp_grad_f", [x, p], list(cbs[1](x)), ["x", "p"], ["f", "grad_f_x"])
+            opts["hess_lag"] = ca.Function("nlp_hess_l", [x, p, lam_f, lam_g], [cbs[2](x, lam_f)],
+                                           ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
+            solver = ca.nlpsol("calibration", "ipopt", {"x": x, "p": p, "f": cbs[0](x)}, opts)
+            _BUILT[key] = (solver, at, cbs)       # the callbacks live as long as the solver that calls them
+            while len(_BUILT) > MAX_BUILT:  # a few problem shapes at a time keep memory flat
+                _BUILT.popitem(last=False)
+        solver, at, _ = _BUILT[key]
+        self._last = solver
+        return solver, at
+
+    def _build_exact(self, problem: CalibrationProblem):
+        """IPOPT on the mapped model Function, the data as NLP parameters; CasADi's exact Hessian."""
         model = problem.model
         N, nf = problem.n_poses, len(problem.free)
         # holds the model (an id could be reused); jit: a solver built on the VM is not the compiled one
         pose = problem.full_pose
         key = (model, N, tuple(problem.free), model._use_jit(N), self.hessian, self.max_iter, self.tol,
-               repr(sorted(self.options.items())), pose)
+               repr(sorted(self.options.items())), pose, "exact")
         if key in _BUILT:
             _BUILT.move_to_end(key)
             self._last = _BUILT[key]
@@ -105,54 +173,10 @@ class Ipopt(Solver):
         E[problem.free, np.arange(nf)] = 1.0
         # p = fixed values (zeros at free entries) + nominal + scale * x at free entries
         p = pfix + sel_scale * ca.mtimes(ca.DM(E), x)
-        # grad_f and hess_lag come from the per-pose Gauss-Newton Function summed over poses
-        # (compiled for large batches): no AD through the map inside IPOPT
-        S = ca.diag(sel_scale) @ ca.DM(E)  # d p / d x
-        # the objective as an expression graph only where IPOPT differentiates it (the exact Hessian): a
-        # compiled library has no derivatives, and compiled it halves a warm 200-pose calibration's CPU time
-        exact = self.hessian == "exact"
-        f = model.batch_function(prefix + "cost", N, compiled=False if exact else None)(Q, p, C, base0, *tail)
+        # the objective as an expression graph, which IPOPT differentiates (a compiled library has no derivatives)
+        f = model.batch_function(prefix + "cost", N, compiled=False)(Q, p, C, base0, *tail)
         nlp = {"x": x, "p": data, "f": f}
-        # The objective in mm^2 (OBJ_SCALE). No nlp_grad: it is only for the multipliers of the data
-        # parameters, and compiled per-pose Functions have no derivatives.
-        # Tests per pose (issue 21). IPOPT's tol, acceptable_tol and the tolerance of each barrier problem
-        # (barrier_tol_factor * mu) bound the gradient of the objective, a sum over the N poses: a fixed bound
-        # is N times tighter per pose at N poses. Near the optimum the last decreases it asks for fall below
-        # the rounding of the summed objective, the line search backtracks 10-37 times per iteration, and only
-        # IPOPT's watchdog, the acceptable rule or max_iter end it (YS100 kinematic fitted to a compliant arm,
-        # from nominal: 6 iterations to the optimum, then 200,000 poses ran to max_iter, 2,677 objective
-        # evaluations, 579 s). Per pose (times N on the sum) a test means the same at any N and stays far
-        # above the rounding (300 real UR10 poses repeated 20 times take the iterations of the 300). The
-        # complementarity keeps its test on the summed loss (compl_inf_tol is on the unscaled objective, m^2):
-        # it sets the barrier parameter's floor, min(tol, compl_inf_tol in mm^2) / (barrier_tol_factor + 1),
-        # and with it how close a parameter on its bound ends, as before.
-        # Per pose the objective's rounding can still hide the decrease of the last Newton step where the
-        # residuals are large (a misfit): on 2,000 poses of that arm (the ca-ys100 truth) the robust loop's
-        # first solve reached 7e-8 mm^2 per pose in 4 iterations, then backtracked 20-26 times per iteration
-        # for 5 more (138 objective evaluations). tiny_step_tol: a step below TINY_STEP of every parameter's
-        # typical size cannot matter to a calibration, and IPOPT takes it unchecked (there: 5 iterations, 6
-        # evaluations); two in a row at the barrier parameter's floor end the solve, converged.
-        # acceptable_iter: 5 iterations in a row at IPOPT's acceptable level end a stall should one remain
-        # (docs/benchmarks.md)
-        opts = {"print_time": False, "no_nlp_grad": True, "calc_lam_p": False,
-                "ipopt": {"print_level": 0, "sb": "yes", "max_iter": self.max_iter, "tol": self.tol * N,
-                          "acceptable_tol": ACCEPTABLE_TOL * N, "compl_inf_tol": self.tol / OBJ_SCALE,
-                          "acceptable_compl_inf_tol": ACCEPTABLE_TOL / OBJ_SCALE,
-                          "barrier_tol_factor": BARRIER_TOL_FACTOR * N, "tiny_step_tol": TINY_STEP,
-                          "acceptable_iter": ACCEPTABLE_ITER, "obj_scaling_factor": OBJ_SCALE, **self.options}}
-        if self.hessian == "gauss-newton":
-            fv, g = model.batch_function(prefix + "grad", N)(Q, p, C, base0, *tail)
-            H = model.batch_function(prefix + "gn_hess", N)(Q, p, C, base0, *tail)
-            lam_f = ca.MX.sym("lam_f")
-            lam_g = ca.MX.sym("lam_g", 0)
-            opts["grad_f"] = ca.Function("nlp_grad_f", [x, data], [fv, ca.mtimes(S.T, g)],
-                                         ["x", "p"], ["f", "grad_f_x"])
-            opts["hess_lag"] = ca.Function("nlp_hess_l", [x, data, lam_f, lam_g],
-                                           # S selects free entries in order: triu(H) stays triu
-                                           [ca.triu(lam_f * ca.mtimes([S.T, H, S]))],
-                                           ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
-        elif self.hessian != "exact":
-            raise SolverError(f"unknown Hessian option {self.hessian!r}: use 'gauss-newton' or 'exact'")
+        opts = self._options(N)
         solver = ca.nlpsol("calibration", "ipopt", nlp, opts)
         _BUILT[key] = solver
         while len(_BUILT) > MAX_BUILT:  # a few problem shapes at a time keep memory flat
@@ -162,11 +186,36 @@ class Ipopt(Solver):
 
     def solve(self, problem: CalibrationProblem, x0: np.ndarray | None = None) -> SolverResult:
         t0 = time.perf_counter()
-        solver = self._build(problem)
+        solver, at = self._build(problem)
         setup = time.perf_counter() - t0
         x0 = problem.x_from_values(problem.params.values) if x0 is None else np.asarray(x0, float)
         lbx, ubx = problem.bounds_x()
         x0 = np.clip(x0, lbx, ubx)
+        data = self._data(problem) if at is None else np.zeros(0)
+        t1 = time.perf_counter()
+        try:
+            if at is not None:
+                at.start(problem)
+            with noticed():   # CasADi swallows a Ctrl-C and returns the last iterate: raised again here
+                sol = solver(x0=x0, p=data, lbx=lbx, ubx=ubx)
+        except RuntimeError as e:
+            raise SolverError(f"IPOPT failed: {e}") from e
+        finally:
+            if at is not None:
+                error = at.end()
+        if at is not None and error is not None:     # raised in a callback: IPOPT saw only NaN
+            raise error
+        elapsed = time.perf_counter() - t1
+        stats = solver.stats()
+        status = str(stats.get("return_status", "unknown"))
+        ok = bool(stats.get("success", False)) or status in CONVERGED
+        return SolverResult(x=np.array(sol["x"]).ravel(), cost=float(sol["f"]), success=ok, status=status,
+                            iterations=int(stats.get("iter_count", -1)), solve_time_s=elapsed,
+                            setup_time_s=setup)
+
+    @staticmethod
+    def _data(problem: CalibrationProblem) -> np.ndarray:
+        """The NLP parameters of the exact-Hessian solver: the data, the fixed values, the scales."""
         P = len(problem.params)
         pfix = problem.params.values.copy()
         sel_scale = np.zeros(P)
@@ -177,17 +226,76 @@ class Ipopt(Solver):
                 [problem.loss.delta]]
         if problem.full_pose:   # row-major rotations, as the model's Rm input reads them
             data += [problem.rot.reshape(-1), [problem.loss.rot_weight]]
-        data = np.concatenate(data)
-        t1 = time.perf_counter()
+        return np.concatenate(data)
+
+
+class _Iterates:
+    """The problem at IPOPT's iterates: one linearisation per iterate (the gradient's and the Hessian's), the
+    loss alone at a line-search trial. An exception in a callback is kept, and every later call gives NaN
+    (IPOPT stops); :meth:`end` hands it back."""
+
+    def __init__(self):
+        self.problem: CalibrationProblem | None = None
+        self.x: np.ndarray | None = None
+        self.lin = None
+        self.error: BaseException | None = None
+
+    def start(self, problem: CalibrationProblem) -> None:
+        self.problem, self.x, self.lin, self.error = problem, None, None, None
+
+    def end(self) -> BaseException | None:
+        error = self.error
+        self.start(None)
+        return error
+
+    def linearization(self, x: np.ndarray):
+        if self.x is None or not np.array_equal(x, self.x):
+            self.lin = self.problem.linearize(self.problem.values_from_x(x))
+            self.x = x.copy()
+        return self.lin
+
+    def cost(self, x: np.ndarray) -> float:
+        if self.x is not None and np.array_equal(x, self.x):
+            return self.lin.cost
+        return self.problem.cost(self.problem.values_from_x(x))
+
+
+class _Callback(ca.Callback):
+    """IPOPT's objective (``f``), its gradient (``grad_f``: f and the gradient) or the Gauss-Newton Hessian of
+    the Lagrangian (``hess_l``: its upper triangle, times the objective's multiplier) at x."""
+
+    def __init__(self, kind: str, at: _Iterates, nf: int):
+        ca.Callback.__init__(self)
+        self.kind, self.at, self.nf = kind, at, nf
+        self.construct(f"calibration_{kind}", {"enable_fd": False})
+
+    def get_n_in(self) -> int:
+        return 2 if self.kind == "hess_l" else 1
+
+    def get_n_out(self) -> int:
+        return 2 if self.kind == "grad_f" else 1
+
+    def get_sparsity_in(self, i: int) -> ca.Sparsity:
+        return ca.Sparsity.dense(self.nf) if i == 0 else ca.Sparsity.dense(1)
+
+    def get_sparsity_out(self, i: int) -> ca.Sparsity:
+        if self.kind == "hess_l":
+            return ca.Sparsity.upper(self.nf)
+        return ca.Sparsity.dense(self.nf) if i == 1 else ca.Sparsity.dense(1)
+
+    def eval(self, arg):
+        at = self.at
         try:
-            with noticed():   # CasADi swallows a Ctrl-C and returns the last iterate: raised again here
-                sol = solver(x0=x0, p=data, lbx=lbx, ubx=ubx)
-        except RuntimeError as e:
-            raise SolverError(f"IPOPT failed: {e}") from e
-        elapsed = time.perf_counter() - t1
-        stats = solver.stats()
-        status = str(stats.get("return_status", "unknown"))
-        ok = bool(stats.get("success", False)) or status in CONVERGED
-        return SolverResult(x=np.array(sol["x"]).ravel(), cost=float(sol["f"]), success=ok, status=status,
-                            iterations=int(stats.get("iter_count", -1)), solve_time_s=elapsed,
-                            setup_time_s=setup)
+            if at.error is None:
+                x = np.asarray(arg[0], dtype=float).ravel()
+                if self.kind == "f":
+                    return [at.cost(x)]
+                lin = at.linearization(x)
+                if self.kind == "grad_f":
+                    return [lin.cost, lin.g]
+                return [ca.triu(ca.DM(float(arg[1]) * lin.A))]
+        except BaseException as e:      # noqa: BLE001 (Ctrl-C too: raised again after the solve)
+            at.error = e
+        nan = np.full(self.nf, np.nan)
+        return {"f": [math.nan], "grad_f": [math.nan, nan],
+                "hess_l": [ca.triu(ca.DM(np.full((self.nf, self.nf), np.nan)))]}[self.kind]

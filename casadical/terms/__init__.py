@@ -7,7 +7,7 @@ such as ``"kinematic+compliance[2,3]+periodic[2:1]"`` (see
 
 from . import (backlash, compliance, drift, encoder_scale, geometric, gp_compensator, nonlinear_stiffness,  # noqa: F401
                periodic, rbf_compensator, sessions, thermal, tool_orientation)
-from .base import REGISTRY, Context, ErrorTerm, ReferencedTerm, register
+from .base import REGISTRY, Context, ErrorTerm, ReferencedTerm, covariate_names, register
 from .local import SessionLocal
 
 
@@ -21,4 +21,5 @@ def make_term(name: str, **kwargs) -> ErrorTerm:
     return cls(**kwargs)
 
 
-__all__ = ["REGISTRY", "Context", "ErrorTerm", "ReferencedTerm", "SessionLocal", "make_term", "register"]
+__all__ = ["REGISTRY", "Context", "ErrorTerm", "ReferencedTerm", "SessionLocal", "covariate_names", "make_term",
+           "register"]

@@ -159,6 +159,12 @@ class ReferencedTerm(ErrorTerm):
         return {"t_ref": self.t_ref}
 
 
+def covariate_names(terms: list[ErrorTerm]) -> list[str]:
+    """The covariates a model of ``terms`` reads per pose, in the order of its terms (the payload always)."""
+    cov = list(dict.fromkeys(c for t in terms for c in t.covariates))
+    return cov if "payload_kg" in cov else ["payload_kg"] + cov
+
+
 def reach(robot: Robot, first: int = 1) -> float:
     """Upper bound of the distance from joint ``first`` to the tool point (m)."""
     links = sum(abs(j.a) + abs(j.d) + abs(j.b or 0.0) for j in robot.joints[first - 1:])

@@ -1,0 +1,383 @@
+"""One compiled model per robot and sessions: every model the diagnosis tries is a mask of it (docs/speed.md).
+
+The superset holds every term a model of the robot may have (:func:`superset_terms`) and a per-pose
+offset of each chain angle. A model maps onto it once (:class:`Mapping`): its parameter values go into the
+superset's vector (the terms it lacks at their zero effect), its covariates by name; a periodic error of
+any joint and harmonic enters through the chain angle as ``s sin(h q_j) + c cos(h q_j)``, its columns the
+Jacobian w.r.t. that offset times ``sin`` and ``cos``; a term of one session (``c2@B``) is its cause's
+term with the parameter per pose (``c2 + [pose in B] c2@B``: every such cause is linear in its
+parameters), its column the cause's at that session's poses. A model the superset cannot express (a frozen
+network in the graph, the legacy backlash sign) has no mapping and is evaluated on its own graph.
+
+The superset's four functions (``fk``: the measured quantities; ``jac``: them and their Jacobian w.r.t.
+the parameters and the chain offsets; ``pose_*``: with the orientation residual, full pose) are compiled
+once per machine and kept in the disk cache (:mod:`casadical.jitcache`), when a batch of ``JIT_MIN_POSES``
+poses or more first needs them (smaller batches use them only when compiled). CasADi's virtual machine gives
+the same bits as the compiled code, so a failed compilation falls back to it without changing a result.
+"""
+
+from __future__ import annotations
+
+import threading
+import warnings
+from collections import OrderedDict
+from dataclasses import dataclass
+
+import casadi as ca
+import numpy as np
+
+from . import jitcache
+from .batch import Batch, batch
+from .errors import CasadicalWarning
+from .terms import ErrorTerm, SessionLocal, covariate_names, make_term
+from .terms.periodic import JointPeriodic
+from .threads import evaluation_threads
+
+#: the superset's terms besides the geometry, the sessions and the chain offsets (all joints, all links)
+TERMS = ("joint_compliance", "nonlinear_stiffness", "encoder_scale", "backlash", "backlash_motion",
+         "thermal_expansion", "drift", "tool_orientation")
+#: causes a term of one session may have in the superset: linear in their parameters (a joint offset or a
+#: translation), so that the shared and the session's parameters add up per pose
+LOCAL = ("joint_compliance", "nonlinear_stiffness", "encoder_scale", "backlash", "backlash_motion", "drift",
+         "joint_periodic")
+#: the superset's functions; the position ones are served by their full-pose siblings when those are compiled
+FUNCTIONS = ("fk", "jac", "pose_fk", "pose_jac")
+#: supersets kept per process (a robot and its sessions each; least recently used dropped first)
+MAX_SUPERSETS = 8
+
+
+class ChainOffsets(ErrorTerm):
+    """A per-pose offset of each chain angle (covariates ``chain_offset<j>``): where a periodic error enters."""
+
+    name = "chain_offsets"
+
+    def __init__(self, n: int):
+        super().__init__(None)
+        self.n = n
+
+    @property
+    def covariates(self) -> tuple[str, ...]:  # type: ignore[override]
+        return tuple(chain_offset(j) for j in range(1, self.n + 1))
+
+    def bind(self, robot) -> None:
+        pass
+
+    def spec(self) -> str:
+        return self.name
+
+    def joint_offsets(self, ctx) -> dict:
+        return {j: ctx.cov[chain_offset(j)] for j in range(1, self.n + 1)}
+
+
+def chain_offset(j: int) -> str:
+    return f"chain_offset{j}"
+
+
+def superset_terms(robot, frames=None) -> list[ErrorTerm]:
+    """The terms of the superset of ``robot`` (with ``frames``, a sessions term: its sessions and tools).
+
+    Terms driven by a covariate against a reference (thermal expansion, drift) have the reference 0: a
+    model's covariate comes minus its own reference, so no reference is a constant of the graph.
+    """
+    n = robot.n
+    every = list(range(1, n + 1))
+    terms = [make_term("geometric")]
+    if frames is not None:
+        terms.append(make_term("sessions", names=frames.names, tools=frames.tools))
+    terms += [make_term("joint_compliance", joints=every), make_term("nonlinear_stiffness", joints=every),
+              make_term("encoder_scale", joints=every), make_term("backlash", joints=every),
+              make_term("backlash_motion", joints=every), make_term("thermal_expansion", t_ref=0.0),
+              make_term("thermal_expansion", joints=every, t_ref=0.0), make_term("drift"),
+              make_term("tool_orientation"), ChainOffsets(n)]
+    terms[terms.index(next(t for t in terms if t.name == "drift"))].t_ref = 0.0
+    return terms
+
+
+def frames_key(frames) -> tuple | None:
+    return None if frames is None else (tuple(frames.names), tuple(frames.tools))
+
+
+@dataclass
+class _Column:
+    """Where a model's parameter is in the superset: ``index`` (a parameter, or after them a chain offset);
+    ``session``: the session whose indicator multiplies it; ``harmonic`` and ``kind`` ("s", "c"): a periodic
+    error's."""
+
+    index: int
+    session: str | None = None
+    harmonic: int = 0
+    kind: str = ""
+
+
+class Mapping:
+    """A model as a mask of the superset: where its parameters, covariates and columns are.
+
+    Built by :meth:`of` (None when the superset cannot express the model);
+    the references of its thermal and drift terms are read then, as the
+    model's own graph bakes them in when it is built.
+    """
+
+    def __init__(self, model, names: list[str], covariates: list[str]):
+        self.robot = model.robot
+        self.key = frames_key(model.term("sessions"))
+        self.names = names                         # the superset's parameters
+        self.n_params = len(names)
+        self.covariate_names = covariates          # the superset's covariates
+        self.columns: list[_Column] = []
+        self.own_covariates = model.covariate_names
+        self.shifts: dict[str, list[tuple[str | None, float]]] = {}   # covariate -> (session or None, reference)
+        self.nominal: np.ndarray | None = None
+
+    @classmethod
+    def of(cls, model) -> "Mapping | None":
+        """The mapping of ``model`` onto its superset, or None if the superset cannot express it."""
+        robot = model.robot
+        frames = model.term("sessions")
+        sup = superset_terms(robot, frames)
+        params = [p for t in sup for p in t.parameters(robot)]
+        names = [p.name for p in params]
+        index = {n: i for i, n in enumerate(names)}
+        covariates = covariate_names(sup)
+        m = cls(model, names, covariates)
+        m.nominal = np.array([p.nominal for p in params])
+        drifts, thermal = [], set()
+        for t in model.terms:
+            inner, session = (t.inner, t.session_name) if isinstance(t, SessionLocal) else (t, None)
+            name = "backlash_motion" if getattr(inner, "source", None) == "motion" else inner.name
+            if name not in TERMS + ("geometric", "sessions", "joint_periodic") or (
+                    session is not None and name not in LOCAL) or (
+                    name == "backlash_motion" and not inner.lag) or (
+                    name == "sessions" and frames_key(t) != m.key):
+                return None
+            if isinstance(inner, JointPeriodic):
+                for j, h in inner.harmonics:
+                    m.columns += [_Column(len(names) + j - 1, session, h, k) for k in "sc"]
+                continue
+            for p in inner.parameters(robot):
+                if p.name not in index:
+                    return None
+                m.columns.append(_Column(index[p.name], session))
+            if name == "drift":
+                drifts.append((session, inner.t_ref))
+            elif name == "thermal_expansion":
+                thermal.add(inner.t_ref)
+        if len(thermal) > 1 or (len(drifts) > 1 and any(s is None for s, _ in drifts)):
+            return None     # two references of one covariate: not a mask of the superset
+        if drifts:
+            m.shifts["time_s"] = drifts
+        if thermal:
+            m.shifts["temperature_c"] = [(None, thermal.pop())]
+        return m
+
+    # -- inputs and outputs ------------------------------------------------------------
+
+    def _indicator(self, cov: np.ndarray, session: str) -> np.ndarray:
+        return cov[:, self.own_covariates.index(f"session@{session}")]
+
+    @property
+    def per_pose(self) -> bool:
+        """True when the parameters are per pose (a term of one session other than a periodic error)."""
+        return any(c.session is not None and not c.kind for c in self.columns)
+
+    def inputs(self, q: np.ndarray, values: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The superset's parameters (a vector, or one per pose) and covariates for the model's."""
+        N = len(q)
+        p = self.nominal.copy()
+        P = None
+        C = np.zeros((N, len(self.covariate_names)))
+        for k, name in enumerate(self.covariate_names):
+            if name in self.own_covariates:
+                C[:, k] = cov[:, self.own_covariates.index(name)]
+        for name, refs in self.shifts.items():
+            k = self.covariate_names.index(name)
+            if refs[0][0] is None:
+                C[:, k] -= refs[0][1]
+            else:   # a drift of each session: each pose's own session's reference (0 where none applies)
+                C[:, k] -= sum(self._indicator(cov, s) * ref for s, ref in refs)
+        first_chain = self.covariate_names.index(chain_offset(1))
+        for c, v in zip(self.columns, values):
+            if c.kind:
+                j = c.index - self.n_params
+                f = self._feature(q, cov, c)
+                C[:, first_chain + j] += v * f
+            elif c.session is None:
+                p[c.index] = v
+        if self.per_pose:
+            P = np.repeat(p[None, :], N, axis=0)
+            for c, v in zip(self.columns, values):
+                if c.session is not None and not c.kind:
+                    P[:, c.index] += self._indicator(cov, c.session) * v
+        return (p if P is None else P), C
+
+    def _feature(self, q: np.ndarray, cov: np.ndarray, c: _Column) -> np.ndarray:
+        """The factor of a periodic column: sin or cos of the harmonic of its joint's reading (at its session)."""
+        j = c.index - self.n_params
+        x = c.harmonic * q[:, j]
+        f = np.sin(x) if c.kind == "s" else np.cos(x)
+        return f if c.session is None else f * self._indicator(cov, c.session)
+
+    def jacobian(self, D: np.ndarray, q: np.ndarray, cov: np.ndarray) -> np.ndarray:
+        """The model's Jacobian (N, m, P) from the superset's D (N, P_S + n, m)."""
+        J = D[:, [c.index for c in self.columns], :]
+        for k, c in enumerate(self.columns):
+            if c.kind:
+                J[:, k, :] *= self._feature(q, cov, c)[:, None]
+            elif c.session is not None:
+                J[:, k, :] *= self._indicator(cov, c.session)[:, None]
+        return J.transpose(0, 2, 1)
+
+    def angle_jacobian(self, D: np.ndarray) -> np.ndarray:
+        """The Jacobian w.r.t. an offset of each chain angle (N, m, n)."""
+        return D[:, self.n_params:, :].transpose(0, 2, 1)
+
+
+class Superset:
+    """The superset model of a robot and its sessions, and its functions (compiled, or on the VM meanwhile).
+
+    Parameters
+    ----------
+    build : callable
+        ``build(terms)``: the symbolic model of those terms (a :class:`~casadical.model.Model`
+        on the VM: the superset never evaluates through itself).
+    robot, frames
+        The robot and its sessions term (or None).
+    """
+
+    def __init__(self, build, robot, frames=None):
+        self.graph = build(superset_terms(robot, frames))
+        self.robot = robot
+        self.n_params = len(self.graph.parameters)
+        self._vm: dict[str, ca.Function] = {}
+        self._compiled: dict[str, ca.Function] = {}
+        self._checked: set[str] = set()          # looked up in the disk cache
+        self._failed = False                      # the compiler failed: the VM from then on
+        self._lock = threading.RLock()            # one evaluation at a time (the batches' buffers)
+        self._batches: OrderedDict = OrderedDict()
+
+    def function(self, which: str) -> ca.Function:
+        """``which`` as a CasADi Function on the VM (built on first use)."""
+        f = self._vm.get(which)
+        if f is None:
+            g = self.graph
+            S = g._sym
+            q, p, c, b0 = S["q"], S["p"], S["c"], S["b0"]
+            dq = ca.vertcat(*[c[g.covariate_names.index(chain_offset(j))] for j in range(1, g.robot.n + 1)])
+            ins, y = [q, p, c, b0], S["xyz"]
+            if which.startswith("pose_"):
+                Rm = ca.SX.sym("Rm", 9)
+                E = ca.mtimes(ca.reshape(Rm, 3, 3), S["probe"])    # as Model's pose functions
+                y = ca.vertcat(y, 0.5 * ca.vertcat(E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]))
+                ins.append(Rm)
+            outs = [y]
+            if which.endswith("jac"):   # one Jacobian w.r.t. both: fewer instructions than two
+                outs.append(ca.densify(ca.jacobian(y, ca.vertcat(p, dq))))
+            f = self._vm[which] = ca.Function(f"superset_{which}", ins, outs)
+        return f
+
+    def _cached(self, which: str) -> ca.Function | None:
+        """``which`` compiled: in this process, or from the disk cache (looked up once)."""
+        with self._lock:
+            if which not in self._compiled and which not in self._checked:
+                self._checked.add(which)
+                hit = jitcache.load(self.function(which), compile=False)
+                if hit is not None:
+                    self._compiled[which] = hit
+            return self._compiled.get(which)
+
+    def _sibling(self, which: str) -> str | None:
+        """The full-pose function that gives ``which``'s outputs too (the same bits), if compiled in this process."""
+        s = "pose_" + which
+        return s if not which.startswith("pose_") and s in self._compiled else None
+
+    def available(self, which: str) -> bool:
+        """``which`` (or its full-pose sibling) is compiled: evaluating it compiles nothing."""
+        return self._sibling(which) is not None or self._cached(which) is not None
+
+    def resolve(self, which: str, compile: bool) -> tuple[ca.Function, str]:
+        """The Function that evaluates ``which`` and which one it is: compiled (a position function's compiled
+        full-pose sibling too; with ``compile``, compiled now and kept in the disk cache), else the VM's."""
+        with self._lock:
+            if which not in self._compiled and self._sibling(which):
+                which = self._sibling(which)
+            hit = self._cached(which)
+            if hit is None and compile and not self._failed:
+                try:
+                    hit = self._compiled[which] = jitcache.load(self.function(which))
+                except jitcache.CompileError as e:
+                    # a broken compiler must not stop a calibration: the VM gives the same numbers
+                    warnings.warn(f"JIT compilation failed, using CasADi's virtual machine ({str(e)[-200:]})",
+                                  CasadicalWarning, stacklevel=4)
+                    self._failed = True
+            return (hit, which) if hit is not None else (self.function(which), which)
+
+    def evaluate(self, which: str, N: int, inputs: list, per_pose: bool, take, compile: bool = True):
+        """``take(outputs)`` of ``which`` on N poses (outputs: per pose, row-major, valid inside ``take``).
+
+        ``inputs``: q, p (a vector, or one per pose with ``per_pose``), covariates, base0 and, for a
+        ``pose_`` function, the measured rotations.
+        """
+        fun, used = self.resolve(which, compile)
+        if used != which:       # the full-pose sibling: any rotation for the orientation it also gives
+            inputs = list(inputs) + [np.tile(np.eye(3).ravel(), (N, 1))]
+        compiled = fun.class_name() == "External"
+        bcast = [3] if per_pose else [1, 3]
+        key = (used, N, compiled or evaluation_threads(), per_pose)
+        with self._lock:
+            b = self._batches.get(key)
+            if b is None:
+                b = batch(lambda n: fun.map(f"{fun.name()}_{n}", "serial", n, bcast, []), N, bcast, compiled)
+                self._batches[key] = b
+                while len(self._batches) > 16:
+                    self._batches.popitem(last=False)
+            else:
+                self._batches.move_to_end(key)
+            if isinstance(b, Batch):
+                b.evaluate(*inputs)
+                res = b.res
+            else:
+                res = b(*inputs)
+            m = 6 if used.startswith("pose_") else 3
+            return take([res[0].reshape(N, m)] + [r.reshape(N, -1, m) for r in res[1:]])
+
+
+_SUPERSETS: OrderedDict = OrderedDict()
+_registry = threading.Lock()
+
+
+def superset_for(build, robot, frames=None) -> Superset:
+    """The process's superset of ``robot`` and ``frames``' sessions (built on first use)."""
+    key = (id(robot), frames_key(frames))
+    with _registry:
+        hit = _SUPERSETS.get(key)
+        if hit is not None and hit.robot is robot:
+            _SUPERSETS.move_to_end(key)
+            return hit
+    sup = Superset(build, robot, frames)
+    with _registry:
+        _SUPERSETS[key] = sup
+        while len(_SUPERSETS) > MAX_SUPERSETS:
+            _SUPERSETS.popitem(last=False)
+    return sup
+
+
+def outputs(model, which: str, q, p, cov, b0, Rm=None, compile: bool = True, required: bool = True):
+    """``which`` (``fk``, ``jac``, ``pose_fk``, ``pose_jac``) of a model's poses through its robot's superset.
+
+    Returns the measured quantities (N, m) (positions, then for ``pose_`` the orientation residuals) and, for
+    ``jac``, their Jacobian w.r.t. the model's parameters (N, m, P) and w.r.t. an offset of each chain angle
+    (N, m, n). ``compile``: compile what is not compiled yet (in the background; the VM meanwhile), else the
+    VM; without ``required``, None when ``compile`` is off and the function is not compiled (the model's own
+    graph is then the cheaper VM function).
+    """
+    m = model._mapping
+    N = len(q)
+    sup = superset_for(lambda terms: type(model)(model.robot, terms, jit=False), model.robot, model.term("sessions"))
+    if not (required or compile or sup.available(which)):
+        return None
+    P, C = m.inputs(q, p, cov)
+
+    def take(out):
+        if len(out) == 1:
+            return out[0].copy()
+        return out[0].copy(), m.jacobian(out[1], q, cov), m.angle_jacobian(out[1]).copy()
+    return sup.evaluate(which, N, [q, P, C, b0] + ([Rm] if Rm is not None else []), m.per_pose, take, compile)
