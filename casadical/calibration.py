@@ -49,6 +49,7 @@ from .physics import term_causes, violations
 from .significance import FitStatistics, warn_not_significant
 from .simulate import sample_poses
 from .solvers import Ipopt, make_solver
+from .solvers.ipopt import HANDOVER
 from .terms import ErrorTerm, ReferencedTerm, SessionLocal, make_term
 from .threads import limited_threads
 from .terms.rbf_compensator import RBFCompensator, features
@@ -640,7 +641,8 @@ def _solve(problem: CalibrationProblem, x0: np.ndarray, solver: str, opts: dict)
         if np.any(res.x < lo) or np.any(res.x > hi):
             lm_time = res.solve_time_s
             shared = {k: v for k, v in opts.items() if k in IPOPT_FIELDS}   # --max-iter holds for both
-            res = make_solver("ipopt", **shared).solve(problem, res.x)
+            # from LM's solution only the bounds are left to do: a small barrier (3-5 iterations, not 10-16)
+            res = make_solver("ipopt", **{"options": dict(HANDOVER), **shared}).solve(problem, res.x)
             res.solve_time_s += lm_time
             return res, "levenberg-marquardt+ipopt"
         return res, "levenberg-marquardt"

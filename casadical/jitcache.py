@@ -59,6 +59,26 @@ _PART = ".part"
 _STALE_PART_S = 3600.0
 
 
+_LISTENERS: list = []
+
+
+@contextlib.contextmanager
+def announcing(say):
+    """Within the block, ``say(text)`` hears of a compilation that takes seconds before it starts (the command
+    line's progress line: a first run must not look as if it hangs)."""
+    _LISTENERS.append(say)
+    try:
+        yield
+    finally:
+        _LISTENERS.remove(say)
+
+
+def announce(text: str) -> None:
+    """Tell the innermost :func:`announcing` listener, if any."""
+    if _LISTENERS:
+        _LISTENERS[-1](text)
+
+
 class CompileError(CasadicalError):
     """The C compiler is missing or failed (the caller falls back to CasADi's virtual machine)."""
 
@@ -152,24 +172,46 @@ def load(fun: ca.Function, compile: bool = True) -> ca.Function | None:
     KeyboardInterrupt
         Ctrl-C while the compiler ran; nothing is left in the cache.
     """
+    return load_all([fun], compile)[0]
+
+
+def load_all(funs: list[ca.Function], compile: bool = True, before=None) -> list[ca.Function | None]:
+    """:func:`load` of several Functions; those missing from the cache are compiled side by side (one compiler
+    process each), and ``before(missing)`` is called with them first (to say that it takes a while)."""
     cc = compiler()
     if cc is None:
         if compile:
             raise CompileError("no C compiler (gcc or cc) on PATH")
-        return None
-    try:
-        key = entry_key(fun, cc)
-    except (RuntimeError, OSError) as e:   # a Function CasADi cannot serialize, a compiler gone meanwhile
-        if compile:
-            raise CompileError(f"cannot key {fun.name()} for the cache: {e}") from e
-        return None
-    folder = cache_dir()
+        return [None] * len(funs)
+    out: list = []
+    missing: list[tuple[int, ca.Function, str]] = []
+    for fun in funs:
+        try:
+            key = entry_key(fun, cc)
+        except (RuntimeError, OSError) as e:   # a Function CasADi cannot serialize, a compiler gone meanwhile
+            if compile:
+                raise CompileError(f"cannot key {fun.name()} for the cache: {e}") from e
+            out.append(None)
+            continue
+        out.append(_lookup(fun.name(), key))
+        if out[-1] is None and compile:
+            missing.append((len(out) - 1, fun, key))
+    if missing:
+        if before is not None:
+            before([f for _, f, _ in missing])
+        for (k, _, _), done in zip(missing, _compile([(f, key) for _, f, key in missing], cc)):
+            out[k] = done
+    return out
+
+
+def _lookup(name: str, key: str) -> ca.Function | None:
+    """The cache's entry of ``name`` under ``key``, loaded (None: no valid entry)."""
     with contextlib.suppress(OSError):
-        for path in sorted(folder.glob(f"{fun.name()}-{key}-*{_SUFFIX}")):
-            loaded = _load_entry(path, fun.name())
+        for path in sorted(cache_dir().glob(f"{name}-{key}-*{_SUFFIX}")):
+            loaded = _load_entry(path, name)
             if loaded is not None:
                 return loaded
-    return _compile(fun, folder, key, cc) if compile else None
+    return None
 
 
 def _digest(data: bytes) -> str:
@@ -198,32 +240,49 @@ def _load_entry(path: Path, name: str) -> ca.Function | None:
     return fun
 
 
-def _compile(fun: ca.Function, folder: Path, key: str, cc: str) -> ca.Function:
-    """Compile in a private temporary folder, store the library atomically, load it."""
+def _compile(items: list[tuple[ca.Function, str]], cc: str) -> list[ca.Function]:
+    """Compile in a private temporary folder (one compiler process per Function, side by side), store each
+    library atomically, load them."""
     import casadi as ca
 
-    name = fun.name()
+    folder = cache_dir()
     with tempfile.TemporaryDirectory(prefix="casadical-jit-") as tmp:
-        gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
-        gen.add(fun)
-        c_file = gen.generate(tmp + os.sep)
-        library = os.path.join(tmp, name + _SUFFIX)
-        # a child process Python waits for: Ctrl-C stops it and raises KeyboardInterrupt here (CasADi's
-        # own JIT runs the compiler through system(), which ignores the interrupt in the caller)
+        jobs = []
         try:
-            subprocess.run([cc, *FLAGS, c_file, "-o", library], check=True, capture_output=True, text=True)
-        except subprocess.CalledProcessError as e:
-            if e.returncode == -signal.SIGINT:
-                raise KeyboardInterrupt from e  # the compiler alone got the Ctrl-C
-            raise CompileError(f"{cc} failed: {(e.stderr or '').strip()[-200:]}") from e
-        except OSError as e:
-            raise CompileError(f"cannot run {cc}: {e}") from e
-        data = Path(library).read_bytes()
-        _store(folder, f"{name}-{key}-{_digest(data)}{_SUFFIX}", data)
-        try:
-            return ca.external(name, library)  # loaded before the temporary folder goes
-        except RuntimeError as e:
-            raise CompileError(f"cannot load the compiled {name}: {e}") from e
+            for fun, _ in items:
+                name = fun.name()
+                gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
+                gen.add(fun)
+                c_file = gen.generate(tmp + os.sep)
+                library = os.path.join(tmp, name + _SUFFIX)
+                # a child process Python waits for: Ctrl-C stops it and raises KeyboardInterrupt here (CasADi's
+                # own JIT runs the compiler through system(), which ignores the interrupt in the caller)
+                try:
+                    p = subprocess.Popen([cc, *FLAGS, c_file, "-o", library], stdout=subprocess.PIPE,
+                                         stderr=subprocess.PIPE, text=True)
+                except OSError as e:
+                    raise CompileError(f"cannot run {cc}: {e}") from e
+                jobs.append((p, library))
+            for p, _ in jobs:
+                _, err = p.communicate()
+                if p.returncode == -signal.SIGINT:
+                    raise KeyboardInterrupt  # the compiler alone got the Ctrl-C
+                if p.returncode:
+                    raise CompileError(f"{cc} failed: {(err or '').strip()[-200:]}")
+        finally:      # an error or an interrupt: no compiler outlives the call
+            for p, _ in jobs:
+                if p.poll() is None:
+                    p.kill()
+                    p.wait()
+        out = []
+        for (fun, key), (_, library) in zip(items, jobs):
+            data = Path(library).read_bytes()
+            _store(folder, f"{fun.name()}-{key}-{_digest(data)}{_SUFFIX}", data)
+            try:
+                out.append(ca.external(fun.name(), library))  # loaded before the temporary folder goes
+            except RuntimeError as e:
+                raise CompileError(f"cannot load the compiled {fun.name()}: {e}") from e
+        return out
 
 
 def _store(folder: Path, filename: str, data: bytes) -> None:

@@ -453,14 +453,14 @@ class Model:
         b0 = self.base0_nominal() if base0 is None else np.asarray(base0, dtype=float)
         return N, q, p, cov, b0
 
-    def _superset(self, which: str, N: int, q, p, cov, b0, Rm=None):
+    def _superset(self, which: str, N: int, q, p, cov, b0, Rm=None, angles: bool = False):
         """``which`` of N poses through the robot's superset (:func:`casadical.superset.outputs`), or None when
         the model's own graph evaluates it: ``jit=False``, no compiler, a model the superset cannot express, or
         a batch below ``JIT_MIN_POSES`` while nothing of the superset is compiled."""
         if self._mapping is None or not (jitcache.compiler() if self.jit is True else compiler_available()):
             return None
         return superset_outputs(self, which, q, p, cov, b0, Rm, compile=self.jit is True or N >= JIT_MIN_POSES,
-                                required=False)
+                                required=False, angles=angles)
 
     def predict(self, q, params=None, cov=None, base0=None) -> np.ndarray:
         """Tool point positions (m), shape (N, 3), for readings ``q`` (rad, (N, n))."""
@@ -485,7 +485,7 @@ class Model:
         """Positions (N, 3), their Jacobian w.r.t. the parameters (N, 3, P) and w.r.t. an offset added to
         each joint's chain angle (N, 3, n)."""
         N, q, p, cov, b0 = self._inputs(q, params, cov, base0)
-        out = self._superset("jac", N, q, p, cov, b0)
+        out = self._superset("jac", N, q, p, cov, b0, angles=True)
         if out is not None:
             return out[0][:, :3], out[1][:, :3], out[2][:, :3]
         xyz, J, JA = self._batch("fk_jac_angles", N)(q, p, cov, b0)

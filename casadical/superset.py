@@ -6,8 +6,9 @@ superset's vector (the terms it lacks at their zero effect), its covariates by n
 any joint and harmonic enters through the chain angle as ``s sin(h q_j) + c cos(h q_j)``, its columns the
 Jacobian w.r.t. that offset times ``sin`` and ``cos``; a term of one session (``c2@B``) is its cause's
 term with the parameter per pose (``c2 + [pose in B] c2@B``: every such cause is linear in its
-parameters), its column the cause's at that session's poses. A model the superset cannot express (a frozen
-network in the graph, the legacy backlash sign) has no mapping and is evaluated on its own graph.
+parameters), its column the cause's at that session's poses. A model the superset cannot express (a
+compensator's network or process in the graph, the legacy backlash sign, a drift of the robot and of a
+session together) has no mapping and is evaluated on its own graph.
 
 The superset's four functions (``fk``: the measured quantities; ``jac``: them and their Jacobian w.r.t.
 the parameters and the chain offsets; ``pose_*``: with the orientation residual, full pose) are compiled
@@ -40,8 +41,6 @@ TERMS = ("joint_compliance", "nonlinear_stiffness", "encoder_scale", "backlash",
 #: translation), so that the shared and the session's parameters add up per pose
 LOCAL = ("joint_compliance", "nonlinear_stiffness", "encoder_scale", "backlash", "backlash_motion", "drift",
          "joint_periodic")
-#: the superset's functions; the position ones are served by their full-pose siblings when those are compiled
-FUNCTIONS = ("fk", "jac", "pose_fk", "pose_jac")
 #: supersets kept per process (a robot and its sessions each; least recently used dropped first)
 MAX_SUPERSETS = 8
 
@@ -89,7 +88,6 @@ def superset_terms(robot, frames=None) -> list[ErrorTerm]:
               make_term("backlash_motion", joints=every), make_term("thermal_expansion", t_ref=0.0),
               make_term("thermal_expansion", joints=every, t_ref=0.0), make_term("drift"),
               make_term("tool_orientation"), ChainOffsets(n)]
-    terms[terms.index(next(t for t in terms if t.name == "drift"))].t_ref = 0.0
     return terms
 
 
@@ -117,113 +115,97 @@ class Mapping:
     model's own graph bakes them in when it is built.
     """
 
-    def __init__(self, model, names: list[str], covariates: list[str]):
-        self.robot = model.robot
-        self.key = frames_key(model.term("sessions"))
-        self.names = names                         # the superset's parameters
-        self.n_params = len(names)
-        self.covariate_names = covariates          # the superset's covariates
-        self.columns: list[_Column] = []
-        self.own_covariates = model.covariate_names
-        self.shifts: dict[str, list[tuple[str | None, float]]] = {}   # covariate -> (session or None, reference)
-        self.nominal: np.ndarray | None = None
+    def __init__(self, model, params: list, covariates: list[str], columns: list[_Column],
+                 shifts: dict[str, list[tuple[str | None, float]]]):
+        own = model.covariate_names
+        self.n_params = len(params)
+        self.n_covariates = len(covariates)
+        self.nominal = np.array([p.nominal for p in params])
+        self.columns = columns
+        # the model's covariates that are the superset's (by name); the chain offsets after the superset's own
+        pairs = [(k, own.index(c)) for k, c in enumerate(covariates) if c in own]
+        self.cov_to, self.cov_from = (np.array(x, dtype=int) for x in zip(*pairs))
+        self.first_chain = covariates.index(chain_offset(1))
+        self.shifts = [(covariates.index(name), [(None if s is None else own.index(f"session@{s}"), ref)
+                                                 for s, ref in refs]) for name, refs in shifts.items()]
+        # indicator covariate of each column's session (-1: every pose)
+        self.at = np.array([-1 if c.session is None else own.index(f"session@{c.session}") for c in columns])
+        periodic = np.array([bool(c.kind) for c in columns], dtype=bool)
+        self.shared = np.flatnonzero(~periodic & (self.at < 0))
+        self.local = np.flatnonzero(~periodic & (self.at >= 0))
+        self.periodic = np.flatnonzero(periodic)
+        #: the parameters are per pose (a term of one session other than a periodic error)
+        self.per_pose = bool(len(self.local))
+        self.index = np.array([c.index for c in columns], dtype=int)
 
     @classmethod
     def of(cls, model) -> "Mapping | None":
         """The mapping of ``model`` onto its superset, or None if the superset cannot express it."""
         robot = model.robot
-        frames = model.term("sessions")
-        sup = superset_terms(robot, frames)
+        sup = superset_terms(robot, model.term("sessions"))
         params = [p for t in sup for p in t.parameters(robot)]
-        names = [p.name for p in params]
-        index = {n: i for i, n in enumerate(names)}
-        covariates = covariate_names(sup)
-        m = cls(model, names, covariates)
-        m.nominal = np.array([p.nominal for p in params])
+        index = {p.name: i for i, p in enumerate(params)}
+        columns: list[_Column] = []
         drifts, thermal = [], set()
         for t in model.terms:
             inner, session = (t.inner, t.session_name) if isinstance(t, SessionLocal) else (t, None)
             name = "backlash_motion" if getattr(inner, "source", None) == "motion" else inner.name
             if name not in TERMS + ("geometric", "sessions", "joint_periodic") or (
-                    session is not None and name not in LOCAL) or (
-                    name == "backlash_motion" and not inner.lag) or (
-                    name == "sessions" and frames_key(t) != m.key):
+                    session is not None and name not in LOCAL) or (name == "backlash_motion" and not inner.lag):
                 return None
             if isinstance(inner, JointPeriodic):
                 for j, h in inner.harmonics:
-                    m.columns += [_Column(len(names) + j - 1, session, h, k) for k in "sc"]
+                    columns += [_Column(len(params) + j - 1, session, h, k) for k in "sc"]
                 continue
             for p in inner.parameters(robot):
                 if p.name not in index:
                     return None
-                m.columns.append(_Column(index[p.name], session))
+                columns.append(_Column(index[p.name], session))
             if name == "drift":
                 drifts.append((session, inner.t_ref))
             elif name == "thermal_expansion":
                 thermal.add(inner.t_ref)
         if len(thermal) > 1 or (len(drifts) > 1 and any(s is None for s, _ in drifts)):
             return None     # two references of one covariate: not a mask of the superset
-        if drifts:
-            m.shifts["time_s"] = drifts
+        shifts = {"time_s": drifts} if drifts else {}
         if thermal:
-            m.shifts["temperature_c"] = [(None, thermal.pop())]
-        return m
+            shifts["temperature_c"] = [(None, thermal.pop())]
+        return cls(model, params, covariate_names(sup), columns, shifts)
 
     # -- inputs and outputs ------------------------------------------------------------
-
-    def _indicator(self, cov: np.ndarray, session: str) -> np.ndarray:
-        return cov[:, self.own_covariates.index(f"session@{session}")]
-
-    @property
-    def per_pose(self) -> bool:
-        """True when the parameters are per pose (a term of one session other than a periodic error)."""
-        return any(c.session is not None and not c.kind for c in self.columns)
 
     def inputs(self, q: np.ndarray, values: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The superset's parameters (a vector, or one per pose) and covariates for the model's."""
         N = len(q)
+        C = np.zeros((N, self.n_covariates))
+        C[:, self.cov_to] = cov[:, self.cov_from]
+        for k, refs in self.shifts:     # covariates against the model's references (a drift's: its session's)
+            C[:, k] -= refs[0][1] if refs[0][0] is None else sum(cov[:, at] * ref for at, ref in refs)
+        for i in self.periodic:
+            C[:, self.first_chain + self.index[i] - self.n_params] += values[i] * self._feature(q, cov, i)
         p = self.nominal.copy()
-        P = None
-        C = np.zeros((N, len(self.covariate_names)))
-        for k, name in enumerate(self.covariate_names):
-            if name in self.own_covariates:
-                C[:, k] = cov[:, self.own_covariates.index(name)]
-        for name, refs in self.shifts.items():
-            k = self.covariate_names.index(name)
-            if refs[0][0] is None:
-                C[:, k] -= refs[0][1]
-            else:   # a drift of each session: each pose's own session's reference (0 where none applies)
-                C[:, k] -= sum(self._indicator(cov, s) * ref for s, ref in refs)
-        first_chain = self.covariate_names.index(chain_offset(1))
-        for c, v in zip(self.columns, values):
-            if c.kind:
-                j = c.index - self.n_params
-                f = self._feature(q, cov, c)
-                C[:, first_chain + j] += v * f
-            elif c.session is None:
-                p[c.index] = v
-        if self.per_pose:
-            P = np.repeat(p[None, :], N, axis=0)
-            for c, v in zip(self.columns, values):
-                if c.session is not None and not c.kind:
-                    P[:, c.index] += self._indicator(cov, c.session) * v
-        return (p if P is None else P), C
+        p[self.index[self.shared]] = values[self.shared]
+        if not self.per_pose:
+            return p, C
+        P = np.repeat(p[None, :], N, axis=0)
+        for i in self.local:
+            P[:, self.index[i]] += cov[:, self.at[i]] * values[i]
+        return P, C
 
-    def _feature(self, q: np.ndarray, cov: np.ndarray, c: _Column) -> np.ndarray:
+    def _feature(self, q: np.ndarray, cov: np.ndarray, i: int) -> np.ndarray:
         """The factor of a periodic column: sin or cos of the harmonic of its joint's reading (at its session)."""
-        j = c.index - self.n_params
-        x = c.harmonic * q[:, j]
+        c = self.columns[i]
+        x = c.harmonic * q[:, c.index - self.n_params]
         f = np.sin(x) if c.kind == "s" else np.cos(x)
-        return f if c.session is None else f * self._indicator(cov, c.session)
+        return f if self.at[i] < 0 else f * cov[:, self.at[i]]
 
     def jacobian(self, D: np.ndarray, q: np.ndarray, cov: np.ndarray) -> np.ndarray:
         """The model's Jacobian (N, m, P) from the superset's D (N, P_S + n, m)."""
-        J = D[:, [c.index for c in self.columns], :]
-        for k, c in enumerate(self.columns):
-            if c.kind:
-                J[:, k, :] *= self._feature(q, cov, c)[:, None]
-            elif c.session is not None:
-                J[:, k, :] *= self._indicator(cov, c.session)[:, None]
+        J = D[:, self.index, :]
+        for i in self.periodic:
+            J[:, i, :] *= self._feature(q, cov, i)[:, None]
+        for i in self.local:
+            J[:, i, :] *= cov[:, self.at[i], None]
         return J.transpose(0, 2, 1)
 
     def angle_jacobian(self, D: np.ndarray) -> np.ndarray:
@@ -232,7 +214,7 @@ class Mapping:
 
 
 class Superset:
-    """The superset model of a robot and its sessions, and its functions (compiled, or on the VM meanwhile).
+    """The superset model of a robot and its sessions, and its functions (compiled, or on CasADi's VM).
 
     Parameters
     ----------
@@ -295,20 +277,34 @@ class Superset:
 
     def resolve(self, which: str, compile: bool) -> tuple[ca.Function, str]:
         """The Function that evaluates ``which`` and which one it is: compiled (a position function's compiled
-        full-pose sibling too; with ``compile``, compiled now and kept in the disk cache), else the VM's."""
+        full-pose sibling too; with ``compile``, compiled now with its kind's other function, side by side,
+        and kept in the disk cache), else the VM's."""
         with self._lock:
             if which not in self._compiled and self._sibling(which):
                 which = self._sibling(which)
             hit = self._cached(which)
             if hit is None and compile and not self._failed:
+                kind = "pose_" if which.startswith("pose_") else ""
+                names = [w for w in (kind + "fk", kind + "jac") if w not in self._compiled]
                 try:
-                    hit = self._compiled[which] = jitcache.load(self.function(which))
+                    done = jitcache.load_all([self.function(w) for w in names], before=self._announce)
                 except jitcache.CompileError as e:
                     # a broken compiler must not stop a calibration: the VM gives the same numbers
                     warnings.warn(f"JIT compilation failed, using CasADi's virtual machine ({str(e)[-200:]})",
                                   CasadicalWarning, stacklevel=4)
                     self._failed = True
+                else:
+                    self._compiled.update(zip(names, done))
+                    self._checked.update(names)
+                    hit = self._compiled[which]
             return (hit, which) if hit is not None else (self.function(which), which)
+
+    def _announce(self, funs: list[ca.Function]) -> None:
+        """Say that the compiler starts (it takes seconds) to whoever listens (:func:`jitcache.announcing`)."""
+        # about 0.5 ms of compiling an instruction at -O1 on one core; side by side, the largest counts
+        seconds = max(1, round(5e-4 * max(f.n_instructions() for f in funs)))
+        jitcache.announce(f"compiling the model of {self.robot.name} for these data once (about {seconds} s; kept in "
+                          "the cache for later runs)")
 
     def evaluate(self, which: str, N: int, inputs: list, per_pose: bool, take, compile: bool = True):
         """``take(outputs)`` of ``which`` on N poses (outputs: per pose, row-major, valid inside ``take``).
@@ -344,6 +340,7 @@ _SUPERSETS: OrderedDict = OrderedDict()
 _registry = threading.Lock()
 
 
+
 def superset_for(build, robot, frames=None) -> Superset:
     """The process's superset of ``robot`` and ``frames``' sessions (built on first use)."""
     key = (id(robot), frames_key(frames))
@@ -360,12 +357,13 @@ def superset_for(build, robot, frames=None) -> Superset:
     return sup
 
 
-def outputs(model, which: str, q, p, cov, b0, Rm=None, compile: bool = True, required: bool = True):
+def outputs(model, which: str, q, p, cov, b0, Rm=None, compile: bool = True, required: bool = True,
+            angles: bool = True):
     """``which`` (``fk``, ``jac``, ``pose_fk``, ``pose_jac``) of a model's poses through its robot's superset.
 
     Returns the measured quantities (N, m) (positions, then for ``pose_`` the orientation residuals) and, for
     ``jac``, their Jacobian w.r.t. the model's parameters (N, m, P) and w.r.t. an offset of each chain angle
-    (N, m, n). ``compile``: compile what is not compiled yet (in the background; the VM meanwhile), else the
+    (N, m, n; None without ``angles``). ``compile``: compile what is not compiled yet (in the background; the VM meanwhile), else the
     VM; without ``required``, None when ``compile`` is off and the function is not compiled (the model's own
     graph is then the cheaper VM function).
     """
@@ -375,9 +373,11 @@ def outputs(model, which: str, q, p, cov, b0, Rm=None, compile: bool = True, req
     if not (required or compile or sup.available(which)):
         return None
     P, C = m.inputs(q, p, cov)
+    if model.orientation and not which.startswith("pose_"):   # a full-pose model: its data kind's functions
+        which, Rm = "pose_" + which, np.tile(np.eye(3).ravel(), (N, 1))
 
     def take(out):
         if len(out) == 1:
             return out[0].copy()
-        return out[0].copy(), m.jacobian(out[1], q, cov), m.angle_jacobian(out[1]).copy()
+        return out[0].copy(), m.jacobian(out[1], q, cov), m.angle_jacobian(out[1]).copy() if angles else None
     return sup.evaluate(which, N, [q, P, C, b0] + ([Rm] if Rm is not None else []), m.per_pose, take, compile)

@@ -6,20 +6,25 @@ superset expresses: periodic errors of any harmonic through the chain-angle offs
 through per-pose parameters, thermal expansion and drifts against their own references.
 """
 
+import json
 import math
+import os
+import shutil
+import subprocess
+import sys
 
 import numpy as np
 import pytest
 
+from casadical.batch import batch
 from casadical.kinematics import base_pose_matrix
-from casadical.model import pose_to_base0
-from casadical.model import Model, parse_spec
+from casadical.model import Model, parse_spec, pose_to_base0
 from casadical.robot import robot_from_dict
-from casadical.simulate import sample_poses
-from casadical.superset import Mapping, outputs
+from casadical.simulate import Effects, sample_poses, simulate
+from casadical.superset import Mapping, outputs, superset_for
 from casadical.terms import make_term
 
-from arms import ARM3, ARM4, ARM5, ARM7
+from arms import ARM3, ARM4, ARM5, ARM7, to_toml
 
 #: every term the superset expresses, shared and of one session (two sessions, B with its own tool)
 SPEC = ("kinematic+joint_compliance+nonlinear_stiffness[2]+encoder_scale[1,3]+backlash[2]+backlash_motion[1]"
@@ -80,10 +85,10 @@ def test_the_superset_gives_every_models_own_numbers(arm, seed):
     q, values, cov, R = data(model, 150, rng)
     b0 = model.base0_nominal()
     xyz, J, JA = own.predict_angle_jacobian(q, values, cov, b0)
-    y, Js, JAs = outputs(model, "jac", q, values, cov, b0, compile=False)
-    assert_close(xyz, y, "positions")
-    assert_close(J, Js, "Jacobian")
-    assert_close(JA, JAs, "angle Jacobian")
+    y, Js, JAs = outputs(model, "jac", q, values, cov, b0, compile=False)   # full pose: 6 rows, positions first
+    assert_close(xyz, y[:, :3], "positions")
+    assert_close(J, Js[:, :3], "Jacobian")
+    assert_close(JA, JAs[:, :3], "angle Jacobian")
     xyz, Jp, ro, Jo = own.pose_jacobian(q, R, values, cov, b0)
     y, Js, _ = outputs(model, "pose_jac", q, values, cov, b0, R.reshape(-1, 9), compile=False)
     assert_close(np.concatenate([xyz, ro], 1), y, "positions and orientation residuals")
@@ -142,3 +147,57 @@ def test_periodic_columns_are_exact_at_any_harmonic():
     y, Js, _ = outputs(model, "jac", q, values, cov, model.base0_nominal(), compile=False)
     assert_close(xyz, y, "positions")
     assert_close(J, Js, "Jacobian")
+
+
+# --- compiled once per machine -------------------------------------------------------------------
+
+needs_compiler = pytest.mark.skipif(not (shutil.which("gcc") or shutil.which("cc")), reason="no C compiler")
+
+
+@needs_compiler
+def test_the_compiled_superset_gives_the_vms_bits(tmp_path, monkeypatch):
+    """CasADi's VM and the compiled library give the same bits: a failed compile falls back to the VM, and
+    which of them evaluates never changes a result."""
+    monkeypatch.setenv("CASADICAL_CACHE", str(tmp_path / "cache"))
+    robot = robot_from_dict(ARM3)
+    model = two_session_model(robot, "kinematic+joint_compliance+backlash[2]+joint_periodic[1:4]+drift@B",
+                              orientation=True, seed=2)
+    q, values, cov, R = data(model, 120, np.random.default_rng(2))
+    m = model._mapping
+    P, C = m.inputs(q, values, cov)
+    sup = superset_for(lambda terms: Model(robot, terms, jit=False), robot, model.term("sessions"))
+    for which in ("fk", "jac", "pose_fk", "pose_jac"):
+        compiled, used = sup.resolve(which, compile=True)
+        assert used == which and compiled.class_name() == "External"
+        ins = [q, P, C, model.base0_nominal()] + ([R.reshape(-1, 9)] if which.startswith("pose_") else [])
+        vm, cc = (batch(lambda n, f=f: f.map(f"m{n}", "serial", n, [3], []), len(q), [3], True)(*ins)
+                  for f in (sup.function(which), compiled))
+        for a, b in zip(vm, cc):
+            assert np.array_equal(a, b), which
+
+
+@needs_compiler
+def test_a_first_run_says_it_compiles_and_a_second_compiles_nothing(tmp_path):
+    """The command line says once, before the compiler starts, that it compiles the robot's model; the cache
+    then holds the superset's functions (none of one model), and the next run compiles nothing and gives the
+    same numbers."""
+    robot_file = tmp_path / "arm.toml"
+    robot_file.write_text(to_toml(ARM3))
+    data_, _ = simulate(robot_from_dict(ARM3), 120, Effects(stiffness={2: 4e5}), seed=1, floor_z=None)
+    data_.write_csv(tmp_path / "d.csv")
+    env = {**os.environ, "CASADICAL_JIT": "1", "CASADICAL_CACHE": str(tmp_path / "cache")}
+    runs = []
+    for k in range(2):
+        out = tmp_path / f"cal{k}.json"
+        r = subprocess.run([sys.executable, "-m", "casadical", "calibrate", str(robot_file), str(tmp_path / "d.csv"),
+                            "--model", "kinematic+compliance[2]", "--out", str(out)], capture_output=True, text=True,
+                           env=env)
+        assert r.returncode == 0, r.stderr
+        said = [line for line in r.stderr.splitlines() if line.startswith("compiling the model of")]
+        runs.append((said, sorted(p.name.split("-")[0] for p in (tmp_path / "cache").iterdir()),
+                     json.loads(out.read_text())["parameters"]))
+    (said0, cache0, p0), (said1, cache1, p1) = runs
+    assert said0 == ["compiling the model of three-axis test arm for these data once (about 1 s; kept in the cache "
+                     "for later runs)"]
+    assert said1 == [] and cache1 == cache0 == ["superset_fk", "superset_jac"]
+    assert p0 == p1

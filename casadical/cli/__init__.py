@@ -24,8 +24,10 @@ from .. import __version__
 from ..errors import CasadicalError, CasadicalWarning
 from ..files import outputs_together
 from ..interrupts import exit_code, handle_signals
+from ..jitcache import announcing
 from ..threads import evaluation_threads, limited_threads
 from . import cache, calibrate, compare, compensate, data, diagnose, export, model, planning, study
+from .common import Status
 
 #: command modules, in the order ``--help`` lists them
 COMMANDS = (model, calibrate, diagnose, compensate, planning, compare, study, data, export, cache)
@@ -104,7 +106,9 @@ def main(argv: list[str] | None = None) -> int:
         with handle_signals(), outputs_together():
             evaluation_threads()     # a bad CASADICAL_EVAL_THREADS is said before any work, whatever the command
             _check_cache_settings()
-            with limited_threads():  # small dense problems: one BLAS thread unless CASADICAL_THREADS says otherwise
+            # small dense problems: one BLAS thread unless CASADICAL_THREADS says otherwise; a first run says
+            # when it compiles the robot's model (seconds, once per machine)
+            with limited_threads(), announcing(Status(getattr(args, "quiet", False)).line):
                 return int(args.func(args) or 0)
     except CasadicalError as e:
         print(f"casadical: error: {e}", file=sys.stderr)

@@ -298,7 +298,7 @@ def extrapolation_gain(cv0: dict, cv1: dict) -> float:
 
 def joint_levers(robot: Robot, data: Measurements) -> np.ndarray:
     """How far the tool point moves per radian of each joint (RMS over the poses, m)."""
-    m = Model(robot, "nominal")
+    m = Model(robot, "nominal", jit=False)
     _, J = m.predict_jacobian(data.q, cov=m.covariates(data))
     return np.array([np.sqrt(np.mean(np.sum(J[:, :, m.parameters.index(f"theta{j}")] ** 2, axis=1)))
                      for j in range(1, robot.n + 1)])
