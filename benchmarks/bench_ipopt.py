@@ -56,7 +56,11 @@ def table(N: int, repeats: int) -> None:
     from scipy.optimize import least_squares
 
     from casadical import load_robot
-    from casadical.calibration import _solve, calibrate
+    from casadical.calibration import calibrate
+    try:
+        from casadical.calibration.solve import _solve
+    except ImportError:     # before calibrate() became a pipeline (fe55b8a)
+        from casadical.calibration import _solve
     from casadical.model import Model
     from casadical.problem import CalibrationProblem
     from casadical.simulate import Effects, simulate
