@@ -30,18 +30,30 @@ from __future__ import annotations
 import argparse
 import os
 import re
+import resource
 import statistics
 import subprocess
 import sys
 import tempfile
+import time
 from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent
 DATA = ROOT / "problems" / "datasets" / "ur10-ipa"
-sys.path.insert(0, str(HERE))
 
-from bench_calibrate_cli import wall  # noqa: E402
+
+def wall(cmd: list[str], env: dict, cwd: Path) -> tuple[float, float]:
+    """Wall time and CPU time (user + system, the process and its children such as the compiler). ``cwd``: out
+    of the repository, whose folder ``python -m`` would put first on the import path (whatever PYTHONPATH)."""
+    before = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    r = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=cwd)
+    dt = time.perf_counter() - t0
+    after = resource.getrusage(resource.RUSAGE_CHILDREN)
+    if r.returncode:
+        raise SystemExit(f"failed: {' '.join(cmd)}\n{r.stderr[-2000:]}")
+    return dt, (after.ru_utime - before.ru_utime) + (after.ru_stime - before.ru_stime)
 
 TARGETS = {"readme": "<= 0.4x CPU, < 5 s wall", "real2000": "< 10 s", "sessions": "< 15 s"}
 
@@ -70,17 +82,17 @@ def prepare(case: str, tmp: Path) -> list[list[str]]:
         for s in ("a", "b"):
             subprocess.run([*exe, "split", str(DATA / f"series_{s}.csv"), "-n", "300", "--seed", "0", "--out-cal",
                             str(tmp / f"{s}_cal.csv"), "--out-val", str(tmp / f"{s}_val.csv"), "--force"],
-                           check=True, capture_output=True)
+                           check=True, capture_output=True, cwd=tmp)
         return [[*exe, "diagnose", "ur10", str(tmp / "a_cal.csv"), str(tmp / "b_cal.csv"), "--validate",
                  str(tmp / "a_val.csv"), str(tmp / "b_val.csv"), "--json", str(tmp / "report.json"), "--force"]]
     raise SystemExit(f"unknown case {case!r}")
 
 
-def summary(cmds: list[list[str]], env: dict) -> list[str]:
+def summary(cmds: list[list[str]], env: dict, cwd: Path) -> list[str]:
     """The last command's printed summary, without run times and file names."""
     for cmd in cmds[:-1]:
-        subprocess.run(cmd, env=env, check=True, capture_output=True)
-    text = subprocess.run(cmds[-1], env=env, check=True, capture_output=True, text=True).stdout
+        subprocess.run(cmd, env=env, check=True, capture_output=True, cwd=cwd)
+    text = subprocess.run(cmds[-1], env=env, check=True, capture_output=True, text=True, cwd=cwd).stdout
     return [re.sub(r"[0-9.]+ s\b", "_ s", line) for line in text.splitlines() if "->" not in line]
 
 
@@ -103,13 +115,13 @@ def main() -> int:
             folder.mkdir()
             cmds = prepare(case, folder)
             envs = {k: dict(os.environ, PYTHONPATH=v, CASADICAL_CACHE=str(cache)) for k, v in trees.items()}
-            texts = {k: summary(cmds, env) for k, env in envs.items()}      # untimed: fills the cache
+            texts = {k: summary(cmds, env, folder) for k, env in envs.items()}      # untimed: fills the cache
             times: dict = {k: [] for k in trees}
             for _ in range(args.repeats):
                 for k, env in envs.items():
                     w = c = 0.0
                     for cmd in cmds:
-                        dw, dc = wall(cmd, env)
+                        dw, dc = wall(cmd, env, folder)
                         w, c = w + dw, c + dc
                     times[k].append((w, c))
             (a, b) = (times["this tree"], times["base"])
@@ -129,7 +141,7 @@ def main() -> int:
                     cold = dict(env, CASADICAL_CACHE=tempfile.mkdtemp(dir=tmp))
                     w = c = 0.0
                     for cmd in cmds:
-                        dw, dc = wall(cmd, cold)
+                        dw, dc = wall(cmd, cold, folder)
                         w, c = w + dw, c + dc
                     print(f"  {case}, {k}, empty cache: CPU {c:.2f} s, wall {w:.2f} s", flush=True)
     print(f"\nload average {os.getloadavg()[0]:.2f}")

@@ -138,6 +138,10 @@ class Ipopt(Solver):
             x, p = ca.MX.sym("x", nf), ca.MX.sym("p", 0)
             lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", 0)
             opts = self._options(N)
+            # an exception in a callback (Ctrl-C, SIGTERM, an error) stops IPOPT at its next iteration, with no
+            # warning for the NaN it sees until then; solve() raises it again
+            cbs.append(_Stop(at, nf))
+            opts.update(iteration_callback=cbs[-1], show_eval_warnings=False)
             opts["grad_f"] = ca.Function("nlp_grad_f", [x, p], list(cbs[1](x)), ["x", "p"], ["f", "grad_f_x"])
             opts["hess_lag"] = ca.Function("nlp_hess_l", [x, p, lam_f, lam_g], [cbs[2](x, lam_f)],
                                            ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
@@ -303,3 +307,25 @@ class _Callback(ca.Callback):
         nan = np.full(self.nf, np.nan)
         return {"f": [math.nan], "grad_f": [math.nan, nan],
                 "hess_l": [ca.triu(ca.DM(np.full((self.nf, self.nf), np.nan)))]}[self.kind]
+
+
+class _Stop(ca.Callback):
+    """IPOPT's iteration callback: stop (1) once a callback has raised, go on (0) otherwise."""
+
+    def __init__(self, at: _Iterates, nf: int):
+        ca.Callback.__init__(self)
+        self.at, self.nf = at, nf
+        self.construct("calibration_stop", {"enable_fd": False})
+
+    def get_n_in(self) -> int:
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self) -> int:
+        return 1
+
+    def get_sparsity_in(self, i: int) -> ca.Sparsity:
+        n = {"x": self.nf, "f": 1, "lam_x": self.nf}.get(ca.nlpsol_out(i), 0)
+        return ca.Sparsity.dense(n)
+
+    def eval(self, arg):
+        return [1.0 if self.at.error is not None else 0.0]
