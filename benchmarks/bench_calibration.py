@@ -124,10 +124,9 @@ def construction(robot, N: int, seed: int, jit: bool | None) -> dict:
     warm_jac, _ = warm_median(lambda: model.predict_jacobian(q, p, cov, b0), 3)
     prob = make_problem(robot, data, model)
     x0 = np.zeros(len(prob.free))
-    # what IPOPT needs: the per-pose cost, gradient and Gauss-Newton Hessian Functions (compiled
-    # once per model, whatever N), then nlpsol on their maps over N poses
+    # what IPOPT needs beyond LM's: nothing compiled (its callbacks linearise the problem as LM does), nlpsol
     jit_n = model._use_jit(N)
-    compile_ip = sum(once(lambda: model.per_pose_function(w, jit_n))[0] for w in ("cost", "grad", "gn_hess"))
+    compile_ip = 0.0
     ip = make_solver("ipopt")
     r_ip = ip.solve(prob, x0)
     lm = make_solver("lm")

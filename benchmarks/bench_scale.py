@@ -108,7 +108,10 @@ def child(method: str, npz: str, N: int, spec: str, free_json: str, out: str) ->
     elif method == "scipy":
         doc = _scipy(robot, data, spec, json.loads(Path(free_json).read_text()))
     else:
-        import casadical.calibration.solve as C
+        try:
+            import casadical.calibration.solve as C
+        except ImportError:     # before calibrate() became a pipeline (fe55b8a): PYTHONPATH at that tree
+            import casadical.calibration as C
         from casadical.solvers.ipopt import Ipopt
 
         solves, solve = [], C._solve

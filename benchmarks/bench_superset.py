@@ -14,13 +14,11 @@ kind (position; full pose):
   compile time), and the candidate through the compiled superset (``Model.predict_jacobian`` /
   ``pose_jacobian``: the superset's evaluation, the candidate's columns picked out and the periodic
   columns made in numpy); their ratio is the masked columns' overhead;
-- with ``--gn``: the Gauss-Newton matrix per pose, as per-pose matrices summed in compiled code (what IPOPT
-  evaluated before) against the superset's Jacobian and ``J^T W J`` in numpy (what every solver does now).
 
 Usage::
 
     python benchmarks/bench_superset.py                      # UR10 and the 7-axis test arm, ~3 min
-    python benchmarks/bench_superset.py --robots ur10 --poses 300 --gn
+    python benchmarks/bench_superset.py --robots ur10 --poses 300
 """
 
 from __future__ import annotations
@@ -79,7 +77,6 @@ def main() -> int:
     ap.add_argument("--robots", nargs="+", default=["ur10", "arm7"])
     ap.add_argument("--poses", type=int, default=2000)
     ap.add_argument("--repeats", type=int, default=7)
-    ap.add_argument("--gn", action="store_true", help="also per-pose Gauss-Newton matrices (compiles 10-30 s each)")
     args = ap.parse_args()
     os.environ["CASADICAL_CACHE"] = tempfile.mkdtemp(prefix="bench-superset-")
     os.environ["CASADICAL_JIT"] = "1"
@@ -140,31 +137,6 @@ def main() -> int:
                     t_sup = best_cpu(lambda: engine.predict_jacobian(q, values), args.repeats) / N
                 print(f"| {full} | {len(own.parameters)} | {t_vm * 1e6:.1f} us | {t_oc * 1e6:.2f} us ({t_own:.1f} s) "
                       f"| {t_sup * 1e6:.2f} us | {t_sup / t_oc:.2f} |")
-            if args.gn:
-                m = Model(robot, CANDIDATES[1] + ("+tool_orientation" if kind else ""), jit=True)
-                gn = kind + "gn_hess"
-                ins, outs, bc, red = m._graph(gn)
-                t0 = time.perf_counter()
-                fc = jitcache.load(ca.Function(gn, ins, outs))
-                t_own = time.perf_counter() - t0
-                gargs = [q, m.parameters.values, m.default_covariates(N), m.base0_nominal(), np.zeros((N, 3))] + (
-                    [R.reshape(N, 9), 0.0, 1.0] if kind else [0.0])
-                gb = batch(fc, N, bc, red)
-                t_gn = best_cpu(lambda: gb.evaluate(*gargs), args.repeats) / N
-
-                def jtj():
-                    if kind:
-                        _, J, _, Jo = m.pose_jacobian(q, R, m.parameters.values)
-                        J = np.concatenate([J, Jo], axis=1)
-                    else:
-                        J = m.predict_jacobian(q, m.parameters.values)[1]
-                    J2 = J.transpose(0, 1, 2).reshape(-1, J.shape[2])
-                    return J2.T @ J2
-
-                t_jtj = best_cpu(jtj, args.repeats) / N
-                print(f"\nGauss-Newton matrix of {m.spec} ({len(m.parameters)} columns), per pose: per-pose "
-                      f"matrices summed in compiled code {t_gn * 1e6:.2f} us (its compile {t_own:.1f} s); the "
-                      f"superset's Jacobian and J^T W J in numpy {t_jtj * 1e6:.2f} us")
     print(f"\nload average {os.getloadavg()[0]:.2f}")
     return 0
 

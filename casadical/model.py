@@ -30,13 +30,13 @@ import casadi as ca
 import numpy as np
 
 from . import jitcache
+from .batch import BLOCK_MIN, Batch as _Batch, Blocks as _Blocks, batch  # noqa: F401 (names the tests use)
 from .errors import CasadicalWarning, DataFileError, ModelError
 from .kinematics import Geometry, base_pose_matrix, chain_angles, compose, forward, rpy_pose
 from .parameters import Parameters
 from .robot import Robot
 from .superset import Mapping, outputs as superset_outputs
 from .terms import REGISTRY, Context, ErrorTerm, SessionLocal, covariate_names, make_term
-from .batch import BLOCK_MIN, Batch as _Batch, Blocks as _Blocks, batch  # noqa: F401 (names the tests use)
 from .threads import evaluation_threads
 
 #: batches of this many poses or more run compiled code, compiled once per machine and kept in the disk cache
@@ -136,11 +136,16 @@ class Model:
         (:func:`parse_spec`). The geometric term is always present; it is
         free only if listed (``kinematic``), otherwise only the base pose is.
     jit : bool, optional
-        Compile the model to machine code with the system C compiler (0.2-3
-        s per function once per machine, kept in the disk cache of
-        :mod:`casadical.jitcache`; then ~8x faster). Default: for batches of
+        Evaluate through compiled machine code (system C compiler, kept in the
+        disk cache of :mod:`casadical.jitcache`; 4-7x less CPU than the VM).
+        A model the robot's superset expresses (:mod:`casadical.superset`:
+        every term of the diagnosis, periodic errors and terms of one session
+        too) is evaluated through the superset's compiled functions, compiled
+        once per robot, sessions and machine (1-13 s); any other model
+        compiles its own functions (0.2-3 s each). Default: for batches of
         ``JIT_MIN_POSES`` poses or more when a compiler is available, and for
-        smaller batches when the cache already holds the function.
+        smaller batches when the cache already holds the functions. False:
+        the model's own graph on CasADi's virtual machine.
 
     Notes
     -----
@@ -248,28 +253,14 @@ class Model:
         S = self._sym
         q, p, c, b0, xyz = S["q"], S["p"], S["c"], S["b0"], S["xyz"]
         ins = [q, p, c, b0]
-        if which in ("cost", "grad", "gn_hess"):
+        if which == "cost":
+            # the loss of one pose, summed over poses by map's reduce_out: the pseudo-Huber loss (u2 / 2 when
+            # delta = 0), see casadical.problem.RobustLoss; IPOPT's exact Hessian differentiates it
             y = ca.SX.sym("y", 3)
             delta = ca.SX.sym("delta")  # robust loss: 1 / (c sigma)^2, 0 for plain least squares
             r = xyz - y
             u2 = ca.dot(r, r)
-            # per-pose loss pieces, summed over poses by map's reduce_out: the pseudo-Huber loss
-            # (u2 / 2 when delta = 0), its gradient by reverse mode, and the upper triangle of the
-            # IRLS Gauss-Newton matrix w J^T J with J's sparsity (see casadical.problem.RobustLoss)
-            root = ca.sqrt(1 + delta * u2)
-            cost = u2 / (root + 1)
-            lsq = ins + [y, delta]
-            if which == "cost":
-                g = (lsq, [cost], (1, 3, 5), (0,))
-            elif which == "grad":
-                g = (lsq, [cost, ca.gradient(cost, p)], (1, 3, 5), (0, 1))
-            else:
-                # Gauss-Newton matrix of the loss: J^T (w I - delta w^3 r r^T) J, w = 1 / root (positive
-                # semi-definite: w^3 along r), see casadical.problem.Linearization
-                Js = ca.jacobian(xyz, p)
-                Jr = ca.mtimes(Js.T, r)
-                H = ca.mtimes(Js.T, Js) / root - delta / root ** 3 * ca.mtimes(Jr, Jr.T)
-                g = (lsq, [ca.triu(H)], (1, 3, 5), (0,))
+            g = (ins + [y, delta], [u2 / (ca.sqrt(1 + delta * u2) + 1)], (1, 3, 5), (0,))
         elif which.startswith("pose_"):
             g = self._pose_graph(which)
         elif which == "probe":
@@ -301,7 +292,7 @@ class Model:
         return g
 
     def _pose_graph(self, which: str) -> tuple:
-        """The full-pose per-pose Functions: position and orientation residuals, loss, gradient, Gauss-Newton.
+        """The full-pose per-pose Functions: position and orientation residuals (and their Jacobian), the loss.
 
         Extra inputs after ``(q, p, cov, base0)``: ``y`` (measured point, m; loss Functions only), ``Rm`` (9
         numbers, row-major: the measured probe rotation times the transpose of the reference mounting R0),
@@ -333,13 +324,6 @@ class Model:
         lsq = ins + [y, Rm, delta, k]
         if which == "pose_cost":
             return lsq, [cost], (1, 3, 6, 7), (0,)
-        if which == "pose_grad":
-            return lsq, [cost, ca.gradient(cost, p)], (1, 3, 6, 7), (0, 1)
-        if which == "pose_gn_hess":
-            Js = ca.jacobian(r, p)
-            Jr = ca.mtimes(Js.T, r)
-            H = ca.mtimes(Js.T, Js) / root - delta / root ** 3 * ca.mtimes(Jr, Jr.T)
-            return lsq, [ca.triu(H)], (1, 3, 6, 7), (0,)
         raise ModelError(f"no per-pose function {which!r}")
 
     @property
@@ -372,9 +356,9 @@ class Model:
         return True if N >= JIT_MIN_POSES else "cached"
 
     def per_pose_function(self, which: str, jit: bool | str = False) -> ca.Function:
-        """One of the per-pose Functions (``fk``, ``fk_jac``, ``fk_jac_angles``, ``cost``, ``grad``, ``gn_hess``,
-        ``tau``, ``dq``, ``fk_q_jac``, ``flange``, ``flange_jac``; full-pose models also ``probe``, ``pose_fk``,
-        ``pose_fk_jac``, ``pose_cost``, ``pose_grad``, ``pose_gn_hess``).
+        """One of the per-pose Functions (``fk``, ``fk_jac``, ``fk_jac_angles``, ``cost``, ``tau``, ``dq``,
+        ``fk_q_jac``, ``flange``, ``flange_jac``; full-pose models also ``probe``, ``pose_fk``, ``pose_fk_jac``,
+        ``pose_cost``).
 
         ``jit``: False for CasADi's virtual machine; True for compiled code,
         from the disk cache (:mod:`casadical.jitcache`) or compiled now and

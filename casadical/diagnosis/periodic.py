@@ -91,12 +91,8 @@ class Resolution:
 
 def resolution(screen: Screen, joint: int, harmonic: int) -> Resolution:
     """Resolution of harmonic ``harmonic`` of ``joint`` in the round's data, given the current model."""
-    sw = np.repeat(np.sqrt(screen.w), 3)
-    G = screen.J[:, :, screen.cur].reshape(len(sw), -1) * sw[:, None]
-    Q, _ = np.linalg.qr(G)
-    rw = screen.r.ravel() * sw
-    r_perp = rw - Q @ (Q.T @ rw)
-    sigma2 = float(r_perp @ r_perp) / max(len(rw) - G.shape[1], 1)
+    sw, Q, r_perp = screen.projection()
+    sigma2 = float(r_perp @ r_perp) / max(len(r_perp) - Q.shape[1], 1)
     direction = screen.angle_dir[joint]
     q = screen.cal.q[:, joint - 1]
 

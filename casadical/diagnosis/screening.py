@@ -108,7 +108,8 @@ class Screen:
         self.angle_dir = {j: JA[:, :, j - 1] for j in range(1, robot.n + 1)}
         self.r = xyz - cal.xyz
         self.w = current.loss.weight(np.einsum("ij,ij->i", self.r, self.r))
-        self._val: tuple | None = None
+        self._val: dict = {}                   # the validation poses' residuals and columns, made on first use
+        self._basis: dict = {}                 # projection(), made on first use
         self._set_periodic(cands)
 
     def with_candidates(self, cands: list[Candidate]) -> "Screen":
@@ -155,11 +156,9 @@ class Screen:
 
     def scores(self, cands: list[Candidate]) -> list[Scored]:
         """Score test of every candidate, best (smallest p) first."""
-        sw = np.repeat(np.sqrt(self.w), 3)
+        sw, Qc, r_perp = self.projection()
         r = self.r.ravel() * sw
         Jx = self.J.reshape(len(r), -1) * sw[:, None]
-        Qc, _ = np.linalg.qr(Jx[:, self.cur])
-        r_perp = r - Qc @ (Qc.T @ r)
         ssr0 = float(r_perp @ r_perp)
         p0 = len(self.cur)
         scored = []
@@ -179,6 +178,17 @@ class Screen:
             scored.append(Scored(test.log10_p, c, test, U[:, keep] @ proj))
         scored.sort(key=lambda t: t.log10_p)
         return scored
+
+    def projection(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The square roots of the weights (per equation), an orthonormal basis of the current model's weighted
+        columns, and the weighted residual beyond them: made once per linearisation (the screens of other
+        harmonics share it, as do the resolution checks of every periodic candidate)."""
+        if not self._basis:
+            sw = np.repeat(np.sqrt(self.w), 3)
+            Q, _ = np.linalg.qr(self.J[:, :, self.cur].reshape(len(sw), -1) * sw[:, None])
+            rw = self.r.ravel() * sw
+            self._basis.update(sw=sw, Q=Q, r_perp=rw - Q @ (Q.T @ rw))
+        return self._basis["sw"], self._basis["Q"], self._basis["r_perp"]
 
     def columns(self, c: Candidate) -> list[int]:
         """The candidate's free columns not already in the current model."""
@@ -204,24 +214,30 @@ class Screen:
 
     def validation_errors(self, fit: LinearFit) -> np.ndarray:
         """Position errors (m) on the validation poses of a one-step fit (a judge, never used to decide)."""
-        if self._val is None:
+        val = self._val      # shared with the screens of other harmonics (with_candidates): one evaluation
+        if not val:
             big, p = self.model, self.model_params
             xyz, J, JA = big.predict_angle_jacobian(self.val.q, p.values, big.covariates(self.val),
                                                     self.current.base0)
-            self._val = (xyz - self.val.xyz, J[:, :, self.free] * p.scales[self.free], JA)
-        r, J, JA = self._val
+            val.update(r=xyz - self.val.xyz, J=J[:, :, self.free] * p.scales[self.free], JA=JA, columns={})
+        r, J, JA, columns = val["r"], val["J"], val["JA"], val["columns"]
 
         def column(n: str) -> np.ndarray:
+            if n in columns:    # each parameter's column made once (a periodic one takes a sin or cos of each pose)
+                return columns[n]
             if n in self._model_cols[1]:
-                return J[:, :, self._model_cols[1].index(n)]
-            local = next((c for c in self.local if n in c.parameter_names()), None)
-            if local is not None:   # a session's own: its cause's column at that session's poses
+                col = J[:, :, self._model_cols[1].index(n)]
+            elif (local := next((c for c in self.local if n in c.parameter_names()), None)) is not None:
+                # a session's own: its cause's column at that session's poses
                 shared = local.shared().parameter_names()[local.parameter_names().index(n)]
-                return column(shared) * (self.val.sessions == local.session).astype(float)[:, None]
-            c = next(c for c in self.periodic if n in c.parameter_names())   # gear{j}_{s|c}{h}
-            k = c.parameter_names().index(n)
-            col = periodic_columns(JA[:, :, c.joint - 1], self.val.q[:, c.joint - 1], c.harmonic)[:, :, k]
-            return col * self.params[n].scale
+                col = column(shared) * (self.val.sessions == local.session).astype(float)[:, None]
+            else:
+                c = next(c for c in self.periodic if n in c.parameter_names())   # gear{j}_{s|c}{h}
+                k = c.parameter_names().index(n)
+                col = periodic_columns(JA[:, :, c.joint - 1], self.val.q[:, c.joint - 1], c.harmonic)[:, :, k]
+                col = col * self.params[n].scale
+            columns[n] = col
+            return col
 
         return np.linalg.norm(r + np.stack([column(n) for n in fit.lin.names], axis=2) @ fit.step, axis=1)
 
