@@ -239,7 +239,10 @@ class Screen:
             columns[n] = col
             return col
 
-        return np.linalg.norm(r + np.stack([column(n) for n in fit.lin.names], axis=2) @ fit.step, axis=1)
+        out = r.copy()   # r + J step, a column at a time (stacking the columns of 10,000 poses costs 6x more)
+        for n, d in zip(fit.lin.names, fit.step):
+            out += column(n) * d
+        return np.linalg.norm(out, axis=1)
 
 
 def periodic_columns(direction: np.ndarray, q: np.ndarray, h: int) -> np.ndarray:
