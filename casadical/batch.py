@@ -13,6 +13,34 @@ from .threads import evaluation_pool, evaluation_threads
 #: (casadical.threads.evaluation_threads); UR10 `fk_jac_angles` on the VM, 2 cores: 300 poses 9.9 -> 5.4 ms,
 #: 150 poses 5.0 ms either way
 BLOCK_MIN = 100
+#: poses per inner map of batches of 2 * MAP_CHUNK poses or more (:func:`mapped`): a flat map of N poses holds
+#: every pose's summed outputs at once (a per-pose Gauss-Newton matrix: ~700 numbers per UR10 pose, 1.1 GB at
+#: 200,000 poses) and one call's work memory per pose (the YS100 superset's positions: 115 numbers a pose, 730
+#: MB at 200,000); a map of chunks holds one chunk's
+MAP_CHUNK = 256
+
+
+def mapped(fun: ca.Function, N: int, bcast, reduce) -> ca.Function:
+    """``fun`` mapped over N poses: the inputs ``bcast`` broadcast, the outputs ``reduce`` summed; from
+    ``2 * MAP_CHUNK`` poses on, a map of chunks of ``MAP_CHUNK`` poses."""
+    bcast, reduce = list(bcast), list(reduce)
+    name = fun.name()
+    if N < 2 * MAP_CHUNK:
+        return fun.map(f"{name}_{N}", "serial", N, bcast, reduce)
+    M, R = divmod(N, MAP_CHUNK)
+    inner = fun.map(f"{name}_{MAP_CHUNK}", "serial", MAP_CHUNK, bcast, reduce)
+    pieces = [(0, M * MAP_CHUNK, inner.map(f"{name}_{MAP_CHUNK}x{M}", "serial", M, bcast, reduce))]
+    if R:
+        pieces.append((M * MAP_CHUNK, N, fun.map(f"{name}_{R}", "serial", R, bcast, reduce)))
+    ins = [ca.MX.sym(fun.name_in(i), fun.size1_in(i), fun.size2_in(i) * (1 if i in bcast else N))
+           for i in range(fun.n_in())]
+    outs = []
+    for a, b, F in pieces:
+        outs.append(F.call([x if i in bcast else x[:, fun.size2_in(i) * a:fun.size2_in(i) * b]
+                            for i, x in enumerate(ins)]))
+    res = [sum(o[j] for o in outs) if j in reduce else ca.horzcat(*(o[j] for o in outs))
+           for j in range(fun.n_out())]
+    return ca.Function(f"{name}_{N}", ins, res)
 
 
 def batch(mapped, N: int, bcast, compiled: bool) -> "Batch | Blocks":

@@ -30,7 +30,7 @@ import casadi as ca
 import numpy as np
 
 from . import jitcache
-from .batch import BLOCK_MIN, Batch as _Batch, Blocks as _Blocks, batch  # noqa: F401 (names the tests use)
+from .batch import BLOCK_MIN, Batch as _Batch, Blocks as _Blocks, batch, mapped  # noqa: F401 (names the tests use)
 from .errors import CasadicalWarning, DataFileError, ModelError
 from .kinematics import Geometry, base_pose_matrix, chain_angles, compose, forward, rpy_pose
 from .parameters import Parameters
@@ -44,10 +44,6 @@ from .threads import evaluation_threads
 #: (benchmarks/bench_calibrate_cli.py): compiling costs ~1.2 s of CPU more than a run on the VM, once, and
 #: saves ~0.55 s per later 200-pose calibration, so it pays from the third run
 JIT_MIN_POSES = 100
-#: poses per inner map of batches of 2 * MAP_CHUNK poses or more (Model.batch_function): a flat map of N
-#: poses holds every pose's summed outputs at once (the Gauss-Newton matrix: ~700 numbers per UR10 pose,
-#: 1.1 GB at 200,000 poses); a map of chunks holds one chunk's and one sum per chunk
-MAP_CHUNK = 256
 _SPEC_ITEM = re.compile(r"^\s*([a-z_]+)\s*(?:\[([^\]]*)\])?\s*(?:@\s*([A-Za-z0-9_.-]+))?\s*$")
 
 
@@ -389,24 +385,8 @@ class Model:
         compiled library has none); default: compiled for large batches.
         """
         _, _, bcast, reduce = self._graph(which)
-        bcast, reduce = list(bcast), list(reduce)
         fun = self.per_pose_function(which, self._use_jit(N) if compiled is None else compiled)
-        if N < 2 * MAP_CHUNK:
-            return fun.map(f"{which}_{N}", "serial", N, bcast, reduce)
-        M, R = divmod(N, MAP_CHUNK)
-        inner = fun.map(f"{which}_{MAP_CHUNK}", "serial", MAP_CHUNK, bcast, reduce)
-        pieces = [(0, M * MAP_CHUNK, inner.map(f"{which}_{MAP_CHUNK}x{M}", "serial", M, bcast, reduce))]
-        if R:
-            pieces.append((M * MAP_CHUNK, N, fun.map(f"{which}_{R}", "serial", R, bcast, reduce)))
-        ins = [ca.MX.sym(fun.name_in(i), fun.size1_in(i), fun.size2_in(i) * (1 if i in bcast else N))
-               for i in range(fun.n_in())]
-        outs = []
-        for a, b, F in pieces:
-            outs.append(F.call([x if i in bcast else x[:, fun.size2_in(i) * a:fun.size2_in(i) * b]
-                                for i, x in enumerate(ins)]))
-        res = [sum(o[j] for o in outs) if j in reduce else ca.horzcat(*(o[j] for o in outs))
-               for j in range(fun.n_out())]
-        return ca.Function(f"{which}_{N}", ins, res)
+        return mapped(fun, N, bcast, reduce)
 
     def _batch(self, which: str, N: int) -> "_Batch | _Blocks":
         jit = self._use_jit(N)

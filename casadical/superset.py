@@ -28,7 +28,7 @@ import casadi as ca
 import numpy as np
 
 from . import jitcache
-from .batch import Batch, batch
+from .batch import Batch, batch, mapped
 from .errors import CasadicalWarning
 from .terms import ErrorTerm, SessionLocal, covariate_names, make_term
 from .terms.periodic import JointPeriodic
@@ -37,12 +37,18 @@ from .threads import evaluation_threads
 #: the superset's terms besides the geometry, the sessions and the chain offsets (all joints, all links)
 TERMS = ("joint_compliance", "nonlinear_stiffness", "encoder_scale", "backlash", "backlash_motion",
          "thermal_expansion", "drift", "tool_orientation")
+#: terms that deflect a joint by its gravity torque: a model without them has the superset without them, whose
+#: Jacobian skips the torques and their derivatives (a kinematic model's: 3x cheaper)
+TORQUE = ("joint_compliance", "nonlinear_stiffness", "backlash")
 #: causes a term of one session may have in the superset: linear in their parameters (a joint offset or a
 #: translation), so that the shared and the session's parameters add up per pose
 LOCAL = ("joint_compliance", "nonlinear_stiffness", "encoder_scale", "backlash", "backlash_motion", "drift",
          "joint_periodic")
 #: supersets kept per process (a robot and its sessions each; least recently used dropped first)
 MAX_SUPERSETS = 8
+#: poses evaluated at a time: the buffers of a batch stay small (a serial map holds one call's work memory per
+#: pose) and one batch size serves any number of poses
+BLOCK = 4096
 
 
 class ChainOffsets(ErrorTerm):
@@ -72,8 +78,9 @@ def chain_offset(j: int) -> str:
     return f"chain_offset{j}"
 
 
-def superset_terms(robot, frames=None) -> list[ErrorTerm]:
-    """The terms of the superset of ``robot`` (with ``frames``, a sessions term: its sessions and tools).
+def superset_terms(robot, frames=None, torques: bool = True) -> list[ErrorTerm]:
+    """The terms of the superset of ``robot`` (with ``frames``, a sessions term: its sessions and tools;
+    without ``torques``, none that reads the gravity torques).
 
     Terms driven by a covariate against a reference (thermal expansion, drift) have the reference 0: a
     model's covariate comes minus its own reference, so no reference is a constant of the graph.
@@ -83,9 +90,12 @@ def superset_terms(robot, frames=None) -> list[ErrorTerm]:
     terms = [make_term("geometric")]
     if frames is not None:
         terms.append(make_term("sessions", names=frames.names, tools=frames.tools))
-    terms += [make_term("joint_compliance", joints=every), make_term("nonlinear_stiffness", joints=every),
-              make_term("encoder_scale", joints=every), make_term("backlash", joints=every),
-              make_term("backlash_motion", joints=every), make_term("thermal_expansion", t_ref=0.0),
+    if torques:
+        terms += [make_term("joint_compliance", joints=every), make_term("nonlinear_stiffness", joints=every)]
+    terms += [make_term("encoder_scale", joints=every)]
+    if torques:
+        terms += [make_term("backlash", joints=every)]
+    terms += [make_term("backlash_motion", joints=every), make_term("thermal_expansion", t_ref=0.0),
               make_term("thermal_expansion", joints=every, t_ref=0.0), make_term("drift"),
               make_term("tool_orientation"), ChainOffsets(n)]
     return terms
@@ -116,8 +126,9 @@ class Mapping:
     """
 
     def __init__(self, model, params: list, covariates: list[str], columns: list[_Column],
-                 shifts: dict[str, list[tuple[str | None, float]]]):
+                 shifts: dict[str, list[tuple[str | None, float]]], torques: bool = True):
         own = model.covariate_names
+        self.torques = torques           # the superset with the terms that read the gravity torques
         self.n_params = len(params)
         self.n_covariates = len(covariates)
         self.nominal = np.array([p.nominal for p in params])
@@ -142,7 +153,10 @@ class Mapping:
     def of(cls, model) -> "Mapping | None":
         """The mapping of ``model`` onto its superset, or None if the superset cannot express it."""
         robot = model.robot
-        sup = superset_terms(robot, model.term("sessions"))
+        torques = any((t.inner if isinstance(t, SessionLocal) else t).name in TORQUE
+                      and getattr(t.inner if isinstance(t, SessionLocal) else t, "source", "torque") == "torque"
+                      for t in model.terms)
+        sup = superset_terms(robot, model.term("sessions"), torques)
         params = [p for t in sup for p in t.parameters(robot)]
         index = {p.name: i for i, p in enumerate(params)}
         columns: list[_Column] = []
@@ -170,7 +184,7 @@ class Mapping:
         shifts = {"time_s": drifts} if drifts else {}
         if thermal:
             shifts["temperature_c"] = [(None, thermal.pop())]
-        return cls(model, params, covariate_names(sup), columns, shifts)
+        return cls(model, params, covariate_names(sup), columns, shifts, torques)
 
     # -- inputs and outputs ------------------------------------------------------------
 
@@ -225,8 +239,8 @@ class Superset:
         The robot and its sessions term (or None).
     """
 
-    def __init__(self, build, robot, frames=None):
-        self.graph = build(superset_terms(robot, frames))
+    def __init__(self, build, robot, frames=None, torques: bool = True):
+        self.graph = build(superset_terms(robot, frames, torques))
         self.robot = robot
         self.n_params = len(self.graph.parameters)
         self._vm: dict[str, ca.Function] = {}
@@ -321,7 +335,7 @@ class Superset:
         with self._lock:
             b = self._batches.get(key)
             if b is None:
-                b = batch(lambda n: fun.map(f"{fun.name()}_{n}", "serial", n, bcast, []), N, bcast, compiled)
+                b = batch(lambda n: mapped(fun, n, bcast, []), N, bcast, compiled)
                 self._batches[key] = b
                 while len(self._batches) > 16:
                     self._batches.popitem(last=False)
@@ -341,15 +355,16 @@ _registry = threading.Lock()
 
 
 
-def superset_for(build, robot, frames=None) -> Superset:
-    """The process's superset of ``robot`` and ``frames``' sessions (built on first use)."""
-    key = (id(robot), frames_key(frames))
+def superset_for(build, robot, frames=None, torques: bool = True) -> Superset:
+    """The process's superset of ``robot`` and ``frames``' sessions, with or without the terms that read the
+    gravity torques (built on first use)."""
+    key = (id(robot), frames_key(frames), torques)
     with _registry:
         hit = _SUPERSETS.get(key)
         if hit is not None and hit.robot is robot:
             _SUPERSETS.move_to_end(key)
             return hit
-    sup = Superset(build, robot, frames)
+    sup = Superset(build, robot, frames, torques)
     with _registry:
         _SUPERSETS[key] = sup
         while len(_SUPERSETS) > MAX_SUPERSETS:
@@ -363,21 +378,31 @@ def outputs(model, which: str, q, p, cov, b0, Rm=None, compile: bool = True, req
 
     Returns the measured quantities (N, m) (positions, then for ``pose_`` the orientation residuals) and, for
     ``jac``, their Jacobian w.r.t. the model's parameters (N, m, P) and w.r.t. an offset of each chain angle
-    (N, m, n; None without ``angles``). ``compile``: compile what is not compiled yet (in the background; the VM meanwhile), else the
-    VM; without ``required``, None when ``compile`` is off and the function is not compiled (the model's own
-    graph is then the cheaper VM function).
+    (N, m, n; None without ``angles``). ``compile``: compile what is not compiled yet (kept in the disk cache),
+    else the VM; without ``required``, None when ``compile`` is off and the function is not compiled (the
+    model's own graph is then the cheaper VM function). Many poses are evaluated in blocks of ``BLOCK``.
     """
     m = model._mapping
     N = len(q)
-    sup = superset_for(lambda terms: type(model)(model.robot, terms, jit=False), model.robot, model.term("sessions"))
+    sup = superset_for(lambda terms: type(model)(model.robot, terms, jit=False), model.robot, model.term("sessions"),
+                       m.torques)
     if not (required or compile or sup.available(which)):
         return None
-    P, C = m.inputs(q, p, cov)
     if model.orientation and not which.startswith("pose_"):   # a full-pose model: its data kind's functions
         which, Rm = "pose_" + which, np.tile(np.eye(3).ravel(), (N, 1))
+    parts = []
+    for a in range(0, N, BLOCK):
+        s = slice(a, min(a + BLOCK, N))
+        qs, cs = q[s], cov[s]
+        P, C = m.inputs(qs, p, cs)
 
-    def take(out):
-        if len(out) == 1:
-            return out[0].copy()
-        return out[0].copy(), m.jacobian(out[1], q, cov), m.angle_jacobian(out[1]).copy() if angles else None
-    return sup.evaluate(which, N, [q, P, C, b0] + ([Rm] if Rm is not None else []), m.per_pose, take, compile)
+        def take(out, qs=qs, cs=cs):
+            if len(out) == 1:
+                return (out[0].copy(),)
+            return (out[0].copy(), m.jacobian(out[1], qs, cs),
+                    m.angle_jacobian(out[1]).copy() if angles else None)
+        parts.append(sup.evaluate(which, len(qs), [qs, P, C, b0] + ([Rm[s]] if Rm is not None else []), m.per_pose,
+                                  take, compile))
+    out = tuple(None if parts[0][k] is None else np.concatenate([x[k] for x in parts]) if len(parts) > 1
+                else parts[0][k] for k in range(len(parts[0])))
+    return out[0] if len(out) == 1 else out
