@@ -110,7 +110,7 @@ def set_references(terms: list[ErrorTerm], data: Measurements) -> None:
             if col is not None and isinstance(t, SessionLocal):
                 col = col[data.sessions == t.session_name] if data.sessions is not None else col[:0]
             if col is not None and len(col):
-                t.t_ref = float(np.mean(col))
+                t.t_ref = inner.reference_value(col)
 
 
 def with_sessions(terms: list[ErrorTerm], data: Measurements, tools: bool | list[str] = False) -> list[ErrorTerm]:

@@ -36,7 +36,7 @@ from ..calibration import calibrate, model_for
 from ..checks import check_held_out, check_other_series, check_poses, check_validation_frames
 from ..data import Measurements
 from ..errors import listing
-from ..physics import sign_changes, value_violations, violations
+from ..physics import value_violations, violations
 from ..problem import RobustLoss
 from ..result import AngleStats, CalibrationResult, ErrorStats
 from ..robot import Robot
@@ -45,10 +45,10 @@ from . import transfer as transfer_mod
 from .backward import drop_redundant, drop_unphysical
 from .layer import layer_step
 from .candidates import Candidate, compose_spec
+from .catalogue import Catalogue
 from .findings import UnexplainedLog, describe
-from .periodic import halves, resolution
-from .periodogram import Periodogram, joint_errors, periodogram
-from .plots import joint_view
+from .nameable import JOINT_CAUSES, cause_checks
+from .periodogram import Periodogram
 from .report import DiagnosisReport, Finding, Step
 from .screening import Scored, Screen, ambiguous
 from .settings import DiagnosisSettings
@@ -57,11 +57,6 @@ from .validation import (Linearized, by_kind, cv_failure, cv_record, cv_text, ex
                          not_better, schemes)
 
 
-#: functions of one joint's reading: each must be the same over the lower and the upper half of its range.
-#: (Compliance, progressive stiffness and backlash follow the load, not the reading; on real data their
-#: half-range estimates are biased by the structure still unmodelled in each half, so the test is not
-#: applied to them.)
-JOINT_CAUSES = ("joint_periodic", "encoder_scale")
 #: the kinds of fold where a model must extrapolate: a step may not make them worse
 EXTRAPOLATING = ("time", "joint", "session")
 
@@ -83,7 +78,8 @@ class _Diagnosis:
         self.findings: list[Finding] = []
         self.notes: list[str] = []
         self.periodograms: list[Periodogram] = []
-        self._periodograms_of: CalibrationResult | None = None    # the fit they were computed for
+        self.catalogue = Catalogue(robot, cal, settings)
+        self.later: dict[Candidate, int] = {}     # not significant yet: screened again once the model grows
         self.unexplained = UnexplainedLog()
         self.before: dict[Candidate, CalibrationResult] = {}   # fit before each finding, by its cause
         self.support: dict[Candidate, tuple] = {}               # (test, cv before, cv after, checks) by cause
@@ -223,7 +219,12 @@ class _Diagnosis:
                 self.say(f"    {cand.label()}: {step.reason}")
                 self.findings.pop()
                 support = self.support.pop(cand, None)
-                self.unexplained.excluded_causes.add(cand)
+                if len(reasons) == 1 and not broken and not worse:
+                    # not significant yet: screened again once another cause is in the model (a session's own
+                    # structure still unmodelled inflates the noise scale)
+                    self.later[cand] = len(accepted)
+                else:
+                    self.unexplained.excluded_causes.add(cand)
                 if broken and not reasons[0].startswith("not significant") and cand.joint is not None \
                         and support is not None:
                     # real structure that is not this cause: reported, kept out of the model
@@ -290,63 +291,15 @@ class _Diagnosis:
         self.before.pop(cand, None)
 
     def candidates(self, current: CalibrationResult, accepted: list[Candidate]) -> list[Candidate]:
-        """Every candidate not yet in the model; periodic ones from the periodogram peaks."""
-        have = set(accepted)
-        out: list[Candidate] = []
-        for j in range(1, self.robot.n + 1):
-            out += [Candidate("joint_compliance", j), Candidate("encoder_scale", j),
-                    Candidate("backlash", j, source="torque"), Candidate("backlash", j, source="motion")]
-            if Candidate("joint_compliance", j) in have:
-                out.append(Candidate("nonlinear_stiffness", j))
-        temp = self.cal.get("temperature_c")
-        if temp is not None and np.ptp(temp) > 0.1:
-            out.append(Candidate("thermal_expansion"))
-            out += [Candidate("thermal_expansion", j) for j, jt in enumerate(self.robot.joints, start=1)
-                    if abs(jt.a) + abs(jt.d) + abs(jt.b or 0.0) > 0]
-        if len(self.sessions) > 1:
-            # a cause of one session only: the physical causes of each joint, and a drift (of one session by
-            # nature: with several sessions only its own)
-            out += [replace(c, session=s) for c in out if c.cause in ("joint_compliance", "encoder_scale", "backlash")
-                    for s in self.sessions]
-            if self.cal.get("time_s") is not None:
-                out += [Candidate("drift", session=s) for s in self.sessions]
-        elif self.cal.get("time_s") is not None:   # a drift needs the poses' times: never the row numbers
-            out.append(Candidate("drift"))
-        # periodograms of the projected residuals (the same while the fit is the same)
-        if self._periodograms_of is not current:
-            # a joint angle error moves the tool point along the derivative w.r.t. the joint's angle
-            resid, JA = joint_view(current, self.cal)
-            self.periodograms = []
-            for j in range(1, self.robot.n + 1):
-                s, w = joint_errors(resid, JA[:, :, j - 1])
-                self.periodograms.append(periodogram(self.cal.q[:, j - 1], s, w, j, self.max_harmonic()))
-            self._periodograms_of = current
-        for j, pg in enumerate(self.periodograms, start=1):
-            ranked = [int(h) for h in pg.harmonics[np.argsort(-pg.power)]
-                      if (j, int(h)) not in self.unexplained.excluded][:2]
-            # the first harmonic always: over a small range it mimics an encoder scale error,
-            # and the ambiguity can only be reported if both are screened
-            hs = set(ranked) | ({1} if (j, 1) not in self.unexplained.excluded else set())
-            out += [Candidate("joint_periodic", j, h) for h in sorted(hs)]
-        return [c for c in out if c not in have and c not in self.unexplained.excluded_causes and not (
-            c.cause == "backlash" and (any(a.cause == "backlash" and a.joint == c.joint for a in accepted)
-                                       or not self.sign_changes(current, c)))]
-
-    def sign_changes(self, current: CalibrationResult, cand: Candidate) -> bool:
-        """Backlash needs its sign source to change sign in the data: otherwise it is a joint offset."""
-        j = cand.joint
-        signs = self.cal.moves[:, j - 1] if cand.source == "motion" else np.sign(self.torques(current)[:, j - 1])
-        if cand.session is not None:
-            signs = signs[self.cal.sessions == cand.session]
-        return sign_changes(signs, "")[0]
-
-    def max_harmonic(self) -> int:
-        return min(self.s.max_harmonic, max(len(self.cal) // 3, 1))
+        """Every candidate not yet in the model (:class:`.catalogue.Catalogue`)."""
+        skip = self.unexplained.excluded_causes | {c for c, n in self.later.items() if n == len(accepted)}
+        out = self.catalogue.candidates(current, accepted, self.unexplained.excluded, skip,
+                                        lambda: self.torques(current))
+        self.periodograms = self.catalogue.periodograms
+        return out
 
     def n_tests(self, cands: list[Candidate]) -> int:
-        """Tests behind a round's candidates: each periodic candidate stands for the scanned harmonics."""
-        per = sum(1 for c in cands if c.cause == "joint_periodic")
-        return (len(cands) - per) + self.robot.n * self.max_harmonic()
+        return self.catalogue.n_tests(cands)
 
     def round(self, current: CalibrationResult, accepted: list[Candidate], geometric: bool):
         """Screen, fit the best candidates by one step, accept one; None when nothing is supported."""
@@ -405,7 +358,7 @@ class _Diagnosis:
                 significant = not reasons and "random" not in worse
                 if worse:
                     reasons.append(cv_failure(worse, cv0, cv1))
-                checks = self.joint_checks(scr, fit, cand) if significant else {}
+                checks = cause_checks(scr, fit, cand, self.cal, self.s.stability_alpha) if significant else {}
                 reasons += checks.pop("reasons", [])
                 # the one-step fit's values must already be physics (bounds, a spring that does not turn back)
                 names = cand.parameter_names()
@@ -435,35 +388,13 @@ class _Diagnosis:
                 f = Finding(sc.candidate, cur_val.mean_mm - step.validation.mean_mm, "",
                             ambiguous_with=ambiguous(sc, scored, level),
                             holds_up={"test": test.text(), "cv_mm": cv_record(cv0, cv1),
-                                      **{k: v.to_dict() for k, v in checks.items() if k == "resolution"},
+                                      **{k: v.to_dict() for k, v in checks.items() if k in ("resolution", "versus_drift")},
                                       **({"halves": [h.to_dict() for h in checks["halves"]]} if "halves" in checks
                                          else {})})
                 self.support[sc.candidate] = (test, cv0, cv1, checks)
                 self.findings.append(f)
                 return (sc.candidate, {**{p.name: p.value for p in current.parameters}, **fit.values}, level), pending
         return None, pending
-
-    def joint_checks(self, scr: Screen, fit, cand: Candidate) -> dict:
-        """A function of a joint's reading (periodic error, encoder scale) is the same over both halves of the
-        joint's range, and a periodic error must be resolved from its neighbours and from geometry; a drift
-        (a velocity) is the same over both halves of the measurement time."""
-        if cand.cause not in JOINT_CAUSES + ("drift",):
-            return {}
-        out: dict = {"reasons": []}
-        params = [scr.params[n] for n in cand.parameter_names() if n in fit.lin.names]
-        if cand.cause == "drift":
-            hv = out["halves"] = halves(fit, params, self.cal, None, self.s.stability_alpha)
-            if not hv[0].agree:
-                out["reasons"].append("the first and second half in time disagree: " + hv[0].text())
-            return out
-        hv = out["halves"] = halves(fit, params, self.cal, cand.joint, self.s.stability_alpha)
-        if cand.cause == "joint_periodic":
-            rs = out["resolution"] = resolution(scr, cand.joint, cand.harmonic)
-            if not rs.resolved:
-                out["reasons"].append(rs.text())
-        if not hv[0].agree:
-            out["reasons"].append("the halves of the joint's range disagree: " + hv[0].text())
-        return out
 
 
 @limited_threads()
