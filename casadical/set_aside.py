@@ -141,6 +141,8 @@ class SetAsideStructure:
         what = (f"the robust loss set aside {self.n_set_aside} calibration pose(s) (lines "
                 + listing(self.lines, 10) + ")")
         sig = self.significant
+        if self.n_set_aside < 2:
+            return what + ": likely a bad measurement (a single pose: no structure to test)"
         if not sig:
             return (what + ": likely bad measurements (they share no session, no start or end of the measurements, "
                     "no region of a joint or of its load, and their errors no joint's direction"

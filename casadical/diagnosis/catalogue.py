@@ -34,7 +34,7 @@ from .settings import DiagnosisSettings
 #: kinds of one joint each session can have on its own (thermal expansion changes the geometry: the robot's)
 PER_JOINT = ("joint_compliance", "nonlinear_stiffness", "encoder_scale", "backlash")
 #: time constants of the warm-ups screened: this many, from two pose spacings to a third of the session
-WARMUP_STEPS = 6
+WARMUP_STEPS = 10
 #: a joint covering less than this (degrees) cannot tell its low harmonics from the geometry
 SHORT_RANGE_DEG = 90.0
 #: gravity torques below this (N m) at every pose: the joint is not loaded

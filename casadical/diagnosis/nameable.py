@@ -31,6 +31,14 @@ from .screening import LinearFit, Screen
 JOINT_CAUSES = ("joint_periodic", "encoder_scale")
 
 
+def unjudged(cand: Candidate) -> set[str]:
+    """The kinds of fold that cannot judge ``cand``: the session folds a cause of one session (no other session
+    has it), the time folds a warm-up (no later pose shows the start); :func:`.validation.linear_cv` switches
+    such a cause off where it leaves out the poses that determine it, and its acceptance does not ask those
+    folds."""
+    return ({"session"} if cand.session is not None else set()) | ({"time"} if cand.cause == "warmup" else set())
+
+
 @dataclass
 class VersusDrift:
     """How much better a warm-up's decay fits than a drift of the same session.

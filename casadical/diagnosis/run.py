@@ -47,7 +47,7 @@ from .layer import layer_step
 from .candidates import Candidate, compose_spec
 from .catalogue import Catalogue
 from .findings import UnexplainedLog, describe
-from .nameable import JOINT_CAUSES, cause_checks
+from .nameable import JOINT_CAUSES, cause_checks, unjudged
 from .periodogram import Periodogram
 from .report import DiagnosisReport, Finding, Step
 from .screening import Scored, Screen, ambiguous
@@ -209,7 +209,7 @@ class _Diagnosis:
                 reasons.append("not physics once fitted in full: " + "; ".join(v.text for v in broken))
             mask = self.mask(current)
             cv0, cv1 = self.cv(current, mask), self.cv(new_fit, mask)
-            worse = [k for k in EXTRAPOLATING if k in cv0 and cv1[k] > cv0[k]]
+            worse = [k for k in EXTRAPOLATING if k in cv0 and cv1[k] > cv0[k] and k not in unjudged(cand)]
             if worse:
                 reasons.append("fitted in full it does worse where the model extrapolates: "
                                + ", ".join(f"{k} {cv0[k]:.4f} -> {cv1[k]:.4f} mm" for k in worse))
@@ -353,7 +353,7 @@ class _Diagnosis:
                     reasons.append(f"F-test not significant at the corrected level ({test.text()})")
                 if test.delta_bic >= 0:
                     reasons.append(f"BIC does not improve ({test.delta_bic:+.1f})")
-                worse = not_better(cv0, cv1)
+                worse = [k for k in not_better(cv0, cv1) if k not in unjudged(cand)]
                 # real structure on these poses: significant, and it predicts random held-out poses
                 significant = not reasons and "random" not in worse
                 if worse:

@@ -32,7 +32,7 @@ from ..terms.periodic import JointPeriodic
 from ..terms.warmup import Warmup, decay
 from .candidates import Candidate, compose_spec, tell_apart
 from .statistics import NestedTest, nested_test
-from .validation import Linearized, solve_identified
+from .validation import Linearized, solve_identified, switch_off
 
 #: causes whose columns are computed here rather than by the model: a periodic error (the direction of its
 #: joint's angle times a sine of its harmonic) and a warm-up (a translation times its decay)
@@ -239,7 +239,7 @@ class Screen:
         r1 = self.r + J @ d
         names = [self.names[k] for k in cols]
         values = {n: self.params[n].value + self.scale[k] * dk for n, k, dk in zip(names, cols, d)}
-        lin = Linearized(J, r1, self.w, names, self.scale[cols])
+        lin = Linearized(J, r1, self.w, names, self.scale[cols], switch_off(names, values, self.scale[cols]))
         return LinearFit(lin, values, float(np.sum(self.w[:, None] * r1 ** 2)), len(cols), d, cols)
 
     def validation_errors(self, fit: LinearFit) -> np.ndarray:
