@@ -45,6 +45,7 @@ from .calibration_file import restore_term
 from .result import CalibrationResult, ErrorStats, load_calibration
 from .robot import Robot
 from .sessions import session_index
+from . import set_aside
 from .physics import term_causes, violations
 from .significance import FitStatistics, warn_not_significant
 from .simulate import sample_poses
@@ -513,11 +514,14 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         if down:
             scale = (f"{problem.loss.sigma * 1000:.4f} mm" if not full_pose else
                      f"{problem.loss.sigma * 1000:.4f} mm and {math.degrees(problem.loss.sigma_rot):.4f} deg")
+            # bad measurements, or poses that share structure the model lacks (casadical.set_aside)
+            shared = set_aside.of_model(model, values, base0, data, lin.weights < DOWNWEIGHT_REPORT, cov)
             notes.append(f"the robust loss set aside {len(down)} pose(s) of {data.path} whose residual exceeds "
                          f"{math.sqrt(DOWNWEIGHT_REPORT ** -2 - 1) * loss.c:.1f} times the noise scale of "
                          f"{scale} (lines "
                          + listing([f"{d['file']}:{d['line']}" if "file" in d else d["line"] for d in down], 10)
-                         + "): likely bad measurements; check them, or pass --robust none to fit them anyway")
+                         + "): " + (shared.text() + "; diagnose looks for its cause" if shared.structured else
+                                    shared.text() + "; check them, or pass --robust none to fit them anyway"))
     by_session = {s: ErrorStats.of(norms[idx]) for s, idx in session_index(data).items()} \
         if len(data.session_names) > 1 else {}
     result = CalibrationResult(model, params, base0, res, name, ident, unc, ErrorStats.of(norms), notes,

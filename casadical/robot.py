@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import InputError, RobotFileError
+from .errors import InputError, ParallelAxesWarning, RobotFileError
 from .files import read_toml
 
 GRAVITY = 9.81
@@ -255,6 +255,7 @@ def robot_from_dict(data: dict[str, Any], file: str = "<dict>") -> Robot:
             if x <= 0:
                 raise RobotFileError(f"length must be positive, got {x}", file=file, column=f"loop.{k}")
         loop = Loop(int(j), *lengths)
+    warn_parallel_axes(joints, convention, file)
     return Robot(
         name=name, joints=joints, convention=convention,
         base_xyz=v.vector(base, "xyz_m", "base", 3, default=np.zeros(3)),
@@ -263,6 +264,35 @@ def robot_from_dict(data: dict[str, Any], file: str = "<dict>") -> Robot:
         payload_mass=pmass,
         payload_com=v.vector(payload, "com_m", "payload", 3, default=np.zeros(3)),
         gravity=GRAVITY * direction / norm, loop=loop, source=file)
+
+
+#: consecutive axes closer to parallel than this (deg) need Hayati's beta (as the URDF reader gives them)
+PARALLEL_DEG = 5.0
+
+
+def parallel_without_beta(joints: list[Joint], convention: str) -> list[tuple[int, int]]:
+    """``(link, next joint)`` of every pair of consecutive parallel axes whose link has no ``beta``: in ``dh`` the
+    angle between axes i and i+1 is link i's alpha (its beta is link i's), in ``mdh`` the angle between axes i-1
+    and i is link i's (so is its beta)."""
+    tol = math.sin(math.radians(PARALLEL_DEG))
+    out = []
+    for i, j in enumerate(joints, start=1):
+        pair = (i, i + 1) if convention == "dh" else (i - 1, i)
+        if 1 <= pair[0] and pair[1] <= len(joints) and abs(math.sin(j.alpha)) < tol and j.beta is None:
+            out.append((i, pair[0] if convention == "mdh" else pair[1]))
+    return out
+
+
+def warn_parallel_axes(joints: list[Joint], convention: str, file: str) -> None:
+    """A :class:`~casadical.errors.ParallelAxesWarning` naming each link with parallel consecutive axes and no
+    ``beta_deg``."""
+    import warnings
+
+    for link, other in parallel_without_beta(joints, convention):
+        warnings.warn(f"{file}: joint[{link}]: the axes of joints {min(link, other)} and {max(link, other)} are "
+                      f"parallel (alpha_deg {math.degrees(joints[link - 1].alpha):g}) and joint[{link}] has no "
+                      "beta_deg: a small tilt between them (Hayati's beta) cannot be calibrated, and its d_m is "
+                      f"ill-conditioned; add beta_deg = 0.0 to joint[{link}]", ParallelAxesWarning, stacklevel=3)
 
 
 class _Validator:

@@ -35,7 +35,6 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy import stats
 
 from .data import Measurements
 from .errors import listing
@@ -138,19 +137,17 @@ class SetAsideStructure:
         """The verdict in words: structure with where, and which poses still look like bad measurements."""
         if not self.n_set_aside:
             return ""
-        what = (f"the robust loss set aside {self.n_set_aside} calibration pose(s) (lines "
-                + listing(self.lines, 10) + ")")
         sig = self.significant
         if self.n_set_aside < 2:
-            return what + ": likely a bad measurement (a single pose: no structure to test)"
+            return "likely a bad measurement (a single pose: no structure to test)"
         if not sig:
-            return (what + ": likely bad measurements (they share no session, no start or end of the measurements, "
-                    "no region of a joint or of its load, and their errors no joint's direction"
-                    + (f"; the strongest hint, {self.tests[0].where}, p = {self.tests[0].p_value * len(self.tests):.2g}"
-                       if self.tests else "") + ")")
+            hint = (f"; the strongest hint, {self.tests[0].where}, p = {min(self.tests[0].p_value * len(self.tests), 1):.2g}"
+                    if self.tests else "")
+            return ("likely bad measurements (they share no session, no start or end of the measurements, no region "
+                    f"of a joint or of its load, and their errors no joint's direction{hint})")
         m = len(self.tests)
         parts = [f"{t.where} ({len(t.poses)} of them, p = {max(t.p_value * m, 1e-300):.2g})" for t in sig]
-        text = what + ": not bad measurements but structure the model lacks: " + "; ".join(parts)
+        text = "not bad measurements but structure the model lacks: " + "; ".join(parts)
         bad = self.bad()
         if len(bad):
             text += (f"; the other {len(bad)} (lines " + listing(self._lines(bad), 10)
@@ -170,6 +167,7 @@ class SetAsideStructure:
 
 def _tail(k: int, n_total: int, n_in: int, n_flagged: int) -> float:
     """P(at least ``k`` of ``n_flagged`` poses drawn at random fall among ``n_in`` of ``n_total``)."""
+    from scipy import stats     # here, not at import: scipy.stats costs every command's start-up
     return float(stats.hypergeom.sf(k - 1, n_total, n_in, n_flagged))
 
 
@@ -212,6 +210,7 @@ def _scan(x: np.ndarray, flagged: np.ndarray, anchored: str | None):
     ok = k >= 2
     if not ok.any():
         return None
+    from scipy import stats
     p = np.where(ok, stats.hypergeom.sf(k - 1, N, n_in, n), 1.0)
     b = int(np.argmin(p))
     held = flagged[(x[flagged] >= lo[b]) & (x[flagged] <= hi[b])]
@@ -294,7 +293,8 @@ def direction_test(residuals: np.ndarray, direction: np.ndarray, flagged: np.nda
     cos = np.abs(np.einsum("ij,ij->i", r[ok], d[ok])) / (nr[ok] * nd[ok])
     p_i = np.clip(1.0 - cos, 1e-300, 1.0)
     chi2 = float(-2.0 * np.log(p_i).sum())
-    p = float(stats.chi2.sf(chi2, 2 * len(p_i)))
+    from scipy import special
+    p = float(special.chdtrc(2 * len(p_i), chi2))
     along = flagged[ok][cos >= math.cos(math.radians(ALONG_DEG))]
     return StructureTest("direction", f"their errors are angle errors of joint {joint} (along the tool point's "
                                       f"motion when it turns: {len(along)} of {int(ok.sum())} within "
@@ -353,11 +353,18 @@ def of_fit(result, data: Measurements, set_aside: np.ndarray | None = None,
         files = data.sources if data.sources is not None else np.full(len(data), None, dtype=object)
         set_aside = np.array([(f if data.sources is not None else None, int(ln)) in keys
                               for f, ln in zip(files, data.lines)], dtype=bool)
+    return of_model(result.model, result.parameters.values, result.base0, data, set_aside, alpha=alpha)
+
+
+def of_model(model, values: np.ndarray, base0: np.ndarray, data: Measurements, set_aside: np.ndarray,
+             cov: np.ndarray | None = None, alpha: float = ALPHA) -> SetAsideStructure:
+    """:func:`set_aside_structure` of a model (:class:`~casadical.model.Model`) at ``values`` on ``data``:
+    its residuals, the directions of its joints' angles and its gravity torques (none when every torque is
+    zero: the robot file gives no masses and the data no payload)."""
     if not np.any(set_aside):
         return SetAsideStructure(len(data), 0, alpha=alpha)
-    m, p = result.model, result.parameters
-    cov = m.covariates(data)
-    xyz, _, directions = m.predict_angle_jacobian(data.q, p.values, cov, result.base0)
-    tau = m.torques(data.q, p.values, cov)
+    cov = model.covariates(data) if cov is None else cov
+    xyz, _, directions = model.predict_angle_jacobian(data.q, values, cov, base0)
+    tau = model.torques(data.q, values, cov)
     return set_aside_structure(data, set_aside, data.xyz - xyz, directions,
                                tau if np.any(np.abs(tau) > 0) else None, alpha)

@@ -32,20 +32,21 @@ from typing import Callable
 
 import numpy as np
 
-from ..calibration import calibrate, model_for
+from ..calibration import calibrate, learning_mask, model_for
 from ..checks import check_held_out, check_other_series, check_poses, check_validation_frames
 from ..data import Measurements
-from ..errors import listing
 from ..physics import value_violations, violations
 from ..problem import RobustLoss
 from ..result import AngleStats, CalibrationResult, ErrorStats
 from ..robot import Robot
+from ..set_aside import of_fit
 from ..threads import limited_threads
 from . import transfer as transfer_mod
 from .backward import drop_redundant, drop_unphysical
 from .layer import layer_step
 from .candidates import Candidate, compose_spec
-from .catalogue import Catalogue
+from .catalogue import Catalogue, not_tried
+from .gaps import set_aside_note
 from .findings import UnexplainedLog, describe
 from .nameable import JOINT_CAUSES, cause_checks, unjudged
 from .periodogram import Periodogram
@@ -80,6 +81,7 @@ class _Diagnosis:
         self.periodograms: list[Periodogram] = []
         self.catalogue = Catalogue(robot, cal, settings)
         self.later: dict[Candidate, int] = {}     # not significant yet: screened again once the model grows
+        self.not_tried: list = []                   # kinds of cause these data cannot test (catalogue.not_tried)
         self.unexplained = UnexplainedLog()
         self.before: dict[Candidate, CalibrationResult] = {}   # fit before each finding, by its cause
         self.support: dict[Candidate, tuple] = {}               # (test, cv before, cv after, checks) by cause
@@ -187,6 +189,7 @@ class _Diagnosis:
             current, geometric = nominal, False
         accepted: list[Candidate] = []
         self.history.append(([], current))
+        self.not_tried = not_tried(self.robot, self.cal, self.torques(current), self.s)
         for rnd in range(self.s.max_rounds):
             self.say(f"round {rnd + 1}: screening candidate causes")
             new = self.round(current, accepted, geometric)
@@ -459,10 +462,10 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
     if final.uncertainty is not None:
         dg.notes.append(f"remaining calibration residual {final.uncertainty.sigma * 1000:.4f} mm per axis (rms); "
                         f"validation rms {final_val.rms_mm / math.sqrt(3):.4f} mm per axis")
-    if final.downweighted:
-        dg.notes.append(f"the robust loss set aside {len(final.downweighted)} calibration pose(s) of {cal.path} "
-                        "(lines " + listing([f"{d['file']}:{d['line']}" if "file" in d else d["line"]
-                                             for d in final.downweighted], 10) + "): likely bad measurements")
+    # the poses the final fit set aside: bad measurements, or structure it lacks (casadical.set_aside)
+    structure = of_fit(parametric, cal, learning_mask(final, cal) == 0)
+    if structure.n_set_aside:
+        dg.notes.append(set_aside_note(structure, dg.not_tried, cal.path))
     study = None
     if other is not None:
         study = transfer_mod.findings_study(dg, final, parametric, accepted, geometric, other)
@@ -473,4 +476,6 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
                            next(st.validation for st in dg.steps if st.model == "kinematic"),
                            study.to_dict() if study is not None else {}, asdict(s),
                            final_sessions=final.session_stats(val) if len(dg.sessions) > 1 else {},
-                           final_orientation=dg.val_angles(final))
+                           final_orientation=dg.val_angles(final),
+                           set_aside=structure.to_dict() if structure.n_set_aside else {},
+                           not_tried=[n.to_dict() for n in dg.not_tried])

@@ -221,7 +221,8 @@ def linear_cv(J: np.ndarray, r: np.ndarray, weights: np.ndarray, all_schemes: li
         err = np.empty(N)
         for F in s.folds:
             d, own, gone = next(steps), next(owns), next(offs)
-            d[gone] = off[gone]
+            if gone.any():
+                d[gone] = off[gone]
             if own.any():   # the left-out poses' own parameters, on those poses
                 JF = Jw[F].reshape(-1, p)
                 d[own] = np.linalg.lstsq(JF[:, own], -(rw[F].reshape(-1) + JF @ d), rcond=None)[0]

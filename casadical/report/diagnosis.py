@@ -67,10 +67,11 @@ def diagnosis_html(report: DiagnosisReport, processes: int = 1, progress=None) -
     _errors(page, report)
     sections = [("evidence", "Evidence for each finding"), ("steps", "Steps"),
                 ("unexplained", "Structure kept out of the model"), ("transfer", "On another series"),
-                ("periodograms", "What is left"), ("parameters", "Final parameters"),
-                ("notes", "Notes and settings")]
+                ("periodograms", "What is left"), ("not-tried", "Not tried on these data"),
+                ("parameters", "Final parameters"), ("notes", "Notes and settings")]
     present = {"unexplained": bool(kept_out), "transfer": bool(report.transfer),
-               "periodograms": bool(report.periodograms), "evidence": bool(report.findings)}
+               "periodograms": bool(report.periodograms), "evidence": bool(report.findings),
+               "not-tried": bool(report.not_tried)}
     page.para("The evidence behind them, further down:")
     page.items([page.ref(a, t) for a, t in sections if present.get(a, True)], "ol")
 
@@ -87,6 +88,12 @@ def diagnosis_html(report: DiagnosisReport, processes: int = 1, progress=None) -
                           "explains, per harmonic (cycles per turn). Dotted lines: harmonics in the final model.")
         page.para(f"A single tall peak in {ref} is a periodic error the model lacks; a forest of small ones "
                   "is noise or structure no single harmonic holds.")
+    if report.not_tried:
+        page.heading("Not tried on these data", anchor="not-tried")
+        page.para("Kinds of cause these poses cannot test, why, and what would let the diagnosis try them.")
+        page.table(["cause", "joints", "why", "what would allow it"],
+                   [[n["cause"].replace("_", " "), ", ".join(map(str, n.get("joints", []))) or "all", n["why"],
+                     n["allow"]] for n in report.not_tried], text_columns=(0, 1, 2, 3), wrap_columns=(2, 3))
     page.heading("Final parameters", anchor="parameters")
     page.para("The final model fitted on the calibration poses (what <code>diagnose --out</code> writes). "
               "Angles in degrees, lengths in millimetres; greyed rows are held.")
