@@ -16,7 +16,7 @@ typed result with its statistic, p-value and where):
   measurement order or in time (hypergeometric tail of the count among the
   first (last) poses, scanned over how many)?
 - :func:`region_test`: in one region of a joint's reading (the same, over
-  intervals of the reading between set-aside poses)?
+  runs of bins of the reading fixed beforehand)?
 - :func:`load_test`: among the poses of largest gravity torque of a joint
   (needs the link masses)?
 - :func:`direction_test`: are their errors angle errors of one joint (the
@@ -190,20 +190,19 @@ def session_test(sessions: np.ndarray, flagged: np.ndarray) -> StructureTest | N
                          flagged[sessions[flagged] == s], session=s)
 
 
-def _scan(x: np.ndarray, flagged: np.ndarray, anchored: str | None):
-    """The interval of ``x`` (endpoints at set-aside poses) whose count of set-aside poses is least likely
-    by chance: (p corrected for the intervals scanned, lo, hi, the set-aside poses in it), or None.
+def _scan(x: np.ndarray, flagged: np.ndarray, anchored: str):
+    """The interval of ``x`` from its smallest value to the j-th smallest set-aside pose (``anchored="low"``), or
+    from the j-th largest to its largest (``"high"``), whose count of set-aside poses is least likely by chance:
+    (p corrected for the j scanned, lo, hi, the set-aside poses in it), or None.
 
-    ``anchored``: ``"low"`` (intervals from the smallest ``x``), ``"high"`` (to the largest), or None (any)."""
+    For each j the count is the tail of an order statistic (the j-th set-aside pose lies among the first m
+    poses exactly when at least j of them do): exact, and Bonferroni over j."""
     N, n = len(x), len(flagged)
     v = np.sort(x[flagged])
     if anchored == "low":
         lo, hi = np.full(n, -np.inf), v
-    elif anchored == "high":
-        lo, hi = v, np.full(n, np.inf)
     else:
-        i, j = np.triu_indices(n, 1)
-        lo, hi = v[i], v[j]
+        lo, hi = v, np.full(n, np.inf)
     xs = np.sort(x)
     n_in = np.searchsorted(xs, hi, side="right") - np.searchsorted(xs, lo, side="left")
     k = np.searchsorted(v, hi, side="right") - np.searchsorted(v, lo, side="left")
@@ -248,17 +247,40 @@ def order_test(data: Measurements, flagged: np.ndarray) -> list[StructureTest]:
     return out
 
 
+#: bins of equal pose counts a joint's range is cut into for the region test
+REGION_BINS = 10
+
+
 def region_test(q: np.ndarray, flagged: np.ndarray, joint: int) -> StructureTest | None:
-    """Are the set-aside poses in one region of joint ``joint``'s reading (rad)?"""
-    if np.ptp(q) <= 0:
+    """Are the set-aside poses in one region of joint ``joint``'s reading (rad)?
+
+    The readings are cut into :data:`REGION_BINS` bins of equal pose counts
+    (fixed before the set-aside poses are looked at); every run of
+    neighbouring bins is a region, its count of set-aside poses tested by
+    the hypergeometric tail, Bonferroni over the regions."""
+    if np.ptp(q) <= 0 or len(flagged) < 2:
         return None
-    scan = _scan(q, flagged, None)
-    if scan is None:
+    edges = np.quantile(q, np.linspace(0, 1, REGION_BINS + 1))
+    edges[-1] = np.inf
+    N, n = len(q), len(flagged)
+    i, j = np.triu_indices(REGION_BINS)
+    lo, hi = edges[i], edges[j + 1]
+    xs = np.sort(q)
+    n_in = np.searchsorted(xs, hi, side="left") - np.searchsorted(xs, lo, side="left")
+    v = np.sort(q[flagged])
+    k = np.searchsorted(v, hi, side="left") - np.searchsorted(v, lo, side="left")
+    ok = (k >= 2) & (n_in < N)
+    if not ok.any():
         return None
-    p, lo, hi, held = scan
-    span = int(np.sum((q >= lo) & (q <= hi)))
-    return StructureTest("region", f"joint {joint} from {math.degrees(lo):.1f} to {math.degrees(hi):.1f} deg "
-                                   f"({span} of {len(q)} poses)", len(held), p, held, joint=joint)
+    from scipy import stats
+    p = np.where(ok, stats.hypergeom.sf(k - 1, N, n_in, n), 1.0)
+    b = int(np.argmin(p))
+    inside = (q[flagged] >= lo[b]) & (q[flagged] < hi[b])
+    held = flagged[inside]
+    top = float(np.max(q[(q >= lo[b]) & (q < hi[b])]))
+    return StructureTest("region", f"joint {joint} from {math.degrees(lo[b]):.1f} to {math.degrees(top):.1f} deg "
+                                   f"({int(n_in[b])} of {N} poses)", len(held), min(float(p[b]) * len(p), 1.0), held,
+                         joint=joint)
 
 
 def load_test(tau: np.ndarray, flagged: np.ndarray, joint: int) -> StructureTest | None:
