@@ -35,3 +35,21 @@ def set_aside_note(structure: SetAsideStructure, not_tried: list[NotTried], path
                     hints.append(hint)
     return what + ("; " + "; ".join(hints) if hints else
                    "; no cause the diagnosis tried explains it: it stays in the residual")
+
+
+#: causes of a joint's angle error that a compliance of the same joint can look like
+LOAD_LOOKALIKES = ("encoder_scale", "joint_periodic", "backlash")
+
+
+def untried_alternatives(findings: list, not_tried: list[NotTried]) -> None:
+    """A named cause of a joint whose compliance could not be tried (no masses) may be that compliance: each
+    such finding is declared ambiguous with it, with what would allow the diagnosis to tell."""
+    for f in findings:
+        c = f.candidate
+        if c.cause not in LOAD_LOOKALIKES or c.joint is None:
+            continue
+        for n in not_tried:
+            if "joint_compliance" in n.cause and (not n.joints or c.joint in n.joints) and "masses" in n.why:
+                f.ambiguous_with.append({"cause": "joint_compliance", "joint": c.joint,
+                                         "label": f"joint_compliance joint {c.joint} (not tried)",
+                                         "tell_apart": f"{n.why}: {n.allow}"})

@@ -46,7 +46,7 @@ from .backward import drop_redundant, drop_unphysical
 from .layer import layer_step
 from .candidates import Candidate, compose_spec
 from .catalogue import Catalogue, not_tried
-from .gaps import set_aside_note
+from .gaps import set_aside_note, untried_alternatives
 from .findings import UnexplainedLog, describe
 from .nameable import JOINT_CAUSES, cause_checks, unjudged
 from .periodogram import Periodogram
@@ -453,6 +453,7 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
                                        parent=dg.step_of(current))
     say("findings: their values, evidence and figures in the final model")
     describe(dg.findings, dg.support, dg.before, final, cal)
+    untried_alternatives(dg.findings, dg.not_tried)      # a joint's named cause may be its untried compliance
     dg.findings += list(dg.unexplained.by_joint.values())
     for f in dg.findings:   # of the robot (one value serves every session) or of one session
         f.scope = f.scope or f.candidate.scope or ("robot" if len(dg.sessions) > 1 and f.in_model

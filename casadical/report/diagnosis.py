@@ -92,7 +92,7 @@ def diagnosis_html(report: DiagnosisReport, processes: int = 1, progress=None) -
         page.heading("Not tried on these data", anchor="not-tried")
         page.para("Kinds of cause these poses cannot test, why, and what would let the diagnosis try them.")
         page.table(["cause", "joints", "why", "what would allow it"],
-                   [[n["cause"].replace("_", " "), ", ".join(map(str, n.get("joints", []))) or "all", n["why"],
+                   [[n["cause"].replace("_", " "), ", ".join(map(str, n.get("joints", []))) or "-", n["why"],
                      n["allow"]] for n in report.not_tried], text_columns=(0, 1, 2, 3), wrap_columns=(2, 3))
     page.heading("Final parameters", anchor="parameters")
     page.para("The final model fitted on the calibration poses (what <code>diagnose --out</code> writes). "
@@ -293,7 +293,8 @@ def _findings(page: Page, report: DiagnosisReport) -> None:
         if "resolution" in hu:
             entries.append(("resolution", esc(_resolution(hu["resolution"]))))
         for a in f.ambiguous_with:
-            entries.append(("ambiguous with", esc(f"{a['label']} (similarity {a['similarity']}): {a['tell_apart']}")))
+            alike = f" (similarity {a['similarity']})" if "similarity" in a else ""
+            entries.append(("ambiguous with", esc(f"{a['label']}{alike}: {a['tell_apart']}")))
         if f.transfer:
             entries.append((f"on {_name(other)}", _transfer_text(f.transfer)))
         page.pairs(entries)
