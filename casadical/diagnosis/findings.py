@@ -92,7 +92,7 @@ def describe(findings: list[Finding], support: dict, before: dict, final: Calibr
         test, cv0, cv1, checks = support[cand]
         f.parameters = param_values(final, cand.parameter_names())
         text = f"{test.text()} on the calibration poses; held-out mean {cv_text(cv0, cv1)}"
-        for k in ("resolution", "versus_drift"):
+        for k in ("resolution", "versus_drift", "versus_harmonics"):
             if k in checks:
                 text += "; " + checks[k].text()
         if "halves" in checks:

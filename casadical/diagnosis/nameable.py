@@ -8,7 +8,13 @@
   the measurement time;
 - a warm-up (an offset that dies away) is told from a drift: the data
   prefer its decay to a straight line in time by the same likelihood ratio
-  a harmonic must win over its neighbours by (:data:`.periodic.NEIGHBOUR_MARGIN`).
+  a harmonic must win over its neighbours by (:data:`.periodic.NEIGHBOUR_MARGIN`);
+- a progressive spring's cubic part is told from a periodic error of the
+  same joint: the data prefer it to every harmonic of the joint the round
+  screens by that likelihood ratio (over a joint's range a harmonic and the
+  cubic of a load that follows the reading can fit the same residual; where
+  the poses cannot tell, neither linear from progressive is named, and the
+  structure is reported as the joint's unexplained structure).
 
 A cause of one session is checked on that session's poses.
 """
@@ -77,6 +83,45 @@ def versus_drift(screen: Screen, cand: Candidate) -> VersusDrift:
     t = screen.cal.get("time_s")
     at = np.ones(len(t)) if cand.session is None else (screen.cal.sessions == cand.session).astype(float)
     drift = np.einsum("i,jk->ijk", t * at, np.eye(3))          # (N, 3, 3): d xyz / d (v_x, v_y, v_z)
+    drop, sigma2 = _drops(screen)
+    return VersusDrift((drop(screen.J[:, :, screen.columns(cand)]) - drop(drift)) / max(sigma2, 1e-300))
+
+
+@dataclass
+class VersusHarmonics:
+    """How much better a progressive spring's cubic part fits than the best harmonic of the same joint's angle.
+
+    Attributes
+    ----------
+    margin : float
+        Drop of the weighted residual sum of squares by the cubic part minus
+        the drop by the best harmonic screened, over the residual variance.
+    harmonic : int or None
+        That harmonic (None: none screened).
+    """
+
+    margin: float
+    harmonic: int | None
+
+    @property
+    def resolved(self) -> bool:
+        return self.margin >= NEIGHBOUR_MARGIN
+
+    def to_dict(self) -> dict:
+        return {"margin_vs_harmonic": round(self.margin, 3) if np.isfinite(self.margin) else None,
+                "harmonic": self.harmonic, "resolved": self.resolved}
+
+    def text(self) -> str:
+        if self.resolved:
+            return ("told from a periodic error of the joint" + (f" (preferred to harmonic {self.harmonic} by a "
+                    f"likelihood ratio of {np.exp(min(self.margin, 1400) / 2):.3g})" if self.harmonic else ""))
+        return (f"these poses cannot tell a progressive spring from harmonic {self.harmonic} of the joint's angle "
+                "(it fits about as well or better): linear or progressive is not told, and not named")
+
+
+def _drops(screen: Screen):
+    """``drop(C)``: the weighted residual sum of squares columns ``C`` (N, 3, k) remove beyond the current
+    model, and the residual variance."""
     sw = np.repeat(np.sqrt(screen.w), 3)
     G = screen.J[:, :, screen.cur].reshape(len(sw), -1) * sw[:, None]
     Q, _ = np.linalg.qr(G)
@@ -91,16 +136,34 @@ def versus_drift(screen: Screen, cand: Candidate) -> VersusDrift:
         proj = U[:, keep].T @ r_perp
         return float(proj @ proj)
 
-    return VersusDrift((drop(screen.J[:, :, screen.columns(cand)]) - drop(drift)) / max(sigma2, 1e-300))
+    return drop, sigma2
+
+
+def versus_harmonics(screen: Screen, cand: Candidate) -> VersusHarmonics:
+    """A progressive spring's cubic part against every harmonic of its joint the round screens (same scope)."""
+    drop, sigma2 = _drops(screen)
+    mine = drop(screen.J[:, :, screen.columns(cand)])
+    best, h = -np.inf, None
+    for c, cols in screen.cols_of.items():
+        if c.cause == "joint_periodic" and c.joint == cand.joint and c.session == cand.session:
+            d = drop(screen.J[:, :, cols])
+            if d > best:
+                best, h = d, c.harmonic
+    return VersusHarmonics((mine - best) / max(sigma2, 1e-300) if h is not None else np.inf, h)
 
 
 def cause_checks(scr: Screen, fit: LinearFit, cand: Candidate, cal: Measurements, alpha: float) -> dict:
     """The checks of :mod:`this module <.nameable>` for a candidate fitted by one step: ``{"reasons": [...]}``
     (empty when it passes) with ``halves``, ``resolution`` or ``versus_drift`` as they apply; ``{}`` for a
     kind without checks."""
-    if cand.cause not in JOINT_CAUSES + ("drift", "warmup"):
+    if cand.cause not in JOINT_CAUSES + ("drift", "warmup", "nonlinear_stiffness"):
         return {}
     out: dict = {"reasons": []}
+    if cand.cause == "nonlinear_stiffness":
+        vh = out["versus_harmonics"] = versus_harmonics(scr, cand)
+        if not vh.resolved:
+            out["reasons"].append(vh.text())
+        return out
     if cand.cause == "warmup":
         vd = out["versus_drift"] = versus_drift(scr, cand)
         if not vd.resolved:

@@ -378,7 +378,8 @@ class _Diagnosis:
                 self.steps.append(step)
                 if reasons:
                     self.say(f"    rejected: {step.reason}")
-                    if significant and (cand.cause in JOINT_CAUSES or (broken and cand.joint is not None)):
+                    if significant and (cand.cause in JOINT_CAUSES + ("nonlinear_stiffness",)
+                                        or (broken and cand.joint is not None)):
                         pending.append((cand, fit.values, test, cv0, cv1, checks, cur_val.mean_mm - vstats.mean_mm,
                                         "; ".join(reasons)))
                     continue
@@ -391,7 +392,8 @@ class _Diagnosis:
                 f = Finding(sc.candidate, cur_val.mean_mm - step.validation.mean_mm, "",
                             ambiguous_with=ambiguous(sc, scored, level),
                             holds_up={"test": test.text(), "cv_mm": cv_record(cv0, cv1),
-                                      **{k: v.to_dict() for k, v in checks.items() if k in ("resolution", "versus_drift")},
+                                      **{k: v.to_dict() for k, v in checks.items()
+                                         if k in ("resolution", "versus_drift", "versus_harmonics")},
                                       **({"halves": [h.to_dict() for h in checks["halves"]]} if "halves" in checks
                                          else {})})
                 self.support[sc.candidate] = (test, cv0, cv1, checks)
