@@ -93,6 +93,12 @@ def _finish(p, pids=()):
         pytest.fail("the command did not end within 60 s of the signal")
 
 
+def _said(err: str) -> list[str]:
+    """The lines of standard error, but the warning that loading arm4's and arm5's files gives (their parallel
+    axes have no beta_deg: casadical.errors.ParallelAxesWarning), which is not what these tests look at."""
+    return [x for x in err.strip().splitlines() if "has no beta_deg" not in x]
+
+
 def _nothing_left(tmp_path, *names):
     for name in names:
         assert not (tmp_path / name).exists(), name
@@ -119,7 +125,7 @@ def test_a_signal_stops_an_ipopt_solve(arms, tmp_path, sig, code):
     _, err = _finish(p)
     assert time.monotonic() - t < 10
     assert p.returncode == code, err
-    lines = err.strip().splitlines()
+    lines = _said(err)
     # one line says it; before it, only the progress line of the fit (said once it took a second)
     assert lines[-1].startswith("casadical: ") and "no output was written" in lines[-1], err
     assert [x.split(" to ")[0] for x in lines[:-1]] == ["calibrate: fitting model kinematic+compliance"], err
@@ -149,7 +155,7 @@ def test_a_signal_while_the_report_is_drawn_ends_its_workers(arms, tmp_path, sig
     time.sleep(0.2)
     assert not [k for k in kids if _alive(k)], "a figure worker outlived the command"
     assert p.returncode == code, err
-    lines = err.strip().splitlines()
+    lines = _said(err)
     assert len(lines) == 1 and "no output was written" in lines[0], err
     _nothing_left(tmp_path, "r.json", "r.html", "f.json")
 

@@ -7,7 +7,7 @@ three ways: significance (F-test at a Bonferroni-corrected level, BIC) and
 held-out error on folds that must extrapolate as well as interpolate
 (random, time-blocked and joint-range-blocked cross-validation,
 :mod:`.validation`). Physical causes (compliance, progressive stiffness,
-encoder scale, backlash, thermal expansion, drift) are tried before
+encoder scale, backlash, thermal expansion, drift, warm-up) are tried before
 periodic errors, which must also be resolved from their neighbouring
 harmonics and from geometry and agree over the two halves of the joint's
 range (:mod:`.periodic`); structure that passes the statistics but not
@@ -15,9 +15,12 @@ these checks is reported as ``unexplained`` and kept out of the model.
 At the end every accepted cause is tested again against the final model
 (:mod:`.backward`) and must still be physics (:mod:`casadical.physics`);
 the final model never does worse than the kinematic one where it must
-extrapolate. With several sessions every physical cause is asked whether
-one value serves every session (the robot's) or only one session's own
-(the session's). The validation poses judge every step and are never used
+extrapolate. With several sessions every cause is asked whether one value
+serves every session (the robot's) or only one session's own (the
+session's; :mod:`.catalogue`). The poses the final fit sets aside are
+tested for shared structure before they are called bad measurements
+(:mod:`casadical.set_aside`, :mod:`.gaps`), and what these data cannot test
+is said (:func:`.catalogue.not_tried`). The validation poses judge every step and are never used
 to accept one. The accuracy layer last (:mod:`.layer`: a session
 compensator that applies where it knows) takes what no named cause
 explains; :mod:`.transfer` takes the findings to another series.
