@@ -130,7 +130,8 @@ def robot_file(spec: str | Path) -> Path:
 
 
 def robot_from_toml(path: str | Path) -> Robot:
-    """Read a robot TOML file (docs/formats.md section 1).
+    """Read a robot TOML file (docs/formats.md section 1); a :class:`~casadical.errors.ParallelAxesWarning`
+    names each link with parallel consecutive axes and no ``beta_deg``.
 
     Raises
     ------
@@ -138,7 +139,9 @@ def robot_from_toml(path: str | Path) -> Robot:
         Unreadable file or any invalid field (the message names the file,
         the table and the key).
     """
-    return robot_from_dict(read_toml(path, RobotFileError), str(path))
+    robot = robot_from_dict(read_toml(path, RobotFileError), str(path))
+    warn_parallel_axes(robot.joints, robot.convention, str(path))
+    return robot
 
 
 def load_robot(spec: str | Path, tip: str | None = None, base: str | None = None,
@@ -255,7 +258,6 @@ def robot_from_dict(data: dict[str, Any], file: str = "<dict>") -> Robot:
             if x <= 0:
                 raise RobotFileError(f"length must be positive, got {x}", file=file, column=f"loop.{k}")
         loop = Loop(int(j), *lengths)
-    warn_parallel_axes(joints, convention, file)
     return Robot(
         name=name, joints=joints, convention=convention,
         base_xyz=v.vector(base, "xyz_m", "base", 3, default=np.zeros(3)),
@@ -292,7 +294,7 @@ def warn_parallel_axes(joints: list[Joint], convention: str, file: str) -> None:
         warnings.warn(f"{file}: joint[{link}]: the axes of joints {min(link, other)} and {max(link, other)} are "
                       f"parallel (alpha_deg {math.degrees(joints[link - 1].alpha):g}) and joint[{link}] has no "
                       "beta_deg: a small tilt between them (Hayati's beta) cannot be calibrated, and its d_m is "
-                      f"ill-conditioned; add beta_deg = 0.0 to joint[{link}]", ParallelAxesWarning, stacklevel=3)
+                      f"ill-conditioned; add beta_deg = 0.0 to joint[{link}]", ParallelAxesWarning, stacklevel=4)
 
 
 class _Validator:
