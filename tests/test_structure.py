@@ -335,3 +335,24 @@ def test_the_closed_chain_protocol_names_no_cause_the_truth_lacks(tmp_path):
         {("joint_periodic", 2, 2), ("joint_periodic", 3, 1)}
     found = {(f["cause"], f.get("joint"), f.get("harmonic")) for f in doc["findings"] if f["in_model"]}
     assert found <= truth, found - truth
+
+
+@pytest.mark.parametrize("arm, seed", [(ARM4_BETA, 0), (ARM7_DH, 1), (ARM7, 2)], ids=["arm4", "arm7dh", "arm7"])
+def test_a_sessions_own_encoder_scale_is_named_and_described(arm, seed, tmp_path):
+    """Session A's drive 2 reads 500 ppm off (its own encoder scale, session B's does not): named as session A's,
+    described with its own value (fe55b8a: a KeyError for escale2 when describing escale2@A)."""
+    rng = np.random.default_rng(seed)
+    robot = TrueRobot.draw(Arm.from_dict(arm), Effects(), rng)
+    own = robot.with_effects(Effects(encoder_scale={2: 5e-4}))
+    parts = {"cal": [], "val": []}
+    for kind, n in (("cal", 80), ("val", 120)):
+        (tmp_path / kind).mkdir()
+        for truth, s in ((own, Session("A")), (robot, Session("B", (1.1, 0.4, -0.2), (0.0, 0.02, 1.9)))):
+            parts[kind].append(read(measure(truth, sample(truth, n, rng, floor_z=None), rng, session=s),
+                                    tmp_path / kind / f"{s.name}.csv"))
+    rep = diagnose(robot_from_dict(arm), combine(parts["cal"]), combine(parts["val"]), DiagnosisSettings(seed=seed))
+    assert named(rep) == {("geometric", None, None, None, "robot"), ("encoder_scale", 2, None, "A", "session")}, \
+        rep.final_model
+    f = next(f for f in rep.findings if f.cause == "encoder_scale")
+    ppm = f.parameters["escale2@A"]["value"] * 1e6 if f.parameters["escale2@A"]["unit"] == "1" else None
+    assert "scale error" in f.evidence and (ppm is None or abs(ppm - 500) < 100), (f.evidence, f.parameters)
