@@ -41,6 +41,8 @@ from .errors import listing
 
 #: family-wise level of the tests together: below it, set-aside poses share structure
 ALPHA = 0.001
+#: below this family-wise p-value (but above ALPHA) the strongest test is mentioned as a hint
+HINT = 0.05
 #: a pose's error is along a joint's direction when the angle between them is below this (degrees): the
 #: poses a direction structure holds
 ALONG_DEG = 25.0
@@ -141,8 +143,8 @@ class SetAsideStructure:
         if self.n_set_aside < 2:
             return "likely a bad measurement (a single pose: no structure to test)"
         if not sig:
-            hint = (f"; the strongest hint, {self.tests[0].where}, p = {min(self.tests[0].p_value * len(self.tests), 1):.2g}"
-                    if self.tests else "")
+            p = min(self.tests[0].p_value * len(self.tests), 1.0) if self.tests else 1.0
+            hint = f"; the strongest hint, {self.tests[0].where}, p = {p:.2g}" if p < HINT else ""
             return ("likely bad measurements (they share no session, no start or end of the measurements, no region "
                     f"of a joint or of its load, and their errors no joint's direction{hint})")
         m = len(self.tests)
