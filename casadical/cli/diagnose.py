@@ -111,7 +111,11 @@ def run(args) -> int:
     print(report.text(verbose=args.verbose), file=out)
     print(file=out)
     if args.json:
-        write_json(args.json, report.to_dict(), args.force)
+        doc = report.to_dict()
+        # the poses the report was made from, for plan-poses REPORT.json (relative to the report's folder)
+        doc["inputs"] = {"data": [_beside(p, args.json) for p in args.data],
+                         "validate": [_beside(p, args.json) for p in args.validate]}
+        write_json(args.json, doc, args.force)
         print(f"report -> {'standard output' if args.json == STDOUT else args.json}", file=out)
     if args.html:
         from ..report import diagnosis_html  # matplotlib: imported only for the HTML report
@@ -123,6 +127,19 @@ def run(args) -> int:
         report.final.save(args.out, overwrite=args.force)
         print(f"final model -> {args.out}", file=out)
     return 0
+
+
+def _beside(path: str, report: str) -> str:
+    """``path`` relative to the folder of ``report`` (absolute when the report goes to standard output or
+    to another drive)."""
+    import os
+
+    if report == STDOUT:
+        return os.path.abspath(path)
+    try:
+        return os.path.relpath(os.path.abspath(path), os.path.dirname(os.path.abspath(report)))
+    except ValueError:
+        return os.path.abspath(path)
 
 
 def _brief(say):
