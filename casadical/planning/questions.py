@@ -98,6 +98,10 @@ def open_questions(report: dict, final_values: dict[str, float], path: str = "")
         ``final.parameters[].significant``).
     """
     alpha = float((report.get("settings") or {}).get("alpha", 0.001))
+    # a structure is screened among every joint's harmonics: the diagnosis' level, corrected for them (at most)
+    settings = report.get("settings") or {}
+    n_joints = len((report.get("robot_description") or {}).get("joint", [])) or 1
+    scan_level = alpha / (n_joints * int(settings.get("max_harmonic", 60)))
     out: list[Question] = []
     seen: set = set()
 
@@ -114,11 +118,14 @@ def open_questions(report: dict, final_values: dict[str, float], path: str = "")
             a = _candidate(f)
             for b in f.get("ambiguous_with", []):
                 other = _candidate(b)
+                # the level the diagnosis told them apart at (its round's corrected level)
+                level = 10 ** b["test"]["log10_level"] if "test" in b else alpha
                 names = a.parameter_names()
                 add("ambiguous", f"{a.label(short=True)} or {other.label(short=True)}? (finding {k + 1})",
                     [other], names + [n for n in other.parameter_names() if n not in names],
-                    {n: final_values[n] for n in names if n in final_values}, alpha, k)
+                    {n: final_values[n] for n in names if n in final_values}, level, k)
         if cause == "unexplained" and not f.get("in_model", False):
+            periodic_seen = False
             for item in (f.get("holds_up") or {}).get("structures", []):
                 if "candidate" not in item:
                     raise InputError("the report was written by an older casadical (its unexplained structure "
@@ -127,6 +134,11 @@ def open_questions(report: dict, final_values: dict[str, float], path: str = "")
                 cand = _candidate(item["candidate"])
                 tested = {n: float(v) for n, v in (item.get("values") or {}).items()}
                 if cand.cause == "joint_periodic":
+                    # the first is the strongest; the ones set aside after it are mostly its leakage into the
+                    # neighbouring harmonics, which its band already asks about
+                    if periodic_seen:
+                        continue
+                    periodic_seen = True
                     lo, hi = item.get("band", [cand.harmonic, cand.harmonic])
                     extra = [Candidate("joint_periodic", cand.joint, h) for h in range(lo, hi + 1)]
                     text = (f"joint {cand.joint}: which harmonic, {lo}..{hi}?" if hi > lo else
@@ -139,7 +151,7 @@ def open_questions(report: dict, final_values: dict[str, float], path: str = "")
                     text = f"joint {cand.joint}: {cand.label(short=True)}, or something else?"
                 interest = [n for c in extra for n in c.parameter_names()]
                 add("unexplained", text + f" (finding {k + 1})", extra, list(dict.fromkeys(interest)), tested,
-                    alpha, k)
+                    scan_level, k)
     params = (report.get("final") or {}).get("parameters", [])
     if params and not any("significant" in p for p in params):
         raise InputError("the report was written by an older casadical (its final parameters have no "
