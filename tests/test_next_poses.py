@@ -116,3 +116,34 @@ def test_report_mode_errors(tmp_path, capsys):
     capsys.readouterr()
     assert main(["plan-poses", str(old), p["cand"], "-m", "5", "--out", str(tmp_path / "o.csv")]) == 2
     assert "run diagnose again" in capsys.readouterr().err
+
+
+def test_every_kind_of_question_is_read_and_planned(tmp_path, capsys):
+    """The questions of a real report (ambiguous scale error / first harmonic), with one named parameter marked
+    not significant: three questions, each planned alone with --question, each planned set lowering the
+    standard errors it asks about below the measured poses' and below the random sets' median."""
+    env = setup(SCENARIOS["narrow range"], 0, tmp_path)
+    p = env["paths"]
+    rep = tmp_path / "rep.json"
+    assert main(["diagnose", p["robot"], p["cal"], "--validate", p["val"], "--json", str(rep), "--no-blackbox",
+                 "-q"]) == 0
+    doc = json.loads(rep.read_text())
+    for e in doc["final"]["parameters"]:
+        if e["name"] == "escale2":
+            e["significant"] = False
+    rep.write_text(json.dumps(doc))
+    from casadical.planning.questions import open_questions
+
+    qs = open_questions(doc, {"escale2": 6e-4})
+    assert [q.kind for q in qs] == ["ambiguous", "not significant"], [q.text for q in qs]
+    assert qs[1].interest == ["escale2"]
+    for n in (1, 2):
+        plan = tmp_path / f"plan{n}.json"
+        assert main(["plan-poses", str(rep), p["cand"], "-m", "6", "--out", str(tmp_path / f"n{n}.csv"),
+                     "--question", str(n), "--json", str(plan), "-q"]) == 0
+        q = json.loads(plan.read_text())["questions"][0]
+        for name in q["parameters"]:     # null: the poses do not determine it
+            planned = q["planned"]["std"][name]
+            assert planned is not None
+            assert q["random"]["std"][name] is None or planned < q["random"]["std"][name]
+            assert q["before"]["std"][name] is None or planned < q["before"]["std"][name]

@@ -515,8 +515,9 @@ def _accuracy_plot(m: dict):
     fig, axes = figure(6.4, 4.2)
     ax = axes[0, 0]
     ja, jb = m["joints"]
-    mesh = ax.pcolormesh(m["x_deg"], m["y_deg"], m["std_mm"], shading="auto", cmap="viridis")
-    fig.colorbar(mesh, ax=ax, label="predicted uncertainty (mm)")
+    # filled contours: vector paths (a mesh's colour bar is an embedded bitmap), a small SVG
+    levels = ax.contourf(m["x_deg"], m["y_deg"], m["std_mm"], levels=12, cmap="viridis")
+    fig.colorbar(levels, ax=ax, label="predicted uncertainty (mm)")
     if m["measured_deg"] is not None:
         ax.scatter(m["measured_deg"][:, 0], m["measured_deg"][:, 1], s=9, c="white", edgecolors="black",
                    linewidths=0.5, label="calibration poses")
