@@ -1,25 +1,25 @@
 """The planning loop on simulated data (tests and benchmarks/study_next_poses.py).
 
-A cause the first poses cannot resolve is hidden in a simulated arm; the
-diagnosis reports an open question; ``plan-poses REPORT.json`` picks M of
-a work cell's candidates (most repeat the measured region, a few reach
-beyond it); the picked poses are "measured" with the simulator and the
-diagnosis of both sets must name the cause. M random candidates are the
-baseline.
+A cause the first poses cannot resolve is hidden in an arm measured by the
+independent truth (tests/truth: its own forward model, no casadical code);
+the diagnosis reports an open question; ``plan-poses REPORT.json`` picks M
+of a work cell's candidates (most repeat the measured region, a few reach
+beyond it); the picked poses are "measured" on the same true robot and the
+diagnosis of both sets must name the cause. M random candidates of the same
+pool are the baseline.
 """
 
 from __future__ import annotations
 
 import json
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 
 import numpy as np
 
 from casadical.cli import main
 from casadical.data import Measurements
-from casadical.robot import robot_from_dict
-from casadical.simulate import Effects, sample_poses, simulate
+from truth import Arm, Effects, TrueRobot, measure as shoot, sample
 
 from arms import ARM5, ARM7_DH, to_toml
 
@@ -32,13 +32,10 @@ class Scenario:
     arm: dict
     effects: Effects
     narrow: dict                     # joint (1-based) -> (lo_deg, hi_deg) of the measured region
-    far: str = "range"               # "range": the far candidates span the joints' whole range; "payload"
-    payload: float | None = None     # the measured poses' payload (kg); "payload": far ones carry other loads
     n_cal: int = 60
     m: int = 10
     truth: tuple = ()                # (cause, joint, harmonic) the diagnosis must name
     rival: tuple = ()                # the alternative it must no longer be ambiguous with
-    extra: dict = field(default_factory=dict)
 
 
 SCENARIOS = {
@@ -48,16 +45,11 @@ SCENARIOS = {
     # a gear error of harmonic 19 on joint 1 over 30 deg: harmonics 18..21 fit about as well
     "harmonic band": Scenario("harmonic band", ARM7_DH, Effects(periodic=[(1, 19, math.radians(0.01), 0.7)]),
                               {1: (-15, 15)}, truth=("joint_periodic", 1, 19)),
-    # compliance of joint 2 with joints 2 and 3 over narrow ranges and one payload: an encoder scale error of
-    # joint 2 follows the torque as well; poses with another payload tell them apart
-    "compliance or scale": Scenario("compliance or scale", ARM5, Effects(stiffness={2: 4e5}),
-                                    {2: (50, 70), 3: (-100, -80)}, far="payload", payload=10.0,
-                                    truth=("joint_compliance", 2, None), rival=("encoder_scale", 2, None)),
 }
 
 
-def region(robot, sc: Scenario, n: int, rng) -> np.ndarray:
-    q = sample_poses(robot, n, rng, floor_z=None)
+def region(robot: TrueRobot, sc: Scenario, n: int, rng) -> np.ndarray:
+    q = sample(robot, n, rng, floor_z=None)
     for j, (lo, hi) in sc.narrow.items():
         q[:, j - 1] = np.radians(rng.uniform(lo, hi, n))
     return q
@@ -65,29 +57,21 @@ def region(robot, sc: Scenario, n: int, rng) -> np.ndarray:
 
 def setup(sc: Scenario, seed: int, folder, n_candidates: int = 500, n_far: int = 15) -> dict:
     """Write the robot, the measured and validation poses, the candidates; return paths and the truth."""
-    robot = robot_from_dict(sc.arm, "arm")
     rng = np.random.default_rng(seed)
-    pay = None if sc.payload is None else sc.payload
-    cal, truth = simulate(robot, region(robot, sc, sc.n_cal, rng), sc.effects, seed=seed, payload_kg=pay)
-    val, _ = simulate(robot, region(robot, sc, 100, rng), truth=truth, seed=seed + 500, payload_kg=pay)
-    qn = region(robot, sc, n_candidates - n_far, rng)
-    if sc.far == "payload":
-        qf = region(robot, sc, n_far, rng)
-        payload = np.concatenate([np.full(len(qn), pay), rng.choice([0.0, 2 * pay], n_far)])
-    else:
-        qf = sample_poses(robot, n_far, rng, floor_z=None)
-        payload = None
+    robot = TrueRobot.draw(Arm.from_dict(sc.arm), sc.effects, rng)
+    q_cal, q_val = region(robot, sc, sc.n_cal, rng), region(robot, sc, 100, rng)
+    qn = region(robot, sc, n_candidates - n_far, rng)       # the measured region again
+    qf = sample(robot, n_far, rng, floor_z=None)            # the few that reach beyond it
     q = np.concatenate([qn, qf])
     order = rng.permutation(len(q))
-    extra = {} if payload is None else {"payload_kg": payload[order]}
-    cand = Measurements.from_arrays(q[order], None, **extra)
+    cand = Measurements.from_arrays(q[order])
     paths = {k: str(folder / f"{k}.csv") for k in ("cal", "val", "cand")}
     (folder / "arm.toml").write_text(to_toml(sc.arm))
     paths["robot"] = str(folder / "arm.toml")
-    cal.write_csv(paths["cal"], overwrite=True)
-    val.write_csv(paths["val"], overwrite=True)
+    shoot(robot, q_cal, rng).write_csv(paths["cal"])
+    shoot(robot, q_val, rng).write_csv(paths["val"])
     cand.write_csv(paths["cand"], overwrite=True)
-    return {"paths": paths, "truth": truth, "robot": robot, "cal": cal, "cand": cand,
+    return {"paths": paths, "truth": robot, "cand": cand,
             "far": {int(k) for k in np.flatnonzero(order >= len(qn))}}
 
 
@@ -98,12 +82,8 @@ def diagnose(robot_path: str, data: list[str], val: str, out: str) -> dict:
 
 
 def measure(env: dict, rows, seed: int, path: str) -> None:
-    """The candidates ``rows`` measured with the simulator (the same true robot)."""
-    cand = env["cand"]
-    pay = cand.get("payload_kg")
-    data, _ = simulate(env["robot"], cand.q[np.asarray(rows)], truth=env["truth"], seed=seed,
-                       payload_kg=None if pay is None else pay[np.asarray(rows)])
-    data.write_csv(path, overwrite=True)
+    """The candidates ``rows`` measured on the same true robot, in the same session."""
+    shoot(env["truth"], env["cand"].q[np.asarray(rows)], np.random.default_rng(seed)).write_csv(path)
 
 
 def resolved(report: dict, sc: Scenario) -> bool:
