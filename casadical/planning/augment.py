@@ -52,9 +52,9 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..errors import InputError, SolverError
+from ..errors import InputError
 from ..threads import limited_threads
-from .doptimal import _cap_project, _Pool, _swap_ratios, _top
+from .doptimal import _cap_project, _Pool, _swap_ratios, _top, solve_in_turn
 
 
 @dataclass
@@ -367,21 +367,7 @@ def relax_ds_cvxpy(criterion: Criterion, m: int, solver: str | None = None) -> D
     X = cp.Variable((s, s), symmetric=True)
     big = cp.bmat([[M[:s, :s] - X, M[:s, s:]], [M[s:, :s], M[s:, s:]]]) if s < p else M - X
     prob = cp.Problem(cp.Maximize(cp.log_det(X)), [w >= 0, w <= 1, cp.sum(w) == m, (big + big.T) / 2 >> 0])
-    installed = cp.installed_solvers()
-    chain = [solver] if solver else [x for x in ("CLARABEL", "SCS") if x in installed] or [None]
-    failures = []
-    for name in chain:
-        try:
-            prob.solve(solver=name)
-        except cp.error.SolverError as e:
-            failures.append(f"{name} failed: {str(e).splitlines()[0]}")
-            continue
-        if w.value is not None and prob.status in ("optimal", "optimal_inaccurate"):
-            solver = name
-            break
-        failures.append(f"{name} ended with status {prob.status}")
-    else:
-        raise SolverError(f"cvxpy could not solve the relaxation: {'; '.join(failures)}")
+    solver, _ = solve_in_turn(prob, w, solver)
     wv = np.clip(np.asarray(w.value, dtype=float), 0.0, 1.0)
     st = _state([q], np.arange(N), wv)
     return DsRelaxation(wv, st[0][3] / s, _bound([q], st, m), f"cvxpy:{solver}", str(prob.status),
