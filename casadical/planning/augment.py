@@ -172,7 +172,7 @@ class DsDesign:
     indices : ndarray of int
         Sorted candidate rows.
     value : float
-        ``F`` of the measured poses plus these (scaled units, as the bound).
+        ``F`` of the measured poses plus these (log dets in the parameters' scaled units, as the bound).
     upper_bound : float
         No M candidates added to the measured poses reach a larger ``F``.
     efficiency : float
@@ -197,9 +197,8 @@ class DsDesign:
 
 
 def criterion_value(criteria: list[Criterion], subset=None, weights: np.ndarray | None = None) -> float:
-    """``F = sum_q f_q / s_q`` of the measured poses plus ``subset`` (or relaxed ``weights``), scaled units."""
-    m = 1
-    qs = [_Question(c, m) for c in criteria]
+    """``F = sum_q f_q / s_q`` of the measured poses plus ``subset`` (or relaxed ``weights``)."""
+    qs = [_Question(c, 1) for c in criteria]     # F does not depend on the working scaling (set by M)
     return _value(qs, *_as_weights(len(criteria[0].A), subset, weights))
 
 
