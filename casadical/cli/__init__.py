@@ -53,7 +53,9 @@ class _Parser(argparse.ArgumentParser):
         return super().format_help()
 
     def error(self, message: str):  # type: ignore[override]
-        raise UsageError(f"{self.prog}: {message} (see {self.prog} --help)")
+        # "casadical: error: " comes first: the prog once, as the command's name ("diagnose: ...")
+        command = self.prog.removeprefix("casadical").strip()
+        raise UsageError(f"{command + ': ' if command else ''}{message} (see {self.prog} --help)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -98,6 +100,17 @@ def main(argv: list[str] | None = None) -> int:
     return 128 + (interrupts.last_signal or 2)
 
 
+def _command_named(e: UsageError, ap: argparse.ArgumentParser, argv: list[str] | None) -> str:
+    """An error of the top parser about a command's arguments (unrecognized ones) names that command and its help."""
+    text = str(e)
+    words = sys.argv[1:] if argv is None else argv
+    sub = next(a for a in ap._actions if isinstance(a, argparse._SubParsersAction))
+    command = next((w for w in words if w in sub.choices), None)
+    if command and text.startswith("unrecognized arguments"):
+        return f"{command}: {text.replace('(see casadical --help)', f'(see casadical {command} --help)')}"
+    return text
+
+
 def _interrupted(e: KeyboardInterrupt) -> int:
     what = "interrupted" if exit_code(e) == 130 else f"stopped by {e.args[0] if e.args else 'a signal'}"
     print(f"casadical: {what}; no output was written", file=sys.stderr)
@@ -109,7 +122,7 @@ def _main(argv: list[str] | None) -> int:
     try:
         args = ap.parse_args(argv)
     except UsageError as e:
-        print(f"casadical: error: {e}", file=sys.stderr)
+        print(f"casadical: error: {_command_named(e, ap, argv)}", file=sys.stderr)
         return 2
     if not getattr(args, "func", None):
         ap.print_help()
