@@ -13,7 +13,11 @@ def run() -> None:
     interrupts.command_process()
     from .cli import main
 
-    interrupts.end_process(main())
+    try:
+        code = main()
+    except SystemExit as e:        # --help, --version
+        code = e.code if isinstance(e.code, int) else 0 if e.code is None else 1
+    interrupts.end_process(code)
 
 
 if __name__ == "__main__":
