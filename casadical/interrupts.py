@@ -22,8 +22,8 @@ ends at once; once a command's outputs are in place (:func:`finish`), a
 signal no longer stops anything and is said when the process ends, its
 outputs kept and complete.
 
-``CASADICAL_SIGNAL_AT=POINT[:SIGNAL]`` makes the process send itself a
-signal (default SIGTERM) the first time it reaches a named moment of a
+``CASADICAL_SIGNAL_AT=POINT[:SIGNAL[:group]]`` makes the process send itself a
+signal (default SIGTERM; ``group``: to its process group) the first time it reaches a named moment of a
 command (:func:`checkpoint`, :data:`POINTS`), and
 ``CASADICAL_PAUSE_AT=POINT:FIFO`` makes it wait there until a test lets
 it go on: the tests stop commands, or run two at once, at the moments they

@@ -38,8 +38,8 @@ fixed point there (the regularised least squares ``|r|^2 + mu^2 |dq|^2``
 of that direction). The residual is :meth:`CalibrationResult.predict`, the
 full prediction: a smooth additive correction there is honoured, its
 derivative only slows the iteration. Rows where position and orientation
-cannot both be met near the programmed joints get a second pass with the
-position alone.
+cannot both be met near the programmed joints (within ``max_change_deg``
+and the bound) get a second pass with the position alone.
 
 Joint limits are hard: a row whose solution lies beyond a limit, or that
 does not converge, is an error naming the file, row (and joint column).
@@ -387,8 +387,8 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
     q, r, iterations, settled = _levenberg_marquardt(eqs, np.arange(N), targets.q, hold, tol, max_iter, limit, eps)
     on_point = np.zeros(N, dtype=bool)    # rows solved for the point alone
     if hold:
-        # rows where position and orientation cannot both be met near the programmed joints (a
-        # singular configuration): the point alone, with the least joint change, from the start again
+        # rows where position and orientation cannot both be met near the programmed joints (a singular
+        # configuration): the point alone, with the least joint change, from the start again
         loose = np.flatnonzero((np.linalg.norm(r[:, :3], axis=1) > tol)
                                | (np.linalg.norm(r[:, 3:], axis=1) > ORIENTATION_TOL * ORIENTATION_WEIGHT))
         if loose.size:
@@ -412,7 +412,7 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
                                 (residual <= tol) | (damped & settled), tol, held_description(n, hold, probe),
                                 model.robot.limits, limit, probe, small, large, damped, max_deg_per_mm)
     if hold:
-        loose = np.flatnonzero(result.converged & on_point)
+        loose = np.flatnonzero(result.converged & on_point & ~result.orientation_held)
         if loose.size:
             sv = np.linalg.svd(eqs(loose, targets.q[loose], True)[1], compute_uv=False)   # at the programmed joints
             warnings.warn(f"{targets.path}: the {'probe' if probe else 'flange'} orientation cannot be held within "

@@ -279,6 +279,21 @@ def test_outputs_appear_together_or_not_at_all(tmp_path):
     assert a.read_text() == "a" and b.read_text() == "b" and len(list(tmp_path.iterdir())) == 2
 
 
+def test_a_commit_that_fails_halfway_restores_what_it_replaced(tmp_path):
+    """All or none, also with --force: when a later output cannot be moved into place, an earlier one that
+    replaced a user's file is put back (before: the user's file was left replaced by the new one)."""
+    a, sub = tmp_path / "a.txt", tmp_path / "sub"
+    sub.mkdir()
+    a.write_text("theirs")
+    with pytest.raises(Exception, match="cannot write"), outputs_together():
+        atomic_write(a, "new", overwrite=True)
+        atomic_write(sub / "b.txt", "b")
+        for f in sub.iterdir():      # the folder of the second output goes away before the end
+            f.unlink()
+        sub.rmdir()
+    assert a.read_text() == "theirs" and sorted(p.name for p in tmp_path.iterdir()) == ["a.txt"]
+
+
 def test_an_output_that_cannot_be_written_fails_before_the_work(arms, tmp_path, capsys):
     """``--html`` in a folder where no file can be made: one line before any work, and no calibration JSON
     without its report."""

@@ -93,11 +93,11 @@ def _check_cache_settings() -> None:
 def main(argv: list[str] | None = None) -> int:
     """Run one command; its exit code (a signal after its outputs were in place: 128 + the signal, one line)."""
     code = _main(argv)
-    line = interrupts.late()
-    if line is None:
+    late = interrupts.late_exit_code()
+    if late is None:
         return code
-    print(line, file=sys.stderr)
-    return 128 + (interrupts.last_signal or 2)
+    print(interrupts.late(), file=sys.stderr)
+    return late
 
 
 def _command_named(e: UsageError, ap: argparse.ArgumentParser, argv: list[str] | None) -> str:

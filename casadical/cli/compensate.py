@@ -60,12 +60,12 @@ def run(args) -> int:
     warn_session_frame(cal.sessions, targets, args.cal)
     if len(targets) < JIT_MIN_ROWS:
         cal.model.jit = False
-    if cal.coverage is not None:    # the programmed joints: the same rows whatever is held (the corrections move
-        cal.coverage.warn(np.degrees(targets.q), targets.lines, args.targets)   # them by fractions of a degree)
     result = compensate(cal, targets, tolerance_mm=args.tolerance_mm, max_iter=args.max_iter,
                         max_change_deg=args.max_change_deg, orientation=False if args.position_only else None,
                         max_deg_per_mm=args.max_deg_per_mm,
                         **check_options(args))
+    if cal.coverage is not None:    # the programmed joints: the same rows whatever is held (the corrections move
+        cal.coverage.warn(np.degrees(targets.q), targets.lines, args.targets)   # them by fractions of a degree)
     result.joints().write_csv(args.out, overwrite=args.force)
     print(result.summary())
     line = compensator_line(cal, targets)
