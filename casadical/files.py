@@ -25,7 +25,7 @@ import tomllib
 from pathlib import Path
 from typing import IO, Iterator
 
-from . import interrupts
+from .interrupts import checkpoint, deferred, finish, received, since
 from .errors import CasadicalError, InputError
 
 EXISTS = "exists already; choose another name or pass --force to replace it"
@@ -79,10 +79,10 @@ def outputs_together() -> Iterator[None]:
     if outer:
         yield
         return
-    start = interrupts.received()
+    start = received()
     try:
         yield
-        stop = interrupts.since(start)
+        stop = since(start)
         if stop is not None:       # a signal that something on the way swallowed, or turned into another error
             raise stop
         _commit(staged.files)
@@ -101,12 +101,12 @@ def _commit(files: list[tuple[str, Path, bool]]) -> None:
     A signal during the moves takes them back and is raised; once all are in
     place the command is finished and a signal is said at its end.
     """
-    with interrupts.deferred() as got:
+    with deferred() as got:
         done = _move_all(files)
         if got:
             _undo(done)
         else:
-            interrupts.finish(len(files))
+            finish(len(files))
             for _, backup in done:
                 if backup is not None:
                     with contextlib.suppress(OSError):
@@ -135,7 +135,7 @@ def _move_all(files: list[tuple[str, Path, bool]]) -> list[tuple[Path, str | Non
                 raise
             done.append((target, backup))
             if len(done) == 1:
-                interrupts.checkpoint("commit")
+                checkpoint("commit")
     except BaseException:
         _undo(done)
         raise
@@ -247,7 +247,7 @@ def atomic_open(path: str | Path, mode: str = "w", overwrite: bool = False,
         if tmp is not None:
             _place(tmp, path, overwrite)
         else:
-            interrupts.checkpoint("output")
+            checkpoint("output")
     except OSError as e:
         raise InputError(f"cannot write: {e.strerror or e}", file=str(path)) from e
     finally:
