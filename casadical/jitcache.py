@@ -45,6 +45,7 @@ from typing import TYPE_CHECKING
 
 from .errors import CasadicalError, InputError, SettingError
 from .files import atomic_write
+from .interrupts import checkpoint
 
 if TYPE_CHECKING:      # casadi is imported where a function is compiled: the other commands start without it
     import casadi as ca
@@ -263,6 +264,7 @@ def _compile(items: list[tuple[ca.Function, str]], cc: str) -> list[ca.Function]
                 except OSError as e:
                     raise CompileError(f"cannot run {cc}: {e}") from e
                 jobs.append((p, library))
+            checkpoint("compile")     # where a test has the process signal itself while the compilers run
             for p, _ in jobs:
                 _, err = p.communicate()
                 if p.returncode == -signal.SIGINT:

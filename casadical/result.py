@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .data import Measurements
+from .data import Measurements, session_index
 from .calibration_file import restored_terms, validate_calibration_document
 from .checks import check_calibration_fits, check_poses
 from .coverage import Coverage
@@ -68,10 +68,14 @@ class Validation:
     file : str
         The validation poses' file.
     stats : ErrorStats
+    orientation : AngleStats or None
+        The probe's orientation errors there (a full-pose calibration, validated on poses with
+        ``rx_deg, ry_deg, rz_deg``).
     """
 
     file: str
     stats: ErrorStats
+    orientation: "AngleStats | None" = None
 
     def to_dict(self) -> dict:
         """The calibration JSON's ``validation``: the file and its error statistics (mm)."""
@@ -238,7 +242,6 @@ class CalibrationResult:
 
     def session_stats(self, data: Measurements) -> dict[str, ErrorStats]:
         """Errors on ``data`` per session (data of one session: ``{"": stats}``)."""
-        from .sessions import session_index
         e = self.errors(data)
         return {s: ErrorStats.of(e[idx]) for s, idx in session_index(data).items()}
 
@@ -373,6 +376,8 @@ class CalibrationResult:
         check_calibration_fits(errors, data, name or f"of {self.model.robot.name}",
                                self.calibration.mean_mm if self.calibration else None, allow_mismatch)
         self.validation = Validation(data.path, ErrorStats.of(errors))
+        if self.has_orientation and data.has_orientation:
+            self.validation.orientation = self.orientation_stats(data)
         return self.validation.stats
 
     # --- reports --------------------------------------------------------------
@@ -416,6 +421,8 @@ class CalibrationResult:
             lines.append(f"validation poses ({self.validation.file}): " + self.validation.stats.line())
         if self.orientation is not None:
             lines.append("orientation:       " + self.orientation.line())
+        if self.validation is not None and self.validation.orientation is not None:
+            lines.append(f"validation orientation ({self.validation.file}): " + self.validation.orientation.line())
         if self.has_orientation:
             mount = np.degrees(matrix_to_rpy(self.tool_rotation()))
             lines.append("probe mounting on the flange: rpy [" + ", ".join(f"{v:.4f}" for v in mount) + "] deg")
@@ -490,6 +497,8 @@ class CalibrationResult:
                 "sigma_mm": self.loss.sigma * 1000 if fitted else None,
                 "sigma_deg": math.degrees(self.loss.sigma_rot) if fitted else None,
                 "calibration": self.orientation.to_dict() if self.orientation else None}
+            if self.validation is not None and self.validation.orientation is not None:
+                doc["orientation"]["validation"] = self.validation.orientation.to_dict()
         if self.solver is not None:
             doc["solver"] = {"name": self.solver_name, "status": self.solver.status,
                              "iterations": self.solver.iterations, "solve_time_s": self.solver.solve_time_s,
@@ -497,7 +506,8 @@ class CalibrationResult:
         if self.uncertainty is not None:
             doc["uncertainty"] = {"sigma_mm": self.uncertainty.sigma * 1000, "dof": self.uncertainty.dof,
                                   "names": self.uncertainty.names,
-                                  "correlation": np.round(self.uncertainty.correlation, 6).tolist()}
+                                  # full precision: predict --std needs the covariance of correlated parameters
+                                  "correlation": np.round(self.uncertainty.correlation, 12).tolist()}
         doc["statistics"] = self.statistics.to_dict() if self.statistics is not None else None
         if self.validation is not None:
             doc["validation"] = self.validation.to_dict()
@@ -616,6 +626,8 @@ def load_calibration(path: str | Path) -> CalibrationResult:
         if ori:
             tool0 = np.asarray(ori["tool0"], dtype=float).reshape(3, 3)
             angles = AngleStats(**ori["calibration"]) if ori.get("calibration") else None
+            if ori.get("validation") and extra["validation"] is not None:
+                extra["validation"].orientation = AngleStats(**ori["validation"])
             full_pose = bool(ori.get("full_pose", False))
             if ori.get("sigma_deg") is not None:
                 import dataclasses
@@ -626,6 +638,7 @@ def load_calibration(path: str | Path) -> CalibrationResult:
     model.parameters = params
     cal = doc.get("calibration")
     by_session = {e["name"]: ErrorStats(**e["calibration"]) for e in doc.get("sessions") or [] if e.get("calibration")}
+    extra["uncertainty"] = _uncertainty_of(doc, params)
     return CalibrationResult(model, params, base0, calibration=ErrorStats(**cal) if cal else None,
                              notes=doc.get("notes", []), loss=loss, downweighted=rob.get("downweighted", []),
                              coverage=coverage, by_session=by_session, tool0=tool0, orientation=angles,
@@ -651,4 +664,19 @@ def _statistics_of(doc: dict) -> dict:
             pass        # nothing usable: the tests fall back on the normal distribution
     return {"statistics": FitStatistics.from_dict(stats) if stats else None,
             "validation": Validation.from_dict(val) if val else None}
+
+
+def _uncertainty_of(doc: dict, params) -> Uncertainty | None:
+    """The parameter covariance a calibration JSON holds (its free parameters' std and correlation), SI."""
+    unc = doc.get("uncertainty")
+    try:
+        names = list(unc["names"])
+        corr = np.asarray(unc["correlation"], dtype=float)
+        std = np.array([params[n].std for n in names], dtype=float)
+        if corr.shape != (len(names), len(names)) or not np.all(np.isfinite(corr)):
+            return None
+        return Uncertainty(names, corr * np.outer(np.nan_to_num(std), np.nan_to_num(std)),
+                           float(unc["sigma_mm"]) / 1000, int(unc["dof"]))
+    except (KeyError, TypeError, ValueError):
+        return None
 

@@ -27,7 +27,7 @@ from casadical.diagnosis import DiagnosisSettings, Finding, diagnose
 from casadical.diagnosis.candidates import Candidate
 from casadical.report import calibration_html, diagnosis_html
 from casadical.robot import robot_from_dict
-from casadical.simulate import Effects, simulate
+from casadical.simulate import Effects, sample_poses, simulate
 
 try:                        # drives the browser through the DevTools protocol
     from playwright.sync_api import sync_playwright
@@ -176,12 +176,12 @@ def test_calibration_report_parameters_identifiability_and_correlations(calibrat
     assert [r["parameter"] for r in params] == [p.name for p in result.parameters]
     for r in params:
         p = result.parameters[r["parameter"]]
-        assert float(r["identified"]) == pytest.approx(p.to_display(p.value), rel=1e-5, abs=1e-9)
+        assert float(r["identified"]) == pytest.approx(p.to_reading(p.value), rel=1e-5, abs=1e-9)
         assert r["unit"] == p.display_unit
         if p.fixed:
             assert r["status"].startswith("not identifiable" if p.identifiable is False else "held")
         else:
-            assert r["status"].startswith("identified") and float(r["std"]) == pytest.approx(p.to_display(p.std),
+            assert r["status"].startswith("identified") and float(r["std"]) == pytest.approx(p.to_reading(p.std),
                                                                                               rel=0.06)
     held = {r["parameter"]: r["held because"] for r in page.table("identifiability")}
     assert held == {p.name: p.reason or "fixed on request" for p in result.parameters if p.fixed}
@@ -216,7 +216,7 @@ def test_calibration_report_tests_each_parameter_and_flags_what_is_not_significa
             continue
         assert float(r["t"]) == pytest.approx(t.t, abs=0.006)
         lo, hi = (float(x) for x in r["95 % interval"].split(" \u2013 "))
-        assert (lo, hi) == pytest.approx(tuple(p.to_display(v) for v in t.ci), rel=1e-5, abs=1e-9)
+        assert (lo, hi) == pytest.approx(tuple(p.to_reading(v) for v in t.ci), rel=1e-5, abs=1e-9)
         assert r["status"] == ("identified" if t.significant else "identified; not significant")
         flagged += [] if t.significant else [p.name]
     # highlighted: exactly the rows that are not significant
@@ -601,6 +601,24 @@ def _signed_gain(text: str) -> list[str]:
     return re.findall(r"--\d|-\s?\d+\.\d+ mm (?:better|worse)|validation mean -\d|mean [+-]\d+\.\d+ mm with", text)
 
 
+def test_readme_quotes_what_the_job_prints_or_says_where_a_figure_comes_from(readme_job):
+    """Every error in mm the README gives for its job is printed by the job, or its sentence names the script that
+    makes it (issue 28: 'kinematic calibration plus a Gaussian process of its residual 0.241 mm', which the job
+    does not print, had no source)."""
+    d, r, doc = readme_job
+    readme = open(os.path.join(os.path.dirname(__file__), "..", "README.md"), encoding="utf-8").read()
+    paragraph = readme.split("On this split it names", 1)[1].split("Then, to the robot", 1)[0]
+    printed = [float(x) for x in re.findall(r"\d+\.\d+", r.stdout)]
+    figures = 0
+    for sentence in re.split(r"(?<=[.;])\s+", paragraph):
+        for x in re.findall(r"(\d+\.\d+) mm", sentence):
+            figures += 1
+            places = len(x.split(".")[1])
+            said = any(round(y, places) == float(x) for y in printed)
+            assert said or "benchmarks/" in sentence, f"README: {x} mm, neither printed by the job nor sourced: {sentence}"
+    assert figures >= 3
+
+
 def test_readme_summary_findings_first_and_short(readme_job):
     d, r, doc = readme_job
     lines = r.stdout.splitlines()
@@ -721,3 +739,35 @@ def test_a_rejected_step_after_an_accepted_one_gains_against_its_parent(diagnosi
     assert rejected[1]["extends"] == "3" and rejected[1]["validation mean mm"] == "0.3024 0.0024 worse"
     assert rejected[0]["why not accepted"] == "the halves of the joint's range disagree"
     assert not _signed_gain(page.text)
+
+
+def test_diagnosis_report_maps_where_the_model_is_accurate(browser, tmp_path):
+    """diagnose --html --map-joints 2,3: a map of the predicted uncertainty over joints 2 and 3 with the
+    calibration poses on it, readable in a real browser; it is lowest where the poses are (5-axis DH arm,
+    joint 2 measured over 40 deg of its 180)."""
+    from casadical.predictive import accuracy_map
+
+    robot = robot_from_dict(ARM5, "arm5")
+    (tmp_path / "arm.toml").write_text(to_toml(ARM5))
+    rng = np.random.default_rng(0)
+    q = sample_poses(robot, 160, rng)
+    q[:, 1] = np.radians(rng.uniform(40, 80, len(q)))
+    cal, truth = simulate(robot, q[:60], Effects(stiffness={2: 4e5}), seed=0)
+    val, _ = simulate(robot, q[60:], truth=truth, seed=1)
+    cal.write_csv(tmp_path / "cal.csv")
+    val.write_csv(tmp_path / "val.csv")
+    assert main(["diagnose", str(tmp_path / "arm.toml"), str(tmp_path / "cal.csv"), "--validate",
+                 str(tmp_path / "val.csv"), "--html", str(tmp_path / "r.html"), "--out", str(tmp_path / "f.json"),
+                 "--map-joints", "2,3", "--no-blackbox", "-q"]) == 0
+    html = (tmp_path / "r.html").read_text()
+    fig = re.search(r'<figure id="fig-accuracy">(.*?)</figure>', html, re.S).group(1)
+    assert "q2 (deg)" in fig and "q3 (deg)" in fig and "calibration poses" in fig
+    seen = look(browser, html, tmp_path / "map.html")
+    assert_readable(seen)
+    # the map's values: lowest inside the measured band of joint 2, higher outside it
+    from casadical.calibration import load_calibration
+
+    m = accuracy_map(load_calibration(tmp_path / "f.json"), cal.q, (2, 3))
+    inside = (m["x_deg"] >= 40) & (m["x_deg"] <= 80)
+    print("inside / outside", m["std_mm"][:, inside].mean() / m["std_mm"][:, ~inside].mean())
+    assert m["std_mm"][:, inside].mean() < 0.6 * m["std_mm"][:, ~inside].mean()

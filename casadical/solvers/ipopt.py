@@ -29,7 +29,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import SolverError
-from ..interrupts import noticed
+from ..interrupts import checkpoint, noticed, wanted
 from ..problem import CalibrationProblem
 from .base import Solver, SolverResult
 
@@ -139,7 +139,8 @@ class Ipopt(Solver):
             lam_f, lam_g = ca.MX.sym("lam_f"), ca.MX.sym("lam_g", 0)
             opts = self._options(N)
             # an exception in a callback (Ctrl-C, SIGTERM, an error) stops IPOPT at its next iteration, with no
-            # warning for the NaN it sees until then; solve() raises it again
+            # warning for the NaN it sees until then; solve() raises it again (the iteration callback is also
+            # where a test has the process signal itself)
             cbs.append(_Stop(at, nf))
             opts.update(iteration_callback=cbs[-1], show_eval_warnings=False)
             opts["grad_f"] = ca.Function("nlp_grad_f", [x, p], list(cbs[1](x)), ["x", "p"], ["f", "grad_f_x"])
@@ -159,8 +160,9 @@ class Ipopt(Solver):
         N, nf = problem.n_poses, len(problem.free)
         # holds the model (an id could be reused); jit: a solver built on the VM is not the compiled one
         pose = problem.full_pose
+        at_iteration = wanted("solver")     # a test stops IPOPT while it iterates (CASADICAL_SIGNAL_AT)
         key = (model, N, tuple(problem.free), model._use_jit(N), self.hessian, self.max_iter, self.tol,
-               repr(sorted(self.options.items())), pose, "exact")
+               repr(sorted(self.options.items())), pose, "exact", at_iteration)
         if key in _BUILT:
             _BUILT.move_to_end(key)
             self._last = _BUILT[key]
@@ -185,7 +187,11 @@ class Ipopt(Solver):
         f = model.batch_function(prefix + "cost", N, compiled=False)(Q, p, C, base0, *tail)
         nlp = {"x": x, "p": data, "f": f}
         opts = self._options(N)
+        callback = _Checkpoint(nf) if at_iteration else None
+        if callback is not None:
+            opts["iteration_callback"] = callback
         solver = ca.nlpsol("calibration", "ipopt", nlp, opts)
+        solver.checkpoint = callback    # CasADi does not keep the Python callback alive
         _BUILT[key] = solver
         while len(_BUILT) > MAX_BUILT:  # a few problem shapes at a time keep memory flat
             _BUILT.popitem(last=False)
@@ -328,4 +334,42 @@ class _Stop(ca.Callback):
         return ca.Sparsity.dense(n)
 
     def eval(self, arg):
+        try:
+            checkpoint("solver")    # where a test has the process signal itself (CASADICAL_SIGNAL_AT)
+        except BaseException as e:      # noqa: BLE001 (raised again after the solve)
+            self.at.error = self.at.error or e
         return [1.0 if self.at.error is not None else 0.0]
+
+
+class _Checkpoint(ca.Callback):
+    """The exact-Hessian solver's iteration callback where a test has the process signal itself
+    (:func:`casadical.interrupts.checkpoint`)."""
+
+    def __init__(self, nx: int):
+        ca.Callback.__init__(self)
+        self.nx = nx
+        self.construct("checkpoint", {})
+
+    def get_n_in(self):
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self):
+        return 1
+
+    def get_name_in(self, i):
+        return ca.nlpsol_out(i)
+
+    def get_name_out(self, i):
+        return "ret"
+
+    def get_sparsity_in(self, i):
+        name = ca.nlpsol_out(i)
+        if name == "f":
+            return ca.Sparsity.scalar()
+        if name in ("x", "lam_x"):
+            return ca.Sparsity.dense(self.nx)
+        return ca.Sparsity(0, 0)
+
+    def eval(self, arg):
+        checkpoint("solver")
+        return [0]
