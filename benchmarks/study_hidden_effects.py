@@ -45,7 +45,7 @@ def run(robot: str, effect: str, seed: int) -> dict:
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         rob, cal, val, _ = hidden.make_data(c)
-        rep = diagnose(rob, cal, val, DiagnosisSettings(seed=seed))
+        rep = diagnose(rob, cal, val, DiagnosisSettings(seed=seed, session_tools=c.sessions))
     v = hidden.judge(rep, c.expected, c.allowed)
     unexplained = [f.where for f in rep.findings if f.cause == "unexplained"]
     return {"robot": robot, "effect": effect, "seed": seed, "hidden": fmt(c.expected), "named": fmt(v.named),

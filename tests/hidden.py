@@ -24,7 +24,7 @@ from truth import Arm, Effects, Session, TrueRobot, measure, sample
 
 ROBOTS_DIR = Path(__file__).resolve().parent.parent / "problems" / "robots"
 
-#: a claim: (cause, joint, harmonic, scope)
+#: a claim: (cause, joint, harmonic, scope); scope "robot", "session" (of the one session) or "session B"
 Claim = tuple
 
 #: robots that are not built in: 4 to 7 axes, MDH and DH, beta or none, a coupled joint
@@ -38,7 +38,7 @@ ROBOTS = {
 }
 
 EFFECTS = ("none", "compliance", "progressive stiffness", "gear error", "encoder scale", "torque backlash",
-           "motion backlash", "thermal expansion", "thermal expansion of a link", "drift")
+           "motion backlash", "thermal expansion", "thermal expansion of a link", "drift", "two sessions", "several")
 
 
 def robot_doc(name: str) -> dict:
@@ -57,6 +57,8 @@ class Case:
     expected: set
     drift: tuple = (0.0, 0.0, 0.0)
     thermal: bool = False
+    #: a second session B: the tracker elsewhere, the probe re-mounted, and ``drift`` in B only
+    sessions: bool = False
     #: ambiguities the test allows: a true claim -> claims that may stand for it if the report declares it
     allowed: dict = field(default_factory=dict)
 
@@ -73,7 +75,10 @@ def case(robot: str, effect: str, seed: int) -> Case:
     4 mrad, 27 %); a gear error of joint 3 (9 cycles per turn, 0.01 deg); an encoder scale
     of joint 2 (400 ppm); backlash half plays of 0.01 deg (torque side on joint 3, whose torque takes
     both signs; motion side on joint 2); thermal expansion 15 ppm/K over 15-35 deg C (of every length, or
-    of the longest link only at 30 ppm/K); a drift of 0.6 um/s along x and -z, one pose a second.
+    of the longest link only at 30 ppm/K); a drift of 0.6 um/s along x and -z, one pose a second; two
+    sessions, the second with the tracker 1.4 m and 126 deg away, the probe re-mounted 3-4 mm off and a
+    drift of 1.4 um/s, the robot's compliance of joint 2 in both; several at once: the compliance of
+    joint 2, the gear error of joint 3, an encoder scale of joint 4 and motion backlash of joint 2.
     """
     arm = Arm.from_dict(robot_doc(robot))
     tau = np.abs(TrueRobot(arm).state(sample(TrueRobot(arm), 200, np.random.default_rng(0), floor_z=None))
@@ -110,6 +115,15 @@ def case(robot: str, effect: str, seed: int) -> Case:
                     {("thermal_expansion", j, None, robot_scope)}, thermal=True)
     if effect == "drift":
         return Case(robot, effect, seed, Effects(), {("drift", None, None, "session")}, drift=(0.6e-6, 0.0, -0.6e-6))
+    if effect == "two sessions":
+        return Case(robot, effect, seed, Effects(stiffness={2: k2}), {("joint_compliance", 2, None, robot_scope),
+                                                                      ("drift", None, None, "session B")},
+                    drift=(1.0e-6, 0.0, -1.0e-6), sessions=True)
+    if effect == "several":
+        eff = Effects(stiffness={2: k2}, periodic=[(3, 9, A, 0.7)], encoder_scale={4: 4e-4}, backlash_motion={2: A})
+        return Case(robot, effect, seed, eff, {("joint_compliance", 2, None, robot_scope),
+                                               ("joint_periodic", 3, 9, robot_scope),
+                                               ("encoder_scale", 4, None, robot_scope), ("backlash", 2, None, robot_scope)})
     raise ValueError(f"unknown effect {effect!r}")
 
 
@@ -117,13 +131,17 @@ def case(robot: str, effect: str, seed: int) -> Case:
 BASE_XYZ, BASE_RPY = (1.5, -0.5, 0.3), (0.0, 0.0, math.radians(40.0))
 
 
-def session_of(c: Case, **kw) -> Session:
-    return Session("A", base_xyz=BASE_XYZ, base_rpy=BASE_RPY, drift=c.drift, t_ref=0.0, **kw)
+def session_of(c: Case, name: str = "A") -> Session:
+    if name == "B":
+        return Session("B", (1.2, -0.8, 0.1), (0.01, -0.02, 2.2), tool_shift=(0.003, -0.002, 0.004), drift=c.drift,
+                       t_ref=40.0)
+    return Session("A", base_xyz=BASE_XYZ, base_rpy=BASE_RPY, drift=(0.0, 0.0, 0.0) if c.sessions else c.drift,
+                   t_ref=0.0)
 
 
 def noise_free(c: Case, true: TrueRobot, data) -> np.ndarray:
-    """The truth's own positions (m) of the poses of ``data`` (its temperatures and times): what the best
-    model could predict."""
+    """The truth's own positions (m) of the poses of ``data`` (its temperatures and times; one session):
+    what the best model could predict."""
     temp, t = data.get("temperature_c"), data.get("time_s")
     shots = measure(true, data.q, session=session_of(c), noise=0.0, temperature_c=temp, time_s=t,
                     moves=data.moves, payload_kg=data.get("payload_kg"))
@@ -151,13 +169,16 @@ def make_data(c: Case, n_cal: int = 80, n_val: int = 200, folder: str | Path | N
     out = []
     with tempfile.TemporaryDirectory(prefix="hidden-") as tmp:    # the files are read whole, then removed
         for name, n in (("cal", n_cal), ("val", n_val)):
-            q = sample(true, n, rng, floor_z=floor_z)
-            cond = {}
-            if c.thermal:
-                cond["temperature_c"] = temperatures(n, rng)
-            if any(c.drift):
-                cond["time_s"] = np.arange(n, dtype=float)
-            shots = measure(true, q, rng, session=session_of(c), **cond)
+            shots = None
+            for s in ("A", "B") if c.sessions else ("A",):
+                q = sample(true, n, rng, floor_z=floor_z)
+                cond = {}
+                if c.thermal:
+                    cond["temperature_c"] = temperatures(n, rng)
+                if any(c.drift):
+                    cond["time_s"] = np.arange(n, dtype=float)
+                more = measure(true, q, rng, session=session_of(c, s), **cond)
+                shots = more if shots is None else shots + more
             path = shots.write_csv(Path(folder or tmp) / f"{name}.csv")
             out.append(Measurements.read_csv(path, n_joints=true.arm.n, require_positions=True))
     return robot_from_dict(doc, c.robot), out[0], out[1], true
@@ -166,8 +187,10 @@ def make_data(c: Case, n_cal: int = 80, n_val: int = 200, folder: str | Path | N
 # --- claims ------------------------------------------------------------------------------------------------
 
 def claim(f) -> Claim:
+    """(cause, joint, harmonic, scope); the scope of a cause of one named session is ``session B``."""
     cand = f.candidate
-    return (cand.cause, cand.joint, cand.harmonic, f.scope or cand.scope or "robot")
+    scope = f.scope or cand.scope or "robot"
+    return (cand.cause, cand.joint, cand.harmonic, f"{scope} {cand.session}" if cand.session else scope)
 
 
 def named(report) -> set:
