@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .data import Measurements
+from .data import Measurements, session_index
 from .calibration_file import restored_terms, validate_calibration_document
 from .checks import check_calibration_fits, check_poses
 from .coverage import Coverage
@@ -238,7 +238,6 @@ class CalibrationResult:
 
     def session_stats(self, data: Measurements) -> dict[str, ErrorStats]:
         """Errors on ``data`` per session (data of one session: ``{"": stats}``)."""
-        from .sessions import session_index
         e = self.errors(data)
         return {s: ErrorStats.of(e[idx]) for s, idx in session_index(data).items()}
 

@@ -91,7 +91,7 @@ def param_json(p) -> dict:
 
 def run_predict(args) -> int:
     from ..alignment import align
-    from ..calibration import CalibrationResult, ErrorStats
+    from ..result import CalibrationResult, ErrorStats
     from ..checks import check_calibration_fits, check_poses
     from ..data import RXYZ, Measurements
     from ..model import Model
