@@ -38,7 +38,8 @@ ROBOTS = {
 }
 
 EFFECTS = ("none", "compliance", "progressive stiffness", "gear error", "encoder scale", "torque backlash",
-           "motion backlash", "thermal expansion", "thermal expansion of a link", "drift", "two sessions", "several")
+           "motion backlash", "thermal expansion", "thermal expansion of a link", "drift", "two sessions", "several",
+           "full pose", "bad shots")
 
 
 def robot_doc(name: str) -> dict:
@@ -59,6 +60,11 @@ class Case:
     thermal: bool = False
     #: a second session B: the tracker elsewhere, the probe re-mounted, and ``drift`` in B only
     sessions: bool = False
+    #: the probe's orientation measured too, with this noise (rad per axis); its mounting turned
+    orientation_noise: float | None = None
+    #: bad shots among the calibration poses (gross errors of 5 mm); make_data puts their file lines in ``bad_lines``
+    bad: int = 0
+    bad_lines: list = field(default_factory=list)
     #: ambiguities the test allows: a true claim -> claims that may stand for it if the report declares it
     allowed: dict = field(default_factory=dict)
 
@@ -78,7 +84,9 @@ def case(robot: str, effect: str, seed: int) -> Case:
     of the longest link only at 30 ppm/K); a drift of 0.6 um/s along x and -z, one pose a second; two
     sessions, the second with the tracker 1.4 m and 126 deg away, the probe re-mounted 3-4 mm off and a
     drift of 1.4 um/s, the robot's compliance of joint 2 in both; several at once: the compliance of
-    joint 2, the gear error of joint 3, an encoder scale of joint 4 and motion backlash of joint 2.
+    joint 2, the gear error of joint 3, an encoder scale of joint 4 and motion backlash of joint 2; the
+    compliance measured with the probe's orientation (0.003 deg per axis, the probe mounted turned); the
+    compliance with 3 bad shots (5 mm) among the calibration poses.
     """
     arm = Arm.from_dict(robot_doc(robot))
     tau = np.abs(TrueRobot(arm).state(sample(TrueRobot(arm), 200, np.random.default_rng(0), floor_z=None))
@@ -124,6 +132,12 @@ def case(robot: str, effect: str, seed: int) -> Case:
         return Case(robot, effect, seed, eff, {("joint_compliance", 2, None, robot_scope),
                                                ("joint_periodic", 3, 9, robot_scope),
                                                ("encoder_scale", 4, None, robot_scope), ("backlash", 2, None, robot_scope)})
+    if effect == "full pose":
+        return Case(robot, effect, seed, Effects(stiffness={2: k2}), {("joint_compliance", 2, None, robot_scope)},
+                    orientation_noise=math.radians(0.003))
+    if effect == "bad shots":
+        return Case(robot, effect, seed, Effects(stiffness={2: k2}), {("joint_compliance", 2, None, robot_scope)},
+                    bad=3)
     raise ValueError(f"unknown effect {effect!r}")
 
 
@@ -136,7 +150,7 @@ def session_of(c: Case, name: str = "A") -> Session:
         return Session("B", (1.2, -0.8, 0.1), (0.01, -0.02, 2.2), tool_shift=(0.003, -0.002, 0.004), drift=c.drift,
                        t_ref=40.0)
     return Session("A", base_xyz=BASE_XYZ, base_rpy=BASE_RPY, drift=(0.0, 0.0, 0.0) if c.sessions else c.drift,
-                   t_ref=0.0)
+                   t_ref=0.0, mount_rpy=(0.3, -0.2, 1.2))
 
 
 def noise_free(c: Case, true: TrueRobot, data) -> np.ndarray:
@@ -177,10 +191,13 @@ def make_data(c: Case, n_cal: int = 80, n_val: int = 200, folder: str | Path | N
                     cond["temperature_c"] = temperatures(n, rng)
                 if any(c.drift):
                     cond["time_s"] = np.arange(n, dtype=float)
-                more = measure(true, q, rng, session=session_of(c, s), **cond)
+                more = measure(true, q, rng, session=session_of(c, s), orientation_noise=c.orientation_noise,
+                               bad=c.bad if name == "cal" else 0, **cond)
                 shots = more if shots is None else shots + more
             path = shots.write_csv(Path(folder or tmp) / f"{name}.csv")
             out.append(Measurements.read_csv(path, n_joints=true.arm.n, require_positions=True))
+            if name == "cal":
+                c.bad_lines = [int(i) + 2 for i in shots.bad]     # the header is line 1
     return robot_from_dict(doc, c.robot), out[0], out[1], true
 
 

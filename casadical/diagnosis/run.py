@@ -36,7 +36,7 @@ from ..calibration import calibrate, model_for
 from ..checks import check_held_out, check_other_series, check_poses, check_validation_frames
 from ..data import Measurements
 from ..errors import listing
-from ..physics import sign_changes, value_violations, violations
+from ..physics import sag_note, sign_changes, value_violations, violations
 from ..problem import RobustLoss
 from ..result import AngleStats, CalibrationResult, ErrorStats
 from ..robot import Robot
@@ -528,6 +528,9 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
     if final.uncertainty is not None:
         dg.notes.append(f"remaining calibration residual {final.uncertainty.sigma * 1000:.4f} mm per axis (rms); "
                         f"validation rms {final_val.rms_mm / math.sqrt(3):.4f} mm per axis")
+    sag = sag_note(final, cal)
+    if sag:
+        dg.notes.append(sag)
     if final.downweighted:
         dg.notes.append(f"the robust loss set aside {len(final.downweighted)} calibration pose(s) of {cal.path} "
                         "(lines " + listing([f"{d['file']}:{d['line']}" if "file" in d else d["line"]
