@@ -201,6 +201,25 @@ def make_data(c: Case, n_cal: int = 80, n_val: int = 200, folder: str | Path | N
     return robot_from_dict(doc, c.robot), out[0], out[1], true
 
 
+def true_spec(c: Case) -> str:
+    """casadical's model specification of the case's truth: what a calibration that knew it would fit."""
+    e = c.effects
+    joints = lambda d: ",".join(str(j) for j in sorted(d))     # noqa: E731
+    items = ["kinematic"]
+    for d, term in ((e.stiffness, "joint_compliance"), (e.cubic, "nonlinear_stiffness"),
+                    (e.encoder_scale, "encoder_scale"), (e.backlash, "backlash"), (e.backlash_motion, "backlash_motion"),
+                    (e.thermal_links, "thermal_expansion")):
+        if d:
+            items.append(f"{term}[{joints(d)}]")
+    if e.periodic:
+        items.append("joint_periodic[" + ",".join(f"{j}:{h}" for j, h, _, _ in e.periodic) + "]")
+    if e.thermal_alpha:
+        items.append("thermal_expansion")
+    if any(c.drift):
+        items.append("drift@B" if c.sessions else "drift")
+    return "+".join(items)
+
+
 # --- claims ------------------------------------------------------------------------------------------------
 
 def claim(f) -> Claim:
