@@ -28,8 +28,9 @@ Usage::
     python benchmarks/regenerate_docs.py --reuse out/docs-runs   # use saved outputs, run nothing
 
 ``tests/test_docs_generated.py`` checks the markers (fast) and, under ``pytest -m slow``, runs the
-check job by job. All jobs take 21-30 minutes on 2 cores, hidden-effects 10 of them (load 1-8; docs/benchmarks.md, "Docs that
-cannot drift", has the time of each); the guide itself is run by ``tests/test_guide.py``.
+check job by job. All jobs take 21-30 minutes on 2 cores, hidden-effects 10 of them (load 1-8;
+docs/benchmarks.md, "Docs that cannot drift", has the time of each); the guide itself is run by
+``tests/test_guide.py``.
 """
 
 from __future__ import annotations
