@@ -80,7 +80,9 @@ def parse_spec(spec: str) -> list[ErrorTerm]:
         kwargs: dict = {}
         if args is not None and args.strip():
             try:
-                if REGISTRY[name].name == "joint_periodic":
+                if hasattr(REGISTRY[name], "arguments"):     # a term that reads its own (warmup[600])
+                    kwargs = REGISTRY[name].arguments(args)
+                elif REGISTRY[name].name == "joint_periodic":
                     kwargs["harmonics"] = [tuple(int(x) for x in a.split(":")) for a in args.split(",")]
                     if any(len(h) != 2 for h in kwargs["harmonics"]):
                         raise ValueError("expected joint:harmonic pairs, e.g. periodic[2:1,2:17]")

@@ -17,6 +17,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
+import numpy as np
+
 from ..errors import ModelError
 from ..kinematics import Frames, Geometry, chain_angles, drive_torques, forward, gravity_torques
 from ..parameters import Parameter
@@ -160,6 +162,10 @@ class ReferencedTerm(ErrorTerm):
     @property
     def reference_covariate(self) -> str:
         return self.covariates[0]
+
+    def reference_value(self, values: np.ndarray) -> float:
+        """The reference of the covariate's ``values`` over the data (default: their mean)."""
+        return float(np.mean(values))
 
     def bind(self, robot: Robot) -> None:
         """Nothing per joint to resolve (its spec stays ``drift``, not ``drift[1,...,n]``)."""
