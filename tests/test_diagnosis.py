@@ -128,7 +128,7 @@ def test_closed_chain_heavy_arm_compliance_and_gear_error(seed, gear):
 def test_a_soft_heavy_arm_is_said_to_sag_beyond_the_first_order():
     """The same HH800 made 30 times softer (k2 = 2e6) sags 18 mrad: the model's torques, those of the
     undeflected arm, leave 0.37 mm there (the truth's equilibrium), and the report says so. (It names
-    further causes of joint 2 for it today, a progressive spring among them: docs/diagnosis.md.)"""
+    further causes of joint 2 for it today: docs/diagnosis.md, known limits.)"""
     rep = run(Effects(stiffness={2: 2e6}, periodic=[(3, 7, math.radians(0.01), 0.4)]), 1,
               doc=hidden.robot_doc("hh800"), n_cal=150, n_val=300)
     note = [n for n in rep.notes if "undeflected arm" in n]
