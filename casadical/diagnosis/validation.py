@@ -69,16 +69,32 @@ def session_scheme(sessions: np.ndarray) -> Scheme:
     return Scheme("session", [np.flatnonzero(sessions == s) for s in dict.fromkeys(sessions.tolist())])
 
 
-def joint_scheme(q: np.ndarray, j: int, k: int) -> Scheme:
-    """Contiguous blocks of joint ``j``'s (1-based) reading."""
-    order = np.argsort(q[:, j - 1], kind="stable")
-    return Scheme(f"joint{j}", [np.sort(b) for b in np.array_split(order, k)])
+def joint_scheme(q: np.ndarray, j: int, k: int, moving: np.ndarray | None = None) -> Scheme:
+    """Contiguous blocks of joint ``j``'s (1-based) reading.
+
+    ``moving``: in a design of one joint at a time, the joint each pose moves
+    (:func:`casadical.diagnosis.design.moving_joint`). The blocks are then
+    cut in joint ``j``'s own sweep, and the other poses (where joint ``j``
+    stands still) are dealt to the folds in turn: a fold leaves out a range
+    of the sweep, never the poses the other joints' parameters come from.
+    """
+    sweep = np.arange(len(q)) if moving is None else np.flatnonzero(moving == j)
+    if len(sweep) < 2:
+        sweep = np.arange(len(q))
+    rest = np.setdiff1d(np.arange(len(q)), sweep)
+    order = sweep[np.argsort(q[sweep, j - 1], kind="stable")]
+    return Scheme(f"joint{j}", [np.sort(np.concatenate([b, rest[i::k]])) for i, b in enumerate(np.array_split(order, k))])
 
 
 def schemes(q: np.ndarray, rows: np.ndarray, k: int, seed: int, lever: np.ndarray | None = None,
-            min_lever: float = 0.05, sessions: np.ndarray | None = None) -> list[Scheme]:
+            min_lever: float = 0.05, sessions: np.ndarray | None = None, moving: np.ndarray | None = None
+            ) -> list[Scheme]:
     """The random, time-blocked and joint-blocked schemes of a data set (and leave-one-session-out with
     ``sessions`` of more than one session).
+
+    ``moving``: in a design of one joint at a time, the joint each pose moves: the time blocks are cut
+    within each joint's sweep (as within each session), the joint-range blocks in the joint's own sweep
+    (:func:`joint_scheme`).
 
     ``lever`` (one per joint): how far the tool point moves when the joint
     turns (e.g. the RMS of ``|d xyz / d q_j|`` over the poses). A joint that
@@ -87,9 +103,12 @@ def schemes(q: np.ndarray, rows: np.ndarray, k: int, seed: int, lever: np.ndarra
     scheme: leaving out a range of it tests nothing.
     """
     several = sessions is not None and len(set(sessions.tolist())) > 1
-    out = [random_scheme(len(q), k, seed), time_scheme(rows, k, sessions if several else None)]
+    groups = sessions if several else None
+    if moving is not None:
+        groups = moving if groups is None else np.array([f"{s}/{m}" for s, m in zip(sessions, moving)])
+    out = [random_scheme(len(q), k, seed), time_scheme(rows, k, groups)]
     top = float(np.max(lever)) if lever is not None and len(lever) else 0.0
-    out += [joint_scheme(q, j, k) for j in range(1, q.shape[1] + 1)
+    out += [joint_scheme(q, j, k, moving) for j in range(1, q.shape[1] + 1)
             if np.ptp(q[:, j - 1]) > 0 and (lever is None or lever[j - 1] >= min_lever * top)]
     if several:
         out.append(session_scheme(sessions))
@@ -149,7 +168,8 @@ class CVResult:
         return float(np.mean(e if mask is None else e[mask]) * 1000)
 
 
-def linear_cv(J: np.ndarray, r: np.ndarray, weights: np.ndarray, all_schemes: list[Scheme]) -> CVResult:
+def linear_cv(J: np.ndarray, r: np.ndarray, weights: np.ndarray, all_schemes: list[Scheme],
+              prior: tuple[np.ndarray, np.ndarray] | None = None) -> CVResult:
     """Held-out errors by one Gauss-Newton step per fold from the fit on all poses.
 
     Parameters
@@ -161,6 +181,13 @@ def linear_cv(J: np.ndarray, r: np.ndarray, weights: np.ndarray, all_schemes: li
     weights : ndarray, shape (N,)
         Pose weights of the fit (robust loss); held fixed.
     all_schemes : list of Scheme
+    prior : (ndarray, ndarray), optional
+        A prior of each column: its precision (m^2 per scaled unit squared,
+        0 for none) and the column's scaled value at the fit (its deviation
+        from the prior's mean). Each fold's step is then the most probable
+        one (ridge towards the prior's mean): what a fold's training poses
+        cannot tell stays at what was known before them (a weak design,
+        :mod:`casadical.diagnosis.design`), not at a guess of few poses.
 
     Directions the training poses of a fold cannot determine stay at the
     fit on all poses (:func:`solve_identified`). Parameters that only the
@@ -186,6 +213,10 @@ def linear_cv(J: np.ndarray, r: np.ndarray, weights: np.ndarray, all_schemes: li
         # rounding, which the normalisation of solve_identified would blow up)
         own = np.diag(AT[k]) <= 1e-9 * np.maximum(np.diag(A), 1e-300)
         AT[k][own, :], AT[k][:, own], gT[k][own] = 0.0, 0.0, 0.0
+        if prior is not None:     # not on what only the left-out poses inform: that is estimated there
+            P = np.where(own, 0.0, prior[0])
+            AT[k][np.diag_indices(p)] += P
+            gT[k] += P * prior[1]
         owns.append(own)
     steps = iter(-solve_identified(AT, gT))      # every fold of every scheme in one stacked solve
     owns = iter(owns)
@@ -225,6 +256,7 @@ class Linearized:
     weights: np.ndarray
     names: list[str]
     scale: np.ndarray
+    x0: np.ndarray | None = None
 
     @classmethod
     def of(cls, res, data) -> "Linearized":
@@ -233,10 +265,16 @@ class Linearized:
         f = np.flatnonzero(p.free)
         r = xyz - data.xyz
         w = res.loss.weight(np.einsum("ij,ij->i", r, r))
-        return cls(J[:, :, f] * p.scales[f], r, w, [p.names[i] for i in f], p.scales[f])
+        return cls(J[:, :, f] * p.scales[f], r, w, [p.names[i] for i in f], p.scales[f],
+                   ((p.values - p.nominal) / p.scales)[f])
 
-    def cv(self, all_schemes: list[Scheme]) -> CVResult:
-        return linear_cv(self.J, self.r, self.weights, all_schemes)
+    def cv(self, all_schemes: list[Scheme], prior: dict[str, float] | None = None) -> CVResult:
+        """Held-out errors of every fold (:func:`linear_cv`); ``prior``: the precision (m^2 per scaled unit
+        squared) of the columns that have a prior at their nominal value, by name."""
+        pr = None
+        if prior and self.x0 is not None:
+            pr = (np.array([prior.get(n, 0.0) for n in self.names]), self.x0)
+        return linear_cv(self.J, self.r, self.weights, all_schemes, pr)
 
     def refit(self, rows: np.ndarray, rel: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
         """One Gauss-Newton step on ``rows`` only: the change of the scaled parameters and its covariance.
