@@ -386,12 +386,15 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
             p.value = 0.0
     start_xyz = robot_frame(model, params, data)
     own = None
-    if prior is not None:
+    # the rule that matches what is refitted: a calibration taken further with its geometry (or tool) estimated
+    # again is judged as the robot is (its nominal model, base pose fitted); with its base pose alone, by its own
+    refits = prior is not None and any(p.group != "base" and not p.fixed for p in params.select(term="geometric"))
+    if prior is not None and not refits:
         label = robot.source if robot.source.lower().endswith(".json") else f"of robot {robot.name}"
         own = (label, prior.calibration.mean_mm if prior.calibration else None)
     check_poses(data, robot, allow_outside_limits=allow_outside_limits, angles_are_degrees=angles_are_degrees,
-                positions_are_mm=positions_are_mm, allow_mismatch=allow_mismatch, predicted=start_xyz,
-                nominal=prior is None, calibration=own)
+                positions_are_mm=positions_are_mm, allow_mismatch=allow_mismatch,
+                predicted=None if refits else start_xyz, nominal=prior is None, calibration=own)
     where = f"{data.path}: " if data.path else ""
     try:
         base0 = align_sessions(model, data, start_xyz, xyz)
