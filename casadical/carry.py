@@ -23,7 +23,7 @@ from dataclasses import replace
 
 import numpy as np
 
-from .calibration import calibrate, rebuilt
+from .calibration import calibrate
 from .calibration_file import restore_term
 from .data import Measurements
 from .errors import CasadicalWarning
@@ -165,8 +165,12 @@ def _fit(prior: CalibrationResult, causes: list[Cause], fates: list[str], data: 
     refit = {n for c, f in zip(causes, fates) if f == "refitted" for n in c.parameters}
     m = prior.model
     terms = [t for t in (_without(t, dropped, m) for t in m.terms) if t is not None]
-    pruned = rebuilt(prior, Model(m.robot, terms if m.geometric_free else terms[1:], jit=m.jit), data, "")
-    pruned.notes, pruned.calibration = list(prior.notes), prior.calibration
+    built = Model(m.robot, terms if m.geometric_free else terms[1:], jit=m.jit)
+    params = built.parameters.copy()
+    for p in params:            # every value, std and flag of the calibration's
+        src = prior.parameters[p.name]
+        p.value, p.std, p.fixed, p.identifiable, p.reason = src.value, src.std, src.fixed, src.identifiable, src.reason
+    pruned = replace(prior, model=built, parameters=params)
     named = [t for t in pruned.model.terms if any(p.name in refit for p in t.parameters(m.robot))]
     hold = tuple(p.name for t in named for p in t.parameters(m.robot) if p.name not in refit)
     spec = "+".join([model] + [t.spec() for t in named])
