@@ -108,7 +108,7 @@ def child(method: str, npz: str, N: int, spec: str, free_json: str, out: str) ->
     elif method == "scipy":
         doc = _scipy(robot, data, spec, json.loads(Path(free_json).read_text()))
     else:
-        import casadical.calibration as C
+        import casadical.calibration.solve as C
         from casadical.solvers.ipopt import Ipopt
 
         solves, solve = [], C._solve
@@ -178,7 +178,7 @@ def _scipy(robot, data, spec: str, free_doc: dict) -> dict:
 
     x = np.zeros(len(prob.free))
     sigma, nfev = math.nan, []
-    for _ in range(6):   # casadical.calibration.ROBUST_LOOPS: re-estimate the noise scale until it settles
+    for _ in range(6):   # casadical.calibration.solve.ROBUST_LOOPS: re-estimate the noise scale until it settles
         r = npp.fun(x).reshape(-1, 3)
         new = max(float(np.median(np.linalg.norm(r, axis=1))) / CHI3_MEDIAN, 1e-12)
         if math.isfinite(sigma) and abs(new / sigma - 1) < 0.05:

@@ -25,11 +25,10 @@ from typing import Callable
 
 import numpy as np
 
-from .calibration import learning_mask, rebuilt
 from .compensators.gp import MAX_STD_RATIO, ResidualGP
 from .data import Measurements
 from .model import Model
-from .result import CalibrationResult
+from .result import CalibrationResult, learning_mask, rebuilt
 from .sessions import session_index
 from .terms import SessionLocal, make_term
 from .threads import limited_threads

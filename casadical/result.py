@@ -508,6 +508,34 @@ class CalibrationResult:
                      overwrite=overwrite)
 
 
+def rebuilt(result: CalibrationResult, model: Model, data: Measurements, note: str) -> CalibrationResult:
+    """``result`` with another model holding the same parameters (a compensator added): every value, std and
+    flag kept, its errors on ``data`` anew, ``note`` added; no fit statistics (a network's weights are not
+    counted)."""
+    params = model.parameters.copy()
+    for p in params:
+        src = result.parameters[p.name]
+        p.value, p.std, p.fixed, p.identifiable, p.reason = src.value, src.std, src.fixed, src.identifiable, \
+            src.reason
+    out = CalibrationResult(model, params, result.base0, result.solver, result.solver_name,
+                            result.identifiability, result.uncertainty, None, list(result.notes) + [note],
+                            result.loss, result.downweighted, result.coverage, by_session=result.by_session,
+                            tool0=result.tool0, orientation=result.orientation, full_pose=result.full_pose)
+    out.calibration = out.stats(data)
+    return out
+
+
+def learning_mask(result: CalibrationResult, data: Measurements) -> np.ndarray:
+    """The poses of ``data`` a compensator learns from: those the robust loss did not set aside."""
+    keep = np.ones(len(data), bool)
+    for d in result.downweighted:
+        at = data.lines == d["line"]
+        if "file" in d and data.sources is not None:
+            at &= data.sources == d["file"]
+        keep &= ~at
+    return keep
+
+
 _NOT_POSITIVE = ("no positive stiffness: compliance c{j} = {c:.3g} rad/(N*m) is not above 0, the joint is "
                  "stiffer than these poses and loads can tell")
 

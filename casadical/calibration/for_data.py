@@ -1,0 +1,52 @@
+"""The model of a specification for a data set: covariate references from the data, a base pose per session.
+
+Used by stage ``build_model`` (:mod:`.build`, :mod:`.further`) and by the
+diagnosis, which builds the models it tries for the same data.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..data import Measurements
+from ..errors import InputError
+from ..model import Model, parse_spec
+from ..robot import Robot
+from ..terms import ErrorTerm, ReferencedTerm, SessionLocal, make_term
+
+
+def set_references(terms: list[ErrorTerm], data: Measurements) -> None:
+    """Terms driven by a covariate take its mean over the data as their reference (a term of one session:
+    over that session's poses)."""
+    for t in terms:
+        inner = t.inner if isinstance(t, SessionLocal) else t
+        if isinstance(inner, ReferencedTerm):
+            col = data.get(inner.reference_covariate)
+            if col is not None and isinstance(t, SessionLocal):
+                col = col[data.sessions == t.session_name] if data.sessions is not None else col[:0]
+            if col is not None and len(col):
+                t.t_ref = float(np.mean(col))
+
+
+def with_sessions(terms: list[ErrorTerm], data: Measurements, tools: bool | list[str] = False) -> list[ErrorTerm]:
+    """``terms`` with a base pose per session (:class:`~casadical.terms.sessions.SessionFrames`) when ``data``
+    holds several sessions; ``tools``: every session other than the first (True), or those named, has its own
+    tool too."""
+    names = data.session_names
+    terms = [t for t in terms if t.name != "sessions"]
+    if len(names) < 2:
+        if tools:
+            raise InputError("a tool per session needs data of several sessions (several files, or a session "
+                             "column)", file=data.path)
+        return terms
+    own = names[1:] if tools is True else list(tools or [])
+    return terms + [make_term("sessions", names=names, tools=own)]
+
+
+def model_for(robot: Robot, spec: str | list[ErrorTerm], data: Measurements, jit: bool | None = None,
+              session_tools: bool | list[str] = False) -> Model:
+    """The model of ``spec`` for ``data``: terms driven by a covariate referenced to its mean there, and a base
+    pose per session (``session_tools``: a tool too) when ``data`` holds several sessions."""
+    terms = parse_spec(spec) if isinstance(spec, str) else spec
+    set_references(terms, data)
+    return Model(robot, with_sessions(terms, data, session_tools), jit=jit)

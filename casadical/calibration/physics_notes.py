@@ -1,0 +1,33 @@
+"""Stage ``note_physics``: the terms that, as fitted, are not the physical cause their names say.
+
+:mod:`casadical.physics` judges each fitted cause: told apart from the
+geometry, meaningful over the data (bounds and significance have notes of
+their own).
+"""
+
+from __future__ import annotations
+
+from ..data import Measurements
+from ..errors import PhysicsWarning
+from ..physics import term_causes, violations
+from ..result import CalibrationResult
+from .state import CalibrationRun
+
+
+def physics_notes(result: CalibrationResult, data: Measurements) -> list[str]:
+    """Notes on the terms that, as fitted, are not the physical cause their names say
+    (:mod:`casadical.physics`: told apart from the geometry, meaningful over the data; bounds and significance
+    have notes of their own)."""
+    out = []
+    for cause in term_causes(result):
+        free = [n for n in cause.parameters if not result.parameters[n].fixed]   # the fixed: said by the analysis
+        for v in violations(result, data, free) if free else ():
+            if v.rule in ("geometry", "physics"):
+                out.append(f"{cause.label}: not physics as fitted: {v.text}")
+    return out
+
+
+def note_physics(run: CalibrationRun) -> None:
+    """Adds (and warns) a note per term that, as fitted, is not physics."""
+    for note in physics_notes(run.result, run.data):
+        run.note(note, PhysicsWarning)

@@ -1,0 +1,159 @@
+"""Stage ``solve_parameters``: the solve, the robust loss's noise scale, and what the fit tells apart.
+
+With the robust loss the noise scale is re-estimated from the residuals
+until it settles (:func:`solve_robust`; full pose: both scales, which weigh
+the position and orientation parts, with either loss). A parameter the
+nominal model confounds with others but the fitted terms tell apart
+(:func:`separated`) is freed and the problem solved again.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import fields
+
+import numpy as np
+
+from ..errors import ConvergenceWarning, IdentifiabilityError, SolverError
+from ..identifiability import Identifiability, triangular_factor
+from ..problem import CalibrationProblem, pose_chunks
+from ..solvers import Ipopt, make_solver
+from ..terms.tool_orientation import ToolOrientation
+from .state import CalibrationRun
+
+#: re-estimates of the robust loss's noise scale at most
+ROBUST_LOOPS = 6
+#: settings IPOPT shares with Levenberg-Marquardt, passed on by ``solver="auto"``
+IPOPT_FIELDS = {f.name for f in fields(Ipopt) if not f.name.startswith("_")}
+#: a structural combination of the nominal model is identified when its std is below this share of its scale
+SEPARATED_STD = 0.1
+
+
+def _solve(problem: CalibrationProblem, x0: np.ndarray, solver: str, opts: dict):
+    """One solve from ``x0``: the result and the solver's name (``auto``: LM, then IPOPT if a bound is crossed)."""
+    if solver == "auto":
+        res = make_solver("lm", **opts).solve(problem, x0)
+        lo, hi = problem.bounds_x()
+        if np.any(res.x < lo) or np.any(res.x > hi):
+            lm_time = res.solve_time_s
+            shared = {k: v for k, v in opts.items() if k in IPOPT_FIELDS}   # --max-iter holds for both
+            res = make_solver("ipopt", **shared).solve(problem, res.x)
+            res.solve_time_s += lm_time
+            return res, "levenberg-marquardt+ipopt"
+        return res, "levenberg-marquardt"
+    s = make_solver(solver, **opts)
+    return s.solve(problem, x0), s.name
+
+
+def solve_robust(problem: CalibrationProblem, x: np.ndarray, solver: str, opts: dict, estimate_scale: bool):
+    """Solve; with ``estimate_scale``, re-estimate the robust loss's noise scale until it settles."""
+    res, name, solve_time, setup_time = None, "", 0.0, 0.0
+    for _ in range(ROBUST_LOOPS if estimate_scale else 1):
+        if estimate_scale and problem.full_pose:   # each kind's own robust scale: they weigh the two parts
+            rp, ro = problem.residual_norms(problem.values_from_x(x))
+            new = problem.loss.with_scales_from(rp, ro)
+            if res is not None and max(abs(new.sigma / problem.loss.sigma - 1),
+                                       abs(new.sigma_rot / problem.loss.sigma_rot - 1)) < 0.05:
+                break
+            problem.loss = new
+        elif estimate_scale:
+            norms = np.linalg.norm(problem.residuals(problem.values_from_x(x)).reshape(-1, 3), axis=1)
+            new = problem.loss.with_sigma_from(norms)
+            if res is not None and abs(new.sigma / problem.loss.sigma - 1) < 0.05:
+                break
+            problem.loss = new
+        res, name = _solve(problem, x, solver, opts)
+        solve_time += res.solve_time_s
+        setup_time += res.setup_time_s
+        x = res.x
+    res.solve_time_s, res.setup_time_s = solve_time, setup_time
+    return res, name
+
+
+def separated(problem: CalibrationProblem, values: np.ndarray, ident: Identifiability) -> list[str]:
+    """Parameters fixed as combinations of others at the nominal values that the fit tells apart well.
+
+    The structural analysis runs at nominal values, where every compliance
+    is zero; a fitted compliance can break a combination (tilting joint 1
+    changes the gravity torques, which moving the base does not). Such a
+    parameter is freed when its column, beyond what the free columns span,
+    determines it to ``SEPARATED_STD`` of its typical size at the noise of
+    the fit.
+    """
+    model, params = problem.model, problem.params
+    cands = [u.name for u in ident.unidentifiable if u.confounded_with]
+    if not cands or all(t.name in ("geometric", "tool_orientation") for t in model.terms):
+        return []
+    f = problem.free
+    cols = np.concatenate([f, [params.index(n) for n in cands]])
+    scale = params.scales[cols]
+    ssr = [0.0]
+
+    def blocks():   # weighted, scaled Jacobian columns (free ones first), pose chunk by pose chunk
+        for s in pose_chunks(problem.n_poses):
+            r, J, _ = problem.weighted_jacobian(values, s)
+            u2 = np.einsum("ij,ij->i", r, r)
+            w = problem.loss.weight(u2)
+            ssr[0] += float(w @ u2)
+            yield J[:, :, cols] * scale * np.sqrt(w)[:, None, None]
+
+    R = triangular_factor(blocks(), len(cols))
+    sigma = math.sqrt(ssr[0] / max(problem.equations_per_pose * problem.n_poses - len(f), 1))
+    out = []
+    for j, name in enumerate(cands):
+        perp = float(np.linalg.norm(R[len(f):, len(f) + j]))     # the column beyond the free columns' span
+        if perp > 0 and sigma / perp < SEPARATED_STD:
+            out.append(name)
+    return out
+
+
+def _free_separated(run: CalibrationRun, problem: CalibrationProblem, res, name: str):
+    """Free what the fit tells apart (:func:`separated`) and solve again from the fit; the final solve."""
+    values = problem.values_from_x(res.x)
+    freed = separated(problem, values, run.ident)
+    partners = {u.name: u.confounded_with for u in run.ident.unidentifiable if u.name in freed}
+    if not partners:
+        return problem, res, name
+    params = run.params
+    run.expected = frozenset(frozenset((n, c)) for n, cs in partners.items() for c in cs)
+    params.values = values
+    run.ident.free(list(partners), params)
+    fitted = [t.spec() for t in run.model.terms[1:] if not isinstance(t, ToolOrientation)]
+    run.notes.append(f"{', '.join(partners)}: a combination of other parameters in the nominal model, but "
+                     f"the fitted terms ({', '.join(fitted)}) tell them apart on "
+                     "these poses (std below a tenth of the typical size): identified; they stay strongly "
+                     f"correlated with {', '.join(sorted({c for cs in partners.values() for c in cs}))}")
+    first = res
+    problem = CalibrationProblem(run.model, params, run.data.q, run.data.xyz, run.cov, run.base0, problem.loss,
+                                 run.rot)
+    res, name = solve_robust(problem, problem.x_from_values(params.values), run.options.solver,
+                             run.options.solver_options, False)
+    res.solve_time_s += first.solve_time_s
+    res.setup_time_s += first.setup_time_s
+    return problem, res, name
+
+
+def solve_parameters(run: CalibrationRun) -> None:
+    """Sets ``problem``, ``solution``, ``solver_name``, ``expected`` and the parameters' values; raises when
+    no parameter is free or the cost is not finite, notes a solve that did not converge."""
+    params, loss, opts = run.params, run.loss, run.options
+    problem = CalibrationProblem(run.model, params, run.data.q, run.data.xyz, run.cov, run.base0, loss, run.rot)
+    if len(problem.free) == 0:
+        raise IdentifiabilityError("no free parameter left to identify")
+    estimate = (not (math.isfinite(loss.sigma) and math.isfinite(loss.sigma_rot)) if run.full_pose
+                else loss.robust and not math.isfinite(loss.sigma))
+    res, name = solve_robust(problem, problem.x_from_values(params.values), opts.solver, opts.solver_options,
+                             estimate)
+    if run.ident is not None and np.isfinite(res.cost):
+        # a combination of other parameters in the nominal model that the fitted terms tell apart (the tilt
+        # of joint 1 against gravity once a compliance deflects the arm): identified when these poses
+        # determine it well
+        problem, res, name = _free_separated(run, problem, res, name)
+    if not np.isfinite(res.cost):
+        raise SolverError(f"{name} ended with a non-finite cost ({res.status}); check the data for outliers "
+                          "and the robot file for wrong units")
+    if not res.success:
+        run.note(f"{name} did not converge ({res.status} after {res.iterations} iterations); the result "
+                 "is the last iterate. Try --solver lm or more iterations", ConvergenceWarning)
+    params.values = problem.values_from_x(res.x)
+    run.problem, run.solution, run.solver_name = problem, res, name

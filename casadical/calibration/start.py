@@ -1,0 +1,95 @@
+"""Stage ``start_pose``: the base pose in closed form, the poses' plausibility, and the probe's mounting.
+
+Each session's base pose is the closed-form alignment (Kabsch) of the start
+model's tool points to the measured ones, so the tracker may stand anywhere
+at any rotation; the plausibility checks of the poses
+(:func:`casadical.checks.check_poses`) judge the start model against them;
+full-pose data start the probe's mounting rotation in closed form too
+(:func:`mean_mounting`).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..alignment import align
+from ..checks import check_poses
+from ..data import Measurements
+from ..errors import IdentifiabilityError
+from ..model import Model, pose_to_base0
+from ..parameters import Parameters
+from ..sessions import session_index
+from .state import CalibrationRun
+
+
+def robot_frame(model: Model, params: Parameters, data: Measurements) -> np.ndarray:
+    """The model's tool points of ``data``'s poses in the robot base frame (m), every session's (its base
+    parameters at zero)."""
+    frames = model.term("sessions")
+    if frames is not None:
+        frames.references = {}
+    return model.predict(data.q, params.values, model.covariates(data), pose_to_base0(np.eye(4)))
+
+
+def align_sessions(model: Model, data: Measurements, start: np.ndarray, xyz: np.ndarray) -> np.ndarray:
+    """The closed-form alignment of each session's robot-frame points ``start`` to its measurements ``xyz``.
+
+    Sets the reference pose of every session other than the first in the
+    model's sessions term; returns the first session's (``base0``).
+    """
+    frames = model.term("sessions")
+    if frames is None:
+        return pose_to_base0(align(start, xyz))
+    idx = session_index(data)
+    for s in frames.names[1:]:
+        frames.set_reference(s, pose_to_base0(align(start[idx[s]], xyz[idx[s]])))
+    first = idx[frames.names[0]]
+    return pose_to_base0(align(start[first], xyz[first]))
+
+
+def mean_mounting(probe: np.ndarray, measured: np.ndarray) -> np.ndarray:
+    """The constant rotation ``M`` (3x3) minimising ``sum |probe_i M - measured_i|^2`` (Frobenius), closed form.
+
+    The chordal mean of ``probe_i^T measured_i``: their sum projected on the
+    rotations (SVD). Starts the probe's mounting rotation as :func:`align`
+    starts the base pose.
+    """
+    U, _, Vt = np.linalg.svd(np.einsum("nji,njk->ik", probe, measured))
+    return U @ np.diag([1.0, 1.0, np.sign(np.linalg.det(U @ Vt))]) @ Vt
+
+
+def start_pose(run: CalibrationRun) -> None:
+    """Sets ``base0`` (and every other session's reference pose), ``cov``, and for full pose ``tool0`` and
+    ``rot``; raises the plausibility checks' errors."""
+    model, params, data, robot, prior, opts = run.model, run.params, run.data, run.robot, run.prior, run.options
+    for p in params:
+        if p.group == "base":
+            p.value = 0.0
+    start_xyz = robot_frame(model, params, data)
+    own = None
+    # the rule that matches what is refitted: a calibration taken further with its geometry (or tool) estimated
+    # again is judged as the robot is (its nominal model, base pose fitted); with its base pose alone, by its own
+    refits = prior is not None and any(p.group != "base" and not p.fixed for p in params.select(term="geometric"))
+    if prior is not None and not refits:
+        label = robot.source if robot.source.lower().endswith(".json") else f"of robot {robot.name}"
+        own = (label, prior.calibration.mean_mm if prior.calibration else None)
+    check_poses(data, robot, allow_outside_limits=opts.allow_outside_limits,
+                angles_are_degrees=opts.angles_are_degrees, positions_are_mm=opts.positions_are_mm,
+                allow_mismatch=opts.allow_mismatch, predicted=None if refits else start_xyz,
+                nominal=prior is None, calibration=own)
+    try:
+        run.base0 = align_sessions(model, data, start_xyz, data.xyz)
+    except IdentifiabilityError as e:      # fewer than 3 poses (of a session), or all on a line
+        raise IdentifiabilityError(f"{run.where}{e}") from e
+    run.cov = model.covariates(data)
+    # full pose: the probe's reference mounting R0 in closed form too, at the aligned base
+    run.tool0 = prior.tool0 if prior is not None else None
+    if run.full_pose:
+        mount = [params[f"tool_{k}"] for k in ("roll", "pitch", "yaw")]
+        if all(not p.fixed for p in mount):
+            for p in mount:
+                p.value = 0.0
+        if run.tool0 is None or any(not p.fixed for p in mount):
+            run.tool0 = mean_mounting(model.probe_rotation(data.q, params.values, run.cov, run.base0),
+                                      run.measured_rot)
+        run.rot = run.measured_rot @ run.tool0.T
