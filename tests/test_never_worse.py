@@ -15,11 +15,18 @@ import numpy as np
 import pytest
 
 from casadical import calibrate
+from casadical.data import Measurements
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.robot import robot_from_dict
-from casadical.simulate import Effects, simulate
+from truth import Arm, Effects, TrueRobot, measure, sample
 
 from arms import ARM5, ARM6
+
+
+def measured(tmp_path, name, robot, q, rng, **kw) -> Measurements:
+    """Shots of the true robot at ``q``, written as a measurement file and read as a user's."""
+    path = measure(robot, q, rng, **kw).write_csv(tmp_path / f"{name}.csv")
+    return Measurements.read_csv(path, n_joints=robot.arm.n)
 
 def one_joint_at_a_time(n_joints: int, width_deg: float, per_joint: int = 6) -> np.ndarray:
     """Poses that move one joint at a time from the zero pose, ``per_joint`` readings over +-``width_deg`` each."""
@@ -32,15 +39,19 @@ def one_joint_at_a_time(n_joints: int, width_deg: float, per_joint: int = 6) -> 
     return np.array(rows)
 
 
-@pytest.mark.parametrize("seed", [0, 1, 2])
-def test_weak_design_is_never_worse_than_a_kinematic_calibration(seed):
-    """36 poses, one joint at a time, 24 to calibrate: the final model predicts the other 12 no worse than
-    ``calibrate --model kinematic`` (mean; worst case within 5 % or said), and the report says the design is
-    weak and why. Today's code (fe55b8a) keeps the nominal model in seed 0: 0.79 mm against 0.40."""
+@pytest.mark.parametrize("seed", [1, 5, 7])
+def test_weak_design_is_never_worse_than_a_kinematic_calibration(tmp_path, seed):
+    """36 poses, one joint at a time, 24 to calibrate (a compliance of joints 2 and 3 larger than the geometry's
+    errors): the final model predicts the other 12 no worse than ``calibrate --model kinematic`` (mean; worst
+    case within 5 % or said), and the report says the design is weak and why. In these seeds today's code
+    (fe55b8a) rejects the geometry (folds that leave out whole sweeps; a BIC 72 coordinates cannot pass) and ends
+    1.4-2x worse than the kinematic calibration: 0.53 against 0.37 mm, 0.57 against 0.30, 0.48 against 0.24."""
     robot = robot_from_dict(ARM6)
-    data, _ = simulate(robot, one_joint_at_a_time(6, 170), Effects(stiffness={2: 2e4, 3: 4e4}, noise=60e-6),
-                       seed=seed)
-    idx = np.random.default_rng(seed).permutation(len(data))
+    rng = np.random.default_rng(seed)
+    truth = TrueRobot.draw(Arm.from_dict(ARM6), Effects(stiffness={2: 3e4, 3: 6e4}), rng, length_sigma=0.3e-3,
+                           angle_sigma=math.radians(0.03))
+    data = measured(tmp_path, "poses", truth, one_joint_at_a_time(6, 90), rng, noise=100e-6)
+    idx = rng.permutation(len(data))
     cal, val = data.subset(np.sort(idx[:24])), data.subset(np.sort(idx[24:]))
     rep = diagnose(robot, cal, val, DiagnosisSettings(seed=seed))
     kin = calibrate(robot, cal, "kinematic", "lm", warn=False).stats(val)
@@ -53,26 +64,30 @@ def test_weak_design_is_never_worse_than_a_kinematic_calibration(seed):
     assert rep.final_model.startswith("kinematic")
 
 
-def test_strong_design_is_not_called_weak():
+def test_strong_design_is_not_called_weak(tmp_path):
     """Random poses, many per parameter: no weak-design note, the folds as before (no prior)."""
     robot = robot_from_dict(ARM5)
-    cal, truth = simulate(robot, 80, Effects(), seed=4)
-    val, _ = simulate(robot, 60, truth=truth, seed=5)
+    rng = np.random.default_rng(4)
+    truth = TrueRobot.draw(Arm.from_dict(ARM5), Effects(), rng)
+    cal = measured(tmp_path, "cal", truth, sample(truth, 80, rng), rng)
+    val = measured(tmp_path, "val", truth, sample(truth, 60, rng), rng)
     rep = diagnose(robot, cal, val, DiagnosisSettings(seed=4, blackbox=False))
     assert not any("is weak" in n for n in rep.notes), rep.notes
     assert rep.final_model == "kinematic"
 
 
 @pytest.mark.parametrize("seed", [0, 1])
-def test_a_worst_case_that_rises_is_said_and_never_decides(seed):
+def test_a_worst_case_that_rises_is_said_and_never_decides(tmp_path, seed):
     """A validation pose measured with the tracker bumped (a 10 mm displacement, along the kinematic model's own
     error there): the final model, better everywhere else, misses it by more than the kinematic model does. The
     report says so, names the pose, and says no model of the robot predicts it; and the same diagnosis without
     that pose gives the same final model (the validation poses judge, never decide). Today's code says nothing."""
     robot = robot_from_dict(ARM5)
-    eff = Effects(stiffness={2: 1.5e5}, periodic=[(1, 11, math.radians(0.02), 0.4)], noise=30e-6)
-    cal, truth = simulate(robot, 120, eff, seed=seed)
-    val, _ = simulate(robot, 80, truth=truth, seed=seed + 50)
+    rng = np.random.default_rng(seed)
+    truth = TrueRobot.draw(Arm.from_dict(ARM5), Effects(stiffness={2: 1.5e5},
+                                                         periodic=[(1, 11, math.radians(0.02), 0.4)]), rng)
+    cal = measured(tmp_path, "cal", truth, sample(truth, 120, rng), rng, noise=30e-6)
+    val = measured(tmp_path, "val", truth, sample(truth, 80, rng), rng, noise=30e-6)
     kin = calibrate(robot, cal, "kinematic", "lm", warn=False)
     r = kin.predict(val) - val.xyz                          # the kinematic model's error at each validation pose
     i = int(np.argmax(np.linalg.norm(r, axis=1)))
