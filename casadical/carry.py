@@ -84,18 +84,19 @@ def carry(prior: CalibrationResult, data: Measurements, model: str = "kinematic"
     mask = judge.mask & _kept(plain, data)
     mine, theirs = _held_mean(result, data, folds, mask), _held_mean(plain, data, folds, mask)
     notes = [judge.note(i, f) for i, f in enumerate(fates)]
+    said = [n for n, f in zip(notes, fates) if f != "kept"]        # warned: what was not carried as fitted
     if mine > theirs:
-        plain.notes += notes + [f"the calibration carried with these causes did worse on these poses' folds than a "
-                                f"kinematic calibration of them (held-out mean {theirs:.4f} -> {mine:.4f} mm): the "
-                                "result is that kinematic calibration, nothing carried"]
+        said.append(f"the calibration carried with these causes did worse on these poses' folds than a kinematic "
+                    f"calibration of them (held-out mean {theirs:.4f} -> {mine:.4f} mm): the result is that "
+                    "kinematic calibration, nothing carried")
+        plain.notes += notes + said[-1:]
         result = plain
     else:
         result.notes += notes + [f"never worse than a kinematic calibration of these poses: held-out mean "
                                  f"{mine:.4f} mm against its {theirs:.4f} mm"]
     if warn:
-        for n in result.notes[-len(notes) - 1:]:
-            if not n.startswith("carried: ") or " kept " not in n:
-                warnings.warn(n, CasadicalWarning, stacklevel=2)
+        for n in said:
+            warnings.warn(n, CasadicalWarning, stacklevel=2)
     return result
 
 

@@ -82,3 +82,21 @@ def test_layer_at_least_as_good_as_a_plain_gp(tmp_path, seed):
     assert layer.holds_up["support"] in SUPPORTS
     assert rep.final_validation.mean_mm <= plain.mean(), (rep.final_model, rep.final_validation.mean_mm, plain.mean())
     assert rep.final_validation.max_mm <= 1.05 * plain.max(), (rep.final_validation.max_mm, plain.max())
+
+
+def test_paired_gain_is_scipys_wilcoxon():
+    """The layer's test of its gain: scipy's one-sided Wilcoxon signed-rank test, with zeros and ties, computed
+    without importing scipy.stats for large samples."""
+    from scipy import stats
+
+    from casadical.diagnosis.statistics import paired_gain
+
+    rng = np.random.default_rng(0)
+    for n in (20, 51, 120, 300):
+        for shift in (0.0, 0.05, 0.2):
+            before = rng.gamma(2.0, 1.0, n)
+            after = before - rng.normal(shift, 0.3, n)
+            after[: n // 5] = before[: n // 5]                    # poses where the layer adds nothing
+            before[-10:], after[-10:] = np.round(before[-10:], 1), np.round(after[-10:], 1)    # ties
+            expected = stats.wilcoxon(before - after, alternative="greater").pvalue
+            assert paired_gain(before, after) == pytest.approx(expected, rel=1e-9, abs=1e-300)
