@@ -81,11 +81,6 @@ class Design:
                 "1 mrad) where a fold's training poses cannot tell it. More poses, moving several joints at once "
                 "over their ranges, would tell more (casadical plan-poses)")
 
-    def to_dict(self) -> dict:
-        return {"weak": self.weak, "equations_per_parameter": self.equations_per_parameter,
-                "one_joint_share": self.one_joint_share,
-                "correlated": [[a, b, round(c, 4)] for a, b, c in self.correlated], "reasons": self.reasons}
-
 
 def moving_joint(q_deg: np.ndarray) -> tuple[float, np.ndarray]:
     """Which joint each pose moves, in a design of one joint at a time.
