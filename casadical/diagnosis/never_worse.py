@@ -85,7 +85,7 @@ def final_check(dg, current: CalibrationResult, accepted: list[Candidate], geome
     options = []
     if not geometric and accepted:
         options.append((with_geometry, list(accepted), True))
-    options += [(fit, list(earlier), geometric) for earlier, fit in reversed(dg.history[:-1])
+    options += [(fit, list(earlier), fit.model.geometric_free) for earlier, fit in reversed(dg.history)
                 if set(earlier) <= set(accepted) and fit is not current]
     options.append((kin, [], True))
     for fit, earlier, geo in options:
@@ -98,6 +98,8 @@ def final_check(dg, current: CalibrationResult, accepted: list[Candidate], geome
             dg.drop_finding(a)
         if geo and not geometric:
             _add_geometry_finding(dg, fit, current)
+        elif geometric and not geo:         # back to a model the geometry was tried again on
+            dg.findings = [f for f in dg.findings if f.cause != "geometric"]
         what = ("the kinematic model itself" if fit is kin else
                 "the model with the geometry" if geo and not geometric else "the last model of the search that is not")
         dg.notes.append("never worse than a kinematic calibration: the model with every cause did worse than the "
