@@ -8,7 +8,7 @@ __version__ = "0.1.0"
 
 #: public name -> its module; imported on first use, so that commands which need no model (``split``,
 #: ``--help``) start without CasADi (PEP 562)
-_EXPORTS = {"CalibrationResult": "calibration", "calibrate": "calibration", "load_calibration": "calibration",
+_EXPORTS = {"CalibrationResult": "result", "calibrate": "calibration", "load_calibration": "result",
             "Measurements": "data", "CasadicalError": "errors", "Model": "model", "parse_spec": "model",
             "Parameter": "parameters", "Parameters": "parameters", "Robot": "robot", "load_robot": "loading"}
 
@@ -16,7 +16,8 @@ __all__ = ["CalibrationResult", "CasadicalError", "Measurements", "calibrate", "
            "Parameters", "Robot", "load_robot", "parse_spec", "__version__"]
 
 if _typing.TYPE_CHECKING:
-    from .calibration import CalibrationResult, calibrate, load_calibration
+    from .calibration import calibrate
+    from .result import CalibrationResult, load_calibration
     from .data import Measurements
     from .errors import CasadicalError
     from .model import Model, parse_spec

@@ -26,10 +26,9 @@ from typing import Callable
 import numpy as np
 
 from .compensators.gp import MAX_STD_RATIO, ResidualGP
-from .data import Measurements
+from .data import Measurements, session_index
 from .model import Model
 from .result import CalibrationResult, learning_mask, rebuilt
-from .sessions import session_index
 from .terms import SessionLocal, make_term
 from .threads import limited_threads
 

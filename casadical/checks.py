@@ -22,7 +22,7 @@ import warnings
 
 import numpy as np
 
-from .data import XYZ, Measurements, looks_like_radians
+from .data import XYZ, Measurements, looks_like_radians, session_index
 from .errors import DataFileError, DataWarning, InputError
 from .robot import Robot
 
@@ -92,7 +92,6 @@ def check_poses(data: Measurements, robot: Robot, *, allow_outside_limits: bool 
         if predicted is None:
             from .model import Model
             predicted = Model(robot, "nominal", jit=False).predict(data.q)
-        from .sessions import session_index
         for idx in session_index(data).values():    # each session in its own tracker frame
             check_position_units(data.subset(idx), np.asarray(predicted)[idx], allow=positions_are_mm)
         # with --positions-are-mm the user vouches for points the model's do not match in scale: not judged
@@ -215,8 +214,6 @@ def check_model_fits(data: Measurements, robot: Robot, predicted: np.ndarray,
         Naming the file, the error, the robot (or calibration) and the override.
     """
     from .terms.base import reach
-
-    from .sessions import session_index
 
     # each session in its own tracker frame: its own base pose
     parts = [base_fitted_errors(np.asarray(predicted)[idx], data.xyz[idx]) for idx in session_index(data).values()]
@@ -380,8 +377,6 @@ def check_validation_frames(val: Measurements, errors_m: np.ndarray, own_mean_mm
     DataFileError
         A session's validation poses are missed by more than 100 times the model's own error and 5 mm.
     """
-    from .sessions import session_index
-
     for s, idx in session_index(val).items():
         mean = float(np.mean(errors_m[idx])) * 1000.0 if len(idx) else 0.0
         if not _beyond_its_own(mean, own_mean_mm):

@@ -463,6 +463,13 @@ def _check_units(data: Measurements) -> None:
                       stacklevel=3)
 
 
+def session_index(data: Measurements) -> dict[str, np.ndarray]:
+    """The poses of each session (a single unnamed session: ``{"": all poses}``)."""
+    if data.sessions is None:
+        return {"": np.arange(len(data))}
+    return {s: np.flatnonzero(data.sessions == s) for s in data.session_names}
+
+
 _NOT_IN_NAME = re.compile(r"[^A-Za-z0-9_.-]+")
 
 

@@ -40,7 +40,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .calibration import CalibrationResult
+from .result import CalibrationResult
 from .checks import check_poses
 from .data import XYZ, Measurements
 from .errors import ConvergenceWarning, InputError, listing

@@ -20,7 +20,7 @@ from .robot import Robot
 from .terms import make_term
 
 if TYPE_CHECKING:
-    from .calibration import CalibrationResult
+    from .result import CalibrationResult
 
 COLUMNS = ("joint", "name", "unit", "nominal", "identified", "difference", "std", "identifiable", "fixed",
            "reason")

@@ -115,10 +115,3 @@ def combine(parts: list[Measurements], names: list[str] | None = None) -> Measur
     return Measurements(columns, " + ".join(p.path for p in parts), rows, np.concatenate([p.moves for p in parts]),
                         np.concatenate([p.lines for p in parts]), checked, np.concatenate(labels).astype(object),
                         np.concatenate([np.full(len(p), p.path, dtype=object) for p in parts]))
-
-
-def session_index(data: Measurements) -> dict[str, np.ndarray]:
-    """The poses of each session (a single unnamed session: ``{"": all poses}``)."""
-    if data.sessions is None:
-        return {"": np.arange(len(data))}
-    return {s: np.flatnonzero(data.sessions == s) for s in data.session_names}

@@ -1,4 +1,4 @@
-"""The package's import structure: robot descriptions below the readers of robot files.
+"""The package's import structure: no import cycle at all, and robot descriptions below the readers of robot files.
 
 ``casadical.robot`` (the robot and its TOML form) must not import the URDF
 reader, not even lazily inside a function: the URDF package builds on it,
@@ -19,6 +19,31 @@ from casadical.errors import InputError, RobotFileError
 @pytest.fixture(scope="module")
 def graph():
     return import_graph.graph()
+
+
+def test_the_package_has_no_import_cycle(graph):
+    """No module reaches itself through its imports (lazy ones included): each cycle that came back (the
+    diagnosis package through ``from . import decision``, the compensators through their package, checks and
+    sessions, accuracy and calibration) was broken by moving code to where it belongs."""
+    assert import_graph.cycles(graph) == []
+
+
+def test_the_graph_reader_counts_the_package_a_from_import_runs(tmp_path):
+    """The test above can fail: ``from . import decision`` inside a method imports the package (its
+    ``__init__``, which imports the module back), an edge a reader that maps it to the submodule alone (grimp)
+    misses; a lazy import in a function is an edge too."""
+    pkg = tmp_path / "casadical"
+    pkg.mkdir()
+    (pkg / "__init__.py").write_text("from .report import Report\nfrom .run import go\n")
+    (pkg / "report.py").write_text("class Report:\n    def text(self):\n        from . import decision as d\n"
+                                   "        return d.words\n")
+    (pkg / "decision.py").write_text("words = 'w'\n")
+    (pkg / "run.py").write_text("def go():\n    from .later import y\n    return y\n")
+    (pkg / "later.py").write_text("from .run import go\ny = 2\n")
+    g = import_graph.graph(pkg)
+    assert g["casadical.report"] == {"casadical", "casadical.decision"}
+    assert sorted(map(sorted, import_graph.cycles(g))) == [["casadical", "casadical.report"],
+                                                          ["casadical.later", "casadical.run"]]
 
 
 def test_robot_imports_no_reader_of_other_file_types(graph):

@@ -15,7 +15,7 @@ import numpy as np
 from ..coverage import Coverage
 from ..errors import listing
 from ..result import CalibrationResult, ErrorStats
-from ..sessions import session_index
+from ..data import session_index
 from ..significance import FitStatistics
 from .state import CalibrationRun
 

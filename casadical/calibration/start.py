@@ -14,11 +14,10 @@ import numpy as np
 
 from ..alignment import align
 from ..checks import check_poses
-from ..data import Measurements
+from ..data import Measurements, session_index
 from ..errors import IdentifiabilityError
 from ..model import Model, pose_to_base0
 from ..parameters import Parameters
-from ..sessions import session_index
 from .state import CalibrationRun
 
 

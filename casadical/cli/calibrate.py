@@ -61,7 +61,8 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..calibration import CalibrationResult, calibrate
+    from ..calibration import calibrate
+    from ..result import CalibrationResult
     from ..checks import check_held_out
     from ..data import Measurements
     from ..errors import InputError

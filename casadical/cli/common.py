@@ -297,7 +297,7 @@ def robot_or_calibration(spec: str, args):
     if given:
         raise InputError(f"{spec}: {', '.join(given)} {'chooses' if len(given) == 1 else 'choose'} the chain of a "
                          "URDF robot; a calibration JSON already holds its robot (drop the option)")
-    from ..calibration import load_calibration
+    from ..result import load_calibration
 
     return load_calibration(spec)
 

@@ -46,7 +46,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..calibration import load_calibration
+    from ..result import load_calibration
     from ..data import Measurements
     from ..inverse import compensate
 

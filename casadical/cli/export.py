@@ -39,7 +39,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..calibration import CalibrationResult
+    from ..result import CalibrationResult
     from ..equivalent import geometric_equivalent
     from ..parameter_table import parameter_table
     from ..urdf import robot_to_urdf

@@ -31,8 +31,8 @@ from typing import ClassVar, Optional
 
 import numpy as np
 
-from casadical.compensators import Compensator
-from casadical.errors import InputError
+from ..errors import InputError
+from .base import Compensator
 
 __all__ = ["MLP", "TrainingReport"]
 

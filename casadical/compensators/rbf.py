@@ -28,8 +28,8 @@ from typing import ClassVar, Optional, Union
 
 import numpy as np
 
-from casadical.compensators import Compensator, _as_matrix
-from casadical.errors import InputError, SolverError
+from ..errors import InputError, SolverError
+from .base import Compensator, Standardizer, _as_matrix
 
 __all__ = ["RBFNetwork", "default_n_centers", "kmeans", "mean_center_distance"]
 
@@ -168,7 +168,6 @@ class RBFNetwork(Compensator):
         InputError
             Missing or inconsistent entries.
         """
-        from casadical.compensators import Standardizer
         try:
             net = cls(bias=bool(d["bias"]))
             net.x_scaler_ = Standardizer(np.asarray(d["x_mean"], float), np.asarray(d["x_scale"], float))

@@ -7,6 +7,7 @@ from dataclasses import dataclass, field
 
 from ..result import AngleStats, CalibrationResult, ErrorStats
 from .candidates import Candidate
+from .decision import action, gain, gain_words, label, scope, size, table, where, wrap, wrap_spec
 from .periodogram import Periodogram
 from .statistics import NestedTest
 
@@ -206,11 +207,17 @@ class DiagnosisReport:
     final_orientation: AngleStats | None = None
 
     def to_dict(self) -> dict:
+        from ..robot import robot_to_dict
+
         params = []
+        tests = self.final.significance()
         for p in self.final.parameters:
+            t = tests.get(p.name)
             params.append({"name": p.name, "value": p.to_display(p.value),
                            "std": p.to_display(p.std) if math.isfinite(p.std) else None,
-                           "unit": p.display_unit, "fixed": p.fixed, "term": p.term})
+                           "unit": p.display_unit, "fixed": p.fixed, "term": p.term,
+                           "t": finite(t.t) if t is not None else None,
+                           "significant": t.significant if t is not None else None})
         doc = {
             "robot": self.robot,
             "steps": [s.to_dict() for s in self.steps],
@@ -218,6 +225,7 @@ class DiagnosisReport:
                          for f, row in zip(self.findings, self.decision())],
             "final": {"model": self.final_model, "validation": self.final_validation.to_dict(n_poses=False),
                       "parameters": params,
+                      "sigma_mm": finite(self.final.uncertainty.sigma * 1000) if self.final.uncertainty else None,
                       "robust": {"sigma_mm": self.final.loss.sigma * 1000 if self.final.loss.robust else None,
                                  "set_aside": self.final.downweighted}},
             "notes": self.notes,
@@ -230,14 +238,13 @@ class DiagnosisReport:
             doc["final"]["orientation"] = self.final_orientation.to_dict(n_poses=False)
         if self.transfer:
             doc["transfer"] = self.transfer
+        doc["robot_description"] = robot_to_dict(self.final.model.robot)   # what plan-poses REPORT.json builds on
         return doc
 
     def decision(self) -> list[dict]:
         """One row per finding, what to act on: label, where, size (final model), gain, scope, what to do."""
-        from . import decision as d
-
-        return [{"label": d.label(f), "where": d.where(f), "size": d.size(f, self.final), "gain": d.gain(f),
-                 "scope": d.scope(f), "action": d.action(f, self)} for f in self.findings]
+        return [{"label": label(f), "where": where(f), "size": size(f, self.final), "gain": gain(f),
+                 "scope": scope(f), "action": action(f, self)} for f in self.findings]
 
     def summary(self) -> str:
         """The short report: findings (what to do about each), the final model's errors, notes."""
@@ -246,8 +253,6 @@ class DiagnosisReport:
     def text(self, verbose: bool = True) -> str:
         """The report in words: the findings and the final model first, then (``verbose``) the evidence: every
         step with its gain against the model it extends, each model's full specification, the checks."""
-        from . import decision as d
-
         accepted = sum(s.accepted for s in self.steps)
         lines = [f"diagnosis of {self.robot}: {len(self.steps)} models tried, {accepted} accepted "
                  f"({self.time_s:.1f} s)", ""]
@@ -259,35 +264,33 @@ class DiagnosisReport:
         if not rows:
             lines.append("  none")
         else:
-            table = d.table(["#", "finding", "where", "size", "gain on validation", "scope"], rows, right=(0,))
-            lines.append(table[0])
-            for line, row in zip(table[1:], decided):      # each finding, and what to do under it
+            grid = table(["#", "finding", "where", "size", "gain on validation", "scope"], rows, right=(0,))
+            lines.append(grid[0])
+            for line, row in zip(grid[1:], decided):      # each finding, and what to do under it
                 lines.append(line)
-                lines += d.wrap(row["action"], " " * 9, " " * 5 + "do: ")
+                lines += wrap(row["action"], " " * 9, " " * 5 + "do: ")
         if not [f for f in self.findings if f.cause != "geometric"]:
             lines.append("  no cause beyond the geometry")
         lines += [""] + self._final_lines()
         if verbose:
             lines += [""] + self._steps_lines() + [""] + self._evidence_lines()
-        lines += [""] + [x for n in self.notes for x in d.wrap(n, "      ", "note: ")]
+        lines += [""] + [x for n in self.notes for x in wrap(n, "      ", "note: ")]
         if not verbose:
             lines += ["", "the evidence (every step with its gain, each model's full specification, the checks): "
                           "--verbose, the JSON and the HTML report"]
         return "\n".join(lines)
 
     def _final_lines(self) -> list[str]:
-        from . import decision as d
-
         v = self.final_validation
         out = [f"final model: validation mean {v.mean_mm:.4f} mm, max {v.max_mm:.4f} mm, rms {v.rms_mm:.4f} mm "
                f"on {v.n_poses} poses never fitted"]
         k, nominal = self.kinematic_validation, (self.steps[0].validation if self.steps else None)
         against = []
         if k is not None:
-            against.append(f"the kinematic model's {k.mean_mm:.4f} mm ({d.gain_words(k.mean_mm - v.mean_mm)})")
+            against.append(f"the kinematic model's {k.mean_mm:.4f} mm ({gain_words(k.mean_mm - v.mean_mm)})")
         if nominal is not None:
             against.append(f"the nominal model's {nominal.mean_mm:.4f} mm "
-                           f"({d.gain_words(nominal.mean_mm - v.mean_mm)})")
+                           f"({gain_words(nominal.mean_mm - v.mean_mm)})")
         if against:
             out.append("  against " + " and ".join(against))
         for s, st in self.final_sessions.items():
@@ -298,13 +301,11 @@ class DiagnosisReport:
             out.append(f"  orientation (full pose): mean {o.mean_deg:.4f} deg, max {o.max_deg:.4f} deg, rms "
                        f"{o.rms_deg:.4f} deg")
         if self.transfer:
-            out += d.wrap(self.transfer["text"], "    ", "  ")
-        out += d.wrap_spec(self.final_model, "    ", "  model: ")
+            out += wrap(self.transfer["text"], "    ", "  ")
+        out += wrap_spec(self.final_model, "    ", "  model: ")
         return out
 
     def _steps_lines(self) -> list[str]:
-        from . import decision as d
-
         pose = any(s.orientation is not None for s in self.steps)   # full pose: the orientation's mean too
         head = ["#", "step", "extends", "val mean", "gain against it", "val max", "val rms"] + \
             (["val deg"] if pose else []) + ["accepted"]
@@ -312,29 +313,27 @@ class DiagnosisReport:
         for k, s in enumerate(self.steps, 1):
             v = s.validation
             rows.append([str(k), s.label, "-" if s.parent is None else str(s.parent + 1), f"{v.mean_mm:.4f}",
-                         d.gain_words(s.gain_mm), f"{v.max_mm:.4f}", f"{v.rms_mm:.4f}"]
+                         gain_words(s.gain_mm), f"{v.max_mm:.4f}", f"{v.rms_mm:.4f}"]
                         + ([f"{s.orientation.mean_deg:.4f}" if s.orientation is not None else "-"] if pose else [])
                         + ["yes" if s.accepted else "no"])
         out = ["steps (validation errors in mm judge and never decide; each gain is against the model the step "
                "extends):"]
-        out += d.table(head, rows, right=(0, 2, 3, 5, 6) + ((7,) if pose else ()))
+        out += table(head, rows, right=(0, 2, 3, 5, 6) + ((7,) if pose else ()))
         out += ["", "models (each step's full specification, and why a step was not accepted):"]
         for k, s in enumerate(self.steps, 1):
-            out += d.wrap_spec(s.model, " " * 6, f"{k:>4}  ")
+            out += wrap_spec(s.model, " " * 6, f"{k:>4}  ")
             if s.reason:
-                out += d.wrap(s.reason, " " * 10, " " * 6 + ("not accepted: " if not s.accepted else ""))
+                out += wrap(s.reason, " " * 10, " " * 6 + ("not accepted: " if not s.accepted else ""))
         return out
 
     def _evidence_lines(self) -> list[str]:
-        from . import decision as d
-
         out = ["evidence of each finding (values of the final model):"]
         for k, f in enumerate(self.findings, 1):
-            head = f"validation mean {d.gain_words(f.gain_mm)}" if f.in_model else "not in the final model"
-            out += d.wrap(f"{f.label()}: {head}. {f.evidence}", " " * 6, f"{k:>4}  ")
+            head = f"validation mean {gain_words(f.gain_mm)}" if f.in_model else "not in the final model"
+            out += wrap(f"{f.label()}: {head}. {f.evidence}", " " * 6, f"{k:>4}  ")
             for a in f.ambiguous_with:
-                out += d.wrap(f"ambiguous with {a['label']}: {a['tell_apart']}", " " * 8, " " * 6)
+                out += wrap(f"ambiguous with {a['label']}: {a['tell_apart']}", " " * 8, " " * 6)
             if f.transfer:
-                out += d.wrap(f"on {self.transfer.get('file', 'the other series')}: {f.transfer['text']}", " " * 8,
+                out += wrap(f"on {self.transfer.get('file', 'the other series')}: {f.transfer['text']}", " " * 8,
                               " " * 6)
         return out

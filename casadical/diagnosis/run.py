@@ -41,7 +41,6 @@ from ..problem import RobustLoss
 from ..result import AngleStats, CalibrationResult, ErrorStats
 from ..robot import Robot
 from ..threads import limited_threads
-from . import transfer as transfer_mod
 from .backward import drop_redundant, drop_unphysical
 from .layer import layer_step
 from .never_worse import final_check, validation_note
@@ -55,6 +54,7 @@ from .report import DiagnosisReport, Finding, Step
 from .screening import Scored, Screen, ambiguous
 from .settings import DiagnosisSettings
 from .statistics import nested_test
+from .transfer import findings_study
 from .validation import (Linearized, by_kind, cv_failure, cv_record, cv_text, extrapolation_gain, joint_levers,
                          not_better, schemes)
 
@@ -525,7 +525,7 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
                                              for d in final.downweighted], 10) + "): likely bad measurements")
     study = None
     if other is not None:
-        study = transfer_mod.findings_study(dg, final, parametric, accepted, geometric, other)
+        study = findings_study(dg, final, parametric, accepted, geometric, other)
     plots = {"val_errors_nominal_mm": (dg.val_errors(dg.nominal) * 1000).tolist(),
              "val_errors_final_mm": (final_errors * 1000).tolist()}
     return DiagnosisReport(robot.name, dg.steps, dg.findings, final_spec, final_val, final, dg.periodograms, plots,

@@ -16,9 +16,9 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..calibration import CalibrationResult, ErrorStats
 from ..data import Measurements
 from ..errors import InputError
+from ..result import CalibrationResult, ErrorStats
 from ..robot import Robot
 
 REGISTRY: dict[str, type["Method"]] = {}

@@ -26,10 +26,11 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..calibration import CalibrationResult, ErrorStats, calibrate
+from ..calibration import calibrate
 from ..errors import InputError, SolverError
 from ..model import Model
 from ..optim import Box, OptimResult
+from ..result import CalibrationResult, ErrorStats
 from ._search import K_BOUNDS, Linearised, OneStep, Variable, distinct_best, make_optimizer, stiffness_box
 from .base import Inputs, Method, MethodResult, compliance_model, compliant_joints, new_result
 

@@ -21,9 +21,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..calibration import CalibrationResult, ErrorStats, calibrate
+from ..calibration import calibrate
 from ..optim import Box, OptimResult
 from ..problem import CalibrationProblem
+from ..result import CalibrationResult, ErrorStats
 from ..solvers import make_solver
 from ..uncertainty import estimate
 from ._search import K_BOUNDS, Linearised, make_optimizer, stiffness_box

@@ -28,7 +28,7 @@ from ..robot import Robot
 from ..terms import Context, make_term
 
 if TYPE_CHECKING:
-    from ..calibration import CalibrationResult
+    from ..result import CalibrationResult
 
 #: What a URDF cannot describe, and an exported file therefore does not contain.
 NOT_IN_URDF = ("joint compliance (stiffness)", "periodic gear errors", "encoder scale errors", "backlash",
