@@ -59,7 +59,8 @@ def sklearn_fit(X: np.ndarray, Y: np.ndarray, seed: int = 0) -> ResidualGP:
 
     ls, sv, nv = [], [], []
     for a in range(3):
-        kernel = ConstantKernel(1.0, (1e-4, 1e2)) * RBF(np.ones(X.shape[1]), LENGTH_BOUNDS) + WhiteKernel(0.5, (1e-4, 1.0))
+        kernel = (ConstantKernel(1.0, (1e-4, 1e2)) * RBF(np.ones(X.shape[1]), LENGTH_BOUNDS)
+                  + WhiteKernel(0.5, (1e-4, 1.0)))
         with warnings.catch_warnings():
             warnings.simplefilter("ignore", ConvergenceWarning)
             k = GaussianProcessRegressor(kernel, normalize_y=True, optimizer=optimizer,
@@ -82,7 +83,8 @@ def main() -> None:
     cal, val = b.subset(idx), b.subset(np.setdiff1d(np.arange(len(b)), idx))
     res = calibrate(robot, cal, SPEC, "lm", warn=False)
     X, Y, keep = layer_data(res, cal)
-    ways = {"casadical": lambda: ResidualGP.fit(X[keep], Y[keep]), "scikit-learn": lambda: sklearn_fit(X[keep], Y[keep])}
+    ways = {"casadical": lambda: ResidualGP.fit(X[keep], Y[keep]),
+            "scikit-learn": lambda: sklearn_fit(X[keep], Y[keep])}
     times: dict[str, list[float]] = {k: [] for k in ways}
     fits = {}
     for name, f in ways.items():         # warm-up (imports)

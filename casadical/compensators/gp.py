@@ -22,10 +22,12 @@ iterations and 30 give the same held-out error to within 2 um, 150 poses
 instead of 200 give 2-7 % more; the cost of each step grows with the cube of
 the poses). The likelihood is evaluated here (:func:`log_likelihood`), not by
 scikit-learn: its kernel objects build the gradient as an ``N x N x n``
-stack and invert ``K`` for every evaluation and component, 9x the cost of
-the same numbers from the squared distances of each joint, computed once for
-the three components (a test checks both give the same likelihood and
-gradient). The fitted process is then held as plain numbers (training poses,
+stack and invert ``K`` by a solve for every evaluation and component; the
+same numbers from the squared distances of each joint (computed once for the
+three components) and ``K``'s inverse from its Cholesky factor cost 0.27 of
+its CPU on the README job (``benchmarks/bench_layer.py``; a test checks the
+likelihood, its gradient and the fitted hyperparameters against
+scikit-learn's). The fitted process is then held as plain numbers (training poses,
 residuals, hyperparameters) conditioned on every pose, and evaluated here
 with numpy and symbolically in the model
 (:class:`~casadical.terms.gp_compensator.GPCompensator`), so that
@@ -150,8 +152,9 @@ class ResidualGP:
     @classmethod
     @limited_threads()
     def fit(cls, X: np.ndarray, Y: np.ndarray, max_std_ratio: float = MAX_STD_RATIO, seed: int = 0) -> "ResidualGP":
-        """Hyperparameters by maximum marginal likelihood (scikit-learn), one length scale per joint and
-        component, on at most :data:`FIT_POSES` poses; the process conditioned on all of them.
+        """Hyperparameters by maximum marginal likelihood (scikit-learn's objective: :func:`log_likelihood`), one
+        length scale per joint and component, on at most :data:`FIT_POSES` poses; the process conditioned on all
+        of them.
 
         Parameters
         ----------

@@ -33,7 +33,7 @@ from .candidates import Candidate
 from .never_worse import WORST_SHARE
 from .report import Finding, Step
 from .statistics import paired_gain
-from .validation import KINDS
+from .validation import EXTRAPOLATING, KINDS
 
 #: fewer poses than this (in a session) give no layer
 MIN_POSES = 20
@@ -41,8 +41,6 @@ MIN_POSES = 20
 #: wherever it has learnt anything, is not among them: on noise alone its folds, whose residuals are those of the
 #: fit on every pose, see a gain of 4-9 % that the validation poses do not: YS100 thermal and HH800 tests)
 SUPPORTS = (0.8, 0.9, MAX_STD_RATIO)
-#: the kinds of fold where the model must extrapolate
-EXTRAPOLATING = ("time", "joint", "session")
 
 
 def judge(folds: LayerFolds, support: float, alpha: float) -> tuple[list[str], dict, dict, float]:
@@ -94,8 +92,7 @@ def layer_step(current: CalibrationResult, spec: str, cal: Measurements, val: Me
     for kind in (k for k in KINDS if k in means):
         cv_mm[f"{kind}_before"], cv_mm[kind] = means[kind]
     if reasons:
-        reason = "; ".join(reasons) + (f" (support {support:g}; no other support passes)" if len(SUPPORTS) > 1
-                                       else "")
+        reason = "; ".join(reasons) + f" (at support {support:g}; no support passes)"
         steps.append(Step(name, current.calibration, v0, False, Candidate("unexplained"), cv_mm=cv_mm,
                           reason=reason, **link))
         progress(f"accuracy layer rejected: {reason}")

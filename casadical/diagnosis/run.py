@@ -55,8 +55,8 @@ from .screening import Scored, Screen, ambiguous
 from .settings import DiagnosisSettings
 from .statistics import nested_test
 from .transfer import findings_study
-from .validation import (Linearized, by_kind, cv_failure, cv_record, cv_text, extrapolation_gain, joint_levers,
-                         not_better, schemes)
+from .validation import (EXTRAPOLATING, Linearized, by_kind, cv_failure, cv_record, cv_text, extrapolation_gain,
+                         joint_levers, not_better, schemes)
 
 
 #: functions of one joint's reading: each must be the same over the lower and the upper half of its range.
@@ -64,8 +64,6 @@ from .validation import (Linearized, by_kind, cv_failure, cv_record, cv_text, ex
 #: half-range estimates are biased by the structure still unmodelled in each half, so the test is not
 #: applied to them.)
 JOINT_CAUSES = ("joint_periodic", "encoder_scale")
-#: the kinds of fold where a model must extrapolate: a step may not make them worse
-EXTRAPOLATING = ("time", "joint", "session")
 
 
 class _Diagnosis:

@@ -83,7 +83,8 @@ def joint_scheme(q: np.ndarray, j: int, k: int, moving: np.ndarray | None = None
         sweep = np.arange(len(q))
     rest = np.setdiff1d(np.arange(len(q)), sweep)
     order = sweep[np.argsort(q[sweep, j - 1], kind="stable")]
-    return Scheme(f"joint{j}", [np.sort(np.concatenate([b, rest[i::k]])) for i, b in enumerate(np.array_split(order, k))])
+    blocks = np.array_split(order, k)
+    return Scheme(f"joint{j}", [np.sort(np.concatenate([b, rest[i::k]])) for i, b in enumerate(blocks)])
 
 
 def schemes(q: np.ndarray, rows: np.ndarray, k: int, seed: int, lever: np.ndarray | None = None,
@@ -297,6 +298,8 @@ class Linearized:
 
 #: the kinds of fold, in the order reports show them (``session`` only with several sessions)
 KINDS = ("random", "time", "joint", "session")
+#: the kinds of fold where a model must extrapolate: a step may not make them worse
+EXTRAPOLATING = ("time", "joint", "session")
 
 
 def kinds(cv: CVResult | dict) -> list[str]:
