@@ -40,7 +40,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve, solve_triangular
 
 from ..errors import InputError
 from ..threads import limited_threads
@@ -90,6 +89,8 @@ class ResidualGP:
     max_std_ratio: float = MAX_STD_RATIO
 
     def __post_init__(self) -> None:
+        from scipy.linalg import cho_factor, cho_solve   # here: a command whose model has no process needs none
+
         self.X, self.Y = np.asarray(self.X, float), np.asarray(self.Y, float)
         self.length_scales = np.atleast_2d(np.asarray(self.length_scales, float))
         self.signal_var, self.noise_var = (np.asarray(v, float).reshape(3) for v in (self.signal_var, self.noise_var))
@@ -175,6 +176,8 @@ class ResidualGP:
         The last few answers are kept, by the poses' bytes: a diagnosis asks again for the same poses (the
         gate of every model evaluation), and at 10,000 poses of a 600-pose process an answer costs 0.7 s.
         """
+        from scipy.linalg import solve_triangular
+
         X = np.ascontiguousarray(X, float)
         key = (X.shape, hashlib.blake2b(X.tobytes(), digest_size=16).digest())
         if key in self._ratios:
