@@ -94,3 +94,26 @@ def test_load_robot_by_file_type(tmp_path):
         robot.load_robot(urdf)
     with pytest.raises(InputError, match="chooses the chain of a URDF file"):
         loading.load_robot("ur10", tip="tool0")
+
+
+def test_the_truth_is_apart_from_the_package():
+    """The tests' independent truth (tests/truth) and casadical never import each other: data made by the
+    truth share no code with the model that fits them."""
+    import ast
+    from pathlib import Path
+
+    def imported(files):
+        out = set()
+        for f in files:
+            for node in ast.walk(ast.parse(f.read_text())):
+                if isinstance(node, ast.Import):
+                    out.update(a.name.split(".")[0] for a in node.names)
+                elif isinstance(node, ast.ImportFrom) and node.level == 0:
+                    out.add(node.module.split(".")[0])
+        return out
+
+    truth = sorted((Path(__file__).parent / "truth").glob("*.py"))
+    assert len(truth) >= 4
+    assert "casadical" not in imported(truth), imported(truth)
+    package = import_graph.modules().values()
+    assert not imported(package) & {"truth", "tests", "arms"}, imported(package) & {"truth", "tests", "arms"}

@@ -1,0 +1,234 @@
+"""The independent truth (tests/truth) against the documented formulas, worked by hand at a few poses.
+
+Nothing here uses casadical: the expected values are written out from the definitions of docs/formats.md
+(link transforms, base pose, measurement CSV), docs/guide.md's term table and docs/diagnosis.md's sign
+conventions. tests/test_truth_vs_package.py compares the truth with casadical's model.
+"""
+
+import csv
+import math
+from math import cos, radians, sin
+
+import numpy as np
+import pytest
+
+from truth import Arm, Effects, Session, TrueRobot, four_bar, last_moves, measure, sample
+from truth import transforms as tf
+
+G = 9.81
+L1, L2, M1, M2, MP = 0.8, 0.6, 20.0, 10.0, 5.0
+
+#: two links turning about parallel z axes, gravity along -y of the base frame: a planar arm in x-y
+PLANAR = {
+    "name": "planar", "convention": "dh",
+    "joint": [{"alpha_deg": 0, "a_m": L1, "d_m": 0.0, "mass_kg": M1, "com_m": [-L1 / 2, 0, 0]},
+              {"alpha_deg": 0, "a_m": L2, "d_m": 0.0, "mass_kg": M2, "com_m": [-L2 / 2, 0, 0]}],
+    "payload": {"mass_kg": MP}, "gravity": {"direction": [0, -2, 0]},
+}
+
+
+def planar_point(q1, q2):
+    return np.array([L1 * cos(q1) + L2 * cos(q1 + q2), L1 * sin(q1) + L2 * sin(q1 + q2), 0.0])
+
+
+def planar_torques(q1, q2, payload=MP):
+    """Torque of gravity (0, -m g, 0) about each z axis: the lever is the x distance, the torque -m g x."""
+    c1, c12 = cos(q1), cos(q1 + q2)
+    tau1 = -G * (M1 * L1 / 2 * c1 + M2 * (L1 * c1 + L2 / 2 * c12) + payload * (L1 * c1 + L2 * c12))
+    tau2 = -G * (M2 * L2 / 2 * c12 + payload * L2 * c12)
+    return np.array([tau1, tau2])
+
+
+def nominal(doc, effects=None):
+    return TrueRobot(Arm.from_dict(doc), effects=effects)
+
+
+def point(robot, q, **kw):
+    q = np.atleast_2d(q)
+    return robot.tool_point(robot.state(q, **kw), kw.get("temperature"))
+
+
+def test_planar_arm_and_its_torques():
+    robot = nominal(PLANAR)
+    q = np.radians([[30.0, 45.0], [-120.0, 80.0], [0.0, 0.0]])
+    s = robot.state(q)
+    for i, (q1, q2) in enumerate(q):
+        assert np.allclose(robot.tool_point(s)[i], planar_point(q1, q2), atol=1e-15)
+        assert np.allclose(s.torque[i], planar_torques(q1, q2), rtol=1e-12)
+    # the payload of the row counts, not the file's
+    s = robot.state(q, payload=[0.0, 50.0, 5.0])
+    assert np.allclose(s.torque[1], planar_torques(*q[1], payload=50.0), rtol=1e-12)
+
+
+def test_compliance_gives_way_with_the_torque_at_equilibrium():
+    """Joint j turns by tau_j / k_j (and k3 tau^3 beyond), tau of the deflected arm: the hand iteration."""
+    k, k3 = {1: 2e4, 2: 5e3}, {2: -2e-9}
+    robot = nominal(PLANAR, Effects(stiffness=k, cubic=k3))
+    q = np.radians([20.0, 30.0])
+    a = q.copy()
+    for _ in range(100):
+        tau = planar_torques(*a)
+        a = q + tau / [k[1], k[2]] + [0.0, k3[2] * tau[1] ** 3]
+    assert np.allclose(point(robot, q), planar_point(*a), atol=1e-14)
+    # gravity pulls the outstretched arm down: the point sinks, by 16 mm here
+    assert 0.015 < planar_point(*q)[1] - point(robot, q)[0, 1] < 0.017
+
+
+def test_gear_error_encoder_scale_and_backlash_by_hand():
+    """A sin(h q + phi), s q, +b sign(tau), -b sign(last move) are added to the joint's angle."""
+    A, h, phi, s, b = radians(0.02), 7, 0.4, 5e-4, radians(0.01)
+    q = np.radians([[50.0, -20.0], [10.0, -20.0], [10.0, 60.0], [10.0, 60.0]])
+    moves = np.array([[0, 0], [-1, 0], [-1, 1], [-1, 1]], float)   # joint 1 went down, then rests
+    assert np.array_equal(last_moves(q), moves)
+    for eff, extra in (
+        (Effects(periodic=[(2, h, A, phi)]), lambda q1, q2, m: (0.0, A * sin(h * q2 + phi))),
+        (Effects(encoder_scale={1: s}), lambda q1, q2, m: (s * q1, 0.0)),
+        (Effects(backlash={2: b}), lambda q1, q2, m: (0.0, b * np.sign(planar_torques(q1, q2)[1]))),
+        (Effects(backlash_motion={1: b, 2: b}), lambda q1, q2, m: (-b * m[0], -b * m[1])),
+    ):
+        got = point(nominal(PLANAR, eff), q)
+        for i, (q1, q2) in enumerate(q):
+            e1, e2 = extra(q1, q2, moves[i])
+            assert np.allclose(got[i], planar_point(q1 + e1, q2 + e2), atol=1e-15), eff
+
+
+def test_thermal_expansion_scales_lengths():
+    """Every length times 1 + alpha (T - t_ref); per link: that row's lengths only."""
+    q = np.radians([[30.0, 45.0]])
+    doc = {**PLANAR, "tool": {"a_m": 0.1, "b_m": 0.0, "d_m": 0.0}}
+    tool = lambda q1, q2, f: 0.1 * f * np.array([cos(q1 + q2), sin(q1 + q2), 0.0])   # noqa: E731
+    r = nominal(doc, Effects(thermal_alpha=2e-5, t_ref=20.0))
+    f = 1 + 2e-5 * 15.0
+    expected = f * planar_point(*q[0]) + tool(*q[0], f)
+    assert np.allclose(point(r, q, temperature=35.0), expected, atol=1e-15)
+    r = nominal(doc, Effects(thermal_links={2: -3e-5}, t_ref=25.0))
+    q1, q2 = q[0]
+    f2 = 1 - 3e-5 * 10.0
+    expected = np.array([L1 * cos(q1) + f2 * L2 * cos(q1 + q2), L1 * sin(q1) + f2 * L2 * sin(q1 + q2), 0.0])
+    assert np.allclose(point(r, q, temperature=35.0), expected + tool(q1, q2, 1.0), atol=1e-15)
+
+
+def test_mdh_and_dh_rows_with_hayati_beta():
+    """mdh: Rx(alpha) Tx(a) Ry(beta) Ty(b) Rz(q + theta) Tz(d); dh: Rz(q + theta) Tz(d) Tx(a) Rx(alpha) Ry(beta) Ty(b)."""
+    mdh = {"name": "m", "convention": "mdh", "tool": {"a_m": 0.2},
+           "joint": [{"alpha_deg": 0, "a_m": 1.0, "beta_deg": 90.0, "d_m": 0.5}]}
+    # Ry(90) turns z to x and x to -z: the axis now points along x, the tool's a along -z (q = 0) or y (q = 90)
+    got = point(nominal(mdh), np.radians([[0.0], [90.0]]))
+    assert np.allclose(got, [[1.5, 0.0, -0.2], [1.5, 0.2, 0.0]], atol=1e-15)
+    mdh["joint"][0].update(b_m=0.1, theta_deg=90.0)
+    got = point(nominal(mdh), np.radians([[0.0]]))
+    assert np.allclose(got, [[1.5, 0.3, 0.0]], atol=1e-15)      # Ty(b) along y; theta like q
+    dh = {"name": "d", "convention": "dh", "tool": {"d_m": 0.3},
+          "joint": [{"alpha_deg": 90.0, "a_m": 1.0, "beta_deg": 90.0, "b_m": 0.1, "d_m": 0.5}]}
+    # q = 90: Rz turns x to y; Tz(d) up, Tx(a) along y: (0, 1, 0.5). Rz(90) Rx(90) has the axes x' = (0, 1, 0),
+    # y' = (0, 0, 1), z' = (1, 0, 0); Ry(90) keeps y' (Ty(b): +0.1 z) and turns z' to x' (the tool's d: +0.3 y)
+    R = tf.chain(tf.rot("z", radians(90)), tf.rot("x", radians(90)), tf.rot("y", radians(90)))[0, :3, :3]
+    assert np.allclose(R, [[0, 0, 1], [1, 0, 0], [0, 1, 0]] @ np.array([[0, 0, 1], [0, 1, 0], [-1, 0, 0]]))
+    assert np.allclose(point(nominal(dh), np.radians([[90.0]])), [[0.0, 1.3, 0.6]], atol=1e-15)
+
+
+def test_base_pose_is_fixed_axis_rpy():
+    """Trans(xyz) Rz(yaw) Ry(pitch) Rx(roll): roll 90 turns y to z, then yaw 90 turns x to y."""
+    doc = {"name": "one", "convention": "dh", "joint": [{"alpha_deg": 0, "a_m": 0.0, "d_m": 0.0}],
+           "tool": {"a_m": 1.0, "b_m": 2.0, "d_m": 3.0}}
+    robot = nominal(doc)
+    q = np.zeros((1, 1))
+    pure = measure(robot, q, session=Session(base_rpy=(radians(90), 0.0, 0.0)), noise=0.0)
+    assert np.allclose(pure.xyz, [[1.0, -3.0, 2.0]], atol=1e-15)     # (x, y, z) -> (x, -z, y)
+    both = measure(robot, q, session=Session(base_xyz=(10, 20, 30), base_rpy=(radians(90), 0.0, radians(90))),
+                   noise=0.0)
+    assert np.allclose(both.xyz, [[10 + 3.0, 20 + 1.0, 30 + 2.0]], atol=1e-14)   # then (x, y, z) -> (-y, x, z)
+    pitch = measure(robot, q, session=Session(base_rpy=(0.0, radians(90), 0.0)), noise=0.0)
+    assert np.allclose(pitch.xyz, [[3.0, 2.0, -1.0]], atol=1e-15)    # z -> x, x -> -z
+
+
+def test_orientation_is_intrinsic_xyz_tracker_to_probe(tmp_path):
+    """The probe's frame in the measurement frame, written as R = Rx(rx) Ry(ry) Rz(rz)."""
+    robot = nominal(PLANAR)
+    q = np.radians([[30.0, 45.0]])
+    shots = measure(robot, q, noise=0.0, orientation_noise=0.0)
+    assert np.allclose(shots.R[0], tf.rot("z", radians(75.0))[0, :3, :3], atol=1e-15)
+    head, rows = shots.header_and_rows()
+    ang = dict(zip(head, map(float, rows[0])))
+    assert (ang["rx_deg"], ang["ry_deg"]) == pytest.approx((0.0, 0.0), abs=1e-12)
+    assert ang["rz_deg"] == pytest.approx(75.0, abs=1e-12)
+    # a mounting of the probe and a base rotation: R = R_base R_flange R_mount, and its angles rebuild it
+    ses = Session(base_rpy=(0.3, -0.2, 1.1), mount_rpy=(0.1, 0.5, -2.0))
+    shots = measure(robot, q, session=ses, noise=0.0, orientation_noise=0.0)
+    R = (tf.fixed_rpy(0.3, -0.2, 1.1) @ tf.rot("z", radians(75.0)) @ tf.fixed_rpy(0.1, 0.5, -2.0))[0, :3, :3]
+    assert np.allclose(shots.R[0], R, atol=1e-15)
+    rx, ry, rz = tf.intrinsic_xyz(shots.R)[0]
+    assert np.allclose(tf.chain(tf.rot("x", rx), tf.rot("y", ry), tf.rot("z", rz))[0, :3, :3], R, atol=1e-15)
+    from scipy.spatial.transform import Rotation      # an independent library's reading of "intrinsic XYZ"
+    assert np.allclose(Rotation.from_matrix(R).as_euler("XYZ"), [rx, ry, rz], atol=1e-12)
+
+
+def test_sessions_drift_noise_bad_shots_and_the_csv(tmp_path):
+    """Drift v (t - t_ref) moves the measured point; the probe's shift is in the flange frame; the CSV has
+    the contract's columns and units."""
+    robot = nominal(PLANAR)
+    q = np.radians([[30.0, 45.0], [40.0, 45.0], [50.0, 45.0]])
+    t = np.array([0.0, 10.0, 20.0])
+    ses = Session("B", tool_shift=(0.01, 0.0, 0.002), drift=(1e-6, 0.0, -2e-6), t_ref=10.0)
+    shots = measure(robot, q, session=ses, noise=0.0, time_s=t, temperature_c=[20, 21, 22], payload_kg=5.0)
+    for i, (q1, q2) in enumerate(q):
+        flange_x = np.array([cos(q1 + q2), sin(q1 + q2), 0.0])
+        expected = planar_point(q1, q2) + 0.01 * flange_x + [0, 0, 0.002] + (t[i] - 10.0) * np.array([1e-6, 0, -2e-6])
+        assert np.allclose(shots.xyz[i], expected, atol=1e-15)
+    other = measure(robot, q, session=Session("A"), noise=0.0, time_s=t, temperature_c=20.0, payload_kg=5.0)
+    path = (other + shots).write_csv(tmp_path / "two.csv")
+    rows = list(csv.DictReader(open(path)))
+    assert list(rows[0]) == ["q1_deg", "q2_deg", "x_mm", "y_mm", "z_mm", "payload_kg", "temperature_c", "time_s",
+                             "session"]
+    assert [r["session"] for r in rows] == ["A"] * 3 + ["B"] * 3
+    assert float(rows[4]["q1_deg"]) == pytest.approx(40.0, abs=1e-12)
+    assert float(rows[4]["x_mm"]) == pytest.approx(shots.xyz[1, 0] * 1000, rel=1e-15)
+    # noise: Gaussian per axis; bad shots: that many rows off by the gross error
+    rng = np.random.default_rng(3)
+    qq = sample(robot, 4000, rng, floor_z=None)
+    clean = measure(robot, qq, rng, noise=0.0)
+    noisy = measure(robot, qq, np.random.default_rng(4), noise=20e-6, bad=5, bad_mm=8.0)
+    err = np.linalg.norm(noisy.xyz - clean.xyz, axis=1)
+    assert np.sort(np.flatnonzero(err > 1e-3)).tolist() == noisy.bad.tolist() and len(noisy.bad) == 5
+    assert np.std(np.delete(noisy.xyz - clean.xyz, noisy.bad, axis=0)) == pytest.approx(20e-6, rel=0.03)
+    assert np.allclose(err[noisy.bad], 8e-3, atol=2e-4)
+
+
+def test_coupled_joint_errors_travel_through_the_coupling():
+    """theta_2 = q_2 - q_1 + offset (a parallelogram-like coupling): the second link keeps its absolute
+    direction q_2 + offset, whatever joint 1's drive does; drive 1 carries tau_1 - tau_2 (virtual work)."""
+    doc = {**PLANAR, "joint": [PLANAR["joint"][0], {**PLANAR["joint"][1], "coupling": [-1.0, 1.0],
+                                                      "coupling_offset_deg": 10.0}]}
+    q = np.radians([[30.0, 70.0]])
+    q1, q2 = q[0]
+    c2 = q2 - q1 + radians(10.0)
+    assert np.allclose(point(nominal(doc), q), planar_point(q1, c2), atol=1e-15)
+    # an encoder scale error of joint 1 turns link 1 only: link 2's absolute direction is q2 + 10 deg
+    s = 1e-3
+    got = point(nominal(doc, Effects(encoder_scale={1: s})), q)[0]
+    a1 = (1 + s) * q1
+    assert np.allclose(got, planar_point(a1, q2 + radians(10.0) - a1), atol=1e-15)
+    tau = planar_torques(q1, c2)
+    st = nominal(doc).state(q)
+    assert np.allclose(st.drive_torque[0], [tau[0] - tau[1], tau[1]], rtol=1e-12)
+
+
+def test_four_bar():
+    """A parallelogram's rocker is parallel to its crank; any four-bar's coupler keeps its length."""
+    rng = np.random.default_rng(0)
+    link, crank = rng.uniform(-1, 1, 50), rng.uniform(0.6, 2.5, 50)
+    assert np.allclose(four_bar(link, link + crank, 1.6, 0.8, 1.6, 0.8), link + crank - 2 * np.pi *
+                       np.round((link + crank) / (2 * np.pi)), atol=1e-12)
+    psi = four_bar(link, link + crank, 1.6, 0.8, 1.62, 0.79)
+    C = 0.8 * np.column_stack([np.cos(link + crank), np.sin(link + crank)])
+    R = 1.6 * np.column_stack([np.cos(link), np.sin(link)]) + 0.79 * np.column_stack([np.cos(psi), np.sin(psi)])
+    assert np.allclose(np.linalg.norm(R - C, axis=1), 1.62, atol=1e-12)
+
+
+def test_reads_the_toml_text_as_the_dict(tmp_path):
+    from arms import ARM7, to_toml
+    a, b = Arm.from_dict(ARM7), Arm.from_toml(to_toml(ARM7))
+    rng = np.random.default_rng(1)
+    q = sample(TrueRobot(a), 20, rng)
+    assert np.array_equal(point(TrueRobot(a), q), point(TrueRobot(b), q))
+    assert a.links[3].beta == 0.0 and a.links[2].beta is None and a.convention == "mdh"

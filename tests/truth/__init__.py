@@ -1,0 +1,26 @@
+"""An independent truth for the tests: measured-like data of a robot, made without casadical.
+
+casadical's simulator (:mod:`casadical.simulate`) evaluates the very terms
+the calibration and the diagnosis fit, so a wrong sign, phase, unit or
+convention in a term would be shared by the data and the fit. This package
+writes the robot and each effect again from its physical definition, in
+plain numpy with its own transforms, and writes the measurement CSV of
+docs/formats.md; the tests read that CSV as a user's file. casadical never
+imports it (tests/test_imports.py), and it imports nothing of casadical.
+
+    arm = Arm.from_dict(ARM4)                      # or Arm.from_toml(text)
+    robot = TrueRobot.draw(arm, Effects(stiffness={2: 5e5}), rng)
+    q = sample(robot, 80, rng)
+    shots = measure(robot, q, rng, session=Session(base_xyz=(1.5, -0.5, 0.3)))
+    shots.write_csv("cal.csv")
+
+The conventions are stated in :mod:`truth.robot` (the arm and its drives)
+and :mod:`truth.campaign` (sessions, orientation, noise, the file).
+"""
+
+from .arm import Arm, FourBar, Link
+from .campaign import Session, Shots, measure, sample
+from .robot import Effects, Geometry, State, TrueRobot, four_bar, last_moves
+
+__all__ = ["Arm", "Effects", "FourBar", "Geometry", "Link", "Session", "Shots", "State", "TrueRobot",
+           "four_bar", "last_moves", "measure", "sample"]

@@ -1,0 +1,162 @@
+"""Measuring the true robot: sessions (where the tracker stood, how the probe was mounted, its drift), noise,
+bad shots, and the measurement CSV of docs/formats.md section 2.
+
+- The measured point is ``base pose x flange x (tool point + probe shift)``
+  plus the session's drift ``v (t - t_ref)`` (the measurement frame
+  translates; m/s of ``time_s``) plus noise; the base pose is
+  Trans(xyz) Rz(yaw) Ry(pitch) Rx(roll) (fixed-axis roll-pitch-yaw).
+- The measured orientation (a 6-DoF probe) is the probe's frame in the
+  measurement frame, ``R = R_base R_flange R_mount`` (R_mount: the probe's
+  mounting on the flange, fixed-axis rpy), written as ``rx_deg, ry_deg,
+  rz_deg`` with ``R = Rx(rx) Ry(ry) Rz(rz)`` (intrinsic XYZ), turned by a
+  small random rotation (its noise) about the probe's axes.
+- A bad shot is a point off by a gross error (``bad_mm``) in a random
+  direction.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from . import transforms as tf
+from .robot import TrueRobot, last_moves
+
+
+@dataclass
+class Session:
+    """One measurement session: the tracker's placement, the probe's mounting, the session's drift."""
+
+    name: str = "A"
+    base_xyz: tuple = (0.0, 0.0, 0.0)           # m: the robot base in the measurement frame
+    base_rpy: tuple = (0.0, 0.0, 0.0)           # rad, fixed axis
+    tool_shift: tuple = (0.0, 0.0, 0.0)         # m, flange frame: the probe's point off the robot's tool point
+    mount_rpy: tuple = (0.0, 0.0, 0.0)          # rad: the probe's frame on the flange (orientation only)
+    drift: tuple = (0.0, 0.0, 0.0)              # m/s: the measurement frame translates
+    t_ref: float = 0.0                          # s: when the base pose holds
+
+    def base(self) -> np.ndarray:
+        return tf.pose(self.base_xyz, self.base_rpy)[0]
+
+
+@dataclass
+class Shots:
+    """Rows of one measurement file (readings in rad, points in m, rotations (N, 3, 3) or None)."""
+
+    q: np.ndarray
+    xyz: np.ndarray
+    R: np.ndarray | None = None
+    columns: dict = field(default_factory=dict)     # payload_kg, temperature_c, time_s: per row
+    session: list | None = None                     # session name per row (a 'session' column) or None
+    bad: np.ndarray = field(default_factory=lambda: np.zeros(0, int))   # rows with a gross error
+
+    def __len__(self) -> int:
+        return len(self.q)
+
+    def __add__(self, other: "Shots") -> "Shots":
+        """Both files' rows, in order (each with its session's name)."""
+        if (self.R is None) != (other.R is None) or set(self.columns) != set(other.columns):
+            raise ValueError("shots with different columns")
+        names = (self.session or [""] * len(self)) + (other.session or [""] * len(other))
+        return Shots(np.vstack([self.q, other.q]), np.vstack([self.xyz, other.xyz]),
+                     None if self.R is None else np.concatenate([self.R, other.R]),
+                     {k: np.concatenate([v, other.columns[k]]) for k, v in self.columns.items()},
+                     names, np.concatenate([self.bad, other.bad + len(self)]))
+
+    def header_and_rows(self, session_column: bool = False) -> tuple[list[str], list[list[str]]]:
+        n = self.q.shape[1]
+        head = [f"q{j}_deg" for j in range(1, n + 1)] + ["x_mm", "y_mm", "z_mm"]
+        cols = [np.degrees(self.q[:, j]) for j in range(n)] + [self.xyz[:, k] * 1000 for k in range(3)]
+        for name in ("payload_kg", "temperature_c", "time_s"):
+            if name in self.columns:
+                head.append(name)
+                cols.append(np.asarray(self.columns[name], float))
+        if self.R is not None:
+            head += ["rx_deg", "ry_deg", "rz_deg"]
+            ang = np.degrees(tf.intrinsic_xyz(self.R))
+            cols += [ang[:, k] for k in range(3)]
+        rows = [[repr(float(c[i])) for c in cols] for i in range(len(self))]
+        if session_column:
+            head.append("session")
+            for r, s in zip(rows, self.session):
+                r.append(s)
+        return head, rows
+
+    def write_csv(self, path, session_column: bool | None = None) -> Path:
+        """The measurement CSV (every number as Python's shortest exact repr); a ``session`` column when the
+        rows are of several sessions (or asked)."""
+        if session_column is None:
+            session_column = self.session is not None and len(set(self.session)) > 1
+        head, rows = self.header_and_rows(session_column)
+        path = Path(path)
+        path.write_text("\n".join(",".join(r) for r in [head] + rows) + "\n")
+        return path
+
+
+def measure(robot: TrueRobot, q: np.ndarray, rng: np.random.Generator | None = None, *,
+            session: Session | None = None, noise: float = 20e-6, orientation_noise: float | None = None,
+            payload_kg=None, temperature_c=None, time_s=None, bad: int | list = 0, bad_mm: float = 5.0,
+            moves: np.ndarray | None = None) -> Shots:
+    """Shots of ``robot`` at readings ``q`` (rad, rows in measurement order) in ``session``.
+
+    ``payload_kg``, ``temperature_c``, ``time_s``: per row (or one value), written as columns when given
+    (without ``payload_kg`` the robot file's payload is carried); ``orientation_noise`` (rad per axis):
+    measure the probe's orientation too; ``bad``: the number of bad shots (rows drawn at random) or their
+    row indices; ``moves``: the sign of each joint's last move (default: from the readings' order).
+    """
+    rng = rng or np.random.default_rng(0)
+    session = session or Session()
+    q = np.atleast_2d(np.asarray(q, float))
+    N = len(q)
+    cols = {}
+    for name, v in (("payload_kg", payload_kg), ("temperature_c", temperature_c), ("time_s", time_s)):
+        if v is not None:
+            cols[name] = np.broadcast_to(np.asarray(v, float), (N,)).copy()
+    if any(session.drift) and "time_s" not in cols:
+        raise ValueError("a drift needs the rows' times (time_s)")
+    temp = cols.get("temperature_c")
+    state = robot.state(q, cols.get("payload_kg"), temp, last_moves(q) if moves is None else moves)
+    point = robot.tool_point(state, temp, np.asarray(session.tool_shift, float))
+    B = session.base()
+    xyz = point @ B[:3, :3].T + B[:3, 3]
+    if any(session.drift):
+        xyz = xyz + np.outer(cols["time_s"] - session.t_ref, session.drift)
+    xyz = xyz + rng.normal(0.0, noise, (N, 3))
+    R = None
+    if orientation_noise is not None:
+        mount = tf.fixed_rpy(*session.mount_rpy)[0, :3, :3]
+        R = B[:3, :3] @ state.flange[:, :3, :3] @ mount
+        R = R @ tf.rotation_vector_to_matrix(rng.normal(0.0, orientation_noise, (N, 3)))
+    rows = np.asarray(rng.choice(N, size=bad, replace=False) if isinstance(bad, int) else bad, int)
+    if len(rows):
+        u = rng.normal(size=(len(rows), 3))
+        xyz[rows] += bad_mm / 1000 * u / np.linalg.norm(u, axis=1)[:, None]
+    return Shots(q, xyz, R, cols, [session.name] * N, np.sort(rows))
+
+
+def sample(robot: TrueRobot, n: int, rng: np.random.Generator, floor_z: float | None = 0.0,
+           margin: float = math.radians(5.0)) -> np.ndarray:
+    """Readings (rad, (n, joints)) uniform within the limits less ``margin``, whose nominal tool point lies
+    above ``floor_z`` (robot base frame; None: anywhere); a four-bar kept away from its dead points."""
+    arm = robot.arm
+    lim = arm.limits.copy()
+    inner = lim + [margin, -margin]
+    ok = inner[:, 0] < inner[:, 1]
+    lim[ok] = inner[ok]
+    nominal = TrueRobot(arm)
+    kept = np.zeros((0, arm.n))
+    while len(kept) < n:
+        q = rng.uniform(lim[:, 0], lim[:, 1], (4 * n + 16, arm.n))
+        keep = np.ones(len(q), bool)
+        if floor_z is not None:
+            s = nominal.frames(nominal.chain_angles(q, nominal.geometry_at(None, len(q))),
+                               nominal.geometry_at(None, len(q)), np.zeros(len(q)))
+            keep &= nominal.tool_point(s)[:, 2] > floor_z
+        if arm.loop is not None:
+            j = arm.loop.joint - 1
+            keep &= np.abs(np.sin(q[:, j] - q[:, j - 1])) > 0.5
+        kept = np.vstack([kept, q[keep]])
+    return kept[:n]

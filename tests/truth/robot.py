@@ -1,0 +1,320 @@
+"""The true robot: its geometry, the physical effects of its drives, and where its flange is.
+
+Every effect is written from its physical definition as the docs state it
+(docs/guide.md's term table, docs/diagnosis.md "Sign conventions",
+docs/formats.md section 1), not from casadical's terms:
+
+- **Link transforms** (formats.md): ``mdh`` Rx(alpha) Tx(a) Ry(beta) Ty(b)
+  Rz(angle + theta) Tz(d); ``dh`` Rz(angle + theta) Tz(d) Tx(a) Rx(alpha)
+  Ry(beta) Ty(b); the tool point Tx Ty Tz of the tool's a, b, d in the last
+  link frame.
+- **Drives.** Each joint reading q_j is its drive's (motor-side) angle. The
+  drive really stands at ``m_j = q_j + e_j``, where e_j sums what the drive
+  does (below). The chain angles are made from the drives' angles: the
+  angle itself, or ``sum_k coupling[k] m_k + offset`` for a coupled row, or
+  the four-bar's rocker (loop). For an arm without couplings or loops, e_j
+  is simply added to joint j's angle.
+- **Gravity torques**: about each joint's axis, of the weights of every link
+  after it (its own included) at their centres of mass (given in their link
+  frames) and the row's payload at its centre of mass in the tool frame
+  (the robot file's tool point, orientation of the last link). A drive
+  carries the torque its angle does work against: ``tau_drive = J^T tau``
+  with ``J = d chain angles / d drive angles`` (virtual work; the identity
+  for an arm without couplings). Torques are those of the **deflected**
+  arm: the equilibrium is found by fixed-point iteration.
+- **Joint compliance**: ``e_j += tau_j / k_j``: the joint gives way in the
+  direction of its torque. **Progressive stiffness**: ``e_j += k3_j
+  tau_j^3`` beyond it (k3 < 0: stiffens with load).
+- **Periodic gear error**: ``e_j += A sin(h q_j + phi)`` of the reading.
+- **Encoder scale**: the drive turns by ``(1 + s) q_j``: ``e_j += s q_j``.
+- **Backlash, torque side**: half play b >= 0 taken up in the direction of
+  the torque: ``e_j += b sign(tau_j)``. **Motion side** (lag): the output
+  trails its motor, after a move in the positive direction it stands b short
+  of its reading: ``e_j -= b sign(last move_j)``, the last move being the
+  joint's last change of reading in measurement order (a joint that has not
+  moved since keeps the flank of its earlier move); before its first move a
+  joint sits mid-play (0).
+- **Thermal expansion**: every length (links' a, b, d, the tool, the loop)
+  times ``1 + alpha (T - t_ref)``; per link: that row's a, b and d times ``1
+  + alpha_j (T - t_ref)``. Centres of mass do not move.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field, replace
+
+import numpy as np
+
+from . import transforms as tf
+from .arm import Arm
+
+
+@dataclass
+class Effects:
+    """What the true robot's drives and structure do (SI units; joints 1-based)."""
+
+    stiffness: dict[int, float] = field(default_factory=dict)          # k_j, N m/rad
+    cubic: dict[int, float] = field(default_factory=dict)              # k3_j, rad/(N m)^3
+    periodic: list[tuple[int, int, float, float]] = field(default_factory=list)   # (j, h, A rad, phi rad)
+    encoder_scale: dict[int, float] = field(default_factory=dict)      # s_j
+    backlash: dict[int, float] = field(default_factory=dict)           # half play b_j, rad, torque side
+    backlash_motion: dict[int, float] = field(default_factory=dict)    # half play b_j, rad, motion side
+    thermal_alpha: float = 0.0                                         # 1/K, every length
+    thermal_links: dict[int, float] = field(default_factory=dict)      # 1/K, lengths of row j
+    t_ref: float = 20.0                                                # deg C at which the geometry holds
+
+
+@dataclass
+class Geometry:
+    """True values of every row's parameters, the tool point and the loop's lengths."""
+
+    alpha: np.ndarray
+    a: np.ndarray
+    beta: np.ndarray
+    b: np.ndarray
+    d: np.ndarray
+    theta: np.ndarray
+    tool: np.ndarray
+    loop: np.ndarray | None = None      # crank, coupler, rocker
+
+    @classmethod
+    def nominal(cls, arm: Arm) -> "Geometry":
+        L = arm.links
+        return cls(*(np.array([getattr(k, f) or 0.0 for k in L]) for f in ("alpha", "a", "beta", "b", "d", "theta")),
+                   tool=arm.tool.copy(),
+                   loop=None if arm.loop is None else np.array([arm.loop.crank, arm.loop.coupler, arm.loop.rocker]))
+
+
+@dataclass
+class State:
+    """The arm at a batch of poses: drive angles, chain angles, frames (robot base frame), torques."""
+
+    drive: np.ndarray          # (N, n) rad
+    chain: np.ndarray          # (N, n) rad
+    links: np.ndarray          # (N, n, 4, 4) link frames
+    axes: np.ndarray           # (N, n, 3) joint axes
+    origins: np.ndarray        # (N, n, 3) a point on each axis
+    flange: np.ndarray         # (N, 4, 4) last link frame
+    torque: np.ndarray         # (N, n) gravity torque about each joint's axis (chain)
+    drive_torque: np.ndarray   # (N, n) what each drive carries
+
+
+def last_moves(q: np.ndarray) -> np.ndarray:
+    """Sign of each joint's last change of reading before each row, in row order (0 before its first)."""
+    out = np.zeros_like(q)
+    for i in range(1, len(q)):
+        step = np.sign(q[i] - q[i - 1])
+        out[i] = np.where(step != 0, step, out[i - 1])
+    return out
+
+
+class TrueRobot:
+    """An arm with its true geometry and effects; :meth:`state` gives its flange at any readings."""
+
+    def __init__(self, arm: Arm, geometry: Geometry | None = None, effects: Effects | None = None):
+        self.arm = arm
+        self.geometry = geometry or Geometry.nominal(arm)
+        self.effects = effects or Effects()
+
+    @classmethod
+    def draw(cls, arm: Arm, effects: Effects | None, rng: np.random.Generator,
+             length_sigma: float = 0.5e-3, angle_sigma: float = math.radians(0.05)) -> "TrueRobot":
+        """Nominal geometry plus random errors of every parameter the robot file models (beta, b only where it
+        has them), the tool point included."""
+        g = Geometry.nominal(arm)
+        n = arm.n
+        modelled = {"beta": np.array([k.beta is not None for k in arm.links]),
+                    "b": np.array([k.b is not None for k in arm.links])}
+        new = {}
+        for name in ("alpha", "a", "beta", "b", "d", "theta"):
+            sigma = angle_sigma if name in ("alpha", "beta", "theta") else length_sigma
+            dev = rng.normal(0.0, sigma, n) * modelled.get(name, np.ones(n, bool))
+            new[name] = getattr(g, name) + dev
+        tool = g.tool + rng.normal(0.0, length_sigma, 3)
+        loop = None if g.loop is None else g.loop + rng.normal(0.0, length_sigma, 3)
+        return cls(arm, Geometry(**new, tool=tool, loop=loop), effects)
+
+    def with_effects(self, effects: Effects) -> "TrueRobot":
+        return TrueRobot(self.arm, self.geometry, effects)
+
+    # --- geometry at a temperature ------------------------------------------------------
+
+    def geometry_at(self, temperature: np.ndarray | None, N: int) -> dict[str, np.ndarray]:
+        """Per-pose row values (N, n) and tool (N, 3) and loop (N, 3): thermal growth applied."""
+        g, e, n = self.geometry, self.effects, self.arm.n
+        out = {k: np.tile(getattr(g, k), (N, 1)) for k in ("alpha", "a", "beta", "b", "d", "theta")}
+        out["tool"] = np.tile(g.tool, (N, 1))
+        out["loop"] = None if g.loop is None else np.tile(g.loop, (N, 1))
+        if temperature is None or not (e.thermal_alpha or e.thermal_links):
+            return out
+        dT = np.asarray(temperature, float) - e.t_ref
+        grow = (1 + e.thermal_alpha * dT)[:, None]
+        per_row = np.column_stack([1 + e.thermal_links.get(j, 0.0) * dT for j in range(1, n + 1)])
+        for k in ("a", "b", "d"):
+            out[k] = out[k] * grow * per_row
+        out["tool"] = out["tool"] * grow
+        if out["loop"] is not None:
+            out["loop"] = out["loop"] * grow
+        return out
+
+    # --- chain angles from drive angles ---------------------------------------------------
+
+    def chain_angles(self, m: np.ndarray, geo: dict) -> np.ndarray:
+        """Chain angles (N, n) of drive angles ``m`` (N, n): couplings and the loop."""
+        arm = self.arm
+        out = m.copy()
+        for i, link in enumerate(arm.links):
+            if link.coupling is not None:
+                out[:, i] = m @ link.coupling + link.coupling_offset
+        if arm.loop is not None:
+            i = arm.loop.joint - 1
+            link_dir = out[:, i - 1] + geo["theta"][:, i - 1]
+            ground = geo["a"][:, i] if arm.convention == "mdh" else geo["a"][:, i - 1]
+            crank, coupler, rocker = geo["loop"].T
+            rocker_dir = four_bar(link_dir, m[:, i], ground, crank, coupler, rocker)
+            out[:, i] = rocker_dir - link_dir + arm.links[i].coupling_offset
+        return out
+
+    def chain_jacobian(self, m: np.ndarray, geo: dict, h: float = 1e-7) -> np.ndarray:
+        """d chain angles / d drive angles (N, n, n): the couplings' factors, the loop's row by central
+        differences."""
+        N, n = m.shape
+        J = np.tile(np.eye(n), (N, 1, 1))
+        for i, link in enumerate(self.arm.links):
+            if link.coupling is not None:
+                J[:, i, :] = link.coupling
+        if self.arm.loop is not None:
+            i = self.arm.loop.joint - 1
+            for k in range(n):
+                dm = np.zeros(n)
+                dm[k] = h
+                J[:, i, k] = (self.chain_angles(m + dm, geo)[:, i] - self.chain_angles(m - dm, geo)[:, i]) / (2 * h)
+        return J
+
+    # --- frames and torques ----------------------------------------------------------------
+
+    def frames(self, chain: np.ndarray, geo: dict, payload: np.ndarray) -> State:
+        N, n = chain.shape
+        arm = self.arm
+        T = tf.eye(N)
+        links, axes, origins = [], [], []
+        for i in range(n):
+            alpha, a, beta, b, d, theta = (geo[k][:, i] for k in ("alpha", "a", "beta", "b", "d", "theta"))
+            if arm.convention == "mdh":
+                T = tf.chain(T, tf.rot("x", alpha), tf.trans(a), tf.rot("y", beta), tf.trans(0.0, b))
+                axes.append(T[:, :3, 2])
+                origins.append(T[:, :3, 3])
+                T = tf.chain(T, tf.rot("z", chain[:, i] + theta), tf.trans(0.0, 0.0, d))
+            else:
+                axes.append(T[:, :3, 2])
+                origins.append(T[:, :3, 3])
+                T = tf.chain(T, tf.rot("z", chain[:, i] + theta), tf.trans(0.0, 0.0, d), tf.trans(a),
+                             tf.rot("x", alpha), tf.rot("y", beta), tf.trans(0.0, b))
+            links.append(T)
+        links = np.stack(links, axis=1)
+        axes, origins = np.stack(axes, axis=1), np.stack(origins, axis=1)
+        # weights: each link's mass at its centre of mass, the payload at its own in the tool frame
+        centres = [links[:, i, :3, :3] @ arm.links[i].com + links[:, i, :3, 3] for i in range(n)]
+        tool_frame = tf.chain(T, tf.trans(*self.geometry.tool))
+        centres.append(tool_frame[:, :3, :3] @ arm.payload_com + tool_frame[:, :3, 3])
+        masses = [np.full(N, k.mass) for k in arm.links] + [np.asarray(payload, float)]
+        torque = np.zeros((N, n))
+        for i in range(n):
+            moment = np.zeros((N, 3))
+            for c, mass in zip(centres[i:], masses[i:]):
+                moment += np.cross(c - origins[:, i], mass[:, None] * arm.gravity)
+            torque[:, i] = np.einsum("nk,nk->n", axes[:, i], moment)
+        return State(np.zeros((N, n)), chain, links, axes, origins, T, torque, torque)
+
+    # --- the drives ---------------------------------------------------------------------
+
+    def reading_errors(self, q: np.ndarray, moves: np.ndarray) -> np.ndarray:
+        """What each drive adds that depends on its reading and its motion: gear error, encoder scale, the
+        motion side of backlash (rad, (N, n))."""
+        e = np.zeros_like(q)
+        eff = self.effects
+        for j, h, A, phi in eff.periodic:
+            e[:, j - 1] += A * np.sin(h * q[:, j - 1] + phi)
+        for j, s in eff.encoder_scale.items():
+            e[:, j - 1] += s * q[:, j - 1]
+        for j, b in eff.backlash_motion.items():
+            e[:, j - 1] -= b * moves[:, j - 1]
+        return e
+
+    def load_errors(self, tau: np.ndarray) -> np.ndarray:
+        """What each drive gives way under its torque ``tau`` (N m, (N, n)): compliance, progressive
+        stiffness, the torque side of backlash (rad)."""
+        e = np.zeros_like(tau)
+        eff = self.effects
+        for j, k in eff.stiffness.items():
+            e[:, j - 1] += tau[:, j - 1] / k
+        for j, k3 in eff.cubic.items():
+            e[:, j - 1] += k3 * tau[:, j - 1] ** 3
+        for j, b in eff.backlash.items():
+            e[:, j - 1] += b * np.sign(tau[:, j - 1])
+        return e
+
+    def state(self, q: np.ndarray, payload=None, temperature=None, moves: np.ndarray | None = None,
+              iterations: int = 50) -> State:
+        """The arm at readings ``q`` (rad, (N, n)) in equilibrium under gravity.
+
+        ``payload``: kg per pose (default the robot file's); ``temperature``: deg C per pose (default: the
+        reference, no growth); ``moves``: the sign of each joint's last move (default: :func:`last_moves` of
+        ``q`` in row order).
+        """
+        q = np.atleast_2d(np.asarray(q, float))
+        N = len(q)
+        payload = np.broadcast_to(self.arm.payload if payload is None else np.asarray(payload, float), (N,))
+        moves = last_moves(q) if moves is None else moves
+        geo = self.geometry_at(None if temperature is None else np.broadcast_to(temperature, (N,)), N)
+        base = q + self.reading_errors(q, moves)
+        m = base
+        for _ in range(iterations):
+            s = self.frames(self.chain_angles(m, geo), geo, payload)
+            J = self.chain_jacobian(m, geo)
+            tau_drive = np.einsum("nij,ni->nj", J, s.torque)
+            new = base + self.load_errors(tau_drive)
+            done = np.max(np.abs(new - m)) < 1e-15
+            m = new
+            if done:
+                break
+        s = self.frames(self.chain_angles(m, geo), geo, payload)
+        return replace(s, drive=m, drive_torque=np.einsum("nij,ni->nj", self.chain_jacobian(m, geo), s.torque))
+
+    def tool_point(self, state: State, temperature=None, shift=np.zeros(3)) -> np.ndarray:
+        """The measured point (robot base frame, (N, 3)): the tool point (grown with the temperature) plus the
+        probe's ``shift`` (m, flange frame)."""
+        N = len(state.flange)
+        geo = self.geometry_at(None if temperature is None else np.broadcast_to(temperature, (N,)), N)
+        p = geo["tool"] + shift
+        return np.einsum("nij,nj->ni", state.flange[:, :3, :3], p) + state.flange[:, :3, 3]
+
+
+def four_bar(link_dir, crank_dir, ground, crank, coupler, rocker) -> np.ndarray:
+    """Absolute direction of the rocker of a four-bar (plane angles, rad).
+
+    Crank on axis A at angle ``crank_dir``; the rocker's axis B lies ``ground`` from A in direction
+    ``link_dir``; the coupler joins the crank's tip C to the rocker's tip R. R is where the circle about B
+    (radius ``rocker``) meets the circle about C (radius ``coupler``); of the two, the one whose direction
+    is nearer the crank's (a parallelogram's rocker stays parallel to its crank).
+    """
+    C = np.stack([crank * np.cos(crank_dir), crank * np.sin(crank_dir)], -1)
+    B = np.stack([ground * np.cos(link_dir), ground * np.sin(link_dir)], -1)
+    v = C - B
+    dist = np.linalg.norm(v, axis=-1)
+    # along B->C by x, across by +-y: x^2 + y^2 = rocker^2, (dist - x)^2 + y^2 = coupler^2
+    x = (rocker ** 2 - coupler ** 2 + dist ** 2) / (2 * dist)
+    y = np.sqrt(np.maximum(rocker ** 2 - x ** 2, 0.0))
+    u = v / dist[:, None]
+    w = np.stack([-u[:, 1], u[:, 0]], -1)
+    best = None
+    for sgn in (1.0, -1.0):
+        R = x[:, None] * u + sgn * y[:, None] * w
+        ang = np.arctan2(R[:, 1], R[:, 0])
+        off = np.abs(np.angle(np.exp(1j * (ang - crank_dir))))
+        if best is None:
+            best, best_off = ang, off
+        else:
+            best = np.where(off < best_off, ang, best)
+    return best
