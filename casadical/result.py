@@ -496,7 +496,8 @@ class CalibrationResult:
         if self.uncertainty is not None:
             doc["uncertainty"] = {"sigma_mm": self.uncertainty.sigma * 1000, "dof": self.uncertainty.dof,
                                   "names": self.uncertainty.names,
-                                  "correlation": np.round(self.uncertainty.correlation, 6).tolist()}
+                                  # full precision: predict --std needs the covariance of correlated parameters
+                                  "correlation": np.round(self.uncertainty.correlation, 12).tolist()}
         doc["statistics"] = self.statistics.to_dict() if self.statistics is not None else None
         if self.validation is not None:
             doc["validation"] = self.validation.to_dict()
@@ -625,6 +626,7 @@ def load_calibration(path: str | Path) -> CalibrationResult:
     model.parameters = params
     cal = doc.get("calibration")
     by_session = {e["name"]: ErrorStats(**e["calibration"]) for e in doc.get("sessions") or [] if e.get("calibration")}
+    extra["uncertainty"] = _uncertainty_of(doc, params)
     return CalibrationResult(model, params, base0, calibration=ErrorStats(**cal) if cal else None,
                              notes=doc.get("notes", []), loss=loss, downweighted=rob.get("downweighted", []),
                              coverage=coverage, by_session=by_session, tool0=tool0, orientation=angles,
@@ -650,4 +652,19 @@ def _statistics_of(doc: dict) -> dict:
             pass        # nothing usable: the tests fall back on the normal distribution
     return {"statistics": FitStatistics.from_dict(stats) if stats else None,
             "validation": Validation.from_dict(val) if val else None}
+
+
+def _uncertainty_of(doc: dict, params) -> Uncertainty | None:
+    """The parameter covariance a calibration JSON holds (its free parameters' std and correlation), SI."""
+    unc = doc.get("uncertainty")
+    try:
+        names = list(unc["names"])
+        corr = np.asarray(unc["correlation"], dtype=float)
+        std = np.array([params[n].std for n in names], dtype=float)
+        if corr.shape != (len(names), len(names)) or not np.all(np.isfinite(corr)):
+            return None
+        return Uncertainty(names, corr * np.outer(np.nan_to_num(std), np.nan_to_num(std)),
+                           float(unc["sigma_mm"]) / 1000, int(unc["dof"]))
+    except (KeyError, TypeError, ValueError):
+        return None
 

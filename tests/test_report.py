@@ -27,7 +27,7 @@ from casadical.diagnosis import DiagnosisSettings, Finding, diagnose
 from casadical.diagnosis.candidates import Candidate
 from casadical.report import calibration_html, diagnosis_html
 from casadical.robot import robot_from_dict
-from casadical.simulate import Effects, simulate
+from casadical.simulate import Effects, sample_poses, simulate
 
 try:                        # drives the browser through the DevTools protocol
     from playwright.sync_api import sync_playwright
@@ -721,3 +721,35 @@ def test_a_rejected_step_after_an_accepted_one_gains_against_its_parent(diagnosi
     assert rejected[1]["extends"] == "3" and rejected[1]["validation mean mm"] == "0.3024 0.0024 worse"
     assert rejected[0]["why not accepted"] == "the halves of the joint's range disagree"
     assert not _signed_gain(page.text)
+
+
+def test_diagnosis_report_maps_where_the_model_is_accurate(browser, tmp_path):
+    """diagnose --html --map-joints 2,3: a map of the predicted uncertainty over joints 2 and 3 with the
+    calibration poses on it, readable in a real browser; it is lowest where the poses are (5-axis DH arm,
+    joint 2 measured over 40 deg of its 180)."""
+    from casadical.predictive import accuracy_map
+
+    robot = robot_from_dict(ARM5, "arm5")
+    (tmp_path / "arm.toml").write_text(to_toml(ARM5))
+    rng = np.random.default_rng(0)
+    q = sample_poses(robot, 160, rng)
+    q[:, 1] = np.radians(rng.uniform(40, 80, len(q)))
+    cal, truth = simulate(robot, q[:60], Effects(stiffness={2: 4e5}), seed=0)
+    val, _ = simulate(robot, q[60:], truth=truth, seed=1)
+    cal.write_csv(tmp_path / "cal.csv")
+    val.write_csv(tmp_path / "val.csv")
+    assert main(["diagnose", str(tmp_path / "arm.toml"), str(tmp_path / "cal.csv"), "--validate",
+                 str(tmp_path / "val.csv"), "--html", str(tmp_path / "r.html"), "--out", str(tmp_path / "f.json"),
+                 "--map-joints", "2,3", "--no-blackbox", "-q"]) == 0
+    html = (tmp_path / "r.html").read_text()
+    fig = re.search(r'<figure id="fig-accuracy">(.*?)</figure>', html, re.S).group(1)
+    assert "q2 (deg)" in fig and "q3 (deg)" in fig and "calibration poses" in fig
+    seen = look(browser, html, tmp_path / "map.html")
+    assert_readable(seen)
+    # the map's values: lowest inside the measured band of joint 2, higher outside it
+    from casadical.calibration import load_calibration
+
+    m = accuracy_map(load_calibration(tmp_path / "f.json"), cal.q, (2, 3))
+    inside = (m["x_deg"] >= 40) & (m["x_deg"] <= 80)
+    print("inside / outside", m["std_mm"][:, inside].mean() / m["std_mm"][:, ~inside].mean())
+    assert m["std_mm"][:, inside].mean() < 0.6 * m["std_mm"][:, ~inside].mean()

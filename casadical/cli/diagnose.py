@@ -31,6 +31,9 @@ def register(sub) -> None:
                    help="write the report as JSON ('-': standard output, which then holds the JSON alone)")
     p.add_argument("--html", metavar="REPORT.html",
                    help="write a self-contained HTML report, findings first ('-': standard output)")
+    p.add_argument("--map-joints", metavar="J,K", default=None,
+                   help="the two joints of the HTML report's map of where the model is accurate (default: the two "
+                        "along which its predicted uncertainty varies most)")
     p.add_argument("--out", metavar="FINAL.json",
                    help="write the final model as a calibration JSON (compensator included), for predict, "
                         "compensate, export and calibrate FINAL.json (at least one of --json, --html, --out)")
@@ -84,6 +87,7 @@ def run(args) -> int:
         raise InputError("--transfer-base-poses and --transfer-refit-poses are for the transfer study: give "
                          "--transfer OTHER.csv, or leave them out")
     robot = robot_from_args(args.robot, args)
+    map_joints = _joint_pair(args.map_joints, robot.n) if args.map_joints else None
 
     def read(path):
         return timed(Measurements.read_csv(path, n_joints=robot.n, require_positions=True), args)
@@ -111,18 +115,46 @@ def run(args) -> int:
     print(report.text(verbose=args.verbose), file=out)
     print(file=out)
     if args.json:
-        write_json(args.json, report.to_dict(), args.force)
+        doc = report.to_dict()
+        # the poses the report was made from, for plan-poses REPORT.json (relative to the report's folder)
+        doc["inputs"] = {"data": [_beside(p, args.json) for p in args.data],
+                         "validate": [_beside(p, args.json) for p in args.validate]}
+        write_json(args.json, doc, args.force)
         print(f"report -> {'standard output' if args.json == STDOUT else args.json}", file=out)
     if args.html:
         from ..report import diagnosis_html  # matplotlib: imported only for the HTML report
         from ..threads import evaluation_threads
 
-        write_text(args.html, diagnosis_html(report, processes=evaluation_threads(), progress=say), args.force)
+        write_text(args.html, diagnosis_html(report, processes=evaluation_threads(), progress=say, poses=cal,
+                                             map_joints=map_joints), args.force)
         print(f"html report -> {'standard output' if args.html == STDOUT else args.html}", file=out)
     if args.out:
         report.final.save(args.out, overwrite=args.force)
         print(f"final model -> {args.out}", file=out)
     return 0
+
+
+def _joint_pair(text: str, n: int) -> tuple[int, int]:
+    try:
+        a, b = (int(x) for x in text.split(","))
+    except ValueError:
+        raise InputError(f"--map-joints needs two joint numbers J,K, got {text!r}") from None
+    if not (1 <= a <= n and 1 <= b <= n and a != b):
+        raise InputError(f"--map-joints: two different joints of 1..{n}, got {text!r}")
+    return a, b
+
+
+def _beside(path: str, report: str) -> str:
+    """``path`` relative to the folder of ``report`` (absolute when the report goes to standard output or
+    to another drive)."""
+    import os
+
+    if report == STDOUT:
+        return os.path.abspath(path)
+    try:
+        return os.path.relpath(os.path.abspath(path), os.path.dirname(os.path.abspath(report)))
+    except ValueError:
+        return os.path.abspath(path)
 
 
 def _brief(say):

@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from ..errors import InputError
 from .common import (add_checks, add_force, add_json, add_urdf_chain, check_options, check_outputs, compensator_line,
                      int_at_least, robot_from_args, robot_or_calibration, warn_session_frame, warn_session_terms,
                      write_json)
@@ -35,6 +36,10 @@ def register(sub) -> None:
     p.add_argument("model", metavar="MODEL", help="robot (nominal model) or calibration JSON")
     p.add_argument("poses", metavar="POSES.csv", help="joint readings (q1_deg, ...)")
     p.add_argument("--out", required=True, metavar="OUT.csv", help="output CSV")
+    p.add_argument("--std", action="store_true",
+                   help="also write std_mm, the predicted position's uncertainty at each pose (rms 3-D error of the "
+                        "prediction): the parameters' covariance (std_params_mm) and, with an accuracy layer, its "
+                        "predictive std (std_layer_mm); MODEL must be a calibration JSON")
     add_checks(p)
     add_urdf_chain(p)
     add_force(p)
@@ -104,6 +109,9 @@ def run_predict(args) -> int:
         warn_session_frame(cal.sessions, data, args.model)
         xyz = cal.predict(data)
     else:
+        if args.std:
+            raise InputError(f"{args.model}: --std needs a calibration JSON (a robot's nominal model has no "
+                             "parameter covariance)")
         cal, robot = None, source
         model = Model(robot, "nominal")
         data = Measurements.read_csv(args.poses, n_joints=robot.n)
@@ -135,8 +143,23 @@ def run_predict(args) -> int:
         # measured orientations are renamed as the measured positions are: an rx_deg beside the model's x_mm would
         # read as the model's (compensate takes it for the target orientation)
         out = out.with_columns({f"measured_{k}" if k in RXYZ else k: v for k, v in out.columns.items()})
+    if args.std:
+        from ..predictive import prediction_std
+
+        try:
+            sp, sl = prediction_std(cal, data)
+        except InputError as e:
+            raise InputError(e.message, file=args.model) from e
+        total = sp if sl is None else np.sqrt(sp ** 2 + sl ** 2)
+        cols = {"std_mm": total * 1000, "std_params_mm": sp * 1000}
+        if sl is not None:
+            cols["std_layer_mm"] = sl * 1000
+        out = out.with_columns({**out.columns, **cols})
     out.write_csv(args.out, overwrite=args.force)
     print(f"predicted {len(data)} poses -> {args.out}")
+    if args.std:
+        print(f"predicted uncertainty (rms 3-D error of the prediction): median {np.median(total) * 1000:.4f} mm, "
+              f"max {np.max(total) * 1000:.4f} mm")
     if stats is not None:
         how = "calibrated model" if cal is not None else "nominal model with its base pose fitted to them"
         print(f"error against the measured positions ({how}): {stats.line()}")

@@ -24,10 +24,19 @@ def register(sub) -> None:
                     "the criterion, the observability indices O1..O5 and a certificate: an upper "
                     "bound on log det(J^T J) over all M-subsets and the selection's D-efficiency "
                     "against it.")
-    p.add_argument("robot", metavar="ROBOT", help="built-in robot (ys100, hh800, ur10), robot TOML or URDF file")
+    p.add_argument("robot", metavar="ROBOT",
+                   help="built-in robot (ys100, hh800, ur10), robot TOML or URDF file; or REPORT.json written by "
+                        "diagnose --json: the M candidates that, added to the poses already measured, best answer "
+                        "its open questions")
     p.add_argument("candidates", metavar="CANDIDATES.csv", help="candidate poses (q1_deg, ..., qN_deg)")
     p.add_argument("-m", dest="m", type=int_at_least(1), required=True, metavar="M", help="number of poses to select")
     p.add_argument("--out", required=True, metavar="SELECTED.csv", help="output CSV (selected rows)")
+    p.add_argument("--measured", nargs="+", metavar="DATA.csv",
+                   help="with REPORT.json: the poses the report was made from (default: the DATA files it names)")
+    p.add_argument("--question", type=int_at_least(1), metavar="N",
+                   help="with REPORT.json: plan for open question N alone (default: all of them)")
+    p.add_argument("--random-sets", type=int_at_least(1), default=200, metavar="K",
+                   help="with REPORT.json: random sets of M candidates the plan is compared with (default: 200)")
     method = p.add_argument("--method", type=_method, default="d-optimal",
                             help="d-optimal (certified relaxation + exchange), ga (the GA paper's selector, "
                                  "fitness O1) or random (default: %(default)s)")
@@ -81,6 +90,11 @@ def _method(text: str) -> str:
 
 
 def cmd_plan_poses(args) -> int:
+    if args.robot.lower().endswith(".json"):
+        return cmd_plan_report(args)
+    for opt, given in (("--measured", args.measured), ("--question", args.question)):
+        if given:
+            raise InputError(f"{opt} is for plan-poses REPORT.json (a diagnosis report in place of ROBOT)")
     from ..checks import check_distinct_poses, check_poses
     from ..data import Measurements
     from ..model import Model
@@ -132,6 +146,103 @@ def cmd_plan_poses(args) -> int:
         doc = {"robot": robot.name, "model": model.spec, "candidates": args.candidates,
                "file_lines": lines, **res.to_dict()}
         write_json(args.json, doc, args.force)
+        print(f"summary -> {'standard output' if args.json == '-' else args.json}", file=out)
+    return 0
+
+
+def cmd_plan_report(args) -> int:
+    """``plan-poses REPORT.json CANDIDATES.csv``: the poses that answer the report's open questions."""
+    import json
+    import os
+
+    from ..checks import check_poses
+    from ..data import Measurements
+    from ..errors import RobotFileError
+    from ..model import Model
+    from ..planning.next_poses import parametric_spec, plan_next
+    from ..planning.questions import open_questions
+    from ..robot import robot_from_dict
+    from ..sessions import combine
+
+    report_path = args.robot
+    check_outputs({"--out": args.out, "--json": args.json}, [report_path, args.candidates, *(args.measured or [])],
+                  args.force)
+    if args.method != "d-optimal" or args.model != "kinematic+compliance":
+        raise InputError("--method and --model are for plan-poses ROBOT; with a report the model is the report's "
+                         "and the criterion the information about its open questions (Ds-optimal)")
+    given = [f"--urdf-{k}" for k in ("base", "tip", "tool") if getattr(args, f"urdf_{k}", None) is not None]
+    if given:
+        raise InputError(f"{report_path}: {', '.join(given)} chooses the chain of a URDF robot; the report holds "
+                         "its robot (drop the option)")
+    try:
+        with open(report_path, encoding="utf-8-sig") as fh:
+            doc = json.load(fh)
+    except FileNotFoundError:
+        raise InputError("no such file", file=report_path) from None
+    except (OSError, ValueError) as e:
+        raise InputError(f"not a JSON report: {e}", file=report_path) from e
+    if not isinstance(doc, dict) or not {"steps", "findings", "final"} <= set(doc):
+        raise InputError("not a report written by diagnose --json (it needs steps, findings and final; a "
+                         "calibration JSON is not a report)", file=report_path)
+    if "robot_description" not in doc or "sigma_mm" not in (doc.get("final") or {}):
+        raise InputError("the report was written by an older casadical (no robot_description or final.sigma_mm): "
+                         "run diagnose again", file=report_path)
+    try:
+        robot = robot_from_dict(doc["robot_description"], report_path)
+    except RobotFileError as e:
+        raise InputError(e.message, file=report_path, column="robot_description") from e
+    paths = args.measured
+    if not paths:
+        named = (doc.get("inputs") or {}).get("data") or []
+        if not named:
+            raise InputError("the report does not name the poses it was made from: give them with --measured "
+                             "DATA.csv ...", file=report_path)
+        here = os.path.dirname(os.path.abspath(report_path))
+        paths = [p if os.path.isabs(p) else os.path.join(here, p) for p in named]
+        missing = [p for p in paths if not os.path.exists(p)]
+        if missing:
+            raise InputError(f"the poses the report was made from are not at {missing[0]} (paths are relative to "
+                             "the report's folder): give them with --measured DATA.csv ...", file=report_path)
+    parts = [Measurements.read_csv(p, n_joints=robot.n) for p in paths]
+    measured = parts[0] if len(parts) == 1 else combine(parts)
+    candidates = Measurements.read_csv(args.candidates, n_joints=robot.n)
+    check_poses(candidates, robot, **check_options(args))
+    if candidates.sessions is not None:
+        unknown = sorted(set(candidates.sessions) - set(measured.session_names or [None]))
+        if unknown:
+            raise InputError(f"session {unknown[0]!r} is none of the measured sessions "
+                             f"({', '.join(measured.session_names) or 'one unnamed'})", file=args.candidates,
+                             column="session")
+    final = doc["final"]
+    spec = parametric_spec(final["model"])
+    params = Model(robot, spec, jit=False).parameters
+    values = {p["name"]: params[p["name"]].from_display(float(p["value"])) for p in final.get("parameters", [])
+              if p["name"] in params and p.get("value") is not None}
+    questions = open_questions(doc, values, report_path)
+    if not questions:
+        raise InputError("the report has no open question (no ambiguous cause, no unexplained structure, every "
+                         "named parameter significant): nothing to plan for; plan-poses ROBOT plans a "
+                         "calibration from scratch", file=report_path)
+    if args.question is not None:
+        if args.question > len(questions):
+            raise InputError(f"--question {args.question}: the report has {len(questions)} open question"
+                             f"{'s' * (len(questions) != 1)}: " + "; ".join(f"{q.number}. {q.text}"
+                                                                       for q in questions), file=report_path)
+        questions = [questions[args.question - 1]]
+    status = Status(args.quiet)
+    with status.slow(f"plan-poses: {len(questions)} open questions of {report_path}, {len(candidates)} candidates"):
+        plan = plan_next(robot, doc, questions, values, measured, candidates, args.m, relaxation=args.relaxation,
+                         random_sets=args.random_sets, seed=args.seed,
+                         session_tools=(doc.get("settings") or {}).get("session_tools", False))
+    lines = _write_rows(args.candidates, plan.indices, args.out, args.force)
+    out = human_stream(args.json)
+    print(f"{report_path}: {len(plan.questions)} open question{'s' * (len(plan.questions) != 1)} of the "
+          f"diagnosis of {robot.name} (final model {spec}), {len(measured)} measured poses", file=out)
+    print(plan.summary(), file=out)
+    print(f"selected rows -> {args.out}", file=out)
+    if args.json:
+        write_json(args.json, {"report": report_path, "robot": robot.name, "model": spec,
+                               "candidates": args.candidates, "file_lines": lines, **plan.to_dict()}, args.force)
         print(f"summary -> {'standard output' if args.json == '-' else args.json}", file=out)
     return 0
 

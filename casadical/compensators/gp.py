@@ -193,6 +193,19 @@ class ResidualGP:
         self._ratios[key] = out
         return out.copy()
 
+    def predictive_std(self, X: np.ndarray) -> np.ndarray:
+        """Standard deviation (m, (N, 3)) of the residual at poses ``X`` that the process leaves: its
+        predictive std where it knows (:meth:`knows`), its prior std elsewhere (there it adds nothing and the
+        residual is what it would have been)."""
+        X = np.ascontiguousarray(X, float)
+        out = np.empty((len(X), 3))
+        known = self.knows(X)
+        for a in range(3):
+            v = solve_triangular(self._chol[a][0], self.kernel(X, self.X, a).T, lower=True, check_finite=False)
+            var = np.where(known, self.signal_var[a] - np.einsum("ij,ij->j", v, v), self.signal_var[a])
+            out[:, a] = np.sqrt(np.clip(var, 0.0, None)) * self.y_std[a]
+        return out
+
     def knows(self, X: np.ndarray) -> np.ndarray:
         """Poses where the process knows the residual (every component's predictive std below
         ``max_std_ratio`` of its prior)."""

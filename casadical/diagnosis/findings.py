@@ -68,7 +68,9 @@ class UnexplainedLog:
             f = self.by_joint[j] = Finding(Candidate("unexplained", j), 0.0, "", in_model=False,
                                            potential_gain_mm=0.0, holds_up={"structures": []})
             self.strongest[j] = cand
-        item.update(test=test.text(), cv_mm=cv_record(cv0, cv1), why=why)
+        # what was fitted, machine-readable (plan-poses REPORT.json plans the poses that tell it)
+        item.update(candidate=cand.to_dict(), values={n: values[n] for n in cand.parameter_names() if n in values},
+                    test=test.text(), cv_mm=cv_record(cv0, cv1), why=why)
         if "halves" in checks:
             item["halves"] = [h.to_dict() for h in checks["halves"]]
         structures = f.holds_up["structures"]

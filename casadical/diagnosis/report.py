@@ -207,11 +207,17 @@ class DiagnosisReport:
     final_orientation: AngleStats | None = None
 
     def to_dict(self) -> dict:
+        from ..robot import robot_to_dict
+
         params = []
+        tests = self.final.significance()
         for p in self.final.parameters:
+            t = tests.get(p.name)
             params.append({"name": p.name, "value": p.to_display(p.value),
                            "std": p.to_display(p.std) if math.isfinite(p.std) else None,
-                           "unit": p.display_unit, "fixed": p.fixed, "term": p.term})
+                           "unit": p.display_unit, "fixed": p.fixed, "term": p.term,
+                           "t": finite(t.t) if t is not None else None,
+                           "significant": t.significant if t is not None else None})
         doc = {
             "robot": self.robot,
             "steps": [s.to_dict() for s in self.steps],
@@ -219,6 +225,7 @@ class DiagnosisReport:
                          for f, row in zip(self.findings, self.decision())],
             "final": {"model": self.final_model, "validation": self.final_validation.to_dict(n_poses=False),
                       "parameters": params,
+                      "sigma_mm": finite(self.final.uncertainty.sigma * 1000) if self.final.uncertainty else None,
                       "robust": {"sigma_mm": self.final.loss.sigma * 1000 if self.final.loss.robust else None,
                                  "set_aside": self.final.downweighted}},
             "notes": self.notes,
@@ -231,6 +238,7 @@ class DiagnosisReport:
             doc["final"]["orientation"] = self.final_orientation.to_dict(n_poses=False)
         if self.transfer:
             doc["transfer"] = self.transfer
+        doc["robot_description"] = robot_to_dict(self.final.model.robot)   # what plan-poses REPORT.json builds on
         return doc
 
     def decision(self) -> list[dict]:

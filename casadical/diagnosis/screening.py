@@ -42,6 +42,8 @@ class Scored:
     candidate: Candidate
     test: NestedTest
     fitted: np.ndarray
+    basis: np.ndarray | None = None     # orthonormal columns of the candidate, the current model's removed
+    base: tuple | None = None           # (residual with the current model's directions removed, p0, equations)
 
 
 @dataclass
@@ -176,7 +178,7 @@ class Screen:
             proj = U[:, keep].T @ r_perp
             drop = float(proj @ proj)
             test = nested_test(ssr0, p0, ssr0 - drop, p0 + int(keep.sum()), len(r))
-            scored.append(Scored(test.log10_p, c, test, U[:, keep] @ proj))
+            scored.append(Scored(test.log10_p, c, test, U[:, keep] @ proj, U[:, keep], (r_perp, p0, len(r))))
         scored.sort(key=lambda t: t.log10_p)
         return scored
 
@@ -244,6 +246,28 @@ def ambiguous(best: Scored, scored: list[Scored], level: float) -> list[dict]:
         drop = float(sc.fitted @ sc.fitted)
         cos = float(sc.fitted @ best.fitted) / math.sqrt(max(drop * best_drop, 1e-300))
         if drop > 0.7 * best_drop and cos > 0.9:
+            told = beyond(best, sc)
+            if told is not None and told.log10_p < level:
+                continue    # explains the same residual alone, but the data need the accepted cause beyond it
             amb.append({**other.to_dict(), "label": other.label(), "similarity": round(cos, 4),
-                        "tell_apart": tell_apart(cand, other)})
+                        "tell_apart": tell_apart(cand, other),
+                        **({"test": {"text": told.text(), "log10_p": told.log10_p, "log10_level": level}}
+                           if told is not None else {})})
     return amb
+
+
+def beyond(a: Scored, b: Scored) -> NestedTest | None:
+    """The F-test of ``a``'s columns with ``b``'s in the model (linearised at the current fit): whether these
+    poses tell ``a`` from ``b`` (None without the columns)."""
+    if a.basis is None or b.basis is None or a.base is None:
+        return None
+    r, p0, n = a.base
+    Q, R = np.linalg.qr(np.column_stack([b.basis, a.basis]))
+    keep = np.abs(np.diag(R)) > 1e-8
+    Q = Q[:, keep]
+    both = Q.T @ r
+    only_b = b.basis.T @ r
+    ssr0 = float(r @ r)
+    ssr_b, ssr_ab = ssr0 - float(only_b @ only_b), ssr0 - float(both @ both)
+    kb = b.basis.shape[1]
+    return nested_test(ssr_b, p0 + kb, ssr_ab, p0 + int(keep.sum()), n)

@@ -528,30 +528,13 @@ def relax_cvxpy(A: np.ndarray, m: int, solver: str | None = None, verbose: bool 
     t0 = time.perf_counter()
     pool = _Pool(A, m)
     N, p = pool.N, pool.p
-    if solver is None:
-        installed = cp.installed_solvers()
-        chain = [s for s in ("CLARABEL", "SCS") if s in installed] or [None]
-    else:
-        chain = [solver]
     As = A * pool.c
     H = np.einsum("nri,nrj->nij", As, As).reshape(N, p * p)
     w = cp.Variable(N)
     Mx = cp.reshape(H.T @ w, (p, p), order="F")
     prob = cp.Problem(cp.Maximize(cp.log_det((Mx + Mx.T) / 2)),
                       [w >= 0, w <= 1, cp.sum(w) == m])
-    failures = []
-    for name in chain:
-        try:
-            prob.solve(solver=name, verbose=verbose, **solver_options)
-        except cp.error.SolverError as e:
-            failures.append(f"{name} failed: {str(e).splitlines()[0]}")
-            continue
-        if w.value is not None and prob.status in ("optimal", "optimal_inaccurate"):
-            solver = name
-            break
-        failures.append(f"{name} ended with status {prob.status}")
-    else:
-        raise SolverError(f"cvxpy could not solve the relaxation: {'; '.join(failures)}")
+    solver, failures = solve_in_turn(prob, w, solver, verbose=verbose, **solver_options)
     wv = np.clip(np.asarray(w.value, dtype=float), 0.0, 1.0)
     idx = np.flatnonzero(wv > 0)
     L, ld = pool.factor(pool.info(idx, wv[idx]))
@@ -561,6 +544,35 @@ def relax_cvxpy(A: np.ndarray, m: int, solver: str | None = None, verbose: bool 
     status = str(prob.status) + (f" (after: {'; '.join(failures)})" if failures else "")
     return Relaxation(wv, ld, ub, (ub - ld) / p, f"cvxpy:{solver}", status, its,
                       time.perf_counter() - t0)
+
+
+def solve_in_turn(prob, w, solver: str | None = None, **options) -> tuple[str, list[str]]:
+    """Solve a cvxpy problem with ``solver``, or CLARABEL and then SCS if CLARABEL fails; the solver that
+    did and the failures before it.
+
+    Raises
+    ------
+    SolverError
+        No solver gave weights ``w`` with an optimal (or optimal-inaccurate) status.
+    """
+    import cvxpy as cp
+
+    if solver is None:
+        installed = cp.installed_solvers()
+        chain = [s for s in ("CLARABEL", "SCS") if s in installed] or [None]
+    else:
+        chain = [solver]
+    failures: list[str] = []
+    for name in chain:
+        try:
+            prob.solve(solver=name, **options)
+        except cp.error.SolverError as e:
+            failures.append(f"{name} failed: {str(e).splitlines()[0]}")
+            continue
+        if w.value is not None and prob.status in ("optimal", "optimal_inaccurate"):
+            return name, failures
+        failures.append(f"{name} ended with status {prob.status}")
+    raise SolverError(f"cvxpy could not solve the relaxation: {'; '.join(failures)}")
 
 
 # --- rounding and exchange ------------------------------------------------------------

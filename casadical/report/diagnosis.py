@@ -29,7 +29,8 @@ def step_label(step: Step) -> str:
     return step.label
 
 
-def diagnosis_html(report: DiagnosisReport, processes: int = 1, progress=None) -> str:
+def diagnosis_html(report: DiagnosisReport, processes: int = 1, progress=None, poses=None,
+                   map_joints: tuple[int, int] | None = None) -> str:
     """A self-contained HTML report of a diagnosis (inline CSS and SVG, no script, no network).
 
     The answer first: the findings with what to do about each and the final
@@ -45,6 +46,10 @@ def diagnosis_html(report: DiagnosisReport, processes: int = 1, progress=None) -
         Draw the figures in this many processes (:func:`casadical.report.figures.render`).
     progress : callable, optional
         Receives a line of text before and after the figures are drawn.
+    poses : Measurements, optional
+        The calibration poses, drawn on the map of where the model is accurate.
+    map_joints : (int, int), optional
+        The two joints of that map (default: the two along which the model's uncertainty varies most).
     """
     page = Page(f"casadical diagnosis: {report.robot}")
     v = report.final_validation
@@ -67,10 +72,12 @@ def diagnosis_html(report: DiagnosisReport, processes: int = 1, progress=None) -
     _errors(page, report)
     sections = [("evidence", "Evidence for each finding"), ("steps", "Steps"),
                 ("unexplained", "Structure kept out of the model"), ("transfer", "On another series"),
-                ("periodograms", "What is left"), ("parameters", "Final parameters"),
+                ("periodograms", "What is left"), ("accuracy", "Where the model is accurate"),
+                ("parameters", "Final parameters"),
                 ("notes", "Notes and settings")]
     present = {"unexplained": bool(kept_out), "transfer": bool(report.transfer),
-               "periodograms": bool(report.periodograms), "evidence": bool(report.findings)}
+               "periodograms": bool(report.periodograms), "evidence": bool(report.findings),
+               "accuracy": report.final.uncertainty is not None and report.final.model.robot.n >= 2}
     page.para("The evidence behind them, further down:")
     page.items([page.ref(a, t) for a, t in sections if present.get(a, True)], "ol")
 
@@ -87,6 +94,8 @@ def diagnosis_html(report: DiagnosisReport, processes: int = 1, progress=None) -
                           "explains, per harmonic (cycles per turn). Dotted lines: harmonics in the final model.")
         page.para(f"A single tall peak in {ref} is a periodic error the model lacks; a forest of small ones "
                   "is noise or structure no single harmonic holds.")
+    if present["accuracy"]:
+        _accuracy(page, report, poses, map_joints)
     page.heading("Final parameters", anchor="parameters")
     page.para("The final model fitted on the calibration poses (what <code>diagnose --out</code> writes). "
               "Angles in degrees, lengths in millimetres; greyed rows are held.")
@@ -479,4 +488,42 @@ def _periodograms(report: DiagnosisReport):
     if len(pgs) % ncols:
         ax[-2, -1].xaxis.set_tick_params(labelbottom=True)
         ax[-2, -1].set_xlabel("harmonic (cycles per turn)")
+    return fig
+
+
+def _accuracy(page: Page, report: DiagnosisReport, poses, joints) -> None:
+    from ..predictive import accuracy_map
+
+    m = accuracy_map(report.final, poses.q if poses is not None else None, joints)
+    ja, jb = m["joints"]
+    page.heading("Where the model is accurate", anchor="accuracy")
+    others = ", ".join(f"q{k + 1} {v:.0f}" for k, v in enumerate(m["others_deg"]) if k + 1 not in (ja, jb))
+    where = "the calibration poses' median" if poses is not None else "the middle of their ranges"
+    caption = (f"Predicted uncertainty of the final model's tool point (rms 3-D error of the prediction, mm: the "
+               f"parameters' covariance plus the accuracy layer's predictive std) over joints {ja} and {jb}; the "
+               f"other joints at {where} ({others} deg)." + (" Dots: the calibration poses." if poses is not None
+                                                            else ""))
+    ref = page.figure(partial(_accuracy_plot, m), "fig-accuracy", caption)
+    lo, hi = float(np.min(m["std_mm"])), float(np.max(m["std_mm"]))
+    page.para(f"{ref}: from {lo:.4f} mm to {hi:.4f} mm over the two joints' ranges. Where it is low a program can "
+              "trust the model; where it is high, measure next (<code>plan-poses REPORT.json</code> picks the "
+              "poses; <code>predict FINAL.json POSES.csv --std</code> gives it at any pose).")
+
+
+@styled
+def _accuracy_plot(m: dict):
+    fig, axes = figure(6.4, 4.2)
+    ax = axes[0, 0]
+    ja, jb = m["joints"]
+    # filled contours: vector paths (a mesh's colour bar is an embedded bitmap), a small SVG
+    levels = ax.contourf(m["x_deg"], m["y_deg"], m["std_mm"], levels=12, cmap="viridis")
+    fig.colorbar(levels, ax=ax, label="predicted uncertainty (mm)")
+    if m["measured_deg"] is not None:
+        ax.scatter(m["measured_deg"][:, 0], m["measured_deg"][:, 1], s=9, c="white", edgecolors="black",
+                   linewidths=0.5, label="calibration poses")
+        legend_above(ax)
+    ax.set_xlabel(f"q{ja} (deg)")
+    ax.set_ylabel(f"q{jb} (deg)")
+    ax.grid(False)
+    ticks(ax)
     return fig

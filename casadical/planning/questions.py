@@ -1,0 +1,168 @@
+"""The open questions of a diagnosis report: what the data could not tell, as parameters of a model.
+
+A diagnosis says honestly what it could not resolve (``diagnose --json``):
+
+- **ambiguous** causes: a finding whose ``ambiguous_with`` lists another
+  cause that explains the same residual on these poses (an encoder scale
+  and a first harmonic over a narrow range). Model: the final model plus
+  the other cause; the parameters asked about: both causes'; the test
+  that tells them apart: the accepted cause's parameters, with the other
+  in the model;
+- **unexplained** structure: significant structure that could not be named
+  (``holds_up.structures``: a harmonic not resolved from its neighbours,
+  a trend whose halves disagree, ...). Model: the final model plus the
+  structure's candidate and the alternatives it could not be told from
+  (every harmonic of its band; for a trend, the first harmonic); tested:
+  the candidate's own parameters;
+- **not significant**: a parameter of a named cause in the final model
+  whose t-test does not reject zero. Model: the final model; tested: it.
+
+Each question carries the size of the effect it tests (the fitted values),
+so that a plan can say the chance of telling the alternatives apart.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+from ..errors import InputError
+from ..diagnosis.candidates import Candidate, compose_spec
+
+#: causes whose parameters a named finding has (not the geometry, not a black box)
+_NAMED = ("joint_compliance", "nonlinear_stiffness", "joint_periodic", "encoder_scale", "backlash",
+          "thermal_expansion", "drift")
+
+
+@dataclass
+class Question:
+    """One open question of a report.
+
+    Attributes
+    ----------
+    number : int
+        1-based, in report order (``--question N``).
+    kind : str
+        ``ambiguous``, ``unexplained`` or ``not significant``.
+    text : str
+        The question in words.
+    extra : list of Candidate
+        Causes added to the final model for this question.
+    interest : list of str
+        Parameters the question asks about (the others are nuisance).
+    tested : dict of str to float
+        The parameters whose test answers the question and their sizes (SI,
+        the report's fitted values): the chance of telling is the power of
+        that test if these are the true values.
+    level : float
+        Significance level of that test.
+    finding : int
+        Index of the finding in the report's ``findings``.
+    """
+
+    number: int
+    kind: str
+    text: str
+    extra: list[Candidate]
+    interest: list[str]
+    tested: dict[str, float]
+    level: float
+    finding: int
+    notes: list[str] = field(default_factory=list)
+
+    def to_dict(self) -> dict:
+        return {"number": self.number, "kind": self.kind, "text": self.text,
+                "model_extra": [c.to_dict() for c in self.extra], "parameters": self.interest,
+                "tested": self.tested, "level": self.level, "finding": self.finding}
+
+
+def _candidate(d: dict) -> Candidate:
+    return Candidate(**{k: d[k] for k in ("cause", "joint", "harmonic", "source", "session") if d.get(k) is not None})
+
+
+def open_questions(report: dict, final_values: dict[str, float], path: str = "") -> list[Question]:
+    """The open questions of a ``diagnose --json`` document, in report order.
+
+    Parameters
+    ----------
+    report : dict
+        The parsed REPORT.json.
+    final_values : dict of str to float
+        The final model's parameter values in SI units (the report's are in display units).
+    path : str
+        The report file, for messages.
+
+    Raises
+    ------
+    InputError
+        A report written before the fields the questions need (``holds_up.structures[].candidate``,
+        ``final.parameters[].significant``).
+    """
+    alpha = float((report.get("settings") or {}).get("alpha", 0.001))
+    # a structure is screened among every joint's harmonics: the diagnosis' level, corrected for them (at most)
+    settings = report.get("settings") or {}
+    n_joints = len((report.get("robot_description") or {}).get("joint", [])) or 1
+    scan_level = alpha / (n_joints * int(settings.get("max_harmonic", 60)))
+    out: list[Question] = []
+    seen: set = set()
+
+    def add(kind, text, extra, interest, tested, level, k):
+        key = (tuple(sorted(interest)), tuple(sorted(tested)))
+        if key in seen:
+            return
+        seen.add(key)
+        out.append(Question(len(out) + 1, kind, text, extra, interest, tested, level, k))
+
+    for k, f in enumerate(report.get("findings", [])):
+        cause = f.get("cause")
+        if cause in _NAMED and f.get("in_model", True):
+            a = _candidate(f)
+            for b in f.get("ambiguous_with", []):
+                other = _candidate(b)
+                # the level the diagnosis told them apart at (its round's corrected level)
+                level = 10 ** b["test"]["log10_level"] if "test" in b else alpha
+                names = a.parameter_names()
+                add("ambiguous", f"{a.label(short=True)} or {other.label(short=True)}? (finding {k + 1})",
+                    [other], names + [n for n in other.parameter_names() if n not in names],
+                    {n: final_values[n] for n in names if n in final_values}, level, k)
+        if cause == "unexplained" and not f.get("in_model", False):
+            periodic_seen = False
+            for item in (f.get("holds_up") or {}).get("structures", []):
+                if "candidate" not in item:
+                    raise InputError("the report was written by an older casadical (its unexplained structure "
+                                     "does not name its candidate): run diagnose again", file=path,
+                                     column=f"findings[{k}].holds_up.structures")
+                cand = _candidate(item["candidate"])
+                tested = {n: float(v) for n, v in (item.get("values") or {}).items()}
+                if cand.cause == "joint_periodic":
+                    # the first is the strongest; the ones set aside after it are mostly its leakage into the
+                    # neighbouring harmonics, which its band already asks about
+                    if periodic_seen:
+                        continue
+                    periodic_seen = True
+                    lo, hi = item.get("band", [cand.harmonic, cand.harmonic])
+                    extra = [Candidate("joint_periodic", cand.joint, h) for h in range(lo, hi + 1)]
+                    text = (f"joint {cand.joint}: which harmonic, {lo}..{hi}?" if hi > lo else
+                            f"joint {cand.joint}: harmonic {cand.harmonic}, or something else?")
+                elif cand.cause == "encoder_scale":
+                    extra = [cand, Candidate("joint_periodic", cand.joint, 1)]
+                    text = f"joint {cand.joint}: a trend along the reading: encoder scale or a first harmonic?"
+                else:
+                    extra = [cand]
+                    text = f"joint {cand.joint}: {cand.label(short=True)}, or something else?"
+                interest = [n for c in extra for n in c.parameter_names()]
+                add("unexplained", text + f" (finding {k + 1})", extra, list(dict.fromkeys(interest)), tested,
+                    scan_level, k)
+    params = (report.get("final") or {}).get("parameters", [])
+    if params and not any("significant" in p for p in params):
+        raise InputError("the report was written by an older casadical (its final parameters have no "
+                         "significance): run diagnose again", file=path, column="final.parameters")
+    named = {n: k for k, f in enumerate(report.get("findings", [])) if f.get("cause") in _NAMED
+             and f.get("in_model", True) for n in _candidate(f).parameter_names()}
+    for p in params:
+        name = p["name"]
+        if p.get("significant") is False and name in named and name in final_values:
+            t = p.get("t")
+            add("not significant", f"{name}: not significant (t = {t:.2f}); how large is it? "
+                f"(finding {named[name] + 1})" if t is not None else f"{name}: not significant",
+                [], [name], {name: final_values[name]}, 0.05, named[name])
+    return out
