@@ -169,6 +169,13 @@ class ResidualGP:
         Z = np.column_stack([self.kernel(X, self.X, a) @ self.alpha[:, a] for a in range(3)])
         return Z * self.y_std + self.y_mean
 
+    def _solved(self, X: np.ndarray, a: int) -> np.ndarray:
+        """``L^-1 k*`` of component ``a`` at poses ``X`` (``L``: the Cholesky factor of the training kernel), the
+        triangular solve of a predictive variance."""
+        from scipy.linalg import solve_triangular   # here: a command whose model has no process needs none
+
+        return solve_triangular(self._chol[a][0], self.kernel(X, self.X, a).T, lower=True, check_finite=False)
+
     def std_ratio(self, X: np.ndarray) -> np.ndarray:
         """Predictive std of each pose over the prior std, the largest of the three components (0: known
         exactly, 1: unknown).
@@ -176,8 +183,6 @@ class ResidualGP:
         The last few answers are kept, by the poses' bytes: a diagnosis asks again for the same poses (the
         gate of every model evaluation), and at 10,000 poses of a 600-pose process an answer costs 0.7 s.
         """
-        from scipy.linalg import solve_triangular
-
         X = np.ascontiguousarray(X, float)
         key = (X.shape, hashlib.blake2b(X.tobytes(), digest_size=16).digest())
         if key in self._ratios:
@@ -185,7 +190,7 @@ class ResidualGP:
         out = np.zeros(len(X))
         for a in range(3):
             # k** - k*^T K^-1 k* = s^2 - |L^-1 k*|^2: one triangular solve (half of cho_solve's two)
-            v = solve_triangular(self._chol[a][0], self.kernel(X, self.X, a).T, lower=True, check_finite=False)
+            v = self._solved(X, a)
             var = self.signal_var[a] - np.einsum("ij,ij->j", v, v)
             out = np.maximum(out, np.sqrt(np.clip(var, 0.0, None) / self.signal_var[a]))
         if len(self._ratios) >= 4:
@@ -201,7 +206,7 @@ class ResidualGP:
         out = np.empty((len(X), 3))
         known = self.knows(X)
         for a in range(3):
-            v = solve_triangular(self._chol[a][0], self.kernel(X, self.X, a).T, lower=True, check_finite=False)
+            v = self._solved(X, a)
             var = np.where(known, self.signal_var[a] - np.einsum("ij,ij->j", v, v), self.signal_var[a])
             out[:, a] = np.sqrt(np.clip(var, 0.0, None)) * self.y_std[a]
         return out
