@@ -43,7 +43,7 @@ HEAVY = ("scipy", "sklearn", "matplotlib", "cvxpy", "dask", "distributed", "pand
          "tqdm", "casadi")
 #: the columns of a measured orientation
 ORIENTATION = {"rx_deg", "ry_deg", "rz_deg", "std_rx_deg", "std_ry_deg", "std_rz_deg"}
-#: never imported again: the entry point runs the command
+#: never imported again: the entry point
 SKIP = {"__main__", "casadical.__main__"}
 
 
@@ -81,17 +81,17 @@ def _run(argv: list[str], tree: Path | None, cwd: Path) -> subprocess.CompletedP
     return subprocess.run([sys.executable, *argv], env=_env(tree), cwd=cwd, capture_output=True, text=True)
 
 
-def _casadical(args: list[str], d: Path) -> None:
-    r = _run(["-m", "casadical", *args], None, d)
+def _casadical(args: list[str], d: Path, tree: Path | None = None) -> None:
+    r = _run(["-m", "casadical", *args], tree, d)
     if r.returncode:
         raise SystemExit(f"casadical {' '.join(args)} failed:\n{r.stderr}")
 
 
-def inputs(d: Path) -> None:
+def inputs(d: Path, tree: Path | None) -> None:
     """The data: the README's split of series B (300 calibration poses), 40 of the other poses as validation
     (full pose, and their positions alone), a calibration with the session compensator
     (``kinematic+gp_compensator``) for predict, compensate, export, and a kinematic one of the positions.
-    Made with this tree's code."""
+    The calibrations are made by ``tree`` (the older code, whose files the newer reads)."""
     _casadical(["split", str(SERIES), "-n", "300", "--seed", "0", "--out-cal", str(d / "cal.csv"), "--out-val",
                 str(d / "rest.csv")], d)
     lines = (d / "rest.csv").read_text().splitlines(keepends=True)
@@ -102,18 +102,20 @@ def inputs(d: Path) -> None:
         with open(d / f"{name}_xyz.csv", "w", newline="") as f:
             csv.writer(f).writerows([[r[k] for k in keep] for r in table])
     _casadical(["calibrate", "ur10", str(d / "cal.csv"), "--model", "kinematic+gp_compensator", "--out",
-                str(d / "gp.json")], d)
-    _casadical(["calibrate", "ur10", str(d / "cal_xyz.csv"), "--model", "kinematic", "--out", str(d / "k.json")], d)
+                str(d / "gp.json")], d, tree)
+    _casadical(["calibrate", "ur10", str(d / "cal_xyz.csv"), "--model", "kinematic", "--out", str(d / "k.json")], d,
+               tree)
 
 
 _RECORD = """
-import atexit, json, runpy, sys
-def _save():
-    with open({out!r}, "w") as f:
-        json.dump({{"file": sys.modules["casadical"].__file__, "modules": list(sys.modules)}}, f)
-atexit.register(_save)
-sys.argv = ["casadical", *{args!r}]
-runpy.run_module("casadical", run_name="__main__")
+import json, sys
+from casadical.cli import main
+try:
+    code = main({args!r})
+except SystemExit as e:
+    code = e.code
+with open({out!r}, "w") as f:
+    json.dump({{"code": code, "file": sys.modules["casadical"].__file__, "modules": list(sys.modules)}}, f)
 """
 
 _TIME = """
@@ -133,9 +135,9 @@ print(time.process_time() - t0)
 def record(args: list[str], tree: Path | None, out: Path) -> list[str]:
     """The modules the command imports, in import order (and which code ran it: a check of ``PYTHONPATH``)."""
     r = _run(["-c", _RECORD.format(out=str(out), args=args)], tree, out.parent)
-    if not out.exists():
+    doc = json.loads(out.read_text()) if out.exists() else {"code": r.returncode}
+    if doc["code"]:
         raise SystemExit(f"casadical {' '.join(args)} failed:\n{r.stderr}")
-    doc = json.loads(out.read_text())
     if not Path(doc["file"]).is_relative_to(tree or ROOT):
         raise SystemExit(f"the run meant for {tree or ROOT} ran {doc['file']}")
     names = [n for n in doc["modules"] if n not in SKIP]
@@ -180,7 +182,7 @@ def main() -> None:
     with tempfile.TemporaryDirectory(prefix="casadical-startup-") as tmp:
         d = Path(tmp)
         trees = {"new": None} | ({"old": old_tree(a.base, d)} if a.base else {})
-        inputs(d)
+        inputs(d, trees.get("old"))
         cmds = commands(d)
         names = a.commands or list(cmds)
         rows = []
