@@ -307,6 +307,8 @@ class Model:
             g = (ins, [xyz, ca.densify(ca.jacobian(xyz, p))], (1, 3), ())
         elif which in ("tau", "dq"):
             g = ([q, p, c], [S[which]], (1,), ())
+        elif which == "tau_q_jac":      # how the torques change with the readings (casadical.physics.first_order_sag)
+            g = ([q, p, c], [S["tau"], ca.densify(ca.jacobian(S["tau"], q))], (1,), ())
         # joint-space derivatives for inverse problems (corrected joint targets): through every
         # term, since deflections and gear errors depend on q too
         elif which == "fk_q_jac":
@@ -393,7 +395,7 @@ class Model:
 
     def per_pose_function(self, which: str, jit: bool | str = False) -> ca.Function:
         """One of the per-pose Functions (``fk``, ``fk_jac``, ``fk_jac_angles``, ``cost``, ``grad``, ``gn_hess``,
-        ``tau``, ``dq``, ``fk_q_jac``, ``flange``, ``flange_jac``; full-pose models also ``probe``, ``pose_fk``,
+        ``tau``, ``tau_q_jac``, ``dq``, ``fk_q_jac``, ``flange``, ``flange_jac``; full-pose models also ``probe``, ``pose_fk``,
         ``pose_fk_jac``, ``pose_cost``, ``pose_grad``, ``pose_gn_hess``).
 
         ``jit``: False for CasADi's virtual machine; True for compiled code,
@@ -557,6 +559,13 @@ class Model:
         (:func:`~casadical.kinematics.drive_torques`)."""
         N, q, p, cov, _ = self._inputs(q, params, cov, None)
         return self._batch("tau", N)(q, p, cov)[0]
+
+    def torque_jacobian(self, q, params=None, cov=None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`torques` (N, n) and their derivatives w.r.t. the joint readings (N, n, n): ``[k, i, j]`` is
+        d tau_i / d q_j at pose k."""
+        N, q, p, cov, _ = self._inputs(q, params, cov, None)
+        tau, J = self._batch("tau_q_jac", N)(q, p, cov)
+        return tau, J.reshape(N, self.robot.n, self.robot.n).transpose(0, 2, 1)
 
     def joint_offsets(self, q, params=None, cov=None) -> np.ndarray:
         """Sum of the terms' joint-angle offsets (rad), shape (N, n)."""

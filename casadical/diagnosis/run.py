@@ -38,7 +38,7 @@ import numpy as np
 from ..calibration import calibrate, learning_mask, model_for
 from ..checks import check_held_out, check_other_series, check_poses, check_validation_frames
 from ..data import Measurements
-from ..physics import value_violations, violations
+from ..physics import sag_note, value_violations, violations
 from ..problem import RobustLoss
 from ..result import AngleStats, CalibrationResult, ErrorStats
 from ..robot import Robot
@@ -468,6 +468,9 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
     if final.uncertainty is not None:
         dg.notes.append(f"remaining calibration residual {final.uncertainty.sigma * 1000:.4f} mm per axis (rms); "
                         f"validation rms {final_val.rms_mm / math.sqrt(3):.4f} mm per axis")
+    sag = sag_note(final, cal)
+    if sag:
+        dg.notes.append(sag)
     # the poses the final fit set aside: bad measurements, or structure it lacks (casadical.set_aside)
     structure = of_fit(parametric, cal, learning_mask(final, cal) == 0)
     if structure.n_set_aside:
