@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import csv
 import math
 import time
@@ -10,7 +11,6 @@ import numpy as np
 
 from ..errors import IdentifiabilityError, InputError
 from ..files import atomic_open
-from ..planning.selectors import METHODS
 from .common import (Status, add_checks, add_force, add_json, add_quiet, add_urdf_chain, check_options, check_outputs,
                      float_in, human_stream, int_at_least, robot_from_args, write_json)
 
@@ -37,9 +37,9 @@ def register(sub) -> None:
                    help="with REPORT.json: plan for open question N alone (default: all of them)")
     p.add_argument("--random-sets", type=int_at_least(1), default=200, metavar="K",
                    help="with REPORT.json: random sets of M candidates the plan is compared with (default: 200)")
-    p.add_argument("--method", choices=METHODS, default="d-optimal",
-                   help="d-optimal (certified relaxation + exchange), ga (the GA paper's selector, "
-                        "fitness O1) or random (default: %(default)s)")
+    method = p.add_argument("--method", type=_method, default="d-optimal",
+                            help="d-optimal (certified relaxation + exchange), ga (the GA paper's selector, "
+                                 "fitness O1) or random (default: %(default)s)")
     p.add_argument("--model", default="kinematic+compliance",
                    help="error model whose parameters the poses must identify (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="seed of the ga and random methods (default: 0)")
@@ -51,6 +51,13 @@ def register(sub) -> None:
     add_urdf_chain(p)
     add_force(p)
     p.set_defaults(func=cmd_plan_poses)
+
+    def complete_help(parser) -> None:   # the method names need the planning package: only for --help
+        from ..planning.selectors import METHODS
+
+        method.metavar = "{" + ",".join(METHODS) + "}"
+
+    p.complete_help = complete_help
 
     p = sub.add_parser(
         "candidates", help="generate candidate poses within the joint limits and a workspace",
@@ -70,6 +77,16 @@ def register(sub) -> None:
     add_urdf_chain(p)
     add_force(p)
     p.set_defaults(func=cmd_candidates)
+
+
+def _method(text: str) -> str:
+    """A ``--method``: one of the selectors' methods (checked here, not by argparse's ``choices``, so that the
+    planning package is imported by the planning commands alone)."""
+    from ..planning.selectors import METHODS
+
+    if text not in METHODS:
+        raise argparse.ArgumentTypeError(f"invalid choice: {text!r} (choose from {', '.join(map(repr, METHODS))})")
+    return text
 
 
 def cmd_plan_poses(args) -> int:

@@ -48,7 +48,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve, lapack, solve_triangular
 
 from ..errors import InputError
 from ..threads import limited_threads
@@ -78,6 +77,7 @@ def log_likelihood(theta: np.ndarray, D: np.ndarray, y: np.ndarray) -> tuple[flo
     """Log marginal likelihood of the standardised residual ``y`` and its gradient, at the log hyperparameters
     ``theta = log(s^2, l_1 .. l_n, sigma_n^2)`` (scikit-learn's ``theta`` of ``ConstantKernel * RBF +
     WhiteKernel``, with its ``alpha``); ``D``: :func:`squared_differences` of the poses."""
+    from scipy.linalg import cho_factor, cho_solve, lapack   # here: a command whose model has no process needs none
     s2, ls, nv = math.exp(theta[0]), np.exp(theta[1:-1]), math.exp(theta[-1])
     n = len(y)
     E = np.exp(-0.5 * (D @ (1.0 / ls ** 2)))
@@ -134,6 +134,8 @@ class ResidualGP:
     max_std_ratio: float = MAX_STD_RATIO
 
     def __post_init__(self) -> None:
+        from scipy.linalg import cho_factor, cho_solve   # here: a command whose model has no process needs none
+
         self.X, self.Y = np.asarray(self.X, float), np.asarray(self.Y, float)
         self.length_scales = np.atleast_2d(np.asarray(self.length_scales, float))
         self.signal_var, self.noise_var = (np.asarray(v, float).reshape(3) for v in (self.signal_var, self.noise_var))
@@ -211,6 +213,13 @@ class ResidualGP:
         Z = np.column_stack([self.kernel(X, self.X, a) @ self.alpha[:, a] for a in range(3)])
         return Z * self.y_std + self.y_mean
 
+    def _solved(self, X: np.ndarray, a: int) -> np.ndarray:
+        """``L^-1 k*`` of component ``a`` at poses ``X`` (``L``: the Cholesky factor of the training kernel), the
+        triangular solve of a predictive variance."""
+        from scipy.linalg import solve_triangular   # here: a command whose model has no process needs none
+
+        return solve_triangular(self._chol[a][0], self.kernel(X, self.X, a).T, lower=True, check_finite=False)
+
     def std_ratio(self, X: np.ndarray) -> np.ndarray:
         """Predictive std of each pose over the prior std, the largest of the three components (0: known
         exactly, 1: unknown).
@@ -225,7 +234,7 @@ class ResidualGP:
         out = np.zeros(len(X))
         for a in range(3):
             # k** - k*^T K^-1 k* = s^2 - |L^-1 k*|^2: one triangular solve (half of cho_solve's two)
-            v = solve_triangular(self._chol[a][0], self.kernel(X, self.X, a).T, lower=True, check_finite=False)
+            v = self._solved(X, a)
             var = self.signal_var[a] - np.einsum("ij,ij->j", v, v)
             out = np.maximum(out, np.sqrt(np.clip(var, 0.0, None) / self.signal_var[a]))
         if len(self._ratios) >= 4:
@@ -241,7 +250,7 @@ class ResidualGP:
         out = np.empty((len(X), 3))
         known = self.knows(X)
         for a in range(3):
-            v = solve_triangular(self._chol[a][0], self.kernel(X, self.X, a).T, lower=True, check_finite=False)
+            v = self._solved(X, a)
             var = np.where(known, self.signal_var[a] - np.einsum("ij,ij->j", v, v), self.signal_var[a])
             out[:, a] = np.sqrt(np.clip(var, 0.0, None)) * self.y_std[a]
         return out
