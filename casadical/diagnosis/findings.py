@@ -113,16 +113,19 @@ def param_values(res: CalibrationResult, names: list[str]) -> dict:
 
 
 def what(cand: Candidate, res: CalibrationResult, cal: Measurements) -> str:
-    """The cause's size in words, from the model's values."""
+    """The cause's size in words, from the model's values (a cause of one session: its own, ``c2@A``)."""
     P = res.parameters
+    names = cand.parameter_names()
     if cand.cause == "joint_compliance":
-        k, sk = res.stiffness().get(cand.joint, (math.inf, math.nan))
+        p = P[names[0]]
+        k = 1.0 / p.value if p.value > 0 else math.inf
+        sk = p.std / p.value ** 2 if p.value > 0 and math.isfinite(p.std) else math.nan
         text = f"stiffness k{cand.joint} = {k:.4g} N m/rad (std {sk:.2g})"
         if cal.get("payload_kg") is not None and np.ptp(cal.get("payload_kg")) > 0:
             text += "; the rows' payloads vary and enter the torques"
         return text
     if cand.cause == "nonlinear_stiffness":
-        p = P[f"cubic{cand.joint}"]
+        p = P[names[1]]
         return (f"progressive term {p.value:.3g} rad/(N m)^3 (std {p.std:.2g}): the joint "
                 f"{'stiffens' if p.value < 0 else 'softens'} with load")
     if cand.cause == "joint_periodic":
@@ -130,7 +133,7 @@ def what(cand: Candidate, res: CalibrationResult, cal: Measurements) -> str:
         return (f"amplitude {math.degrees(math.hypot(s_, c_)) * 3600:.2f} arcsec, phase "
                 f"{math.degrees(math.atan2(c_, s_)):.1f} deg, {cand.harmonic} cycles per turn of joint {cand.joint}")
     if cand.cause == "encoder_scale":
-        return f"scale error {P[f'escale{cand.joint}'].value * 1e6:.1f} ppm"
+        return f"scale error {P[names[0]].value * 1e6:.1f} ppm"
     if cand.cause == "backlash":
         return (f"half play {math.degrees(P[cand.parameter_names()[0]].value) * 3600:.2f} arcsec, sign from the "
                 f"{'gravity torque' if cand.source != 'motion' else 'last move'}")
