@@ -96,7 +96,7 @@ JOBS: dict[str, Job] = {
     "study-metaheuristics": Job(_study("metaheuristics-ys100"), 1.7),
     "study-ga": Job(_study("ga-ys100", "--baseline", "KM"), 3.7),
     "guide": Job((_py("guide_figures.py"),), 0.4),
-    "next-poses": Job((_py("study_next_poses.py"),), 1.5),
+    "next-poses": Job((_py("study_next_poses.py"),), 9),
 }
 
 
@@ -156,7 +156,9 @@ BLOCKS: dict[str, Block] = {
     "planning-efficiency": Block("planning", (r"^### Simulation: certified D-efficiency",)),
     "planning-ga": Block("planning", (r"^### D-optimal vs GA",), timing=("D-opt time (s)", "GA time (s, mean)")),
     "next-poses-loop": Block("next-poses", (r"^### The loop",)),
-    "next-poses-example": Block("next-poses", (r"^### Worked example",)),
+    "next-poses-example": Block("next-poses", (r"^### Worked example: narrow range",)),
+    "next-poses-scope": Block("next-poses", (r"^### Worked example: robot or session",)),
+    "next-poses-compliance": Block("next-poses", (r"^### Worked example: compliance or scale",)),
     # docs/guide.md
     "guide-aic": Block("guide", (r"^AIC and BIC",)),
     "guide-urdf": Block("guide", (r"^URDF read by yourdfpy",)),
