@@ -98,9 +98,7 @@ class Measurements:
                 # written by 'split': the moves of the original sequence, which a subset cannot recompute
                 self.moves = np.column_stack(given).astype(float)
             else:
-                self.moves = np.zeros((len(self), self._n_joints))
-                if len(self) > 1 and self._n_joints:
-                    self.moves[1:] = np.sign(np.diff(self.q, axis=0))
+                self.moves = last_moves(self.q) if self._n_joints else np.zeros((len(self), 0))
 
     # --- views ------------------------------------------------------------------
 
@@ -447,6 +445,20 @@ def _numeric(values: list[str], column: str, path: str, lines: list[int]) -> np.
 
 #: fewer rows than this never look like radians
 MIN_ROWS_RADIANS = 5
+
+
+def last_moves(q: np.ndarray) -> np.ndarray:
+    """Sign of each joint's last move before each row, in row order, shape of ``q``.
+
+    A joint that does not move between two rows keeps the direction of its
+    earlier move (it rests on the same flank of its play); 0 until its first
+    move.
+    """
+    out = np.zeros_like(q, dtype=float)
+    for i in range(1, len(q)):
+        step = np.sign(q[i] - q[i - 1])
+        out[i] = np.where(step != 0, step, out[i - 1])
+    return out
 
 
 def looks_like_radians(q_deg: np.ndarray, tol: float = 1e-9) -> bool:

@@ -106,6 +106,11 @@ class CorrelationWarning(CasadicalWarning):
     """Identified parameters are strongly correlated or sit at a bound."""
 
 
+class ParallelAxesWarning(CasadicalWarning):
+    """Consecutive joint axes of a robot file are parallel and the link has no Hayati ``beta_deg``: a small tilt
+    between them cannot be calibrated, and the link's offset along the axes is ill-conditioned."""
+
+
 class SignificanceWarning(CasadicalWarning):
     """Parameters of an error term are not significant: the poses do not determine what the term models."""
 

@@ -208,6 +208,25 @@ def gravity_torques(robot: Robot, frames: Frames, payload_mass) -> list:
     return taus
 
 
+def coupled(robot: Robot) -> bool:
+    """True if a chain angle is made of other joints' readings too (a coupling or a loop)."""
+    return robot.loop is not None or any(j.coupling is not None for j in robot.joints)
+
+
+def drive_torques(robot: Robot, q, geom: Geometry, taus: list) -> list:
+    """The torque each joint's drive carries: ``J^T tau`` with ``J`` = d chain angles / d readings (virtual work).
+
+    Without couplings and loops ``J`` is the identity and the drives carry the torques about the joint axes.
+    A parallelogram's drives share them: the crank's (joint 3 of the HH800) carries joint 3's torque,
+    joint 2's drive ``tau2 - tau3``. ``q`` must be the readings' symbol.
+    """
+    if not coupled(robot):
+        return taus
+    J = ca.jacobian(ca.vertcat(*chain_angles(robot, q, geom)), q)
+    out = ca.densify(ca.mtimes(J.T, ca.vertcat(*taus)))   # a reading that drives nothing carries an explicit 0
+    return [out[i] for i in range(robot.n)]
+
+
 def base_pose_matrix(xyz, rpy) -> np.ndarray:
     """Numeric 4x4 pose from translation and fixed-axis roll-pitch-yaw (radians)."""
     return pose_matrix(rpy_pose(*xyz, *rpy))

@@ -80,7 +80,9 @@ def parse_spec(spec: str) -> list[ErrorTerm]:
         kwargs: dict = {}
         if args is not None and args.strip():
             try:
-                if REGISTRY[name].name == "joint_periodic":
+                if hasattr(REGISTRY[name], "arguments"):     # a term that reads its own (warmup[600])
+                    kwargs = REGISTRY[name].arguments(args)
+                elif REGISTRY[name].name == "joint_periodic":
                     kwargs["harmonics"] = [tuple(int(x) for x in a.split(":")) for a in args.split(",")]
                     if any(len(h) != 2 for h in kwargs["harmonics"]):
                         raise ValueError("expected joint:harmonic pairs, e.g. periodic[2:1,2:17]")
@@ -201,17 +203,22 @@ class Model:
         b0 = ca.SX.sym("base0", 12)
         psym = {name: p[i] for i, name in enumerate(self.parameters.names)}
         csym = {name: c[i] for i, name in enumerate(self.covariate_names)}
-        ctx = Context(robot, q, psym, csym)
+        # joint errors are the drives' (terms/base.py): added to the readings, then the couplings and the loop
+        drives = getattr(self.terms[0], "drive_errors", True)
+        ctx = Context(robot, q, psym, csym, drives=drives)
         geom = Geometry.nominal(robot)
         for t in self.terms:
             geom = t.geometry(ctx, geom)
         ctx.geom = geom
-        angles = chain_angles(robot, q, geom)
         offsets = [0] * n
         for t in self.terms:
             for j, off in t.joint_offsets(ctx).items():
                 offsets[j - 1] = offsets[j - 1] + off
-        chain = [a + o for a, o in zip(angles, offsets)]
+        drive = [q[i] + offsets[i] for i in range(n)]
+        if drives:
+            chain = chain_angles(robot, drive, geom)
+        else:
+            chain = [a + o for a, o in zip(chain_angles(robot, q, geom), offsets)]
         frames = forward(robot, chain, geom)
         R0, t0 = ca.reshape(b0[:9], 3, 3).T, b0[9:12]  # row-major input
         for t in self.terms:
@@ -239,7 +246,7 @@ class Model:
                 probe = ca.mtimes(probe, r)
         self.orientation = probe is not flange
         self._sym = {"q": q, "p": p, "c": c, "b0": b0, "xyz": xyz, "tau": tau, "dq": dq, "flange": flange,
-                     "chain": chain, "geom": geom, "R": base[0], "probe": probe}
+                     "chain": chain, "drive": drive, "drives": drives, "geom": geom, "R": base[0], "probe": probe}
         self._graphs: dict = {}
         self._fk: ca.Function | None = None
         self._fk_jac: ca.Function | None = None
@@ -285,11 +292,16 @@ class Model:
         elif which == "fk":
             g = (ins, [xyz], (1, 3), ())
         elif which == "fk_jac_angles":
-            # and the derivative w.r.t. an offset added to each chain angle: a joint-angle error term's
-            # column is this times the term's own derivative (the diagnosis screens periodic errors so)
+            # and the derivative w.r.t. a joint's angle offset (added to its reading, before the couplings; to
+            # its chain angle in a legacy model): a joint-angle error term's column is this times the term's own
+            # derivative (the diagnosis screens periodic errors so)
             A = ca.SX.sym("A", self.robot.n)
-            tool = forward(self.robot, [A[i] for i in range(self.robot.n)], S["geom"]).tool[1]
-            JA = ca.substitute(ca.mtimes(S["R"], ca.jacobian(tool, A)), A, ca.vertcat(*S["chain"]))
+            angles = [A[i] for i in range(self.robot.n)]
+            if S["drives"]:
+                tool, at = forward(self.robot, chain_angles(self.robot, angles, S["geom"]), S["geom"]).tool[1], "drive"
+            else:
+                tool, at = forward(self.robot, angles, S["geom"]).tool[1], "chain"
+            JA = ca.substitute(ca.mtimes(S["R"], ca.jacobian(tool, A)), A, ca.vertcat(*S[at]))
             g = (ins, [xyz, ca.densify(ca.jacobian(xyz, p)), ca.densify(JA)], (1, 3), ())
         elif which == "fk_jac":
             g = (ins, [xyz, ca.densify(ca.jacobian(xyz, p))], (1, 3), ())
@@ -479,8 +491,8 @@ class Model:
 
     def predict_angle_jacobian(self, q, params=None, cov=None, base0=None
                                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """Positions (N, 3), their Jacobian w.r.t. the parameters (N, 3, P) and w.r.t. an offset added to
-        each joint's chain angle (N, 3, n)."""
+        """Positions (N, 3), their Jacobian w.r.t. the parameters (N, 3, P) and w.r.t. each joint's angle offset
+        (N, 3, n): an offset of its reading, through the couplings (the chain angle, in a legacy model)."""
         N, q, p, cov, b0 = self._inputs(q, params, cov, base0)
         xyz, J, JA = self._batch("fk_jac_angles", N)(q, p, cov, b0)
         return (xyz, J.reshape(N, len(self.parameters), 3).transpose(0, 2, 1),
@@ -541,7 +553,8 @@ class Model:
         return (xyz, J.reshape(N, P, 3).transpose(0, 2, 1), ro, Jo.reshape(N, P, 3).transpose(0, 2, 1))
 
     def torques(self, q, params=None, cov=None) -> np.ndarray:
-        """Gravity torques (N m) at every joint, shape (N, n)."""
+        """Gravity torques (N m) that every joint's drive carries, shape (N, n)
+        (:func:`~casadical.kinematics.drive_torques`)."""
         N, q, p, cov, _ = self._inputs(q, params, cov, None)
         return self._batch("tau", N)(q, p, cov)[0]
 

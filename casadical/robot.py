@@ -18,7 +18,7 @@ from typing import Any
 
 import numpy as np
 
-from .errors import InputError, RobotFileError
+from .errors import InputError, ParallelAxesWarning, RobotFileError
 from .files import read_toml
 
 GRAVITY = 9.81
@@ -130,7 +130,8 @@ def robot_file(spec: str | Path) -> Path:
 
 
 def robot_from_toml(path: str | Path) -> Robot:
-    """Read a robot TOML file (docs/formats.md section 1).
+    """Read a robot TOML file (docs/formats.md section 1); a :class:`~casadical.errors.ParallelAxesWarning`
+    names each link with parallel consecutive axes and no ``beta_deg``.
 
     Raises
     ------
@@ -138,7 +139,9 @@ def robot_from_toml(path: str | Path) -> Robot:
         Unreadable file or any invalid field (the message names the file,
         the table and the key).
     """
-    return robot_from_dict(read_toml(path, RobotFileError), str(path))
+    robot = robot_from_dict(read_toml(path, RobotFileError), str(path))
+    warn_parallel_axes(robot.joints, robot.convention, str(path))
+    return robot
 
 
 def load_robot(spec: str | Path, tip: str | None = None, base: str | None = None,
@@ -263,6 +266,35 @@ def robot_from_dict(data: dict[str, Any], file: str = "<dict>") -> Robot:
         payload_mass=pmass,
         payload_com=v.vector(payload, "com_m", "payload", 3, default=np.zeros(3)),
         gravity=GRAVITY * direction / norm, loop=loop, source=file)
+
+
+#: consecutive axes closer to parallel than this (deg) need Hayati's beta (as the URDF reader gives them)
+PARALLEL_DEG = 5.0
+
+
+def parallel_without_beta(joints: list[Joint], convention: str) -> list[tuple[int, int]]:
+    """``(link, next joint)`` of every pair of consecutive parallel axes whose link has no ``beta``: in ``dh`` the
+    angle between axes i and i+1 is link i's alpha (its beta is link i's), in ``mdh`` the angle between axes i-1
+    and i is link i's (so is its beta)."""
+    tol = math.sin(math.radians(PARALLEL_DEG))
+    out = []
+    for i, j in enumerate(joints, start=1):
+        pair = (i, i + 1) if convention == "dh" else (i - 1, i)
+        if 1 <= pair[0] and pair[1] <= len(joints) and abs(math.sin(j.alpha)) < tol and j.beta is None:
+            out.append((i, pair[0] if convention == "mdh" else pair[1]))
+    return out
+
+
+def warn_parallel_axes(joints: list[Joint], convention: str, file: str) -> None:
+    """A :class:`~casadical.errors.ParallelAxesWarning` naming each link with parallel consecutive axes and no
+    ``beta_deg``."""
+    import warnings
+
+    for link, other in parallel_without_beta(joints, convention):
+        warnings.warn(f"{file}: joint[{link}]: the axes of joints {min(link, other)} and {max(link, other)} are "
+                      f"parallel (alpha_deg {math.degrees(joints[link - 1].alpha):g}) and joint[{link}] has no "
+                      "beta_deg: a small tilt between them (Hayati's beta) cannot be calibrated, and its d_m is "
+                      f"ill-conditioned; add beta_deg = 0.0 to joint[{link}]", ParallelAxesWarning, stacklevel=4)
 
 
 class _Validator:

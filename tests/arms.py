@@ -116,6 +116,27 @@ ARM7_DH = {
     "payload": {"mass_kg": 5},
 }
 
+#: five-axis arm, MDH, beta on joint 3, whose joint 3 is driven through a parallelogram (a linear coupling): its
+#: reading q3 is the forearm's direction, the chain angle q3 - q2; joint 2's drive leaves the forearm's direction
+ARM5_COUPLED = {
+    "name": "five-axis parallelogram arm", "convention": "mdh",
+    "joint": [
+        {"alpha_deg": 0, "a_m": 0.0, "d_m": 0.45, "min_deg": -170, "max_deg": 170, "mass_kg": 35,
+         "com_m": [0, 0, -0.15]},
+        {"alpha_deg": -90, "a_m": 0.25, "d_m": 0.0, "min_deg": -140, "max_deg": -40, "mass_kg": 25,
+         "com_m": [0.4, 0, 0]},
+        {"alpha_deg": 0, "a_m": 0.85, "beta_deg": 0.0, "d_m": 0.0, "min_deg": -60, "max_deg": 60, "mass_kg": 15,
+         "com_m": [0.3, 0, 0], "coupling": [0, -1, 1, 0, 0], "coupling_offset_deg": 0.0},
+        {"alpha_deg": -90, "a_m": 0.1, "d_m": 0.7, "min_deg": -180, "max_deg": 180, "mass_kg": 4,
+         "com_m": [0, 0, -0.1]},
+        {"alpha_deg": 90, "a_m": 0.0, "d_m": 0.0, "min_deg": -120, "max_deg": 120, "mass_kg": 2,
+         "com_m": [0, 0, 0.02]},
+    ],
+    "tool": {"a_m": 0.05, "b_m": 0.02, "d_m": 0.15},
+    "payload": {"mass_kg": 20},
+}
+
+
 def to_toml(doc: dict) -> str:
     """The robot dict as TOML text (the subset these robots use: scalars, tables, [[joint]])."""
     out = [f"{k} = {json.dumps(v)}" for k, v in doc.items() if not isinstance(v, (dict, list))]

@@ -93,6 +93,13 @@ def _finish(p, pids=()):
         pytest.fail("the command did not end within 60 s of the signal")
 
 
+def _said(err: str) -> list[str]:
+    """The lines of standard error of a command run in a subprocess, but the warning that loading the arm4,
+    arm5 and arm4-dh files gives (parallel axes without beta_deg: casadical.errors.ParallelAxesWarning,
+    ignored in-process by pyproject.toml), which is not what these tests look at."""
+    return [x for x in err.strip().splitlines() if "has no beta_deg" not in x]
+
+
 def _nothing_left(tmp_path, *names):
     for name in names:
         assert not (tmp_path / name).exists(), name
@@ -119,7 +126,7 @@ def test_a_signal_stops_an_ipopt_solve(arms, tmp_path, sig, code):
     _, err = _finish(p)
     assert time.monotonic() - t < 10
     assert p.returncode == code, err
-    lines = err.strip().splitlines()
+    lines = _said(err)
     # one line says it; before it, only the progress line of the fit (said once it took a second)
     assert lines[-1].startswith("casadical: ") and "no output was written" in lines[-1], err
     assert [x.split(" to ")[0] for x in lines[:-1]] == ["calibrate: fitting model kinematic+compliance"], err
@@ -149,7 +156,7 @@ def test_a_signal_while_the_report_is_drawn_ends_its_workers(arms, tmp_path, sig
     time.sleep(0.2)
     assert not [k for k in kids if _alive(k)], "a figure worker outlived the command"
     assert p.returncode == code, err
-    lines = err.strip().splitlines()
+    lines = _said(err)
     assert len(lines) == 1 and "no output was written" in lines[0], err
     _nothing_left(tmp_path, "r.json", "r.html", "f.json")
 
@@ -179,7 +186,7 @@ def test_sigterm_stops_a_dask_study_and_its_cluster(tmp_path, delay):
     os.kill(p.pid, signal.SIGTERM)
     _, err = _finish(p, kids)
     assert p.returncode == 143, err
-    lines = err.strip().splitlines()
+    lines = _said(err)
     assert len(lines) == 1 and lines[0].startswith("casadical: stopped by SIGTERM: ") and "to resume" in lines[0], err
     time.sleep(0.5)
     assert not [k for k in kids if _alive(k)], "a Dask process outlived the command"

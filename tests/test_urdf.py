@@ -337,10 +337,13 @@ def test_mimic_joint_becomes_a_coupling(tmp_path):
     ref = yourdfpy_fk(path, q[:, :3], "tip", names=["j1", "j2", "j3"])
     model = Model(robot, "nominal")
     assert np.abs(ref - model.predict(q)).max() < TOL_M
-    # reference torques with the mimic joint at the angle it follows
+    # reference torques with the mimic joint at the angle it follows; the drives carry them by virtual work:
+    # j2's drive turns j4 too (by -0.5 of its angle), so it carries tau2 - 0.5 tau4, and j4's reading drives nothing
     full = np.column_stack([q[:, :3], -0.5 * q[:, 1] + 0.2])
     tau_ref = yourdfpy_torques(path, full, ["j1", "j2", "j3", "j4"])
-    assert np.abs(model.torques(q) - tau_ref).max() < 1e-9 * np.abs(tau_ref).max()
+    drives = tau_ref @ np.array([[1, 0, 0, 0], [0, 1, 0, 0], [0, 0, 1, 0], [0, -0.5, 0, 0]], float)
+    assert np.abs(drives[:, 3]).max() == 0 and np.abs(tau_ref[:, 3]).max() > 0.5
+    assert np.abs(model.torques(q) - drives).max() < 1e-9 * np.abs(tau_ref).max()
 
 
 CALIBRATED = {

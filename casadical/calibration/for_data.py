@@ -16,8 +16,8 @@ from ..terms import ErrorTerm, ReferencedTerm, SessionLocal, make_term
 
 
 def set_references(terms: list[ErrorTerm], data: Measurements) -> None:
-    """Terms driven by a covariate take its mean over the data as their reference (a term of one session:
-    over that session's poses)."""
+    """Terms driven by a covariate take its reference over the data (its mean; a warm-up's start) as their
+    reference (a term of one session: over that session's poses)."""
     for t in terms:
         inner = t.inner if isinstance(t, SessionLocal) else t
         if isinstance(inner, ReferencedTerm):
@@ -25,7 +25,7 @@ def set_references(terms: list[ErrorTerm], data: Measurements) -> None:
             if col is not None and isinstance(t, SessionLocal):
                 col = col[data.sessions == t.session_name] if data.sessions is not None else col[:0]
             if col is not None and len(col):
-                t.t_ref = float(np.mean(col))
+                t.t_ref = inner.reference_value(col)
 
 
 def with_sessions(terms: list[ErrorTerm], data: Measurements, tools: bool | list[str] = False) -> list[ErrorTerm]:

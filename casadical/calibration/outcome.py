@@ -1,7 +1,8 @@
 """Stages ``note_set_aside`` and ``assemble_result``: the poses the robust loss set aside, and the result.
 
 A pose whose robust weight falls below :data:`DOWNWEIGHT_REPORT` is named by
-its file line (likely a bad measurement); the result holds the model, the
+its file line: a likely bad measurement, unless the poses set aside share
+structure the model lacks (:mod:`casadical.set_aside`); the result holds the model, the
 parameters, the errors overall and per session, the coverage of the joint
 ranges and the fit statistics.
 """
@@ -12,6 +13,7 @@ import math
 
 import numpy as np
 
+from .. import set_aside
 from ..coverage import Coverage
 from ..errors import listing
 from ..result import CalibrationResult, ErrorStats
@@ -40,11 +42,15 @@ def note_set_aside(run: CalibrationRun) -> None:
     if down:
         scale = (f"{loss.sigma * 1000:.4f} mm" if not full_pose else
                  f"{loss.sigma * 1000:.4f} mm and {math.degrees(loss.sigma_rot):.4f} deg")
+        # bad measurements, or poses that share structure the model lacks (casadical.set_aside)
+        shared = set_aside.of_model(run.model, run.params.values, run.base0, data, lin.weights < DOWNWEIGHT_REPORT,
+                                    run.cov)
         run.notes.append(f"the robust loss set aside {len(down)} pose(s) of {data.path} whose residual exceeds "
                          f"{math.sqrt(DOWNWEIGHT_REPORT ** -2 - 1) * run.loss.c:.1f} times the noise scale of "
                          f"{scale} (lines "
                          + listing([f"{d['file']}:{d['line']}" if "file" in d else d["line"] for d in down], 10)
-                         + "): likely bad measurements; check them, or pass --robust none to fit them anyway")
+                         + "): " + shared.text() + ("; diagnose looks for its cause" if shared.structured else
+                                                    "; check them, or pass --robust none to fit them anyway"))
 
 
 def assemble_result(run: CalibrationRun) -> None:

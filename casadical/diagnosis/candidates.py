@@ -7,7 +7,7 @@ from dataclasses import dataclass, replace
 #: causes in a few words, for reports
 SHORT = {"geometric": "kinematic", "joint_compliance": "compliance", "nonlinear_stiffness": "progressive stiffness",
          "joint_periodic": "periodic", "encoder_scale": "encoder scale", "backlash": "backlash",
-         "thermal_expansion": "thermal", "drift": "drift", "unexplained": "black box"}
+         "thermal_expansion": "thermal", "drift": "drift", "warmup": "warm-up", "unexplained": "black box"}
 
 
 @dataclass(frozen=True)
@@ -26,6 +26,8 @@ class Candidate:
         A cause of this measurement session only (its own parameters,
         ``c2@B``), with data of several sessions; None: one value for every
         session.
+    time_constant : float or None
+        For a warm-up: its time constant (s).
     """
 
     cause: str
@@ -33,6 +35,7 @@ class Candidate:
     harmonic: int | None = None
     source: str | None = None
     session: str | None = None
+    time_constant: float | None = None
 
     def shared(self) -> "Candidate":
         """The same cause with one value for every session."""
@@ -40,8 +43,9 @@ class Candidate:
 
     @property
     def scope(self) -> str | None:
-        """``session`` for a cause of one session (or a drift, which belongs to its session by nature)."""
-        return "session" if self.session is not None or self.cause == "drift" else None
+        """``session`` for a cause of one session (or a drift or a warm-up, which belong to their session by
+        nature)."""
+        return "session" if self.session is not None or self.cause in ("drift", "warmup") else None
 
     @property
     def tier(self) -> int:
@@ -50,7 +54,7 @@ class Candidate:
         is for, and what holds on other data); 2: drift of the measurement session (it also stands for
         any structure that follows the order of the measurements); 3: a periodic error (flexible, many
         harmonics to choose from)."""
-        return {"drift": 2, "joint_periodic": 3}.get(self.cause, 1)
+        return {"drift": 2, "warmup": 2, "joint_periodic": 3}.get(self.cause, 1)
 
     def label(self, short: bool = False) -> str:
         """``joint_periodic joint 2 harmonic 17``; short (reports): ``periodic j2 h17``."""
@@ -63,6 +67,8 @@ class Candidate:
             parts.append(f"h{self.harmonic}" if short else f"harmonic {self.harmonic}")
         if self.source == "motion":
             parts.append("(motion)" if short else "(direction of motion)")
+        if self.time_constant is not None:
+            parts.append(f"{self.time_constant:.3g} s" if short else f"time constant {self.time_constant:.3g} s")
         if self.session is not None:
             parts.append(f"@{self.session}" if short else f"in session {self.session}")
         return " ".join(parts)
@@ -77,6 +83,8 @@ class Candidate:
             d["source"] = self.source
         if self.session is not None:
             d["session"] = self.session
+        if self.time_constant is not None:
+            d["time_constant_s"] = self.time_constant
         return d
 
     def parameter_names(self) -> list[str]:
@@ -92,6 +100,7 @@ class Candidate:
             "backlash": [f"backlash{j}" if self.source != "motion" else f"backlash_m{j}"],
             "thermal_expansion": ["thermal_alpha" if j is None else f"thermal_alpha{j}"],
             "drift": ["drift_x", "drift_y", "drift_z"],
+            "warmup": ["warmup_x", "warmup_y", "warmup_z"],
         }[self.cause]
 
 
@@ -131,6 +140,7 @@ def _terms(candidates: list[Candidate]) -> list[str]:
         parts.append(f"thermal_expansion[{','.join(map(str, links))}]")
     if any(c.cause == "drift" for c in candidates):
         parts.append("drift")
+    parts += [f"warmup[{c.time_constant:g}]" for c in candidates if c.cause == "warmup"][:1]
     return parts
 
 
@@ -160,6 +170,11 @@ TELL_APART = {
     frozenset({"thermal_expansion", "drift"}):
         "measure in random pose order while the temperature changes: thermal growth scales with the "
         "arm's reach, drift of the measurement frame does not",
+    frozenset({"warmup", "drift"}):
+        "measure for longer, or repeat the first poses at the end: a warm-up settles, a drift goes on",
+    frozenset({"warmup"}):
+        "measure for longer, or repeat the first poses at the end: the time constant shows in how fast the "
+        "first poses' offset dies away",
 }
 
 

@@ -26,7 +26,7 @@ class UnexplainedLog:
 
     def __init__(self) -> None:
         self.by_joint: dict[int, Finding] = {}
-        self.excluded: set[tuple[int, int]] = set()       # periodic (joint, harmonic)
+        self.excluded: set[tuple] = set()                  # periodic (joint, harmonic, session or None)
         self.excluded_causes: set[Candidate] = set()       # other candidates
         self.strongest: dict[int, Candidate] = {}          # per joint, for the transfer study
 
@@ -35,7 +35,7 @@ class UnexplainedLog:
         j = cand.joint
         if cand.cause == "joint_periodic":
             band = checks["resolution"].band if "resolution" in checks else (cand.harmonic, cand.harmonic)
-            self.excluded.update((j, h) for h in range(band[0], band[1] + 1))
+            self.excluded.update((j, h, cand.session) for h in range(band[0], band[1] + 1))
             s_, c_ = (values[n] for n in cand.parameter_names())
             size = math.degrees(math.hypot(s_, c_)) * 3600
             item = {"harmonic": cand.harmonic, "band": list(band), "amplitude_arcsec": size,
@@ -94,8 +94,9 @@ def describe(findings: list[Finding], support: dict, before: dict, final: Calibr
         test, cv0, cv1, checks = support[cand]
         f.parameters = param_values(final, cand.parameter_names())
         text = f"{test.text()} on the calibration poses; held-out mean {cv_text(cv0, cv1)}"
-        if "resolution" in checks:
-            text += "; " + checks["resolution"].text()
+        for k in ("resolution", "versus_drift", "versus_harmonics"):
+            if k in checks:
+                text += "; " + checks[k].text()
         if "halves" in checks:
             text += "; " + "; ".join(h.text() for h in checks["halves"])
         size = what(cand, final, cal)
@@ -144,4 +145,8 @@ def what(cand: Candidate, res: CalibrationResult, cal: Measurements) -> str:
         v = np.array([P[n].value for n in cand.parameter_names()]) * 1e6
         return (f"the measured points move {np.linalg.norm(v):.3g} um per s (x, y, z: "
                 + ", ".join(f"{c:+.3g}" for c in v) + ")")
+    if cand.cause == "warmup":
+        v = np.array([P[n].value for n in cand.parameter_names()]) * 1000
+        return (f"the first poses stand {np.linalg.norm(v):.3g} mm off (x, y, z: " + ", ".join(f"{c:+.3g}" for c in v)
+                + f" mm), dying away with a time constant of {cand.time_constant:.3g} s")
     return ""

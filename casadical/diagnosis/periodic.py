@@ -89,15 +89,17 @@ class Resolution:
         return "not resolved: " + "; ".join(why)
 
 
-def resolution(screen: Screen, joint: int, harmonic: int) -> Resolution:
-    """Resolution of harmonic ``harmonic`` of ``joint`` in the round's data, given the current model."""
+def resolution(screen: Screen, joint: int, harmonic: int, session: str | None = None) -> Resolution:
+    """Resolution of harmonic ``harmonic`` of ``joint`` in the round's data, given the current model (of one
+    session's own error: over that session's poses)."""
+    at = np.ones(len(screen.w)) if session is None else (screen.cal.sessions == session).astype(float)
     sw = np.repeat(np.sqrt(screen.w), 3)
     G = screen.J[:, :, screen.cur].reshape(len(sw), -1) * sw[:, None]
     Q, _ = np.linalg.qr(G)
     rw = screen.r.ravel() * sw
     r_perp = rw - Q @ (Q.T @ rw)
     sigma2 = float(r_perp @ r_perp) / max(len(rw) - G.shape[1], 1)
-    direction = screen.angle_dir[joint]
+    direction = screen.angle_dir[joint] * at[:, None]
     q = screen.cal.q[:, joint - 1]
 
     def drop(h: int) -> float:
@@ -120,7 +122,7 @@ def resolution(screen: Screen, joint: int, harmonic: int) -> Resolution:
         lo -= 1
     while hi - harmonic < MAX_BAND and margin(hi + 1) < NEIGHBOUR_MARGIN:
         hi += 1
-    return Resolution(outside, min(margin(h) for h in neighbours), (lo, hi), float(np.degrees(np.ptp(q))))
+    return Resolution(outside, min(margin(h) for h in neighbours), (lo, hi), float(np.degrees(np.ptp(q[at > 0]))))
 
 
 @dataclass
@@ -166,29 +168,33 @@ class Halves:
 
 
 def halves(fit: LinearFit, params: list[Parameter], data: Measurements, joint: int | None,
-           alpha: float) -> list[Halves]:
+           alpha: float, session: str | None = None) -> list[Halves]:
     """A term fitted on the joint's range halves and on the time halves (only the latter without a joint).
 
     ``params`` are the term's parameters: ``(s, c)`` of a periodic error
     (amplitude and phase are reported) or others (the first one's value in
     display units is reported as the "amplitude", phase 0). Each half is
-    refitted by one Gauss-Newton step from ``fit``.
+    refitted by one Gauss-Newton step from ``fit``. A term of one
+    ``session``: the halves of that session's poses.
     """
     lin = fit.lin
     names = [p.name for p in params]
     cols = [lin.names.index(n) for n in names]
     base = np.array([fit.values[n] for n in names])
-    order_t = np.argsort(data.rows, kind="stable")
+    within = np.arange(len(data)) if session is None else np.flatnonzero(data.sessions == session)
+    others = np.setdiff1d(np.arange(len(data)), within)
+    order_t = within[np.argsort(data.rows[within], kind="stable")]
     splits = [("time", order_t)]
     if joint is not None:
-        splits.insert(0, ("joint", np.argsort(data.q[:, joint - 1], kind="stable")))
+        splits.insert(0, ("joint", within[np.argsort(data.q[within, joint - 1], kind="stable")]))
     n = len(order_t)
     crit = float(special.chdtri(len(names), alpha))  # chi-square quantile at 1 - alpha
     out = []
     for split, order in splits:
         est, cov = [], []
         for rows in (order[: n // 2], order[n // 2:]):
-            d, C = lin.refit(np.sort(rows), rel=0.0)
+            # (a session's own term: the other sessions' poses with each half, for what the robot shares)
+            d, C = lin.refit(np.sort(np.concatenate([others, rows])), rel=0.0)
             s = lin.scale[cols]
             est.append(base + s * d[cols])
             cov.append(C[np.ix_(cols, cols)] * np.outer(s, s))

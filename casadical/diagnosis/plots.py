@@ -17,11 +17,12 @@ ARCSEC = np.degrees(1.0) * 3600
 def residual_plot(cand: Candidate, before: CalibrationResult, after: CalibrationResult, d: Measurements,
                   view: Callable[[], tuple] | None = None) -> dict:
     """Joint causes: the partial residual (what the fit leaves plus the fitted effect, as the joint's
-    angle error) with the fitted effect as a curve. Thermal expansion and drift: the residual before and after.
+    angle error) with the fitted effect as a curve. Thermal expansion, drift and warm-up: the residual before and
+    after.
 
     ``view``: a function giving :func:`joint_view` of ``after`` on ``d`` (shared by the figures of one model).
     """
-    if cand.cause in ("thermal_expansion", "drift"):
+    if cand.cause in ("thermal_expansion", "drift", "warmup"):
         if cand.cause == "thermal_expansion":
             x, xlabel = d.get("temperature_c"), "temperature (deg C)"
             ys = [np.linalg.norm(r.residuals(d), axis=1) * 1000 for r in (before, after)]
@@ -32,7 +33,7 @@ def residual_plot(cand: Candidate, before: CalibrationResult, after: Calibration
             v = np.array([after.parameters[n].value for n in cand.parameter_names()])
             u = v / max(np.linalg.norm(v), 1e-300)
             ys = [r.residuals(d) @ u * 1000 for r in (before, after)]
-            ylabel = "residual along the drift (mm)"
+            ylabel = f"residual along the {'drift' if cand.cause == 'drift' else 'warm-up offset'} (mm)"
         return {"x": np.asarray(x, float).tolist(), "before": ys[0].tolist(), "after": ys[1].tolist(),
                 "xlabel": xlabel, "ylabel": ylabel}
     j, m, p = cand.joint, after.model, after.parameters

@@ -188,6 +188,12 @@ class DiagnosisReport:
         The final and the kinematic model taken to another series, if asked.
     final_sessions : dict of str to ErrorStats
         With several sessions: the final model's validation errors in each.
+    set_aside : dict
+        The poses the final fit's robust loss set aside, tested for shared
+        structure (:meth:`casadical.set_aside.SetAsideStructure.to_dict`).
+    not_tried : list of dict
+        Each kind of cause these data cannot test, with why and what would
+        allow it (:class:`casadical.diagnosis.catalogue.NotTried`).
     """
 
     robot: str
@@ -205,6 +211,8 @@ class DiagnosisReport:
     settings: dict = field(default_factory=dict)
     final_sessions: dict = field(default_factory=dict)
     final_orientation: AngleStats | None = None
+    set_aside: dict = field(default_factory=dict)
+    not_tried: list = field(default_factory=list)
 
     def to_dict(self) -> dict:
         from ..robot import robot_to_dict
@@ -227,7 +235,9 @@ class DiagnosisReport:
                       "parameters": params,
                       "sigma_mm": finite(self.final.uncertainty.sigma * 1000) if self.final.uncertainty else None,
                       "robust": {"sigma_mm": self.final.loss.sigma * 1000 if self.final.loss.robust else None,
-                                 "set_aside": self.final.downweighted}},
+                                 "set_aside": self.final.downweighted,
+                                 **({"structure": self.set_aside} if self.set_aside else {})}},
+            "not_tried": self.not_tried,
             "notes": self.notes,
             "time_s": self.time_s,
             "settings": self.settings,
@@ -274,6 +284,9 @@ class DiagnosisReport:
         lines += [""] + self._final_lines()
         if verbose:
             lines += [""] + self._steps_lines() + [""] + self._evidence_lines()
+        if self.not_tried:
+            lines += ["", "not tried on these data (why; what would allow it):"]
+            lines += [x for n in self.not_tried for x in wrap(_not_tried_text(n), "      ", "  - ")]
         lines += [""] + [x for n in self.notes for x in wrap(n, "      ", "note: ")]
         if not verbose:
             lines += ["", "the evidence (every step with its gain, each model's full specification, the checks): "
@@ -337,3 +350,10 @@ class DiagnosisReport:
                 out += wrap(f"on {self.transfer.get('file', 'the other series')}: {f.transfer['text']}", " " * 8,
                               " " * 6)
         return out
+
+
+def _not_tried_text(n: dict) -> str:
+    """A kind of cause not tried, in words (``drift, warmup: the poses have no times (time_s); a time_s ...``)."""
+    joints = n.get("joints", [])
+    on = f" of joint{'s' if len(joints) > 1 else ''} {', '.join(map(str, joints))}" if joints else ""
+    return f"{n['cause'].replace('_', ' ')}{on}: {n['why']}; {n['allow']}"

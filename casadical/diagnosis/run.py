@@ -7,7 +7,7 @@ three ways: significance (F-test at a Bonferroni-corrected level, BIC) and
 held-out error on folds that must extrapolate as well as interpolate
 (random, time-blocked and joint-range-blocked cross-validation,
 :mod:`.validation`). Physical causes (compliance, progressive stiffness,
-encoder scale, backlash, thermal expansion, drift) are tried before
+encoder scale, backlash, thermal expansion, drift, warm-up) are tried before
 periodic errors, which must also be resolved from their neighbouring
 harmonics and from geometry and agree over the two halves of the joint's
 range (:mod:`.periodic`); structure that passes the statistics but not
@@ -15,9 +15,12 @@ these checks is reported as ``unexplained`` and kept out of the model.
 At the end every accepted cause is tested again against the final model
 (:mod:`.backward`) and must still be physics (:mod:`casadical.physics`);
 the final model never does worse than the kinematic one where it must
-extrapolate. With several sessions every physical cause is asked whether
-one value serves every session (the robot's) or only one session's own
-(the session's). The validation poses judge every step and are never used
+extrapolate. With several sessions every cause is asked whether one value
+serves every session (the robot's) or only one session's own (the
+session's; :mod:`.catalogue`). The poses the final fit sets aside are
+tested for shared structure before they are called bad measurements
+(:mod:`casadical.set_aside`, :mod:`.gaps`), and what these data cannot test
+is said (:func:`.catalogue.not_tried`). The validation poses judge every step and are never used
 to accept one. The accuracy layer last (:mod:`.layer`: a session
 compensator that applies where it knows) takes what no named cause
 explains; :mod:`.transfer` takes the findings to another series.
@@ -32,22 +35,23 @@ from typing import Callable
 
 import numpy as np
 
-from ..calibration import calibrate, model_for
+from ..calibration import calibrate, learning_mask, model_for
 from ..checks import check_held_out, check_other_series, check_poses, check_validation_frames
 from ..data import Measurements
-from ..errors import listing
-from ..physics import sign_changes, value_violations, violations
+from ..physics import value_violations, violations
 from ..problem import RobustLoss
 from ..result import AngleStats, CalibrationResult, ErrorStats
 from ..robot import Robot
+from ..set_aside import of_fit
 from ..threads import limited_threads
 from .backward import drop_redundant, drop_unphysical
 from .layer import layer_step
 from .candidates import Candidate, compose_spec
+from .catalogue import Catalogue, not_tried
+from .gaps import set_aside_note, untried_alternatives
 from .findings import UnexplainedLog, describe
-from .periodic import halves, resolution
-from .periodogram import Periodogram, joint_errors, periodogram
-from .plots import joint_view
+from .nameable import JOINT_CAUSES, cause_checks, unjudged
+from .periodogram import Periodogram
 from .report import DiagnosisReport, Finding, Step
 from .screening import Scored, Screen, ambiguous
 from .settings import DiagnosisSettings
@@ -57,11 +61,6 @@ from .validation import (Linearized, by_kind, cv_failure, cv_record, cv_text, ex
                          not_better, schemes)
 
 
-#: functions of one joint's reading: each must be the same over the lower and the upper half of its range.
-#: (Compliance, progressive stiffness and backlash follow the load, not the reading; on real data their
-#: half-range estimates are biased by the structure still unmodelled in each half, so the test is not
-#: applied to them.)
-JOINT_CAUSES = ("joint_periodic", "encoder_scale")
 #: the kinds of fold where a model must extrapolate: a step may not make them worse
 EXTRAPOLATING = ("time", "joint", "session")
 
@@ -83,7 +82,9 @@ class _Diagnosis:
         self.findings: list[Finding] = []
         self.notes: list[str] = []
         self.periodograms: list[Periodogram] = []
-        self._periodograms_of: CalibrationResult | None = None    # the fit they were computed for
+        self.catalogue = Catalogue(robot, cal, settings)
+        self.later: dict[Candidate, int] = {}     # not significant yet: screened again once the model grows
+        self.not_tried: list = []                   # kinds of cause these data cannot test (catalogue.not_tried)
         self.unexplained = UnexplainedLog()
         self.before: dict[Candidate, CalibrationResult] = {}   # fit before each finding, by its cause
         self.support: dict[Candidate, tuple] = {}               # (test, cv before, cv after, checks) by cause
@@ -191,6 +192,7 @@ class _Diagnosis:
             current, geometric = nominal, False
         accepted: list[Candidate] = []
         self.history.append(([], current))
+        self.not_tried = not_tried(self.robot, self.cal, self.torques(current), self.s)
         for rnd in range(self.s.max_rounds):
             self.say(f"round {rnd + 1}: screening candidate causes")
             new = self.round(current, accepted, geometric)
@@ -213,7 +215,7 @@ class _Diagnosis:
                 reasons.append("not physics once fitted in full: " + "; ".join(v.text for v in broken))
             mask = self.mask(current)
             cv0, cv1 = self.cv(current, mask), self.cv(new_fit, mask)
-            worse = [k for k in EXTRAPOLATING if k in cv0 and cv1[k] > cv0[k]]
+            worse = [k for k in EXTRAPOLATING if k in cv0 and cv1[k] > cv0[k] and k not in unjudged(cand)]
             if worse:
                 reasons.append("fitted in full it does worse where the model extrapolates: "
                                + ", ".join(f"{k} {cv0[k]:.4f} -> {cv1[k]:.4f} mm" for k in worse))
@@ -223,7 +225,12 @@ class _Diagnosis:
                 self.say(f"    {cand.label()}: {step.reason}")
                 self.findings.pop()
                 support = self.support.pop(cand, None)
-                self.unexplained.excluded_causes.add(cand)
+                if len(reasons) == 1 and not broken and not worse:
+                    # not significant yet: screened again once another cause is in the model (a session's own
+                    # structure still unmodelled inflates the noise scale)
+                    self.later[cand] = len(accepted)
+                else:
+                    self.unexplained.excluded_causes.add(cand)
                 if broken and not reasons[0].startswith("not significant") and cand.joint is not None \
                         and support is not None:
                     # real structure that is not this cause: reported, kept out of the model
@@ -290,63 +297,15 @@ class _Diagnosis:
         self.before.pop(cand, None)
 
     def candidates(self, current: CalibrationResult, accepted: list[Candidate]) -> list[Candidate]:
-        """Every candidate not yet in the model; periodic ones from the periodogram peaks."""
-        have = set(accepted)
-        out: list[Candidate] = []
-        for j in range(1, self.robot.n + 1):
-            out += [Candidate("joint_compliance", j), Candidate("encoder_scale", j),
-                    Candidate("backlash", j, source="torque"), Candidate("backlash", j, source="motion")]
-            if Candidate("joint_compliance", j) in have:
-                out.append(Candidate("nonlinear_stiffness", j))
-        temp = self.cal.get("temperature_c")
-        if temp is not None and np.ptp(temp) > 0.1:
-            out.append(Candidate("thermal_expansion"))
-            out += [Candidate("thermal_expansion", j) for j, jt in enumerate(self.robot.joints, start=1)
-                    if abs(jt.a) + abs(jt.d) + abs(jt.b or 0.0) > 0]
-        if len(self.sessions) > 1:
-            # a cause of one session only: the physical causes of each joint, and a drift (of one session by
-            # nature: with several sessions only its own)
-            out += [replace(c, session=s) for c in out if c.cause in ("joint_compliance", "encoder_scale", "backlash")
-                    for s in self.sessions]
-            if self.cal.get("time_s") is not None:
-                out += [Candidate("drift", session=s) for s in self.sessions]
-        elif self.cal.get("time_s") is not None:   # a drift needs the poses' times: never the row numbers
-            out.append(Candidate("drift"))
-        # periodograms of the projected residuals (the same while the fit is the same)
-        if self._periodograms_of is not current:
-            # a joint angle error moves the tool point along the derivative w.r.t. the joint's angle
-            resid, JA = joint_view(current, self.cal)
-            self.periodograms = []
-            for j in range(1, self.robot.n + 1):
-                s, w = joint_errors(resid, JA[:, :, j - 1])
-                self.periodograms.append(periodogram(self.cal.q[:, j - 1], s, w, j, self.max_harmonic()))
-            self._periodograms_of = current
-        for j, pg in enumerate(self.periodograms, start=1):
-            ranked = [int(h) for h in pg.harmonics[np.argsort(-pg.power)]
-                      if (j, int(h)) not in self.unexplained.excluded][:2]
-            # the first harmonic always: over a small range it mimics an encoder scale error,
-            # and the ambiguity can only be reported if both are screened
-            hs = set(ranked) | ({1} if (j, 1) not in self.unexplained.excluded else set())
-            out += [Candidate("joint_periodic", j, h) for h in sorted(hs)]
-        return [c for c in out if c not in have and c not in self.unexplained.excluded_causes and not (
-            c.cause == "backlash" and (any(a.cause == "backlash" and a.joint == c.joint for a in accepted)
-                                       or not self.sign_changes(current, c)))]
-
-    def sign_changes(self, current: CalibrationResult, cand: Candidate) -> bool:
-        """Backlash needs its sign source to change sign in the data: otherwise it is a joint offset."""
-        j = cand.joint
-        signs = self.cal.moves[:, j - 1] if cand.source == "motion" else np.sign(self.torques(current)[:, j - 1])
-        if cand.session is not None:
-            signs = signs[self.cal.sessions == cand.session]
-        return sign_changes(signs, "")[0]
-
-    def max_harmonic(self) -> int:
-        return min(self.s.max_harmonic, max(len(self.cal) // 3, 1))
+        """Every candidate not yet in the model (:class:`.catalogue.Catalogue`)."""
+        skip = self.unexplained.excluded_causes | {c for c, n in self.later.items() if n == len(accepted)}
+        out = self.catalogue.candidates(current, accepted, self.unexplained.excluded, skip,
+                                        lambda: self.torques(current))
+        self.periodograms = self.catalogue.periodograms
+        return out
 
     def n_tests(self, cands: list[Candidate]) -> int:
-        """Tests behind a round's candidates: each periodic candidate stands for the scanned harmonics."""
-        per = sum(1 for c in cands if c.cause == "joint_periodic")
-        return (len(cands) - per) + self.robot.n * self.max_harmonic()
+        return self.catalogue.n_tests(cands)
 
     def round(self, current: CalibrationResult, accepted: list[Candidate], geometric: bool):
         """Screen, fit the best candidates by one step, accept one; None when nothing is supported."""
@@ -400,12 +359,12 @@ class _Diagnosis:
                     reasons.append(f"F-test not significant at the corrected level ({test.text()})")
                 if test.delta_bic >= 0:
                     reasons.append(f"BIC does not improve ({test.delta_bic:+.1f})")
-                worse = not_better(cv0, cv1)
+                worse = [k for k in not_better(cv0, cv1) if k not in unjudged(cand)]
                 # real structure on these poses: significant, and it predicts random held-out poses
                 significant = not reasons and "random" not in worse
                 if worse:
                     reasons.append(cv_failure(worse, cv0, cv1))
-                checks = self.joint_checks(scr, fit, cand) if significant else {}
+                checks = cause_checks(scr, fit, cand, self.cal, self.s.stability_alpha) if significant else {}
                 reasons += checks.pop("reasons", [])
                 # the one-step fit's values must already be physics (bounds, a spring that does not turn back)
                 names = cand.parameter_names()
@@ -422,7 +381,8 @@ class _Diagnosis:
                 self.steps.append(step)
                 if reasons:
                     self.say(f"    rejected: {step.reason}")
-                    if significant and (cand.cause in JOINT_CAUSES or (broken and cand.joint is not None)):
+                    if significant and (cand.cause in JOINT_CAUSES + ("nonlinear_stiffness",)
+                                        or (broken and cand.joint is not None)):
                         pending.append((cand, fit.values, test, cv0, cv1, checks, cur_val.mean_mm - vstats.mean_mm,
                                         "; ".join(reasons)))
                     continue
@@ -435,35 +395,14 @@ class _Diagnosis:
                 f = Finding(sc.candidate, cur_val.mean_mm - step.validation.mean_mm, "",
                             ambiguous_with=ambiguous(sc, scored, level),
                             holds_up={"test": test.text(), "cv_mm": cv_record(cv0, cv1),
-                                      **{k: v.to_dict() for k, v in checks.items() if k == "resolution"},
+                                      **{k: v.to_dict() for k, v in checks.items()
+                                         if k in ("resolution", "versus_drift", "versus_harmonics")},
                                       **({"halves": [h.to_dict() for h in checks["halves"]]} if "halves" in checks
                                          else {})})
                 self.support[sc.candidate] = (test, cv0, cv1, checks)
                 self.findings.append(f)
                 return (sc.candidate, {**{p.name: p.value for p in current.parameters}, **fit.values}, level), pending
         return None, pending
-
-    def joint_checks(self, scr: Screen, fit, cand: Candidate) -> dict:
-        """A function of a joint's reading (periodic error, encoder scale) is the same over both halves of the
-        joint's range, and a periodic error must be resolved from its neighbours and from geometry; a drift
-        (a velocity) is the same over both halves of the measurement time."""
-        if cand.cause not in JOINT_CAUSES + ("drift",):
-            return {}
-        out: dict = {"reasons": []}
-        params = [scr.params[n] for n in cand.parameter_names() if n in fit.lin.names]
-        if cand.cause == "drift":
-            hv = out["halves"] = halves(fit, params, self.cal, None, self.s.stability_alpha)
-            if not hv[0].agree:
-                out["reasons"].append("the first and second half in time disagree: " + hv[0].text())
-            return out
-        hv = out["halves"] = halves(fit, params, self.cal, cand.joint, self.s.stability_alpha)
-        if cand.cause == "joint_periodic":
-            rs = out["resolution"] = resolution(scr, cand.joint, cand.harmonic)
-            if not rs.resolved:
-                out["reasons"].append(rs.text())
-        if not hv[0].agree:
-            out["reasons"].append("the halves of the joint's range disagree: " + hv[0].text())
-        return out
 
 
 @limited_threads()
@@ -519,6 +458,7 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
                                        parent=dg.step_of(current))
     say("findings: their values, evidence and figures in the final model")
     describe(dg.findings, dg.support, dg.before, final, cal)
+    untried_alternatives(dg.findings, dg.not_tried)      # a joint's named cause may be its untried compliance
     dg.findings += list(dg.unexplained.by_joint.values())
     for f in dg.findings:   # of the robot (one value serves every session) or of one session
         f.scope = f.scope or f.candidate.scope or ("robot" if len(dg.sessions) > 1 and f.in_model
@@ -528,10 +468,10 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
     if final.uncertainty is not None:
         dg.notes.append(f"remaining calibration residual {final.uncertainty.sigma * 1000:.4f} mm per axis (rms); "
                         f"validation rms {final_val.rms_mm / math.sqrt(3):.4f} mm per axis")
-    if final.downweighted:
-        dg.notes.append(f"the robust loss set aside {len(final.downweighted)} calibration pose(s) of {cal.path} "
-                        "(lines " + listing([f"{d['file']}:{d['line']}" if "file" in d else d["line"]
-                                             for d in final.downweighted], 10) + "): likely bad measurements")
+    # the poses the final fit set aside: bad measurements, or structure it lacks (casadical.set_aside)
+    structure = of_fit(parametric, cal, learning_mask(final, cal) == 0)
+    if structure.n_set_aside:
+        dg.notes.append(set_aside_note(structure, dg.not_tried, cal.path))
     study = None
     if other is not None:
         study = findings_study(dg, final, parametric, accepted, geometric, other)
@@ -542,4 +482,6 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
                            next(st.validation for st in dg.steps if st.model == "kinematic"),
                            study.to_dict() if study is not None else {}, asdict(s),
                            final_sessions=final.session_stats(val) if len(dg.sessions) > 1 else {},
-                           final_orientation=dg.val_angles(final))
+                           final_orientation=dg.val_angles(final),
+                           set_aside=structure.to_dict() if structure.n_set_aside else {},
+                           not_tried=[n.to_dict() for n in dg.not_tried])

@@ -29,9 +29,14 @@ from ..calibration import model_for
 from ..problem import CalibrationProblem
 from ..result import CalibrationResult
 from ..terms.periodic import JointPeriodic
+from ..terms.warmup import Warmup, decay
 from .candidates import Candidate, compose_spec, tell_apart
 from .statistics import NestedTest, nested_test
-from .validation import Linearized, solve_identified
+from .validation import Linearized, solve_identified, switch_off
+
+#: causes whose columns are computed here rather than by the model: a periodic error (the direction of its
+#: joint's angle times a sine of its harmonic) and a warm-up (a translation times its decay)
+ANALYTIC = ("joint_periodic", "warmup")
 
 
 @dataclass
@@ -62,6 +67,8 @@ class LinearFit:
     n_free : int
     step : ndarray
         The change of the scaled free parameters from the current fit.
+    cols : list of int
+        Its columns in the screen.
     """
 
     lin: Linearized
@@ -69,25 +76,27 @@ class LinearFit:
     ssr: float
     n_free: int
     step: np.ndarray
+    cols: list[int]
 
 
 class Screen:
     """The current fit and every candidate, linearised together on the calibration poses.
 
     The model evaluated holds the current terms and the candidates other
-    than periodic errors; a periodic candidate's columns are the exact
-    derivative of the tool point w.r.t. its joint's angle times ``sin`` and
-    ``cos`` of its harmonic, so screening again with other harmonics
+    than periodic errors and warm-ups; a periodic candidate's columns are
+    the exact derivative of the tool point w.r.t. its joint's angle times
+    ``sin`` and ``cos`` of its harmonic, a warm-up's a translation times its
+    decay, so screening again with other harmonics or time constants
     (:meth:`with_candidates`) needs no new model and no new evaluation. A
-    candidate of one session (``c2@B``) has its cause's columns at that
-    session's poses and zeros elsewhere.
+    candidate of one session (``c2@B``, ``joint_periodic j1 h11 @B``) has its
+    cause's columns at that session's poses and zeros elsewhere.
     """
 
     def __init__(self, current: CalibrationResult, accepted: list[Candidate], cands: list[Candidate],
                  geometric: bool, cal: Measurements, val: Measurements, session_tools: bool = False):
         robot = current.model.robot
-        self.current, self.cal, self.val = current, cal, val
-        self.physical = {c.shared() for c in cands if c.cause != "joint_periodic"}
+        self.current, self.cal, self.val, self.accepted = current, cal, val, list(accepted)
+        self.physical = {c.shared() for c in cands if c.cause not in ANALYTIC}
         # drift and thermal terms referenced to the calibration poses, as in the fits (current's model)
         self.model = big = model_for(robot, compose_spec(accepted + sorted(self.physical, key=str), geometric), cal,
                                      jit=False, session_tools=session_tools)
@@ -108,50 +117,78 @@ class Screen:
         self._model_cols = (J[:, :, self.free] * params.scales[self.free], [params.names[i] for i in self.free],
                             params.scales[self.free])
         self.angle_dir = {j: JA[:, :, j - 1] for j in range(1, robot.n + 1)}
+        self._JA = JA
         self.r = xyz - cal.xyz
         self.w = current.loss.weight(np.einsum("ij,ij->i", self.r, self.r))
+        # a warm-up starts at the first calibration pose of its session, as in the fits (Warmup.reference_value)
+        t = cal.get("time_s")
+        sessions = cal.sessions if cal.sessions is not None else np.full(len(cal), "", dtype=object)
+        self.t0 = {} if t is None else {None: float(t.min()), **{s: float(t[sessions == s].min())
+                                                                 for s in dict.fromkeys(sessions.tolist())}}
         self._val: tuple | None = None
-        self._set_periodic(cands)
+        self._set_extra(cands)
 
     def with_candidates(self, cands: list[Candidate]) -> "Screen":
-        """The same linearisation screening ``cands`` (other periodic harmonics; no new non-periodic cause)."""
-        extra = {c.shared() for c in cands if c.cause != "joint_periodic"} - self.physical
+        """The same linearisation screening ``cands`` (other periodic harmonics, warm-up time constants or
+        sessions' own causes; no new cause of the model's)."""
+        extra = {c.shared() for c in cands if c.cause not in ANALYTIC} - self.physical
         if extra:
             raise ValueError(f"not in this screen's model: {sorted(map(str, extra))}")
         new = copy.copy(self)
-        new._set_periodic(cands)
+        new._set_extra(cands)
         return new
 
-    def _set_periodic(self, cands: list[Candidate]) -> None:
-        """Columns, names, scales and parameters: the model's, then each periodic candidate's, then each
-        candidate of one session's."""
+    def _set_extra(self, cands: list[Candidate]) -> None:
+        """Columns, names, scales and parameters: the model's, then those of each candidate that is not one of
+        the model's columns (a periodic error, a warm-up, a cause of one session)."""
         J, names, scale = self._model_cols
-        self.periodic = [c for c in cands if c.cause == "joint_periodic" and c.session is None
-                         and c.parameter_names()[0] not in names]
-        # a session's own candidate: its cause's columns (free in the model) at that session's poses
-        self.local = [c for c in cands if c.session is not None and c.parameter_names()[0] not in names
-                      and all(n in names for n in c.shared().parameter_names())]
+        n_model = len(names)
         self.params = {p.name: p for p in self.model_params}
+        self.extra: list[tuple[Candidate, int]] = []      # the candidate and its parameter, of each extra column
+        self.cols_of: dict[Candidate, list[int]] = {}
         cols = [J]
-        for c in self.periodic:
-            ps = JointPeriodic([(c.joint, c.harmonic)]).parameters(self.model.robot)
-            self.params.update((p.name, p) for p in ps)
+        for c in cands:
+            own = c.parameter_names()
+            if own[0] in names[:n_model] or c in self.cols_of:
+                continue        # in the model already (or given twice)
+            if c.cause in ANALYTIC:
+                ps = self._analytic_parameters(c)
+            elif c.session is not None and all(n in names[:n_model] for n in c.shared().parameter_names()):
+                ps = [replace(self.params[n], name=local) for n, local in zip(c.shared().parameter_names(), own)]
+            else:
+                continue        # a cause of the model's (found by its names), or one it cannot screen
+            self.cols_of[c] = list(range(len(names), len(names) + len(ps)))
+            for k, p in enumerate(ps):
+                self.params.setdefault(p.name, p)
+                self.extra.append((c, k))
+                cols.append(self._column(c, k, self.cal, J, self._JA)[:, :, None])
             names = names + [p.name for p in ps]
             scale = np.append(scale, [p.scale for p in ps])
-            cols.append(periodic_columns(self.angle_dir[c.joint], self.cal.q[:, c.joint - 1], c.harmonic)
-                        * [p.scale for p in ps])
-        for c in self.local:
-            at = (self.cal.sessions == c.session).astype(float)[:, None, None]
-            for shared, local in zip(c.shared().parameter_names(), c.parameter_names()):
-                k = names.index(shared)
-                self.params[local] = replace(self.params[shared], name=local)
-                names = names + [local]
-                scale = np.append(scale, scale[k])
-                cols.append(J[:, :, k:k + 1] * at)
         self.J = np.concatenate(cols, axis=2) if len(cols) > 1 else J
         self.names, self.scale = names, scale
         cur = self.current.parameters
-        self.cur = [k for k, n in enumerate(self.names) if n in cur and not cur[n].fixed]
+        self.cur = [k for k, n in enumerate(self.names[:n_model]) if n in cur and not cur[n].fixed]
+
+    def _analytic_parameters(self, c: Candidate) -> list:
+        robot = self.model.robot
+        ps = (JointPeriodic([(c.joint, c.harmonic)]) if c.cause == "joint_periodic" else Warmup()).parameters(robot)
+        return [replace(p, name=n) for p, n in zip(ps, c.parameter_names())]
+
+    def _column(self, c: Candidate, k: int, d: Measurements, J: np.ndarray, JA: np.ndarray) -> np.ndarray:
+        """Column (N, 3), scaled, of the ``k``-th parameter of candidate ``c`` at the poses of ``d`` (``J``: the
+        model's free columns there, ``JA``: the directions of the joints' angles)."""
+        if c.cause == "joint_periodic":
+            col = periodic_columns(JA[:, :, c.joint - 1], d.q[:, c.joint - 1], c.harmonic)[:, :, k]
+        elif c.cause == "warmup":
+            col = np.zeros((len(d), 3))
+            col[:, k] = decay(d.get("time_s"), self.t0[c.session], c.time_constant)
+        if c.cause in ANALYTIC:
+            col = col * self.params[c.parameter_names()[k]].scale
+        else:       # a session's own: its cause's column (scaled alike)
+            col = J[:, :, self._model_cols[1].index(c.shared().parameter_names()[k])]
+        if c.session is not None:
+            col = col * (d.sessions == c.session).astype(float)[:, None]
+        return col
 
     # -- the score test ----------------------------------------------------------
 
@@ -184,7 +221,10 @@ class Screen:
 
     def columns(self, c: Candidate) -> list[int]:
         """The candidate's free columns not already in the current model."""
-        return [k for k in (self.names.index(n) for n in c.parameter_names() if n in self.names)
+        if c in self.cols_of:
+            return self.cols_of[c]
+        n_model = len(self._model_cols[1])
+        return [k for k in (self.names.index(n) for n in c.parameter_names() if n in self.names[:n_model])
                 if k not in self.cur]
 
     # -- fits by one step ----------------------------------------------------------
@@ -201,8 +241,8 @@ class Screen:
         r1 = self.r + J @ d
         names = [self.names[k] for k in cols]
         values = {n: self.params[n].value + self.scale[k] * dk for n, k, dk in zip(names, cols, d)}
-        lin = Linearized(J, r1, self.w, names, self.scale[cols])
-        return LinearFit(lin, values, float(np.sum(self.w[:, None] * r1 ** 2)), len(cols), d)
+        lin = Linearized(J, r1, self.w, names, self.scale[cols], switch_off(names, values, self.scale[cols]))
+        return LinearFit(lin, values, float(np.sum(self.w[:, None] * r1 ** 2)), len(cols), d, cols)
 
     def validation_errors(self, fit: LinearFit) -> np.ndarray:
         """Position errors (m) on the validation poses of a one-step fit (a judge, never used to decide)."""
@@ -212,20 +252,10 @@ class Screen:
                                                     self.current.base0)
             self._val = (xyz - self.val.xyz, J[:, :, self.free] * p.scales[self.free], JA)
         r, J, JA = self._val
-
-        def column(n: str) -> np.ndarray:
-            if n in self._model_cols[1]:
-                return J[:, :, self._model_cols[1].index(n)]
-            local = next((c for c in self.local if n in c.parameter_names()), None)
-            if local is not None:   # a session's own: its cause's column at that session's poses
-                shared = local.shared().parameter_names()[local.parameter_names().index(n)]
-                return column(shared) * (self.val.sessions == local.session).astype(float)[:, None]
-            c = next(c for c in self.periodic if n in c.parameter_names())   # gear{j}_{s|c}{h}
-            k = c.parameter_names().index(n)
-            col = periodic_columns(JA[:, :, c.joint - 1], self.val.q[:, c.joint - 1], c.harmonic)[:, :, k]
-            return col * self.params[n].scale
-
-        return np.linalg.norm(r + np.stack([column(n) for n in fit.lin.names], axis=2) @ fit.step, axis=1)
+        n_model = len(self._model_cols[1])
+        cols = [J[:, :, k] if k < n_model else self._column(*self.extra[k - n_model], self.val, J, JA)
+                for k in fit.cols]
+        return np.linalg.norm(r + np.stack(cols, axis=2) @ fit.step, axis=1)
 
 
 def periodic_columns(direction: np.ndarray, q: np.ndarray, h: int) -> np.ndarray:

@@ -149,7 +149,21 @@ class CVResult:
         return float(np.mean(e if mask is None else e[mask]) * 1000)
 
 
-def linear_cv(J: np.ndarray, r: np.ndarray, weights: np.ndarray, all_schemes: list[Scheme]) -> CVResult:
+#: a cause's parameter whose training poses in a fold carry less than this share of what determines it (a
+#: warm-up when the start is left out, a session's own cause when its session is) is switched off there
+OWN_SHARE = 1e-2
+
+
+def switch_off(names: list[str], values, scale: np.ndarray) -> np.ndarray:
+    """For each column, the step that switches its cause off (NaN for the others): a warm-up's and a cause of
+    one session's (``name@S``, not its base pose or tool); :func:`linear_cv` switches them off in a fold that
+    leaves out (nearly) all the poses that determine them."""
+    return np.array([-values[n] / s if n.startswith("warmup_") or ("@" in n and not n.startswith(("base_", "tool_")))
+                     else np.nan for n, s in zip(names, scale)])
+
+
+def linear_cv(J: np.ndarray, r: np.ndarray, weights: np.ndarray, all_schemes: list[Scheme],
+              off: np.ndarray | None = None) -> CVResult:
     """Held-out errors by one Gauss-Newton step per fold from the fit on all poses.
 
     Parameters
@@ -161,13 +175,19 @@ def linear_cv(J: np.ndarray, r: np.ndarray, weights: np.ndarray, all_schemes: li
     weights : ndarray, shape (N,)
         Pose weights of the fit (robust loss); held fixed.
     all_schemes : list of Scheme
+    off : ndarray, optional
+        Per column, the step that switches a cause off (:func:`switch_off`; NaN: not a cause of its own poses).
 
     Directions the training poses of a fold cannot determine stay at the
     fit on all poses (:func:`solve_identified`). Parameters that only the
-    left-out poses inform (a left-out session's own base pose, tool, or
-    terms) are then estimated on those poses themselves, the rest held: the
-    robot's values must come from the other sessions, the session's own
-    from the session, as when a calibration is taken to a new session.
+    left-out poses inform (a left-out session's own base pose and tool) are
+    then estimated on those poses themselves, the rest held: the robot's
+    values must come from the other sessions, the session's own from the
+    session, as when a calibration is taken to a new session. A cause that
+    (nearly: :data:`OWN_SHARE`) only the left-out poses inform (a warm-up
+    when the start is left out, a session's own gear error when its session
+    is) is switched off there: no fold can predict it, and its fit on those
+    very poses would not be held out.
     """
     N, _, p = J.shape
     sw = np.sqrt(weights)[:, None, None]
@@ -178,22 +198,31 @@ def linear_cv(J: np.ndarray, r: np.ndarray, weights: np.ndarray, all_schemes: li
     A, g = J2.T @ J2, J2.T @ r2
     folds = [F for s in all_schemes for F in s.folds]
     AT, gT = np.empty((len(folds), p, p)), np.empty((len(folds), p))
-    owns = []
+    owns, offs = [], []
+    cause = np.zeros(p, bool) if off is None else np.isfinite(off)
     for k, F in enumerate(folds):
         JF, rF = Jw[F].reshape(-1, p), rw[F].reshape(-1)
         AT[k], gT[k] = A - JF.T @ JF, g - JF.T @ rF
         # what only the left-out poses inform: exactly out of the training system (the subtraction leaves
         # rounding, which the normalisation of solve_identified would blow up)
-        own = np.diag(AT[k]) <= 1e-9 * np.maximum(np.diag(A), 1e-300)
-        AT[k][own, :], AT[k][:, own], gT[k][own] = 0.0, 0.0, 0.0
+        share = np.diag(AT[k]) / np.maximum(np.diag(A), 1e-300)
+        gone = cause & (share <= OWN_SHARE)          # causes of the left-out poses: switched off
+        own = (share <= 1e-9) & ~gone
+        if gone.any():      # the training system with them switched off
+            gT[k] += AT[k][:, gone] @ off[gone]
+        out_ = own | gone
+        AT[k][out_, :], AT[k][:, out_], gT[k][out_] = 0.0, 0.0, 0.0
         owns.append(own)
+        offs.append(gone)
     steps = iter(-solve_identified(AT, gT))      # every fold of every scheme in one stacked solve
-    owns = iter(owns)
+    owns, offs = iter(owns), iter(offs)
     out = CVResult()
     for s in all_schemes:
         err = np.empty(N)
         for F in s.folds:
-            d, own = next(steps), next(owns)
+            d, own, gone = next(steps), next(owns), next(offs)
+            if gone.any():
+                d[gone] = off[gone]
             if own.any():   # the left-out poses' own parameters, on those poses
                 JF = Jw[F].reshape(-1, p)
                 d[own] = np.linalg.lstsq(JF[:, own], -(rw[F].reshape(-1) + JF @ d), rcond=None)[0]
@@ -225,6 +254,7 @@ class Linearized:
     weights: np.ndarray
     names: list[str]
     scale: np.ndarray
+    off: np.ndarray | None = None
 
     @classmethod
     def of(cls, res, data) -> "Linearized":
@@ -233,10 +263,12 @@ class Linearized:
         f = np.flatnonzero(p.free)
         r = xyz - data.xyz
         w = res.loss.weight(np.einsum("ij,ij->i", r, r))
-        return cls(J[:, :, f] * p.scales[f], r, w, [p.names[i] for i in f], p.scales[f])
+        names = [p.names[i] for i in f]
+        return cls(J[:, :, f] * p.scales[f], r, w, names, p.scales[f],
+                   switch_off(names, {n: p[n].value for n in names}, p.scales[f]))
 
     def cv(self, all_schemes: list[Scheme]) -> CVResult:
-        return linear_cv(self.J, self.r, self.weights, all_schemes)
+        return linear_cv(self.J, self.r, self.weights, all_schemes, self.off)
 
     def refit(self, rows: np.ndarray, rel: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
         """One Gauss-Newton step on ``rows`` only: the change of the scaled parameters and its covariance.

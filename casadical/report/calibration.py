@@ -134,9 +134,12 @@ def calibration_html(result: CalibrationResult, data: Measurements, before: Cali
         page.para(f"None: every pose kept at least half its weight (noise scale {result.loss.sigma * 1000:.4f} mm "
                   f"per axis, pseudo-Huber linear beyond {result.loss.c:g} sigma).")
     else:
+        # the calibration's verdict on them (casadical.set_aside): bad measurements, or structure the model lacks
+        note = next((n for n in result.notes if n.startswith("the robust loss set aside")), "")
+        verdict = note.split("): ", 1)[1] if "): " in note else "likely bad measurements"
         page.para(f"{len(result.downweighted)} pose(s) weighed less than half (noise scale "
-                  f"{result.loss.sigma * 1000:.4f} mm per axis): likely bad measurements. Check them at these "
-                  f"lines of <code>{esc(data.path)}</code>.")
+                  f"{result.loss.sigma * 1000:.4f} mm per axis): {esc(verdict)}. These lines of "
+                  f"<code>{esc(data.path)}</code>:")
         page.table(["file line", "residual mm", "weight"],
                    [[str(d["line"]), num(d["residual_mm"]), f"{d['weight']:.3f}"]
                     for d in sorted(result.downweighted, key=lambda d: -d["residual_mm"])])

@@ -73,11 +73,12 @@ def diagnosis_html(report: DiagnosisReport, processes: int = 1, progress=None, p
     sections = [("evidence", "Evidence for each finding"), ("steps", "Steps"),
                 ("unexplained", "Structure kept out of the model"), ("transfer", "On another series"),
                 ("periodograms", "What is left"), ("accuracy", "Where the model is accurate"),
-                ("parameters", "Final parameters"),
+                ("not-tried", "Not tried on these data"), ("parameters", "Final parameters"),
                 ("notes", "Notes and settings")]
     present = {"unexplained": bool(kept_out), "transfer": bool(report.transfer),
                "periodograms": bool(report.periodograms), "evidence": bool(report.findings),
-               "accuracy": report.final.uncertainty is not None and report.final.model.robot.n >= 2}
+               "accuracy": report.final.uncertainty is not None and report.final.model.robot.n >= 2,
+               "not-tried": bool(report.not_tried)}
     page.para("The evidence behind them, further down:")
     page.items([page.ref(a, t) for a, t in sections if present.get(a, True)], "ol")
 
@@ -96,6 +97,12 @@ def diagnosis_html(report: DiagnosisReport, processes: int = 1, progress=None, p
                   "is noise or structure no single harmonic holds.")
     if present["accuracy"]:
         _accuracy(page, report, poses, map_joints)
+    if report.not_tried:
+        page.heading("Not tried on these data", anchor="not-tried")
+        page.para("Kinds of cause these poses cannot test, why, and what would let the diagnosis try them.")
+        page.table(["cause", "joints", "why", "what would allow it"],
+                   [[n["cause"].replace("_", " "), ", ".join(map(str, n.get("joints", []))) or "-", n["why"],
+                     n["allow"]] for n in report.not_tried], text_columns=(0, 1, 2, 3), wrap_columns=(2, 3))
     page.heading("Final parameters", anchor="parameters")
     page.para("The final model fitted on the calibration poses (what <code>diagnose --out</code> writes). "
               "Angles in degrees, lengths in millimetres; greyed rows are held.")
@@ -295,7 +302,8 @@ def _findings(page: Page, report: DiagnosisReport) -> None:
         if "resolution" in hu:
             entries.append(("resolution", esc(_resolution(hu["resolution"]))))
         for a in f.ambiguous_with:
-            entries.append(("ambiguous with", esc(f"{a['label']} (similarity {a['similarity']}): {a['tell_apart']}")))
+            alike = f" (similarity {a['similarity']})" if "similarity" in a else ""
+            entries.append(("ambiguous with", esc(f"{a['label']}{alike}: {a['tell_apart']}")))
         if f.transfer:
             entries.append((f"on {_name(other)}", _transfer_text(f.transfer)))
         page.pairs(entries)

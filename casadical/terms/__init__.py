@@ -6,7 +6,7 @@ such as ``"kinematic+compliance[2,3]+periodic[2:1]"`` (see
 """
 
 from . import (backlash, compliance, drift, encoder_scale, geometric, gp_compensator, nonlinear_stiffness,  # noqa: F401
-               periodic, rbf_compensator, sessions, thermal, tool_orientation)
+               periodic, rbf_compensator, sessions, thermal, tool_orientation, warmup)
 from .base import REGISTRY, Context, ErrorTerm, ReferencedTerm, register
 from .local import SessionLocal
 

@@ -4,6 +4,10 @@ An error term is one physical cause of position error. It declares its
 parameters and the per-pose covariates it needs, and adds its effect to the
 symbolic model: as offsets of the joint angles (compliance, gear error,
 encoder scale, backlash) or as a change of the geometry (thermal expansion).
+A joint's angle offset is its drive's: it is added to the joint's reading
+before couplings and loops make the chain angles, so on a coupled arm it
+moves every chain angle made of that reading (a parallelogram's forearm
+keeps its direction when joint 2's drive gives way).
 Adding a term means writing one module in this folder that subclasses
 :class:`ErrorTerm` and decorates it with :func:`register`.
 """
@@ -13,8 +17,10 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, ClassVar
 
+import numpy as np
+
 from ..errors import ModelError
-from ..kinematics import Frames, Geometry, chain_angles, forward, gravity_torques
+from ..kinematics import Frames, Geometry, chain_angles, drive_torques, forward, gravity_torques
 from ..parameters import Parameter
 from ..robot import GRAVITY, Robot
 
@@ -37,6 +43,9 @@ class Context:
     p: dict[str, Any]            # parameter symbols by name
     cov: dict[str, Any]          # covariate symbols by name
     geom: Geometry | None = None
+    #: joint errors are the drives' (on the readings, before couplings and loops); False: on the chain angles
+    #: (calibration files written before, :class:`~casadical.terms.geometric.Geometric` ``drive_errors``)
+    drives: bool = True
     _frames: Frames | None = field(default=None, repr=False)
     _torques: list | None = field(default=None, repr=False)
 
@@ -47,9 +56,11 @@ class Context:
         return self._frames
 
     def torques(self) -> list:
-        """Gravity torque at each joint, undeflected configuration, row payload."""
+        """Gravity torque each joint's drive carries, undeflected configuration, row payload
+        (:func:`~casadical.kinematics.drive_torques`: the torque about the joint's axis unless joints are coupled)."""
         if self._torques is None:
-            self._torques = gravity_torques(self.robot, self.frames(), self.cov["payload_kg"])
+            tau = gravity_torques(self.robot, self.frames(), self.cov["payload_kg"])
+            self._torques = drive_torques(self.robot, self.q, self.geom, tau) if self.drives else tau
         return self._torques
 
 
@@ -151,6 +162,10 @@ class ReferencedTerm(ErrorTerm):
     @property
     def reference_covariate(self) -> str:
         return self.covariates[0]
+
+    def reference_value(self, values: np.ndarray) -> float:
+        """The reference of the covariate's ``values`` over the data (default: their mean)."""
+        return float(np.mean(values))
 
     def bind(self, robot: Robot) -> None:
         """Nothing per joint to resolve (its spec stays ``drift``, not ``drift[1,...,n]``)."""

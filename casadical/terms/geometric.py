@@ -26,22 +26,32 @@ class Geometric(ErrorTerm):
         Bound on the deviation of a link length from nominal (m).
     angle_box : float
         Bound on the deviation of a link angle from nominal (rad).
+    drive_errors : bool
+        Joint errors (compliance, gear error, encoder scale, backlash) are the drives': added to the readings
+        before couplings and loops, with the torques the drives carry (True). Calibration files written
+        before this was so hold ``False`` (:data:`LEGACY`: the errors on the chain angles, the torques about
+        the joint axes), so they predict as before; it matters only for robots with a coupling or a loop.
     """
+
+    #: settings of a calibration file that lacks them: files older than the drive convention
+    LEGACY = {"drive_errors": False}
 
     name = "geometric"
     aliases = ("kinematic",)
     cause = "geometric"
 
-    def __init__(self, joints=None, length_box: float = 0.05, angle_box: float = math.radians(5.0)):
+    def __init__(self, joints=None, length_box: float = 0.05, angle_box: float = math.radians(5.0),
+                 drive_errors: bool = True):
         super().__init__(joints)
         self.length_box = length_box
         self.angle_box = angle_box
+        self.drive_errors = bool(drive_errors)
 
     def spec(self) -> str:
         return "kinematic"
 
     def settings(self) -> dict:
-        return {"length_box": self.length_box, "angle_box": self.angle_box}
+        return {"length_box": self.length_box, "angle_box": self.angle_box, "drive_errors": self.drive_errors}
 
     def parameters(self, robot: Robot) -> list[Parameter]:
         L, A = self.length_box, self.angle_box
