@@ -96,7 +96,7 @@ JOBS: dict[str, Job] = {
     "study-metaheuristics": Job(_study("metaheuristics-ys100"), 1.7),
     "study-ga": Job(_study("ga-ys100", "--baseline", "KM"), 3.7),
     "guide": Job((_py("guide_figures.py"),), 0.4),
-    "next-poses": Job((_py("study_next_poses.py"),), 9),
+    "next-poses": Job((_py("study_next_poses.py"),), 1.8),
 }
 
 

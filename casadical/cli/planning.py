@@ -230,7 +230,7 @@ def cmd_plan_report(args) -> int:
                                                                        for q in questions), file=report_path)
         questions = [questions[args.question - 1]]
     status = Status(args.quiet)
-    with status.slow(f"plan-poses: {len(questions)} open questions of {report_path}, {len(candidates)} candidates"):
+    with status.slow(f"plan-poses: {len(questions)} open question{'s' * (len(questions) != 1)} of {report_path}, {len(candidates)} candidates"):
         plan = plan_next(robot, doc, questions, values, measured, candidates, args.m, relaxation=args.relaxation,
                          random_sets=args.random_sets, seed=args.seed,
                          session_tools=(doc.get("settings") or {}).get("session_tools", False))
