@@ -98,7 +98,7 @@ JOBS: dict[str, Job] = {
     "study-ga": Job(_study("ga-ys100", "--baseline", "KM"), 3.7),
     "guide": Job((_py("guide_figures.py"),), 0.4),
     "singular": Job((_py("study_singular.py"),), 0.1),
-    "next-poses": Job((_py("study_next_poses.py"),), 1.5),
+    "next-poses": Job((_py("study_next_poses.py"),), 1.8),
     "hidden-effects": Job((_py("study_hidden_effects.py"),), 10),
 }
 
@@ -159,7 +159,9 @@ BLOCKS: dict[str, Block] = {
     "planning-efficiency": Block("planning", (r"^### Simulation: certified D-efficiency",)),
     "planning-ga": Block("planning", (r"^### D-optimal vs GA",), timing=("D-opt time (s)", "GA time (s, mean)")),
     "next-poses-loop": Block("next-poses", (r"^### The loop",)),
-    "next-poses-example": Block("next-poses", (r"^### Worked example",)),
+    "next-poses-example": Block("next-poses", (r"^### Worked example: narrow range",)),
+    "next-poses-scope": Block("next-poses", (r"^### Worked example: robot or session",)),
+    "next-poses-compliance": Block("next-poses", (r"^### Worked example: compliance or scale",)),
     # docs/diagnosis.md
     "hidden-effects-summary": Block("hidden-effects", (r"^### Exact claims per effect",)),
     "hidden-effects-failing": Block("hidden-effects", (r"^### Claims that are not exact",)),

@@ -272,7 +272,8 @@ def ambiguous(best: Scored, scored: list[Scored], level: float) -> list[dict]:
     for sc in scored:
         other = sc.candidate
         if other == cand or sc.log10_p >= level or (other.cause == cand.cause and other.joint == cand.joint
-                                                    and other.cause != "joint_periodic"):
+                                                    and other.cause != "joint_periodic"
+                                                    and other.session == cand.session):
             continue
         drop = float(sc.fitted @ sc.fitted)
         cos = float(sc.fitted @ best.fitted) / math.sqrt(max(drop * best_drop, 1e-300))
