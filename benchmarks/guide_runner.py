@@ -44,7 +44,7 @@ GUIDE = ROOT / "docs" / "guide.md"
 
 _FENCE = re.compile(r"^```([A-Za-z]*)[^\n]*\n(.*?)^```[ \t]*$", re.S | re.M)
 _CHECK = re.compile(r"<!--\s*check:\s*lines of\s+(\S+)\s*-->")
-_TOML_NAME = re.compile(r"^#\s*([\w.-]+\.toml)\s*:")
+_TOML_NAME = re.compile(r"^#\s*([\w./-]+\.toml)\s*:")
 
 
 @dataclass

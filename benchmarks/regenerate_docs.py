@@ -97,6 +97,7 @@ JOBS: dict[str, Job] = {
     "study-metaheuristics": Job(_study("metaheuristics-ys100"), 1.7),
     "study-ga": Job(_study("ga-ys100", "--baseline", "KM"), 3.7),
     "guide": Job((_py("guide_figures.py"),), 0.4),
+    "singular": Job((_py("study_singular.py"),), 0.1),
     "next-poses": Job((_py("study_next_poses.py"),), 1.5),
     "hidden-effects": Job((_py("study_hidden_effects.py"),), 10),
 }
@@ -165,6 +166,8 @@ BLOCKS: dict[str, Block] = {
     # docs/guide.md
     "guide-aic": Block("guide", (r"^AIC and BIC",)),
     "guide-urdf": Block("guide", (r"^URDF read by yourdfpy",)),
+    # docs/formats.md
+    "formats-singular": Block("singular", (r"^UR10, .* measured poses",)),
 }
 
 

@@ -347,17 +347,19 @@ def _check_orientation(orientation: Any, has_term: bool, err) -> None:
         raise err("orientation.sigma_deg", "sigma_mm and sigma_deg must be given together")
     if "full_pose" in orientation and not isinstance(orientation["full_pose"], bool):
         raise err("orientation.full_pose", f"must be true or false, got {orientation['full_pose']!r}")
-    stats = orientation.get("calibration")
-    if stats is not None:
+    for which in ("calibration", "validation"):
+        stats = orientation.get(which)
+        if stats is None:
+            continue
         keys = ("n_poses", "mean_deg", "max_deg", "std_deg", "rms_deg")
         if not isinstance(stats, dict) or set(stats) != set(keys):
-            raise err("orientation.calibration", f"must be null or an object of {', '.join(keys)}")
+            raise err(f"orientation.{which}", f"must be null or an object of {', '.join(keys)}")
         for k in keys:
             v = stats[k]
             ok = (isinstance(v, int) and not isinstance(v, bool) and v >= 0) if k == "n_poses" \
                 else (finite_number(v) and v >= 0)
             if not ok:
-                raise err(f"orientation.calibration.{k}", f"must be a finite number >= 0, got {v!r}")
+                raise err(f"orientation.{which}.{k}", f"must be a finite number >= 0, got {v!r}")
 
 
 def _check_coverage(coverage: Any, err) -> None:

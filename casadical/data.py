@@ -294,6 +294,45 @@ class Measurements:
 _KNOWN = frozenset(XYZ) | frozenset(RXYZ) | frozenset(NUMERIC_OPTIONAL) | {"session"}
 
 
+def _other_separator(header: list[str], path: str) -> str:
+    """For a header without joint columns: the separator it seems to use instead of commas, and the import that
+    converts the file (empty if it seems to use none)."""
+    if len(header) != 1:
+        return ""
+    for sep, name in ((";", ";"), ("\t", "tab"), ("|", "|")):
+        fields = [f.strip() for f in header[0].split(sep)]
+        if len(fields) > 1:
+            break
+    else:
+        return ""
+    joints = [f for f in fields if _Q.match(f)]
+    how = f"casadical import {path} --map 'separator={name}'"
+    if joints:
+        how += f" --map joints={','.join(joints)} --map joint_unit=deg"
+        if all(c in fields for c in XYZ):
+            how += f" --map position={','.join(XYZ)} --map position_unit=mm"
+    else:
+        how += " --map joints=... (docs/formats.md, section 5)"
+    return (f"; its header is one field, {_short(header[0])!r}: the file seems separated by {name!r}, the "
+            f"measurement CSV by commas; convert it with {how} --out NEW.csv (and --map 'decimal=,' if its numbers "
+            "have decimal commas)")
+
+
+def _short(text: str, n: int = 40) -> str:
+    return text if len(text) <= n else text[:n] + "..."
+
+
+def _misspelt(header: list[str], missing: str, present: list[str], path: str) -> None:
+    """An unknown column that looks like the missing one of a triple (``x_mn`` for ``x_mm``) is the one named."""
+    import difflib
+
+    unknown = [h for h in header if h not in _KNOWN and not _Q.match(h)]
+    near = difflib.get_close_matches(missing, unknown, n=1, cutoff=0.6)
+    if near:
+        raise DataFileError(f"is not a column casadical knows; is it {missing!r}? ({', '.join(present)} are there, "
+                            f"{missing} is not)", file=path, row=1, column=near[0])
+
+
 def _check_header(first: list[str] | None, path: str, n_joints: int | None, require_positions: bool
                   ) -> tuple[list[str], set[str]]:
     """The header row checked (see :meth:`Measurements.read_csv`); its names and the numeric columns."""
@@ -317,7 +356,8 @@ def _check_header(first: list[str] | None, path: str, n_joints: int | None, requ
             raise DataFileError(f"column names are lower case: write {h.lower()!r}", file=path, row=1, column=h)
     qs = sorted(int(m.group(1)) for h in header if (m := _Q.match(h)))
     if not qs:
-        raise DataFileError("has no joint columns: expected q1_deg, q2_deg, ...", file=path, row=1)
+        raise DataFileError("has no joint columns: expected q1_deg, q2_deg, ..." + _other_separator(header, path),
+                            file=path, row=1)
     if qs != list(range(1, len(qs) + 1)):
         present = set(qs)
         first = next(k for k in range(1, len(qs) + 2) if k not in present)
@@ -330,10 +370,12 @@ def _check_header(first: list[str] | None, path: str, n_joints: int | None, requ
     present = [c for c in XYZ if c in seen]
     if present and len(present) < 3:
         missing = [c for c in XYZ if c not in seen][0]
+        _misspelt(header, missing, present, path)
         raise DataFileError("has only some of x_mm, y_mm, z_mm", file=path, row=1, column=missing)
     turned = [c for c in RXYZ if c in seen]
     if turned and len(turned) < 3:
         missing = [c for c in RXYZ if c not in seen][0]
+        _misspelt(header, missing, turned, path)
         raise DataFileError("has only some of rx_deg, ry_deg, rz_deg (the measured orientation)", file=path, row=1,
                             column=missing)
     if require_positions and not present:
@@ -373,7 +415,10 @@ def _read_body(reader, header: list[str], numeric: set[str], path: str) -> tuple
         rows = lines[len(lines) - len(chunk):]
         for h, values in zip(header, zip(*chunk)):
             values = [x.strip() for x in values]
-            if h in numeric:
+            whole = _whole_numbers(values) if h not in numeric or h == "source_row" else None
+            if whole is not None and parts[h] is not None:    # kept whole: written back as they were, 856 not 856.0
+                parts[h].append(whole)
+            elif h in numeric:
                 parts[h].append(_numeric(values, h, path, rows))
             elif parts[h] is not None:
                 try:
@@ -397,6 +442,16 @@ def _read_body(reader, header: list[str], numeric: set[str], path: str) -> tuple
         raise DataFileError("has a header but no data rows", file=path, row=2)
     convert()
     return {h: None if p is None else np.concatenate(p) for h, p in parts.items()}, lines
+
+
+_WHOLE = re.compile(r"[+-]?\d{1,15}")
+
+
+def _whole_numbers(values: list[str]) -> np.ndarray | None:
+    """The cells as integers if every one is written as a whole number (a row number, a count), else None."""
+    if not all(_WHOLE.fullmatch(x) for x in values):
+        return None
+    return np.array([int(x) for x in values], dtype=np.int64)
 
 
 def _text_columns(reader, header: list[str], names: list[str]) -> dict[str, np.ndarray]:

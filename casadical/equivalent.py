@@ -12,24 +12,29 @@ URDF gives 0.41 mm.
 full physical model (the causes of the robot: terms of the measurement
 session, such as a drift or the session compensator, are left out) over
 the calibrated workspace: the calibration's own poses, at a stated
-payload. What the geometry cannot reproduce is reported as its departure
+payload (a file written by an earlier version holds none: then poses
+drawn within the joint limits, said in a warning). What the geometry cannot reproduce is reported as its departure
 from the full model (mean and largest, mm); ``compensate`` with the full
 model gives the rest.
 """
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from .data import Measurements
-from .errors import InputError
+from .errors import CasadicalWarning, InputError
 from .model import Model
 from .result import CalibrationResult, ErrorStats
+from .simulate import sample_poses
 
 #: terms that belong to the geometry (what an export carries) or to a session (what it never does)
 GEOMETRIC = ("geometric", "tool_orientation")
+#: poses drawn within the joint limits to refit on when a calibration holds none of its own (older files)
+DRAWN_POSES = 500
 
 
 @dataclass
@@ -54,6 +59,9 @@ class GeometricEquivalent:
     payload_matters : bool
         The full model's tool points depend on the payload (a compliance, a
         progressive spring): the payload chooses the geometry.
+    drawn : bool
+        The poses were drawn within the joint limits (the calibration holds
+        none of its own: a file of an earlier version).
     """
 
     result: CalibrationResult
@@ -63,6 +71,7 @@ class GeometricEquivalent:
     payload_kg: float
     n_poses: int
     payload_matters: bool = False
+    drawn: bool = False
 
     def text(self) -> str:
         """What was exported, in words (for the command line and the files' headers)."""
@@ -70,8 +79,10 @@ class GeometricEquivalent:
             return "the calibration's geometry" + (f" (without {', '.join(self.session_terms)}, of its measurement "
                                                    "session)" if self.session_terms else "")
         d = self.departure
-        return (f"the geometry refitted to reproduce the full model ({', '.join(self.left_out)}) over its "
-                f"{self.n_poses} calibration poses at a payload of {self.payload_kg:g} kg: it departs from the full "
+        poses = (f"{self.n_poses} poses drawn within the joint limits" if self.drawn
+                 else f"its {self.n_poses} calibration poses")
+        return (f"the geometry refitted to reproduce the full model ({', '.join(self.left_out)}) over "
+                f"{poses} at a payload of {self.payload_kg:g} kg: it departs from the full "
                 f"model by {d.mean_mm:.4f} mm on average, {d.max_mm:.4f} mm at most; the full model (compensate) "
                 "gives the rest" + (f"; {', '.join(self.session_terms)} (of the measurement session) left out"
                                     if self.session_terms else ""))
@@ -95,12 +106,14 @@ def geometric_equivalent(cal: CalibrationResult, payload_kg: float | None = None
         The payload of the poses (default: the robot file's).
     poses_deg : ndarray (N, n), optional
         The poses (degrees) to reproduce the model over (default: the
-        calibration's own, from its coverage).
+        calibration's own, from its coverage; for a file of an earlier
+        version, which holds none, :data:`DRAWN_POSES` poses drawn within
+        the joint limits, with a warning).
 
     Raises
     ------
     InputError
-        No poses to refit on (a calibration file without coverage), or a negative payload.
+        A negative payload.
     """
     from .calibration import calibrate
 
@@ -112,10 +125,15 @@ def geometric_equivalent(cal: CalibrationResult, payload_kg: float | None = None
     specs = [t.spec() for t in physical]
     if not physical:
         return GeometricEquivalent(cal, None, [], [t.spec() for t in session if t.name != "sessions"], payload, 0)
-    if poses_deg is None:
-        if cal.coverage is None:
-            raise InputError("the calibration holds no poses (coverage) to refit its geometry on: calibrate again "
-                             "with this version of casadical")
+    drawn = poses_deg is None and cal.coverage is None
+    if drawn:
+        poses_deg = np.degrees(sample_poses(robot, DRAWN_POSES, np.random.default_rng(0)))
+        warnings.warn(f"the calibration holds no calibration poses (a file of an earlier casadical): its geometry is "
+                      f"refitted over {DRAWN_POSES} poses drawn within the joint limits (5 deg inside them, the tool "
+                      "above the robot's base), not over the workspace it was calibrated in; --as-fitted exports the "
+                      "geometry as it was fitted, or calibrate again to record the poses", CasadicalWarning,
+                      stacklevel=2)
+    elif poses_deg is None:
         poses_deg = cal.coverage.poses_deg
     q = np.radians(np.asarray(poses_deg, float))
     full = Model(robot, [t for t in cal.model.terms if not t.session], jit=cal.model.jit)
@@ -141,4 +159,4 @@ def geometric_equivalent(cal: CalibrationResult, payload_kg: float | None = None
                     warn=False, allow_outside_limits=True, robust=cal.loss.kind)
     departure = ErrorStats.of(np.linalg.norm(geo.predict(target) - xyz, axis=1))
     return GeometricEquivalent(geo, departure, specs, [t.spec() for t in session if t.name != "sessions"], payload,
-                               len(q), matters)
+                               len(q), matters, drawn)

@@ -18,13 +18,14 @@ from __future__ import annotations
 import contextlib
 import math
 import os
-import signal
+import shutil
 import tempfile
 import threading
 import tomllib
 from pathlib import Path
 from typing import IO, Iterator
 
+from .interrupts import checkpoint, deferred, finish, received, since
 from .errors import CasadicalError, InputError
 
 EXISTS = "exists already; choose another name or pass --force to replace it"
@@ -53,7 +54,12 @@ def outputs_together() -> Iterator[None]:
     its temporary name; when the block ends without an exception, every
     such file is moved into place (with signals held back, so Ctrl-C cannot
     stop it halfway); when it raises (an error, Ctrl-C, SIGTERM) every one
-    is removed and no target is touched. Files written with
+    is removed and no target is touched. A signal that came during the block
+    also stops it at its end, even if some library caught the
+    ``KeyboardInterrupt`` on the way or turned it into another exception;
+    one that comes while the files are moved takes them all back (a file
+    replaced with ``overwrite`` is restored); once all are in place the
+    command is finished (:func:`casadical.interrupts.finish`). Files written with
     ``atomic_open(..., at_once=True)`` are not held back (a study's results,
     the cache of compiled functions). Blocks do not nest: an inner block
     belongs to the outer one.
@@ -73,11 +79,14 @@ def outputs_together() -> Iterator[None]:
     if outer:
         yield
         return
+    start = received()
     try:
         yield
-        with _signals_held():
-            _move_all(staged.files)
-            staged.files = []
+        stop = since(start)
+        if stop is not None:       # a signal that something on the way swallowed, or turned into another error
+            raise stop
+        _commit(staged.files)
+        staged.files = []
     finally:
         with _staged_lock:
             _staged = None
@@ -86,37 +95,78 @@ def outputs_together() -> Iterator[None]:
                 os.unlink(tmp)
 
 
-@contextlib.contextmanager
-def _signals_held() -> Iterator[None]:
-    """SIGINT, SIGTERM and SIGHUP wait until the block ends (main thread, where Python can mask them)."""
-    sigs = {getattr(signal, n) for n in ("SIGINT", "SIGTERM", "SIGHUP") if hasattr(signal, n)}
-    try:
-        old = signal.pthread_sigmask(signal.SIG_BLOCK, sigs)
-    except (AttributeError, ValueError, OSError):
-        old = None
-    try:
-        yield
-    finally:
-        if old is not None:
-            signal.pthread_sigmask(signal.SIG_SETMASK, old)
+def _commit(files: list[tuple[str, Path, bool]]) -> None:
+    """Move staged files into place, all or none, a signal held back meanwhile (Python handlers, any thread).
+
+    A signal during the moves takes them back and is raised; once all are in
+    place the command is finished and a signal is said at its end.
+    """
+    with deferred() as got:
+        done = _move_all(files)
+        if got:
+            _undo(done)
+        else:
+            finish(len(files))
+            for _, backup in done:
+                if backup is not None:
+                    with contextlib.suppress(OSError):
+                        os.unlink(backup)
 
 
-def _move_all(files: list[tuple[str, Path, bool]]) -> None:
-    """Move staged files into place: all, or (a target appeared meanwhile, a failed move) none of the new ones."""
+def _move_all(files: list[tuple[str, Path, bool]]) -> list[tuple[Path, str | None]]:
+    """Move staged files into place: all, or (a target appeared meanwhile, a failed move) none.
+
+    Returns what undoes it: each target with the backup of the file it
+    replaced (None: it was new).
+    """
     for _, target, overwrite in files:
         if not overwrite and target.exists():
             raise InputError(EXISTS, file=str(target))
-    done: list[Path] = []
+    done: list[tuple[Path, str | None]] = []
     try:
         for tmp, target, overwrite in files:
-            _place(tmp, target, overwrite)
-            if not overwrite:
-                done.append(target)
+            backup = _backup(target) if overwrite else None
+            try:
+                _place(tmp, target, overwrite)
+            except BaseException:
+                if backup is not None:
+                    with contextlib.suppress(OSError):
+                        os.unlink(backup)
+                raise
+            done.append((target, backup))
+            if len(done) == 1:
+                checkpoint("commit")
     except BaseException:
-        for target in done:               # created by this block: taken back
-            with contextlib.suppress(OSError):
-                target.unlink()
+        _undo(done)
         raise
+    return done
+
+
+def _backup(target: Path) -> str | None:
+    """A second name for the file ``target`` holds now (None if there is none), to put it back with."""
+    if not target.is_file():
+        return None
+    try:
+        fd, backup = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".old.part", dir=target.parent)
+        os.close(fd)
+        os.unlink(backup)
+        try:
+            os.link(target, backup)
+        except OSError:               # file systems without hard links
+            shutil.copy2(target, backup)
+    except OSError as e:
+        raise InputError(f"cannot write: {e.strerror or e}", file=str(target)) from e
+    return backup
+
+
+def _undo(done: list[tuple[Path, str | None]]) -> None:
+    """Take back moved files: a new one removed, a replaced one restored."""
+    for target, backup in reversed(done):
+        with contextlib.suppress(OSError):
+            if backup is None:
+                target.unlink()
+            else:
+                os.replace(backup, target)
 
 
 def _place(tmp: str, path: Path, overwrite: bool) -> None:
@@ -196,6 +246,8 @@ def atomic_open(path: str | Path, mode: str = "w", overwrite: bool = False,
                 tmp = None                # the block moves it into place, or removes it
         if tmp is not None:
             _place(tmp, path, overwrite)
+        else:
+            checkpoint("output")
     except OSError as e:
         raise InputError(f"cannot write: {e.strerror or e}", file=str(path)) from e
     finally:

@@ -15,6 +15,16 @@ the desired point, starting from the programmed joints:
 - whatever freedom is left (fewer than 6 joints, more than 6, or a singular
   configuration): the smallest joint change ``|q - q_programmed|``.
 
+Near a singular configuration the equations barely see some direction of
+joint motion, and reaching the target exactly would move the joints by
+degrees for a fraction of a millimetre. No correction moves the joints more
+than ``max_deg_per_mm`` degrees per millimetre (or per milliradian of
+orientation) along any direction: where the exact solution would, that
+part of the correction is damped (damped least squares with a damping that
+grows as the singular value falls below the bound, Chiaverini's variable
+damping; the least joint motion for what is left), the row keeps the rest
+of its miss, and a warning names the rows with their conditioning.
+
 The solver is a batched Levenberg-Marquardt iteration over all rows at once
 on the exact Jacobians of the symbolic model
 (:meth:`Model.predict_q_jacobian`, :meth:`Model.flange_rotation_jacobian`),
@@ -22,11 +32,14 @@ from the programmed joints. Each step is a damped pseudo-inverse (SVD) of
 the equations' Jacobian, plus, in its null space (what the equations do not
 see), the way back to the programmed joints: the two parts are orthogonal,
 so the fixed point is exactly the least joint change and the damping only
-changes the path. The residual is :meth:`CalibrationResult.predict`, the
+changes the path. Along a singular value below the bound the step also
+pulls back to the programmed joints, so that the damped correction is the
+fixed point there (the regularised least squares ``|r|^2 + mu^2 |dq|^2``
+of that direction). The residual is :meth:`CalibrationResult.predict`, the
 full prediction: a smooth additive correction there is honoured, its
 derivative only slows the iteration. Rows where position and orientation
-cannot both be met near the programmed joints get a second pass with the
-position alone.
+cannot both be met near the programmed joints (within ``max_change_deg``
+and the bound) get a second pass with the position alone.
 
 Joint limits are hard: a row whose solution lies beyond a limit, or that
 does not converge, is an error naming the file, row (and joint column).
@@ -59,6 +72,18 @@ MAX_STEP = 0.2
 STEP_TOL = 1e-10
 #: the orientation counts as held within this angle (rad)
 ORIENTATION_TOL = 1e-8
+#: relative change of a step's merit that is rounding, not a rise
+ROUNDING = 1e-10
+#: default bound on the joint motion per unit of correction (deg per mm, or per mrad of orientation): 0.66 % of
+#: the 13,406 poses of the UR10 data (series A and B) are beyond it with the orientation held (1.66 % beyond 1 deg
+#: per mm), 0.01 % for the position alone; at q2 = -90, q3 = 0, q5 = 0 the exact correction would need 399
+#: (benchmarks/study_singular.py)
+MAX_DEG_PER_MM = 2.0
+
+
+def singular_bound(max_deg_per_mm: float) -> float:
+    """The smallest singular value (m per rad) of the equations that is not damped, for a bound in deg per mm."""
+    return 1.0 / (np.radians(max_deg_per_mm) * 1e3)
 
 
 class TargetError(InputError):
@@ -99,6 +124,17 @@ class CompensationResult:
         Joint limits of the readings (rad).
     max_change : float
         Largest admissible change of a joint (rad).
+    smallest_sv : ndarray, shape (N,)
+        Smallest singular value of each row's equations at its solution
+        (m per rad; orientation rows weigh 1 m per rad).
+    largest_sv : ndarray, shape (N,)
+        Their largest (the condition number is the ratio).
+    damped : ndarray of bool, shape (N,)
+        Rows near a singular configuration: a singular value below the
+        bound, the correction along it damped (the miss they keep is in
+        ``residual``, and, with an orientation held, ``orientation_error``).
+    max_deg_per_mm : float
+        The bound on the joint motion per mm of correction (deg).
     """
 
     targets: Measurements
@@ -113,6 +149,10 @@ class CompensationResult:
     limits: np.ndarray
     max_change: float
     probe: bool = False
+    smallest_sv: np.ndarray | None = None
+    largest_sv: np.ndarray | None = None
+    damped: np.ndarray | None = None
+    max_deg_per_mm: float = MAX_DEG_PER_MM
 
     @property
     def q0(self) -> np.ndarray:
@@ -157,6 +197,17 @@ class CompensationResult:
                     break
         return out
 
+    def singular_text(self, rows: np.ndarray) -> str:
+        """One sentence on rows near a singular configuration: their conditioning and what is left of their miss."""
+        left = f"up to {self.residual[rows].max() * 1e3:.3g} mm"
+        if self.orientation_error is not None:
+            left += f" and {np.degrees(self.orientation_error[rows].max()):.3g} deg"
+        return (f"{len(rows)} row(s) near a singular configuration, where an exact correction would move the joints "
+                "more per millimetre than allowed along the direction their equations barely see: rows "
+                f"{conditioning(self.targets, rows, self.smallest_sv[rows], self.largest_sv[rows])}; there the "
+                f"correction is damped to at most {self.max_deg_per_mm:g} deg per mm (--max-deg-per-mm) with the least "
+                f"joint motion, and {left} of the miss is left")
+
     def check(self) -> None:
         """Raise the first row's :class:`TargetError` (naming how many more fail), if any."""
         errors = self.failures()
@@ -195,12 +246,24 @@ class CompensationResult:
                  f"largest residual {self.residual[k] * 1e3:.3g} mm (row {t.line(k)}), "
                  f"at most {int(self.iterations.max())} iterations",
                  f"held: {self.held}"]
+        if self.damped is not None and self.damped.any():
+            k = int(np.sum(self.damped))
+            lines.append(f"near a singular configuration: {k} row(s) damped to {self.max_deg_per_mm:g} deg per mm "
+                         f"(largest miss left {self.residual[self.damped].max() * 1e3:.3g} mm)")
         if self.orientation_error is not None:
             held = self.orientation_held
             lines.append(f"{'probe' if self.probe else 'flange'} orientation held on {int(held.sum())} of "
                          f"{len(held)} rows "
                          f"(largest deviation {np.degrees(self.orientation_error.max()):.3g} deg)")
         return "\n".join(lines)
+
+
+def conditioning(targets: Measurements, rows: np.ndarray, smallest: np.ndarray, largest: np.ndarray) -> str:
+    """Rows named with the conditioning of their equations: condition number, joint motion per mm along the weakest."""
+    per = np.degrees(1.0 / np.maximum(smallest, 1e-300)) / 1e3
+    cond = largest / np.maximum(smallest, 1e-300)
+    return listing([f"{targets.line(i)} (condition number {c:.3g}, {g:.3g} deg per mm)"
+                    for i, c, g in zip(rows, cond, per)], 10)
 
 
 def output_columns(n: int) -> list[str]:
@@ -224,7 +287,7 @@ def held_description(n: int, orientation: bool, probe: bool = False) -> str:
 
 def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: float = 1e-4,
                max_iter: int = 30, max_change_deg: float = 5.0, orientation: bool | None = None,
-               check: bool = True, **checks: bool) -> CompensationResult:
+               max_deg_per_mm: float = MAX_DEG_PER_MM, check: bool = True, **checks: bool) -> CompensationResult:
     """Corrected joints that put the calibrated model's tool point on each target.
 
     Parameters
@@ -252,6 +315,14 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
         flange's), else the flange orientation of the nominal model at the
         programmed joints; default: for robots with 6 joints or more. False:
         the point alone (the orientation columns are then ignored).
+    max_deg_per_mm : float
+        Largest joint motion per millimetre of correction (or per
+        milliradian of orientation), in degrees, along any direction of
+        joint motion. Near a singular configuration the exact correction
+        would need more: there it is damped (least joint motion), the row
+        keeps part of its miss and is named in a warning with the
+        conditioning of its equations. Larger values reach such targets
+        more exactly with larger joint motions.
     check : bool
         Raise :class:`TargetError` for a row that is not reached or whose
         solution is beyond a joint limit (default). With False the result
@@ -290,9 +361,9 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
     if clash:
         raise InputError("is an output column of compensate; give the original targets (programmed joints and "
                          "points), not a compensated file", file=targets.path, row=1, column=clash[0])
-    if not (tolerance_mm > 0 and max_change_deg > 0 and max_iter >= 1):
-        raise InputError(f"tolerance_mm and max_change_deg must be positive and max_iter at least 1, got "
-                         f"{tolerance_mm}, {max_change_deg} and {max_iter}")
+    if not (tolerance_mm > 0 and max_change_deg > 0 and max_deg_per_mm > 0 and max_iter >= 1):
+        raise InputError(f"tolerance_mm, max_change_deg and max_deg_per_mm must be positive and max_iter at least "
+                         f"1, got {tolerance_mm}, {max_change_deg}, {max_deg_per_mm} and {max_iter}")
     probe = targets.has_orientation and orientation is not False
     if probe and not cal.has_orientation:
         raise InputError("holds the probe orientation of each target, but the calibration has no probe mounting "
@@ -312,43 +383,62 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
     tol = tolerance_mm * 1e-3
     N = len(targets)
     limit = np.radians(max_change_deg)
-    q, r, iterations = _levenberg_marquardt(eqs, np.arange(N), targets.q, hold, tol, max_iter, limit)
+    eps = singular_bound(max_deg_per_mm)
+    q, r, iterations, settled = _levenberg_marquardt(eqs, np.arange(N), targets.q, hold, tol, max_iter, limit, eps)
+    on_point = np.zeros(N, dtype=bool)    # rows solved for the point alone
     if hold:
-        # rows where position and orientation cannot both be met near the programmed joints (a
-        # singular configuration): the point alone, with the least joint change, from the start again
+        # rows where position and orientation cannot both be met near the programmed joints (a singular
+        # configuration): the point alone, with the least joint change, from the start again
         loose = np.flatnonzero((np.linalg.norm(r[:, :3], axis=1) > tol)
                                | (np.linalg.norm(r[:, 3:], axis=1) > ORIENTATION_TOL * ORIENTATION_WEIGHT))
         if loose.size:
-            q[loose], r2, it2 = _levenberg_marquardt(eqs, loose, targets.q[loose], False, tol, max_iter, limit)
+            q[loose], r2, it2, settled[loose] = _levenberg_marquardt(eqs, loose, targets.q[loose], False, tol,
+                                                                     max_iter, limit, eps)
             r[loose, :3] = r2
             r[loose, 3:] = eqs.orientation(loose, q[loose]) * ORIENTATION_WEIGHT
             iterations[loose] += it2
+            on_point[loose] = True
+    # the conditioning of each row's equations at its solution
+    small, large = np.empty(N), np.empty(N)
+    for rows, with_orientation in ((np.flatnonzero(~on_point), hold), (np.flatnonzero(on_point), False)):
+        if rows.size:
+            sv = np.linalg.svd(eqs(rows, q[rows], with_orientation)[1], compute_uv=False)
+            small[rows], large[rows] = sv[:, -1], sv[:, 0]
+    damped = small < eps
     residual = np.linalg.norm(r[:, :3], axis=1)
     angle = np.linalg.norm(r[:, 3:], axis=1) / ORIENTATION_WEIGHT if hold else None
     start = np.linalg.norm(programmed - targets.xyz, axis=1)
-    result = CompensationResult(targets, q, residual, start, angle, iterations, residual <= tol, tol,
-                                held_description(n, hold, probe), model.robot.limits, limit, probe)
+    result = CompensationResult(targets, q, residual, start, angle, iterations,
+                                (residual <= tol) | (damped & settled), tol, held_description(n, hold, probe),
+                                model.robot.limits, limit, probe, small, large, damped, max_deg_per_mm)
     if hold:
-        loose = np.flatnonzero(result.converged & ~result.orientation_held)
+        loose = np.flatnonzero(result.converged & on_point & ~result.orientation_held)
         if loose.size:
+            sv = np.linalg.svd(eqs(loose, targets.q[loose], True)[1], compute_uv=False)   # at the programmed joints
             warnings.warn(f"{targets.path}: the {'probe' if probe else 'flange'} orientation cannot be held within "
-                          f"{max_change_deg:g} deg "
-                          f"of the programmed joints on {loose.size} row(s) "
-                          f"({listing([targets.line(i) for i in loose], 10)}; up to "
-                          f"{np.degrees(angle[loose].max()):.3g} deg off; near a singular configuration?); "
-                          "there the point is reached with the least joint change", ConvergenceWarning,
-                          stacklevel=2)
+                          f"{max_change_deg:g} deg of the programmed joints and {max_deg_per_mm:g} deg per mm of "
+                          f"correction (--max-deg-per-mm) on {loose.size} row(s), near a singular configuration: "
+                          f"rows {conditioning(targets, loose, sv[:, -1], sv[:, 0])}; there the point is reached "
+                          f"with the least joint change (the orientation up to {np.degrees(angle[loose].max()):.3g} "
+                          "deg off)", ConvergenceWarning, stacklevel=2)
+    near = np.flatnonzero(result.converged & damped)
+    if near.size:
+        warnings.warn(f"{targets.path}: {result.singular_text(near)}", ConvergenceWarning, stacklevel=2)
     if check:
         result.check()
     return result
 
 
 def _levenberg_marquardt(eqs: "_Equations", index: np.ndarray, q_start: np.ndarray, hold: bool, tol: float,
-                         max_iter: int, max_change: float) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Solve rows ``index`` from ``q_start``: joints, residuals (position m, weighted orientation) and steps.
+                         max_iter: int, max_change: float, eps: float
+                         ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Solve rows ``index`` from ``q_start``: joints, residuals (position m, weighted orientation), steps, settled.
 
-    A step that would move a joint more than ``max_change`` (rad) from the
-    start counts as a failed step. A row stops when it has settled or when no
+    Each step lowers ``|r|^2 + |W (q - q_start)|^2``, where ``W`` damps the
+    directions of joint motion whose singular value is below ``eps``
+    (:func:`_weak_rows`, at the step's joints). A step that would move a joint more than
+    ``max_change`` (rad) from the start counts as a failed step. A row stops
+    when it has settled (on the point, or at its damped solution) or when no
     damping makes progress.
     """
     M = len(index)
@@ -356,49 +446,81 @@ def _levenberg_marquardt(eqs: "_Equations", index: np.ndarray, q_start: np.ndarr
     r, J = eqs(index, q, hold)
     lam = np.full(M, LAMBDA_START)
     iterations = np.zeros(M, dtype=int)
+    done = np.zeros(M, dtype=bool)
     floor = (SETTLE_FRACTION * tol) ** 2
     act = np.arange(M)
     for _ in range(max_iter):
-        step = _newton_step(J[act], r[act], q_start[act] - q[act], lam[act])
+        W, weak = _weak_rows(J[act], eps)
+        step = _newton_step(J[act], r[act], W, q_start[act] - q[act], lam[act])
         big = np.abs(step).max(axis=1)
-        settled = (np.linalg.norm(r[act, :3], axis=1) <= tol) & (big <= STEP_TOL)
+        settled = ((np.linalg.norm(r[act, :3], axis=1) <= tol) | weak) & (big <= STEP_TOL)
+        done[act[settled]] = True
         keep = ~settled & (lam[act] < LAMBDA_MAX)
-        act, step = act[keep], step[keep] * np.minimum(1.0, MAX_STEP / np.maximum(big[keep], 1e-300))[:, None]
+        act, W = act[keep], W[keep]
+        step = step[keep] * np.minimum(1.0, MAX_STEP / np.maximum(big[keep], 1e-300))[:, None]
         if act.size == 0:
             break
         trial = q[act] + step
         rt, Jt = eqs(index[act], trial, hold)
         iterations[act] += 1
-        # a step is kept if it does not raise the residual (or keeps it well within the tolerance)
-        # and stays within max_change of the start; else more damping
-        ok = ((np.sum(rt * rt, axis=1) <= np.maximum(np.sum(r[act] ** 2, axis=1), floor))
+        # a step is kept if it does not raise the residual and the damped motion (this step's damping, beyond
+        # their rounding), or keeps the residual well within the tolerance, and stays within max_change of the
+        # start; else more damping
+        ok = ((_merit(rt, W, trial - q_start[act])
+               <= np.maximum(_merit(r[act], W, q[act] - q_start[act]) * (1 + ROUNDING), floor))
               & (np.abs(trial - q_start[act]).max(axis=1) <= max_change))
         good, bad = act[ok], act[~ok]
         q[good], r[good], J[good] = trial[ok], rt[ok], Jt[ok]
         lam[good] = np.maximum(lam[good] / 3.0, LAMBDA_MIN)
         lam[bad] *= 10.0
-    return q, r, iterations
+    return q, r, iterations, done
 
 
-def _newton_step(J: np.ndarray, r: np.ndarray, to_start: np.ndarray, lam: np.ndarray) -> np.ndarray:
-    """Damped Newton step of every row towards ``r + J step = 0``, shape (M, n).
+def _weak_rows(J: np.ndarray, eps: float) -> tuple[np.ndarray, np.ndarray]:
+    """The damping of each row, shape (M, n, n), and the rows it acts on (a singular value below ``eps``).
+
+    Along a singular value ``s < eps`` of ``J`` the
+    row weighs its joint motion by ``mu^2 = (eps^2 - s^2) / 2`` (Chiaverini's
+    variable damping): the solution moves the joints ``2 s / (eps^2 + s^2) <=
+    1 / eps`` per unit of correction along it, exactly ``1 / s`` where ``s >=
+    eps``.
+    """
+    _, s, Vt = np.linalg.svd(J)
+    k = s.shape[1]
+    mu = np.sqrt(np.where(s < eps, 0.5 * (eps * eps - s * s), 0.0))
+    W = np.zeros((len(J), Vt.shape[1], Vt.shape[1]))
+    W[:, :k] = mu[:, :, None] * Vt[:, :k]
+    return W, s[:, -1] < eps
+
+
+def _merit(r: np.ndarray, W: np.ndarray, moved: np.ndarray) -> np.ndarray:
+    """What the steps lower, per row: ``|r|^2 + |W moved|^2``."""
+    w = np.einsum("mkn,mn->mk", W, moved)
+    return np.sum(r * r, axis=1) + np.sum(w * w, axis=1)
+
+
+def _newton_step(J: np.ndarray, r: np.ndarray, W: np.ndarray, to_start: np.ndarray, lam: np.ndarray) -> np.ndarray:
+    """Damped Newton step of every row towards ``r + J step = 0`` and ``W (q + step - q_start) = 0``, shape (M, n).
 
     Parameters
     ----------
     J, r : ndarray, shapes (M, m, n) and (M, m)
         Jacobian and residual.
+    W : ndarray, shape (M, n, n)
+        The damping of the weak directions (:func:`_weak_rows`).
     to_start : ndarray, shape (M, n)
-        ``q_start - q``, followed in the null space of ``J``: the fixed
+        ``q_start - q``, followed in the null space of both: the fixed
         point is the least joint change from the start.
     lam : ndarray, shape (M,)
         Relative damping: singular value s acts as (s^2 + (lam s_max)^2) / s.
     """
-    U, s, Vt = np.linalg.svd(J)
-    k = s.shape[1]
-    g = s / (s * s + (lam[:, None] * s[:, :1]) ** 2 + 1e-300)
-    step = np.einsum("mkn,mk->mn", Vt[:, :k], g * np.einsum("mik,mi->mk", U[:, :, :k], -r))
-    null = Vt[:, k:]
-    return step + np.einsum("mkn,mk->mn", null, np.einsum("mkn,mn->mk", null, to_start))
+    A = np.concatenate([J, W], axis=1)
+    b = np.concatenate([r, -np.einsum("mkn,mn->mk", W, to_start)], axis=1)
+    U, s, Vt = np.linalg.svd(A, full_matrices=False)
+    null = s <= 1e-12 * s[:, :1]        # what neither the equations nor the damping see
+    g = np.where(null, 0.0, s / (s * s + (lam[:, None] * s[:, :1]) ** 2 + 1e-300))
+    back = np.where(null, np.einsum("mkn,mn->mk", Vt, to_start), 0.0)
+    return np.einsum("mkn,mk->mn", Vt, g * np.einsum("mik,mi->mk", U, -b) + back)
 
 
 class _Equations:

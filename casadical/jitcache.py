@@ -45,6 +45,7 @@ from typing import TYPE_CHECKING
 
 from .errors import CasadicalError, InputError, SettingError
 from .files import atomic_write
+from .interrupts import checkpoint
 
 if TYPE_CHECKING:      # casadi is imported where a function is compiled: the other commands start without it
     import casadi as ca
@@ -211,13 +212,16 @@ def _compile(fun: ca.Function, folder: Path, key: str, cc: str) -> ca.Function:
         # a child process Python waits for: Ctrl-C stops it and raises KeyboardInterrupt here (CasADi's
         # own JIT runs the compiler through system(), which ignores the interrupt in the caller)
         try:
-            subprocess.run([cc, *FLAGS, c_file, "-o", library], check=True, capture_output=True, text=True)
-        except subprocess.CalledProcessError as e:
-            if e.returncode == -signal.SIGINT:
-                raise KeyboardInterrupt from e  # the compiler alone got the Ctrl-C
-            raise CompileError(f"{cc} failed: {(e.stderr or '').strip()[-200:]}") from e
+            with subprocess.Popen([cc, *FLAGS, c_file, "-o", library], stdout=subprocess.PIPE,
+                                  stderr=subprocess.PIPE, text=True) as proc:
+                checkpoint("compile")
+                _, err = proc.communicate()
         except OSError as e:
             raise CompileError(f"cannot run {cc}: {e}") from e
+        if proc.returncode == -signal.SIGINT:
+            raise KeyboardInterrupt  # the compiler alone got the Ctrl-C
+        if proc.returncode:
+            raise CompileError(f"{cc} failed: {(err or '').strip()[-200:]}")
         data = Path(library).read_bytes()
         _store(folder, f"{name}-{key}-{_digest(data)}{_SUFFIX}", data)
         try:

@@ -10,6 +10,7 @@ from __future__ import annotations
 import csv
 import io
 import math
+import re
 from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
@@ -25,9 +26,16 @@ if TYPE_CHECKING:
 COLUMNS = ("joint", "name", "unit", "nominal", "identified", "difference", "std", "identifiable", "fixed",
            "reason")
 TRANSFORMS = {
-    "mdh": "modified DH (Craig): link i = Rx(alpha) Tx(a) Ry(beta) Ty(b) Rz(q + theta) Tz(d)",
-    "dh": "standard DH: link i = Rz(q + theta) Tz(d) Tx(a) Rx(alpha) Ry(beta) Ty(b)",
+    "mdh": "modified DH (Craig): link i = Rx(alpha) Tx(a) Rz(q + theta) Tz(d)",
+    "dh": "standard DH: link i = Rz(q + theta) Tz(d) Tx(a) Rx(alpha)",
 }
+#: where Hayati's beta (and b) enter the link transform of each convention
+HAYATI = {"mdh": "Ry(beta) Ty(b) after Tx(a)", "dh": "Ry(beta) Ty(b) after Rx(alpha)"}
+#: significant digits of the CSV's numbers: a value converted from metres or radians (-0.5723 m -> -572.3 mm)
+#: reads as written, not -572.3000000000001 (the conversion's rounding, 1e-16 relative)
+DIGITS = 15
+#: what the base pose rows are (a calibration's): not parameters with a nominal value
+BASE_REASON = "a pose, not a parameter: where the robot stands in the measurement frame"
 
 
 @dataclass
@@ -61,13 +69,27 @@ class ParameterTable:
     base: str = "base_pose_* = robot base in the measurement frame"
 
     @property
+    def hayati(self) -> list[int]:
+        """Joints with a Hayati ``beta`` or ``b`` row (parameters a plain DH/MDH table has no entry for)."""
+        return sorted({r.joint for r in self.rows if r.joint is not None and re.fullmatch(r"(beta|b)\d+", r.name)})
+
+    @property
     def heading(self) -> str:
-        return f"{self.robot}: {self.convention.upper()} parameter table"
+        joints = self.hayati
+        extra = (f" with Hayati's beta on joint{'s' if len(joints) > 1 else ''} {', '.join(map(str, joints))}"
+                 if joints else "")
+        return f"{self.robot}: {self.convention.upper()} parameter table{extra}"
 
     @property
     def conventions(self) -> str:
-        return (f"{TRANSFORMS[self.convention]}; measured point = base * links * Tx(tool_x) Ty(tool_y) "
-                f"Tz(tool_z); angles in deg, lengths in mm; {self.base}")
+        joints = self.hayati
+        link = TRANSFORMS[self.convention]
+        if joints:
+            link += (f", and for joint{'s' if len(joints) > 1 else ''} {', '.join(map(str, joints))} Hayati's "
+                     f"{HAYATI[self.convention]} (a nearly parallel axis, which DH alone cannot describe; a "
+                     "controller that takes plain DH has no entry for them)")
+        return (f"{link}; measured point = base * links * Tx(tool_x) Ty(tool_y) Tz(tool_z); angles in deg, lengths "
+                f"in mm; {self.base}")
 
     def to_csv(self) -> str:
         """CSV: one comment line (``#``) with the title, the column names, one line per row; full precision."""
@@ -80,12 +102,19 @@ class ParameterTable:
         return out.getvalue()
 
     def to_markdown(self) -> str:
-        """Markdown: a heading, the conventions and a table rounded for reading (0.1 um, 1e-6 deg)."""
+        """Markdown: a heading, the conventions, a table rounded for reading (0.1 um, 1e-6 deg), and a
+        calibration's base as a pose (a table of its own)."""
         lines = [f"# {self.heading}", "", f"Model: {self.model}; {self.conventions}. Full precision: the CSV "
                  "table.", "", "| " + " | ".join(COLUMNS) + " |", "|" + "---|" * len(COLUMNS)]
+        pose = [r for r in self.rows if r.name.startswith("base_pose_") and r.reason == BASE_REASON]
         for r in self.rows:
-            cells = [_md(c, r.unit) for c in r.cells()]
-            lines.append("| " + " | ".join(cells) + " |")
+            if r not in pose:
+                lines.append("| " + " | ".join(_md(c, r.unit) for c in r.cells()) + " |")
+        if pose:
+            lines += ["", "Robot base in the measurement frame (a pose; its uncertainty is that of the base_* "
+                      "deviations in the calibration JSON):", "",
+                      "| " + " | ".join(f"{r.name[len('base_pose_'):]} ({r.unit})" for r in pose) + " |",
+                      "|" + "---|" * len(pose), "| " + " | ".join(_md(r.identified, r.unit) for r in pose) + " |"]
         return "\n".join(lines) + "\n"
 
 
@@ -113,9 +142,13 @@ def parameter_table(source: "CalibrationResult | Robot", description: str | None
     nominal = np.concatenate([robot.base_xyz * 1000, np.degrees(robot.base_rpy)])
     actual = np.concatenate([np.asarray(xyz) * 1000, np.degrees(rpy)])
     for k, axis in enumerate(("x", "y", "z", "roll", "pitch", "yaw")):
-        rows.append(TableRow(None, f"base_pose_{axis}", "mm" if k < 3 else "deg", float(nominal[k]),
-                             float(actual[k]), float(actual[k] - nominal[k]), math.nan,
-                             True if calibrated else None, not calibrated, "" if calibrated else "nominal"))
+        unit = "mm" if k < 3 else "deg"
+        if calibrated:      # where the tracker saw the robot: no nominal value, no correction to enter
+            rows.append(TableRow(None, f"base_pose_{axis}", unit, math.nan, float(actual[k]), math.nan, math.nan,
+                                 True, False, BASE_REASON))
+        else:
+            rows.append(TableRow(None, f"base_pose_{axis}", unit, float(nominal[k]), float(nominal[k]), 0.0,
+                                 math.nan, None, True, "nominal"))
     rows += [_row(p, calibrated) for p in params if p.term == "joint_compliance"]
     for j, (k, sk) in stiffness.items():
         rows.append(TableRow(j, f"k{j}", "N*m/rad", math.nan, k, math.nan, sk, True, False, f"derived: 1/c{j}"))
@@ -157,7 +190,7 @@ def _csv(c) -> str:
         return ""
     if isinstance(c, bool):
         return "true" if c else "false"
-    return repr(float(c)) if isinstance(c, float) else str(c)
+    return repr(float(f"{c:.{DIGITS}g}")) if isinstance(c, float) else str(c)
 
 
 def _md(c, unit: str) -> str:

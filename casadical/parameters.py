@@ -19,6 +19,9 @@ DISPLAY = {
     "rad": ("deg", 180.0 / math.pi),
     "m": ("mm", 1000.0),
 }
+#: Display units that reports and text tables show in yet another unit (the JSON keeps the display unit): a
+#: relative scale (unit "1", 0.000123) is read in ppm (123).
+READING = {"1": ("ppm", 1e6)}
 
 
 @dataclass
@@ -83,6 +86,15 @@ class Parameter:
     def from_display(self, v: float) -> float:
         """Convert a value in display units to SI."""
         return v / DISPLAY.get(self.unit, (self.unit, 1.0))[1]
+
+    @property
+    def reading_unit(self) -> str:
+        """Unit of reports and text tables: the display unit, or a relative scale in ppm (:data:`READING`)."""
+        return READING.get(self.display_unit, (self.display_unit, 1.0))[0]
+
+    def to_reading(self, v: float) -> float:
+        """Convert an SI value (or std) to :attr:`reading_unit`."""
+        return self.to_display(v) * READING.get(self.display_unit, (None, 1.0))[1]
 
 
 @dataclass
@@ -187,14 +199,14 @@ class Parameters:
         for p in self.items:
             if p.fixed and not show_fixed:
                 continue
-            f = p.to_display
+            f = p.to_reading
             dev = f(p.value - p.nominal)
             std = f(p.std) if math.isfinite(p.std) else math.nan
             status = "fixed" if p.fixed else "free"
             if p.reason:
                 status += f" ({p.reason})"
             lines.append(f"{p.name:<16}{_num(f(p.nominal)):>14}{_num(f(p.value)):>14}"
-                         f"{_num(dev):>13}{_num(std):>11}  {p.display_unit:<10}{status}")
+                         f"{_num(dev):>13}{_num(std):>11}  {p.reading_unit:<10}{status}")
         return "\n".join(lines)
 
 

@@ -68,10 +68,14 @@ class Validation:
     file : str
         The validation poses' file.
     stats : ErrorStats
+    orientation : AngleStats or None
+        The probe's orientation errors there (a full-pose calibration, validated on poses with
+        ``rx_deg, ry_deg, rz_deg``).
     """
 
     file: str
     stats: ErrorStats
+    orientation: "AngleStats | None" = None
 
     def to_dict(self) -> dict:
         """The calibration JSON's ``validation``: the file and its error statistics (mm)."""
@@ -372,6 +376,8 @@ class CalibrationResult:
         check_calibration_fits(errors, data, name or f"of {self.model.robot.name}",
                                self.calibration.mean_mm if self.calibration else None, allow_mismatch)
         self.validation = Validation(data.path, ErrorStats.of(errors))
+        if self.has_orientation and data.has_orientation:
+            self.validation.orientation = self.orientation_stats(data)
         return self.validation.stats
 
     # --- reports --------------------------------------------------------------
@@ -415,6 +421,8 @@ class CalibrationResult:
             lines.append(f"validation poses ({self.validation.file}): " + self.validation.stats.line())
         if self.orientation is not None:
             lines.append("orientation:       " + self.orientation.line())
+        if self.validation is not None and self.validation.orientation is not None:
+            lines.append(f"validation orientation ({self.validation.file}): " + self.validation.orientation.line())
         if self.has_orientation:
             mount = np.degrees(matrix_to_rpy(self.tool_rotation()))
             lines.append("probe mounting on the flange: rpy [" + ", ".join(f"{v:.4f}" for v in mount) + "] deg")
@@ -489,6 +497,8 @@ class CalibrationResult:
                 "sigma_mm": self.loss.sigma * 1000 if fitted else None,
                 "sigma_deg": math.degrees(self.loss.sigma_rot) if fitted else None,
                 "calibration": self.orientation.to_dict() if self.orientation else None}
+            if self.validation is not None and self.validation.orientation is not None:
+                doc["orientation"]["validation"] = self.validation.orientation.to_dict()
         if self.solver is not None:
             doc["solver"] = {"name": self.solver_name, "status": self.solver.status,
                              "iterations": self.solver.iterations, "solve_time_s": self.solver.solve_time_s,
@@ -616,6 +626,8 @@ def load_calibration(path: str | Path) -> CalibrationResult:
         if ori:
             tool0 = np.asarray(ori["tool0"], dtype=float).reshape(3, 3)
             angles = AngleStats(**ori["calibration"]) if ori.get("calibration") else None
+            if ori.get("validation") and extra["validation"] is not None:
+                extra["validation"].orientation = AngleStats(**ori["validation"])
             full_pose = bool(ori.get("full_pose", False))
             if ori.get("sigma_deg") is not None:
                 import dataclasses

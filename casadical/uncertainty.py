@@ -100,8 +100,13 @@ def warn_problems(unc: Uncertainty, params, threshold: float = 0.95,
         tol = 1e-6 * (span if np.isfinite(span) else max(abs(p.value), p.scale))
         if p.value <= p.lower + tol or p.value >= p.upper - tol:
             side = "lower" if p.value <= p.lower + tol else "upper"
-            notes.append(f"{name} is at or beyond its {side} bound ({p.to_display(p.value):.6g} {p.display_unit}); "
-                         "its standard error is not meaningful, widen the bound if it is not physical")
+            if (p.lower if side == "lower" else p.upper) == 0:    # a sign its physics sets (a compliance >= 0)
+                notes.append(f"{name} is at its {side} bound 0 ({p.to_display(p.value):.6g} {p.display_unit}), a limit "
+                             "of its physics that cannot be widened: it is not determined by these poses (they "
+                             "cannot tell it from 0), and its standard error is not meaningful")
+            else:
+                notes.append(f"{name} is at or beyond its {side} bound ({p.to_display(p.value):.6g} {p.display_unit}); "
+                             "its standard error is not meaningful, widen the bound if it is not physical")
     for n in notes:
         warnings.warn(n, CorrelationWarning, stacklevel=3)
     return notes

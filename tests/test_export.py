@@ -51,9 +51,10 @@ def test_export_writes_urdf_csv_and_markdown(tmp_path, calibration):
     assert main(args) == 0
     doc = json.loads(cal_path.read_text())
 
-    # the table's numbers are the calibration JSON's
+    # the table's numbers are the calibration JSON's (to 15 significant digits)
     title, rows = read_table(out["csv"])
-    assert "YS100" in title and "MDH" in title and "Rx(alpha) Tx(a) Ry(beta) Ty(b) Rz(q + theta) Tz(d)" in title
+    assert "YS100" in title and "MDH" in title and "Rx(alpha) Tx(a) Rz(q + theta) Tz(d)" in title
+    assert "Hayati's Ry(beta) Ty(b) after Tx(a)" in title
     assert list(rows[0]) == list(COLUMNS)
     by_name = {r["name"]: r for r in rows}
     expected = [p for p in doc["parameters"]
@@ -62,13 +63,13 @@ def test_export_writes_urdf_csv_and_markdown(tmp_path, calibration):
     assert len(rows) == len(expected) + 6          # plus the six base pose rows
     for p in expected:
         r = by_name[p["name"]]
-        assert number(r["identified"]) == p["value"] and r["unit"] == p["unit"]
+        assert number(r["identified"]) == pytest.approx(p["value"], rel=1e-14) and r["unit"] == p["unit"]
         assert (r["std"] == "") == (p["std"] is None)
         if p["std"] is not None:
-            assert number(r["std"]) == p["std"]
+            assert number(r["std"]) == pytest.approx(p["std"], rel=1e-14)
         assert r["identifiable"] == ("true" if p["identifiable"] else "false")
         if not p.get("derived"):
-            assert number(r["nominal"]) == p["nominal"]
+            assert number(r["nominal"]) == pytest.approx(p["nominal"], rel=1e-14)
             assert number(r["difference"]) == pytest.approx(p["value"] - p["nominal"], abs=1e-12)
             assert r["fixed"] == ("true" if p["fixed"] else "false") and r["reason"] == p["reason"]
     for k, axis in enumerate("xyz"):
@@ -82,8 +83,13 @@ def test_export_writes_urdf_csv_and_markdown(tmp_path, calibration):
 
     # Markdown: same rows, the convention in the header
     md = out["md"].read_text().splitlines()
-    assert md[0] == "# YS100: MDH parameter table"
-    assert sum(line.startswith("| ") for line in md) == len(rows) + 1
+    assert md[0] == "# YS100: MDH parameter table with Hayati's beta on joints 1, 3"
+    # the parameters' rows and header, then the base as a pose: its header and its one row
+    assert sum(line.startswith("| ") for line in md) == (len(rows) - 6 + 1) + 2
+    assert md[-3] == "| x (mm) | y (mm) | z (mm) | roll (deg) | pitch (deg) | yaw (deg) |"
+    assert md[-1] == "| " + " | ".join(f"{number(by_name['base_pose_' + a]['identified']):.{4 if a in 'xyz' else 6}f}"
+                                       for a in ("x", "y", "z", "roll", "pitch", "yaw")) + " |"
+    assert all(by_name[f"base_pose_{a}"]["nominal"] == by_name[f"base_pose_{a}"]["difference"] == "" for a in "xyz")
 
     # URDF of the loaded JSON: yourdfpy's forward kinematics is the calibration's prediction
     u = yourdfpy.URDF.load(str(out["urdf"]), load_meshes=False)

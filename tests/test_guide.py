@@ -40,8 +40,8 @@ def test_the_guide_is_read_as_steps():
     sh = [s for s in steps if s.kind == "sh"]
     assert len(sh) >= 15
     assert sum(len(s.outputs) for s in sh) >= 6
-    assert [s.target for s in steps if s.kind == "toml"] == ["ur10-mapping.toml"]
-    assert [s.target for s in steps if s.kind == "lines"] == ["ur10_cal.md"]
+    assert [s.target for s in steps if s.kind == "toml"] == ["out/ur10-mapping.toml"]
+    assert [s.target for s in steps if s.kind == "lines"] == ["out/ur10_kinematic_table.md"] * 2
     for s in sh:
         for placeholder in ("CAL.json", "TARGETS.csv", "data.csv", "few_poses.csv", "pip install"):
             assert placeholder not in s.text, f"guide.md, line {s.line}: a block that runs holds {placeholder}"

@@ -405,3 +405,75 @@ def test_implausible_targets_are_one_line_naming_the_fix(files, tmp_path, capsys
     main(["compensate", str(d / "cal.json"), str(path), "--out", str(out), override])
     errors = [e for e in capsys.readouterr().err.splitlines() if e.startswith("casadical: error")]
     assert all(expected not in e for e in errors)
+
+
+# --- near a singular configuration (issue 28) ---------------------------------------------------------------
+
+
+def _weakest(cal, q, hold):
+    """Singular values and directions of the equations compensate solves at ``q`` (the calibrated model)."""
+    cov = cal.model.covariates(Measurements.from_arrays(q))
+    J = equations_jacobian(cal.model, q, cal.parameters.values, cov, cal.base0, hold)
+    return np.linalg.svd(J)
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_near_a_stretched_elbow_the_correction_is_damped_and_said(seed):
+    """A five-axis arm (the point alone) programmed near a stretched elbow, where the exact correction of a
+    0.4 mm miss would move the joints by degrees: no joint moves more than the bound allows (2 deg per mm of
+    correction), the row keeps part of its miss, and a warning names it with its conditioning; the other rows
+    are exact. A small miss is corrected by the closed-form damped least squares of the documented damping,
+    computed here from the model's Jacobian. A larger bound reaches the target with larger joint motions.
+    (Before: the joints moved by degrees without a word on their conditioning.)"""
+    robot, truth, cal, _, targets = setup("arm5", seed, n_targets=6)
+    rng = np.random.default_rng(seed)
+    pool = sample_poses(robot, 4000, rng, floor_z=None)
+    s = _weakest(cal, pool, False)[1]
+    order = np.argsort(s[:, -1])[:2]
+    near = pool[order]                                          # the two poses nearest a singular configuration
+    assert np.all(np.degrees(1 / s[order, -1]) / 1e3 > 5)       # an exact correction would move > 5 deg per mm
+    q0 = np.concatenate([targets.q[:4], near])
+    miss = rng.normal(size=(len(q0), 3))
+    miss *= 0.4e-3 / np.linalg.norm(miss, axis=1, keepdims=True)
+    goal = cal.predict(Measurements.from_arrays(q0)) + miss
+    prog = Measurements.from_arrays(q0, goal)
+    prog.path = "program.csv"
+    with pytest.warns(ConvergenceWarning, match="near a singular configuration") as caught:
+        res = compensate(cal, prog)
+    text = str(caught[0].message)
+    assert "rows 6 (condition number" in text and ", 7 (condition number" in text and "--max-deg-per-mm" in text
+    assert res.damped.tolist() == [False] * 4 + [True] * 2 and res.converged.all()
+    moved = np.degrees(np.linalg.norm(res.dq, axis=1))
+    assert np.all(moved[4:] <= 2.0 * 0.4 * 1.01), moved                  # the bound, per mm of correction
+    assert np.all(res.residual[4:] > 1e-6) and np.all(res.residual[:4] <= 1e-7)
+    # the bound on exact rows changes nothing; a larger bound reaches the near-singular ones
+    loose = compensate(cal, prog, max_deg_per_mm=1e4)
+    assert np.all(loose.residual <= 1e-7) and np.allclose(loose.q[:4], res.q[:4], atol=1e-9)
+    assert np.degrees(np.linalg.norm(loose.dq[4:], axis=1)).max() > 2 * moved[4:].max()
+    # a small miss: the damped least squares of the linearised equations, singular value by singular value
+    small = Measurements.from_arrays(q0[4:], cal.predict(Measurements.from_arrays(q0[4:])) + miss[4:] * 1e-3)
+    with pytest.warns(ConvergenceWarning):
+        dq = compensate(cal, small).dq
+    U, s, Vt = _weakest(cal, q0[4:], False)
+    eps = 1 / (np.radians(2.0) * 1e3)
+    gain = np.where(s >= eps, 1 / s, 2 * s / (eps ** 2 + s ** 2))
+    expect = np.einsum("mkn,mk->mn", Vt[:, :3], gain * np.einsum("mik,mi->mk", U, miss[4:] * 1e-3))
+    np.testing.assert_allclose(dq, expect, rtol=0.02, atol=1e-3 * np.abs(expect).max())
+
+
+def test_near_the_singular_ur10_wrist_no_joint_moves_by_degrees():
+    """Issue 28's pose (UR10 q2 = -90, q3 = 0, q5 = 0) and two near it, with a 0.4 mm miss and the flange
+    orientation held: no joint moves by degrees (before: 2.1 deg for 0.4 mm at q3 = 20, q5 = 1, silently),
+    each row is named with its conditioning, and a 5 mm miss at the singular pose is reached."""
+    robot, truth, cal, _, _ = setup("ur10", 0, n_targets=5)
+    q0 = np.radians([[10, -90, 0, 30, 0, 20], [10, -90, 20, 30, 1, 20], [10, -90, 10, 30, 5, 20],
+                     [10, -90, 0, 30, 0, 20]])
+    miss = np.array([[0.4, 0, 0], [0.4, 0, 0], [0.4, 0, 0], [5, 0, 0]]) * 1e-3
+    prog = Measurements.from_arrays(q0, cal.predict(Measurements.from_arrays(q0)) + miss)
+    prog.path = "program.csv"
+    with pytest.warns(ConvergenceWarning, match="near a singular configuration") as caught:
+        res = compensate(cal, prog)
+    assert any("rows 2 (condition number" in str(w.message) for w in caught)
+    assert res.converged.all() and np.all(res.residual <= 1e-7)
+    moved = np.degrees(np.abs(res.dq)).max(axis=1)
+    assert np.all(moved[:3] < 0.5), moved

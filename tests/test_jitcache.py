@@ -103,17 +103,22 @@ def test_a_damaged_entry_is_compiled_again(cache, damage):
 def test_concurrent_writers_end_with_one_valid_entry(cache, tmp_path):
     go = tmp_path / "go"
     code = ("import os, sys, time\n"
+            "from pathlib import Path\n"
             "from casadical import jitcache\n"
             "from casadical.model import Model\n"
             "from casadical.robot import robot_from_dict\n"
             f"fun = Model(robot_from_dict({ARM3!r}), 'kinematic', jit=False).per_pose_function('fk')\n"
+            "Path(sys.argv[1]).touch()\n"
             f"while not os.path.exists({str(go)!r}):\n"
             "    time.sleep(0.002)\n"
             "jitcache.load(fun)\n")
     env = dict(os.environ, CASADICAL_CACHE=str(cache))
-    procs = [subprocess.Popen([sys.executable, "-c", code], env=env, stderr=subprocess.PIPE, text=True)
-             for _ in range(2)]
-    time.sleep(1.0)           # both have built the model and wait
+    ready = [tmp_path / f"ready{k}" for k in range(2)]
+    procs = [subprocess.Popen([sys.executable, "-c", code, str(r)], env=env, stderr=subprocess.PIPE, text=True)
+             for r in ready]
+    while not all(r.exists() for r in ready):     # both have built the model and wait
+        assert all(p.poll() is None for p in procs), [p.stderr.read() for p in procs]
+        time.sleep(0.01)
     go.touch()
     for p in procs:
         assert p.wait(timeout=120) == 0, p.stderr.read()

@@ -176,12 +176,12 @@ def test_calibration_report_parameters_identifiability_and_correlations(calibrat
     assert [r["parameter"] for r in params] == [p.name for p in result.parameters]
     for r in params:
         p = result.parameters[r["parameter"]]
-        assert float(r["identified"]) == pytest.approx(p.to_display(p.value), rel=1e-5, abs=1e-9)
+        assert float(r["identified"]) == pytest.approx(p.to_reading(p.value), rel=1e-5, abs=1e-9)
         assert r["unit"] == p.display_unit
         if p.fixed:
             assert r["status"].startswith("not identifiable" if p.identifiable is False else "held")
         else:
-            assert r["status"].startswith("identified") and float(r["std"]) == pytest.approx(p.to_display(p.std),
+            assert r["status"].startswith("identified") and float(r["std"]) == pytest.approx(p.to_reading(p.std),
                                                                                               rel=0.06)
     held = {r["parameter"]: r["held because"] for r in page.table("identifiability")}
     assert held == {p.name: p.reason or "fixed on request" for p in result.parameters if p.fixed}
@@ -216,7 +216,7 @@ def test_calibration_report_tests_each_parameter_and_flags_what_is_not_significa
             continue
         assert float(r["t"]) == pytest.approx(t.t, abs=0.006)
         lo, hi = (float(x) for x in r["95 % interval"].split(" \u2013 "))
-        assert (lo, hi) == pytest.approx(tuple(p.to_display(v) for v in t.ci), rel=1e-5, abs=1e-9)
+        assert (lo, hi) == pytest.approx(tuple(p.to_reading(v) for v in t.ci), rel=1e-5, abs=1e-9)
         assert r["status"] == ("identified" if t.significant else "identified; not significant")
         flagged += [] if t.significant else [p.name]
     # highlighted: exactly the rows that are not significant
@@ -599,6 +599,24 @@ def readme_job(tmp_path_factory):
 def _signed_gain(text: str) -> list[str]:
     """Gains written with a sign, or with two: ``--0.0024``, ``-0.0030 mm better``, ``mean -0.0292 mm``."""
     return re.findall(r"--\d|-\s?\d+\.\d+ mm (?:better|worse)|validation mean -\d|mean [+-]\d+\.\d+ mm with", text)
+
+
+def test_readme_quotes_what_the_job_prints_or_says_where_a_figure_comes_from(readme_job):
+    """Every error in mm the README gives for its job is printed by the job, or its sentence names the script that
+    makes it (issue 28: 'kinematic calibration plus a Gaussian process of its residual 0.241 mm', which the job
+    does not print, had no source)."""
+    d, r, doc = readme_job
+    readme = open(os.path.join(os.path.dirname(__file__), "..", "README.md"), encoding="utf-8").read()
+    paragraph = readme.split("On this split it names", 1)[1].split("Then, to the robot", 1)[0]
+    printed = [float(x) for x in re.findall(r"\d+\.\d+", r.stdout)]
+    figures = 0
+    for sentence in re.split(r"(?<=[.;])\s+", paragraph):
+        for x in re.findall(r"(\d+\.\d+) mm", sentence):
+            figures += 1
+            places = len(x.split(".")[1])
+            said = any(round(y, places) == float(x) for y in printed)
+            assert said or "benchmarks/" in sentence, f"README: {x} mm, neither printed by the job nor sourced: {sentence}"
+    assert figures >= 3
 
 
 def test_readme_summary_findings_first_and_short(readme_job):

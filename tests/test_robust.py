@@ -16,7 +16,6 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 import warnings
 
 import numpy as np
@@ -243,13 +242,19 @@ def test_predict_reports_errors_and_refuses_another_robots_poses(ys, tmp_path, c
     (["calibrate", "ys100", "{cal}", "--out", "{out}", "--fix", "a2,zzz"], "'zzz'"),
     (["calibrate", "ys100", "{cal}", "--out", "{out}", "--model", "kinematic+periodic[2]"], "joint:harmonic"),
 ])
-def test_options_out_of_their_domain(ys, tmp_path, capsys, args, what):
-    t0 = time.perf_counter()
+def test_options_out_of_their_domain(ys, tmp_path, capsys, monkeypatch, args, what):
+    from casadical.solvers.ipopt import Ipopt
+    from casadical.solvers.lm import LevenbergMarquardt
+
+    def solve(*_):
+        raise AssertionError("a solver ran: the option was not refused before the work")
+
+    for solver in (Ipopt, LevenbergMarquardt):
+        monkeypatch.setattr(solver, "solve", solve)     # refused before the work: no solver runs
     args = [a.format(cal=ys / "cal.csv", out=tmp_path / "o.json") for a in args]
     code, _, err = cli(capsys, *args)
     assert code == 2 and not (tmp_path / "o.json").exists()
     one_error(err, what)
-    assert time.perf_counter() - t0 < 10   # refused before the work
 
 
 def test_identical_candidates_are_refused(ys, tmp_path, capsys):
@@ -444,15 +449,11 @@ def test_ctrl_c_during_the_jit_stops_cleanly(tmp_path):
     robot = load_robot("ys100")
     q = np.random.default_rng(0).uniform(robot.limits[:, 0] + 0.1, robot.limits[:, 1] - 0.1, (400, 6))
     Measurements.from_arrays(q).write_csv(tmp_path / "poses.csv")
-    env = dict(os.environ, CASADICAL_JIT="1", TMPDIR=str(tmp_path), CASADICAL_CACHE=str(tmp_path / "cache"))
+    env = dict(os.environ, CASADICAL_JIT="1", TMPDIR=str(tmp_path), CASADICAL_CACHE=str(tmp_path / "cache"),
+               CASADICAL_SIGNAL_AT="compile:SIGINT:group")    # the process group's Ctrl-C once gcc started
     p = subprocess.Popen([sys.executable, "-m", "casadical", "predict", "ys100", str(tmp_path / "poses.csv"),
                           "--out", str(tmp_path / "out.csv")], env=env, stdout=subprocess.PIPE,
                          stderr=subprocess.PIPE, text=True, start_new_session=True)
-    deadline = time.time() + 60
-    while not list(tmp_path.glob("casadical-jit-*/*.c")) and time.time() < deadline and p.poll() is None:
-        time.sleep(0.01)
-    assert p.poll() is None, "finished before compiling"
-    os.killpg(p.pid, signal.SIGINT)
     _, err = p.communicate(timeout=60)
     assert p.returncode == 130, err
     assert "interrupted" in err and "Traceback" not in err and "virtual machine" not in err

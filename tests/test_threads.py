@@ -227,8 +227,10 @@ def test_a_new_setting_while_another_thread_evaluates(monkeypatch):
 
 def test_a_block_that_fails_is_waited_for(monkeypatch):
     """When one block fails, the call still waits for the others before it raises: none of them may go on
-    writing into the model's buffers after the call is over."""
-    import time
+    writing into the model's buffers after the call is over. The second block goes on only once the first
+    has failed, and then waits for the call to be over (``returned``): a call that waits for it never sets
+    that, and the block ends by itself (``returned`` still unset); a call that did not wait sets it first."""
+    import threading
 
     from casadical.model import Model, _Batch
 
@@ -237,18 +239,22 @@ def test_a_block_that_fails_is_waited_for(monkeypatch):
     q = np.random.default_rng(2).uniform(-1, 1, (400, 6))
     blocks = model._batch("fk", 400).blocks
     real, finished = _Batch.evaluate, []
+    failed, returned = threading.Event(), threading.Event()
 
     def evaluate(self, *inputs):
-        if self is blocks[0][1]:   # the first block fails at once, the second is still at work
+        if self is blocks[0][1]:   # the first block fails, the second is still at work
+            failed.set()
             raise RuntimeError("this block fails")
-        time.sleep(0.3)
+        assert failed.wait(60)
+        returned.wait(0.5)
         real(self, *inputs)
-        finished.append(self)
+        finished.append((self, returned.is_set()))
 
     monkeypatch.setattr(_Batch, "evaluate", evaluate)
     with pytest.raises(RuntimeError, match="this block fails"):
         model.predict(q)
-    assert finished == [blocks[1][1]]
+    returned.set()
+    assert finished == [(blocks[1][1], False)]
 
 
 @pytest.mark.parametrize("value", ["two", "0", "-1", "1.5"])

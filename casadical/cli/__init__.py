@@ -23,6 +23,7 @@ import warnings
 from .. import __version__
 from ..errors import CasadicalError, CasadicalWarning
 from ..files import outputs_together
+from .. import interrupts
 from ..interrupts import exit_code, handle_signals
 from ..threads import evaluation_threads, limited_threads
 from . import cache, calibrate, compare, compensate, data, diagnose, export, model, planning, study
@@ -52,7 +53,9 @@ class _Parser(argparse.ArgumentParser):
         return super().format_help()
 
     def error(self, message: str):  # type: ignore[override]
-        raise UsageError(f"{self.prog}: {message} (see {self.prog} --help)")
+        # "casadical: error: " comes first: the prog once, as the command's name ("diagnose: ...")
+        command = self.prog.removeprefix("casadical").strip()
+        raise UsageError(f"{command + ': ' if command else ''}{message} (see {self.prog} --help)")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -88,20 +91,49 @@ def _check_cache_settings() -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
+    """Run one command; its exit code (a signal after its outputs were in place: 128 + the signal, one line)."""
+    code = _main(argv)
+    late = interrupts.late_exit_code()
+    if late is None:
+        return code
+    print(interrupts.late(), file=sys.stderr)
+    return late
+
+
+def _command_named(e: UsageError, ap: argparse.ArgumentParser, argv: list[str] | None) -> str:
+    """An error of the top parser about a command's arguments (unrecognized ones) names that command and its help."""
+    text = str(e)
+    words = sys.argv[1:] if argv is None else argv
+    sub = next(a for a in ap._actions if isinstance(a, argparse._SubParsersAction))
+    command = next((w for w in words if w in sub.choices), None)
+    if command and text.startswith("unrecognized arguments"):
+        return f"{command}: {text.replace('(see casadical --help)', f'(see casadical {command} --help)')}"
+    return text
+
+
+def _interrupted(e: KeyboardInterrupt) -> int:
+    what = "interrupted" if exit_code(e) == 130 else f"stopped by {e.args[0] if e.args else 'a signal'}"
+    print(f"casadical: {what}; no output was written", file=sys.stderr)
+    return exit_code(e)
+
+
+def _main(argv: list[str] | None) -> int:
     ap = build_parser()
     try:
         args = ap.parse_args(argv)
     except UsageError as e:
-        print(f"casadical: error: {e}", file=sys.stderr)
+        print(f"casadical: error: {_command_named(e, ap, argv)}", file=sys.stderr)
         return 2
     if not getattr(args, "func", None):
         ap.print_help()
         return 2
     old = warnings.showwarning
     warnings.showwarning = _show_warning
+    signals = interrupts.received()
     try:
         # SIGTERM takes Ctrl-C's path; every output of the command appears at its end, or none
         with handle_signals(), outputs_together():
+            interrupts.checkpoint("work")
             evaluation_threads()     # a bad CASADICAL_EVAL_THREADS is said before any work, whatever the command
             _check_cache_settings()
             with limited_threads():  # small dense problems: one BLAS thread unless CASADICAL_THREADS says otherwise
@@ -118,10 +150,11 @@ def main(argv: list[str] | None = None) -> int:
               file=sys.stderr)
         return 2
     except KeyboardInterrupt as e:
-        what = "interrupted" if exit_code(e) == 130 else f"stopped by {e.args[0] if e.args else 'a signal'}"
-        print(f"casadical: {what}; no output was written", file=sys.stderr)
-        return exit_code(e)
+        return _interrupted(e)
     except Exception as e:  # noqa: BLE001  (the last line of defence: one line, never a traceback)
+        stop = interrupts.since(signals)
+        if stop is not None:   # a signal that a library turned into its own error (Python wraps one in __set_name__)
+            return _interrupted(stop)
         if args.debug:
             traceback.print_exc()
         text = str(e).strip().splitlines()[0] if str(e).strip() else ""

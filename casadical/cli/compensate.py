@@ -37,6 +37,10 @@ def register(sub) -> None:
                    help="largest change of a joint from its programmed value: a target that needs more is an "
                         "error; where holding the orientation would need more, only the point is reached "
                         "(default: %(default)g deg)")
+    p.add_argument("--max-deg-per-mm", type=float_in(0, math.inf), default=2.0, metavar="DEG",
+                   help="largest joint motion per mm of correction (or per mrad of orientation) along any direction: "
+                        "near a singular configuration, where an exact correction would need more, it is damped "
+                        "(least joint motion) and the rows are named with their conditioning (default: %(default)g)")
     p.add_argument("--position-only", action="store_true",
                    help="hold no orientation (neither the targets' rx_deg, ry_deg, rz_deg nor the nominal flange's): "
                         "least joint change that reaches the point")
@@ -58,9 +62,10 @@ def run(args) -> int:
         cal.model.jit = False
     result = compensate(cal, targets, tolerance_mm=args.tolerance_mm, max_iter=args.max_iter,
                         max_change_deg=args.max_change_deg, orientation=False if args.position_only else None,
+                        max_deg_per_mm=args.max_deg_per_mm,
                         **check_options(args))
-    if cal.coverage is not None:
-        cal.coverage.warn(np.degrees(result.q), targets.lines, args.targets)
+    if cal.coverage is not None:    # the programmed joints: the same rows whatever is held (the corrections move
+        cal.coverage.warn(np.degrees(targets.q), targets.lines, args.targets)   # them by fractions of a degree)
     result.joints().write_csv(args.out, overwrite=args.force)
     print(result.summary())
     line = compensator_line(cal, targets)

@@ -77,7 +77,7 @@ def run_split(args) -> int:
     # the direction of each joint's last move in the original sequence and each pose's place in it travel
     # with the rows (a subset cannot recompute them): columns move1..moveN and source_row
     extra = {} if any(c.startswith("move") for c in data.columns) else \
-        {f"move{j + 1}": data.moves[:, j] for j in range(data.n_joints)}
+        {f"move{j + 1}": data.moves[:, j].astype(int) for j in range(data.n_joints)}
     if "source_row" not in data.columns:
         extra["source_row"] = data.rows + 1
     if extra:

@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 from ..errors import InputError
-from ..interrupts import exit_code
+from ..interrupts import answered, exit_code
 from .common import Status, add_json, add_quiet, check_outputs, human_stream, int_at_least, write_json
 
 
@@ -115,6 +115,7 @@ def _run(args, study) -> int:
         report = run_study(study, args.out, backend="serial" if args.serial else "dask", workers=args.workers,
                            scheduler=args.scheduler, force=args.force, progress=progress, on_start=started)
     except KeyboardInterrupt as e:
+        answered()     # said here, with what the folder holds
         if state["bar"] is not None:
             state["bar"].close()
         what = "interrupted" if exit_code(e) == 130 else f"stopped by {e.args[0] if e.args else 'a signal'}"

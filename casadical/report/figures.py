@@ -25,6 +25,8 @@ from matplotlib.axes import Axes
 from matplotlib.figure import Figure
 from matplotlib.ticker import MaxNLocator
 
+from ..interrupts import checkpoint
+
 #: colour-blind safe (Paul Tol's "bright"): before / after and series
 BEFORE, AFTER, CURVE = "#EE6677", "#4477AA", "#228833"
 SERIES = ("#4477AA", "#EE6677", "#228833", "#CCBB44", "#66CCEE", "#AA3377", "#BBBBBB")
@@ -249,6 +251,7 @@ def _render_in(pool, jobs: list[tuple], shares: list[list[int]]) -> list[tuple[l
                 futures.append((share, None))
     finally:
         _JOBS = []
+    checkpoint("figures")   # the workers draw their shares now
     done = [(shares[0], _draw(jobs, shares[0]))]
     for share, fut in futures:
         try:

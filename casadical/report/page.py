@@ -194,8 +194,9 @@ class Page:
             items = ('<ol class="notes">' + "".join(f'<li id="fn{k}"><code>{esc(t)}</code></li>'
                                                   for k, t in enumerate(self.footnotes, 1)) + "</ol>")
             if len(self.footnotes) > FOLD_FOOTNOTES:   # a long legend opens on a click (or on a link to it)
-                items = (f"<details><summary>The full specification of each of the {len(self.footnotes)} models "
-                         f"named by a short label above</summary>{items}</details>")
+                items = (f"<details><summary>The full specification behind each short label above "
+                         f"({len(self.footnotes)} labels; a model whose specification is its label has none)"
+                         f"</summary>{items}</details>")
             notes = '<h2 id="footnotes">Model specifications</h2>' + items
         return ("<!DOCTYPE html>\n<html lang='en'><head><meta charset='utf-8'>"
                 "<meta name='viewport' content='width=device-width, initial-scale=1'>"

@@ -48,7 +48,7 @@ def parameter_table(page: Page, result: CalibrationResult, fold: bool = False) -
     tests = result.significance()
     rows, classes = [], []
     for p in result.parameters:
-        f = p.to_display
+        f = p.to_reading
         t = tests.get(p.name)
         if not p.fixed:
             status = "identified" if t is None or t.significant else "identified; not significant"
@@ -58,7 +58,7 @@ def parameter_table(page: Page, result: CalibrationResult, fold: bool = False) -
             status = "held" + (f": {p.reason}" if p.reason else "")
         rows.append([p.name, "" if p.joint is None else str(p.joint), sig(f(p.nominal), 6),
                      sig(f(p.value), 6), sig(f(p.value - p.nominal), 3) if not p.fixed else "",
-                     sig(f(p.std), 2) if math.isfinite(p.std) else "", *_test_cells(t, f), p.display_unit, status])
+                     sig(f(p.std), 2) if math.isfinite(p.std) else "", *_test_cells(t, f), p.reading_unit, status])
         classes.append("off" if p.fixed else "weak" if t is not None and not t.significant else "")
     header = ["parameter", "joint", "nominal", "identified", "deviation", "std", "rel. std", "t", "95 % interval",
               "unit", "status"]

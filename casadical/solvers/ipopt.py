@@ -21,7 +21,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import SolverError
-from ..interrupts import noticed
+from ..interrupts import checkpoint, noticed, wanted
 from ..problem import CalibrationProblem
 from .base import Solver, SolverResult
 
@@ -83,8 +83,9 @@ class Ipopt(Solver):
         N, nf = problem.n_poses, len(problem.free)
         # holds the model (an id could be reused); jit: a solver built on the VM is not the compiled one
         pose = problem.full_pose
+        at_iteration = wanted("solver")     # a test stops IPOPT while it iterates (CASADICAL_SIGNAL_AT)
         key = (model, N, tuple(problem.free), model._use_jit(N), self.hessian, self.max_iter, self.tol,
-               repr(sorted(self.options.items())), pose)
+               repr(sorted(self.options.items())), pose, at_iteration)
         if key in _BUILT:
             _BUILT.move_to_end(key)
             self._last = _BUILT[key]
@@ -153,7 +154,11 @@ class Ipopt(Solver):
                                            ["x", "p", "lam_f", "lam_g"], ["triu_hess_gamma_x_x"])
         elif self.hessian != "exact":
             raise SolverError(f"unknown Hessian option {self.hessian!r}: use 'gauss-newton' or 'exact'")
+        callback = _Checkpoint(nf) if at_iteration else None
+        if callback is not None:
+            opts["iteration_callback"] = callback
         solver = ca.nlpsol("calibration", "ipopt", nlp, opts)
+        solver.checkpoint = callback    # CasADi does not keep the Python callback alive
         _BUILT[key] = solver
         while len(_BUILT) > MAX_BUILT:  # a few problem shapes at a time keep memory flat
             _BUILT.popitem(last=False)
@@ -191,3 +196,36 @@ class Ipopt(Solver):
         return SolverResult(x=np.array(sol["x"]).ravel(), cost=float(sol["f"]), success=ok, status=status,
                             iterations=int(stats.get("iter_count", -1)), solve_time_s=elapsed,
                             setup_time_s=setup)
+
+
+class _Checkpoint(ca.Callback):
+    """IPOPT's iteration callback where a test has the process signal itself (:func:`casadical.interrupts.checkpoint`)."""
+
+    def __init__(self, nx: int):
+        ca.Callback.__init__(self)
+        self.nx = nx
+        self.construct("checkpoint", {})
+
+    def get_n_in(self):
+        return ca.nlpsol_n_out()
+
+    def get_n_out(self):
+        return 1
+
+    def get_name_in(self, i):
+        return ca.nlpsol_out(i)
+
+    def get_name_out(self, i):
+        return "ret"
+
+    def get_sparsity_in(self, i):
+        name = ca.nlpsol_out(i)
+        if name == "f":
+            return ca.Sparsity.scalar()
+        if name in ("x", "lam_x"):
+            return ca.Sparsity.dense(self.nx)
+        return ca.Sparsity(0, 0)
+
+    def eval(self, arg):
+        checkpoint("solver")
+        return [0]

@@ -16,6 +16,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SolverError
+from ..interrupts import checkpoint
 from ..problem import CalibrationProblem
 from .base import Solver, SolverResult
 
@@ -61,6 +62,7 @@ class LevenbergMarquardt(Solver):
         status, success = "max_iter", False
         it = 0
         for it in range(1, self.max_iter + 1):
+            checkpoint("solver")
             A, g = lin.A, lin.g
             d = np.diag(A).copy()
             d[d <= 0] = 1.0

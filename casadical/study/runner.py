@@ -17,7 +17,6 @@ from __future__ import annotations
 import itertools
 import logging
 import secrets
-import shutil
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -25,7 +24,7 @@ from typing import Callable
 
 from .. import __version__
 from ..errors import CasadicalError, InputError
-from ..interrupts import deferred
+from ..interrupts import checkpoint, deferred
 from ..threads import usable_cores
 from .protocol import Study
 from .store import ResultStore
@@ -134,14 +133,8 @@ def run_study(study: Study, out: str | Path, *, backend: str = "dask", workers: 
     own_client = None
     if backend == "dask" and client is None and scheduler:
         client = own_client = _connect(scheduler)    # an unreachable scheduler, too
-    created = not Path(out).exists()
     try:
         return _run(study, Path(out), backend, workers, scheduler, client, force, progress, flush_s, on_start)
-    except BaseException:
-        # a failed start leaves nothing behind: a folder this run made and no repetition was stored in
-        if created and Path(out).is_dir() and not list(Path(out).glob("part-*.parquet")):
-            shutil.rmtree(out, ignore_errors=True)
-        raise
     finally:
         if own_client is not None:
             own_client.close()
@@ -173,18 +166,23 @@ def _run(study: Study, out: Path, backend: str, workers, scheduler, client, forc
             writer.add(rows)
             if progress is not None:
                 progress(rep, rows)
+            checkpoint("repetition")
 
         try:
-            if backend == "serial" or not todo:
-                if on_start:
-                    on_start(report)
-                for rep in todo:
-                    finished(rep, run_task(study, rep))
-            else:
-                _run_dask(study, todo, finished, report, workers, scheduler, client, on_start)
-        finally:
-            writer.flush()
-            report.time_s = time.perf_counter() - t0
+            try:
+                if backend == "serial" or not todo:
+                    if on_start:
+                        on_start(report)
+                    for rep in todo:
+                        finished(rep, run_task(study, rep))
+                else:
+                    _run_dask(study, todo, finished, report, workers, scheduler, client, on_start)
+            finally:
+                writer.flush()
+                report.time_s = time.perf_counter() - t0
+        except BaseException:
+            store.discard_if_empty()   # a failed start leaves nothing behind (a folder this run made, empty)
+            raise
     return report
 
 
@@ -213,6 +211,7 @@ def _run_dask(study: Study, todo: list[int], finished, report: RunReport, worker
                 own_cluster = distributed.LocalCluster(n_workers=workers or usable_cores(), threads_per_worker=1,
                                                        processes=True, dashboard_address=":0",
                                                        silence_logs=logging.ERROR)
+                checkpoint("cluster")
                 client = own_client = distributed.Client(own_cluster)
                 client.register_plugin(_ignore_interrupts(distributed)(), name="casadical-ignore-sigint")
             report.backend = "dask"

@@ -24,6 +24,7 @@ from __future__ import annotations
 import json
 import re
 import secrets
+import shutil
 import warnings
 from datetime import datetime, timezone
 from pathlib import Path
@@ -33,6 +34,7 @@ import numpy as np
 from .. import __version__
 from ..errors import CasadicalError, CasadicalWarning, InputError
 from ..files import atomic_open, atomic_write
+from ..interrupts import checkpoint
 from .protocol import Study
 from .task import COLUMNS, TIME_COLUMNS
 
@@ -82,6 +84,8 @@ class ResultStore:
         self.path = Path(path)
         self.manifest = manifest
         self._lock = None
+        #: this run made the folder (a failed start removes it again: :meth:`discard_if_empty`)
+        self.created = False
 
     # --- opening -----------------------------------------------------------------
 
@@ -123,16 +127,26 @@ class ResultStore:
         where = str(path)
         if path.exists() and not path.is_dir():
             raise InputError("exists and is not a study results folder; choose another --out", file=where)
+        created = False
         if not path.exists():
             if not path.parent.exists():
                 raise InputError(f"folder {str(path.parent)!r} does not exist", file=where)
-            path.mkdir()
+            checkpoint("study-folder")
+            try:
+                path.mkdir()
+                created = True
+            except FileExistsError:     # another run made it meanwhile: the lock below says which runs
+                if not path.is_dir():
+                    raise InputError("exists and is not a study results folder; choose another --out",
+                                     file=where) from None
         foreign = [p.name for p in path.iterdir() if not _ours(p.name)]
         if foreign and _read_manifest(path) is None:       # checked before the lock file is made
             raise InputError(f"is a folder that is not a study results folder (it holds {foreign[0]!r}); "
                              "choose another --out", file=where)
         store = cls(path, {})
+        store.created = created
         store._take_lock()
+        checkpoint("study-locked")
         try:
             old = _read_manifest(path)
             new = manifest_of(study)
@@ -155,6 +169,7 @@ class ResultStore:
             atomic_write(path / PROTOCOL_COPY, study.text, overwrite=True, at_once=True)
             store.manifest = new
         except BaseException:
+            store.discard_if_empty()
             store.close()
             raise
         return store
@@ -172,6 +187,15 @@ class ResultStore:
             raise InputError("another casadical study is writing to this folder; wait for it or choose "
                              "another --out", file=str(self.path)) from None
         self._lock = fh
+
+    def discard_if_empty(self) -> None:
+        """Remove the folder if this run made it and holds no repetition (a failed start leaves nothing).
+
+        Only while this run holds the lock: a run that was refused it never
+        touches the folder of the run that has it.
+        """
+        if self._lock is not None and self.created and self.path.is_dir() and not self.parts():
+            shutil.rmtree(self.path, ignore_errors=True)
 
     def close(self) -> None:
         """Release the folder's lock."""
