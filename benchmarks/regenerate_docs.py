@@ -28,8 +28,9 @@ Usage::
     python benchmarks/regenerate_docs.py --reuse out/docs-runs   # use saved outputs, run nothing
 
 ``tests/test_docs_generated.py`` checks the markers (fast) and, under ``pytest -m slow``, runs the
-check job by job. All jobs take 11-20 minutes on 2 cores (load 1-8; docs/benchmarks.md, "Docs that
-cannot drift", has the time of each); the guide itself is run by ``tests/test_guide.py``.
+check job by job. All jobs take 21-30 minutes on 2 cores, hidden-effects 10 of them (load 1-8;
+docs/benchmarks.md, "Docs that cannot drift", has the time of each); the guide itself is run by
+``tests/test_guide.py``.
 """
 
 from __future__ import annotations
@@ -97,7 +98,8 @@ JOBS: dict[str, Job] = {
     "study-ga": Job(_study("ga-ys100", "--baseline", "KM"), 3.7),
     "guide": Job((_py("guide_figures.py"),), 0.4),
     "singular": Job((_py("study_singular.py"),), 0.1),
-    "next-poses": Job((_py("study_next_poses.py"),), 1.5),
+    "next-poses": Job((_py("study_next_poses.py"),), 1.8),
+    "hidden-effects": Job((_py("study_hidden_effects.py"),), 10),
 }
 
 
@@ -157,7 +159,12 @@ BLOCKS: dict[str, Block] = {
     "planning-efficiency": Block("planning", (r"^### Simulation: certified D-efficiency",)),
     "planning-ga": Block("planning", (r"^### D-optimal vs GA",), timing=("D-opt time (s)", "GA time (s, mean)")),
     "next-poses-loop": Block("next-poses", (r"^### The loop",)),
-    "next-poses-example": Block("next-poses", (r"^### Worked example",)),
+    "next-poses-example": Block("next-poses", (r"^### Worked example: narrow range",)),
+    "next-poses-scope": Block("next-poses", (r"^### Worked example: robot or session",)),
+    "next-poses-compliance": Block("next-poses", (r"^### Worked example: compliance or scale",)),
+    # docs/diagnosis.md
+    "hidden-effects-summary": Block("hidden-effects", (r"^### Exact claims per effect",)),
+    "hidden-effects-failing": Block("hidden-effects", (r"^### Claims that are not exact",)),
     # docs/guide.md
     "guide-aic": Block("guide", (r"^AIC and BIC",)),
     "guide-urdf": Block("guide", (r"^URDF read by yourdfpy",)),

@@ -20,6 +20,7 @@ process conditioned on each fold's training poses only.
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import Callable
 
 import numpy as np
@@ -93,29 +94,68 @@ def layer_coverage(result: CalibrationResult, data: Measurements) -> tuple[int, 
     return known, total
 
 
+@dataclass
+class LayerFolds:
+    """Held-out predictions of the layer on every fold: what judging it, and choosing its support, needs.
+
+    Attributes
+    ----------
+    before : ndarray, shape (N,)
+        Residual norm (m) of each pose of ``keep`` without the layer.
+    folds : dict of str to list of (ndarray, ndarray, ndarray, ndarray)
+        By kind: for each fold, its held-out poses (indices into ``keep``'s poses), their residuals (m, (m, 3)),
+        the fold's process's prediction there (m) and its predictive std over the prior (:meth:`ResidualGP.std_ratio`).
+    n_schemes : dict of str to int
+        Schemes of each kind (a pose is held out once in each).
+    """
+
+    before: np.ndarray
+    folds: dict
+    n_schemes: dict
+
+    def after(self, kind: str, support: float) -> np.ndarray:
+        """Residual norm (m) of each pose with the layer, held out in the folds of ``kind`` (averaged over its
+        schemes), the layer applied where its std ratio is below ``support``."""
+        out = np.zeros(len(self.before))
+        for at, Y, pred, ratio in self.folds[kind]:
+            out[at] += np.linalg.norm(Y - pred * (ratio < support)[:, None], axis=1)
+        return out / self.n_schemes[kind]
+
+    def means_mm(self, support: float) -> dict[str, tuple[float, float]]:
+        """Held-out mean (mm) without and with the layer, by kind."""
+        b = float(self.before.mean() * 1000)
+        return {k: (b, float(self.after(k, support).mean() * 1000)) for k in self.folds}
+
+    def worst_mm(self, support: float) -> dict[str, tuple[float, float]]:
+        """Worst held-out error (mm) without and with the layer, by kind."""
+        b = float(self.before.max() * 1000)
+        return {k: (b, float(self.after(k, support).max() * 1000)) for k in self.folds}
+
+
 @limited_threads()
 def held_out(gps: dict[str | None, ResidualGP], learnt: dict[str | None, np.ndarray], data: Measurements,
-             Y: np.ndarray, keep: np.ndarray, schemes, progress: Callable[[str], None] | None = None
-             ) -> dict[str, tuple[np.ndarray, np.ndarray]]:
-    """Held-out residual norms (m) without and with the layer, by kind of fold, at the poses of ``keep``.
+             Y: np.ndarray, keep: np.ndarray, schemes, progress: Callable[[str], None] | None = None) -> LayerFolds:
+    """Held-out residuals (m) without and with the layer, by kind of fold, at the poses of ``keep``.
 
     Each fold's process is the session's process (hyperparameters of the
     fit on all poses) conditioned on the poses it learnt from (``learnt``,
     indices into ``data``) that are among the fold's training poses; where
-    it does not know it adds nothing. ``progress`` receives a line per kind of fold.
+    it does not know it adds nothing (:meth:`LayerFolds.after`: for any support).
+    ``progress`` receives a line per kind of fold.
     """
     sessions = session_index(data)
-    out: dict[str, tuple[np.ndarray, np.ndarray]] = {}
     idx_keep = np.flatnonzero(keep)
+    folds: dict[str, list] = {}
+    n_schemes: dict[str, int] = {}
     for kind in dict.fromkeys(s.kind for s in schemes):
         group = [s for s in schemes if s.kind == kind]
         if progress is not None:
             progress(f"  held-out errors on the {kind} folds ({sum(len(g.folds) for g in group)} folds)")
-        before, after = np.zeros(len(data)), np.zeros(len(data))
+        folds[kind], n_schemes[kind] = [], len(group)
         for scheme in group:
             for F in scheme.folds:
                 test = np.intersect1d(F, idx_keep)
-                pred = np.zeros((len(test), 3))
+                pred, ratio = np.zeros((len(test), 3)), np.ones(len(test))
                 for s, rows in sessions.items():
                     own = learnt[s or None]
                     train = np.setdiff1d(own, F)
@@ -123,8 +163,6 @@ def held_out(gps: dict[str | None, ResidualGP], learnt: dict[str | None, np.ndar
                     if len(train) >= 10 and at.any():
                         g = gps[s or None].refit(np.searchsorted(own, train))
                         x = data.q[test[at]]
-                        pred[at] = g.predict(x) * g.knows(x)[:, None]
-                before[test] += np.linalg.norm(Y[test], axis=1)
-                after[test] += np.linalg.norm(Y[test] - pred, axis=1)
-        out[kind] = (before[idx_keep] / len(group), after[idx_keep] / len(group))
-    return out
+                        pred[at], ratio[at] = g.predict(x), g.std_ratio(x)
+                folds[kind].append((np.searchsorted(idx_keep, test), Y[test], pred, ratio))
+    return LayerFolds(np.linalg.norm(Y[idx_keep], axis=1), folds, n_schemes)

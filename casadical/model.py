@@ -286,6 +286,8 @@ class Model:
             g = (ins, [xyz, ca.densify(ca.jacobian(xyz, p))], (1, 3), ())
         elif which in ("tau", "dq"):
             g = ([q, p, c], [S[which]], (1,), ())
+        elif which == "tau_q_jac":      # how the torques change with the readings (casadical.physics.first_order_sag)
+            g = ([q, p, c], [S["tau"], ca.densify(ca.jacobian(S["tau"], q))], (1,), ())
         # joint-space derivatives for inverse problems (corrected joint targets): through every
         # term, since deflections and gear errors depend on q too
         elif which == "fk_q_jac":
@@ -364,9 +366,9 @@ class Model:
         return True if N >= JIT_MIN_POSES else "cached"
 
     def per_pose_function(self, which: str, jit: bool | str = False) -> ca.Function:
-        """One of the per-pose Functions (``fk``, ``fk_jac``, ``fk_jac_angles``, ``cost``, ``tau``, ``dq``,
-        ``fk_q_jac``, ``flange``, ``flange_jac``; full-pose models also ``probe``, ``pose_fk``, ``pose_fk_jac``,
-        ``pose_cost``).
+        """One of the per-pose Functions (``fk``, ``fk_jac``, ``fk_jac_angles``, ``cost``, ``tau``, ``tau_q_jac``,
+        ``dq``, ``fk_q_jac``, ``flange``, ``flange_jac``; full-pose models also ``probe``, ``pose_fk``,
+        ``pose_fk_jac``, ``pose_cost``).
 
         ``jit``: False for CasADi's virtual machine; True for compiled code,
         from the disk cache (:mod:`casadical.jitcache`) or compiled now and
@@ -541,6 +543,13 @@ class Model:
         (:func:`~casadical.kinematics.drive_torques`)."""
         N, q, p, cov, _ = self._inputs(q, params, cov, None)
         return self._batch("tau", N)(q, p, cov)[0]
+
+    def torque_jacobian(self, q, params=None, cov=None) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`torques` (N, n) and their derivatives w.r.t. the joint readings (N, n, n): ``[k, i, j]`` is
+        d tau_i / d q_j at pose k."""
+        N, q, p, cov, _ = self._inputs(q, params, cov, None)
+        tau, J = self._batch("tau_q_jac", N)(q, p, cov)
+        return tau, J.reshape(N, self.robot.n, self.robot.n).transpose(0, 2, 1)
 
     def joint_offsets(self, q, params=None, cov=None) -> np.ndarray:
         """Sum of the terms' joint-angle offsets (rad), shape (N, n)."""

@@ -314,3 +314,72 @@ def sign_changes(signs: np.ndarray, what: str) -> tuple[bool, str]:
 
 def _show(p, v: float) -> str:
     return f"{p.to_display(v):.4g} {p.display_unit}"
+
+
+@dataclass
+class Sag:
+    """How far a compliant joint gives way at the data's poses, and what the model's first order leaves of it.
+
+    Attributes
+    ----------
+    joint : int
+    sag_rad : float
+        Its largest fitted deflection (``c tau + k3 tau^3``).
+    leaves_m : float
+        The largest effect on the measured point of the second-order term the model leaves out for it (m).
+    """
+
+    joint: int
+    sag_rad: float
+    leaves_m: float
+
+
+def first_order_sag(result, data: Measurements) -> tuple[list[Sag], float]:
+    """What the model's first-order compliance leaves out at the poses of ``data``.
+
+    The model takes each drive's gravity torque at the undeflected arm: its joints give way by ``d = K(tau(q))``
+    (``K``: ``c tau + k3 tau^3`` of each compliant joint). A real arm gives way until it is in equilibrium,
+    ``d = K(tau(q + d))``; to second order the model leaves out ``K'(tau) (dtau/dq) d`` of each joint's angle,
+    which moves the point by the angle Jacobian times it. Negligible for realistic stiffness (a sag of 1 mrad
+    leaves about 1e-3 of its effect); an arm made soft sags ten times more and it reaches tenths of a mm.
+
+    Returns
+    -------
+    sags : list of Sag
+        One per joint the fitted model holds compliant (a compliance ``c<j>`` above 0).
+    leaves_m : float
+        The largest effect on the point of the whole neglected term (every joint together), m.
+    """
+    P, m = result.parameters, result.model
+    n = m.robot.n
+    c = np.array([P[f"c{j}"].value if f"c{j}" in P else 0.0 for j in range(1, n + 1)])
+    k3 = np.array([P[f"cubic{j}"].value if f"cubic{j}" in P else 0.0 for j in range(1, n + 1)])
+    joints = [j for j in range(1, n + 1) if c[j - 1] > 0]
+    if not joints or len(data) == 0:
+        return [], 0.0
+    cov = m.covariates(data)
+    tau, dtau = m.torque_jacobian(data.q, P.values, cov)
+    d = c * tau + k3 * tau ** 3
+    second = (c + 3 * k3 * tau ** 2) * np.einsum("kij,kj->ki", dtau, d)
+    _, _, JA = m.predict_angle_jacobian(data.q, P.values, cov, result.base0)
+    moved = JA * second[:, None, :]                       # (N, 3, n): each joint's part
+    sags = [Sag(j, float(np.abs(d[:, j - 1]).max()), float(np.linalg.norm(moved[:, :, j - 1], axis=1).max()))
+            for j in joints]
+    return sags, float(np.linalg.norm(moved.sum(axis=2), axis=1).max())
+
+
+def sag_note(result, data: Measurements) -> str | None:
+    """A note when the first-order compliance leaves more than half the noise scale (per axis) at some pose of
+    ``data`` (:func:`first_order_sag`); None otherwise, or without a compliance or a noise scale."""
+    if result.uncertainty is None or not any(t.name == "joint_compliance" for t in result.model.terms):
+        return None
+    sags, leaves = first_order_sag(result, data)
+    sigma = result.uncertainty.sigma
+    if not sags or leaves <= 0.5 * sigma:
+        return None
+    worst = max(sags, key=lambda s: s.leaves_m)
+    which = ", ".join(f"joint {s.joint} sags up to {s.sag_rad * 1000:.3g} mrad" for s in sags)
+    return (f"{which}; the model's torques are those of the undeflected arm, which leaves up to "
+            f"{leaves * 1000:.3g} mm at these poses (joint {worst.joint}: {worst.leaves_m * 1000:.3g} mm; noise "
+            f"{sigma * 1000:.3g} mm per axis): a progressive spring or another cause of the joint may stand for it, "
+            "and the stiffness is the one of the undeflected arm")

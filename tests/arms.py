@@ -116,6 +116,26 @@ ARM7_DH = {
     "payload": {"mass_kg": 5},
 }
 
+#: a six-axis arm with three parallel axes (2, 3, 4; Hayati's beta on links 2 and 3), standard DH: not built in
+ARM6 = {
+    "name": "six-axis collaborative arm", "convention": "dh",
+    "joint": [
+        {"alpha_deg": 90, "a_m": 0.0, "d_m": 0.1625, "min_deg": -360, "max_deg": 360, "mass_kg": 3.7,
+         "com_m": [0, -0.02, 0]},
+        {"alpha_deg": 0, "a_m": -0.425, "beta_deg": 0.0, "d_m": 0.0, "min_deg": -360, "max_deg": 360, "mass_kg": 8.4,
+         "com_m": [0.2, 0, 0.11]},
+        {"alpha_deg": 0, "a_m": -0.3922, "beta_deg": 0.0, "d_m": 0.0, "min_deg": -360, "max_deg": 360,
+         "mass_kg": 2.3, "com_m": [0.15, 0, 0.02]},
+        {"alpha_deg": 90, "a_m": 0.0, "d_m": 0.1333, "min_deg": -360, "max_deg": 360, "mass_kg": 1.2,
+         "com_m": [0, 0, 0]},
+        {"alpha_deg": -90, "a_m": 0.0, "d_m": 0.0997, "min_deg": -360, "max_deg": 360, "mass_kg": 1.2,
+         "com_m": [0, 0, 0]},
+        {"alpha_deg": 0, "a_m": 0.0, "d_m": 0.0996, "min_deg": -360, "max_deg": 360, "mass_kg": 0.25,
+         "com_m": [0, 0, 0]},
+    ],
+    "tool": {"a_m": 0.0, "b_m": 0.0, "d_m": 0.08},
+}
+
 #: five-axis arm, MDH, beta on joint 3, whose joint 3 is driven through a parallelogram (a linear coupling): its
 #: reading q3 is the forearm's direction, the chain angle q3 - q2; joint 2's drive leaves the forearm's direction
 ARM5_COUPLED = {

@@ -1,24 +1,40 @@
-"""Diagnosis: a hidden effect must be named with its joint; noise alone must give no finding."""
+"""Diagnosis: a hidden effect must be named exactly (cause, joint, harmonic, scope); noise alone gives no finding.
+
+The data are made by the independent truth (tests/truth, no casadical code) and read as a user's files;
+tests/hidden.py judges the claims. Every effect on robots that are not built in: tests/test_hidden_effects.py.
+"""
 
 import json
 import math
+import tempfile
+from pathlib import Path
 
+import numpy as np
 import pytest
 
+import hidden
+from arms import ARM3
 from casadical import load_robot
 from casadical.cli import main
+from casadical.data import Measurements
 from casadical.diagnosis import DiagnosisSettings, diagnose
-from casadical.robot import robot_from_dict
-from casadical.simulate import Effects, simulate
-
-from arms import ARM3
+from casadical.simulate import Effects as SimEffects
+from casadical.simulate import simulate
+from truth import Effects, Session, measure, sample
 
 SEEDS = [0, 1, 2]
+YS100 = hidden.robot_doc("ys100")
+R = "robot"
 
 
-def run(robot, effects, seed, n_cal=80, n_val=200, **kw):
-    cal, truth = simulate(robot, n_cal, effects, seed=seed, **kw)
-    val, _ = simulate(robot, n_val, truth=truth, seed=seed + 500, **kw)
+def data(effects, seed, doc=YS100, n_cal=80, n_val=200, floor_z=0.0, thermal=False, drift=(0.0, 0.0, 0.0)):
+    """(case, robot, cal, val, true) of the truth hiding ``effects`` in ``doc``."""
+    c = hidden.Case(doc["name"], "", seed, effects, set(), drift=drift, thermal=thermal)
+    return (c, *hidden.make_data(c, n_cal, n_val, floor_z=floor_z, doc=doc))
+
+
+def run(effects, seed, **kw):
+    _, robot, cal, val, _ = data(effects, seed, **kw)
     return diagnose(robot, cal, val, DiagnosisSettings(seed=seed))
 
 
@@ -26,14 +42,13 @@ def causes(report):
     return [(f.candidate.cause, f.candidate.joint, f.candidate.harmonic) for f in report.findings]
 
 
-def assert_found(report, cause, joint=None, harmonic=None):
-    named = causes(report)
-    extra = [c for c in named if c[0] not in ("geometric", cause)]
-    assert any(c[0] == cause and (joint is None or c[1] == joint) and (harmonic is None or c[2] == harmonic)
-               for c in named), named
-    assert not extra, f"spurious findings {extra} in {named}"
-    f = next(f for f in report.findings if f.candidate.cause == cause)
-    assert f.gain_mm > 0 and "F =" in f.evidence
+def assert_named(report, expected, allowed=None):
+    """Exactly the ``expected`` causes (cause, joint, harmonic, scope), each with its evidence and the gain of
+    its step; the ambiguities ``allowed`` only where the report declares them."""
+    hidden.assert_claims(report, expected, allowed)
+    for f in report.findings:
+        if f.in_model and f.cause not in ("geometric", "unexplained"):
+            assert f.gain_mm > 0 and "F =" in f.evidence, (f.candidate, f.evidence)
     assert_gains_are_the_steps(report)
 
 
@@ -48,38 +63,38 @@ def assert_gains_are_the_steps(report):
 
 @pytest.mark.parametrize("seed", SEEDS)
 def test_compliant_joint(seed):
-    rep = run(load_robot("ys100"), Effects(stiffness={3: 1.2e6}), seed)
-    assert_found(rep, "joint_compliance", 3)
+    rep = run(Effects(stiffness={3: 1.2e6}), seed)
+    assert_named(rep, {("joint_compliance", 3, None, R)})
 
 
 @pytest.mark.parametrize("seed", SEEDS)
 def test_periodic_gear_error(seed):
-    rep = run(load_robot("ys100"), Effects(periodic=[(2, 23, math.radians(0.008), 1.0)]), seed)
-    assert_found(rep, "joint_periodic", 2, 23)
+    rep = run(Effects(periodic=[(2, 23, math.radians(0.008), 1.0)]), seed)
+    assert_named(rep, {("joint_periodic", 2, 23, R)})
 
 
 @pytest.mark.parametrize("seed", SEEDS)
 def test_encoder_scale(seed):
-    rep = run(load_robot("ys100"), Effects(encoder_scale={4: 4e-4}), seed)
-    assert_found(rep, "encoder_scale", 4)
+    rep = run(Effects(encoder_scale={4: 4e-4}), seed)
+    assert_named(rep, {("encoder_scale", 4, None, R)})
 
 
 @pytest.mark.parametrize("seed", SEEDS)
 def test_backlash(seed):
-    rep = run(load_robot("ys100"), Effects(backlash={2: math.radians(0.01)}), seed)
-    assert_found(rep, "backlash", 2)
+    rep = run(Effects(backlash={2: math.radians(0.01)}), seed)
+    assert_named(rep, {("backlash", 2, None, R)})
     assert rep.findings[-1].candidate.source == "torque"
 
 
 @pytest.mark.parametrize("seed", SEEDS)
 def test_thermal_expansion(seed):
-    rep = run(load_robot("ys100"), Effects(thermal_alpha=15e-6, temperature=(15.0, 35.0)), seed)
-    assert_found(rep, "thermal_expansion")
+    rep = run(Effects(thermal_alpha=15e-6, t_ref=25.0), seed, thermal=True)
+    assert_named(rep, {("thermal_expansion", None, None, R)})
 
 
 @pytest.mark.parametrize("seed", SEEDS)
 def test_noise_only_gives_no_further_finding(seed):
-    rep = run(load_robot("ys100"), Effects(), seed)
+    rep = run(Effects(), seed)
     assert causes(rep) == [("geometric", None, None)]
     assert rep.final_model == "kinematic"
 
@@ -89,31 +104,42 @@ PLANAR_ARM = {**ARM3, "payload": {"mass_kg": 20}}
 
 @pytest.mark.parametrize("seed", SEEDS)
 def test_other_robot_compliance(seed):
-    robot = robot_from_dict(PLANAR_ARM)
-    rep = run(robot, Effects(stiffness={2: 4e5}), seed, n_cal=60, n_val=120, floor_z=None)
-    assert_found(rep, "joint_compliance", 2)
+    rep = run(Effects(stiffness={2: 4e5}), seed, doc=PLANAR_ARM, n_cal=60, n_val=120, floor_z=None)
+    assert_named(rep, {("joint_compliance", 2, None, R)})
 
 
 @pytest.mark.parametrize("seed", SEEDS)
 @pytest.mark.parametrize("gear", [(2, 9), (3, 7)])
 def test_closed_chain_heavy_arm_compliance_and_gear_error(seed, gear):
-    """HH800 (four-bar, 2 t links): a compliance on joint 2 and a gear error, and nothing else named.
+    """HH800 (four-bar, 2 t links): a compliance of drive 2 (the TLBO paper's k2, a 0.6 mrad sag) and a gear
+    error, and nothing else named; the first-order compliance is enough (no note).
 
     Two things used to add a cause: the fit stopped short of the truth until a fitted compliance could free the
     tilt of joint 1 against gravity (a spurious first harmonic of joint 1 took up the rest), and a compliance of
     joint 3, accepted (physical causes first) while the joint-3 gear error was not yet in the model, stayed after
     it was found (the final check drops it)."""
     j, h = gear
-    rep = run(load_robot("hh800"), Effects(stiffness={2: 2e6}, periodic=[(j, h, math.radians(0.01), 0.4)]), seed,
-              n_cal=150, n_val=300)
-    truth = [("geometric", None, None), ("joint_compliance", 2, None), ("joint_periodic", j, h)]
-    assert sorted(causes(rep), key=str) == sorted(truth, key=str), causes(rep)
-    assert_gains_are_the_steps(rep)
+    rep = run(Effects(stiffness={2: 6.159e7}, periodic=[(j, h, math.radians(0.01), 0.4)]), seed,
+              doc=hidden.robot_doc("hh800"), n_cal=150, n_val=300)
+    assert_named(rep, {("joint_compliance", 2, None, R), ("joint_periodic", j, h, R)})
+    assert not [n for n in rep.notes if "undeflected arm" in n]
+
+
+def test_a_soft_heavy_arm_is_said_to_sag_beyond_the_first_order():
+    """The same HH800 made 30 times softer (k2 = 2e6) sags 18 mrad: the model's torques, those of the
+    undeflected arm, leave 0.37 mm there (the truth's equilibrium), and the report says so. (It names
+    further causes of joint 2 for it today: docs/diagnosis.md, known limits.)"""
+    rep = run(Effects(stiffness={2: 2e6}, periodic=[(3, 7, math.radians(0.01), 0.4)]), 1,
+              doc=hidden.robot_doc("hh800"), n_cal=150, n_val=300)
+    note = [n for n in rep.notes if "undeflected arm" in n]
+    assert note and "joint 2 sags up to" in note[0], rep.notes
+    sag, leaves = (float(note[0].split(x)[1].split()[0]) for x in ("sags up to ", "leaves up to "))
+    assert 15 < sag < 22 and 0.25 < leaves < 0.5, note
 
 
 def test_cli_json_contract_and_html(tmp_path):
     robot = load_robot("ys100")
-    cal, truth = simulate(robot, 60, Effects(stiffness={2: 1.5e6}), seed=9)
+    cal, truth = simulate(robot, 60, SimEffects(stiffness={2: 1.5e6}), seed=9)
     val, _ = simulate(robot, 80, truth=truth, seed=10)
     cal.write_csv(tmp_path / "cal.csv")
     val.write_csv(tmp_path / "val.csv")
@@ -134,12 +160,11 @@ def test_cli_json_contract_and_html(tmp_path):
 @pytest.mark.parametrize("seed", SEEDS)
 def test_drift_of_the_measurement_frame(seed):
     # 0.6 um per second along x and z, one pose a second: 48 um over the 80 calibration rows
-    rep = run(load_robot("ys100"), Effects(drift=(0.6e-6, 0.0, -0.6e-6)), seed)
-    assert_found(rep, "drift")
+    rep = run(Effects(), seed, drift=(0.6e-6, 0.0, -0.6e-6))
+    assert_named(rep, {("drift", None, None, "session")})
 
 
 def without_time(data):
-    from casadical.data import Measurements
     return Measurements({k: v for k, v in data.columns.items() if k != "time_s"}, data.path)
 
 
@@ -148,16 +173,14 @@ def test_drift_needs_times(seed, tmp_path, capsys):
     """The same drift in files without time_s: the row numbers are never taken for times, so no drift is
     fitted or named; declaring the rows' spacing (--row-spacing-s) finds it again. A model with a drift
     asked of such a file is one line naming the column."""
-    robot = load_robot("ys100")
-    cal, truth = simulate(robot, 80, Effects(drift=(0.6e-6, 0.0, -0.6e-6)), seed=seed)
-    val, _ = simulate(robot, 200, truth=truth, seed=seed + 500)
+    _, robot, cal, val, _ = data(Effects(), seed, drift=(0.6e-6, 0.0, -0.6e-6))
     cal, val = without_time(cal), without_time(val)
     rep = diagnose(robot, cal, val, DiagnosisSettings(seed=seed))
     assert "drift" not in [c[0] for c in causes(rep)]
     paths = {}
-    for name, data in (("cal", cal), ("val", val)):
+    for name, d in (("cal", cal), ("val", val)):
         paths[name] = str(tmp_path / f"{name}.csv")
-        data.write_csv(paths[name])
+        d.write_csv(paths[name])
     out = str(tmp_path / "d.json")
     assert main(["diagnose", "ys100", paths["cal"], "--validate", paths["val"], "--json", out, "-q",
                  "--row-spacing-s", "1", "--seed", str(seed)]) == 0
@@ -170,48 +193,37 @@ def test_drift_needs_times(seed, tmp_path, capsys):
 
 
 def test_ambiguous_causes_are_reported():
-    """Encoder scale over a small joint range looks like a first harmonic: both are named."""
-    robot = load_robot("ys100")
-    from dataclasses import replace
-    joints = list(robot.joints)
-    joints[1] = replace(joints[1], min=math.radians(40), max=math.radians(80))
-    narrow = replace(robot, joints=joints)
-    rep = run(narrow, Effects(encoder_scale={2: 6e-4}), 1)
+    """Encoder scale over a small joint range looks like a first harmonic: the report names one, declares the
+    other, and says what measurement tells them apart."""
+    narrow = {**YS100, "joint": [dict(j) for j in YS100["joint"]]}
+    narrow["joint"][1].update(min_deg=40.0, max_deg=80.0)
+    rep = run(Effects(encoder_scale={2: 6e-4}), 1, doc=narrow)
+    scale, first = ("encoder_scale", 2, None, R), ("joint_periodic", 2, 1, R)
+    assert_named(rep, {scale}, allowed={scale: {first}})
     f = [f for f in rep.findings if f.candidate.cause in ("encoder_scale", "joint_periodic")]
-    assert f and f[0].candidate.joint == 2
     others = {(a["cause"], a.get("joint")) for a in f[0].ambiguous_with}
     assert ("joint_periodic", 2) in others or ("encoder_scale", 2) in others, f[0].ambiguous_with
     assert all(a["tell_apart"] for a in f[0].ambiguous_with)
 
 
-def _noise_floor(truth, val):
-    """Validation mean error of the true model itself: the best any model can do on these poses."""
-    import numpy as np
-    return float(np.mean(np.linalg.norm(truth.predict(val) - val.xyz, axis=1)) * 1000)
-
-
 @pytest.mark.parametrize("seed", SEEDS)
 def test_progressive_stiffness_is_compliance_not_backlash(seed):
-    """A joint that stiffens with load: compliance (and its cubic term), never backlash or a gear error."""
+    """A joint that stiffens with load: its compliance and its cubic term, never backlash or a gear error."""
     # the cubic term takes back 30 % of the linear deflection at the largest torque (~6000 N m)
-    rep = run(load_robot("ys100"), Effects(stiffness={2: 1.5e6}, cubic={2: -5e-15}), seed)
-    named = causes(rep)
-    assert ("joint_compliance", 2, None) in named or ("nonlinear_stiffness", 2, None) in named, named
-    assert not [c for c in named if c[0] not in ("geometric", "joint_compliance", "nonlinear_stiffness")], named
+    rep = run(Effects(stiffness={2: 1.5e6}, cubic={2: -5e-15}), seed)
+    assert_named(rep, {("joint_compliance", 2, None, R), ("nonlinear_stiffness", 2, None, R)})
     assert rep.final_validation.mean_mm < 0.04      # noise 0.02 mm per axis: the spring is modelled
 
 
 @pytest.mark.parametrize("seed", SEEDS)
 def test_thermal_expansion_of_two_links(seed):
-    """Two links growing with temperature (one coefficient each): the final model reaches the noise floor."""
-    robot = load_robot("ys100")
-    eff = Effects(thermal_links={2: 25e-6, 3: -15e-6}, temperature=(15.0, 35.0))
-    cal, truth = simulate(robot, 80, eff, seed=seed)
-    val, _ = simulate(robot, 200, truth=truth, seed=seed + 500)
+    """Two links growing with temperature (one coefficient each): both named, and the final model reaches the
+    noise floor (the truth's own error)."""
+    c, robot, cal, val, true = data(Effects(thermal_links={2: 25e-6, 3: -15e-6}, t_ref=25.0), seed, thermal=True)
     rep = diagnose(robot, cal, val, DiagnosisSettings(seed=seed))
-    assert any(c[0] == "thermal_expansion" for c in causes(rep)), causes(rep)
-    assert rep.final_validation.mean_mm <= 1.3 * _noise_floor(truth, val), (rep.final_model,
-                                                                             rep.final_validation.mean_mm)
+    assert_named(rep, {("thermal_expansion", 2, None, R), ("thermal_expansion", 3, None, R)})
+    floor = np.mean(np.linalg.norm(hidden.noise_free(c, true, val) - val.xyz, axis=1)) * 1000
+    assert rep.final_validation.mean_mm <= 1.3 * floor, (rep.final_model, rep.final_validation.mean_mm)
 
 
 @pytest.mark.parametrize("seed", SEEDS)
@@ -219,18 +231,9 @@ def test_structure_no_cause_explains_is_unexplained(seed):
     """An angle error of joint 2 that grows with the square of its reading is in no catalogue: it is reported
     as unexplained structure on joint 2 and kept out of the model, and never named an encoder scale error
     (the trend it looks like over part of the range). Known limit (docs/diagnosis.md): physical terms of
-    the same joints (compliance) absorb part of it, and in one seed of three a harmonic of the rest passes."""
-    robot = load_robot("ys100")
-    cal, truth = simulate(robot, 120, Effects(), seed=seed)
-    val, _ = simulate(robot, 200, truth=truth, seed=seed + 500)
-
-    def bend(d):
-        # first-order effect of the angle error e(q2) = k (q2 - 0.6)^2 on the tool point
-        _, J = truth.model.predict_jacobian(d.q, truth.values, truth.model.covariates(d), truth.base0)
-        e = 1e-4 * (d.q[:, 1] - 0.6) ** 2
-        xyz = d.xyz + J[:, :, truth.model.parameters.index("theta2")] * e[:, None]
-        return d.with_positions(xyz)
-    rep = diagnose(robot, bend(cal), bend(val), DiagnosisSettings(seed=seed))
+    the same joints (compliance) absorb part of it, and in one seed of three a harmonic of the rest passes:
+    the named set is not asserted here (benchmarks/study_hidden_effects.py reports it)."""
+    rep = run(Effects(reading_error={2: lambda q: 1e-4 * (q - 0.6) ** 2}), seed, n_cal=120)
     named = causes(rep)
     assert ("encoder_scale", 2, None) not in named, named
     f = [f for f in rep.findings if f.cause == "unexplained" and f.candidate.joint == 2]
@@ -241,16 +244,14 @@ def test_structure_no_cause_explains_is_unexplained(seed):
 def test_transfer_to_another_series():
     """A compliant joint found on one series holds on another (tracker elsewhere): the finding transfers
     and the diagnosed model beats the kinematic one there, both ways of travelling."""
-    from dataclasses import replace as dreplace
-
-    from casadical.kinematics import base_pose_matrix
-    from casadical.model import pose_to_base0
-    robot = load_robot("ys100")
-    cal, truth = simulate(robot, 80, Effects(stiffness={3: 1.2e6}), seed=4)
-    val, _ = simulate(robot, 100, truth=truth, seed=5)
-    moved = dreplace(truth, base0=pose_to_base0(base_pose_matrix((1.5, -0.5, 0.2), (0.0, 0.01, 0.8))))
-    other, _ = simulate(robot, 200, truth=moved, seed=6)
+    c, robot, cal, val, true = data(Effects(stiffness={3: 1.2e6}), 4, n_val=100)
+    rng = np.random.default_rng(6)
+    elsewhere = Session("A", base_xyz=(1.5, -0.5, 0.2), base_rpy=(0.0, 0.01, 0.8))
+    with tempfile.TemporaryDirectory() as tmp:
+        path = measure(true, sample(true, 200, rng), rng, session=elsewhere).write_csv(Path(tmp) / "other.csv")
+        other = Measurements.read_csv(path, n_joints=6, require_positions=True)
     rep = diagnose(robot, cal, val, DiagnosisSettings(seed=4), other=other)
+    assert_named(rep, {("joint_compliance", 3, None, R)})
     f = next(f for f in rep.findings if f.cause == "joint_compliance")
     assert f.transfer["verdict"] == "transfers", f.transfer
     t = rep.transfer

@@ -68,8 +68,41 @@ def test_planned_poses_resolve_a_narrow_range_random_ones_do_not(tmp_path, capsy
     assert out["plan"]["criterion"]["ds_efficiency"] > 0.95
 
 
+def test_planned_poses_tell_the_robots_cause_from_a_sessions_own(tmp_path, capsys):
+    """Two sessions of a 5-axis DH arm with an encoder scale error of joint 1 (200 ppm, the robot's): session A
+    covers joint 1's range, session B held it within 6 deg, where the scale is a turn of B's base. The report
+    names the scale and declares it ambiguous with session A's own; the poses planned in session B (--session B,
+    15 of 500 candidates move joint 1) let the diagnosis name the robot's alone, 10 random ones do not."""
+    out = loop(SCENARIOS["robot or session"], 0, tmp_path)
+    assert not out["first"], out["first_findings"]
+    q = out["plan"]["questions"][0]
+    assert q["kind"] == "scope" and "the robot's or session A's own" in q["text"], q["text"]
+    assert q["before"]["power"] < 0.05 and q["planned"]["power"] > 0.9 > q["random"]["power"]
+    assert out["far_picked"] >= 5 and out["far_random"] <= 1
+    assert out["planned"], out["planned_findings"]
+    assert not out["random"], out["random_findings"]
+    head = open(tmp_path / "next.csv").readline().strip().split(",")
+    assert head[-1] == "session" and all(r.strip().endswith(",B") for r in open(tmp_path / "next.csv").readlines()[1:])
+
+
+def test_planned_poses_tell_compliance_from_encoder_scale(tmp_path, capsys):
+    """Compliance of joint 2 of the 5-axis arm measured with joints 3 and 4 held: joint 2's torque follows its
+    reading, and the report cannot tell the compliance from a function of the reading (an encoder scale, a first
+    harmonic). The planned poses move joints 3 and 4 (the torque changes at the same q2): the diagnosis then names
+    the compliance alone; 10 random candidates leave the ambiguity."""
+    out = loop(SCENARIOS["compliance or scale"], 1, tmp_path)
+    assert not out["first"], out["first_findings"]
+    kinds = {(q["kind"], q["text"].split(" (")[0]) for q in out["plan"]["questions"]}
+    assert ("ambiguous", "compliance j2 or encoder scale j2?") in kinds, kinds
+    assert out["far_picked"] >= 5 and out["far_random"] <= 1
+    assert out["planned"], out["planned_findings"]
+    assert not out["random"], out["random_findings"]
+    for q in out["plan"]["questions"]:
+        assert q["planned"]["power"] > 0.9 and q["random"]["power"] < 0.1 and q["before"]["power"] < 0.01
+
+
 @pytest.mark.slow
-@pytest.mark.parametrize("name", ["narrow range", "harmonic band"])
+@pytest.mark.parametrize("name", list(SCENARIOS))
 def test_planned_poses_resolve_what_random_ones_do_not_in_most_seeds(tmp_path, name):
     """Three seeds: the planned poses resolve what M random candidates do not in at least 2 of 3."""
     wins = 0
@@ -85,7 +118,8 @@ def test_report_mode_errors(tmp_path, capsys):
     env = setup(SCENARIOS["narrow range"], 0, tmp_path)
     p = env["paths"]
     rep = str(tmp_path / "rep.json")
-    assert main(["diagnose", p["robot"], p["cal"], "--validate", p["val"], "--json", rep, "--no-blackbox", "-q"]) == 0
+    assert main(["diagnose", p["robot"], *p["cal"], "--validate", *p["val"], "--json", rep, "--no-blackbox",
+                 "-q"]) == 0
     doc = json.loads(open(rep).read())
     assert doc["inputs"]["data"] == ["cal.csv"] and doc["final"]["sigma_mm"] > 0
     out = str(tmp_path / "n.csv")
@@ -125,7 +159,7 @@ def test_every_kind_of_question_is_read_and_planned(tmp_path, capsys):
     env = setup(SCENARIOS["narrow range"], 0, tmp_path)
     p = env["paths"]
     rep = tmp_path / "rep.json"
-    assert main(["diagnose", p["robot"], p["cal"], "--validate", p["val"], "--json", str(rep), "--no-blackbox",
+    assert main(["diagnose", p["robot"], *p["cal"], "--validate", *p["val"], "--json", str(rep), "--no-blackbox",
                  "-q"]) == 0
     doc = json.loads(rep.read_text())
     for e in doc["final"]["parameters"]:
@@ -147,3 +181,55 @@ def test_every_kind_of_question_is_read_and_planned(tmp_path, capsys):
             assert planned is not None
             assert q["random"]["std"][name] is None or planned < q["random"]["std"][name]
             assert q["before"]["std"][name] is None or planned < q["before"]["std"][name]
+
+
+def test_session_options_and_a_sessions_own_structure(tmp_path, capsys):
+    """--session: one line of error where it cannot hold; a structure the report could not name in one session
+    (an unexplained harmonic of session A, written into a real report of two sessions) asks which harmonic and
+    whether it is the robot's, and the poses planned in session B answer the scope question better than random
+    ones."""
+    env = setup(SCENARIOS["robot or session"], 0, tmp_path)
+    p = env["paths"]
+    rep = tmp_path / "rep.json"
+    assert main(["diagnose", p["robot"], *p["cal"], "--validate", *p["val"], "--json", str(rep), "--no-blackbox",
+                 "-q"]) == 0
+    out = str(tmp_path / "n.csv")
+    capsys.readouterr()
+    with_column = tmp_path / "cand_s.csv"
+    lines = open(p["cand"]).read().splitlines()
+    with_column.write_text("\n".join([lines[0] + ",session"] + [r + ",B" for r in lines[1:3]] + [lines[3] + ",C"]
+                                     + [r + ",B" for r in lines[4:]]) + "\n")
+    cases = [
+        ([p["cand"], "--session", "C"], "--session C: none of the measured sessions (A, B)"),
+        ([str(with_column), "--session", "B"], "the candidates name their sessions"),
+        ([str(with_column)], "session 'C' is none of the measured sessions"),
+    ]
+    for args, words in cases:
+        assert main(["plan-poses", str(rep), *args, "-m", "5", "--out", out]) == 2
+        err = capsys.readouterr().err.strip()
+        assert len(err.splitlines()) == 1 and words in err, err
+    assert "row 4" in err                      # the file line of the first candidate of an unknown session
+    assert main(["plan-poses", p["robot"], p["cand"], "-m", "40", "--out", out, "--session", "B"]) == 2
+    assert "--session is for plan-poses REPORT.json" in capsys.readouterr().err
+    # an unexplained harmonic of session A only
+    doc = json.loads(rep.read_text())
+    cand = {"cause": "joint_periodic", "joint": 3, "harmonic": 7, "session": "A"}
+    doc["findings"].append({"cause": "unexplained", "joint": 3, "in_model": False, "holds_up": {"structures": [
+        {"candidate": cand, "band": [7, 8], "values": {"gear3_s7@A": 2e-5, "gear3_c7@A": -1e-5}}]}})
+    rep.write_text(json.dumps(doc))
+    from casadical.planning.questions import open_questions
+
+    qs = open_questions(doc, {})
+    texts = [(q.kind, q.text.split(" (finding")[0]) for q in qs]
+    assert ("unexplained", "joint 3 in session A: which harmonic, 7..8?") in texts, texts
+    assert ("scope", "periodic j3 h7 seen in session A: session A's own or the robot's?") in texts, texts
+    n = 1 + [k for k, _ in texts].index("scope", 1)
+    scope = qs[n - 1]
+    assert scope.interest == ["gear3_s7@A", "gear3_c7@A", "gear3_s7", "gear3_c7"]
+    assert scope.tested == {"gear3_s7": 2e-5, "gear3_c7": -1e-5}
+    plan = tmp_path / "plan.json"
+    assert main(["plan-poses", str(rep), p["cand"], "-m", "8", "--out", out, "--session", "B", "--question", str(n),
+                 "--json", str(plan), "-q"]) == 0
+    q = json.loads(plan.read_text())["questions"][0]
+    for name in ("gear3_s7", "gear3_c7"):
+        assert q["planned"]["std"][name] < q["random"]["std"][name] < q["before"]["std"][name]

@@ -3,27 +3,26 @@
 import numpy as np
 import pytest
 
-from casadical.calibration import calibrate, load_calibration
+from casadical.calibration import load_calibration
 from casadical.cli import main
 from casadical.data import Measurements
-from casadical.robot import robot_from_dict
-from casadical.simulate import Effects, sample_poses, simulate
+from truth import Arm, Effects, TrueRobot, measure, sample
 
 from arms import ARM4, to_toml
 
 
 @pytest.mark.parametrize("seed", [0, 1])
 def test_predict_std_matches_a_monte_carlo_of_the_covariance(tmp_path, seed):
-    """A compliant 4-axis MDH arm (not built in) calibrated on 30 poses: the std predict --std writes at 40
-    other poses is within 10 % of the spread of the predictions of 4,000 parameter vectors drawn from the
-    fit's covariance (what the calibration JSON holds, read back)."""
-    robot = robot_from_dict(ARM4, "arm4")
+    """A compliant 4-axis MDH arm (not built in; measured by the independent truth) calibrated on 30 poses: the
+    std predict --std writes at 40 other poses is within 10 % of the spread of the predictions of 4,000
+    parameter vectors drawn from the fit's covariance (what the calibration JSON holds, read back)."""
     (tmp_path / "arm.toml").write_text(to_toml(ARM4))
-    cal, truth = simulate(robot, 30, Effects(stiffness={2: 5e5}, noise=50e-6), seed=seed)
-    cal.write_csv(tmp_path / "cal.csv")
+    rng = np.random.default_rng(seed)
+    arm = TrueRobot.draw(Arm.from_dict(ARM4), Effects(stiffness={2: 5e5}), rng)
+    measure(arm, sample(arm, 30, rng), rng, noise=50e-6).write_csv(tmp_path / "cal.csv")
     assert main(["calibrate", str(tmp_path / "arm.toml"), str(tmp_path / "cal.csv"), "--model",
                  "kinematic+compliance", "--out", str(tmp_path / "cal.json")]) == 0
-    q = sample_poses(robot, 40, np.random.default_rng(seed + 7))
+    q = sample(arm, 40, np.random.default_rng(seed + 7))
     Measurements.from_arrays(q).write_csv(tmp_path / "poses.csv")
     assert main(["predict", str(tmp_path / "cal.json"), str(tmp_path / "poses.csv"), "--out",
                  str(tmp_path / "out.csv"), "--std"]) == 0
@@ -47,9 +46,9 @@ def test_predict_std_matches_a_monte_carlo_of_the_covariance(tmp_path, seed):
 
 
 def test_predict_std_needs_a_calibration(tmp_path, capsys):
-    robot = robot_from_dict(ARM4, "arm4")
     (tmp_path / "arm.toml").write_text(to_toml(ARM4))
-    Measurements.from_arrays(sample_poses(robot, 5, np.random.default_rng(0))).write_csv(tmp_path / "p.csv")
+    Measurements.from_arrays(sample(TrueRobot(Arm.from_dict(ARM4)), 5, np.random.default_rng(0))).write_csv(
+        tmp_path / "p.csv")
     capsys.readouterr()
     assert main(["predict", str(tmp_path / "arm.toml"), str(tmp_path / "p.csv"), "--out", str(tmp_path / "o.csv"),
                  "--std"]) == 2

@@ -747,15 +747,16 @@ def test_diagnosis_report_maps_where_the_model_is_accurate(browser, tmp_path):
     joint 2 measured over 40 deg of its 180)."""
     from casadical.predictive import accuracy_map
 
-    robot = robot_from_dict(ARM5, "arm5")
+    import truth
+
     (tmp_path / "arm.toml").write_text(to_toml(ARM5))
     rng = np.random.default_rng(0)
-    q = sample_poses(robot, 160, rng)
+    arm = truth.TrueRobot.draw(truth.Arm.from_dict(ARM5), truth.Effects(stiffness={2: 4e5}), rng)
+    q = truth.sample(arm, 160, rng)
     q[:, 1] = np.radians(rng.uniform(40, 80, len(q)))
-    cal, truth = simulate(robot, q[:60], Effects(stiffness={2: 4e5}), seed=0)
-    val, _ = simulate(robot, q[60:], truth=truth, seed=1)
-    cal.write_csv(tmp_path / "cal.csv")
-    val.write_csv(tmp_path / "val.csv")
+    truth.measure(arm, q[:60], rng).write_csv(tmp_path / "cal.csv")
+    truth.measure(arm, q[60:], rng).write_csv(tmp_path / "val.csv")
+    cal = Measurements.read_csv(tmp_path / "cal.csv")
     assert main(["diagnose", str(tmp_path / "arm.toml"), str(tmp_path / "cal.csv"), "--validate",
                  str(tmp_path / "val.csv"), "--html", str(tmp_path / "r.html"), "--out", str(tmp_path / "f.json"),
                  "--map-joints", "2,3", "--no-blackbox", "-q"]) == 0

@@ -6,7 +6,6 @@ the residual; the note says at how many of the calibration poses.
 
 from __future__ import annotations
 
-from ..accuracy import fit_layer, layer_coverage, with_layer
 from .state import CalibrationRun
 
 
@@ -14,6 +13,8 @@ def add_accuracy_layer(run: CalibrationRun) -> None:
     """With ``+gp_compensator``: replaces ``result`` by one with the layer added to its model."""
     if not run.want_gp:
         return
+    from ..accuracy import fit_layer, layer_coverage, with_layer   # here: the layer, only for +gp_compensator
+
     result, data = run.result, run.data
     gps, _ = fit_layer(result, data)
     result = with_layer(result, gps, data, "gp_compensator: a Gaussian process of the residual per session, "

@@ -2,14 +2,15 @@
 
 :mod:`casadical.physics` judges each fitted cause: told apart from the
 geometry, meaningful over the data (bounds and significance have notes of
-their own).
+their own); and says when a compliant joint sags so far that the model's
+first order (torques of the undeflected arm) leaves more than the noise.
 """
 
 from __future__ import annotations
 
 from ..data import Measurements
 from ..errors import PhysicsWarning
-from ..physics import term_causes, violations
+from ..physics import sag_note, term_causes, violations
 from ..result import CalibrationResult
 from .state import CalibrationRun
 
@@ -17,14 +18,16 @@ from .state import CalibrationRun
 def physics_notes(result: CalibrationResult, data: Measurements) -> list[str]:
     """Notes on the terms that, as fitted, are not the physical cause their names say
     (:mod:`casadical.physics`: told apart from the geometry, meaningful over the data; bounds and significance
-    have notes of their own)."""
+    have notes of their own), and on a compliance whose first order leaves more than the noise
+    (:func:`~casadical.physics.sag_note`)."""
     out = []
     for cause in term_causes(result):
         free = [n for n in cause.parameters if not result.parameters[n].fixed]   # the fixed: said by the analysis
         for v in violations(result, data, free) if free else ():
             if v.rule in ("geometry", "physics"):
                 out.append(f"{cause.label}: not physics as fitted: {v.text}")
-    return out
+    sag = sag_note(result, data)
+    return out + ([sag] if sag else [])
 
 
 def note_physics(run: CalibrationRun) -> None:

@@ -66,12 +66,16 @@ def start_pose(run: CalibrationRun) -> None:
             p.value = 0.0
     start_xyz = robot_frame(model, params, data)
     own = None
-    if prior is not None:
+    # the rule that matches what is refitted: a calibration taken further with its geometry (or tool) estimated
+    # again is judged as the robot is (its nominal model, base pose fitted); with its base pose alone, by its own
+    refits = prior is not None and any(p.group != "base" and not p.fixed for p in params.select(term="geometric"))
+    if prior is not None and not refits:
         label = robot.source if robot.source.lower().endswith(".json") else f"of robot {robot.name}"
         own = (label, prior.calibration.mean_mm if prior.calibration else None)
     check_poses(data, robot, allow_outside_limits=opts.allow_outside_limits,
                 angles_are_degrees=opts.angles_are_degrees, positions_are_mm=opts.positions_are_mm,
-                allow_mismatch=opts.allow_mismatch, predicted=start_xyz, nominal=prior is None, calibration=own)
+                allow_mismatch=opts.allow_mismatch, predicted=None if refits else start_xyz,
+                nominal=prior is None, calibration=own)
     try:
         run.base0 = align_sessions(model, data, start_xyz, data.xyz)
     except IdentifiabilityError as e:      # fewer than 3 poses (of a session), or all on a line

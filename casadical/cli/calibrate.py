@@ -86,10 +86,14 @@ def run(args) -> int:
     status = Status(args.quiet)
     with status.slow(f"calibrate: fitting model {args.model} to {len(data)} poses ({args.solver}, robust loss "
                      f"{args.robust})"):
-        result = calibrate(robot, data, args.model, args.solver, solver_options=opts,
-                           fix=tuple(f.strip() for f in args.fix.split(",") if f.strip()), robust=args.robust,
-                           session_tools=args.session_tool, position_only=args.position_only,
-                           keep_compensator=args.keep_compensator, **check_options(args))
+        # a calibration taken further judges each cause it carries on these poses (casadical.carry)
+        fit = calibrate
+        if isinstance(robot, CalibrationResult):
+            from ..carry import carry as fit
+        result = fit(robot, data, args.model, solver=args.solver, solver_options=opts,
+                     fix=tuple(f.strip() for f in args.fix.split(",") if f.strip()), robust=args.robust,
+                     session_tools=args.session_tool, position_only=args.position_only,
+                     keep_compensator=args.keep_compensator, **check_options(args))
     if val is not None:     # the checks predict makes, then the held-out errors, before anything is written
         result.validate(val, name=f"fitted to {' '.join(args.data)}", **check_options(args))
     result.save(args.out, overwrite=args.force)

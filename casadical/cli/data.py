@@ -7,7 +7,6 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
-from ..importers.column_map import presets
 from .common import add_force, check_outputs, int_at_least, write_json
 
 
@@ -40,12 +39,19 @@ def register(sub) -> None:
                                    "measured point (mm or m; directly or as target + deviation), the "
                                    "separator and decimal mark, and what else to keep; see docs/formats.md.")
     p.add_argument("source", help="tracker file (text with a header row)")
-    p.add_argument("--map", action="append", required=True, dest="maps",
-                   metavar="MAP.toml|PRESET|KEY=VALUE",
-                   help="column mapping: a TOML file or a preset (" + ", ".join(sorted(presets())) + "), "
-                        "then any key=value pairs that set or override keys (repeat --map)")
+    maps = p.add_argument("--map", action="append", required=True, dest="maps",
+                          metavar="MAP.toml|PRESET|KEY=VALUE",
+                          help="column mapping: a TOML file or a preset ({presets}), "
+                               "then any key=value pairs that set or override keys (repeat --map)")
     _add_import_options(p)
     p.set_defaults(func=run_import)
+
+    def complete_help(parser) -> None:   # the presets need the importers package: only for --help
+        from ..importers.column_map import presets
+
+        maps.help = maps.help.format(presets=", ".join(sorted(presets())))
+
+    p.complete_help = complete_help
 
     p = sub.add_parser("import-ur10", help="convert the UR10 (ipa) raw format to the measurement CSV",
                        description="Convert a raw UR10 file (';' separated, decimal comma, radians) "

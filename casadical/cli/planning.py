@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import argparse
 import csv
 import math
 import time
@@ -10,7 +11,6 @@ import numpy as np
 
 from ..errors import IdentifiabilityError, InputError
 from ..files import atomic_open
-from ..planning.selectors import METHODS
 from .common import (Status, add_checks, add_force, add_json, add_quiet, add_urdf_chain, check_options, check_outputs,
                      float_in, human_stream, int_at_least, robot_from_args, write_json)
 
@@ -35,11 +35,15 @@ def register(sub) -> None:
                    help="with REPORT.json: the poses the report was made from (default: the DATA files it names)")
     p.add_argument("--question", type=int_at_least(1), metavar="N",
                    help="with REPORT.json: plan for open question N alone (default: all of them)")
+    p.add_argument("--session", metavar="S",
+                   help="with REPORT.json of several sessions: the candidates are to be measured in session S (a "
+                        "candidate file without a session column; default: the first session); SELECTED.csv gets "
+                        "a session column saying so")
     p.add_argument("--random-sets", type=int_at_least(1), default=200, metavar="K",
                    help="with REPORT.json: random sets of M candidates the plan is compared with (default: 200)")
-    p.add_argument("--method", choices=METHODS, default="d-optimal",
-                   help="d-optimal (certified relaxation + exchange), ga (the GA paper's selector, "
-                        "fitness O1) or random (default: %(default)s)")
+    method = p.add_argument("--method", type=_method, default="d-optimal",
+                            help="d-optimal (certified relaxation + exchange), ga (the GA paper's selector, "
+                                 "fitness O1) or random (default: %(default)s)")
     p.add_argument("--model", default="kinematic+compliance",
                    help="error model whose parameters the poses must identify (default: %(default)s)")
     p.add_argument("--seed", type=int, default=0, help="seed of the ga and random methods (default: 0)")
@@ -51,6 +55,13 @@ def register(sub) -> None:
     add_urdf_chain(p)
     add_force(p)
     p.set_defaults(func=cmd_plan_poses)
+
+    def complete_help(parser) -> None:   # the method names need the planning package: only for --help
+        from ..planning.selectors import METHODS
+
+        method.metavar = "{" + ",".join(METHODS) + "}"
+
+    p.complete_help = complete_help
 
     p = sub.add_parser(
         "candidates", help="generate candidate poses within the joint limits and a workspace",
@@ -72,10 +83,20 @@ def register(sub) -> None:
     p.set_defaults(func=cmd_candidates)
 
 
+def _method(text: str) -> str:
+    """A ``--method``: one of the selectors' methods (checked here, not by argparse's ``choices``, so that the
+    planning package is imported by the planning commands alone)."""
+    from ..planning.selectors import METHODS
+
+    if text not in METHODS:
+        raise argparse.ArgumentTypeError(f"invalid choice: {text!r} (choose from {', '.join(map(repr, METHODS))})")
+    return text
+
+
 def cmd_plan_poses(args) -> int:
     if args.robot.lower().endswith(".json"):
         return cmd_plan_report(args)
-    for opt, given in (("--measured", args.measured), ("--question", args.question)):
+    for opt, given in (("--measured", args.measured), ("--question", args.question), ("--session", args.session)):
         if given:
             raise InputError(f"{opt} is for plan-poses REPORT.json (a diagnosis report in place of ROBOT)")
     from ..checks import check_distinct_poses, check_poses
@@ -139,7 +160,7 @@ def cmd_plan_report(args) -> int:
     import os
 
     from ..checks import check_poses
-    from ..data import Measurements
+    from ..data import Measurements, session_name
     from ..errors import RobotFileError
     from ..model import Model
     from ..planning.next_poses import parametric_spec, plan_next
@@ -190,12 +211,25 @@ def cmd_plan_report(args) -> int:
     measured = parts[0] if len(parts) == 1 else combine(parts)
     candidates = Measurements.read_csv(args.candidates, n_joints=robot.n)
     check_poses(candidates, robot, **check_options(args))
+    known = measured.session_names
     if candidates.sessions is not None:
-        unknown = sorted(set(candidates.sessions) - set(measured.session_names or [None]))
+        if args.session is not None:
+            raise InputError(f"--session {args.session}: the candidates name their sessions (column session); "
+                             "drop the option, or the column", file=args.candidates)
+        unknown = sorted(set(candidates.sessions) - set(known or [None]))
         if unknown:
+            i = int(np.flatnonzero(candidates.sessions == unknown[0])[0])
             raise InputError(f"session {unknown[0]!r} is none of the measured sessions "
-                             f"({', '.join(measured.session_names) or 'one unnamed'})", file=args.candidates,
-                             column="session")
+                             f"({', '.join(known) or 'one unnamed'})", file=args.candidates,
+                             row=candidates.line(i), column="session")
+    elif args.session is not None:
+        name = session_name(args.session)
+        if name not in known:
+            raise InputError(f"--session {args.session}: " + (
+                f"none of the measured sessions ({', '.join(known)})" if known else
+                "the report's poses are of one session: the candidates are measured in it (drop the option)"),
+                file=report_path)
+        candidates.sessions = np.full(len(candidates), name, dtype=object)
     final = doc["final"]
     spec = parametric_spec(final["model"])
     params = Model(robot, spec, jit=False).parameters
@@ -213,12 +247,18 @@ def cmd_plan_report(args) -> int:
                                                                        for q in questions), file=report_path)
         questions = [questions[args.question - 1]]
     status = Status(args.quiet)
-    with status.slow(f"plan-poses: {len(questions)} open questions of {report_path}, {len(candidates)} candidates"):
+    with status.slow(f"plan-poses: {len(questions)} open question{'s' * (len(questions) != 1)} of {report_path}, {len(candidates)} candidates"):
         plan = plan_next(robot, doc, questions, values, measured, candidates, args.m, relaxation=args.relaxation,
                          random_sets=args.random_sets, seed=args.seed,
                          session_tools=(doc.get("settings") or {}).get("session_tools", False))
-    lines = _write_rows(args.candidates, plan.indices, args.out, args.force)
+    lines = _write_rows(args.candidates, plan.indices, args.out, args.force,
+                        session=candidates.sessions[0] if args.session is not None else None)
     out = human_stream(args.json)
+    if len(known) > 1:
+        where = (f"session {candidates.sessions[0]} (--session)" if args.session is not None else
+                 "the sessions their column names" if candidates.sessions is not None else
+                 f"session {known[0]}, the first (--session S, or a session column, for another)")
+        print(f"the candidates are measured in {where}", file=out)
     print(f"{report_path}: {len(plan.questions)} open question{'s' * (len(plan.questions) != 1)} of the "
           f"diagnosis of {robot.name} (final model {spec}), {len(measured)} measured poses", file=out)
     print(plan.summary(), file=out)
@@ -230,8 +270,9 @@ def cmd_plan_report(args) -> int:
     return 0
 
 
-def _write_rows(source: str, indices: np.ndarray, out: str, force: bool) -> list[int]:
-    """Copy the header and the selected data rows of ``source`` verbatim (field text unchanged).
+def _write_rows(source: str, indices: np.ndarray, out: str, force: bool, session: str | None = None) -> list[int]:
+    """Copy the header and the selected data rows of ``source`` verbatim (field text unchanged), with a
+    ``session`` column of ``session`` if given.
 
     Returns the file line numbers (header = 1) of the selected rows.
     """
@@ -247,6 +288,9 @@ def _write_rows(source: str, indices: np.ndarray, out: str, force: bool) -> list
             if n in where:
                 picked[where[n]] = (reader.line_num, r)
             n += 1
+    if session is not None:
+        header = header + ["session"]
+        picked = [(line, r + [session]) for line, r in picked]
     with atomic_open(out, "w", overwrite=force, newline="") as fh:
         w = csv.writer(fh)
         w.writerow(header)

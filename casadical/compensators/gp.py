@@ -12,14 +12,22 @@ Each component has its own hyperparameters: on the UR10 data (series B,
 predict the held-out poses to 0.260-0.266 mm where one kernel shared by the
 three components gives 0.314-0.324 mm.
 
-The hyperparameters are fitted by maximum marginal likelihood with
-scikit-learn's :class:`~sklearn.gaussian_process.GaussianProcessRegressor`
-(a well-kept implementation with the likelihood's gradient and L-BFGS-B;
-GPyTorch would do the same at the cost of importing PyTorch), on at most
-:data:`FIT_POSES` poses and :data:`FIT_ITERATIONS` iterations (UR10, 300
-poses, three splits: 20 iterations and 30 give the same held-out error to
-within 2 um, 150 poses instead of 200 give 2-7 % more; the cost of each step
-grows with the cube of the poses). The fitted process is then held as plain numbers (training poses,
+The hyperparameters are fitted by maximum marginal likelihood, the
+objective and start of scikit-learn's
+:class:`~sklearn.gaussian_process.GaussianProcessRegressor` (``normalize_y``,
+``ConstantKernel * RBF + WhiteKernel``, its bounds) with its likelihood's
+gradient and scipy's L-BFGS-B, on at most :data:`FIT_POSES` poses and
+:data:`FIT_ITERATIONS` iterations (UR10, 300 poses, three splits: 20
+iterations and 30 give the same held-out error to within 2 um, 150 poses
+instead of 200 give 2-7 % more; the cost of each step grows with the cube of
+the poses). The likelihood is evaluated here (:func:`log_likelihood`), not by
+scikit-learn: its kernel objects build the gradient as an ``N x N x n``
+stack and invert ``K`` by a solve for every evaluation and component; the
+same numbers from the squared distances of each joint (computed once for the
+three components) and ``K``'s inverse from its Cholesky factor cost 0.27 of
+its CPU on the README job (``benchmarks/bench_layer.py``; a test checks the
+likelihood, its gradient and the fitted hyperparameters against
+scikit-learn's). The fitted process is then held as plain numbers (training poses,
 residuals, hyperparameters) conditioned on every pose, and evaluated here
 with numpy and symbolically in the model
 (:class:`~casadical.terms.gp_compensator.GPCompensator`), so that
@@ -40,7 +48,6 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.linalg import cho_factor, cho_solve, solve_triangular
 
 from ..errors import InputError
 from ..threads import limited_threads
@@ -56,6 +63,43 @@ FIT_POSES = 200
 FIT_ITERATIONS = 20
 #: added to the kernel's diagonal, as scikit-learn's ``alpha`` does by default
 JITTER = 1e-10
+#: bounds of the signal and the noise variance (of the standardised residual), as the kernel's start values
+SIGNAL_BOUNDS, NOISE_BOUNDS = (1e-4, 1e2), (1e-4, 1.0)
+SIGNAL0, LENGTH0, NOISE0 = 1.0, 1.0, 0.5
+
+
+def squared_differences(X: np.ndarray) -> np.ndarray:
+    """``D[a, b, j] = (X[a, j] - X[b, j])^2`` (N x N x n): what every kernel of the poses ``X`` is made of."""
+    return (X[:, None, :] - X[None, :, :]) ** 2
+
+
+def log_likelihood(theta: np.ndarray, D: np.ndarray, y: np.ndarray) -> tuple[float, np.ndarray]:
+    """Log marginal likelihood of the standardised residual ``y`` and its gradient, at the log hyperparameters
+    ``theta = log(s^2, l_1 .. l_n, sigma_n^2)`` (scikit-learn's ``theta`` of ``ConstantKernel * RBF +
+    WhiteKernel``, with its ``alpha``); ``D``: :func:`squared_differences` of the poses."""
+    from scipy.linalg import cho_factor, cho_solve, lapack   # here: a command whose model has no process needs none
+    s2, ls, nv = math.exp(theta[0]), np.exp(theta[1:-1]), math.exp(theta[-1])
+    n = len(y)
+    E = np.exp(-0.5 * (D @ (1.0 / ls ** 2)))
+    K = s2 * E
+    K[np.diag_indices(n)] += nv + JITTER
+    try:
+        L = cho_factor(K, lower=True, check_finite=False)
+    except np.linalg.LinAlgError:
+        return -np.inf, np.zeros_like(theta)
+    alpha = cho_solve(L, y, check_finite=False)
+    lml = -0.5 * float(y @ alpha) - float(np.log(np.diag(L[0])).sum()) - 0.5 * n * math.log(2 * math.pi)
+    inv, info = lapack.dpotri(L[0], lower=1)          # K^-1 from its factor (a third of cho_solve's cost)
+    if info != 0:
+        return -np.inf, np.zeros_like(theta)
+    inv = np.tril(inv) + np.tril(inv, -1).T
+    W = np.outer(alpha, alpha) - inv
+    M = W * (s2 * E)                                     # tr(W dK/dlog s^2) = sum(M); dK/dlog l_j = M's D_j / l_j^2
+    grad = np.empty_like(theta)
+    grad[0] = 0.5 * M.sum()
+    grad[1:-1] = 0.5 * np.tensordot(M, D, axes=([0, 1], [0, 1])) / ls ** 2
+    grad[-1] = 0.5 * nv * np.trace(W)
+    return lml, grad
 
 
 @dataclass
@@ -90,6 +134,8 @@ class ResidualGP:
     max_std_ratio: float = MAX_STD_RATIO
 
     def __post_init__(self) -> None:
+        from scipy.linalg import cho_factor, cho_solve   # here: a command whose model has no process needs none
+
         self.X, self.Y = np.asarray(self.X, float), np.asarray(self.Y, float)
         self.length_scales = np.atleast_2d(np.asarray(self.length_scales, float))
         self.signal_var, self.noise_var = (np.asarray(v, float).reshape(3) for v in (self.signal_var, self.noise_var))
@@ -106,10 +152,11 @@ class ResidualGP:
     # --- fitting ------------------------------------------------------------------
 
     @classmethod
-    @limited_threads()      # scikit-learn's import may load BLAS/OpenMP libraries of its own: limited too
+    @limited_threads()
     def fit(cls, X: np.ndarray, Y: np.ndarray, max_std_ratio: float = MAX_STD_RATIO, seed: int = 0) -> "ResidualGP":
-        """Hyperparameters by maximum marginal likelihood (scikit-learn), one length scale per joint and
-        component, on at most :data:`FIT_POSES` poses; the process conditioned on all of them.
+        """Hyperparameters by maximum marginal likelihood (scikit-learn's objective: :func:`log_likelihood`), one
+        length scale per joint and component, on at most :data:`FIT_POSES` poses; the process conditioned on all
+        of them.
 
         Parameters
         ----------
@@ -118,33 +165,31 @@ class ResidualGP:
         Y : ndarray, shape (N, 3)
             Residuals (m).
         """
-        import warnings
-
         from scipy.optimize import minimize
-        from sklearn.exceptions import ConvergenceWarning
-        from sklearn.gaussian_process import GaussianProcessRegressor
-        from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
 
         X, Y = np.asarray(X, float), np.asarray(Y, float)
         if len(X) < 10:
             raise InputError(f"a Gaussian process of the residual needs 10 poses or more, got {len(X)}")
         rows = np.sort(np.random.default_rng(seed).permutation(len(X))[:FIT_POSES])
-
-        def optimizer(obj, theta0, bounds):
-            r = minimize(obj, theta0, method="L-BFGS-B", jac=True, bounds=bounds, options={"maxiter": FIT_ITERATIONS})
-            return r.x, r.fun
-
+        D = squared_differences(X[rows])
+        n = X.shape[1]
+        bounds = np.log([SIGNAL_BOUNDS] + [LENGTH_BOUNDS] * n + [NOISE_BOUNDS])
+        theta0 = np.log([SIGNAL0] + [LENGTH0] * n + [NOISE0])
         ls, sv, nv = [], [], []
         for a in range(3):
-            kernel = (ConstantKernel(1.0, (1e-4, 1e2)) * RBF(np.ones(X.shape[1]), LENGTH_BOUNDS)
-                      + WhiteKernel(0.5, (1e-4, 1.0)))
-            with warnings.catch_warnings():   # a length scale at its bound: a joint that does not matter
-                warnings.simplefilter("ignore", ConvergenceWarning)
-                k = GaussianProcessRegressor(kernel, normalize_y=True, optimizer=optimizer,
-                                             random_state=seed).fit(X[rows], Y[rows, a]).kernel_
-            ls.append(np.atleast_1d(k.k1.k2.length_scale))
-            sv.append(k.k1.k1.constant_value)
-            nv.append(k.k2.noise_level)
+            y = Y[rows, a]
+            sd = y.std()
+            y = (y - y.mean()) / (sd if sd > 0 else 1.0)        # scikit-learn's normalize_y
+
+            def objective(theta):
+                lml, grad = log_likelihood(theta, D, y)
+                return -lml, -grad
+
+            theta = minimize(objective, theta0, method="L-BFGS-B", jac=True, bounds=bounds,
+                             options={"maxiter": FIT_ITERATIONS}).x
+            sv.append(math.exp(theta[0]))
+            ls.append(np.exp(theta[1:-1]))
+            nv.append(math.exp(theta[-1]))
         mean, std = Y.mean(axis=0), Y.std(axis=0)
         return cls(X, Y, np.array(ls), np.array(sv), np.array(nv), mean, np.where(std > 0, std, 1.0), max_std_ratio)
 
@@ -168,6 +213,13 @@ class ResidualGP:
         Z = np.column_stack([self.kernel(X, self.X, a) @ self.alpha[:, a] for a in range(3)])
         return Z * self.y_std + self.y_mean
 
+    def _solved(self, X: np.ndarray, a: int) -> np.ndarray:
+        """``L^-1 k*`` of component ``a`` at poses ``X`` (``L``: the Cholesky factor of the training kernel), the
+        triangular solve of a predictive variance."""
+        from scipy.linalg import solve_triangular   # here: a command whose model has no process needs none
+
+        return solve_triangular(self._chol[a][0], self.kernel(X, self.X, a).T, lower=True, check_finite=False)
+
     def std_ratio(self, X: np.ndarray) -> np.ndarray:
         """Predictive std of each pose over the prior std, the largest of the three components (0: known
         exactly, 1: unknown).
@@ -182,7 +234,7 @@ class ResidualGP:
         out = np.zeros(len(X))
         for a in range(3):
             # k** - k*^T K^-1 k* = s^2 - |L^-1 k*|^2: one triangular solve (half of cho_solve's two)
-            v = solve_triangular(self._chol[a][0], self.kernel(X, self.X, a).T, lower=True, check_finite=False)
+            v = self._solved(X, a)
             var = self.signal_var[a] - np.einsum("ij,ij->j", v, v)
             out = np.maximum(out, np.sqrt(np.clip(var, 0.0, None) / self.signal_var[a]))
         if len(self._ratios) >= 4:
@@ -198,7 +250,7 @@ class ResidualGP:
         out = np.empty((len(X), 3))
         known = self.knows(X)
         for a in range(3):
-            v = solve_triangular(self._chol[a][0], self.kernel(X, self.X, a).T, lower=True, check_finite=False)
+            v = self._solved(X, a)
             var = np.where(known, self.signal_var[a] - np.einsum("ij,ij->j", v, v), self.signal_var[a])
             out[:, a] = np.sqrt(np.clip(var, 0.0, None)) * self.y_std[a]
         return out

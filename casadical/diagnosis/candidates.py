@@ -178,7 +178,19 @@ TELL_APART = {
 }
 
 
+#: what a cause of a joint varies with, for telling the robot's from one session's own
+_VARIES = {"encoder_scale": "move joint {j} over a wider range", "joint_periodic": "move joint {j} over a wider range",
+           "backlash": "load joint {j} with torques of both signs", "joint_compliance": "load joint {j} over a wider "
+           "range of torques", "nonlinear_stiffness": "load joint {j} over a wider range of torques"}
+
+
 def tell_apart(a: Candidate, b: Candidate) -> str:
+    if a.shared() == b.shared() and a.session != b.session:
+        own = a.session or b.session
+        how = ("approach joint {j} from both directions" if a.source == "motion" else
+               _VARIES.get(a.cause, "measure poses where it shows")).format(j=a.joint)
+        return (f"in a session other than {own}, {how}: the robot's shows in every session, session {own}'s own "
+                "only in it")
     key = frozenset({a.cause, b.cause})
     text = TELL_APART.get(key, "measure poses where the two candidates predict different errors "
                                "(wider joint ranges, other loads or temperatures)")

@@ -164,7 +164,11 @@ def gain(f: "Finding") -> str:
 
 
 def scope(f: "Finding") -> str:
-    """``robot``, ``session``, or ``one session`` for a cause data of one session could not place."""
+    """``robot``, ``session``, or ``one session`` for a cause data of one session could not place; ``robot or
+    session A?`` where the poses cannot tell the robot's from that session's own."""
+    other = _other_scope(f)
+    if other:
+        return f"robot or session {f.candidate.session or other[0].get('session')}?"
     if f.scope:
         return f.scope
     if f.cause == "geometric":
@@ -187,10 +191,15 @@ def action(f: "Finding", report: "DiagnosisReport") -> str:
         gain_here = gain_words(f.potential_gain_mm)
         return (f"not in the model (it would give {gain_here} here): measure joint {j} over a wider range or in "
                 "another session to tell")
+    scope = _other_scope(f)
+    rivals = [a for a in f.ambiguous_with if a not in scope]
+    amb = f"; ambiguous with {', '.join(_short(a) for a in rivals)} (see the evidence)" if rivals else ""
+    if scope:
+        own = c.session or scope[0].get("session")
+        return (f"compensate with the full model in these sessions; the robot's or session {own}'s own? these poses "
+                "cannot tell (plan-poses REPORT.json picks the poses that do)" + amb)
     if f.scope == "session":
         return "re-measure it in each session; it is never carried to other data (scope session)"
-    amb = f"; ambiguous with {', '.join(_short(a) for a in f.ambiguous_with)} (see the evidence)" \
-        if f.ambiguous_with else ""
     if f.scope == "robot":
         return "compensate with the full model; it holds in other sessions (scope robot)" + amb
     verdict = (f.transfer or {}).get("verdict")
@@ -205,6 +214,13 @@ def action(f: "Finding", report: "DiagnosisReport") -> str:
     if verdict == "no difference":
         return f"compensate with the full model; on {other} it makes no difference" + amb
     return "compensate with the full model; whether it holds in other sessions: --transfer OTHER.csv" + amb
+
+
+def _other_scope(f: "Finding") -> list[dict]:
+    """The same cause of another scope (the robot's, or one session's own) that the poses cannot tell from it."""
+    c = f.candidate
+    return [a for a in f.ambiguous_with if a.get("cause") == c.cause and a.get("joint") == c.joint
+            and a.get("harmonic") == c.harmonic and a.get("source") == c.source and a.get("session") != c.session]
 
 
 def _short(a: dict) -> str:

@@ -38,7 +38,7 @@ import numpy as np
 from ..calibration import calibrate, learning_mask, model_for
 from ..checks import check_held_out, check_other_series, check_poses, check_validation_frames
 from ..data import Measurements
-from ..physics import value_violations, violations
+from ..physics import sag_note, value_violations, violations
 from ..problem import RobustLoss
 from ..result import AngleStats, CalibrationResult, ErrorStats
 from ..robot import Robot
@@ -46,8 +46,10 @@ from ..set_aside import of_fit
 from ..threads import limited_threads
 from .backward import drop_redundant, drop_unphysical
 from .layer import layer_step
+from .never_worse import final_check, validation_note
 from .candidates import Candidate, compose_spec
 from .catalogue import Catalogue, not_tried
+from .design import assess, priors
 from .gaps import set_aside_note, untried_alternatives
 from .findings import UnexplainedLog, describe
 from .nameable import JOINT_CAUSES, cause_checks, unjudged
@@ -57,12 +59,10 @@ from .screening import Scored, Screen, ambiguous
 from .settings import DiagnosisSettings
 from .statistics import nested_test
 from .transfer import findings_study
-from .validation import (Linearized, by_kind, cv_failure, cv_record, cv_text, extrapolation_gain, joint_levers,
-                         not_better, schemes)
+from .validation import (EXTRAPOLATING, Linearized, by_kind, cv_failure, cv_record, cv_text, extrapolation_gain,
+                         joint_levers, not_better, schemes)
 
 
-#: the kinds of fold where a model must extrapolate: a step may not make them worse
-EXTRAPOLATING = ("time", "joint", "session")
 
 
 class _Diagnosis:
@@ -75,8 +75,7 @@ class _Diagnosis:
         # full pose (data with orientations): every full fit, and the tests on their losses, have 6 equations a pose
         self.full_pose = cal.has_orientation and not settings.position_only
         self.n_fit_eq = (6 if self.full_pose else 3) * len(cal)
-        self.schemes = schemes(cal.q, cal.rows, settings.folds, settings.seed, joint_levers(robot, cal),
-                               sessions=cal.sessions)
+        self.schemes = self.fold_schemes()
         self.sessions = cal.session_names      # [] for one session
         self.steps: list[Step] = []
         self.findings: list[Finding] = []
@@ -92,6 +91,15 @@ class _Diagnosis:
         self._torques: tuple | None = None                      # (fit, gravity torques of the cal poses)
         self.history: list[tuple[list[Candidate], CalibrationResult]] = []   # each accepted model, in order
         self._step_of: list[tuple[CalibrationResult, int]] = []               # each accepted fit and its step
+        self.design = None          # how weak the design is (casadical.diagnosis.design), after the kinematic fit
+        self.prior: dict[str, float] | None = None   # the folds' priors of the geometry on a weak design
+        self.held_text = ""         # the final check's worst held-out errors, in words
+
+    def fold_schemes(self, moving: np.ndarray | None = None) -> list:
+        """The cross-validation schemes of the calibration poses (``moving``: of a design of one joint at a time,
+        :func:`.validation.schemes`)."""
+        return schemes(self.cal.q, self.cal.rows, self.s.folds, self.s.seed, joint_levers(self.robot, self.cal),
+                       sessions=self.cal.sessions, moving=moving)
 
     def step_of(self, res: CalibrationResult) -> int | None:
         """Index of the step whose model ``res`` is (None for a fit no step holds: a final-check refit)."""
@@ -152,7 +160,7 @@ class _Diagnosis:
 
     def cv(self, res: CalibrationResult, mask: np.ndarray) -> dict:
         """Held-out means (mm) by kind of fold of a fit, linearised at it, over the poses of ``mask``."""
-        return by_kind(Linearized.of(res, self.cal).cv(self.schemes), mask)
+        return by_kind(Linearized.of(res, self.cal).cv(self.schemes, self.prior), mask)
 
     # -- the procedure ---------------------------------------------------------
 
@@ -167,10 +175,17 @@ class _Diagnosis:
         self.say(f"  validation mean {self.steps[-1].validation.mean_mm:.4f} mm (judge only)")
         self.say("step 2: geometric (kinematic) calibration")
         kin = self.kinematic = self.fit("kinematic")
+        self.design = assess(self.cal, kin, self.n_fit_eq)
+        if self.design.weak:
+            self.prior = priors(kin)
+            if self.design.one_at_a_time:   # folds that leave out part of every joint's sweep, never a whole one
+                self.schemes = self.fold_schemes(self.design.moving)
+            self.notes.append(self.design.text())
+            self.say(f"  {self.notes[-1]}")
         test = nested_test(self.deviance(nominal, kin.loss), int(nominal.parameters.free.sum()),
                            self.deviance(kin, kin.loss), int(kin.parameters.free.sum()), self.n_fit_eq)
         mask = self.mask(kin)
-        cv0, cv1 = (by_kind(Linearized.of(r, self.cal).cv(self.schemes), mask) for r in (nominal, kin))
+        cv0, cv1 = (self.cv(r, mask) for r in (nominal, kin))
         worse = not_better(cv0, cv1)
         ok = test.log10_p < math.log10(self.s.alpha) and test.delta_bic < 0 and not worse
         kv = self.val_stats(kin)
@@ -258,37 +273,8 @@ class _Diagnosis:
         if accepted:
             self.say("final check: is every cause still physics?")
             current, accepted = drop_unphysical(self, current, accepted, geometric)
-        current, accepted = self.never_worse(current, accepted)
-        return current, accepted, geometric
-
-    def never_worse(self, current: CalibrationResult, accepted: list[Candidate]
-                    ) -> tuple[CalibrationResult, list[Candidate]]:
-        """The final model never does worse than the kinematic one where it must extrapolate (time- and
-        joint-blocked folds); if it would, the latest accepted model that does not is final, and a note says
-        why."""
-        if not accepted or not self.steps[1].accepted:
-            return current, accepted
-        mask = self.mask(current)
-        ref = self.cv(self.kinematic, mask)
-
-        def worse(res):
-            cv = self.cv(res, mask)
-            return [f"{k} {ref[k]:.4f} -> {cv[k]:.4f} mm" for k in EXTRAPOLATING if k in ref and cv[k] > ref[k]]
-
-        bad = worse(current)
-        if not bad:
-            return current, accepted
-        for earlier, fit in reversed(self.history[:-1]):
-            if set(earlier) <= set(accepted) and (not earlier or not worse(fit)):
-                dropped = [a for a in accepted if a not in earlier]
-                for a in dropped:
-                    self.drop_finding(a)
-                self.notes.append("the model with every cause did worse than the kinematic model where it must "
-                                  "extrapolate (held-out mean " + ", ".join(bad) + "); the final model is the "
-                                  "last one that does not, without " + ", ".join(a.label() for a in dropped))
-                self.say(f"  {self.notes[-1]}")
-                return fit, list(earlier)
-        return current, accepted
+        self.say("final check: never worse than the kinematic model, in mean and worst case")
+        return final_check(self, current, accepted, geometric)
 
     def drop_finding(self, cand: Candidate) -> None:
         """Remove the finding of ``cand`` and what is kept for it."""
@@ -317,7 +303,7 @@ class _Diagnosis:
                 scr = Screen(current, accepted, cands, geometric, self.cal, self.val, self.s.session_tools)
                 mask = self.mask(current)
                 base = scr.fit()
-                baseline = (mask, base, by_kind(base.lin.cv(self.schemes), mask), self.val_stats(current))
+                baseline = (mask, base, by_kind(base.lin.cv(self.schemes, self.prior), mask), self.val_stats(current))
             else:
                 scr = scr.with_candidates(cands)
             scored = scr.scores(cands)
@@ -353,7 +339,7 @@ class _Diagnosis:
                 self.say(f"  fitting {cand.label()} (score {sc.test.text()})")
                 fit = scr.fit(cand)
                 test = nested_test(base.ssr, base.n_free, fit.ssr, fit.n_free, self.n_eq)
-                cv1 = by_kind(fit.lin.cv(self.schemes), mask)
+                cv1 = by_kind(fit.lin.cv(self.schemes, self.prior), mask)
                 reasons = []
                 if test.log10_p >= level:
                     reasons.append(f"F-test not significant at the corrected level ({test.text()})")
@@ -465,9 +451,15 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
                                         and f.cause != "unexplained" else None)
     final_errors = dg.val_errors(final)
     final_val = ErrorStats.of(final_errors)
+    note = validation_note(final, dg.kinematic, parametric, val, dg.val_errors, dg.held_text)
+    if note:
+        dg.notes.append(note)
     if final.uncertainty is not None:
         dg.notes.append(f"remaining calibration residual {final.uncertainty.sigma * 1000:.4f} mm per axis (rms); "
                         f"validation rms {final_val.rms_mm / math.sqrt(3):.4f} mm per axis")
+    sag = sag_note(final, cal)
+    if sag:
+        dg.notes.append(sag)
     # the poses the final fit set aside: bad measurements, or structure it lacks (casadical.set_aside)
     structure = of_fit(parametric, cal, learning_mask(final, cal) == 0)
     if structure.n_set_aside:

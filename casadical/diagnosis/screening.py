@@ -251,7 +251,8 @@ class Screen:
         r1 = self.r + J @ d
         names = [self.names[k] for k in cols]
         values = {n: self.params[n].value + self.scale[k] * dk for n, k, dk in zip(names, cols, d)}
-        lin = Linearized(J, r1, self.w, names, self.scale[cols], switch_off(names, values, self.scale[cols]))
+        lin = Linearized(J, r1, self.w, names, self.scale[cols], switch_off(names, values, self.scale[cols]),
+                         np.array([(values[n] - self.params[n].nominal) / self.scale[k] for n, k in zip(names, cols)]))
         return LinearFit(lin, values, float(np.sum(self.w[:, None] * r1 ** 2)), len(cols), d, cols)
 
     def validation_errors(self, fit: LinearFit) -> np.ndarray:
@@ -290,7 +291,8 @@ def ambiguous(best: Scored, scored: list[Scored], level: float) -> list[dict]:
     for sc in scored:
         other = sc.candidate
         if other == cand or sc.log10_p >= level or (other.cause == cand.cause and other.joint == cand.joint
-                                                    and other.cause != "joint_periodic"):
+                                                    and other.cause != "joint_periodic"
+                                                    and other.session == cand.session):
             continue
         drop = float(sc.fitted @ sc.fitted)
         cos = float(sc.fitted @ best.fitted) / math.sqrt(max(drop * best_drop, 1e-300))

@@ -44,14 +44,32 @@ def nested_test(ssr0: float, p0: int, ssr1: float, p1: int, n: int) -> NestedTes
     return NestedTest(float(f), (k, dof2), log10_p, float(bic))
 
 
+#: above this many pairs scipy's Wilcoxon test takes its normal approximation, which :func:`paired_gain` computes
+ASYMPTOTIC_PAIRS = 50
+
+
 def paired_gain(before: np.ndarray, after: np.ndarray) -> float:
-    """One-sided Wilcoxon signed-rank p-value that ``after`` errors are smaller."""
-    d = np.asarray(before) - np.asarray(after)
+    """One-sided Wilcoxon signed-rank p-value that ``after`` errors are smaller.
+
+    :func:`scipy.stats.wilcoxon` (``alternative="greater"``, its defaults). Above :data:`ASYMPTOTIC_PAIRS` pairs
+    it takes the normal approximation (zeros dropped, average ranks, the ties' correction), computed here from
+    ``scipy.special``: the same p-value (a test checks it) without importing ``scipy.stats``, 0.4 s of CPU of
+    every diagnosis with the accuracy layer.
+    """
+    d = np.asarray(before, float) - np.asarray(after, float)
     if np.allclose(d, 0):
         return 1.0
-    from scipy import stats  # only the black-box step needs it
+    if len(d) <= ASYMPTOTIC_PAIRS:
+        from scipy import stats  # the exact or permutation test of few pairs
 
-    return float(stats.wilcoxon(d, alternative="greater").pvalue)
+        return float(stats.wilcoxon(d, alternative="greater").pvalue)
+    d = d[d != 0]
+    n = len(d)
+    values, inverse, counts = np.unique(np.abs(d), return_inverse=True, return_counts=True)
+    ranks = (np.cumsum(counts) - (counts - 1) / 2.0)[inverse]      # average ranks of ties
+    r_plus = float(ranks[d > 0].sum())
+    se = math.sqrt((n * (n + 1.0) * (2.0 * n + 1.0) - float(np.sum(counts ** 3.0 - counts)) / 2.0) / 24.0)
+    return float(special.ndtr(-(r_plus - n * (n + 1.0) / 4.0) / se))
 
 
 def _log10(p: float) -> float:

@@ -69,16 +69,33 @@ def session_scheme(sessions: np.ndarray) -> Scheme:
     return Scheme("session", [np.flatnonzero(sessions == s) for s in dict.fromkeys(sessions.tolist())])
 
 
-def joint_scheme(q: np.ndarray, j: int, k: int) -> Scheme:
-    """Contiguous blocks of joint ``j``'s (1-based) reading."""
-    order = np.argsort(q[:, j - 1], kind="stable")
-    return Scheme(f"joint{j}", [np.sort(b) for b in np.array_split(order, k)])
+def joint_scheme(q: np.ndarray, j: int, k: int, moving: np.ndarray | None = None) -> Scheme:
+    """Contiguous blocks of joint ``j``'s (1-based) reading.
+
+    ``moving``: in a design of one joint at a time, the joint each pose moves
+    (:func:`casadical.diagnosis.design.moving_joint`). The blocks are then
+    cut in joint ``j``'s own sweep, and the other poses (where joint ``j``
+    stands still) are dealt to the folds in turn: a fold leaves out a range
+    of the sweep, never the poses the other joints' parameters come from.
+    """
+    sweep = np.arange(len(q)) if moving is None else np.flatnonzero(moving == j)
+    if len(sweep) < 2:
+        sweep = np.arange(len(q))
+    rest = np.setdiff1d(np.arange(len(q)), sweep)
+    order = sweep[np.argsort(q[sweep, j - 1], kind="stable")]
+    blocks = np.array_split(order, k)
+    return Scheme(f"joint{j}", [np.sort(np.concatenate([b, rest[i::k]])) for i, b in enumerate(blocks)])
 
 
 def schemes(q: np.ndarray, rows: np.ndarray, k: int, seed: int, lever: np.ndarray | None = None,
-            min_lever: float = 0.05, sessions: np.ndarray | None = None) -> list[Scheme]:
+            min_lever: float = 0.05, sessions: np.ndarray | None = None, moving: np.ndarray | None = None
+            ) -> list[Scheme]:
     """The random, time-blocked and joint-blocked schemes of a data set (and leave-one-session-out with
     ``sessions`` of more than one session).
+
+    ``moving``: in a design of one joint at a time, the joint each pose moves: the time blocks are cut
+    within each joint's sweep (as within each session), the joint-range blocks in the joint's own sweep
+    (:func:`joint_scheme`).
 
     ``lever`` (one per joint): how far the tool point moves when the joint
     turns (e.g. the RMS of ``|d xyz / d q_j|`` over the poses). A joint that
@@ -87,9 +104,12 @@ def schemes(q: np.ndarray, rows: np.ndarray, k: int, seed: int, lever: np.ndarra
     scheme: leaving out a range of it tests nothing.
     """
     several = sessions is not None and len(set(sessions.tolist())) > 1
-    out = [random_scheme(len(q), k, seed), time_scheme(rows, k, sessions if several else None)]
+    groups = sessions if several else None
+    if moving is not None:
+        groups = moving if groups is None else np.array([f"{s}/{m}" for s, m in zip(sessions, moving)])
+    out = [random_scheme(len(q), k, seed), time_scheme(rows, k, groups)]
     top = float(np.max(lever)) if lever is not None and len(lever) else 0.0
-    out += [joint_scheme(q, j, k) for j in range(1, q.shape[1] + 1)
+    out += [joint_scheme(q, j, k, moving) for j in range(1, q.shape[1] + 1)
             if np.ptp(q[:, j - 1]) > 0 and (lever is None or lever[j - 1] >= min_lever * top)]
     if several:
         out.append(session_scheme(sessions))
@@ -163,7 +183,7 @@ def switch_off(names: list[str], values, scale: np.ndarray) -> np.ndarray:
 
 
 def linear_cv(J: np.ndarray, r: np.ndarray, weights: np.ndarray, all_schemes: list[Scheme],
-              off: np.ndarray | None = None) -> CVResult:
+              off: np.ndarray | None = None, prior: tuple[np.ndarray, np.ndarray] | None = None) -> CVResult:
     """Held-out errors by one Gauss-Newton step per fold from the fit on all poses.
 
     Parameters
@@ -177,6 +197,13 @@ def linear_cv(J: np.ndarray, r: np.ndarray, weights: np.ndarray, all_schemes: li
     all_schemes : list of Scheme
     off : ndarray, optional
         Per column, the step that switches a cause off (:func:`switch_off`; NaN: not a cause of its own poses).
+    prior : (ndarray, ndarray), optional
+        A prior of each column: its precision (m^2 per scaled unit squared,
+        0 for none) and the column's scaled value at the fit (its deviation
+        from the prior's mean). Each fold's step is then the most probable
+        one (ridge towards the prior's mean): what a fold's training poses
+        cannot tell stays at what was known before them (a weak design,
+        :mod:`casadical.diagnosis.design`), not at a guess of few poses.
 
     Directions the training poses of a fold cannot determine stay at the
     fit on all poses (:func:`solve_identified`). Parameters that only the
@@ -212,6 +239,10 @@ def linear_cv(J: np.ndarray, r: np.ndarray, weights: np.ndarray, all_schemes: li
             gT[k] += AT[k][:, gone] @ off[gone]
         out_ = own | gone
         AT[k][out_, :], AT[k][:, out_], gT[k][out_] = 0.0, 0.0, 0.0
+        if prior is not None:     # not on what only the left-out poses inform, nor on what is switched off
+            P = np.where(out_, 0.0, prior[0])
+            AT[k][np.diag_indices(p)] += P
+            gT[k] += P * prior[1]
         owns.append(own)
         offs.append(gone)
     steps = iter(-solve_identified(AT, gT))      # every fold of every scheme in one stacked solve
@@ -255,6 +286,7 @@ class Linearized:
     names: list[str]
     scale: np.ndarray
     off: np.ndarray | None = None
+    x0: np.ndarray | None = None
 
     @classmethod
     def of(cls, res, data) -> "Linearized":
@@ -265,10 +297,16 @@ class Linearized:
         w = res.loss.weight(np.einsum("ij,ij->i", r, r))
         names = [p.names[i] for i in f]
         return cls(J[:, :, f] * p.scales[f], r, w, names, p.scales[f],
-                   switch_off(names, {n: p[n].value for n in names}, p.scales[f]))
+                   switch_off(names, {n: p[n].value for n in names}, p.scales[f]),
+                   ((p.values - p.nominal) / p.scales)[f])
 
-    def cv(self, all_schemes: list[Scheme]) -> CVResult:
-        return linear_cv(self.J, self.r, self.weights, all_schemes, self.off)
+    def cv(self, all_schemes: list[Scheme], prior: dict[str, float] | None = None) -> CVResult:
+        """Held-out errors of every fold (:func:`linear_cv`); ``prior``: the precision (m^2 per scaled unit
+        squared) of the columns that have a prior at their nominal value, by name."""
+        pr = None
+        if prior and self.x0 is not None:
+            pr = (np.array([prior.get(n, 0.0) for n in self.names]), self.x0)
+        return linear_cv(self.J, self.r, self.weights, all_schemes, self.off, pr)
 
     def refit(self, rows: np.ndarray, rel: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
         """One Gauss-Newton step on ``rows`` only: the change of the scaled parameters and its covariance.
@@ -291,6 +329,8 @@ class Linearized:
 
 #: the kinds of fold, in the order reports show them (``session`` only with several sessions)
 KINDS = ("random", "time", "joint", "session")
+#: the kinds of fold where a model must extrapolate: a step may not make them worse
+EXTRAPOLATING = ("time", "joint", "session")
 
 
 def kinds(cv: CVResult | dict) -> list[str]:

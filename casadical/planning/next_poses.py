@@ -72,10 +72,12 @@ class QuestionProblem:
         inv = (V[:, ~tiny] / lam[~tiny]) @ V[:, ~tiny].T
         cov = sigma ** 2 * inv
         std = np.sqrt(np.clip(np.diag(cov), 0, None)) * self.scales
-        # a direction the poses do not see at all: its variance is unbounded
+        # a parameter the poses do not see at all: its variance grows as a ridge on the information shrinks
+        # (tenfold per decade; a seen one's settles), whatever the rounding in the unseen directions' vectors
         if tiny.any():
-            blind = np.abs(V[:, tiny]).max(axis=1) > 1e-6
-            std[blind] = math.inf
+            lam0 = np.clip(lam, 0.0, None)
+            var = [(V ** 2) @ (1.0 / (lam0 + eps * lam[-1])) for eps in (1e-15, 1e-14)]
+            std[var[0] > 3.0 * var[1]] = math.inf
         t = self.tested
         k = len(t)
         if k and np.all(np.isfinite(std[t])):
@@ -174,12 +176,19 @@ def _pct(x: float) -> str:
     return "-" if not math.isfinite(x) else f"{100 * x:.0f} %"
 
 
-def _jacobian(model: Model, values: np.ndarray, data: Measurements) -> np.ndarray:
-    """Position Jacobian (N, 3, P) of ``data``'s poses at ``values``."""
+def _jacobian(model: Model, values: np.ndarray, data: Measurements, sessions: np.ndarray) -> np.ndarray:
+    """Position Jacobian (N, 3, P) of ``data``'s poses at ``values``, each pose in its session ``sessions``
+    (a term of one session, ``...@S``, acts at that session's poses only)."""
+    from ..terms.sessions import indicator
     from .observability import pool_jacobian
 
     model.parameters.values = values
-    return pool_jacobian(model, data.q, model.covariates(data))
+    cov = model.covariates(data)
+    # the model holds no session frames (planned for apart): its session indicators come from here
+    for s in dict.fromkeys(sessions.tolist()):
+        if indicator(s) in model.covariate_names:
+            cov[:, model.covariate_names.index(indicator(s))] = sessions == s
+    return pool_jacobian(model, data.q, cov)
 
 
 def _session_columns(J: np.ndarray, names: list[str], sessions: np.ndarray | None, order: list[str],
@@ -220,8 +229,12 @@ def build_problem(robot: Robot, base_spec: str, q: Question, final_values: dict[
     params = model.parameters
     values = np.array([final_values.get(p.name, p.value) for p in params])
     order = measured.session_names
-    Jm = _jacobian(model, values, measured)
-    Jc = _jacobian(model, values, candidates)
+    # candidates without a session are the first session's (the CLI's --session names another)
+    cand_sessions = candidates.sessions if candidates.sessions is not None else \
+        np.full(len(candidates), order[0] if order else "", dtype=object)
+    meas_sessions = measured.sessions if measured.sessions is not None else np.full(len(measured), "", dtype=object)
+    Jm = _jacobian(model, values, measured, meas_sessions)
+    Jc = _jacobian(model, values, candidates, cand_sessions)
     ident = analyse(np.concatenate([Jm, Jc]), params)
     lost = [n for n in q.interest if n not in ident.identifiable]
     if lost:
@@ -232,8 +245,6 @@ def build_problem(robot: Robot, base_spec: str, q: Question, final_values: dict[
     scales = params.scales[idx]
     names = list(ident.identifiable)
     Jm, Jc = Jm[:, :, idx] * scales, Jc[:, :, idx] * scales
-    cand_sessions = candidates.sessions if candidates.sessions is not None else \
-        np.full(len(candidates), order[0] if order else "", dtype=object)
     Jm, all_names = _session_columns(Jm, names, measured.sessions, order, session_tools)
     Jc, _ = _session_columns(Jc, names, cand_sessions, order, session_tools)
     scales = np.concatenate([scales, np.ones(len(all_names) - len(names))])

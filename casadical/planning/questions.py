@@ -14,6 +14,18 @@ A diagnosis says honestly what it could not resolve (``diagnose --json``):
   structure's candidate and the alternatives it could not be told from
   (every harmonic of its band; for a trend, the first harmonic); tested:
   the candidate's own parameters;
+- **scope**, the robot's or one session's own (data of several sessions):
+  a finding whose ``ambiguous_with`` lists the same cause of another scope
+  (``escale1`` and ``escale1@A``: session B's poses barely move joint 1,
+  so they cannot say whether B has the scale error too), and an
+  unexplained structure seen in one session (``holds_up.structures[]``
+  whose candidate names a ``session``). Model: the final model plus the
+  other scope's cause (a session's own term acts at its poses only, on top
+  of the robot's); tested: for a finding, the accepted cause's parameters;
+  for a structure, the robot's, at the values the session showed (its
+  other sessions' poses would show it too). The poses that answer it are
+  in another session: the candidates' ``session`` column, or
+  ``plan-poses --session S``;
 - **not significant**: a parameter of a named cause in the final model
   whose t-test does not reject zero. Model: the final model; tested: it.
 
@@ -23,10 +35,10 @@ so that a plan can say the chance of telling the alternatives apart.
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 from ..errors import InputError
-from ..diagnosis.candidates import Candidate, compose_spec
+from ..diagnosis.candidates import Candidate
 
 #: causes whose parameters a named finding has (not the geometry, not a black box)
 _NAMED = ("joint_compliance", "nonlinear_stiffness", "joint_periodic", "encoder_scale", "backlash",
@@ -42,7 +54,7 @@ class Question:
     number : int
         1-based, in report order (``--question N``).
     kind : str
-        ``ambiguous``, ``unexplained`` or ``not significant``.
+        ``ambiguous``, ``unexplained``, ``scope`` or ``not significant``.
     text : str
         The question in words.
     extra : list of Candidate
@@ -75,8 +87,17 @@ class Question:
                 "tested": self.tested, "level": self.level, "finding": self.finding}
 
 
+#: a report's candidate fields -> Candidate's (the fields this casadical knows; others are left out)
+_FIELDS = {f: f for f in ("cause", "joint", "harmonic", "source", "session")} | {"time_constant_s": "time_constant"}
+
+
 def _candidate(d: dict) -> Candidate:
-    return Candidate(**{k: d[k] for k in ("cause", "joint", "harmonic", "source", "session") if d.get(k) is not None})
+    known = Candidate.__dataclass_fields__
+    return Candidate(**{v: d[k] for k, v in _FIELDS.items() if d.get(k) is not None and v in known})
+
+
+def _scope(c: Candidate) -> str:
+    return f"session {c.session}'s own" if c.session is not None else "the robot's"
 
 
 def open_questions(report: dict, final_values: dict[str, float], path: str = "") -> list[Question]:
@@ -121,11 +142,17 @@ def open_questions(report: dict, final_values: dict[str, float], path: str = "")
                 # the level the diagnosis told them apart at (its round's corrected level)
                 level = 10 ** b["test"]["log10_level"] if "test" in b else alpha
                 names = a.parameter_names()
-                add("ambiguous", f"{a.label(short=True)} or {other.label(short=True)}? (finding {k + 1})",
-                    [other], names + [n for n in other.parameter_names() if n not in names],
+                if other.shared() == a.shared():
+                    # the same cause, another scope: the poses could not tell the robot's from one session's
+                    kind = "scope"
+                    text = f"{a.shared().label(short=True)}: {_scope(a)} or {_scope(other)}?"
+                else:
+                    kind, text = "ambiguous", f"{a.label(short=True)} or {other.label(short=True)}?"
+                add(kind, f"{text} (finding {k + 1})", [other],
+                    names + [n for n in other.parameter_names() if n not in names],
                     {n: final_values[n] for n in names if n in final_values}, level, k)
         if cause == "unexplained" and not f.get("in_model", False):
-            periodic_seen = False
+            periodic_seen: set = set()
             for item in (f.get("holds_up") or {}).get("structures", []):
                 if "candidate" not in item:
                     raise InputError("the report was written by an older casadical (its unexplained structure "
@@ -133,25 +160,34 @@ def open_questions(report: dict, final_values: dict[str, float], path: str = "")
                                      column=f"findings[{k}].holds_up.structures")
                 cand = _candidate(item["candidate"])
                 tested = {n: float(v) for n, v in (item.get("values") or {}).items()}
+                where = f" in session {cand.session}" if cand.session is not None else ""
                 if cand.cause == "joint_periodic":
                     # the first is the strongest; the ones set aside after it are mostly its leakage into the
                     # neighbouring harmonics, which its band already asks about
-                    if periodic_seen:
+                    if (cand.joint, cand.session) in periodic_seen:
                         continue
-                    periodic_seen = True
+                    periodic_seen.add((cand.joint, cand.session))
                     lo, hi = item.get("band", [cand.harmonic, cand.harmonic])
-                    extra = [Candidate("joint_periodic", cand.joint, h) for h in range(lo, hi + 1)]
-                    text = (f"joint {cand.joint}: which harmonic, {lo}..{hi}?" if hi > lo else
-                            f"joint {cand.joint}: harmonic {cand.harmonic}, or something else?")
+                    extra = [replace(cand, harmonic=h) for h in range(lo, hi + 1)]
+                    text = (f"joint {cand.joint}{where}: which harmonic, {lo}..{hi}?" if hi > lo else
+                            f"joint {cand.joint}{where}: harmonic {cand.harmonic}, or something else?")
                 elif cand.cause == "encoder_scale":
-                    extra = [cand, Candidate("joint_periodic", cand.joint, 1)]
-                    text = f"joint {cand.joint}: a trend along the reading: encoder scale or a first harmonic?"
+                    extra = [cand, replace(cand, cause="joint_periodic", harmonic=1)]
+                    text = f"joint {cand.joint}{where}: a trend along the reading: encoder scale or a first harmonic?"
                 else:
                     extra = [cand]
-                    text = f"joint {cand.joint}: {cand.label(short=True)}, or something else?"
+                    text = f"joint {cand.joint}{where}: {cand.label(short=True)}, or something else?"
                 interest = [n for c in extra for n in c.parameter_names()]
                 add("unexplained", text + f" (finding {k + 1})", extra, list(dict.fromkeys(interest)), tested,
                     scan_level, k)
+                if cand.session is not None:
+                    # seen in one session: is it the robot's (the other sessions' poses would show it too)?
+                    shared = cand.shared()
+                    names = cand.parameter_names() + shared.parameter_names()
+                    add("scope", f"{shared.label(short=True)} seen in session {cand.session}: {_scope(cand)} or "
+                        f"the robot's? (finding {k + 1})", [cand, shared], names,
+                        {n: tested[m] for n, m in zip(shared.parameter_names(), cand.parameter_names())
+                         if m in tested}, scan_level, k)
     params = (report.get("final") or {}).get("parameters", [])
     if params and not any("significant" in p for p in params):
         raise InputError("the report was written by an older casadical (its final parameters have no "

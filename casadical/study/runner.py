@@ -208,9 +208,11 @@ def _run_dask(study: Study, todo: list[int], finished, report: RunReport, worker
             # an interrupt while the cluster starts waits until it has started, and is then raised here: a
             # cluster cut short in its start cannot be closed (its workers would print tracebacks at exit)
             with deferred():
+                # workers log at CRITICAL only: a task's own failure comes back through its future (a lost
+                # row), and a worker whose scheduler closed first at a signal logged a heartbeat traceback
                 own_cluster = distributed.LocalCluster(n_workers=workers or usable_cores(), threads_per_worker=1,
                                                        processes=True, dashboard_address=":0",
-                                                       silence_logs=logging.ERROR)
+                                                       silence_logs=logging.CRITICAL)
                 checkpoint("cluster")
                 client = own_client = distributed.Client(own_cluster)
                 client.register_plugin(_ignore_interrupts(distributed)(), name="casadical-ignore-sigint")

@@ -21,7 +21,9 @@ docs/formats.md section 1), not from casadical's terms:
   carries the torque its angle does work against: ``tau_drive = J^T tau``
   with ``J = d chain angles / d drive angles`` (virtual work; the identity
   for an arm without couplings). Torques are those of the **deflected**
-  arm: the equilibrium is found by fixed-point iteration.
+  arm: the equilibrium is found by fixed-point iteration. (casadical takes
+  those of the undeflected arm: an approximation, second order in the
+  deflection, 3e-3 of the effect at 1 mrad; tests/test_truth_vs_package.py.)
 - **Joint compliance**: ``e_j += tau_j / k_j``: the joint gives way in the
   direction of its torque. **Progressive stiffness**: ``e_j += k3_j
   tau_j^3`` beyond it (k3 < 0: stiffens with load).
@@ -42,6 +44,7 @@ docs/formats.md section 1), not from casadical's terms:
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass, field, replace
 
 import numpy as np
@@ -63,6 +66,8 @@ class Effects:
     thermal_alpha: float = 0.0                                         # 1/K, every length
     thermal_links: dict[int, float] = field(default_factory=dict)      # 1/K, lengths of row j
     t_ref: float = 20.0                                                # deg C at which the geometry holds
+    #: an angle error of joint j as any function of its reading (rad -> rad): structure in no catalogue
+    reading_error: dict[int, Callable] = field(default_factory=dict)
 
 
 @dataclass
@@ -231,7 +236,7 @@ class TrueRobot:
 
     def reading_errors(self, q: np.ndarray, moves: np.ndarray) -> np.ndarray:
         """What each drive adds that depends on its reading and its motion: gear error, encoder scale, the
-        motion side of backlash (rad, (N, n))."""
+        motion side of backlash, any other function of the reading (rad, (N, n))."""
         e = np.zeros_like(q)
         eff = self.effects
         for j, h, A, phi in eff.periodic:
@@ -240,6 +245,8 @@ class TrueRobot:
             e[:, j - 1] += s * q[:, j - 1]
         for j, b in eff.backlash_motion.items():
             e[:, j - 1] -= b * moves[:, j - 1]
+        for j, f in eff.reading_error.items():
+            e[:, j - 1] += f(q[:, j - 1])
         return e
 
     def load_errors(self, tau: np.ndarray) -> np.ndarray:

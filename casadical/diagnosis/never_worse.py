@@ -1,0 +1,200 @@
+"""Never worse than a kinematic calibration of the same poses, in mean and in worst case.
+
+``calibrate --model kinematic`` is what a user has without the diagnosis: its final model must never do
+worse, judged where the diagnosis judges everything, on the calibration poses' own folds
+(:mod:`.validation`; the validation poses judge and never decide):
+
+- on every kind of fold (random, time, joint, session) the held-out mean of the final model may not exceed
+  the kinematic model's;
+- nor may its worst held-out error exceed the kinematic model's by more than :data:`WORST_SHARE`.
+
+When the geometry step was not supported on its own (on a weak design the unmodelled causes can hide it),
+it is tried again once the causes are in the model, with the same tests. A final model that still does
+worse than the kinematic one gives way to the latest model of the search that does not (down to the
+kinematic model itself), and a note says what was dropped and why.
+
+The validation poses then say, as a judge, whether the final model's worst error rose by more than
+:data:`WORST_SHARE` over the kinematic model's or over the model the accuracy layer extends
+(:func:`validation_note`): where, how much, whether the folds saw it, and whether those poses are ones no
+model of the robot predicts (beyond the robust loss's limit: a bad measurement or a transient).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import listing
+from ..result import CalibrationResult
+from .candidates import Candidate, compose_spec
+from .report import Finding, Step
+from .statistics import nested_test
+from .validation import CVResult, Linearized, cv_record, cv_text, kinds
+
+#: the worst held-out (or validation) error may rise by this share at most without a word
+WORST_SHARE = 0.05
+#: a robust weight below this: a pose no model of the robot predicts (as the calibration's set-aside poses)
+SET_ASIDE_WEIGHT = 0.5
+
+
+@dataclass
+class Held:
+    """Held-out errors (mm) of a model on the calibration poses' folds, by kind: mean and worst."""
+
+    mean: dict[str, float]
+    worst: dict[str, float]
+
+    @classmethod
+    def of(cls, cv: CVResult, mask: np.ndarray) -> "Held":
+        errs = {k: cv.kind_errors(k)[mask] * 1000 for k in kinds(cv)}
+        return cls({k: float(e.mean()) for k, e in errs.items()}, {k: float(e.max()) for k, e in errs.items()})
+
+    def worse_than(self, ref: "Held") -> list[str]:
+        """What is worse than ``ref``: a mean above it, a worst error more than :data:`WORST_SHARE` above it."""
+        out = [f"mean {k} {ref.mean[k]:.4f} -> {self.mean[k]:.4f} mm" for k in ref.mean
+               if self.mean[k] > ref.mean[k] * (1 + 1e-9)]
+        out += [f"worst {k} {ref.worst[k]:.4f} -> {self.worst[k]:.4f} mm" for k in ref.worst
+                if self.worst[k] > ref.worst[k] * (1 + WORST_SHARE)]
+        return out
+
+
+def held(dg, res: CalibrationResult, mask: np.ndarray) -> Held:
+    return Held.of(Linearized.of(res, dg.cal).cv(dg.schemes, dg.prior), mask)
+
+
+def final_check(dg, current: CalibrationResult, accepted: list[Candidate], geometric: bool
+                ) -> tuple[CalibrationResult, list[Candidate], bool]:
+    """The geometry again with the causes in the model (when it was not supported alone), then the final model
+    never worse than the kinematic one on the calibration poses' folds (see the module); returns the final
+    model, its causes and whether it has the geometry."""
+    kin = dg.kinematic
+    mask = dg.mask(current) & dg.mask(kin)
+    with_geometry = None
+    if not geometric and accepted:
+        with_geometry = dg.fit(compose_spec(accepted, True), start=current)
+        if _geometry_again(dg, current, with_geometry, accepted, mask):
+            current, geometric = with_geometry, True
+    ref = held(dg, kin, mask)
+    now = held(dg, current, mask)
+    dg.held_text = _worst_text(ref, now)
+    bad = now.worse_than(ref)
+    if not bad:
+        return current, accepted, geometric
+    options = []
+    if not geometric and accepted:
+        options.append((with_geometry, list(accepted), True))
+    options += [(fit, list(earlier), fit.model.geometric_free) for earlier, fit in reversed(dg.history)
+                if set(earlier) <= set(accepted) and fit is not current]
+    options.append((kin, [], True))
+    for fit, earlier, geo in options:
+        now = held(dg, fit, mask)
+        if fit is not kin and now.worse_than(ref):
+            continue
+        dg.held_text = _worst_text(ref, now)
+        dropped = [a for a in accepted if a not in earlier]
+        for a in dropped:
+            dg.drop_finding(a)
+        if geo and not geometric:
+            _add_geometry_finding(dg, fit, current)
+        elif geometric and not geo:         # back to a model the geometry was tried again on
+            dg.findings = [f for f in dg.findings if f.cause != "geometric"]
+        what = ("the kinematic model itself" if fit is kin else
+                "the model with the geometry" if geo and not geometric else "the last model of the search that is not")
+        dg.notes.append("never worse than a kinematic calibration: the model with every cause did worse than the "
+                        "kinematic model on the calibration poses' folds (held-out " + ", ".join(bad)
+                        + f"); the final model is {what}"
+                        + (", without " + ", ".join(a.label() for a in dropped) if dropped else ""))
+        dg.say(f"  {dg.notes[-1]}")
+        return fit, earlier, geo
+    return current, accepted, geometric     # (not reached: the kinematic model is never worse than itself)
+
+
+def _worst_text(ref: Held, final: Held) -> str:
+    return ("the worst held-out error is " + ", ".join(f"{k} {final.worst[k]:.4f} mm" for k in ref.worst)
+            + " (kinematic " + ", ".join(f"{ref.worst[k]:.4f}" for k in ref.worst) + ")")
+
+
+def _geometry_again(dg, current: CalibrationResult, fit: CalibrationResult, accepted: list[Candidate],
+                    mask: np.ndarray) -> bool:
+    """The geometry step once more, the causes in the model: the same tests as the first time (F-test, BIC,
+    held-out means that drop on every kind of fold); recorded as a step, and as the geometric finding."""
+    test = nested_test(dg.deviance(current, fit.loss), int(current.parameters.free.sum()),
+                       dg.deviance(fit, fit.loss), int(fit.parameters.free.sum()), dg.n_fit_eq)
+    h0, h1 = held(dg, current, mask), held(dg, fit, mask)
+    worse = [k for k in h0.mean if not h1.mean[k] < h0.mean[k]]
+    ok = test.log10_p < math.log10(dg.s.alpha) and test.delta_bic < 0 and not worse
+    reason = "; ".join([f"not significant ({test.text()})"] * (test.log10_p >= math.log10(dg.s.alpha))
+                       + [f"BIC does not improve ({test.delta_bic:+.1f})"] * (test.delta_bic >= 0)
+                       + ["held-out mean does not drop: " + ", ".join(f"{k} {h0.mean[k]:.4f} -> {h1.mean[k]:.4f} mm"
+                                                                      for k in worse)] * bool(worse))
+    parent = dg.step_of(current)
+    pv, v = dg.val_stats(current), dg.val_stats(fit)
+    dg.steps.append(Step(compose_spec(accepted, True), fit.calibration, v, ok, Candidate("geometric"), test,
+                         cv_record(h0.mean, h1.mean), reason, dg.val_angles(fit), parent=parent, parent_mm=pv.mean_mm))
+    if ok:
+        dg._step_of.append((fit, len(dg.steps) - 1))
+        dg.history.append((list(accepted), fit))
+        _add_geometry_finding(dg, fit, current, f"{test.text()} on the calibration poses with the causes in the "
+                                               f"model; held-out mean {cv_text(h0.mean, h1.mean)}")
+        dg.notes.append("the geometry step, not supported alone, is supported once the causes are in the model "
+                        f"({test.text()}): the final model has it")
+        dg.say(f"  geometry again, with the causes: accepted ({test.text()})")
+    else:
+        dg.say(f"  geometry again, with the causes: not supported ({reason})")
+    return ok
+
+
+def _add_geometry_finding(dg, fit: CalibrationResult, without: CalibrationResult, evidence: str = "") -> None:
+    if any(f.cause == "geometric" for f in dg.findings):
+        return
+    gain = dg.val_stats(without).mean_mm - dg.val_stats(fit).mean_mm
+    dg.findings.insert(0, Finding(Candidate("geometric"), gain, evidence or
+                                  "never worse than a kinematic calibration of the same poses on their folds; "
+                                  "link, base and tool parameters"))
+
+
+def validation_note(final: CalibrationResult, kinematic: CalibrationResult, extended: CalibrationResult | None,
+                    val, val_errors, held_text: str = "") -> str | None:
+    """A note (judge only) when the final model's worst validation error is more than :data:`WORST_SHARE` above
+    the kinematic model's, or above that of the model the accuracy layer extends (``extended``; None: no
+    layer): where, how much, what the folds said (``held_text``), and the poses no model of the robot predicts.
+
+    ``val_errors(res)``: a model's position errors (m) on ``val``.
+    """
+    e_final, e_kin = val_errors(final) * 1000, val_errors(kinematic) * 1000
+    rises = []
+    if e_final.max() > e_kin.max() * (1 + WORST_SHARE):
+        rises.append(f"{(e_final.max() / e_kin.max() - 1):.0%} above the kinematic model's {e_kin.max():.4f} mm")
+    if extended is not None and extended is not final:
+        e_ext = val_errors(extended) * 1000
+        if e_final.max() > e_ext.max() * (1 + WORST_SHARE):
+            rises.append(f"{(e_final.max() / e_ext.max() - 1):.0%} above the {e_ext.max():.4f} mm of the model the "
+                         "session compensator extends")
+    if not rises:
+        return None
+    i = int(np.argmax(e_final))
+    text = (f"judge only: the final model's worst validation error, {e_final[i]:.4f} mm at {_where(val, i)}, is "
+            + " and ".join(rises))
+    if held_text:
+        text += f"; on the calibration poses' folds {held_text}"
+    # poses no model of the robot predicts: beyond the robust loss's limit under the final model and the kinematic
+    r = final.residuals(val)
+    away = (final.loss.weight(np.einsum("ij,ij->i", r, r)) < SET_ASIDE_WEIGHT) & \
+           (kinematic.loss.weight((e_kin / 1000) ** 2) < SET_ASIDE_WEIGHT)
+    if away[i]:
+        k = int(away.sum())
+        order = np.flatnonzero(away)[np.argsort(-e_final[away])]
+        text += (f"; that pose{f' and {k - 1} more' if k > 1 else ''} ("
+                 + listing([_where(val, j) for j in order], 5)
+                 + ") miss both models by far more than the noise (beyond the robust loss's limit): likely bad "
+                   "measurements or a transient no model of the robot predicts")
+        if k < len(e_final):
+            text += (f"; without {'them' if k > 1 else 'it'} the worst error is {e_final[~away].max():.4f} mm "
+                     f"(kinematic {e_kin[~away].max():.4f} mm)")
+    return text
+
+
+def _where(data, i: int) -> str:
+    return f"{data.file(i)}:{data.line(i)}"
