@@ -45,9 +45,9 @@ from .threads import evaluation_threads
 #: saves ~0.55 s per later 200-pose calibration, so it pays from the third run
 JIT_MIN_POSES = 100
 #: a model's own functions that a fit evaluates once (its torques, their derivatives, the probe's rotation) are
-#: compiled from this many poses (or with ``jit=True``): on the VM they cost 1-3 ms for 300 UR10 poses, 0.7-2 s
-#: for 200,000 (compiled 0.3-0.5 s), a compile 0.5-1 s per model, which would be one per candidate the diagnosis
-#: tries
+#: compiled from this many poses, below it taken compiled only from the cache: on the VM they cost 1-3 ms for
+#: 300 UR10 poses, 0.7-2 s for 200,000 (compiled 0.3-0.5 s), a compile 0.5-1 s per model, which would be one per
+#: candidate the diagnosis tries
 JIT_ONCE_MIN_POSES = 20_000
 _EVALUATED_ONCE = frozenset({"tau", "tau_q_jac", "probe"})
 _SPEC_ITEM = re.compile(r"^\s*([a-z_]+)\s*(?:\[([^\]]*)\])?\s*(?:@\s*([A-Za-z0-9_.-]+))?\s*$")
@@ -409,8 +409,9 @@ class Model:
         return mapped(fun, N, bcast, reduce)
 
     def _batch(self, which: str, N: int) -> "_Batch | _Blocks":
-        once = which in _EVALUATED_ONCE and self.jit is None and N < JIT_ONCE_MIN_POSES
-        jit = "cached" if once and compiler_available() else self._use_jit(N)
+        jit = self._use_jit(N)
+        if jit is True and which in _EVALUATED_ONCE and N < JIT_ONCE_MIN_POSES:
+            jit = "cached"
         compiled = self.per_pose_function(which, jit).class_name() == "External"
         key = (which, N, jit, compiled or evaluation_threads())
         b = self._maps.get(key)
