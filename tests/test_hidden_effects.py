@@ -19,8 +19,6 @@ from casadical.diagnosis import DiagnosisSettings, diagnose
 #: calibrate, reaches the noise (0.033-0.035 mm on the validation poses): the search is what fails
 KNOWN = {
     ("arm7", "several", 0): "compliance j2 missed (validation 0.087 mm)",
-    ("arm7", "drift", 1): "drift missed, the final model kinematic (validation 0.072 mm)",
-    ("arm7-dh", "drift", 1): "drift missed, the final model kinematic (validation 0.073 mm)",
     **{("arm5-coupled", "bad shots", s): "compliance j2 missed (the 3 bad shots set aside; found without them)"
        for s in (0, 1, 2)},
 }

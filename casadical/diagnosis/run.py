@@ -47,7 +47,7 @@ from ..threads import limited_threads
 from .backward import drop_redundant, drop_unphysical
 from .layer import layer_step
 from .never_worse import final_check, validation_note
-from .candidates import Candidate, compose_spec
+from .candidates import Candidate, compose_spec, shortlist
 from .catalogue import Catalogue, not_tried
 from .design import assess, priors
 from .gaps import set_aside_note, untried_alternatives
@@ -334,7 +334,7 @@ class _Diagnosis:
         pending: list[tuple] = []   # significant structure that cannot be named (unless a cause is accepted)
         for tier in (1, 2, 3):
             passing = []
-            for sc in [sc for sc in scored if sc.candidate.tier == tier and sc.log10_p < level][: self.s.confirm]:
+            for sc in shortlist(scored, tier, level, self.s.confirm):
                 cand = sc.candidate
                 self.say(f"  fitting {cand.label()} (score {sc.test.text()})")
                 fit = scr.fit(cand)
