@@ -137,7 +137,8 @@ def _geometry_again(dg, current: CalibrationResult, fit: CalibrationResult, acce
     """The geometry step once more, the causes in the model: the same tests as the first time (F-test, BIC,
     held-out means that drop on every kind of fold); recorded as a step, and as the geometric finding."""
     test = nested_test(dg.deviance(current, fit.loss), int(current.parameters.free.sum()),
-                       dg.deviance(fit, fit.loss), int(fit.parameters.free.sum()), dg.n_fit_eq)
+                       dg.deviance(fit, fit.loss), int(fit.parameters.free.sum()), dg.n_fit_eq,
+                       dg.deviance(fit, fit.loss, noise=True))
     h0, h1 = held(dg, current, mask), held(dg, fit, mask)
     worse = [k for k in h0.mean if not h1.mean[k] < h0.mean[k]]
     ok = test.log10_p < math.log10(dg.s.alpha) and test.delta_bic < 0 and not worse

@@ -31,7 +31,7 @@ from ..result import CalibrationResult
 from ..terms.periodic import JointPeriodic
 from ..terms.warmup import Warmup, decay
 from .candidates import Candidate, compose_spec, tell_apart
-from .statistics import NestedTest, nested_test
+from .statistics import NestedTest, nested_test, set_aside_share
 from .validation import Linearized, solve_identified, switch_off
 
 #: causes whose columns are computed here rather than by the model: a periodic error (the direction of its
@@ -200,6 +200,9 @@ class Screen:
         Qc, _ = np.linalg.qr(Jx[:, self.cur])
         r_perp = r - Qc @ (Qc.T @ r)
         ssr0 = float(r_perp @ r_perp)
+        # the noise scale with the set-aside poses counted by their influence (statistics.set_aside_share)
+        u2w = self.w * np.einsum("ij,ij->i", self.r, self.r)
+        share = float(u2w @ set_aside_share(self.w)) / max(float(u2w.sum()), 1e-300)
         p0 = len(self.cur)
         scored = []
         for c in cands:
@@ -214,7 +217,7 @@ class Screen:
                 continue
             proj = U[:, keep].T @ r_perp
             drop = float(proj @ proj)
-            test = nested_test(ssr0, p0, ssr0 - drop, p0 + int(keep.sum()), len(r))
+            test = nested_test(ssr0, p0, ssr0 - drop, p0 + int(keep.sum()), len(r), (ssr0 - drop) * share)
             scored.append(Scored(test.log10_p, c, test, U[:, keep] @ proj, U[:, keep], (r_perp, p0, len(r))))
         scored.sort(key=lambda t: t.log10_p)
         return scored
