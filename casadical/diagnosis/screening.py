@@ -280,15 +280,26 @@ def ambiguous(best: Scored, scored: list[Scored], level: float) -> list[dict]:
             continue
         drop = float(sc.fitted @ sc.fitted)
         cos = float(sc.fitted @ best.fitted) / math.sqrt(max(drop * best_drop, 1e-300))
-        if drop > 0.7 * best_drop and cos > 0.9:
-            told = beyond(best, sc)
-            if told is not None and told.log10_p < level:
-                continue    # explains the same residual alone, but the data need the accepted cause beyond it
+        told = beyond(best, sc)
+        if told is not None and told.log10_p < level:
+            continue    # the data need the accepted cause beyond the other
+        # the two fit much the same residual; or, an encoder scale and a harmonic of the same joint (over a short
+        # range both are a curve of its reading), neither is needed beyond the other (joint 3's first harmonic
+        # over 118 deg and its scale: cos 0.84, but the scale beyond the harmonic p = 0.76 and the harmonic
+        # beyond the scale p = 0.005, at a level of 1e-5: the scale was named with no doubt)
+        back = beyond(sc, best) if told is not None and _reading_rivals(cand, other) else None
+        if (drop > 0.7 * best_drop and cos > 0.9) or (back is not None and back.log10_p >= level):
             amb.append({**other.to_dict(), "label": other.label(), "similarity": round(cos, 4),
                         "tell_apart": tell_apart(cand, other),
                         **({"test": {"text": told.text(), "log10_p": told.log10_p, "log10_level": level}}
                            if told is not None else {})})
     return amb
+
+
+def _reading_rivals(a: Candidate, b: Candidate) -> bool:
+    """An encoder scale and a periodic error of one joint (and scope): both functions of the joint's reading."""
+    return ({a.cause, b.cause} == {"encoder_scale", "joint_periodic"} and a.joint == b.joint
+            and a.session == b.session)
 
 
 def beyond(a: Scored, b: Scored) -> NestedTest | None:
