@@ -280,6 +280,9 @@ def ambiguous(best: Scored, scored: list[Scored], level: float) -> list[dict]:
             continue
         drop = float(sc.fitted @ sc.fitted)
         cos = float(sc.fitted @ best.fitted) / math.sqrt(max(drop * best_drop, 1e-300))
+        similar = drop > 0.7 * best_drop and cos > 0.9
+        if not (similar or _reading_rivals(cand, other)):
+            continue
         told = beyond(best, sc)
         if told is not None and told.log10_p < level:
             continue    # the data need the accepted cause beyond the other
@@ -287,8 +290,8 @@ def ambiguous(best: Scored, scored: list[Scored], level: float) -> list[dict]:
         # range both are a curve of its reading), neither is needed beyond the other (joint 3's first harmonic
         # over 118 deg and its scale: cos 0.84, but the scale beyond the harmonic p = 0.76 and the harmonic
         # beyond the scale p = 0.005, at a level of 1e-5: the scale was named with no doubt)
-        back = beyond(sc, best) if told is not None and _reading_rivals(cand, other) else None
-        if (drop > 0.7 * best_drop and cos > 0.9) or (back is not None and back.log10_p >= level):
+        back = None if similar or told is None else beyond(sc, best)
+        if similar or (back is not None and back.log10_p >= level):
             amb.append({**other.to_dict(), "label": other.label(), "similarity": round(cos, 4),
                         "tell_apart": tell_apart(cand, other),
                         **({"test": {"text": told.text(), "log10_p": told.log10_p, "log10_level": level}}
