@@ -25,7 +25,7 @@ import numpy as np
 from ..physics import violations
 from ..result import CalibrationResult
 from .candidates import Candidate, compose_spec
-from .statistics import NestedTest, nested_test
+from .statistics import NestedTest, nested_test, noise_ssr
 from .validation import Linearized
 
 
@@ -44,6 +44,7 @@ def without_tests(current: CalibrationResult, accepted: list[Candidate], data, n
     X = lin.J.reshape(-1, p) * sw[:, None]
     r = lin.r.ravel() * sw
     ssr = float(r @ r)
+    noise = noise_ssr(lin)
     out = []
     for cand in accepted:
         cols = [lin.names.index(n) for n in own_parameters(cand, accepted) if n in lin.names]
@@ -54,7 +55,7 @@ def without_tests(current: CalibrationResult, accepted: list[Candidate], data, n
         r0 = r - X[:, cols] @ np.array([current.parameters[lin.names[k]].value / lin.scale[k] for k in cols])
         Q, _ = np.linalg.qr(X[:, keep])
         r_red = r0 - Q @ (Q.T @ r0)
-        out.append((cand, nested_test(float(r_red @ r_red), len(keep), ssr, p, n_eq)))
+        out.append((cand, nested_test(float(r_red @ r_red), len(keep), ssr, p, n_eq, noise)))
     return out
 
 
@@ -72,7 +73,8 @@ def drop_redundant(dg, current: CalibrationResult, accepted: list[Candidate], ge
         dg.say(f"  {cand.label()} may no longer be needed: the model refitted without it")
         refit = dg.fit(compose_spec(rest, geometric), start=current)
         full = nested_test(dg.deviance(refit, current.loss), int(refit.parameters.free.sum()),
-                           dg.deviance(current, current.loss), int(current.parameters.free.sum()), dg.n_fit_eq)
+                           dg.deviance(current, current.loss), int(current.parameters.free.sum()), dg.n_fit_eq,
+                           dg.deviance(current, current.loss, noise=True))
         if full.log10_p < level and full.delta_bic < 0:
             break       # the one-step estimate was too pessimistic: it is still supported
         dg.drop_finding(cand)

@@ -56,6 +56,12 @@ class Candidate:
         harmonics to choose from)."""
         return {"drift": 2, "warmup": 2, "joint_periodic": 3}.get(self.cause, 1)
 
+    @property
+    def family(self) -> "Candidate":
+        """The cause with its setting scanned left out: a warm-up's time constants are one cause scanned over a
+        grid (counted as tests, as harmonics are), and a round fits only its best-scoring one."""
+        return replace(self, time_constant=None) if self.cause == "warmup" else self
+
     def label(self, short: bool = False) -> str:
         """``joint_periodic joint 2 harmonic 17``; short (reports): ``periodic j2 h17``."""
         parts = [SHORT.get(self.cause, self.cause.replace("_", " ")) if short else self.cause]
@@ -195,3 +201,16 @@ def tell_apart(a: Candidate, b: Candidate) -> str:
     text = TELL_APART.get(key, "measure poses where the two candidates predict different errors "
                                "(wider joint ranges, other loads or temperatures)")
     return text.format(j=a.joint if a.joint is not None else b.joint)
+
+
+def shortlist(scored: list, tier: int, level: float, n: int) -> list:
+    """The candidates of ``tier`` a round fits for real: up to ``n`` of those whose score passes ``level``
+    (log10 p), best first, one of each :attr:`Candidate.family` (the ten time constants of a warm-up would
+    otherwise fill the round and leave the drift they must be told from unfitted)."""
+    out, seen = [], set()
+    for sc in scored:
+        c = sc.candidate
+        if c.tier == tier and sc.log10_p < level and c.family not in seen:
+            seen.add(c.family)
+            out.append(sc)
+    return out[:n]

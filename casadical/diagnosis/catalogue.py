@@ -254,9 +254,12 @@ class Catalogue:
                 # and the ambiguity can only be reported if both are screened
                 hs = set(ranked) | ({1} if (j, 1, s) not in excluded and len(pg.harmonics) else set())
                 out += [Candidate("joint_periodic", j, h, session=s) for h in sorted(hs)]
-        return [c for c in dict.fromkeys(out) if c not in have and c not in excluded_causes and not (
-            c.cause == "backlash" and (any(a.cause == "backlash" and a.joint == c.joint and a.session == c.session
-                                           for a in accepted) or not self.sign_changes(torques, c)))]
+        # a joint's play by the load and by the motion are both screened while the other is in the model: where
+        # the last move follows the joint's reading (random poses in row order) the load's sign stands for the
+        # motion's and a compliance together, and neither of these can come in beside it; the final check
+        # (:func:`.backward.drop_redundant`) drops the stand-in once both are in
+        return [c for c in dict.fromkeys(out) if c not in have and c not in excluded_causes
+                and not (c.cause == "backlash" and not self.sign_changes(torques, c))]
 
     def sign_changes(self, torques, cand: Candidate) -> bool:
         """Backlash needs its sign source to change sign in the data: otherwise it is a joint offset."""

@@ -51,13 +51,43 @@ class Held:
         errs = {k: cv.kind_errors(k)[mask] * 1000 for k in kinds(cv)}
         return cls({k: float(e.mean()) for k, e in errs.items()}, {k: float(e.max()) for k, e in errs.items()})
 
-    def worse_than(self, ref: "Held") -> list[str]:
-        """What is worse than ``ref``: a mean above it, a worst error more than :data:`WORST_SHARE` above it."""
+    def worse_than(self, ref: "Held", band: float = 0.0) -> list[str]:
+        """What is worse than ``ref``: a mean above it; a worst error more than :data:`WORST_SHARE` above it and
+        beyond the noise ``band`` (mm, :func:`noise_band`: a worst error inside it is a draw of the noise), where
+        the mean does not drop by more than that share (:meth:`traded`)."""
         out = [f"mean {k} {ref.mean[k]:.4f} -> {self.mean[k]:.4f} mm" for k in ref.mean
                if self.mean[k] > ref.mean[k] * (1 + 1e-9)]
-        out += [f"worst {k} {ref.worst[k]:.4f} -> {self.worst[k]:.4f} mm" for k in ref.worst
-                if self.worst[k] > ref.worst[k] * (1 + WORST_SHARE)]
+        traded = self.traded(ref, band)
+        out += [f"worst {k} {ref.worst[k]:.4f} -> {self.worst[k]:.4f} mm" for k in self.rises(ref, band)
+                if k not in traded]
         return out
+
+    def rises(self, ref: "Held", band: float = 0.0) -> list[str]:
+        """Kinds of fold where the worst error is more than :data:`WORST_SHARE` above ``ref``'s and beyond ``band``."""
+        return [k for k in ref.worst if self.worst[k] > max(ref.worst[k] * (1 + WORST_SHARE), band)]
+
+    def traded(self, ref: "Held", band: float = 0.0) -> list[str]:
+        """Kinds of fold where the worst error rises (:meth:`rises`) while the mean drops by more than
+        :data:`WORST_SHARE`: a trade the report states, not a model worse than ``ref``. (Two sessions
+        of an arm, one holding joint 1 within 6 deg: its encoder scale, fitted on that session alone, raised the
+        worst error of the other session's fold 8 % and dropped its mean 21 %; the validation mean 0.136 ->
+        0.032 mm.)"""
+        return [k for k in self.rises(ref, band) if self.mean[k] < ref.mean[k] * (1 - WORST_SHARE)]
+
+
+def noise_band(*fits: CalibrationResult) -> float:
+    """The largest error (mm) the noise alone gives a pose as the robust loss sees it: where its weight falls to
+    :data:`SET_ASIDE_WEIGHT` (``sqrt(3) c sigma``, about 5 sigma per axis), the narrowest of ``fits``'.
+
+    Within it the worst held-out error of a few dozen poses is the noise of one of them (the largest of 80
+    noise vectors is 3-4 sigma): a model that predicts every pose better can move it by a few um either way,
+    and that says nothing of the model's worst case."""
+    out = math.inf
+    for f in fits:
+        sigma = f.loss.sigma if f.loss.robust else (f.uncertainty.sigma if f.uncertainty is not None else 0.0)
+        if sigma > 0:
+            out = min(out, math.sqrt(1 / SET_ASIDE_WEIGHT ** 2 - 1) * f.loss.c * sigma * 1000)
+    return out if math.isfinite(out) else 0.0
 
 
 def held(dg, res: CalibrationResult, mask: np.ndarray) -> Held:
@@ -79,8 +109,17 @@ def final_check(dg, current: CalibrationResult, accepted: list[Candidate], geome
     ref = held(dg, kin, mask)
     now = held(dg, current, mask)
     dg.held_text = _worst_text(ref, now)
-    bad = now.worse_than(ref)
+    band = noise_band(kin, current)
+    bad = now.worse_than(ref, band)
     if not bad:
+        if now.traded(ref, band):
+            dg.notes.append("the final model's worst held-out error rises where its mean drops, on the calibration "
+                            "poses' folds: " + ", ".join(f"{k} worst {ref.worst[k]:.4f} -> {now.worst[k]:.4f} mm, "
+                                                         f"mean {ref.mean[k]:.4f} -> {now.mean[k]:.4f} mm"
+                                                         for k in now.traded(ref, band))
+                            + " against the kinematic model; the poses of those folds' largest errors are where it "
+                              "extrapolates least surely")
+            dg.say(f"  {dg.notes[-1]}")
         return current, accepted, geometric
     options = []
     if not geometric and accepted:
@@ -90,7 +129,7 @@ def final_check(dg, current: CalibrationResult, accepted: list[Candidate], geome
     options.append((kin, [], True))
     for fit, earlier, geo in options:
         now = held(dg, fit, mask)
-        if fit is not kin and now.worse_than(ref):
+        if fit is not kin and now.worse_than(ref, noise_band(kin, fit)):
             continue
         dg.held_text = _worst_text(ref, now)
         dropped = [a for a in accepted if a not in earlier]
@@ -121,7 +160,8 @@ def _geometry_again(dg, current: CalibrationResult, fit: CalibrationResult, acce
     """The geometry step once more, the causes in the model: the same tests as the first time (F-test, BIC,
     held-out means that drop on every kind of fold); recorded as a step, and as the geometric finding."""
     test = nested_test(dg.deviance(current, fit.loss), int(current.parameters.free.sum()),
-                       dg.deviance(fit, fit.loss), int(fit.parameters.free.sum()), dg.n_fit_eq)
+                       dg.deviance(fit, fit.loss), int(fit.parameters.free.sum()), dg.n_fit_eq,
+                       dg.deviance(fit, fit.loss, noise=True))
     h0, h1 = held(dg, current, mask), held(dg, fit, mask)
     worse = [k for k in h0.mean if not h1.mean[k] < h0.mean[k]]
     ok = test.log10_p < math.log10(dg.s.alpha) and test.delta_bic < 0 and not worse

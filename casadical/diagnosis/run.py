@@ -47,7 +47,7 @@ from ..threads import limited_threads
 from .backward import drop_redundant, drop_unphysical
 from .layer import layer_step
 from .never_worse import final_check, validation_note
-from .candidates import Candidate, compose_spec
+from .candidates import Candidate, compose_spec, shortlist
 from .catalogue import Catalogue, not_tried
 from .design import assess, priors
 from .gaps import set_aside_note, untried_alternatives
@@ -57,7 +57,7 @@ from .periodogram import Periodogram
 from .report import DiagnosisReport, Finding, Step
 from .screening import Scored, Screen, ambiguous
 from .settings import DiagnosisSettings
-from .statistics import nested_test
+from .statistics import nested_test, noise_ssr, set_aside_share
 from .transfer import findings_study
 from .validation import (EXTRAPOLATING, Linearized, by_kind, cv_failure, cv_record, cv_text, extrapolation_gain,
                          joint_levers, not_better, schemes)
@@ -143,9 +143,11 @@ class _Diagnosis:
             u2 = u2 + (loss.rot_weight * res.orientation_errors(self.cal)) ** 2
         return u2
 
-    def deviance(self, res: CalibrationResult, loss: RobustLoss) -> float:
-        """Twice the loss of ``res`` on the calibration poses under ``loss`` (SSR for least squares)."""
-        return 2.0 * float(loss.rho(self.u2(res, loss)).sum())
+    def deviance(self, res: CalibrationResult, loss: RobustLoss, noise: bool = False) -> float:
+        """Twice the loss of ``res`` on the calibration poses under ``loss`` (SSR for least squares); ``noise``:
+        with the set-aside poses counted by their influence (a test's noise scale, :func:`.statistics.nested_test`)."""
+        u2 = self.u2(res, loss)
+        return 2.0 * float(loss.rho(u2) @ (set_aside_share(loss.weight(u2)) if noise else np.ones(len(u2))))
 
     def mask(self, res: CalibrationResult) -> np.ndarray:
         """Poses that count in held-out means: those the robust loss did not set aside."""
@@ -183,7 +185,8 @@ class _Diagnosis:
             self.notes.append(self.design.text())
             self.say(f"  {self.notes[-1]}")
         test = nested_test(self.deviance(nominal, kin.loss), int(nominal.parameters.free.sum()),
-                           self.deviance(kin, kin.loss), int(kin.parameters.free.sum()), self.n_fit_eq)
+                           self.deviance(kin, kin.loss), int(kin.parameters.free.sum()), self.n_fit_eq,
+                           self.deviance(kin, kin.loss, noise=True))
         mask = self.mask(kin)
         cv0, cv1 = (self.cv(r, mask) for r in (nominal, kin))
         worse = not_better(cv0, cv1)
@@ -220,7 +223,7 @@ class _Diagnosis:
             new_fit = self.fit(compose_spec(accepted + [cand], geometric), start=start)
             test = nested_test(self.deviance(current, current.loss), int(current.parameters.free.sum()),
                                self.deviance(new_fit, current.loss), int(new_fit.parameters.free.sum()),
-                               self.n_fit_eq)
+                               self.n_fit_eq, self.deviance(new_fit, current.loss, noise=True))
             reasons = []
             if test.log10_p >= level or test.delta_bic >= 0:
                 reasons.append(f"not significant once fitted in full ({test.text()})")
@@ -334,11 +337,11 @@ class _Diagnosis:
         pending: list[tuple] = []   # significant structure that cannot be named (unless a cause is accepted)
         for tier in (1, 2, 3):
             passing = []
-            for sc in [sc for sc in scored if sc.candidate.tier == tier and sc.log10_p < level][: self.s.confirm]:
+            for sc in shortlist(scored, tier, level, self.s.confirm):
                 cand = sc.candidate
                 self.say(f"  fitting {cand.label()} (score {sc.test.text()})")
                 fit = scr.fit(cand)
-                test = nested_test(base.ssr, base.n_free, fit.ssr, fit.n_free, self.n_eq)
+                test = nested_test(base.ssr, base.n_free, fit.ssr, fit.n_free, self.n_eq, noise_ssr(fit.lin))
                 cv1 = by_kind(fit.lin.cv(self.schemes, self.prior), mask)
                 reasons = []
                 if test.log10_p >= level:

@@ -31,7 +31,7 @@ from ..result import CalibrationResult
 from ..terms.periodic import JointPeriodic
 from ..terms.warmup import Warmup, decay
 from .candidates import Candidate, compose_spec, tell_apart
-from .statistics import NestedTest, nested_test
+from .statistics import NestedTest, nested_test, set_aside_share
 from .validation import Linearized, solve_identified, switch_off
 
 #: causes whose columns are computed here rather than by the model: a periodic error (the direction of its
@@ -199,6 +199,9 @@ class Screen:
         r = self.r.ravel() * sw
         Jx = self.J.reshape(len(r), -1) * sw[:, None]
         ssr0 = float(r_perp @ r_perp)
+        # the noise scale with the set-aside poses counted by their influence (statistics.set_aside_share)
+        u2w = self.w * np.einsum("ij,ij->i", self.r, self.r)
+        share = float(u2w @ set_aside_share(self.w)) / max(float(u2w.sum()), 1e-300)
         p0 = len(self.cur)
         scored = []
         for c in cands:
@@ -213,7 +216,7 @@ class Screen:
                 continue
             proj = U[:, keep].T @ r_perp
             drop = float(proj @ proj)
-            test = nested_test(ssr0, p0, ssr0 - drop, p0 + int(keep.sum()), len(r))
+            test = nested_test(ssr0, p0, ssr0 - drop, p0 + int(keep.sum()), len(r), (ssr0 - drop) * share)
             scored.append(Scored(test.log10_p, c, test, U[:, keep] @ proj, U[:, keep], (r_perp, p0, len(r))))
         scored.sort(key=lambda t: t.log10_p)
         return scored
@@ -296,15 +299,29 @@ def ambiguous(best: Scored, scored: list[Scored], level: float) -> list[dict]:
             continue
         drop = float(sc.fitted @ sc.fitted)
         cos = float(sc.fitted @ best.fitted) / math.sqrt(max(drop * best_drop, 1e-300))
-        if drop > 0.7 * best_drop and cos > 0.9:
-            told = beyond(best, sc)
-            if told is not None and told.log10_p < level:
-                continue    # explains the same residual alone, but the data need the accepted cause beyond it
+        similar = drop > 0.7 * best_drop and cos > 0.9
+        if not (similar or _reading_rivals(cand, other)):
+            continue
+        told = beyond(best, sc)
+        if told is not None and told.log10_p < level:
+            continue    # the data need the accepted cause beyond the other
+        # the two fit much the same residual; or, an encoder scale and a harmonic of the same joint (over a short
+        # range both are a curve of its reading), neither is needed beyond the other (joint 3's first harmonic
+        # over 118 deg and its scale: cos 0.84, but the scale beyond the harmonic p = 0.76 and the harmonic
+        # beyond the scale p = 0.005, at a level of 1e-5: the scale was named with no doubt)
+        back = None if similar or told is None else beyond(sc, best)
+        if similar or (back is not None and back.log10_p >= level):
             amb.append({**other.to_dict(), "label": other.label(), "similarity": round(cos, 4),
                         "tell_apart": tell_apart(cand, other),
                         **({"test": {"text": told.text(), "log10_p": told.log10_p, "log10_level": level}}
                            if told is not None else {})})
     return amb
+
+
+def _reading_rivals(a: Candidate, b: Candidate) -> bool:
+    """An encoder scale and a periodic error of one joint (and scope): both functions of the joint's reading."""
+    return ({a.cause, b.cause} == {"encoder_scale", "joint_periodic"} and a.joint == b.joint
+            and a.session == b.session)
 
 
 def beyond(a: Scored, b: Scored) -> NestedTest | None:

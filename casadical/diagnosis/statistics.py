@@ -8,6 +8,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special  # not scipy.stats: importing it costs 0.5 s of every diagnosis
 
+from ..calibration.outcome import DOWNWEIGHT_REPORT
+
 
 @dataclass
 class NestedTest:
@@ -34,14 +36,43 @@ class NestedTest:
         return f"F = {self.f:.4g} ({self.dof[0]} and {self.dof[1]} dof, {p}), BIC change {self.delta_bic:+.1f}"
 
 
-def nested_test(ssr0: float, p0: int, ssr1: float, p1: int, n: int) -> NestedTest:
-    """Compare nested least-squares fits: SSR and parameter counts, ``n`` equations."""
+def nested_test(ssr0: float, p0: int, ssr1: float, p1: int, n: int, noise_ssr: float | None = None) -> NestedTest:
+    """Compare nested least-squares fits: SSR and parameter counts, ``n`` equations.
+
+    ``noise_ssr``: of a robust fit, the extended model's SSR with the set-aside poses counted by their influence
+    (:func:`set_aside_share`): the noise scale of the test and of its BIC. The drop ``ssr0 - ssr1`` is the
+    fits' own (a set-aside pose's part of it is bounded by its influence already).
+    """
+    if noise_ssr is not None and noise_ssr > 0:
+        ssr0, ssr1 = noise_ssr + (ssr0 - ssr1), noise_ssr
     k = max(p1 - p0, 1)
     dof2 = max(n - p1, 1)
     f = ((ssr0 - ssr1) / k) / (ssr1 / dof2) if ssr1 > 0 else math.inf
     log10_p = _log10(float(special.fdtrc(k, dof2, max(f, 0.0)))) if math.isfinite(f) else -math.inf
     bic = n * (math.log(ssr1 / n) - math.log(ssr0 / n)) + (p1 - p0) * math.log(n)
     return NestedTest(float(f), (k, dof2), log10_p, float(bic))
+
+
+def set_aside_share(weights: np.ndarray) -> np.ndarray:
+    """How much of each pose's term counts in a test's sum of squares: all of it, except for a pose the robust
+    loss sets aside (weight below :data:`~casadical.calibration.outcome.DOWNWEIGHT_REPORT`), whose share falls
+    with its weight.
+
+    A robust fit's weighted sum of squares grows with a bad shot's distance (``w |r|^2`` and ``2 rho`` are about
+    ``c sigma |r|`` far out): three 5 mm shots among 80 poses at 0.02 mm make it ten times the noise's, and every
+    F-test's noise scale with it. In the noise scale (``noise_ssr`` of :func:`nested_test`) a set-aside pose
+    counts by its influence (``w^2 |r|^2 / 0.5``, at most about ``2 (c sigma)^2``: a pose at 6 sigma), as it
+    counts in the fit; the drop a cause brings is the fits' own, so a pose set aside for structure the cause
+    explains keeps all its evidence.
+    """
+    return np.minimum(1.0, np.asarray(weights, float) / DOWNWEIGHT_REPORT)
+
+
+def noise_ssr(lin) -> float:
+    """A linearised fit's (:class:`.validation.Linearized`) weighted SSR with the set-aside poses counted by their
+    influence: the noise scale of its tests (:func:`nested_test`)."""
+    w = lin.weights
+    return float((w * np.einsum("ij,ij->i", lin.r, lin.r)) @ set_aside_share(w))
 
 
 #: above this many pairs scipy's Wilcoxon test takes its normal approximation, which :func:`paired_gain` computes
