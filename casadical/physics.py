@@ -44,6 +44,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .data import Measurements
+from .problem import pose_chunks
 
 #: a term's parameter whose column is this much a combination of the geometric columns (variance inflation
 #: factor, 1 / (1 - R^2)) cannot be told from the geometry: R^2 above 0.999. Below that a strong effect can
@@ -358,14 +359,17 @@ def first_order_sag(result, data: Measurements) -> tuple[list[Sag], float]:
     if not joints or len(data) == 0:
         return [], 0.0
     cov = m.covariates(data)
-    tau, dtau = m.torque_jacobian(data.q, P.values, cov)
-    d = c * tau + k3 * tau ** 3
-    second = (c + 3 * k3 * tau ** 2) * np.einsum("kij,kj->ki", dtau, d)
-    _, _, JA = m.predict_angle_jacobian(data.q, P.values, cov, result.base0)
-    moved = JA * second[:, None, :]                       # (N, 3, n): each joint's part
-    sags = [Sag(j, float(np.abs(d[:, j - 1]).max()), float(np.linalg.norm(moved[:, :, j - 1], axis=1).max()))
-            for j in joints]
-    return sags, float(np.linalg.norm(moved.sum(axis=2), axis=1).max())
+    sag, each, whole = np.zeros(n), np.zeros(n), 0.0
+    for s in pose_chunks(len(data)):   # chunk by chunk: the angle Jacobian of every pose is never held at once
+        tau, dtau = m.torque_jacobian(data.q[s], P.values, cov[s])
+        d = c * tau + k3 * tau ** 3
+        second = (c + 3 * k3 * tau ** 2) * np.einsum("kij,kj->ki", dtau, d)
+        _, _, JA = m.predict_angle_jacobian(data.q[s], P.values, cov[s], result.base0)
+        moved = JA * second[:, None, :]                   # (n_s, 3, n): each joint's part
+        sag = np.maximum(sag, np.abs(d).max(axis=0))
+        each = np.maximum(each, np.linalg.norm(moved, axis=1).max(axis=0))
+        whole = max(whole, float(np.linalg.norm(moved.sum(axis=2), axis=1).max()))
+    return [Sag(j, float(sag[j - 1]), float(each[j - 1])) for j in joints], whole
 
 
 def sag_note(result, data: Measurements) -> str | None:

@@ -38,6 +38,7 @@ import numpy as np
 
 from .data import Measurements
 from .errors import listing
+from .problem import pose_chunks
 
 #: family-wise level of the tests together: below it, set-aside poses share structure
 ALPHA = 0.001
@@ -388,7 +389,10 @@ def of_model(model, values: np.ndarray, base0: np.ndarray, data: Measurements, s
     if not np.any(set_aside):
         return SetAsideStructure(len(data), 0, alpha=alpha)
     cov = model.covariates(data) if cov is None else cov
-    xyz, _, directions = model.predict_angle_jacobian(data.q, values, cov, base0)
-    tau = model.torques(data.q, values, cov)
-    return set_aside_structure(data, set_aside, data.xyz - xyz, directions,
-                               tau if np.any(np.abs(tau) > 0) else None, alpha)
+    # the residuals and directions of the set-aside poses alone (the only ones the tests read); every pose's torque
+    idx = np.flatnonzero(set_aside) if np.asarray(set_aside).dtype == bool else np.sort(np.asarray(set_aside, int))
+    residuals, directions = np.zeros((len(data), 3)), np.zeros((len(data), 3, data.n_joints))
+    xyz, _, directions[idx] = model.predict_angle_jacobian(data.q[idx], values, cov[idx], base0)
+    residuals[idx] = data.xyz[idx] - xyz
+    tau = np.concatenate([model.torques(data.q[s], values, cov[s]) for s in pose_chunks(len(data))])
+    return set_aside_structure(data, idx, residuals, directions, tau if np.any(np.abs(tau) > 0) else None, alpha)
