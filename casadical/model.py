@@ -439,14 +439,14 @@ class Model:
         b0 = self.base0_nominal() if base0 is None else np.asarray(base0, dtype=float)
         return N, q, p, cov, b0
 
-    def _superset(self, which: str, N: int, q, p, cov, b0, Rm=None, angles: bool = False):
+    def _superset(self, which: str, N: int, q, p, cov, b0, Rm=None, angles: bool = False, columns=None):
         """``which`` of N poses through the robot's superset (:func:`casadical.superset.outputs`), or None when
         the model's own graph evaluates it: ``jit=False``, no compiler, a model the superset cannot express, or
         a batch below ``JIT_MIN_POSES`` while nothing of the superset is compiled."""
         if self._mapping is None or not (jitcache.compiler() if self.jit is True else compiler_available()):
             return None
         return superset_outputs(self, which, q, p, cov, b0, Rm, compile=self.jit is True or N >= JIT_MIN_POSES,
-                                required=False, angles=angles)
+                                required=False, angles=angles, columns=columns)
 
     def predict(self, q, params=None, cov=None, base0=None) -> np.ndarray:
         """Tool point positions (m), shape (N, 3), for readings ``q`` (rad, (N, n))."""
@@ -456,15 +456,18 @@ class Model:
             return out[:, :3]
         return self._batch("fk", N)(q, p, cov, b0)[0]
 
-    def predict_jacobian(self, q, params=None, cov=None, base0=None) -> tuple[np.ndarray, np.ndarray]:
-        """Positions (N, 3) and their Jacobian w.r.t. the full parameter vector (N, 3, P)."""
+    def predict_jacobian(self, q, params=None, cov=None, base0=None, columns=None
+                         ) -> tuple[np.ndarray, np.ndarray]:
+        """Positions (N, 3) and their Jacobian w.r.t. the full parameter vector (N, 3, P), or with ``columns``
+        (parameter indices) w.r.t. those alone (N, 3, len(columns)): the same numbers, fewer copied."""
         N, q, p, cov, b0 = self._inputs(q, params, cov, base0)
-        out = self._superset("jac", N, q, p, cov, b0)
+        out = self._superset("jac", N, q, p, cov, b0, columns=columns)
         if out is not None:
             return out[0][:, :3], out[1][:, :3]
         xyz, J = self._batch("fk_jac", N)(q, p, cov, b0)
         # CasADi is column-major: each pose's 3 x P block arrives transposed
-        return xyz, J.reshape(N, len(self.parameters), 3).transpose(0, 2, 1)
+        J = J.reshape(N, len(self.parameters), 3).transpose(0, 2, 1)
+        return xyz, (J if columns is None else J[:, :, columns])
 
     def predict_angle_jacobian(self, q, params=None, cov=None, base0=None
                                ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

@@ -272,10 +272,10 @@ class CalibrationProblem:
         r_all = np.empty((self.n_poses, 3))
         u2_all, w_all = np.empty(self.n_poses), np.empty(self.n_poses)
         for s in pose_chunks(self.n_poses):
-            xyz, J = self.model.predict_jacobian(self.q[s], values, self.cov[s], self.base0)
+            xyz, J = self.model.predict_jacobian(self.q[s], values, self.cov[s], self.base0, columns=f)
             r = xyz - self.xyz[s]
             r_all[s] = r
-            Jx = J[:, :, f] * scale                       # (n, 3, nf), scaled variables
+            Jx = J * scale                                # (n, 3, nf), scaled variables
             u2_all[s] = np.einsum("ij,ij->i", r, r)
             w = w_all[s] = self.loss.weight(u2_all[s])
             Jw = Jx * np.sqrt(w)[:, None, None]

@@ -213,13 +213,19 @@ class Mapping:
         f = np.sin(x) if c.kind == "s" else np.cos(x)
         return f if self.at[i] < 0 else f * cov[:, self.at[i]]
 
-    def jacobian(self, D: np.ndarray, q: np.ndarray, cov: np.ndarray) -> np.ndarray:
-        """The model's Jacobian (N, m, P) from the superset's D (N, P_S + n, m)."""
-        J = D[:, self.index, :]
+    def jacobian(self, D: np.ndarray, q: np.ndarray, cov: np.ndarray, columns: np.ndarray | None = None
+                 ) -> np.ndarray:
+        """The model's Jacobian (N, m, P) from the superset's D (N, P_S + n, m); with ``columns`` (indices of the
+        model's parameters) only theirs (N, m, len(columns)): a solver's free columns, without a copy of the rest."""
+        cols = np.arange(len(self.index)) if columns is None else np.asarray(columns, dtype=int)
+        J = D[:, self.index[cols], :]
+        at = {int(i): k for k, i in enumerate(cols)}
         for i in self.periodic:
-            J[:, i, :] *= self._feature(q, cov, i)[:, None]
+            if i in at:
+                J[:, at[i], :] *= self._feature(q, cov, i)[:, None]
         for i in self.local:
-            J[:, i, :] *= cov[:, self.at[i], None]
+            if i in at:
+                J[:, at[i], :] *= cov[:, self.at[i], None]
         return J.transpose(0, 2, 1)
 
     def angle_jacobian(self, D: np.ndarray) -> np.ndarray:
@@ -373,12 +379,13 @@ def superset_for(build, robot, frames=None, torques: bool = True) -> Superset:
 
 
 def outputs(model, which: str, q, p, cov, b0, Rm=None, compile: bool = True, required: bool = True,
-            angles: bool = True):
+            angles: bool = True, columns: np.ndarray | None = None):
     """``which`` (``fk``, ``jac``, ``pose_fk``, ``pose_jac``) of a model's poses through its robot's superset.
 
     Returns the measured quantities (N, m) (positions, then for ``pose_`` the orientation residuals) and, for
     ``jac``, their Jacobian w.r.t. the model's parameters (N, m, P) and w.r.t. an offset of each chain angle
-    (N, m, n; None without ``angles``). ``compile``: compile what is not compiled yet (kept in the disk cache),
+    (N, m, n; None without ``angles``); with ``columns`` (indices of the model's parameters) the Jacobian of
+    those alone (N, m, len(columns)). ``compile``: compile what is not compiled yet (kept in the disk cache),
     else the VM; without ``required``, None when ``compile`` is off and the function is not compiled (the
     model's own graph is then the cheaper VM function). Many poses are evaluated in blocks of ``BLOCK``.
     """
@@ -399,7 +406,7 @@ def outputs(model, which: str, q, p, cov, b0, Rm=None, compile: bool = True, req
         def take(out, qs=qs, cs=cs):
             if len(out) == 1:
                 return (out[0].copy(),)
-            return (out[0].copy(), m.jacobian(out[1], qs, cs),
+            return (out[0].copy(), m.jacobian(out[1], qs, cs, columns),
                     m.angle_jacobian(out[1]).copy() if angles else None)
         parts.append(sup.evaluate(which, len(qs), [qs, P, C, b0] + ([Rm[s]] if Rm is not None else []), m.per_pose,
                                   take, compile))
