@@ -358,13 +358,13 @@ def first_order_sag(result, data: Measurements) -> tuple[list[Sag], float]:
     joints = [j for j in range(1, n + 1) if c[j - 1] > 0]
     if not joints or len(data) == 0:
         return [], 0.0
-    cov = m.covariates(data)
+    q, cov = data.q, m.covariates(data)
     sag, each, whole = np.zeros(n), np.zeros(n), 0.0
     for s in pose_chunks(len(data)):   # chunk by chunk: the angle Jacobian of every pose is never held at once
-        tau, dtau = m.torque_jacobian(data.q[s], P.values, cov[s])
+        tau, dtau = m.torque_jacobian(q[s], P.values, cov[s])
         d = c * tau + k3 * tau ** 3
         second = (c + 3 * k3 * tau ** 2) * np.einsum("kij,kj->ki", dtau, d)
-        _, _, JA = m.predict_angle_jacobian(data.q[s], P.values, cov[s], result.base0)
+        _, _, JA = m.predict_angle_jacobian(q[s], P.values, cov[s], result.base0)
         moved = JA * second[:, None, :]                   # (n_s, 3, n): each joint's part
         sag = np.maximum(sag, np.abs(d).max(axis=0))
         each = np.maximum(each, np.linalg.norm(moved, axis=1).max(axis=0))

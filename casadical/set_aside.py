@@ -391,8 +391,9 @@ def of_model(model, values: np.ndarray, base0: np.ndarray, data: Measurements, s
     cov = model.covariates(data) if cov is None else cov
     # the residuals and directions of the set-aside poses alone (the only ones the tests read); every pose's torque
     idx = np.flatnonzero(set_aside) if np.asarray(set_aside).dtype == bool else np.sort(np.asarray(set_aside, int))
+    q = data.q
     residuals, directions = np.zeros((len(data), 3)), np.zeros((len(data), 3, data.n_joints))
-    xyz, _, directions[idx] = model.predict_angle_jacobian(data.q[idx], values, cov[idx], base0)
+    xyz, _, directions[idx] = model.predict_angle_jacobian(q[idx], values, cov[idx], base0)
     residuals[idx] = data.xyz[idx] - xyz
-    tau = np.concatenate([model.torques(data.q[s], values, cov[s]) for s in pose_chunks(len(data))])
+    tau = np.concatenate([model.torques(q[s], values, cov[s]) for s in pose_chunks(len(data))])
     return set_aside_structure(data, idx, residuals, directions, tau if np.any(np.abs(tau) > 0) else None, alpha)
