@@ -218,15 +218,19 @@ class Mapping:
         """The model's Jacobian (N, m, P) from the superset's D (N, P_S + n, m); with ``columns`` (indices of the
         model's parameters) only theirs (N, m, len(columns)): a solver's free columns, without a copy of the rest."""
         cols = np.arange(len(self.index)) if columns is None else np.asarray(columns, dtype=int)
-        J = D[:, self.index[cols], :]
+        sel = self.index[cols]
+        if len(sel) and np.all(np.diff(sel) == 1):     # a run of the superset's columns (the usual): one copy,
+            J = np.ascontiguousarray(D[:, sel[0]:sel[-1] + 1, :].transpose(0, 2, 1))   # in (N, m, P) order
+        else:
+            J = np.ascontiguousarray(D[:, sel, :].transpose(0, 2, 1))
         at = {int(i): k for k, i in enumerate(cols)}
         for i in self.periodic:
             if i in at:
-                J[:, at[i], :] *= self._feature(q, cov, i)[:, None]
+                J[:, :, at[i]] *= self._feature(q, cov, i)[:, None]
         for i in self.local:
             if i in at:
-                J[:, at[i], :] *= cov[:, self.at[i], None]
-        return J.transpose(0, 2, 1)
+                J[:, :, at[i]] *= cov[:, self.at[i], None]
+        return J
 
     def angle_jacobian(self, D: np.ndarray) -> np.ndarray:
         """The Jacobian w.r.t. an offset of each chain angle (N, m, n)."""
