@@ -202,10 +202,12 @@ def _scipy(robot, data, spec: str, free_doc: dict) -> dict:
 # --- the benchmark ----------------------------------------------------------------------------------------
 
 
-def run(method: str, npz: Path, N: int, spec: str, tmp: Path) -> dict:
+def run(method: str, npz: Path, N: int, spec: str, tmp: Path, base: str | None = None) -> dict:
+    """One child process; with ``base``, the casadical of that tree (PYTHONPATH) instead of this one."""
     out = tmp / f"{method}.json"
     cmd = [sys.executable, __file__, "--child", method, str(npz), str(N), spec, str(tmp / "free.json"), str(out)]
-    r = subprocess.run(cmd, capture_output=True, text=True, check=False)
+    env = dict(os.environ, PYTHONPATH=base) if base else None
+    r = subprocess.run(cmd, capture_output=True, text=True, check=False, env=env)
     if r.returncode:
         raise SystemExit(f"failed: {' '.join(cmd)}\n{r.stderr}")
     return json.loads(out.read_text())
@@ -227,6 +229,8 @@ def main() -> int:
     ap.add_argument("--no-scipy", action="store_true", help="skip the scipy reference")
     ap.add_argument("--seed", type=int, default=None, help="simulation seed (default: the protocol's)")
     ap.add_argument("--json", metavar="PATH", help="also write the rows as JSON")
+    ap.add_argument("--base", metavar="TREE", help="also run casadical's methods from this source tree (e.g. "
+                    "/work/base, fe55b8a) in turn with this one, run by run")
     args = ap.parse_args()
     if args.child:
         method, npz, N, spec, free_json, out = args.child
@@ -241,6 +245,10 @@ def main() -> int:
     from casadical.simulate import load_protocol
 
     methods = ["ipopt"] + ([] if args.no_before else ["before"]) + ["lm"] + ([] if args.no_scipy else ["scipy"])
+    if args.base:   # the base tree's casadical methods, each right after this tree's
+        methods = [x for m in methods for x in ([m, m + "@base"] if m != "scipy" else [m])]
+        for m in list(METHODS):
+            METHODS[m + "@base"] = f"{METHODS[m]} ({args.base})"
     sizes = sorted(args.sizes)
     proto = load_protocol("ca-ys100")
     print(f"{os.cpu_count()} cores; Python {sys.version.split()[0]}, numpy {np.__version__}, scipy "
@@ -256,8 +264,9 @@ def main() -> int:
         npz = tmp / "poses.npz"
         np.savez(npz, q=data.q, xyz=data.xyz)
         for spec in args.models:   # untimed: compiles the model's functions into the disk cache if needed
-            run("ipopt", npz, sizes[0], spec, tmp)
-            run("lm", npz, sizes[0], spec, tmp)
+            for tree in [None] + ([args.base] if args.base else []):
+                run("ipopt", npz, sizes[0], spec, tmp, tree)
+                run("lm", npz, sizes[0], spec, tmp, tree)
         print("| poses | model | method | time (median) | CPU | per 1k poses | x smallest | iterations | "
               "peak MB | beyond load-only | RMS (mm) | max \\|dp\\| vs IPOPT | load |")
         print("|---:|---|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|")
@@ -267,7 +276,8 @@ def main() -> int:
                 runs: dict[str, list[dict]] = {m: [] for m in methods}
                 for _ in range(args.repeats if N < 100_000 else args.repeats_large):
                     for m in methods:   # interleaved, run by run
-                        d = run(m, npz, N, spec, tmp)
+                        m_, _, base = m.partition("@")
+                        d = run(m_, npz, N, spec, tmp, args.base if base else None)
                         d["load"] = os.getloadavg()[0]
                         runs[m].append(d)
                         if m == "lm":   # the scipy reference gets its free set and base pose
