@@ -74,3 +74,18 @@ def test_split_imports_no_model_no_planning(files):
                       "--out-val", str(files / "v.csv"), "--force"], files)
     assert _packages(mods, NEVER + ("casadi", "casadical.model", "casadical.identifiability")) \
         == []
+
+
+def test_calibrate_that_sets_poses_aside_imports_no_scipy_stats(files, tmp_path):
+    """Three gross shots set aside: the structure tests of the set-aside poses (hypergeometric tails) come from
+    scipy.special, not scipy.stats (0.5-0.6 s of CPU to import, before)."""
+    robot = robot_from_dict(ARM4)
+    data, _ = simulate(robot, 40, Effects(noise=20e-6), seed=4, floor_z=None)
+    xyz = data.xyz.copy()
+    xyz[[3, 17, 29]] += 5e-3
+    data.with_positions(xyz).write_csv(tmp_path / "shots.csv")
+    (tmp_path / "arm.toml").write_text((files / "arm.toml").read_text())
+    mods = _imported(["calibrate", "arm.toml", "shots.csv", "--model", "kinematic", "--out", "cal.json", "--force",
+                      "--quiet"], tmp_path)
+    assert json.loads((tmp_path / "cal.json").read_text())
+    assert "casadical.set_aside" in mods and "scipy.stats" not in mods
