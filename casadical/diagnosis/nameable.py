@@ -122,12 +122,8 @@ class VersusHarmonics:
 def _drops(screen: Screen):
     """``drop(C)``: the weighted residual sum of squares columns ``C`` (N, 3, k) remove beyond the current
     model, and the residual variance."""
-    sw = np.repeat(np.sqrt(screen.w), 3)
-    G = screen.J[:, :, screen.cur].reshape(len(sw), -1) * sw[:, None]
-    Q, _ = np.linalg.qr(G)
-    rw = screen.r.ravel() * sw
-    r_perp = rw - Q @ (Q.T @ rw)
-    sigma2 = float(r_perp @ r_perp) / max(len(rw) - G.shape[1], 1)
+    sw, Q, r_perp = screen.projection()     # the round's basis, made once per linearisation
+    sigma2 = float(r_perp @ r_perp) / max(len(r_perp) - Q.shape[1], 1)
 
     def drop(C: np.ndarray) -> float:
         C = C.reshape(len(sw), -1) * sw[:, None]
