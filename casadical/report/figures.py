@@ -16,6 +16,7 @@ import html
 import io
 import os
 import re
+import signal
 import sys
 import threading
 
@@ -150,6 +151,10 @@ def _draw_inherited(indices) -> list[str]:
     return _draw(_JOBS, indices)
 
 
+#: the signals a figure worker is forked with blocked, until it has set its own handlers
+_HELD = {signal.SIGINT, signal.SIGTERM}
+
+
 def _child_start(parent: int) -> None:
     """First thing in a forked figure worker: die with the parent, leave signals to it.
 
@@ -160,11 +165,11 @@ def _child_start(parent: int) -> None:
     the workers); SIGTERM ends a worker at once, without the parent's
     Python handler.
     """
-    import os
-    import signal
-
     signal.signal(signal.SIGINT, signal.SIG_IGN)
     signal.signal(signal.SIGTERM, signal.SIG_DFL)
+    # forked with both blocked (_render_in): one that came before the lines above is taken by them, never by the
+    # parent's Python handler copied into this process (a KeyboardInterrupt here printed 'Process ForkProcess-1:')
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, _HELD)
     try:
         import ctypes
         libc = ctypes.CDLL(None, use_errno=True)
@@ -243,6 +248,7 @@ def _render_in(pool, jobs: list[tuple], shares: list[list[int]]) -> list[tuple[l
     global _JOBS
     futures = []
     _JOBS = jobs   # the children are forked at the first submit and take _JOBS as it is then
+    held = signal.pthread_sigmask(signal.SIG_BLOCK, _HELD)   # until a child has its own handlers (_child_start)
     try:
         for share in shares[1:]:
             try:
@@ -251,6 +257,7 @@ def _render_in(pool, jobs: list[tuple], shares: list[list[int]]) -> list[tuple[l
                 futures.append((share, None))
     finally:
         _JOBS = []
+        signal.pthread_sigmask(signal.SIG_SETMASK, held)   # a signal that came meanwhile is the parent's now
     checkpoint("figures")   # the workers draw their shares now
     done = [(shares[0], _draw(jobs, shares[0]))]
     for share, fut in futures:
