@@ -6,9 +6,10 @@ superset's vector (the terms it lacks at their zero effect), its covariates by n
 any joint and harmonic enters through the chain angle as ``s sin(h q_j) + c cos(h q_j)``, its columns the
 Jacobian w.r.t. that offset times ``sin`` and ``cos``; a term of one session (``c2@B``) is its cause's
 term with the parameter per pose (``c2 + [pose in B] c2@B``: every such cause is linear in its
-parameters), its column the cause's at that session's poses. A model the superset cannot express (a
-compensator's network or process in the graph, the legacy backlash sign, a drift of the robot and of a
-session together) has no mapping and is evaluated on its own graph.
+parameters), its column the cause's at that session's poses; a session compensator's Gaussian process
+(frozen) is evaluated in numpy and enters as an offset of the tool point before the base pose. A model the
+superset cannot express (a compensator's network in the graph, the legacy backlash sign, a drift of the
+robot and of a session together) has no mapping and is evaluated on its own graph.
 
 The superset's four functions (``fk``: the measured quantities; ``jac``: them and their Jacobian w.r.t.
 the parameters and the chain offsets; ``pose_*``: with the orientation residual, full pose) are compiled
@@ -44,6 +45,8 @@ TORQUE = ("joint_compliance", "nonlinear_stiffness", "backlash")
 #: translation), so that the shared and the session's parameters add up per pose
 LOCAL = ("joint_compliance", "nonlinear_stiffness", "encoder_scale", "backlash", "backlash_motion", "drift",
          "joint_periodic")
+#: the covariates of the tool point's offset in the robot's base frame (a compensator's prediction)
+POINT_OFFSET = ("point_offset_x", "point_offset_y", "point_offset_z")
 #: supersets kept per process (a robot and its sessions each; least recently used dropped first)
 MAX_SUPERSETS = 8
 #: poses evaluated at a time: the buffers of a batch stay small (a serial map holds one call's work memory per
@@ -78,6 +81,27 @@ def chain_offset(j: int) -> str:
     return f"chain_offset{j}"
 
 
+class PointOffset(ErrorTerm):
+    """A per-pose offset of the tool point in the robot's base frame (covariates ``point_offset_x/y/z``, m):
+    where a frozen compensator's prediction enters (a session compensator's Gaussian process, evaluated in
+    numpy by :meth:`Mapping.inputs`, as the compensator's own graph adds it before the base pose)."""
+
+    name = "point_offset"
+    covariates = POINT_OFFSET
+
+    def __init__(self):
+        super().__init__(None)
+
+    def bind(self, robot) -> None:
+        pass
+
+    def spec(self) -> str:
+        return self.name
+
+    def robot_frame_offset(self, ctx):
+        return ca.vertcat(*[ctx.cov[c] for c in POINT_OFFSET])
+
+
 def superset_terms(robot, frames=None, torques: bool = True) -> list[ErrorTerm]:
     """The terms of the superset of ``robot`` (with ``frames``, a sessions term: its sessions and tools;
     without ``torques``, none that reads the gravity torques).
@@ -97,7 +121,7 @@ def superset_terms(robot, frames=None, torques: bool = True) -> list[ErrorTerm]:
         terms += [make_term("backlash", joints=every)]
     terms += [make_term("backlash_motion", joints=every), make_term("thermal_expansion", t_ref=0.0),
               make_term("thermal_expansion", joints=every, t_ref=0.0), make_term("drift"),
-              make_term("tool_orientation"), ChainOffsets(n)]
+              make_term("tool_orientation"), ChainOffsets(n), PointOffset()]
     return terms
 
 
@@ -126,7 +150,8 @@ class Mapping:
     """
 
     def __init__(self, model, params: list, covariates: list[str], columns: list[_Column],
-                 shifts: dict[str, list[tuple[str | None, float]]], torques: bool = True):
+                 shifts: dict[str, list[tuple[str | None, float]]], torques: bool = True,
+                 compensators: list | None = None):
         own = model.covariate_names
         self.torques = torques           # the superset with the terms that read the gravity torques
         self.n_params = len(params)
@@ -137,6 +162,10 @@ class Mapping:
         pairs = [(k, own.index(c)) for k, c in enumerate(covariates) if c in own]
         self.cov_to, self.cov_from = (np.array(x, dtype=int) for x in zip(*pairs))
         self.first_chain = covariates.index(chain_offset(1))
+        self.first_point = covariates.index(POINT_OFFSET[0])
+        #: each frozen process: its gate covariate, its session's indicator (-1: every pose) and the process
+        self.compensators = [(own.index(gate), -1 if s is None else own.index(f"session@{s}"), gp)
+                             for gate, s, gp in compensators or []]
         self.shifts = [(covariates.index(name), [(None if s is None else own.index(f"session@{s}"), ref)
                                                  for s, ref in refs]) for name, refs in shifts.items()]
         # indicator covariate of each column's session (-1: every pose)
@@ -160,9 +189,13 @@ class Mapping:
         params = [p for t in sup for p in t.parameters(robot)]
         index = {p.name: i for i, p in enumerate(params)}
         columns: list[_Column] = []
-        drifts, thermal = [], set()
+        drifts, thermal, compensators = [], set(), []
         for t in model.terms:
             inner, session = (t.inner, t.session_name) if isinstance(t, SessionLocal) else (t, None)
+            if inner.name == "gp_compensator":    # frozen: no parameters, its prediction a point offset
+                if inner.gp is not None:
+                    compensators.append((t.rename("gp_gate") if session else "gp_gate", session, inner.gp))
+                continue
             name = "backlash_motion" if getattr(inner, "source", None) == "motion" else inner.name
             if name not in TERMS + ("geometric", "sessions", "joint_periodic") or (
                     session is not None and name not in LOCAL) or (name == "backlash_motion" and not inner.lag):
@@ -184,7 +217,7 @@ class Mapping:
         shifts = {"time_s": drifts} if drifts else {}
         if thermal:
             shifts["temperature_c"] = [(None, thermal.pop())]
-        return cls(model, params, covariate_names(sup), columns, shifts, torques)
+        return cls(model, params, covariate_names(sup), columns, shifts, torques, compensators)
 
     # -- inputs and outputs ------------------------------------------------------------
 
@@ -197,6 +230,11 @@ class Mapping:
             C[:, k] -= refs[0][1] if refs[0][0] is None else sum(cov[:, at] * ref for at, ref in refs)
         for i in self.periodic:
             C[:, self.first_chain + self.index[i] - self.n_params] += values[i] * self._feature(q, cov, i)
+        for gate, at, gp in self.compensators:     # as the term: [pose in its session] * gate * prediction
+            g = cov[:, gate] if at < 0 else cov[:, at] * cov[:, gate]
+            on = np.flatnonzero(g)
+            if len(on):
+                C[on, self.first_point:self.first_point + 3] += g[on, None] * gp.predict(q[on])
         p = self.nominal.copy()
         p[self.index[self.shared]] = values[self.shared]
         if not self.per_pose:

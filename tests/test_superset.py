@@ -102,6 +102,46 @@ def test_the_superset_gives_every_models_own_numbers(arm, seed):
     assert np.abs((moved - y[:, :3]) / 1e-6 - Js[:, :3, k]).max() < 1e-4 * np.abs(Js[:, :3, k]).max()
 
 
+@pytest.mark.parametrize("arm", [ARM4, ARM7], ids=["arm4-mdh", "arm7-mdh-beta"])
+@pytest.mark.parametrize("orientation", [False, True])
+def test_session_compensators_map_onto_the_superset(arm, orientation):
+    """A session compensator's Gaussian process (frozen: evaluated in numpy, an offset of the tool point before
+    the base pose) gives the model's own graph's positions, orientation residuals and Jacobians, where its
+    gate and its session say it applies and nowhere else."""
+    from casadical.compensators.gp import ResidualGP
+    from casadical.terms import SessionLocal
+
+    robot = robot_from_dict(arm)
+    rng = np.random.default_rng(5)
+    model0 = two_session_model(robot, "kinematic+joint_compliance+joint_periodic[2:17]", orientation, 5)
+    gps = []
+    for s in "AB":
+        X = sample_poses(robot, 30, rng, floor_z=None)
+        gps.append(SessionLocal(make_term("gp_compensator", gp=ResidualGP(
+            X, 1e-4 * rng.normal(size=(30, 3)), rng.uniform(0.3, 1.5, (3, robot.n)), np.ones(3),
+            np.full(3, 0.05), 1e-5 * rng.normal(size=3), np.full(3, 1e-4))), s))
+    model = Model(robot, list(model0.terms) + gps)
+    own = Model(robot, list(model.terms), jit=False)
+    assert model._mapping is not None and len(model._mapping.compensators) == 2
+    q, values, cov, R = data(model, 120, rng)
+    for k, name in enumerate(model.covariate_names):
+        if name.startswith("gp_gate@"):
+            cov[:, k] = rng.random(120) < 0.7
+    b0 = model.base0_nominal()
+    which = "pose_jac" if orientation else "jac"
+    y, Js, _ = outputs(model, which, q, values, cov, b0, R.reshape(-1, 9) if orientation else None, compile=False)
+    if orientation:
+        xyz, J, ro, Jo = own.pose_jacobian(q, R, values, cov, b0)
+        xyz, J = np.concatenate([xyz, ro], 1), np.concatenate([J, Jo], 1)
+    else:
+        xyz, J = own.predict_jacobian(q, values, cov, b0)
+    assert_close(xyz, y, "positions")
+    assert_close(J, Js, "Jacobian")
+    off = own.predict(q, values, cov, b0) - model0.predict(q, values[:len(model0.parameters)], cov[:, :len(
+        model0.covariate_names)], b0)
+    assert np.abs(off).max() > 1e-6      # the processes do move the tool point (the test can fail)
+
+
 @pytest.mark.parametrize("spec", ["nominal", "kinematic", "kinematic+joint_compliance[2]+joint_periodic[2:8]"])
 def test_a_model_of_one_session_broadcasts_its_parameters(spec):
     robot = robot_from_dict(ARM5)
