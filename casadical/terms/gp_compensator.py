@@ -41,6 +41,8 @@ class GPCompensator(ErrorTerm):
     #: covariates of its own (a term of one session renames them, so that each session's process has its own)
     own_covariates = ("gp_gate",)
     covariates = ("gp_gate",)
+    #: its covariate at a pose depends on that pose alone (a term of one session makes it at its poses only)
+    pose_wise = True
 
     def __init__(self, joints=None, gp=None):
         super().__init__(None)

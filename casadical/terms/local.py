@@ -4,6 +4,8 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
+
 from ..errors import ModelError
 from ..parameters import Parameter
 from ..robot import Robot
@@ -47,7 +49,18 @@ class SessionLocal(ErrorTerm):
             covariate
 
     def covariate_values(self, data) -> dict:
-        return {self.rename(k): v for k, v in self.inner.covariate_values(data).items()}
+        """The inner term's covariates; of a term whose values at a pose depend on that pose alone
+        (``pose_wise``: a process's gate), made at the session's poses only (0 elsewhere, where the
+        session's indicator switches the term off): a gate is a Gaussian process's predictive variance,
+        0.1 ms a pose."""
+        if not (getattr(self.inner, "pose_wise", False) and data.sessions is not None):
+            return {self.rename(k): v for k, v in self.inner.covariate_values(data).items()}
+        at = np.flatnonzero(data.sessions == self.session_name)
+        out = {}
+        for k, v in self.inner.covariate_values(data.subset(at)).items():
+            out[self.rename(k)] = full = np.zeros(len(data))
+            full[at] = v
+        return out
 
     @property
     def t_ref(self) -> float:
