@@ -178,7 +178,12 @@ class Model:
         self._base0: np.ndarray | None = None
         self._maps: dict = {}
         self._compiled: dict = {}
-        self._build()
+        self._graphs: dict = {}
+        self._fk: ca.Function | None = None
+        self._fk_jac: ca.Function | None = None
+        self._symbols: dict | None = None       # the symbolic model, built on first use (_sym)
+        #: the model has the probe's orientation (a term turns the probe against the flange)
+        self.orientation = any(type(t).tool_rotation is not ErrorTerm.tool_rotation for t in self.terms)
         # where the model is in its robot's superset (casadical.superset); None: its own graph evaluates it
         self._mapping = Mapping.of(self) if jit is not False else None
 
@@ -192,6 +197,14 @@ class Model:
     @property
     def n_joints(self) -> int:
         return self.robot.n
+
+    @property
+    def _sym(self) -> dict:
+        """The symbolic model (built on first use: a model the superset evaluates never needs its own graph, and
+        building one costs 7 ms, paid by each of the 60-odd models a diagnosis tries)."""
+        if self._symbols is None:
+            self._build()
+        return self._symbols
 
     def _build(self) -> None:
         robot = self.robot
@@ -243,12 +256,11 @@ class Model:
             r = t.tool_rotation(ctx)
             if r is not None:
                 probe = ca.mtimes(probe, r)
-        self.orientation = probe is not flange
-        self._sym = {"q": q, "p": p, "c": c, "b0": b0, "xyz": xyz, "tau": tau, "dq": dq, "flange": flange,
-                     "chain": chain, "drive": drive, "drives": drives, "geom": geom, "R": base[0], "probe": probe}
-        self._graphs: dict = {}
-        self._fk: ca.Function | None = None
-        self._fk_jac: ca.Function | None = None
+        if (probe is not flange) != self.orientation:
+            raise ModelError(f"model {self.spec}: its terms' tool rotations disagree with its graph's")
+        self._symbols = {"q": q, "p": p, "c": c, "b0": b0, "xyz": xyz, "tau": tau, "dq": dq, "flange": flange,
+                         "chain": chain, "drive": drive, "drives": drives, "geom": geom, "R": base[0],
+                         "probe": probe}
 
     def _graph(self, which: str) -> tuple:
         """``(inputs, outputs, broadcast inputs, summed outputs)`` of a per-pose Function, built on first use.
