@@ -284,7 +284,7 @@ class _Iterates:
             else:
                 # the last trial was rejected: a backtracking line search, whose trials need the loss alone (the
                 # same number as the linearisation's, to the bit; README split with tolerances on the sum: 361
-                # objectives, 301 of them rejected trials)
+                # objectives, 301 of them trials after a rejected one)
                 self.x, self.f, self.lin = x.copy(), self.problem.cost(self.problem.values_from_x(x)), None
             self.accepted = False
         return self.f
