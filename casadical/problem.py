@@ -239,16 +239,17 @@ class CalibrationProblem:
         return rp, ro
 
     def cost(self, values: np.ndarray) -> float:
-        """The loss at ``values`` (m^2): ``sum rho(u2)`` over the poses, without the Jacobian."""
-        if not self.full_pose:
-            r = self.residuals(values).reshape(-1, 3)
-            return float(self.loss.rho(np.einsum("ij,ij->i", r, r)).sum())
-        total, k2 = 0.0, self.loss.rot_weight ** 2
+        """The loss at ``values`` (m^2) without the Jacobian: :attr:`Linearization.cost`, to the bit (the same
+        residuals, each pose's ``u2`` formed as :meth:`linearize` forms it, one sum over every pose)."""
+        u2 = np.empty(self.n_poses)
         for s in pose_chunks(self.n_poses):
-            xyz, ro = self.model.pose_residuals(self.q[s], self.rot[s], values, self.cov[s], self.base0)
-            r = xyz - self.xyz[s]
-            total += float(self.loss.rho(np.einsum("ij,ij->i", r, r) + k2 * np.einsum("ij,ij->i", ro, ro)).sum())
-        return total
+            if self.full_pose:
+                xyz, ro = self.model.pose_residuals(self.q[s], self.rot[s], values, self.cov[s], self.base0)
+                r = np.concatenate([xyz - self.xyz[s], self.loss.rot_weight * ro], axis=1)
+            else:
+                r = self.model.predict(self.q[s], values, self.cov[s], self.base0) - self.xyz[s]
+            u2[s] = np.einsum("ij,ij->i", r, r)
+        return float(self.loss.rho(u2).sum())
 
     def weighted_jacobian(self, values: np.ndarray, s: slice) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """Residual rows and their Jacobian (full parameter vector, SI) of the poses ``s``, in position units.

@@ -117,6 +117,27 @@ def test_exported_urdf_holds_the_probe_orientation(tmp_path, capsys, arm, spec):
     assert math.degrees(Rotation.from_matrix(res.tool_rotation()).magnitude()) > 30
 
 
+@pytest.mark.parametrize("full_pose", [True, False], ids=["full-pose", "positions"])
+def test_the_loss_alone_is_the_linearisations_to_the_bit(monkeypatch, full_pose):
+    """``CalibrationProblem.cost`` (IPOPT's line-search trials) is ``linearize(...).cost`` to the bit, over several
+    chunks of poses, with the robust loss: the same residuals, each pose's ``u2`` formed alike, one sum (before:
+    a sum per chunk, and the orientation's share as ``k^2 |r_o|^2``: 1-2 ulp apart at most points)."""
+    from casadical.problem import CalibrationProblem
+
+    monkeypatch.setattr("casadical.problem.CHUNK", 16)
+    robot = robot_from_dict(ARM7, "arm")
+    data, _ = simulate(robot, 60, EFFECTS, seed=4, floor_z=-10.0)
+    res = calibrate(robot, data, "kinematic", "lm", warn=False, position_only=not full_pose)
+    assert res.loss.delta > 0 and res.full_pose == full_pose
+    problem = CalibrationProblem(res.model, res.parameters.copy(), data.q, data.xyz, res.model.covariates(data),
+                                 res.base0, res.loss, data.rotations @ res.tool0.T if full_pose else None)
+    rng = np.random.default_rng(4)
+    x = problem.x_from_values(res.parameters.values)
+    for step in (0.0, 1e-3, 0.1, 1.0, 10.0):   # from the optimum to far from it (poses beyond the loss's bend)
+        values = problem.values_from_x(x + step * rng.standard_normal(len(x)))
+        assert problem.cost(values) == problem.linearize(values).cost
+
+
 def test_position_only_is_unchanged_by_orientation_columns():
     """--position-only on full-pose data gives the same bits as the same data without the columns."""
     robot = robot_from_dict(ARM5, "arm")

@@ -7,9 +7,10 @@ callbacks on the problem's own linearisation
 (:meth:`casadical.problem.CalibrationProblem.linearize`: the model's
 Jacobian, ``J^T W J`` in numpy), the matrix Levenberg-Marquardt uses, so
 both minimise the same objective (full pose too: each pose's residual is
-``(r_p, k r_o)``); one linearisation per iterate serves the gradient and
-the Hessian, and a line-search trial needs the loss alone. The model is
-evaluated as every calibration evaluates it (compiled once per robot,
+``(r_p, k r_o)``); one linearisation per iterate serves the objective, the
+gradient and the Hessian, and the trials of a backtracking line search
+evaluate the loss alone (:meth:`~casadical.problem.CalibrationProblem.cost`).
+The model is evaluated as every calibration evaluates it (compiled once per robot,
 :mod:`casadical.superset`): no function is compiled per model, and a built
 solver serves every problem with the same number of free parameters.
 
@@ -245,33 +246,48 @@ class Ipopt(Solver):
 
 class _Iterates:
     """The problem at IPOPT's iterates: one linearisation per point, which the objective, the gradient and the
-    Hessian there share. An exception in a callback is kept, and every later call gives NaN (IPOPT stops);
-    :meth:`end` hands it back."""
+    Hessian there share, and the loss alone at the trials of a backtracking line search. An exception in a
+    callback is kept, and every later call gives NaN (IPOPT stops); :meth:`end` hands it back."""
 
     def __init__(self):
-        self.problem: CalibrationProblem | None = None
-        self.x: np.ndarray | None = None
-        self.lin = None
-        self.error: BaseException | None = None
+        self.start(None)
 
-    def start(self, problem: CalibrationProblem) -> None:
-        self.problem, self.x, self.lin, self.error = problem, None, None, None
+    def start(self, problem: CalibrationProblem | None) -> None:
+        self.problem, self.error = problem, None
+        # the last point asked about, its loss, its linearisation (None: the loss alone), and whether IPOPT
+        # asked for its gradient (it accepted the point)
+        self.x, self.f, self.lin, self.accepted = None, None, None, True
 
     def end(self) -> BaseException | None:
         error = self.error
         self.start(None)
         return error
 
+    def _linearize(self, x: np.ndarray) -> None:
+        self.lin = self.problem.linearize(self.problem.values_from_x(x))
+        self.x, self.f = x.copy(), self.lin.cost
+
     def linearization(self, x: np.ndarray):
-        if self.x is None or not np.array_equal(x, self.x):
-            self.lin = self.problem.linearize(self.problem.values_from_x(x))
-            self.x = x.copy()
+        """The linearisation at x, where IPOPT asks for the gradient or the Hessian."""
+        if self.lin is None or not np.array_equal(x, self.x):
+            self._linearize(x)
+        self.accepted = True
         return self.lin
 
     def cost(self, x: np.ndarray) -> float:
-        # the linearisation at once: IPOPT asks for the gradient where it accepts a trial point, and it
-        # accepts most (YS100 80 poses: 18 objectives, 19 gradients; the callbacks' CPU 22 -> 13 ms)
-        return self.linearization(x).cost
+        """The loss at x, IPOPT's objective (it asks again at the same x: the second-order corrections)."""
+        if self.x is None or not np.array_equal(x, self.x):
+            if self.accepted:
+                # the first trial of an iteration: the linearisation at once, as IPOPT accepts most first trials
+                # and then asks for the gradient there (YS100 80 poses: 18 objectives, 19 gradients)
+                self._linearize(x)
+            else:
+                # the last trial was rejected: a backtracking line search, whose trials need the loss alone (the
+                # same number as the linearisation's, to the bit; README split with tolerances on the sum: 361
+                # objectives, 301 of them trials after a rejected one)
+                self.x, self.f, self.lin = x.copy(), self.problem.cost(self.problem.values_from_x(x)), None
+            self.accepted = False
+        return self.f
 
 
 class _Callback(ca.Callback):
