@@ -178,7 +178,7 @@ def hypergeom_tail(k, n_total: int, n_in, n_drawn: int) -> np.ndarray:
     (``k`` and ``n_in`` may be arrays). scipy.stats.hypergeom.sf(k - 1, ...) to rounding (tested), summed in
     log space with scipy.special's gammaln: importing scipy.stats costs 0.5-0.6 s, paid by every calibration
     that sets two poses aside. Every tail at once (in blocks of about a million terms): a scan asks for
-    hundreds, and a call per tail cost 1 s of the README job's diagnosis."""
+    hundreds, and a call per tail cost 0.35 s of the README job's diagnosis."""
     from scipy.special import gammaln
 
     def log_comb(a, b):
