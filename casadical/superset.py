@@ -194,7 +194,8 @@ class Mapping:
             inner, session = (t.inner, t.session_name) if isinstance(t, SessionLocal) else (t, None)
             if inner.name == "gp_compensator":    # frozen: no parameters, its prediction a point offset
                 if inner.gp is not None:
-                    compensators.append((t.rename("gp_gate") if session else "gp_gate", session, inner.gp))
+                    gate, = inner.own_covariates
+                    compensators.append((t.rename(gate) if session else gate, session, inner.gp))
                 continue
             name = "backlash_motion" if getattr(inner, "source", None) == "motion" else inner.name
             if name not in TERMS + ("geometric", "sessions", "joint_periodic") or (
