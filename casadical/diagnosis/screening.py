@@ -245,8 +245,8 @@ class Screen:
     def fit(self, cand: Candidate | None = None) -> LinearFit:
         """The current columns (plus ``cand``'s) fitted by one weighted Gauss-Newton step."""
         cols = list(self.cur) + (self.columns(cand) if cand is not None else [])
-        J = self.J[:, :, cols]
-        sw = np.sqrt(self.w)
+        J = np.take(self.J, cols, axis=2)    # pose by pose in memory, as the folds gather poses (J[:, :, cols]
+        sw = np.sqrt(self.w)                 # would keep each column's poses together: gathers 2x slower)
         Jw = (J * sw[:, None, None]).reshape(-1, len(cols))
         A = Jw.T @ Jw
         g = Jw.T @ (self.r * sw[:, None]).reshape(-1)
