@@ -141,6 +141,8 @@ class Measurements:
         ``R = Rx(rx) Ry(ry) Rz(rz)`` (intrinsic XYZ) of the columns ``rx_deg,
         ry_deg, rz_deg``.
 
+        Read-only (the same array while the three columns keep their values).
+
         Raises
         ------
         DataFileError
@@ -150,7 +152,15 @@ class Measurements:
         if missing:
             what = "has only some of" if len(missing) < 3 else "has no measured orientation:"
             raise DataFileError(f"{what} rx_deg, ry_deg, rz_deg", file=self.path, column=missing[0])
-        return rotation_matrices(np.column_stack([self.columns[c] for c in RXYZ]))
+        angles = np.column_stack([self.columns[c] for c in RXYZ])
+        # kept with the angles they came from (a diagnosis asks for the validation poses' rotations with every
+        # model it judges: 17 ms each at 10,000 poses); a column changed since gives them anew
+        hit = getattr(self, "_rotations", None)
+        if hit is None or not np.array_equal(hit[0], angles):
+            R = rotation_matrices(angles)
+            R.flags.writeable = False
+            hit = self._rotations = (angles, R)
+        return hit[1]
 
     def line(self, i: int) -> int:
         """Line of pose ``i`` in its file (header = line 1), for error messages."""
