@@ -525,7 +525,10 @@ class Model:
         if not self.orientation:
             raise ModelError(f"model {self.spec} has no probe orientation (term tool_orientation)")
         N, q, p, cov, b0 = self._inputs(q, params, cov, base0)
-        return self._batch("probe", N)(q, p, cov, b0)[0].reshape(N, 3, 3).transpose(0, 2, 1)
+        R = self._superset("probe", N, q, p, cov, b0)
+        if R is None:
+            R = self._batch("probe", N)(q, p, cov, b0)[0]
+        return R.reshape(N, 3, 3).transpose(0, 2, 1)
 
     def pose_residuals(self, q, Rm, params=None, cov=None, base0=None) -> tuple[np.ndarray, np.ndarray]:
         """Positions (N, 3) and orientation residuals (N, 3, rad) against ``Rm`` (N, 3, 3).

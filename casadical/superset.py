@@ -308,7 +308,9 @@ class Superset:
             q, p, c, b0 = S["q"], S["p"], S["c"], S["b0"]
             dq = ca.vertcat(*[c[g.covariate_names.index(chain_offset(j))] for j in range(1, g.robot.n + 1)])
             ins, y = [q, p, c, b0], S["xyz"]
-            if which.startswith("pose_"):
+            if which == "probe":       # the probe's rotation (Model.probe_rotation): a model's start pose, and
+                y = S["probe"]         # its orientation errors on the validation poses of every judge
+            elif which.startswith("pose_"):
                 Rm = ca.SX.sym("Rm", 9)
                 E = ca.mtimes(ca.reshape(Rm, 3, 3), S["probe"])    # as Model's pose functions
                 y = ca.vertcat(y, 0.5 * ca.vertcat(E[2, 1] - E[1, 2], E[0, 2] - E[2, 0], E[1, 0] - E[0, 1]))
@@ -348,7 +350,8 @@ class Superset:
             hit = self._cached(which)
             if hit is None and compile and not self._failed:
                 kind = "pose_" if which.startswith("pose_") else ""
-                names = [w for w in (kind + "fk", kind + "jac") if w not in self._compiled]
+                group = (which,) if which == "probe" else (kind + "fk", kind + "jac")
+                names = [w for w in group if w not in self._compiled]
                 try:
                     done = jitcache.load_all([self.function(w) for w in names], before=self._announce)
                 except jitcache.CompileError as e:
@@ -395,7 +398,7 @@ class Superset:
                 res = b.res
             else:
                 res = b(*inputs)
-            m = 6 if used.startswith("pose_") else 3
+            m = 6 if used.startswith("pose_") else 9 if used == "probe" else 3
             return take([res[0].reshape(N, m)] + [r.reshape(N, -1, m) for r in res[1:]])
 
 
@@ -423,9 +426,11 @@ def superset_for(build, robot, frames=None, torques: bool = True) -> Superset:
 
 def outputs(model, which: str, q, p, cov, b0, Rm=None, compile: bool = True, required: bool = True,
             angles: bool = True, columns: np.ndarray | None = None):
-    """``which`` (``fk``, ``jac``, ``pose_fk``, ``pose_jac``) of a model's poses through its robot's superset.
+    """``which`` (``fk``, ``jac``, ``pose_fk``, ``pose_jac``, ``probe``) of a model's poses through its robot's
+    superset.
 
-    Returns the measured quantities (N, m) (positions, then for ``pose_`` the orientation residuals) and, for
+    Returns the measured quantities (N, m) (positions, then for ``pose_`` the orientation residuals; for
+    ``probe`` the probe's rotation, 9 numbers a pose, column by column) and, for
     ``jac``, their Jacobian w.r.t. the model's parameters (N, m, P) and w.r.t. an offset of each chain angle
     (N, m, n; None without ``angles``); with ``columns`` (indices of the model's parameters) the Jacobian of
     those alone (N, m, len(columns)). ``compile``: compile what is not compiled yet (kept in the disk cache),
@@ -438,7 +443,7 @@ def outputs(model, which: str, q, p, cov, b0, Rm=None, compile: bool = True, req
                        m.torques)
     if not (required or compile or sup.available(which)):
         return None
-    if model.orientation and not which.startswith("pose_"):   # a full-pose model: its data kind's functions
+    if model.orientation and which in ("fk", "jac"):   # a full-pose model: its data kind's functions
         which, Rm = "pose_" + which, np.tile(np.eye(3).ravel(), (N, 1))
     parts = []
     for a in range(0, N, BLOCK):

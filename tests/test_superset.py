@@ -94,6 +94,8 @@ def test_the_superset_gives_every_models_own_numbers(arm, seed):
     assert_close(np.concatenate([xyz, ro], 1), y, "positions and orientation residuals")
     assert_close(np.concatenate([Jp, Jo], 1), Js, "full-pose Jacobian")
     assert_close(xyz, outputs(model, "fk", q, values, cov, b0, compile=False)[:, :3], "fk")
+    probe = outputs(model, "probe", q, values, cov, b0, compile=False).reshape(-1, 3, 3).transpose(0, 2, 1)
+    assert_close(own.probe_rotation(q, values, cov, b0), probe, "probe rotation")
     # each column is the model's: a parameter moved by a small step moves the superset's prediction by it
     k = model.parameters.index("gear1_s5@B")
     step = np.zeros_like(values)
