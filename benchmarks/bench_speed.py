@@ -14,7 +14,8 @@ and its children, such as the compiler):
   report's figures cost).
 
 The trees run in turn (``--repeats`` pairs; the medians and the median of the pairwise ratios are printed),
-after one untimed run of each that fills the cache of compiled functions. Each case also runs once on an
+after one untimed run of each that fills the cache of compiled functions and of Python's bytecode (as an
+installed package has it). Each case also runs once on an
 empty cache (``--cold``): the first run on a new machine. The printed summaries of the two trees are
 compared line by line (but the run time and file names); a line that differs is printed.
 
@@ -59,6 +60,16 @@ def wall(cmd: list[str], env: dict, cwd: Path) -> tuple[float, float]:
 
 TARGETS = {"readme": "<= 0.4x CPU, < 5 s wall", "real2000": "< 10 s", "sessions": "< 15 s",
            "readme_nohtml": "- (the README job without --html: what the figures cost)"}
+
+
+def run_env(tree: str, cache: Path, pycache: Path) -> dict:
+    """The environment of a tree's runs: its sources first on the path, the cache of compiled functions, and
+    Python's bytecode kept (in ``pycache``, out of the trees) as an installed package's is. Where
+    ``PYTHONDONTWRITEBYTECODE`` is set (as on the machine of docs/speed.md) every run would otherwise compile
+    the sources again: 0.2 s of the README job's CPU, and more for the tree with more code."""
+    env = dict(os.environ, PYTHONPATH=tree, CASADICAL_CACHE=str(cache), PYTHONPYCACHEPREFIX=str(pycache))
+    env.pop("PYTHONDONTWRITEBYTECODE", None)
+    return env
 
 
 def prepare(case: str, tmp: Path) -> list[list[str]]:
@@ -118,7 +129,7 @@ def main() -> int:
             folder = Path(tmp) / case
             folder.mkdir()
             cmds = prepare(case, folder)
-            envs = {k: dict(os.environ, PYTHONPATH=v, CASADICAL_CACHE=str(cache)) for k, v in trees.items()}
+            envs = {k: run_env(v, cache, Path(tmp) / "pycache") for k, v in trees.items()}
             texts = {k: summary(cmds, env, folder) for k, env in envs.items()}      # untimed: fills the cache
             times: dict = {k: [] for k in trees}
             for _ in range(args.repeats):
