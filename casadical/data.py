@@ -141,8 +141,6 @@ class Measurements:
         ``R = Rx(rx) Ry(ry) Rz(rz)`` (intrinsic XYZ) of the columns ``rx_deg,
         ry_deg, rz_deg``.
 
-        Read-only (the same array while the three columns keep their values).
-
         Raises
         ------
         DataFileError
@@ -157,10 +155,8 @@ class Measurements:
         # model it judges: 17 ms each at 10,000 poses); a column changed since gives them anew
         hit = getattr(self, "_rotations", None)
         if hit is None or not np.array_equal(hit[0], angles):
-            R = rotation_matrices(angles)
-            R.flags.writeable = False
-            hit = self._rotations = (angles, R)
-        return hit[1]
+            hit = self._rotations = (angles, rotation_matrices(angles))
+        return hit[1].copy()    # the caller's own (a copy costs a hundredth of the rotations)
 
     def line(self, i: int) -> int:
         """Line of pose ``i`` in its file (header = line 1), for error messages."""

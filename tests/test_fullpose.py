@@ -257,6 +257,18 @@ def test_rotations_follow_intrinsic_xyz(write):
     assert back.columns["measured_rx_deg"][0] == 30
 
 
+def test_rotations_are_kept_while_their_columns_keep_their_values(write):
+    """Asked again, the same numbers, the caller's own to change; a column changed in place gives them anew."""
+    d = Measurements.read_csv(write("p.csv", "q1_deg,rx_deg,ry_deg,rz_deg\n0,30,-50,120\n0,0,0,0\n"))
+    R = d.rotations
+    R[0] = 0.0
+    assert np.allclose(d.rotations[1], np.eye(3)) and np.linalg.det(d.rotations[0]) > 0.99
+    R = d.rotations
+    d.columns["rz_deg"][1] = 90.0
+    assert np.allclose(d.rotations[1], [[0, -1, 0], [1, 0, 0], [0, 0, 1]])
+    assert np.allclose(d.rotations[0], R[0])
+
+
 def test_tool_orientation_without_orientation_data_is_an_error():
     robot = robot_from_dict(ARM5, "arm")
     data, _ = simulate(robot, 40, Effects(), seed=1, floor_z=-10.0)
