@@ -222,8 +222,10 @@ class Mapping:
 
     # -- inputs and outputs ------------------------------------------------------------
 
-    def inputs(self, q: np.ndarray, values: np.ndarray, cov: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """The superset's parameters (a vector, or one per pose) and covariates for the model's."""
+    def inputs(self, q: np.ndarray, values: np.ndarray, cov: np.ndarray, offsets: bool = True
+               ) -> tuple[np.ndarray, np.ndarray]:
+        """The superset's parameters (a vector, or one per pose) and covariates for the model's; without
+        ``offsets``, the compensators' point offsets stay at zero (the probe's rotation: they do not turn it)."""
         N = len(q)
         C = np.zeros((N, self.n_covariates))
         C[:, self.cov_to] = cov[:, self.cov_from]
@@ -231,7 +233,7 @@ class Mapping:
             C[:, k] -= refs[0][1] if refs[0][0] is None else sum(cov[:, at] * ref for at, ref in refs)
         for i in self.periodic:
             C[:, self.first_chain + self.index[i] - self.n_params] += values[i] * self._feature(q, cov, i)
-        for gate, at, gp in self.compensators:     # as the term: [pose in its session] * gate * prediction
+        for gate, at, gp in self.compensators if offsets else ():   # as the term: [its session] * gate * prediction
             g = cov[:, gate] if at < 0 else cov[:, at] * cov[:, gate]
             on = np.flatnonzero(g)
             if len(on):
@@ -449,7 +451,7 @@ def outputs(model, which: str, q, p, cov, b0, Rm=None, compile: bool = True, req
     for a in range(0, N, BLOCK):
         s = slice(a, min(a + BLOCK, N))
         qs, cs = q[s], cov[s]
-        P, C = m.inputs(qs, p, cs)
+        P, C = m.inputs(qs, p, cs, offsets=which != "probe")
 
         def take(out, qs=qs, cs=cs):
             if len(out) == 1:

@@ -135,6 +135,8 @@ def test_session_compensators_map_onto_the_superset(arm, orientation):
     if orientation:
         xyz, J, ro, Jo = own.pose_jacobian(q, R, values, cov, b0)
         xyz, J = np.concatenate([xyz, ro], 1), np.concatenate([J, Jo], 1)
+        probe = outputs(model, "probe", q, values, cov, b0, compile=False).reshape(-1, 3, 3).transpose(0, 2, 1)
+        assert_close(own.probe_rotation(q, values, cov, b0), probe, "probe rotation (the offsets do not turn it)")
     else:
         xyz, J = own.predict_jacobian(q, values, cov, b0)
     assert_close(xyz, y, "positions")
