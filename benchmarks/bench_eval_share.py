@@ -90,6 +90,8 @@ def main() -> int:
                 subprocess.run([sys.executable, __file__, "--child", str(out), *argv], env=env, check=True,
                                capture_output=True, cwd=folder)
                 runs.append(json.loads(out.read_text()))
+                if runs[-1]["code"]:
+                    raise SystemExit(f"{case}: casadical {' '.join(argv)} exited with {runs[-1]['code']}")
             cpu = statistics.median(r["cpu_s"] for r in runs)
             ev = statistics.median(r["eval_s"] for r in runs)
             share = statistics.median(r["eval_s"] / r["cpu_s"] for r in runs)
