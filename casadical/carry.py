@@ -134,7 +134,7 @@ class _Judge:
             for c, f in enumerate(fates):
                 if f == "dropped":      # its parameters back at zero
                     r -= lin.J[:, :, self.cols[c]] @ lin.x0[self.cols[c]]
-            means = by_kind(linear_cv(np.take(lin.J, cols, axis=2), r, lin.weights, self.folds), self.mask)
+            means = by_kind(linear_cv(lin.J[:, :, cols], r, lin.weights, self.folds), self.mask)
             self.scores[key] = float(np.mean(list(means.values())))
         return self.scores[key]
 

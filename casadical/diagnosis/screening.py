@@ -254,13 +254,7 @@ class Screen:
         r1 = self.r + J @ d
         names = [self.names[k] for k in cols]
         values = {n: self.params[n].value + self.scale[k] * dk for n, k, dk in zip(names, cols, d)}
-        # the folds gather poses: J pose by pose in memory for them (J[:, :, cols] keeps each column's poses
-        # together, and gathering from it took twice as long). The step above stays on J as it is: its values
-        # start the accepted candidate's full fit, and an ill-conditioned fit (compliance or scale of one
-        # joint) follows its start's rounding (the next-poses study's standard errors moved by up to 0.2 %
-        # when these sums were taken in another order)
-        lin = Linearized(np.ascontiguousarray(J), r1, self.w, names, self.scale[cols],
-                         switch_off(names, values, self.scale[cols]),
+        lin = Linearized(J, r1, self.w, names, self.scale[cols], switch_off(names, values, self.scale[cols]),
                          np.array([(values[n] - self.params[n].nominal) / self.scale[k] for n, k in zip(names, cols)]))
         return LinearFit(lin, values, float(np.sum(self.w[:, None] * r1 ** 2)), len(cols), d, cols)
 

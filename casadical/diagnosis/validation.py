@@ -217,6 +217,9 @@ def linear_cv(J: np.ndarray, r: np.ndarray, weights: np.ndarray, all_schemes: li
     very poses would not be held out.
     """
     N, _, p = J.shape
+    # pose by pose in memory: the folds gather poses, and a Jacobian whose columns were taken out of a larger
+    # one (J[:, :, cols]) keeps each column's poses together, where the gathers took twice as long
+    J = np.ascontiguousarray(J)
     sw = np.sqrt(weights)[:, None, None]
     Jw = (J * sw).reshape(N, 3, p)
     rw = r * np.sqrt(weights)[:, None]
@@ -292,8 +295,6 @@ class Linearized:
     def of(cls, res, data) -> "Linearized":
         m, p = res.model, res.parameters
         f = np.flatnonzero(p.free)
-        # the free columns alone, pose by pose in memory: the folds gather poses (taking the columns out
-        # of all of them afterwards left each column's poses together, and the gathers twice as slow)
         xyz, J = m.predict_jacobian(data.q, p.values, m.covariates(data), res.base0, columns=f)
         r = xyz - data.xyz
         w = res.loss.weight(np.einsum("ij,ij->i", r, r))
