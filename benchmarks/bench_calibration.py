@@ -324,7 +324,8 @@ def main(argv=None) -> int:
     print("|---|" + "|".join("---:" for _ in head[1:]) + "|")
     for m in methods:
         it = str(m["iterations"]) + (f" (njev {m['njev']})" if m.get("njev") else "")
-        print(f"| {m['method']} | {fmt_t(m['time_s'])} | {fmt_t(m['min_s'])} | {m['vs_lm']:.1f} | {it} | {m['cost']:.10e} | "
+        print(f"| {m['method']} | {fmt_t(m['time_s'])} | {fmt_t(m['min_s'])} | {m['vs_lm']:.1f} | {it} | "
+              f"{m['cost']:.10e} | "
               f"{m['rms_mm']:.5f} | {m['dx_max']:.1e} | {'yes' if m['equal'] else 'no'} |")
     print(f"\nIPOPT enforces the bounds (c_j >= 0); its largest difference to LM is {names[k_dx]} "
           f"(LM {x_lm[k_dx] * c_scale[k_dx]:.3e}, IPOPT {ipopt_row['x'][k_dx] * c_scale[k_dx]:.3e} SI).")

@@ -46,9 +46,8 @@ import warnings  # noqa: E402
 import casadi as ca  # noqa: E402
 import numpy as np  # noqa: E402
 import scipy  # noqa: E402
-from scipy.optimize import least_squares  # noqa: E402
-
 from bench_model import cpu_model  # noqa: E402  (this folder is on sys.path when run as a script)
+from scipy.optimize import least_squares  # noqa: E402
 
 from casadical import Measurements, Model, calibrate, load_robot  # noqa: E402
 from casadical.inverse import compensate  # noqa: E402

@@ -15,9 +15,8 @@ from __future__ import annotations
 
 import argparse
 import math
-import time
-
 import os
+import time
 from pathlib import Path
 
 import numpy as np

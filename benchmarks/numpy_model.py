@@ -254,8 +254,8 @@ def check(robot_name: str = "ys100", N: int = 200, seed: int = 0, verbose: bool 
     with every column times its parameter's scale (metres per typical
     deviation: all parameters weigh alike).
     """
-    from casadical.model import Model, pose_to_base0
     from casadical.kinematics import base_pose_matrix
+    from casadical.model import Model, pose_to_base0
     from casadical.robot import load_robot
 
     robot = load_robot(robot_name)

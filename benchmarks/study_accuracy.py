@@ -177,7 +177,8 @@ def main() -> None:
     if args.plot:
         plot(results, args.plot)
     ok = all(not r["broken_rules"] and r["final_val_mm"] <= r["kinematic_gp_val_mm"]
-             and r["across"]["refit_mm"] < r["across"]["kinematic_refit_mm"] and not r["across"]["session_terms_carried"]
+             and r["across"]["refit_mm"] < r["across"]["kinematic_refit_mm"]
+             and not r["across"]["session_terms_carried"]
              for r in results)
     print(f"\nissue 19's conditions {'hold' if ok else 'do NOT hold'} in all {len(results)} runs")
     at_least = sum(r["final_val_mm"] <= r["kinematic_gp_val_mm"] for r in results)
@@ -202,7 +203,8 @@ def plot(results: list[dict], path: str) -> None:
                 ("diagnosed (final)", "#4477aa", lambda r: r["final_val_mm"])]),
               ("other series, geometry refitted there",
                [("kinematic", "#bbbbbb", lambda r: r["across"]["kinematic_refit_mm"]),
-                ("earlier diagnosis", "#ee8866", lambda r: r.get("before", {}).get("across", {}).get("refit_mm", np.nan)),
+                ("earlier diagnosis", "#ee8866",
+                 lambda r: r.get("before", {}).get("across", {}).get("refit_mm", np.nan)),
                 ("physical model, frozen", "#4477aa", lambda r: r["across"]["refit_mm"])])]
     for ax, (title, bars) in zip(axes, panels):
         w = 0.8 / len(bars)

@@ -71,7 +71,8 @@ def tables(rows: list[dict]) -> str:
             "| arm | hidden | seed | missed | false | validation mean (mm) | true model fitted (mm) |",
             "|---|---|---|---|---|---|---|"]
     out += [f"| {r['robot']} | {r['effect']} | {r['seed']} | {r['missed']} | {r['false']} | "
-            f"{r['validation_mm']:.4f} | {r['true_model_mm']:.4f} |" for r in bad] or ["| none | - | - | - | - | - | - |"]
+            f"{r['validation_mm']:.4f} | {r['true_model_mm']:.4f} |" for r in bad] \
+        or ["| none | - | - | - | - | - | - |"]
     return "\n".join(out)
 
 

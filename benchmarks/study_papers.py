@@ -149,7 +149,8 @@ def experiment_ca(n_robots: int, plots: str | None) -> dict:
     say("| | paper | ours |\n|---|---|---|")
     for s in ("calibration", "validation"):
         p, o = CA_PAPER[s], ours[s]
-        say(f"| {s}: vs nominal | {gain(p['Nominal'][0], p['SKCM-CA'][0])} | {gain(o['Nominal'][0], o['SKCM-CA'][0])} |")
+        say(f"| {s}: vs nominal | {gain(p['Nominal'][0], p['SKCM-CA'][0])} | "
+            f"{gain(o['Nominal'][0], o['SKCM-CA'][0])} |")
         say(f"| {s}: vs KM | {gain(p['KM'][0], p['SKCM-CA'][0])} | {gain(o['KM'][0], o['SKCM-CA'][0])} |")
         say(f"| {s}: vs SKCM-GA | {gain(p['SKCM-GA'][0], p['SKCM-CA'][0])} | "
             f"{gain(o['SKCM-GA'][0], o['SKCM-CA'][0])} |")

@@ -17,12 +17,12 @@ __all__ = ["CalibrationResult", "CasadicalError", "Measurements", "calibrate", "
 
 if _typing.TYPE_CHECKING:
     from .calibration import calibrate
-    from .result import CalibrationResult, load_calibration
     from .data import Measurements
     from .errors import CasadicalError
+    from .loading import load_robot
     from .model import Model, parse_spec
     from .parameters import Parameter, Parameters
-    from .loading import load_robot
+    from .result import CalibrationResult, load_calibration
     from .robot import Robot
 else:
     def __getattr__(name: str):

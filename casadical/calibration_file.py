@@ -20,8 +20,8 @@ from . import __version__
 from .errors import CalibrationFileError, ModelError, RobotFileError, listing
 from .files import finite_number
 from .model import assemble_terms, parse_spec
-from .terms import ErrorTerm, SessionLocal
 from .robot import Robot, robot_from_dict
+from .terms import ErrorTerm, SessionLocal
 
 STATS_KEYS = ("n_poses", "mean_mm", "max_mm", "std_mm", "rms_mm")
 #: largest count of equations or parameters a file may give (beyond, no float holds it exactly)

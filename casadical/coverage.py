@@ -75,7 +75,8 @@ class Coverage:
         q = np.atleast_2d(np.asarray(q_deg, float))
         tol = 1e-6
         beyond = (q < self.q_min_deg - tol) | (q > self.q_max_deg + tol)
-        far = _nearest(q, self.poses_deg) > self.far_limit_deg(far_factor) if len(self.poses_deg) else np.zeros(len(q), bool)
+        far = (_nearest(q, self.poses_deg) > self.far_limit_deg(far_factor) if len(self.poses_deg)
+               else np.zeros(len(q), bool))
         return beyond, far
 
     def far_limit_deg(self, far_factor: float = 4.0) -> float:
@@ -94,7 +95,8 @@ class Coverage:
         if beyond.any():
             rows = np.flatnonzero(beyond.any(axis=1))
             joints = sorted({int(j) + 1 for j in np.flatnonzero(beyond.any(axis=0))})
-            out.append(f"{file}: {len(rows)} pose(s) (lines {listing(lines[rows].tolist())}) have joint readings outside "
+            out.append(f"{file}: {len(rows)} pose(s) (lines {listing(lines[rows].tolist())}) have joint readings "
+                       "outside "
                        f"the ranges the calibration saw (joints {', '.join(map(str, joints))}: "
                        + "; ".join(f"q{j} {self.q_min_deg[j - 1]:.1f}..{self.q_max_deg[j - 1]:.1f} deg"
                                    for j in joints)

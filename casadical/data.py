@@ -555,7 +555,7 @@ def session_name(value) -> str:
 
 def rotation_matrices(angles_deg: np.ndarray) -> np.ndarray:
     """Rotations ``Rx(rx) Ry(ry) Rz(rz)`` (intrinsic XYZ) of angles (deg, shape (N, 3)), shape (N, 3, 3)."""
-    from scipy.spatial.transform import Rotation   # here: scipy's import costs every command's start-up
+    from scipy.spatial.transform import Rotation  # here: scipy's import costs every command's start-up
     return Rotation.from_euler("XYZ", np.asarray(angles_deg, float).reshape(-1, 3), degrees=True).as_matrix()
 
 

@@ -25,8 +25,8 @@ import tomllib
 from pathlib import Path
 from typing import IO, Iterator
 
-from .interrupts import checkpoint, deferred, finish, received, since
 from .errors import CasadicalError, InputError
+from .interrupts import checkpoint, deferred, finish, received, since
 
 EXISTS = "exists already; choose another name or pass --force to replace it"
 

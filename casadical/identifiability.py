@@ -60,7 +60,7 @@ class Identifiability:
             params[n].identifiable = True
 
     def free(self, names: list[str], params: Parameters) -> None:
-        """Count ``names`` as identifiable after all (see :func:`casadical.calibration.separated`); free them."""
+        """Count ``names`` as identifiable after all (see :func:`casadical.calibration.solve.separated`); free them."""
         self.unidentifiable = [u for u in self.unidentifiable if u.name not in names]
         self.identifiable = [n for n in params.names if n in set(self.identifiable) | set(names)]
         for n in names:

@@ -53,10 +53,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from .result import CalibrationResult
 from .checks import check_poses
 from .data import XYZ, Measurements
 from .errors import ConvergenceWarning, InputError, listing
+from .result import CalibrationResult
 
 #: relative damping lambda of the pseudo-inverses (a singular value s gets s / (s^2 + (lambda s_max)^2)):
 #: start, smallest, and largest before a row counts as stuck

@@ -30,12 +30,15 @@ import casadi as ca
 import numpy as np
 
 from . import jitcache
-from .batch import BLOCK_MIN, Batch as _Batch, Blocks as _Blocks, batch, mapped  # noqa: F401 (names the tests use)
+from .batch import BLOCK_MIN, batch, mapped  # noqa: F401 (names the tests use)
+from .batch import Batch as _Batch
+from .batch import Blocks as _Blocks
 from .errors import CasadicalWarning, DataFileError, ModelError
 from .kinematics import Geometry, base_pose_matrix, chain_angles, compose, forward, rpy_pose
 from .parameters import Parameters
 from .robot import Robot
-from .superset import Mapping, outputs as superset_outputs
+from .superset import Mapping
+from .superset import outputs as superset_outputs
 from .terms import REGISTRY, Context, ErrorTerm, SessionLocal, covariate_names, make_term
 from .threads import evaluation_threads
 

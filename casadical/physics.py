@@ -255,7 +255,7 @@ def significant(result, names: list[str], alpha: float = ALPHA) -> list[Violatio
     if not np.all(np.isfinite(Cs)) or np.max(np.diag(Cs)) <= 0:
         return [Violation("significance", tuple(names), "the standard errors of " + ", ".join(names)
                           + " are not defined")]
-    from scipy import special   # here, not at import: 0.13 s of every calibrate's start-up
+    from scipy import special  # here, not at import: 0.13 s of every calibrate's start-up
     w = float((v / scale) @ np.linalg.pinv(Cs) @ (v / scale))
     p = float(special.chdtrc(len(names), w))
     if p < alpha:

@@ -16,10 +16,10 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .data import Measurements, session_index
 from .calibration_file import restored_terms, validate_calibration_document
 from .checks import check_calibration_fits, check_poses
 from .coverage import Coverage
+from .data import Measurements, session_index
 from .errors import CalibrationFileError, CasadicalError, InputError, listing
 from .files import atomic_write
 from .identifiability import Identifiability
@@ -28,8 +28,15 @@ from .model import Model, base0_to_pose
 from .parameters import Parameters
 from .problem import RobustLoss
 from .robot import robot_from_dict, robot_to_dict
-from .significance import (LEVEL, FitStatistics, ParameterTest, parameter_table, parameter_tests, stiffness_interval,
-                           t_critical)
+from .significance import (
+    LEVEL,
+    FitStatistics,
+    ParameterTest,
+    parameter_table,
+    parameter_tests,
+    stiffness_interval,
+    t_critical,
+)
 from .solvers import SolverResult
 from .uncertainty import Uncertainty
 
@@ -113,7 +120,7 @@ class AngleStats:
 
 def rotation_angles_between(A: np.ndarray, B: np.ndarray) -> np.ndarray:
     """Angle (rad) of ``A_i^T B_i`` for rotations ``A, B`` (N, 3, 3), exact at any size."""
-    from scipy.spatial.transform import Rotation   # here: scipy's import costs every command's start-up
+    from scipy.spatial.transform import Rotation  # here: scipy's import costs every command's start-up
     return Rotation.from_matrix(np.einsum("nji,njk->nik", A, B)).magnitude()
 
 

@@ -18,7 +18,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-
 from arms import ARM4, ARM4_BETA, ARM5, ARM5_COUPLED, ARM7, ARM7_DH
 from truth import Arm, Effects, Session, TrueRobot, measure, sample
 
@@ -210,7 +209,8 @@ def true_spec(c: Case) -> str:
     joints = lambda d: ",".join(str(j) for j in sorted(d))     # noqa: E731
     items = ["kinematic"]
     for d, term in ((e.stiffness, "joint_compliance"), (e.cubic, "nonlinear_stiffness"),
-                    (e.encoder_scale, "encoder_scale"), (e.backlash, "backlash"), (e.backlash_motion, "backlash_motion"),
+                    (e.encoder_scale, "encoder_scale"), (e.backlash, "backlash"),
+                    (e.backlash_motion, "backlash_motion"),
                     (e.thermal_links, "thermal_expansion")):
         if d:
             items.append(f"{term}[{joints(d)}]")

@@ -21,12 +21,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
+from arms import ARM5, ARM7_DH, to_toml
+from truth import Arm, Effects, Session, TrueRobot, sample
+from truth import measure as shoot
 
 from casadical.cli import main
 from casadical.data import Measurements
-from truth import Arm, Effects, Session, TrueRobot, measure as shoot, sample
-
-from arms import ARM5, ARM7_DH, to_toml
 
 #: where the tracker stood in each session (the robot base in the measurement frame)
 TRACKER = {"A": Session("A", (1.5, -0.5, 0.3), (0.0, 0.0, 0.7)),
@@ -153,7 +153,8 @@ def measure(env: dict, rows, seed: int, path: str) -> None:
     """The candidates ``rows`` measured on the same true robot, in the session they are planned in."""
     rows = np.asarray(rows)
     load = env["cand"].get("payload_kg")
-    shoot(env["truth"], env["cand"].q[rows], np.random.default_rng(seed), session=TRACKER.get(env["session"], Session()),
+    shoot(env["truth"], env["cand"].q[rows], np.random.default_rng(seed),
+          session=TRACKER.get(env["session"], Session()),
           payload_kg=None if load is None else load[rows]).write_csv(path)
 
 

@@ -5,6 +5,7 @@ import math
 
 import numpy as np
 import pytest
+from arms import ARM5, ARM7_DH, to_toml
 
 from casadical import calibrate, load_calibration
 from casadical.cli import main
@@ -12,8 +13,6 @@ from casadical.compensators.gp import ResidualGP
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.robot import robot_from_dict
 from casadical.simulate import Effects, another_session, simulate
-
-from arms import ARM5, ARM7_DH, to_toml
 
 SEEDS = [0, 1, 2]
 
@@ -33,13 +32,14 @@ def with_structure(robot, n, truth, seed):
 def test_the_process_is_scikit_learns():
     """The numbers held (and evaluated without scikit-learn, numerically and in CasADi) are scikit-learn's own
     Gaussian process: mean and predictive std at new poses; the file form reads back to the same process."""
+    import casadi as ca
     from sklearn.gaussian_process import GaussianProcessRegressor
     from sklearn.gaussian_process.kernels import RBF, ConstantKernel, WhiteKernel
-    import casadi as ca
 
     rng = np.random.default_rng(0)
     X = rng.uniform(-2, 2, (60, 4))
-    Y = np.column_stack([np.sin(X[:, 0]), np.cos(X[:, 1] * X[:, 2]), X[:, 3] ** 2]) * 1e-4 + rng.normal(0, 1e-6, (60, 3))
+    Y = (np.column_stack([np.sin(X[:, 0]), np.cos(X[:, 1] * X[:, 2]), X[:, 3] ** 2]) * 1e-4
+         + rng.normal(0, 1e-6, (60, 3)))
     gp = ResidualGP.fit(X, Y)
     Xt = rng.uniform(-2, 2, (25, 4))
     for a in range(3):

@@ -8,8 +8,7 @@ import numpy as np
 import pytest
 
 from casadical import Measurements, calibrate, load_calibration, load_robot
-from casadical.errors import (ConvergenceWarning, CorrelationWarning, IdentifiabilityError,
-                              IdentifiabilityWarning)
+from casadical.errors import ConvergenceWarning, CorrelationWarning, IdentifiabilityError, IdentifiabilityWarning
 from casadical.simulate import Effects, simulate
 
 UR10_B = Path(__file__).resolve().parent.parent / "problems" / "datasets" / "ur10-ipa" / "series_b.csv"

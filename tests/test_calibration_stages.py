@@ -7,8 +7,8 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-
 from arms import ARM4
+
 from casadical import calibrate
 from casadical.calibration import pipeline
 from casadical.errors import ConvergenceWarning

@@ -13,6 +13,8 @@ import warnings
 
 import numpy as np
 import pytest
+from arms import ARM6, ARM7, to_toml
+from truth import Arm, Effects, TrueRobot, measure, sample
 
 from casadical import calibrate, load_calibration
 from casadical.cli import main
@@ -20,9 +22,6 @@ from casadical.data import Measurements
 from casadical.errors import DataFileError
 from casadical.inverse import compensate
 from casadical.robot import robot_from_dict
-from truth import Arm, Effects, TrueRobot, measure, sample
-
-from arms import ARM6, ARM7, to_toml
 
 
 def measured(path, robot, q, rng, **kw) -> Measurements:

@@ -28,7 +28,8 @@ def test_predict_warns_outside_the_joint_ranges(tmp_path, capsys):
     assert main(["calibrate", "ys100", str(tmp_path / "cal.csv"), "--model", "kinematic", "--solver", "lm",
                  "--out", str(tmp_path / "cal.json")]) == 0
     capsys.readouterr()
-    assert main(["predict", str(tmp_path / "cal.json"), str(tmp_path / "in.csv"), "--out", str(tmp_path / "p1.csv")]) == 0
+    assert main(["predict", str(tmp_path / "cal.json"), str(tmp_path / "in.csv"),
+                 "--out", str(tmp_path / "p1.csv")]) == 0
     assert "outside the ranges" not in capsys.readouterr().err
     assert main(["predict", str(tmp_path / "cal.json"), str(tmp_path / "out.csv"), "--out", str(tmp_path / "p2.csv"),
                  "--allow-mismatch"]) == 0

@@ -95,7 +95,8 @@ def test_extract_finds_the_table_after_its_caption():
 
 def test_write_replaces_only_changed_blocks(tmp_path):
     doc = tmp_path / "x.md"
-    table = "| model | free | AIC | BIC | validation mean mm |\n|---|---|---|---|---|\n| `k` | 1 | 2.00 | 3.00 | 0.4 |\n"
+    table = ("| model | free | AIC | BIC | validation mean mm |\n|---|---|---|---|---|\n"
+             "| `k` | 1 | 2.00 | 3.00 | 0.4 |\n")
     doc.write_text("text\n<!-- generated: guide-aic (python benchmarks/guide_figures.py) -->\n" + table
                    + "<!-- end generated -->\nmore\n")
     assert rd.write(rd.quoted_blocks([doc]), {"guide": "AIC and BIC ...\n\n" + table}) == []

@@ -8,14 +8,13 @@ import warnings
 import numpy as np
 import pytest
 import yourdfpy
+from arms import ARM7_DH
 
 from casadical import calibrate, load_calibration, load_robot
 from casadical.cli import main
 from casadical.parameter_table import COLUMNS, parameter_table
 from casadical.robot import robot_from_dict
 from casadical.simulate import Effects, simulate
-
-from arms import ARM7_DH
 
 
 def read_table(path) -> tuple[str, list[dict]]:
@@ -128,7 +127,8 @@ def test_the_exported_geometry_is_the_best_geometry(tmp_path, capsys, arm):
     cal, truth = simulate(robot, 150, effects, seed=3, floor_z=None)
     val, _ = simulate(robot, 150, truth=truth, seed=4, floor_z=None)
     terms = "+".join([f"joint_compliance[{','.join(map(str, sorted(effects.stiffness)))}]"]
-                     + ([f"joint_periodic[{effects.periodic[0][0]}:{effects.periodic[0][1]}]"] if effects.periodic else []))
+                     + ([f"joint_periodic[{effects.periodic[0][0]}:{effects.periodic[0][1]}]"]
+                        if effects.periodic else []))
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         full = calibrate(robot, cal, "kinematic+" + terms, "lm")
@@ -229,6 +229,7 @@ def test_readme_export_is_no_worse_than_a_kinematic_calibration(tmp_path, capsys
     a kinematic calibration's URDF (within 1 %: 0.4048 against 0.4036 mm; the diagnosed model's own geometry
     gave 0.94 mm against 0.41 mm), and the DH table holds the same geometry."""
     from pathlib import Path
+
     from casadical.data import Measurements
 
     series_b = Path(__file__).resolve().parent.parent / "problems" / "datasets" / "ur10-ipa" / "series_b.csv"

@@ -26,10 +26,10 @@ the search that lost the cause or named a false one.
 import json
 import warnings
 
+import hidden
 import numpy as np
 import pytest
 
-import hidden
 from casadical.cli import main
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.diagnosis.never_worse import Held
@@ -82,7 +82,8 @@ def test_the_noise_scale_of_a_test_leaves_the_drop_as_it_is():
 
 
 #: the truth of problems/protocols/tlbo-hh800.toml: (cause, joint, harmonic)
-TLBO_TRUTH = {("joint_compliance", j, None) for j in (2, 3, 4, 5)} | {("joint_periodic", 2, 2), ("joint_periodic", 3, 1)}
+TLBO_TRUTH = ({("joint_compliance", j, None) for j in (2, 3, 4, 5)}
+              | {("joint_periodic", 2, 2), ("joint_periodic", 3, 1)})
 
 
 @pytest.mark.parametrize("seed", [1, 3, 4, 6])

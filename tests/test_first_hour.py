@@ -8,7 +8,6 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-import numpy as np
 import pytest
 from test_export import urdf_errors
 from test_robust import cli
@@ -45,10 +44,10 @@ def test_a_calibration_file_of_an_earlier_version_is_exported(tmp_path, capsys):
 # --- the README and the guide, as a new user follows them ----------------------------------------------------
 
 import re  # noqa: E402
-import warnings  # noqa: E402
 import shlex  # noqa: E402
 import subprocess  # noqa: E402
 import sys  # noqa: E402
+import warnings  # noqa: E402
 
 sys.path.insert(0, str(ROOT / "benchmarks"))
 from guide_runner import parse  # noqa: E402
@@ -184,7 +183,8 @@ def test_whole_numbers_stay_whole(tmp_path, capsys):
     cal, rest = tmp_path / "cal.csv", tmp_path / "rest.csv"
     assert cli(capsys, "split", SERIES_B, "-n", 300, "--seed", 0, "--out-cal", cal, "--out-val", rest)[0] == 0
     again = tmp_path / "again.csv"
-    assert cli(capsys, "split", rest, "-n", 40, "--seed", 1, "--out-cal", again, "--out-val", tmp_path / "r.csv")[0] == 0
+    assert cli(capsys, "split", rest, "-n", 40, "--seed", 1, "--out-cal", again,
+               "--out-val", tmp_path / "r.csv")[0] == 0
     predicted = tmp_path / "p.csv"
     assert cli(capsys, "predict", "ur10", again, "--out", predicted, "--allow-mismatch")[0] == 0
     for path in (cal, again, predicted):
@@ -235,7 +235,7 @@ def test_calibrate_validate_on_full_pose_data_says_the_orientation_error_and_a_z
     assert code == 0, err
     line = next(x for x in stdout.splitlines() if x.startswith(f"validation orientation ({val}): mean "))
     doc = json.loads(out.read_text())["orientation"]["validation"]
-    assert doc["n_poses"] == 300 and f"mean {doc['mean_deg']:.4f}" in line and f"over 300 poses" in line
+    assert doc["n_poses"] == 300 and f"mean {doc['mean_deg']:.4f}" in line and "over 300 poses" in line
     at_zero = [x for x in stdout.splitlines() + err if "at its lower bound 0" in x]
     assert at_zero and all("not determined by these poses" in x for x in at_zero)
     assert not any("widen the bound" in x for x in stdout.splitlines() + err if "bound 0" in x)

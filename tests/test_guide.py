@@ -62,7 +62,8 @@ def test_the_guide_runs_top_to_bottom(tmp_path):
     steps = parse(text)
     export = next(s for s in steps if s.kind == "lines")
     assert check_lines(export, folder) is None
-    changed = re.sub(r"(\| a2 \| mm \| -612\.0000 \| -613\.\d\d)(\d)", lambda m: m.group(1) + str((int(m.group(2)) + 1) % 10),
+    changed = re.sub(r"(\| a2 \| mm \| -612\.0000 \| -613\.\d\d)(\d)",
+                     lambda m: m.group(1) + str((int(m.group(2)) + 1) % 10),
                      export.text)
     assert changed != export.text
     export.text = changed

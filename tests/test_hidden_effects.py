@@ -9,9 +9,9 @@ matrix); the default run takes one case per effect, on robots in turn. The cases
 
 import warnings
 
+import hidden
 import pytest
 
-import hidden
 from casadical.diagnosis import DiagnosisSettings, diagnose
 
 #: cases of the matrix the diagnosis does not claim exactly today, kept out of the assertions: (robot, effect,

@@ -10,9 +10,9 @@ import counts as much as one at the top of a module.
 
 from __future__ import annotations
 
+import import_graph
 import pytest
 
-import import_graph
 from casadical.errors import InputError, RobotFileError
 
 

@@ -11,6 +11,7 @@ import time
 
 import numpy as np
 import pytest
+from arms import ARM3
 
 from casadical import jitcache
 from casadical.calibration import calibrate
@@ -18,8 +19,6 @@ from casadical.cli import main
 from casadical.model import Model
 from casadical.robot import robot_from_dict
 from casadical.simulate import Effects, simulate
-
-from arms import ARM3
 
 pytestmark = pytest.mark.skipif(jitcache.compiler() is None, reason="no C compiler")
 

@@ -6,17 +6,15 @@ import math
 
 import numpy as np
 import pytest
+from arms import ARM7_DH
+from truth import Arm, Effects, TrueRobot, measure, sample
 
 from casadical import calibrate
-from casadical.compensators.gp import (FIT_ITERATIONS, LENGTH_BOUNDS, ResidualGP, log_likelihood,
-                                       squared_differences)
+from casadical.compensators.gp import FIT_ITERATIONS, LENGTH_BOUNDS, ResidualGP, log_likelihood, squared_differences
 from casadical.data import Measurements
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.diagnosis.layer import SUPPORTS
 from casadical.robot import robot_from_dict
-from truth import Arm, Effects, TrueRobot, measure, sample
-
-from arms import ARM7_DH
 
 
 @pytest.mark.filterwarnings("ignore:The optimal value found")

@@ -112,7 +112,8 @@ def test_global_start_finds_a_far_joint_offset():
     rng = np.random.default_rng(0)
     cal, val = (d.with_positions(truth.model.predict(d.q, vals, truth.model.covariates(d), truth.base0)
                                  + rng.normal(0, 2e-5, (len(d), 3))) for d in (cal, val))
-    model = Model(ROBOT, [make_term("kinematic", angle_box=math.pi), make_term("joint_compliance", joints=[2, 3, 4, 5])])
+    model = Model(ROBOT, [make_term("kinematic", angle_box=math.pi),
+                          make_term("joint_compliance", joints=[2, 3, 4, 5])])
     from casadical.calibration import calibrate
     # the nominal model misses these poses by 1.2 m (a third of the reach): a robot file this far off is refused
     # unless the user says so (issue 21); the override marks the poses, so the method below takes them too

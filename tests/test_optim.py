@@ -12,8 +12,7 @@ import numpy as np
 import pytest
 
 from casadical.errors import InputError, SolverError
-from casadical.optim import (TLBO, Box, CulturalAlgorithm, GeneticAlgorithm,
-                             OptimResult, SubsetGeneticAlgorithm)
+from casadical.optim import TLBO, Box, CulturalAlgorithm, GeneticAlgorithm, OptimResult, SubsetGeneticAlgorithm
 
 SEEDS = [0, 1, 2]
 SHIFT = np.array([1.2, -0.7, 2.5, -3.1])

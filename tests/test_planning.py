@@ -10,17 +10,27 @@ import re
 
 import numpy as np
 import pytest
-
 from threadpoolctl import threadpool_limits
 
 from casadical import cli
 from casadical.errors import IdentifiabilityError, IdentifiabilityWarning, InputError
 from casadical.identifiability import analyse
 from casadical.model import Model
-from casadical.planning import (RelaxationSettings, d_optimal_design, design_problem, exchange,
-                                indices_from_singular_values, log_det_information, o1_batch,
-                                observability, random_o1, relax_cvxpy, relax_multiplicative,
-                                select_poses, upper_bound)
+from casadical.planning import (
+    RelaxationSettings,
+    d_optimal_design,
+    design_problem,
+    exchange,
+    indices_from_singular_values,
+    log_det_information,
+    o1_batch,
+    observability,
+    random_o1,
+    relax_cvxpy,
+    relax_multiplicative,
+    select_poses,
+    upper_bound,
+)
 from casadical.planning.doptimal import _Pool, _swap_ratios
 from casadical.planning.observability import _analyse_pool, pool_jacobian
 from casadical.robot import PROBLEMS, load_robot, robot_from_dict

@@ -18,6 +18,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 from arms import ARM4, ARM5, to_toml
+from test_robust import cli, one_error  # the command line in-process, and its one-line errors
 
 from casadical import load_robot
 from casadical.cli import main
@@ -26,8 +27,6 @@ from casadical.files import atomic_write, outputs_together
 from casadical.interrupts import handle_signals
 from casadical.robot import robot_from_dict
 from casadical.simulate import Effects, simulate
-
-from test_robust import cli, one_error   # the command line in-process, and its one-line errors
 
 ROOT = Path(__file__).resolve().parent.parent
 
@@ -141,7 +140,8 @@ CODES = {"SIGINT": 130, "SIGTERM": 143}
 def test_a_signal_at_any_moment_is_one_line_and_all_outputs_or_none(arms, tmp_path, point, sig):
     """Issue 28: ``diagnose --json --html --out`` signalled at each moment of its run (the process signals
     itself there: CASADICAL_SIGNAL_AT): exit 130/143 with one line, never a traceback, never swallowed; the
-    three outputs appear together or not at all (SIGINT:group: a terminal's Ctrl-C, to the figure workers too), the report an earlier run wrote (--force) stays as it was
+    three outputs appear together or not at all (SIGINT:group: a terminal's Ctrl-C, to the figure workers too),
+    the report an earlier run wrote (--force) stays as it was
     until the new one is complete, and no figure worker outlives the command. A signal after the outputs
     are in place says so. (Before: SIGTERM the moment r.json appeared exited -15 with every output; SIGINT
     then exited 0 with a traceback from threading._shutdown, or -2 without a word.)"""

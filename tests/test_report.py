@@ -18,8 +18,8 @@ from html.parser import HTMLParser
 
 import numpy as np
 import pytest
-
 from arms import ARM4, ARM5, ARM7, to_toml
+
 from casadical.calibration import calibrate
 from casadical.cli import main
 from casadical.data import Measurements
@@ -27,7 +27,7 @@ from casadical.diagnosis import DiagnosisSettings, Finding, diagnose
 from casadical.diagnosis.candidates import Candidate
 from casadical.report import calibration_html, diagnosis_html
 from casadical.robot import robot_from_dict
-from casadical.simulate import Effects, sample_poses, simulate
+from casadical.simulate import Effects, simulate
 
 try:                        # drives the browser through the DevTools protocol
     from playwright.sync_api import sync_playwright
@@ -615,7 +615,8 @@ def test_readme_quotes_what_the_job_prints_or_says_where_a_figure_comes_from(rea
             figures += 1
             places = len(x.split(".")[1])
             said = any(round(y, places) == float(x) for y in printed)
-            assert said or "benchmarks/" in sentence, f"README: {x} mm, neither printed by the job nor sourced: {sentence}"
+            assert said or "benchmarks/" in sentence, \
+                f"README: {x} mm, neither printed by the job nor sourced: {sentence}"
     assert figures >= 3
 
 
@@ -745,9 +746,9 @@ def test_diagnosis_report_maps_where_the_model_is_accurate(browser, tmp_path):
     """diagnose --html --map-joints 2,3: a map of the predicted uncertainty over joints 2 and 3 with the
     calibration poses on it, readable in a real browser; it is lowest where the poses are (5-axis DH arm,
     joint 2 measured over 40 deg of its 180)."""
-    from casadical.predictive import accuracy_map
-
     import truth
+
+    from casadical.predictive import accuracy_map
 
     (tmp_path / "arm.toml").write_text(to_toml(ARM5))
     rng = np.random.default_rng(0)

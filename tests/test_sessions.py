@@ -6,6 +6,7 @@ import warnings
 
 import numpy as np
 import pytest
+from arms import ARM5, ARM7_DH, to_toml
 
 from casadical import calibrate
 from casadical.cli import main
@@ -13,8 +14,6 @@ from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.robot import robot_from_dict
 from casadical.sessions import combine
 from casadical.simulate import Effects, another_session, simulate
-
-from arms import ARM5, ARM7_DH, to_toml
 
 SEEDS = [0, 1, 2]
 ARMS = {"seven-axis DH": (ARM7_DH, 2e4), "five-axis DH": (ARM5, 6e4)}
@@ -194,6 +193,7 @@ def test_terms_of_one_session_in_a_calibration():
     """calibrate with terms of one session (a periodic error and a drift of B): each is fitted at B's poses
     only, the notes name them by their own parameters, and the JSON reads back to the same predictions."""
     import tempfile
+
     from casadical import load_calibration
     from casadical.physics import term_causes
 

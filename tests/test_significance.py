@@ -16,15 +16,21 @@ import warnings
 
 import numpy as np
 import pytest
-
 from arms import ARM4, to_toml
+
 from casadical.calibration import calibrate, load_calibration
 from casadical.cli import main
 from casadical.data import Measurements
 from casadical.errors import SignificanceWarning
 from casadical.robot import load_robot, robot_from_dict
-from casadical.significance import (FitStatistics, betainc, parameter_tests, stiffness_interval, t_critical,
-                                    t_two_sided_p)
+from casadical.significance import (
+    FitStatistics,
+    betainc,
+    parameter_tests,
+    stiffness_interval,
+    t_critical,
+    t_two_sided_p,
+)
 from casadical.simulate import Effects, simulate
 
 SEEDS = range(5)

@@ -9,8 +9,8 @@ import subprocess
 import sys
 
 import pytest
-
 from arms import ARM4
+
 from casadical.robot import robot_from_dict
 from casadical.simulate import Effects, simulate
 

@@ -11,6 +11,8 @@ import warnings
 
 import numpy as np
 import pytest
+from arms import ARM3, ARM4, ARM4_BETA, ARM5, ARM7, ARM7_DH, to_toml
+from truth import Arm, Effects, Session, TrueRobot, measure, sample
 
 from casadical import calibrate
 from casadical.cli import main
@@ -20,9 +22,6 @@ from casadical.errors import ParallelAxesWarning
 from casadical.robot import load_robot, robot_from_dict
 from casadical.sessions import combine
 from casadical.set_aside import direction_test, order_test, session_test, set_aside_structure
-
-from arms import ARM3, ARM4, ARM4_BETA, ARM5, ARM7, ARM7_DH, to_toml
-from truth import Arm, Effects, Session, TrueRobot, measure, sample
 
 
 def read(shots, path) -> Measurements:
@@ -273,7 +272,8 @@ def test_every_kind_not_tried_says_why_and_what_would_allow_it(tmp_path, capsys)
 def test_parallel_axes_without_beta_warn_naming_the_link(tmp_path):
     """DH: axes i and i+1 are parallel when link i's alpha is 0 (its beta is link i's); MDH: axes i-1 and i when
     link i's alpha is 0. A robot file without beta there warns when it is read, naming the file and the link; with
-    it, or where no consecutive axes are parallel, it does not. The built-in robots do not warn; of tests/arms.py, ARM4 (MDH, no beta) and
+    it, or where no consecutive axes are parallel, it does not. The built-in robots do not warn; of tests/arms.py,
+    ARM4 (MDH, no beta) and
     ARM5 (DH, beta on link 3 but not on link 2) do."""
     def warned(doc):
         path = tmp_path / "arm.toml"

@@ -22,7 +22,7 @@ import pytest
 
 from casadical.cli import main
 from casadical.errors import InputError
-from casadical.study import ResultStore, TIME_COLUMNS, load_study, run_study, run_task, summarize
+from casadical.study import TIME_COLUMNS, ResultStore, load_study, run_study, run_task, summarize
 from casadical.study.store import differing_columns
 
 ARM4_DH = """

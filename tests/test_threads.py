@@ -13,9 +13,17 @@ from threadpoolctl import threadpool_limits
 from casadical import cli
 from casadical.errors import SettingError
 from casadical.robot import load_robot
-from casadical.threads import (ENV, EVAL_ENV, EVAL_MAX, blas_threads, evaluation_pool, evaluation_threads,
-                               get_threads, limited_threads, set_threads)
-
+from casadical.threads import (
+    ENV,
+    EVAL_ENV,
+    EVAL_MAX,
+    blas_threads,
+    evaluation_pool,
+    evaluation_threads,
+    get_threads,
+    limited_threads,
+    set_threads,
+)
 
 #: libraries that can run 2 threads: a BLAS built single-threaded (SCS's, loaded with cvxpy by other
 #: tests) stays at 1 whatever it is told, and says nothing about the limit

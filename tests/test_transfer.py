@@ -5,19 +5,18 @@ import math
 
 import numpy as np
 import pytest
+from arms import ARM7_DH
 
 from casadical import calibrate, load_calibration, load_robot
 from casadical.cli import main
 from casadical.robot import robot_from_dict
 from casadical.simulate import Effects, simulate
 
-from arms import ARM7_DH
-
-
 
 def _series(robot, truth, n, seed, base_xyz, base_rpy):
     """Another measurement series of the same robot: the tracker stands elsewhere."""
     from dataclasses import replace
+
     from casadical.kinematics import base_pose_matrix
     from casadical.model import pose_to_base0
     t2 = replace(truth, base0=pose_to_base0(base_pose_matrix(base_xyz, base_rpy)))

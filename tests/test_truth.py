@@ -6,12 +6,10 @@ conventions. tests/test_truth_vs_package.py compares the truth with casadical's 
 """
 
 import csv
-import math
 from math import cos, radians, sin
 
 import numpy as np
 import pytest
-
 from truth import Arm, Effects, Session, TrueRobot, four_bar, last_moves, measure, sample
 from truth import transforms as tf
 
@@ -109,7 +107,8 @@ def test_thermal_expansion_scales_lengths():
 
 
 def test_mdh_and_dh_rows_with_hayati_beta():
-    """mdh: Rx(alpha) Tx(a) Ry(beta) Ty(b) Rz(q + theta) Tz(d); dh: Rz(q + theta) Tz(d) Tx(a) Rx(alpha) Ry(beta) Ty(b)."""
+    """mdh: Rx(alpha) Tx(a) Ry(beta) Ty(b) Rz(q + theta) Tz(d);
+    dh: Rz(q + theta) Tz(d) Tx(a) Rx(alpha) Ry(beta) Ty(b)."""
     mdh = {"name": "m", "convention": "mdh", "tool": {"a_m": 0.2},
            "joint": [{"alpha_deg": 0, "a_m": 1.0, "beta_deg": 90.0, "d_m": 0.5}]}
     # Ry(90) turns z to x and x to -z: the axis now points along x, the tool's a along -z (q = 0) or y (q = 90)
@@ -159,7 +158,7 @@ def test_orientation_is_intrinsic_xyz_tracker_to_probe(tmp_path):
     assert np.allclose(shots.R[0], R, atol=1e-15)
     rx, ry, rz = tf.intrinsic_xyz(shots.R)[0]
     assert np.allclose(tf.chain(tf.rot("x", rx), tf.rot("y", ry), tf.rot("z", rz))[0, :3, :3], R, atol=1e-15)
-    from scipy.spatial.transform import Rotation      # an independent library's reading of "intrinsic XYZ"
+    from scipy.spatial.transform import Rotation  # an independent library's reading of "intrinsic XYZ"
     assert np.allclose(Rotation.from_matrix(R).as_euler("XYZ"), [rx, ry, rz], atol=1e-12)
 
 

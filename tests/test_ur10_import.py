@@ -9,8 +9,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from casadical.errors import DataFileError, DataWarning, InputError
 from casadical.data import Measurements
+from casadical.errors import DataFileError, DataWarning, InputError
 from casadical.importers.ur10 import convert_ur10, read_ur10
 
 DATASET = Path(__file__).resolve().parents[1] / "problems" / "datasets" / "ur10-ipa"

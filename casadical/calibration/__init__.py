@@ -42,13 +42,7 @@ The package is :func:`calibrate` as a pipeline of named stages
 :mod:`.state` holds what a calibration carries from stage to stage.
 """
 
-from ..result import CalibrationResult, ErrorStats, learning_mask, load_calibration, rebuilt
-from .compensator import compensator_data, fit_compensator, rbf_candidates, with_compensator
-from .for_data import model_for, set_references, with_sessions
-from .physics_notes import physics_notes
+from ..result import CalibrationResult, ErrorStats, load_calibration
 from .pipeline import STAGES, calibrate
-from .solve import separated
-from .start import align_sessions, mean_mounting, robot_frame
-from .state import CalibrationRun, Options
 
-__all__ = ["CalibrationResult", "ErrorStats", "calibrate", "load_calibration"]
+__all__ = ["STAGES", "CalibrationResult", "ErrorStats", "calibrate", "load_calibration"]

@@ -6,8 +6,6 @@ diagnosis, which builds the models it tries for the same data.
 
 from __future__ import annotations
 
-import numpy as np
-
 from ..data import Measurements
 from ..errors import InputError
 from ..model import Model, parse_spec

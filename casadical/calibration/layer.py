@@ -13,7 +13,7 @@ def add_accuracy_layer(run: CalibrationRun) -> None:
     """With ``+gp_compensator``: replaces ``result`` by one with the layer added to its model."""
     if not run.want_gp:
         return
-    from ..accuracy import fit_layer, layer_coverage, with_layer   # here: the layer, only for +gp_compensator
+    from ..accuracy import fit_layer, layer_coverage, with_layer  # here: the layer, only for +gp_compensator
 
     result, data = run.result, run.data
     gps, _ = fit_layer(result, data)

@@ -15,9 +15,9 @@ import numpy as np
 
 from .. import set_aside
 from ..coverage import Coverage
+from ..data import session_index
 from ..errors import listing
 from ..result import CalibrationResult, ErrorStats
-from ..data import session_index
 from ..significance import FitStatistics
 from .state import CalibrationRun
 

@@ -20,10 +20,9 @@ import sys
 import traceback
 import warnings
 
-from .. import __version__
+from .. import __version__, interrupts
 from ..errors import CasadicalError, CasadicalWarning
 from ..files import outputs_together
-from .. import interrupts
 from ..interrupts import exit_code, handle_signals
 from ..jitcache import announcing
 from ..threads import evaluation_threads, limited_threads

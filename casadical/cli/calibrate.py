@@ -2,9 +2,25 @@
 
 from __future__ import annotations
 
-from .common import (STDOUT, Status, add_checks, add_force, add_quiet, add_row_spacing, add_session_tool,
-                     add_urdf_chain, check_options, check_outputs, fold_long_lines, human_stream, int_at_least,
-                     robot_or_calibration, timed, warn_session_frame, write_text)
+from .common import (
+    STDOUT,
+    Status,
+    add_checks,
+    add_force,
+    add_quiet,
+    add_row_spacing,
+    add_session_tool,
+    add_urdf_chain,
+    check_options,
+    check_outputs,
+    fold_long_lines,
+    human_stream,
+    int_at_least,
+    robot_or_calibration,
+    timed,
+    warn_session_frame,
+    write_text,
+)
 
 
 def register(sub) -> None:
@@ -62,10 +78,10 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from ..calibration import calibrate
-    from ..result import CalibrationResult
     from ..checks import check_held_out
     from ..data import Measurements
     from ..errors import InputError
+    from ..result import CalibrationResult
     from ..sessions import read_sessions
 
     check_outputs({"--out": args.out, "--html": args.html}, [args.robot, *args.data, args.validate], args.force)

@@ -4,8 +4,19 @@ from __future__ import annotations
 
 import sys
 
-from .common import (Status, add_checks, add_force, add_json, add_quiet, add_urdf_chain, check_options, check_outputs,
-                     human_stream, robot_from_args, write_json)
+from .common import (
+    Status,
+    add_checks,
+    add_force,
+    add_json,
+    add_quiet,
+    add_urdf_chain,
+    check_options,
+    check_outputs,
+    human_stream,
+    robot_from_args,
+    write_json,
+)
 
 
 def register(sub) -> None:

@@ -6,8 +6,16 @@ import math
 
 import numpy as np
 
-from .common import (add_checks, add_force, check_options, check_outputs, compensator_line, float_in, int_at_least,
-                     warn_session_frame)
+from .common import (
+    add_checks,
+    add_force,
+    check_options,
+    check_outputs,
+    compensator_line,
+    float_in,
+    int_at_least,
+    warn_session_frame,
+)
 
 #: below this many rows CasADi's virtual machine beats compiling the model (~3 s once per run)
 JIT_MIN_ROWS = 10_000
@@ -50,9 +58,9 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..result import load_calibration
     from ..data import Measurements
     from ..inverse import compensate
+    from ..result import load_calibration
 
     check_outputs({"--out": args.out}, [args.cal, args.targets], args.force)
     cal = load_calibration(args.cal)

@@ -3,9 +3,25 @@
 from __future__ import annotations
 
 from ..errors import InputError
-from .common import (STDOUT, Status, add_checks, add_force, add_quiet, add_row_spacing, add_session_tool,
-                     add_urdf_chain, check_options, check_outputs, float_in, human_stream, int_at_least,
-                     robot_from_args, timed, write_json, write_text)
+from .common import (
+    STDOUT,
+    Status,
+    add_checks,
+    add_force,
+    add_quiet,
+    add_row_spacing,
+    add_session_tool,
+    add_urdf_chain,
+    check_options,
+    check_outputs,
+    float_in,
+    human_stream,
+    int_at_least,
+    robot_from_args,
+    timed,
+    write_json,
+    write_text,
+)
 
 
 def register(sub) -> None:

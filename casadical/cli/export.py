@@ -6,8 +6,16 @@ import math
 import warnings
 
 from ..errors import DataWarning, InputError
-from .common import (Status, add_force, add_quiet, add_urdf_chain, check_outputs, float_in, robot_or_calibration,
-                     write_text)
+from .common import (
+    Status,
+    add_force,
+    add_quiet,
+    add_urdf_chain,
+    check_outputs,
+    float_in,
+    robot_or_calibration,
+    write_text,
+)
 
 
 def register(sub) -> None:
@@ -39,9 +47,9 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..result import CalibrationResult
     from ..equivalent import geometric_equivalent
     from ..parameter_table import parameter_table
+    from ..result import CalibrationResult
     from ..urdf import robot_to_urdf
 
     outputs = {"--urdf": args.urdf, "--table": args.table, "--markdown": args.markdown}
@@ -52,7 +60,8 @@ def run(args) -> int:
     if args.payload_kg is not None and (args.as_fitted or not isinstance(source, CalibrationResult)):
         raise InputError("--payload-kg is the load the best geometry is refitted at: "
                          + ("--as-fitted exports the geometry as it was fitted; give one of the two" if args.as_fitted
-                            else f"{args.source} is a robot, whose nominal geometry is exported as it is; leave it out"))
+                            else f"{args.source} is a robot, whose nominal geometry is exported as it is; "
+                                 "leave it out"))
     status = Status(args.quiet)
     description = None
     if isinstance(source, CalibrationResult) and not args.as_fitted:
@@ -61,7 +70,8 @@ def run(args) -> int:
             eq = geometric_equivalent(source, args.payload_kg)
         description = f"calibration {args.source}, model {source.model.spec}: {eq.text()}"
         if args.payload_kg is not None and not eq.payload_matters:
-            warnings.warn(f"--payload-kg {args.payload_kg:g}: no effect, the model of {args.source} ({source.model.spec}) "
+            warnings.warn(f"--payload-kg {args.payload_kg:g}: no effect, the model of {args.source} "
+                          f"({source.model.spec}) "
                           "has no term that depends on the payload", DataWarning)
         status.line(f"exported: {eq.text()}")
         source = eq.result

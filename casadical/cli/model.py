@@ -7,9 +7,21 @@ import math
 import numpy as np
 
 from ..errors import InputError
-from .common import (add_checks, add_force, add_json, add_urdf_chain, check_options, check_outputs, compensator_line,
-                     int_at_least, robot_from_args, robot_or_calibration, warn_session_frame, warn_session_terms,
-                     write_json)
+from .common import (
+    add_checks,
+    add_force,
+    add_json,
+    add_urdf_chain,
+    check_options,
+    check_outputs,
+    compensator_line,
+    int_at_least,
+    robot_from_args,
+    robot_or_calibration,
+    warn_session_frame,
+    warn_session_terms,
+    write_json,
+)
 
 
 def register(sub) -> None:
@@ -96,10 +108,10 @@ def param_json(p) -> dict:
 
 def run_predict(args) -> int:
     from ..alignment import align
-    from ..result import CalibrationResult, ErrorStats
     from ..checks import check_calibration_fits, check_poses
     from ..data import RXYZ, Measurements
     from ..model import Model
+    from ..result import CalibrationResult, ErrorStats
 
     check_outputs({"--out": args.out}, [args.model, args.poses], args.force)
     source = robot_or_calibration(args.model, args)

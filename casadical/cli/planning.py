@@ -11,8 +11,21 @@ import numpy as np
 
 from ..errors import IdentifiabilityError, InputError
 from ..files import atomic_open
-from .common import (Status, add_checks, add_force, add_json, add_quiet, add_urdf_chain, check_options, check_outputs,
-                     float_in, human_stream, int_at_least, robot_from_args, write_json)
+from .common import (
+    Status,
+    add_checks,
+    add_force,
+    add_json,
+    add_quiet,
+    add_urdf_chain,
+    check_options,
+    check_outputs,
+    float_in,
+    human_stream,
+    int_at_least,
+    robot_from_args,
+    write_json,
+)
 
 
 def register(sub) -> None:
@@ -247,7 +260,8 @@ def cmd_plan_report(args) -> int:
                                                                        for q in questions), file=report_path)
         questions = [questions[args.question - 1]]
     status = Status(args.quiet)
-    with status.slow(f"plan-poses: {len(questions)} open question{'s' * (len(questions) != 1)} of {report_path}, {len(candidates)} candidates"):
+    with status.slow(f"plan-poses: {len(questions)} open question{'s' * (len(questions) != 1)} of {report_path}, "
+                     f"{len(candidates)} candidates"):
         plan = plan_next(robot, doc, questions, values, measured, candidates, args.m, relaxation=args.relaxation,
                          random_sets=args.random_sets, seed=args.seed,
                          session_tools=(doc.get("settings") or {}).get("session_tools", False))

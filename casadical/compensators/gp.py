@@ -77,7 +77,7 @@ def log_likelihood(theta: np.ndarray, D: np.ndarray, y: np.ndarray) -> tuple[flo
     """Log marginal likelihood of the standardised residual ``y`` and its gradient, at the log hyperparameters
     ``theta = log(s^2, l_1 .. l_n, sigma_n^2)`` (scikit-learn's ``theta`` of ``ConstantKernel * RBF +
     WhiteKernel``, with its ``alpha``); ``D``: :func:`squared_differences` of the poses."""
-    from scipy.linalg import cho_factor, cho_solve, lapack   # here: a command whose model has no process needs none
+    from scipy.linalg import cho_factor, cho_solve, lapack  # here: a command whose model has no process needs none
     s2, ls, nv = math.exp(theta[0]), np.exp(theta[1:-1]), math.exp(theta[-1])
     n = len(y)
     E = np.exp(-0.5 * (D @ (1.0 / ls ** 2)))
@@ -134,7 +134,7 @@ class ResidualGP:
     max_std_ratio: float = MAX_STD_RATIO
 
     def __post_init__(self) -> None:
-        from scipy.linalg import cho_factor, cho_solve   # here: a command whose model has no process needs none
+        from scipy.linalg import cho_factor, cho_solve  # here: a command whose model has no process needs none
 
         self.X, self.Y = np.asarray(self.X, float), np.asarray(self.Y, float)
         self.length_scales = np.atleast_2d(np.asarray(self.length_scales, float))
@@ -216,7 +216,7 @@ class ResidualGP:
     def _solved(self, X: np.ndarray, a: int) -> np.ndarray:
         """``L^-1 k*`` of component ``a`` at poses ``X`` (``L``: the Cholesky factor of the training kernel), the
         triangular solve of a predictive variance."""
-        from scipy.linalg import solve_triangular   # here: a command whose model has no process needs none
+        from scipy.linalg import solve_triangular  # here: a command whose model has no process needs none
 
         return solve_triangular(self._chol[a][0], self.kernel(X, self.X, a).T, lower=True, check_finite=False)
 

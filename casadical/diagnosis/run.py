@@ -35,34 +35,43 @@ from typing import Callable
 
 import numpy as np
 
-from ..calibration import calibrate, learning_mask, model_for
+from ..calibration.for_data import model_for
+from ..calibration.pipeline import calibrate
 from ..checks import check_held_out, check_other_series, check_poses, check_validation_frames
 from ..data import Measurements
 from ..physics import sag_note, value_violations, violations
 from ..problem import RobustLoss
-from ..result import AngleStats, CalibrationResult, ErrorStats
+from ..result import AngleStats, CalibrationResult, ErrorStats, learning_mask
 from ..robot import Robot
 from ..set_aside import of_fit
 from ..threads import limited_threads
 from .backward import drop_redundant, drop_unphysical
-from .layer import layer_step
-from .never_worse import final_check, validation_note
 from .candidates import Candidate, compose_spec, shortlist
 from .catalogue import Catalogue, not_tried
 from .design import assess, priors
-from .gaps import set_aside_note, untried_alternatives
 from .findings import UnexplainedLog, describe
+from .gaps import set_aside_note, untried_alternatives
+from .layer import layer_step
 from .nameable import JOINT_CAUSES, cause_checks, unjudged
+from .never_worse import final_check, validation_note
 from .periodogram import Periodogram
 from .report import DiagnosisReport, Finding, Step
 from .screening import Scored, Screen, ambiguous
 from .settings import DiagnosisSettings
 from .statistics import nested_test, noise_ssr, set_aside_share
 from .transfer import findings_study
-from .validation import (EXTRAPOLATING, Linearized, by_kind, cv_failure, cv_record, cv_text, extrapolation_gain,
-                         joint_levers, not_better, schemes)
-
-
+from .validation import (
+    EXTRAPOLATING,
+    Linearized,
+    by_kind,
+    cv_failure,
+    cv_record,
+    cv_text,
+    extrapolation_gain,
+    joint_levers,
+    not_better,
+    schemes,
+)
 
 
 class _Diagnosis:

@@ -24,8 +24,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
+from ..calibration.for_data import model_for
 from ..data import Measurements
-from ..calibration import model_for
 from ..problem import CalibrationProblem
 from ..result import CalibrationResult
 from ..terms.periodic import JointPeriodic

@@ -35,8 +35,7 @@ from __future__ import annotations
 from ..data import Measurements
 from ..errors import InputError
 from ..robot import Robot
-from . import (ga_rbf, km, nn_skcm, nominal, skcm, skcm_ca, skcm_ga, skcm_ipopt,  # noqa: F401  (registration)
-               tlbo_nn_skcm)
+from . import ga_rbf, km, nn_skcm, nominal, skcm, skcm_ca, skcm_ga, skcm_ipopt, tlbo_nn_skcm  # noqa: F401  (registration)
 from .base import REGISTRY, Inputs, Method, MethodResult, lookup, method_names, register
 
 

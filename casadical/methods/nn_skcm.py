@@ -3,8 +3,7 @@
 from __future__ import annotations
 
 from ..calibration import calibrate
-from .base import (Inputs, Method, MethodResult, compliance_model, compliant_joints, new_result, register,
-                   to_frame)
+from .base import Inputs, Method, MethodResult, compliance_model, compliant_joints, new_result, register, to_frame
 
 
 @register

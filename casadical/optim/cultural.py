@@ -47,8 +47,7 @@ from typing import ClassVar, Optional
 import numpy as np
 
 from casadical.errors import InputError
-from casadical.optim.base import (Algorithm, Population, Problem, _check_fraction,
-                                  _check_int, _check_positive)
+from casadical.optim.base import Algorithm, Population, Problem, _check_fraction, _check_int, _check_positive
 
 __all__ = ["BeliefSpace", "CulturalAlgorithm"]
 

@@ -27,8 +27,15 @@ from typing import Callable, ClassVar, Optional
 import numpy as np
 
 from casadical.errors import InputError, SolverError
-from casadical.optim.base import (Algorithm, OptimResult, Population, Problem,
-                                  _check_fraction, _check_int, _check_positive)
+from casadical.optim.base import (
+    Algorithm,
+    OptimResult,
+    Population,
+    Problem,
+    _check_fraction,
+    _check_int,
+    _check_positive,
+)
 
 __all__ = ["GeneticAlgorithm", "SubsetGeneticAlgorithm", "SubsetObjective"]
 

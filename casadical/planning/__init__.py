@@ -11,11 +11,28 @@
 The ``plan-poses`` and ``candidates`` commands are in :mod:`casadical.cli.planning`.
 """
 
-from .doptimal import (DOptimalDesign, ExactDesign, Relaxation, RelaxationSettings, d_efficiency,
-                       d_optimal_design, exchange, relax_cvxpy, relax_multiplicative, round_and_exchange,
-                       upper_bound)
-from .observability import (DesignProblem, Observability, design_problem, indices_from_singular_values,
-                            log_det_information, o1_batch, observability)
+from .doptimal import (
+                       DOptimalDesign,
+                       ExactDesign,
+                       Relaxation,
+                       RelaxationSettings,
+                       d_efficiency,
+                       d_optimal_design,
+                       exchange,
+                       relax_cvxpy,
+                       relax_multiplicative,
+                       round_and_exchange,
+                       upper_bound,
+)
+from .observability import (
+                       DesignProblem,
+                       Observability,
+                       design_problem,
+                       indices_from_singular_values,
+                       log_det_information,
+                       o1_batch,
+                       observability,
+)
 from .selectors import METHODS, PlanResult, PlanSettings, random_o1, select_poses
 
 __all__ = [

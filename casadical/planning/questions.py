@@ -37,8 +37,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field, replace
 
-from ..errors import InputError
 from ..diagnosis.candidates import Candidate
+from ..errors import InputError
 
 #: causes whose parameters a named finding has (not the geometry, not a black box)
 _NAMED = ("joint_compliance", "nonlinear_stiffness", "joint_periodic", "encoder_scale", "backlash",

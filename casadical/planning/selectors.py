@@ -17,8 +17,7 @@ import numpy as np
 
 from ..errors import IdentifiabilityWarning, InputError, listing
 from ..threads import limited_threads
-from .doptimal import (DOptimalDesign, RelaxationSettings, _check_m, d_efficiency,
-                       d_optimal_design, relax_multiplicative)
+from .doptimal import DOptimalDesign, RelaxationSettings, _check_m, d_efficiency, d_optimal_design, relax_multiplicative
 from .observability import DesignProblem, Observability, design_problem, log_det_information, o1_batch, observability
 
 METHODS = ("d-optimal", "ga", "random")

@@ -96,7 +96,8 @@ def legend_above(ax: Axes, ncols: int | None = None, **kwargs) -> None:
     """The legend in one row above the axes, where it can never cover data."""
     handles, labels = ax.get_legend_handles_labels()
     if handles:
-        ax.legend(handles, labels, loc="lower left", bbox_to_anchor=(0, 1.01), ncols=ncols or len(handles), borderaxespad=0.2, handlelength=1.6, columnspacing=1.2,
+        ax.legend(handles, labels, loc="lower left", bbox_to_anchor=(0, 1.01), ncols=ncols or len(handles),
+                  borderaxespad=0.2, handlelength=1.6, columnspacing=1.2,
                   **kwargs)
 
 

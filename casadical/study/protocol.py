@@ -20,8 +20,15 @@ from ..loading import load_robot
 from ..model import Model
 from ..planning.selectors import METHODS as SELECTORS
 from ..robot import PROBLEMS, Robot, robot_from_dict, robot_to_dict
-from ..simulate import (MAX_POSES, Effects, TomlValidator, effects_from_table, load_protocol, resolve_path,
-                        workspace_from_table)
+from ..simulate import (
+    MAX_POSES,
+    Effects,
+    TomlValidator,
+    effects_from_table,
+    load_protocol,
+    resolve_path,
+    workspace_from_table,
+)
 
 STUDY_DIR = PROBLEMS / "studies"
 #: most repetitions a protocol may ask for (the studies of docs/studies.md run 40-200; a run keeps a few

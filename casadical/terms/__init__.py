@@ -5,8 +5,21 @@ such as ``"kinematic+compliance[2,3]+periodic[2:1]"`` (see
 :func:`casadical.model.parse_spec`).
 """
 
-from . import (backlash, compliance, drift, encoder_scale, geometric, gp_compensator, nonlinear_stiffness,  # noqa: F401
-               periodic, rbf_compensator, sessions, thermal, tool_orientation, warmup)
+from . import (  # noqa: F401
+    backlash,
+    compliance,
+    drift,
+    encoder_scale,
+    geometric,
+    gp_compensator,
+    nonlinear_stiffness,
+    periodic,
+    rbf_compensator,
+    sessions,
+    thermal,
+    tool_orientation,
+    warmup,
+)
 from .base import REGISTRY, Context, ErrorTerm, ReferencedTerm, covariate_names, register
 from .local import SessionLocal
 

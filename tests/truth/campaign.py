@@ -153,7 +153,8 @@ def sample(robot: TrueRobot, n: int, rng: np.random.Generator, floor_z: float | 
         keep = np.ones(len(q), bool)
         if floor_z is not None:
             geo = nominal.geometry_at(None, len(q))
-            keep &= nominal.tool_point(nominal.frames(nominal.chain_angles(q, geo), geo, np.zeros(len(q))))[:, 2] > floor_z
+            frames = nominal.frames(nominal.chain_angles(q, geo), geo, np.zeros(len(q)))
+            keep &= nominal.tool_point(frames)[:, 2] > floor_z
         if arm.loop is not None:
             j = arm.loop.joint - 1
             keep &= np.abs(np.sin(q[:, j] - q[:, j - 1])) > 0.5
