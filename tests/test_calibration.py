@@ -215,15 +215,20 @@ def test_ipopt_stops_where_rounding_stalls_it(monkeypatch):
         runs[name] = (result, list(solves))
     ours, ours_solves = runs["ours"]
     stalled, stalled_solves = runs["ipopt's"]
-    assert max(it for _, it, _ in stalled_solves) >= 12           # the premise: this data stalls IPOPT
-    assert ("Solved_To_Acceptable_Level" in {s for s, _, _ in ours_solves}) and ours.solver.success
-    # the solve that stalls ends at least 5 iterations earlier (IPOPT 3.14 with CasADi 3.6: 16 against 32
-    # iterations in all; with CasADi 3.8: 16 against 22); without the rule the two runs are the same
-    assert sum(it for _, it, _ in ours_solves) <= sum(it for _, it, _ in stalled_solves) - 5
     for other in (ours, stalled):
         dv = np.abs(other.parameters.values - lm.parameters.values) / lm.parameters.scales
         assert dv.max() < 1e-5    # 10 nm of a 1 mm scale (CasADi 3.8: 1.1e-6)
         assert other.solver.cost <= lm.solver.cost * (1 + 1e-8)   # no worse than LM's optimum
+    # the premise: this data stalls IPOPT. Whether the objective's rounding hides the decrease depends on the
+    # machine's arithmetic (BLAS kernels): on a 2-core Xeon of 2026-11 (OpenBLAS Haswell kernels) the second
+    # solve ends in 7 iterations with IPOPT's own rule, and there is no stall to end
+    longest = max(it for _, it, _ in stalled_solves)
+    if longest < 12:
+        pytest.skip(f"IPOPT does not stall on this machine's arithmetic (its longest solve: {longest} iterations)")
+    assert ("Solved_To_Acceptable_Level" in {s for s, _, _ in ours_solves}) and ours.solver.success
+    # the solve that stalls ends at least 5 iterations earlier (IPOPT 3.14 with CasADi 3.6: 16 against 32
+    # iterations in all; with CasADi 3.8: 16 against 22); without the rule the two runs are the same
+    assert sum(it for _, it, _ in ours_solves) <= sum(it for _, it, _ in stalled_solves) - 5
 
 
 @pytest.mark.parametrize("position_only", [True, False], ids=["positions", "full-pose"])
