@@ -25,8 +25,9 @@ from casadical import calibrate, load_robot
 from casadical.data import Measurements
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.diagnosis.candidates import compose_spec
-from casadical.diagnosis.run import _Diagnosis
+from casadical.diagnosis.prepare import check_data
 from casadical.diagnosis.screening import Screen
+from casadical.diagnosis.state import DiagnosisRun
 from casadical.simulate import Effects, simulate
 
 
@@ -56,7 +57,8 @@ def main() -> None:
         found = ", ".join(f.candidate.label().replace("joint_", "").replace(" joint ", " j")
                           for f in rep.findings[1:])
         # round 1 alone: score test of all candidates vs a real fit of each
-        dg = _Diagnosis(robot, cal, val, DiagnosisSettings(), lambda _: None)
+        dg = DiagnosisRun(robot, cal, val, DiagnosisSettings(), lambda _: None)
+        check_data(dg)
         kin = dg.fit("kinematic")
         t = time.perf_counter()
         cands = dg.candidates(kin, [])

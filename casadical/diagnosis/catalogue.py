@@ -257,7 +257,7 @@ class Catalogue:
         # a joint's play by the load and by the motion are both screened while the other is in the model: where
         # the last move follows the joint's reading (random poses in row order) the load's sign stands for the
         # motion's and a compliance together, and neither of these can come in beside it; the final check
-        # (:func:`.backward.drop_redundant`) drops the stand-in once both are in
+        # (:func:`.redundancy.drop_redundant`) drops the stand-in once both are in
         return [c for c in dict.fromkeys(out) if c not in have and c not in excluded_causes
                 and not (c.cause == "backlash" and not self.sign_changes(torques, c))]
 

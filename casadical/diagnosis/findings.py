@@ -10,6 +10,7 @@ import numpy as np
 from ..data import Measurements
 from ..result import CalibrationResult
 from .candidates import Candidate
+from .evidence import Evidence, Support
 from .plots import joint_view, residual_plot
 from .report import Finding
 from .validation import cv_record, cv_text
@@ -30,8 +31,8 @@ class UnexplainedLog:
         self.excluded_causes: set[Candidate] = set()       # other candidates
         self.strongest: dict[int, Candidate] = {}          # per joint, for the transfer study
 
-    def add(self, cand: Candidate, values: dict, test, cv0: dict, cv1: dict, checks: dict, potential: float,
-            why: str) -> None:
+    def add(self, evidence: Evidence) -> None:
+        cand, values, checks = evidence.candidate, evidence.values, evidence.support.checks
         j = cand.joint
         if cand.cause == "joint_periodic":
             band = checks["resolution"].band if "resolution" in checks else (cand.harmonic, cand.harmonic)
@@ -70,12 +71,13 @@ class UnexplainedLog:
             self.strongest[j] = cand
         # what was fitted, machine-readable (plan-poses REPORT.json plans the poses that tell it)
         item.update(candidate=cand.to_dict(), values={n: values[n] for n in cand.parameter_names() if n in values},
-                    test=test.text(), cv_mm=cv_record(cv0, cv1), why=why)
+                    test=evidence.support.test.text(),
+                    cv_mm=cv_record(evidence.support.cv_before, evidence.support.cv_after), why=evidence.why)
         if "halves" in checks:
             item["halves"] = [h.to_dict() for h in checks["halves"]]
         structures = f.holds_up["structures"]
         structures.append(item)
-        f.potential_gain_mm = max(f.potential_gain_mm or 0.0, potential)
+        f.potential_gain_mm = max(f.potential_gain_mm or 0.0, evidence.potential_gain_mm)
         f.where = f"joint {j}: " + "; ".join(x["what"] for x in structures)
         f.evidence = (f"structure in joint {j}'s angle error that is significant on the calibration poses but "
                       "cannot be named as a cause: " + " | ".join(f"{x['what']}: {x['why']}" for x in structures)
@@ -83,17 +85,18 @@ class UnexplainedLog:
                       "mm; it is kept out of the final model because it does not hold up as a cause")
 
 
-def describe(findings: list[Finding], support: dict, before: dict, final: CalibrationResult,
-             cal: Measurements) -> None:
+def describe(findings: list[Finding], support: dict[Candidate, Support], before: dict,
+             final: CalibrationResult, cal: Measurements) -> None:
     """Fill each accepted finding's parameters, evidence and figure from the final model."""
     view = functools.cache(lambda: joint_view(final, cal))   # made once, by the first figure that needs it
     for f in findings:
         cand = f.candidate
         if cand not in support:
             continue
-        test, cv0, cv1, checks = support[cand]
+        checks = support[cand].checks
         f.parameters = param_values(final, cand.parameter_names())
-        text = f"{test.text()} on the calibration poses; held-out mean {cv_text(cv0, cv1)}"
+        text = (f"{support[cand].test.text()} on the calibration poses; held-out mean "
+                f"{cv_text(support[cand].cv_before, support[cand].cv_after)}")
         for k in ("resolution", "versus_drift", "versus_harmonics"):
             if k in checks:
                 text += "; " + checks[k].text()

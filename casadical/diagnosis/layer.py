@@ -29,9 +29,10 @@ from ..accuracy import LayerFolds, fit_layer, held_out, layer_coverage, layer_da
 from ..compensators.gp import MAX_STD_RATIO
 from ..data import Measurements
 from ..result import CalibrationResult
-from .candidates import Candidate
+from .candidates import Candidate, compose_spec
 from .never_worse import WORST_SHARE
 from .report import Finding, Step
+from .state import DiagnosisRun
 from .statistics import paired_gain
 from .validation import EXTRAPOLATING, KINDS
 
@@ -128,3 +129,14 @@ def _per_session(data: Measurements, keep: np.ndarray) -> dict[str, int]:
         return {"": int(keep.sum())}
     return {s: int(keep[data.sessions == s].sum()) for s in data.session_names}
 
+
+
+def add_compensator(run: DiagnosisRun) -> None:
+    """Stage ``add_compensator``: reads the model of the named causes (``current``, ``accepted``, ``geometric``)
+    and sets it as ``parametric``; with ``blackbox`` (the default) fits and judges the session compensator on
+    it (:func:`layer_step`); sets ``final`` and ``final_spec`` to the model the diagnosis ends with."""
+    run.parametric = run.current
+    run.final, run.final_spec = run.current, compose_spec(run.accepted, run.geometric)
+    if run.s.blackbox:
+        run.final, run.final_spec = layer_step(run.current, run.final_spec, run.cal, run.val, run.schemes, run.s,
+                                               run.steps, run.findings, run.say, parent=run.step_of(run.current))

@@ -30,7 +30,7 @@ from ..errors import listing
 from ..result import CalibrationResult
 from .candidates import Candidate, compose_spec
 from .report import Finding, Step
-from .statistics import nested_test
+from .state import DiagnosisRun
 from .validation import CVResult, Linearized, cv_record, cv_text, kinds
 
 #: the worst held-out (or validation) error may rise by this share at most without a word
@@ -90,62 +90,68 @@ def noise_band(*fits: CalibrationResult) -> float:
     return out if math.isfinite(out) else 0.0
 
 
-def held(dg, res: CalibrationResult, mask: np.ndarray) -> Held:
-    return Held.of(Linearized.of(res, dg.cal).cv(dg.schemes, dg.prior), mask)
+def held(run: DiagnosisRun, res: CalibrationResult, mask: np.ndarray) -> Held:
+    return Held.of(Linearized.of(res, run.cal).cv(run.schemes, run.prior), mask)
 
 
-def final_check(dg, current: CalibrationResult, accepted: list[Candidate], geometric: bool
-                ) -> tuple[CalibrationResult, list[Candidate], bool]:
-    """The geometry again with the causes in the model (when it was not supported alone), then the final model
-    never worse than the kinematic one on the calibration poses' folds (see the module); returns the final
-    model, its causes and whether it has the geometry."""
-    kin = dg.kinematic
-    mask = dg.mask(current) & dg.mask(kin)
+def keep_never_worse(run: DiagnosisRun) -> None:
+    """Stage ``keep_never_worse``: the geometry again with the causes in the model (when it was not supported
+    alone), then the final model never worse than the kinematic one on the calibration poses' folds (see the
+    module). Reads ``current``, ``accepted``, ``geometric``, ``kinematic`` and the search's ``history``; sets
+    the three to the final model of the named causes, and ``held_text``."""
+    run.say("final check: never worse than the kinematic model, in mean and worst case")
+    run.current, run.accepted, run.geometric = _final_model(run, run.current, run.accepted, run.geometric)
+
+
+def _final_model(run: DiagnosisRun, current: CalibrationResult, accepted: list[Candidate], geometric: bool
+                 ) -> tuple[CalibrationResult, list[Candidate], bool]:
+    kin = run.kinematic
+    mask = run.mask(current) & run.mask(kin)
     with_geometry = None
     if not geometric and accepted:
-        with_geometry = dg.fit(compose_spec(accepted, True), start=current)
-        if _geometry_again(dg, current, with_geometry, accepted, mask):
+        with_geometry = run.fit(compose_spec(accepted, True), start=current)
+        if _geometry_again(run, current, with_geometry, accepted, mask):
             current, geometric = with_geometry, True
-    ref = held(dg, kin, mask)
-    now = held(dg, current, mask)
-    dg.held_text = _worst_text(ref, now)
+    ref = held(run, kin, mask)
+    now = held(run, current, mask)
+    run.held_text = _worst_text(ref, now)
     band = noise_band(kin, current)
     bad = now.worse_than(ref, band)
     if not bad:
         if now.traded(ref, band):
-            dg.notes.append("the final model's worst held-out error rises where its mean drops, on the calibration "
+            run.notes.append("the final model's worst held-out error rises where its mean drops, on the calibration "
                             "poses' folds: " + ", ".join(f"{k} worst {ref.worst[k]:.4f} -> {now.worst[k]:.4f} mm, "
                                                          f"mean {ref.mean[k]:.4f} -> {now.mean[k]:.4f} mm"
                                                          for k in now.traded(ref, band))
                             + " against the kinematic model; the poses of those folds' largest errors are where it "
                               "extrapolates least surely")
-            dg.say(f"  {dg.notes[-1]}")
+            run.say(f"  {run.notes[-1]}")
         return current, accepted, geometric
     options = []
     if not geometric and accepted:
         options.append((with_geometry, list(accepted), True))
-    options += [(fit, list(earlier), fit.model.geometric_free) for earlier, fit in reversed(dg.history)
+    options += [(fit, list(earlier), fit.model.geometric_free) for earlier, fit in reversed(run.history)
                 if set(earlier) <= set(accepted) and fit is not current]
     options.append((kin, [], True))
     for fit, earlier, geo in options:
-        now = held(dg, fit, mask)
+        now = held(run, fit, mask)
         if fit is not kin and now.worse_than(ref, noise_band(kin, fit)):
             continue
-        dg.held_text = _worst_text(ref, now)
+        run.held_text = _worst_text(ref, now)
         dropped = [a for a in accepted if a not in earlier]
         for a in dropped:
-            dg.drop_finding(a)
+            run.drop_finding(a)
         if geo and not geometric:
-            _add_geometry_finding(dg, fit, current)
+            _add_geometry_finding(run, fit, current)
         elif geometric and not geo:         # back to a model the geometry was tried again on
-            dg.findings = [f for f in dg.findings if f.cause != "geometric"]
+            run.findings = [f for f in run.findings if f.cause != "geometric"]
         what = ("the kinematic model itself" if fit is kin else
                 "the model with the geometry" if geo and not geometric else "the last model of the search that is not")
-        dg.notes.append("never worse than a kinematic calibration: the model with every cause did worse than the "
+        run.notes.append("never worse than a kinematic calibration: the model with every cause did worse than the "
                         "kinematic model on the calibration poses' folds (held-out " + ", ".join(bad)
                         + f"); the final model is {what}"
                         + (", without " + ", ".join(a.label() for a in dropped) if dropped else ""))
-        dg.say(f"  {dg.notes[-1]}")
+        run.say(f"  {run.notes[-1]}")
         return fit, earlier, geo
     return current, accepted, geometric     # (not reached: the kinematic model is never worse than itself)
 
@@ -155,42 +161,40 @@ def _worst_text(ref: Held, final: Held) -> str:
             + " (kinematic " + ", ".join(f"{ref.worst[k]:.4f}" for k in ref.worst) + ")")
 
 
-def _geometry_again(dg, current: CalibrationResult, fit: CalibrationResult, accepted: list[Candidate],
+def _geometry_again(run: DiagnosisRun, current: CalibrationResult, fit: CalibrationResult, accepted: list[Candidate],
                     mask: np.ndarray) -> bool:
     """The geometry step once more, the causes in the model: the same tests as the first time (F-test, BIC,
     held-out means that drop on every kind of fold); recorded as a step, and as the geometric finding."""
-    test = nested_test(dg.deviance(current, fit.loss), int(current.parameters.free.sum()),
-                       dg.deviance(fit, fit.loss), int(fit.parameters.free.sum()), dg.n_fit_eq,
-                       dg.deviance(fit, fit.loss, noise=True))
-    h0, h1 = held(dg, current, mask), held(dg, fit, mask)
+    test = run.compare(current, fit, fit.loss)
+    h0, h1 = held(run, current, mask), held(run, fit, mask)
     worse = [k for k in h0.mean if not h1.mean[k] < h0.mean[k]]
-    ok = test.log10_p < math.log10(dg.s.alpha) and test.delta_bic < 0 and not worse
-    reason = "; ".join([f"not significant ({test.text()})"] * (test.log10_p >= math.log10(dg.s.alpha))
+    ok = test.log10_p < math.log10(run.s.alpha) and test.delta_bic < 0 and not worse
+    reason = "; ".join([f"not significant ({test.text()})"] * (test.log10_p >= math.log10(run.s.alpha))
                        + [f"BIC does not improve ({test.delta_bic:+.1f})"] * (test.delta_bic >= 0)
                        + ["held-out mean does not drop: " + ", ".join(f"{k} {h0.mean[k]:.4f} -> {h1.mean[k]:.4f} mm"
                                                                       for k in worse)] * bool(worse))
-    parent = dg.step_of(current)
-    pv, v = dg.val_stats(current), dg.val_stats(fit)
-    dg.steps.append(Step(compose_spec(accepted, True), fit.calibration, v, ok, Candidate("geometric"), test,
-                         cv_record(h0.mean, h1.mean), reason, dg.val_angles(fit), parent=parent, parent_mm=pv.mean_mm))
+    parent = run.step_of(current)
+    pv, v = run.val_stats(current), run.val_stats(fit)
+    run.steps.append(Step(compose_spec(accepted, True), fit.calibration, v, ok, Candidate("geometric"), test,
+                         cv_record(h0.mean, h1.mean), reason, run.val_angles(fit), parent=parent, parent_mm=pv.mean_mm))
     if ok:
-        dg._step_of.append((fit, len(dg.steps) - 1))
-        dg.history.append((list(accepted), fit))
-        _add_geometry_finding(dg, fit, current, f"{test.text()} on the calibration poses with the causes in the "
+        run.record(fit, len(run.steps) - 1, accepted)
+        _add_geometry_finding(run, fit, current, f"{test.text()} on the calibration poses with the causes in the "
                                                f"model; held-out mean {cv_text(h0.mean, h1.mean)}")
-        dg.notes.append("the geometry step, not supported alone, is supported once the causes are in the model "
+        run.notes.append("the geometry step, not supported alone, is supported once the causes are in the model "
                         f"({test.text()}): the final model has it")
-        dg.say(f"  geometry again, with the causes: accepted ({test.text()})")
+        run.say(f"  geometry again, with the causes: accepted ({test.text()})")
     else:
-        dg.say(f"  geometry again, with the causes: not supported ({reason})")
+        run.say(f"  geometry again, with the causes: not supported ({reason})")
     return ok
 
 
-def _add_geometry_finding(dg, fit: CalibrationResult, without: CalibrationResult, evidence: str = "") -> None:
-    if any(f.cause == "geometric" for f in dg.findings):
+def _add_geometry_finding(run: DiagnosisRun, fit: CalibrationResult, without: CalibrationResult,
+                          evidence: str = "") -> None:
+    if any(f.cause == "geometric" for f in run.findings):
         return
-    gain = dg.val_stats(without).mean_mm - dg.val_stats(fit).mean_mm
-    dg.findings.insert(0, Finding(Candidate("geometric"), gain, evidence or
+    gain = run.val_stats(without).mean_mm - run.val_stats(fit).mean_mm
+    run.findings.insert(0, Finding(Candidate("geometric"), gain, evidence or
                                   "never worse than a kinematic calibration of the same poses on their folds; "
                                   "link, base and tool parameters"))
 

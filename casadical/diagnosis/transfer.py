@@ -26,6 +26,7 @@ from ..errors import InputError
 from ..result import CalibrationResult
 from .candidates import Candidate, compose_spec
 from .decision import gain_words
+from .state import DiagnosisRun
 
 
 @dataclass
@@ -120,44 +121,52 @@ def study(final: CalibrationResult, kinematic: CalibrationResult, without: Calla
     return out
 
 
-def findings_study(dg, final: CalibrationResult, parametric: CalibrationResult, accepted: list[Candidate],
-                   geometric: bool, other: Measurements) -> TransferStudy:
-    """Take a diagnosis (``dg``: its findings, fits and kinematic model) to ``other``; set each finding's verdict.
+def transfer_findings(run: DiagnosisRun) -> None:
+    """Stage ``transfer_findings``: with another series (``other``), take the findings there and set each
+    finding's verdict (``transfer``) and ``study``; reads ``final``, ``parametric``, ``accepted``, ``geometric``,
+    ``kinematic`` and ``findings``."""
+    if run.other is not None:
+        run.study = findings_study(run, run.final, run.parametric, run.accepted, run.geometric, run.other)
+
+
+def findings_study(run: DiagnosisRun, final: CalibrationResult, parametric: CalibrationResult,
+                   accepted: list[Candidate], geometric: bool, other: Measurements) -> TransferStudy:
+    """Take a diagnosis (``run``: its findings, fits and kinematic model) to ``other``; set each finding's verdict.
 
     ``parametric`` is the model of the named causes (``final`` without a black box); a named finding is
     judged against the model refitted without it, structure kept out against the model refitted with it.
     """
-    s = dg.s
-    named = [k for k, f in enumerate(dg.findings) if f.in_model and f.cause not in ("geometric", "unexplained")]
-    n_refit = s.transfer_refit_poses or min(len(dg.cal), len(other) // 2)
+    s = run.s
+    named = [k for k, f in enumerate(run.findings) if f.in_model and f.cause not in ("geometric", "unexplained")]
+    n_refit = s.transfer_refit_poses or min(len(run.cal), len(other) // 2)
     if not s.transfer_base_poses < len(other) or not n_refit < len(other):
         raise InputError(f"has {len(other)} poses: too few to re-estimate the base on "
                          f"{s.transfer_base_poses} and the geometry on {n_refit} and judge on the rest",
                          file=other.path)
 
     def without(k: int) -> CalibrationResult | None:
-        f = dg.findings[k]
+        f = run.findings[k]
         if f.cause == "unexplained" and not f.in_model:
             # structure left out: what would it have done there?
-            return dg.fit(compose_spec(accepted + [dg.unexplained.strongest[f.candidate.joint]], geometric),
+            return run.fit(compose_spec(accepted + [run.unexplained.strongest[f.candidate.joint]], geometric),
                           start=parametric)
         if k not in named:
             return None
         c = f.candidate
         rest = [a for a in accepted if a != c and not (c.cause == "joint_compliance" and a.joint == c.joint
                                                          and a.cause == "nonlinear_stiffness")]
-        return dg.fit(compose_spec(rest, geometric), start=parametric)
+        return run.fit(compose_spec(rest, geometric), start=parametric)
 
-    todo = [k for k, f in enumerate(dg.findings) if k in named or (f.cause == "unexplained" and not f.in_model)]
+    todo = [k for k, f in enumerate(run.findings) if k in named or (f.cause == "unexplained" and not f.in_model)]
     labels = [f"{f.label()}: the model without it" if f.in_model else
-              f"the structure kept out of joint {f.candidate.joint}: the model with it" for f in dg.findings]
-    out = study(final, dg.kinematic, without, len(dg.findings), other, s.transfer_base_poses, n_refit, s.seed,
-                dg.say, labels=labels, todo=todo)
+              f"the structure kept out of joint {f.candidate.joint}: the model with it" for f in run.findings]
+    out = study(final, run.kinematic, without, len(run.findings), other, s.transfer_base_poses, n_refit, s.seed,
+                run.say, labels=labels, todo=todo)
     # the named causes alone there (the final model unless a black box was added)
     if parametric is not final:
-        dg.say("transfer: the named causes alone, without the session compensator")
+        run.say("transfer: the named causes alone, without the session compensator")
     named_only = out.final if parametric is final else travel(parametric, other, out.split)
-    for k, f in enumerate(dg.findings):
+    for k, f in enumerate(run.findings):
         if k in out.gains:
             with_it, without_it = ((out.final, out.gains[k]) if f.in_model else (out.gains[k], named_only))
             f.transfer = finding_gain(with_it, without_it)

@@ -1,4 +1,4 @@
-"""After the search: is every accepted cause still needed in the final model?
+"""Stage ``drop_redundant``: after the search, is every accepted cause still needed in the final model?
 
 Causes are accepted one at a time, physical ones before periodic ones, so
 an early cause can stand in for part of a later, stronger one (a
@@ -10,10 +10,8 @@ same corrected level and by BIC. The weakest cause that fails is refitted
 without it for real; if that confirms, it is dropped and the test runs
 again on the new model.
 
-Then every named cause must still be physics in the final model
-(:mod:`casadical.physics`: inside its bounds, told apart from the geometry,
-significant, physically meaningful over the data): a cause that is not is
-dropped, the model refitted without it, and the check runs again.
+Reads and sets ``current`` and ``accepted`` (with more than one cause); drops
+the findings of the causes it removes, with a note each.
 """
 
 from __future__ import annotations
@@ -22,9 +20,9 @@ import math
 
 import numpy as np
 
-from ..physics import violations
 from ..result import CalibrationResult
 from .candidates import Candidate, compose_spec
+from .state import DiagnosisRun
 from .statistics import NestedTest, nested_test, noise_ssr
 from .validation import Linearized
 
@@ -59,51 +57,29 @@ def without_tests(current: CalibrationResult, accepted: list[Candidate], data, n
     return out
 
 
-def drop_redundant(dg, current: CalibrationResult, accepted: list[Candidate], geometric: bool
-                   ) -> tuple[CalibrationResult, list[Candidate]]:
+def drop_redundant(run: DiagnosisRun) -> None:
     """Drop, one at a time, the accepted causes the final model no longer needs (see the module)."""
-    while accepted:
-        level = math.log10(dg.s.alpha / max(dg.n_tests(dg.candidates(current, accepted)), 1))
-        failing = [(c, t) for c, t in without_tests(current, accepted, dg.cal, dg.n_eq)
+    if len(run.accepted) <= 1:
+        return
+    run.say("final check: is every cause still needed?")
+    while run.accepted:
+        current, accepted = run.current, run.accepted
+        level = math.log10(run.s.alpha / max(run.n_tests(run.candidates(current, accepted)), 1))
+        failing = [(c, t) for c, t in without_tests(current, accepted, run.cal, run.n_eq)
                    if not (t.log10_p < level and t.delta_bic < 0)]
         if not failing:
             break
         cand, test = max(failing, key=lambda ct: ct[1].log10_p)
         rest = [a for a in accepted if a != cand]
-        dg.say(f"  {cand.label()} may no longer be needed: the model refitted without it")
-        refit = dg.fit(compose_spec(rest, geometric), start=current)
-        full = nested_test(dg.deviance(refit, current.loss), int(refit.parameters.free.sum()),
-                           dg.deviance(current, current.loss), int(current.parameters.free.sum()), dg.n_fit_eq,
-                           dg.deviance(current, current.loss, noise=True))
+        run.say(f"  {cand.label()} may no longer be needed: the model refitted without it")
+        refit = run.fit(compose_spec(rest, run.geometric), start=current)
+        full = run.compare(refit, current, current.loss)
         if full.log10_p < level and full.delta_bic < 0:
             break       # the one-step estimate was too pessimistic: it is still supported
-        dg.drop_finding(cand)
+        run.drop_finding(cand)
         later = [a.label() for a in accepted[accepted.index(cand) + 1:]]
-        dg.notes.append(f"{cand.label()} was dropped at the end: with "
-                        + (", ".join(later) if later else "the other causes")
-                        + f" in the model it no longer explains anything ({full.text()})")
-        dg.say(f"  dropped {cand.label()}: not needed once the later causes are in the model ({full.text()})")
-        current, accepted = refit, rest
-    return current, accepted
-
-
-def drop_unphysical(dg, current: CalibrationResult, accepted: list[Candidate], geometric: bool
-                    ) -> tuple[CalibrationResult, list[Candidate]]:
-    """Drop, one at a time, the named causes the final model holds that break a rule of
-    :mod:`casadical.physics` (the first such cause, in the order accepted), refitting without each."""
-    while accepted:
-        broken = [(c, v) for c in accepted
-                  if (v := violations(current, dg.cal, own_parameters(c, accepted) or c.parameter_names(),
-                                      alpha=dg.s.alpha))]
-        if not broken:
-            break
-        cand, vs = broken[0]
-        rest = [a for a in accepted if a != cand]
-        dg.drop_finding(cand)
-        dg.unexplained.excluded_causes.add(cand)
-        text = "; ".join(v.text for v in vs)
-        dg.notes.append(f"{cand.label()} was dropped at the end: in the final model it is not physics ({text})")
-        dg.say(f"  dropped {cand.label()}: {text}")
-        current = dg.fit(compose_spec(rest, geometric), start=current)
-        accepted = rest
-    return current, accepted
+        run.notes.append(f"{cand.label()} was dropped at the end: with "
+                         + (", ".join(later) if later else "the other causes")
+                         + f" in the model it no longer explains anything ({full.text()})")
+        run.say(f"  dropped {cand.label()}: not needed once the later causes are in the model ({full.text()})")
+        run.current, run.accepted = refit, rest

@@ -1,0 +1,23 @@
+"""Stage ``describe_findings``: each finding's values, evidence and figure, from the final model.
+
+Reads ``findings``, ``support``, ``before``, ``final``, ``not_tried`` and ``unexplained``; fills every accepted
+finding (:func:`.findings.describe`), says where a joint's named cause may be its untried compliance
+(:func:`.gaps.untried_alternatives`), adds the structure that cannot be named (one ``unexplained`` finding per
+joint) and sets each finding's scope: of the robot (one value serves every session) or of one session.
+"""
+
+from __future__ import annotations
+
+from .findings import describe
+from .gaps import untried_alternatives
+from .state import DiagnosisRun
+
+
+def describe_findings(run: DiagnosisRun) -> None:
+    run.say("findings: their values, evidence and figures in the final model")
+    describe(run.findings, run.support, run.before, run.final, run.cal)
+    untried_alternatives(run.findings, run.not_tried)      # a joint's named cause may be its untried compliance
+    run.findings += list(run.unexplained.by_joint.values())
+    for f in run.findings:   # of the robot (one value serves every session) or of one session
+        f.scope = f.scope or f.candidate.scope or ("robot" if len(run.sessions) > 1 and f.in_model
+                                                   and f.cause != "unexplained" else None)

@@ -1,0 +1,53 @@
+"""Stage ``fit_geometry``: step 2, the geometric (kinematic) calibration, and how weak the design is.
+
+Reads ``nominal``; sets ``kinematic``, the design's assessment (:mod:`.design`: on a weak design the folds get
+priors of the geometry, and a design of one joint at a time its own folds), the second step, and the model
+the search starts from: ``current`` (the kinematic model where the geometry is supported, else the nominal
+one) and ``geometric``.
+"""
+
+from __future__ import annotations
+
+import math
+
+from .candidates import Candidate
+from .design import assess, priors
+from .report import Finding, Step
+from .state import DiagnosisRun
+from .validation import cv_failure, cv_record, cv_text, not_better
+
+
+def fit_geometry(run: DiagnosisRun) -> None:
+    run.say("step 2: geometric (kinematic) calibration")
+    nominal = run.nominal
+    kin = run.kinematic = run.fit("kinematic")
+    run.design = assess(run.cal, kin, run.n_fit_eq)
+    if run.design.weak:
+        run.prior = priors(kin)
+        if run.design.one_at_a_time:   # folds that leave out part of every joint's sweep, never a whole one
+            run.schemes = run.fold_schemes(run.design.moving)
+        run.notes.append(run.design.text())
+        run.say(f"  {run.notes[-1]}")
+    test = run.compare(nominal, kin, kin.loss)
+    mask = run.mask(kin)
+    cv0, cv1 = (run.cv(r, mask) for r in (nominal, kin))
+    worse = not_better(cv0, cv1)
+    ok = test.log10_p < math.log10(run.s.alpha) and test.delta_bic < 0 and not worse
+    kv = run.val_stats(kin)
+    reason = "; ".join([f"not significant ({test.text()})"] * (test.log10_p >= math.log10(run.s.alpha))
+                       + [f"BIC does not improve ({test.delta_bic:+.1f})"] * (test.delta_bic >= 0)
+                       + ([cv_failure(worse, cv0, cv1)] if worse else []))
+    run.steps.append(Step("kinematic", kin.calibration, kv, ok, Candidate("geometric"), test,
+                          cv_record(cv0, cv1), reason, run.val_angles(kin), parent=0,
+                          parent_mm=run.steps[0].validation.mean_mm))
+    run.record(kin, 1)
+    run.say(f"  validation mean {kv.mean_mm:.4f} mm ({test.text()})")
+    if ok:
+        gain = run.steps[0].validation.mean_mm - kv.mean_mm
+        run.findings.append(Finding(Candidate("geometric"), gain,
+                                    f"{test.text()} on the calibration poses; held-out mean "
+                                    + cv_text(cv0, cv1) + "; link, base and tool parameters"))
+        run.current, run.geometric = kin, True
+    else:
+        run.current, run.geometric = nominal, False
+    run.history.append(([], run.current))

@@ -1,0 +1,38 @@
+"""Stage ``judge_final_model``: what the validation poses say of the final model, and what it leaves.
+
+Reads ``final``, ``parametric`` and ``kinematic``; sets ``final_errors`` and ``final_val`` (its validation
+errors) and ``set_aside`` (the poses the final fit set aside, tested for shared structure before they are
+called bad measurements: :mod:`casadical.set_aside`), and adds the notes: a worst validation error above the
+kinematic model's (:func:`.never_worse.validation_note`), the remaining residual, the sag the model predicts,
+the set-aside poses.
+"""
+
+from __future__ import annotations
+
+import math
+
+from ..physics import sag_note
+from ..result import ErrorStats, learning_mask
+from ..set_aside import of_fit
+from .gaps import set_aside_note
+from .never_worse import validation_note
+from .state import DiagnosisRun
+
+
+def judge_final_model(run: DiagnosisRun) -> None:
+    final, cal = run.final, run.cal
+    run.final_errors = run.val_errors(final)
+    run.final_val = final_val = ErrorStats.of(run.final_errors)
+    note = validation_note(final, run.kinematic, run.parametric, run.val, run.val_errors, run.held_text)
+    if note:
+        run.notes.append(note)
+    if final.uncertainty is not None:
+        run.notes.append(f"remaining calibration residual {final.uncertainty.sigma * 1000:.4f} mm per axis (rms); "
+                         f"validation rms {final_val.rms_mm / math.sqrt(3):.4f} mm per axis")
+    sag = sag_note(final, cal)
+    if sag:
+        run.notes.append(sag)
+    # the poses the final fit set aside: bad measurements, or structure it lacks (casadical.set_aside)
+    run.set_aside = of_fit(run.parametric, cal, learning_mask(final, cal) == 0)
+    if run.set_aside.n_set_aside:
+        run.notes.append(set_aside_note(run.set_aside, run.not_tried, cal.path))

@@ -1,0 +1,28 @@
+"""Stage ``assemble_report``: the :class:`~.report.DiagnosisReport` of the run.
+
+Reads every field the stages before set (the steps, findings, notes, the final model and its validation,
+the transfer study); sets ``report``.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import asdict
+
+from .report import DiagnosisReport
+from .state import DiagnosisRun
+
+
+def assemble_report(run: DiagnosisRun) -> None:
+    final = run.final
+    plots = {"val_errors_nominal_mm": (run.val_errors(run.nominal) * 1000).tolist(),
+             "val_errors_final_mm": (run.final_errors * 1000).tolist()}
+    structure = run.set_aside
+    run.report = DiagnosisReport(
+        run.robot.name, run.steps, run.findings, run.final_spec, run.final_val, final, run.periodograms, plots,
+        run.notes, time.perf_counter() - run.t0, next(st.validation for st in run.steps if st.model == "kinematic"),
+        run.study.to_dict() if run.study is not None else {}, asdict(run.s),
+        final_sessions=final.session_stats(run.val) if len(run.sessions) > 1 else {},
+        final_orientation=run.val_angles(final),
+        set_aside=structure.to_dict() if structure.n_set_aside else {},
+        not_tried=[n.to_dict() for n in run.not_tried])

@@ -1,0 +1,109 @@
+"""``diagnose()``: what the model gets wrong, why, and what each extension gains, through named stages.
+
+After the nominal and the geometric steps, every round screens all
+candidate causes at once with a score test (:mod:`.screening`), fits the
+best for real and accepts a cause only when the calibration data support it
+three ways: significance (F-test at a Bonferroni-corrected level, BIC) and
+held-out error on folds that must extrapolate as well as interpolate
+(random, time-blocked and joint-range-blocked cross-validation,
+:mod:`.validation`). Physical causes (compliance, progressive stiffness,
+encoder scale, backlash, thermal expansion, drift, warm-up) are tried before
+periodic errors, which must also be resolved from their neighbouring
+harmonics and from geometry and agree over the two halves of the joint's
+range (:mod:`.periodic`); structure that passes the statistics but not
+these checks is reported as ``unexplained`` and kept out of the model.
+At the end every accepted cause is tested again against the final model
+(:mod:`.redundancy`) and must still be physics (:mod:`.unphysical`, :mod:`casadical.physics`);
+the final model never does worse than the kinematic one where it must
+extrapolate. With several sessions every cause is asked whether one value
+serves every session (the robot's) or only one session's own (the
+session's; :mod:`.catalogue`). The poses the final fit sets aside are
+tested for shared structure before they are called bad measurements
+(:mod:`casadical.set_aside`, :mod:`.gaps`), and what these data cannot test
+is said (:func:`.catalogue.not_tried`). The validation poses judge every step and are never used
+to accept one. The accuracy layer last (:mod:`.layer`: a session
+compensator that applies where it knows) takes what no named cause
+explains; :mod:`.transfer` takes the findings to another series.
+
+Each stage is a function ``stage(run)`` of its own module that reads what the stages before it set on the
+:class:`~.state.DiagnosisRun` and sets its own fields; :data:`STAGES` is their order. To add a stage, write
+it in a module of this package (a docstring saying what it reads and sets), give the run the fields it sets,
+and put it in :data:`STAGES` where its inputs are ready.
+"""
+
+from __future__ import annotations
+
+from typing import Callable
+
+from ..data import Measurements
+from ..robot import Robot
+from ..threads import limited_threads
+from .describe import describe_findings
+from .geometry import fit_geometry
+from .judge import judge_final_model
+from .layer import add_compensator
+from .never_worse import keep_never_worse
+from .nominal import fit_nominal
+from .outcome import assemble_report
+from .prepare import check_data
+from .redundancy import drop_redundant
+from .report import DiagnosisReport
+from .search import search_causes
+from .settings import DiagnosisSettings
+from .state import DiagnosisRun
+from .transfer import transfer_findings
+from .unphysical import drop_unphysical
+
+#: the stages of :func:`diagnose`, in order
+STAGES: tuple[Callable[[DiagnosisRun], None], ...] = (
+    check_data,         # the poses against the robot, the validation poses held out; equations, folds, sessions
+    fit_nominal,        # step 1: the nominal model, its base pose fitted
+    fit_geometry,       # step 2: the kinematic calibration; how weak the design is; where the search starts
+    search_causes,      # rounds: screen every candidate cause, fit the best, accept one the data support
+    drop_redundant,     # final check: is every cause still needed?
+    drop_unphysical,    # final check: is every cause still physics?
+    keep_never_worse,   # final check: never worse than the kinematic model, in mean and worst case
+    add_compensator,    # the session compensator of what no named cause explains, judged like every step
+    describe_findings,  # each finding's values, evidence, figure and scope; the structure that cannot be named
+    judge_final_model,  # the validation poses on the final model; the residual, sag and set-aside poses
+    transfer_findings,  # with another series: does each finding hold up there?
+    assemble_report,    # the DiagnosisReport
+)
+
+
+@limited_threads()
+def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: DiagnosisSettings | None = None,
+             progress: Callable[[str], None] | None = None, other: Measurements | None = None,
+             **checks: bool) -> DiagnosisReport:
+    """Calibrate step by step on ``cal``, judge every step on ``val``, name the causes.
+
+    Parameters
+    ----------
+    robot : Robot
+    cal, val : Measurements
+        Calibration and validation poses, both with measured positions. The
+        validation poses judge; they never decide.
+    settings : DiagnosisSettings, optional
+    progress : callable, optional
+        Receives one line of text per step (the command line prints them).
+    other : Measurements, optional
+        Another measurement series of the same robot: every finding is
+        taken there (:mod:`casadical.diagnosis.transfer`).
+    **checks : bool
+        Overrides of the plausibility checks of the poses
+        (:func:`casadical.checks.check_poses`: ``allow_outside_limits``,
+        ``angles_are_degrees``, ``positions_are_mm``, ``allow_mismatch``:
+        poses of ``cal``, ``val`` or ``other`` the nominal model misses by
+        more than 5 % of the robot's reach with its base pose fitted).
+
+    Raises
+    ------
+    DataFileError
+        Every validation (or ``other``) pose is a calibration pose (:func:`casadical.checks.check_held_out`,
+        :func:`~casadical.checks.check_other_series`; some of them: a warning), or a check of the poses fails.
+    """
+    run = DiagnosisRun(robot, cal, val, settings or DiagnosisSettings(), progress or (lambda _: None), other,
+                       checks)
+    for stage in STAGES:
+        stage(run)
+    return run.report

@@ -1,0 +1,210 @@
+"""What a diagnosis carries from stage to stage (:mod:`casadical.diagnosis.pipeline`).
+
+:class:`DiagnosisRun` holds the diagnosis under way: what the caller gave, the fields each stage sets
+(grouped below by the stage that sets them), and what every stage asks of the calibration poses: a fit of a
+model specification (:meth:`~DiagnosisRun.fit`), a fit's validation errors (computed once per fit), its
+deviance under a loss, the comparison of two nested fits (:meth:`~DiagnosisRun.compare`, the one F-test and
+BIC of the diagnosis), its held-out means on the folds. A stage is a function ``stage(run) -> None``.
+
+What a cause's acceptance or rejection carries is in :mod:`.evidence`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, field
+from typing import TYPE_CHECKING, Callable
+
+import numpy as np
+
+from ..calibration.for_data import model_for
+from ..calibration.pipeline import calibrate
+from ..data import Measurements
+from ..problem import RobustLoss
+from ..result import AngleStats, CalibrationResult, ErrorStats
+from ..robot import Robot
+from .candidates import Candidate
+from .catalogue import Catalogue
+from .evidence import Support
+from .findings import UnexplainedLog
+from .periodogram import Periodogram
+from .report import Finding, Step
+from .settings import DiagnosisSettings
+from .statistics import NestedTest, nested_test, set_aside_share
+from .validation import Linearized, by_kind, joint_levers, schemes
+
+if TYPE_CHECKING:
+    from ..set_aside import SetAsideStructure
+    from .design import Design
+    from .report import DiagnosisReport
+    from .transfer import TransferStudy
+
+
+@dataclass
+class DiagnosisRun:
+    """One diagnosis as it goes through the stages.
+
+    The first fields are what the caller gave; every later group is set by the stage named above it and read
+    by those after it (``None`` until then).
+    """
+
+    robot: Robot
+    cal: Measurements                   # the calibration poses: they decide
+    val: Measurements                   # the validation poses: they judge, never decide
+    s: DiagnosisSettings
+    say: Callable[[str], None]          # one line of progress
+    other: Measurements | None = None   # another series of the same robot (the transfer study)
+    checks: dict = field(default_factory=dict)   # overrides of the plausibility checks of the poses
+    t0: float = field(default_factory=time.perf_counter)
+
+    # check_data: the equations, the folds, the sessions
+    n_eq: int = 0                  # the screening and its linearised tests: positions
+    full_pose: bool = False        # every full fit, and the tests on their losses, on 6 equations a pose
+    n_fit_eq: int = 0
+    schemes: list = field(default_factory=list)
+    sessions: list = field(default_factory=list)      # [] for one session
+    catalogue: Catalogue | None = None
+    notes: list[str] = field(default_factory=list)
+
+    # fit_nominal, fit_geometry: the reference models; how weak the design is
+    nominal: CalibrationResult | None = None
+    kinematic: CalibrationResult | None = None
+    design: Design | None = None
+    prior: dict[str, float] | None = None     # the folds' priors of the geometry on a weak design
+    steps: list[Step] = field(default_factory=list)
+    findings: list[Finding] = field(default_factory=list)
+
+    # the model under way (fit_geometry sets it; search_causes and the final checks change it)
+    current: CalibrationResult | None = None
+    accepted: list[Candidate] = field(default_factory=list)
+    geometric: bool = False
+    history: list[tuple[list[Candidate], CalibrationResult]] = field(default_factory=list)  # accepted models
+    fits_of_steps: list[tuple[CalibrationResult, int]] = field(default_factory=list)      # each fit, its step
+
+    # search_causes
+    not_tried: list = field(default_factory=list)     # kinds of cause these data cannot test
+    later: dict[Candidate, int] = field(default_factory=dict)    # not significant yet: screened again later
+    unexplained: UnexplainedLog = field(default_factory=UnexplainedLog)
+    before: dict[Candidate, CalibrationResult] = field(default_factory=dict)   # fit before each finding
+    support: dict[Candidate, Support] = field(default_factory=dict)
+    periodograms: list[Periodogram] = field(default_factory=list)
+
+    # keep_never_worse
+    held_text: str = ""            # the final check's worst held-out errors, in words
+
+    # add_compensator: the model of the named causes, and the final model
+    parametric: CalibrationResult | None = None
+    final: CalibrationResult | None = None
+    final_spec: str = ""
+
+    # judge_final_model
+    final_errors: np.ndarray | None = None
+    final_val: ErrorStats | None = None
+    set_aside: SetAsideStructure | None = None
+
+    # transfer_findings, assemble_report
+    study: TransferStudy | None = None
+    report: DiagnosisReport | None = None
+
+    # caches: a fit's validation errors; the gravity torques of the calibration poses under the current fit
+    _val_errors: dict[int, tuple] = field(default_factory=dict, repr=False)
+    _torques: tuple | None = field(default=None, repr=False)
+
+    def fold_schemes(self, moving: np.ndarray | None = None) -> list:
+        """The cross-validation schemes of the calibration poses (``moving``: of a design of one joint at a time,
+        :func:`.validation.schemes`)."""
+        return schemes(self.cal.q, self.cal.rows, self.s.folds, self.s.seed, joint_levers(self.robot, self.cal),
+                       sessions=self.cal.sessions, moving=moving)
+
+    def step_of(self, res: CalibrationResult) -> int | None:
+        """Index of the step whose model ``res`` is (None for a fit no step holds: a final-check refit)."""
+        return next((k for fit, k in self.fits_of_steps if fit is res), None)
+
+    def fit(self, spec: str, start: CalibrationResult | dict | None = None, loss: RobustLoss | None = None
+            ) -> CalibrationResult:
+        """Calibrate ``spec`` on the calibration poses (LM), from ``start``'s values (a result or a dict)."""
+        model = model_for(self.robot, spec + ("+tool_orientation" if self.full_pose else ""), self.cal,
+                          session_tools=self.s.session_tools)
+        st = None
+        if start is not None:
+            values = start if isinstance(start, dict) else {p.name: p.value for p in start.parameters}
+            st = {n: v for n, v in values.items() if n in model.parameters and not n.startswith("base_")}
+        return calibrate(self.robot, self.cal, model, "lm", start=st, warn=False, robust=loss or self.s.robust,
+                         position_only=self.s.position_only)
+
+    def val_errors(self, res: CalibrationResult) -> np.ndarray:
+        """Position errors (m) of a fit on the validation poses, predicted once per fit."""
+        hit = self._val_errors.get(id(res))
+        if hit is None or hit[0] is not res:
+            hit = self._val_errors[id(res)] = (res, res.errors(self.val))
+        return hit[1]
+
+    def val_stats(self, res: CalibrationResult) -> ErrorStats:
+        return ErrorStats.of(self.val_errors(res))
+
+    def val_angles(self, res: CalibrationResult) -> AngleStats | None:
+        """Orientation errors of a full-pose fit on the validation poses (None without orientations)."""
+        if not (res.has_orientation and self.val.has_orientation):
+            return None
+        return AngleStats.of(res.orientation_errors(self.val))
+
+    def u2(self, res: CalibrationResult, loss: RobustLoss) -> np.ndarray:
+        """Squared residual norm of each calibration pose under ``loss``: full pose, ``|r_p|^2 + k^2 |r_o|^2``."""
+        r = res.residuals(self.cal)
+        u2 = np.einsum("ij,ij->i", r, r)
+        if res.full_pose and math.isfinite(loss.rot_weight):
+            u2 = u2 + (loss.rot_weight * res.orientation_errors(self.cal)) ** 2
+        return u2
+
+    def deviance(self, res: CalibrationResult, loss: RobustLoss, noise: bool = False) -> float:
+        """Twice the loss of ``res`` on the calibration poses under ``loss`` (SSR for least squares); ``noise``:
+        with the set-aside poses counted by their influence (a test's noise scale, :func:`.statistics.nested_test`)."""
+        u2 = self.u2(res, loss)
+        return 2.0 * float(loss.rho(u2) @ (set_aside_share(loss.weight(u2)) if noise else np.ones(len(u2))))
+
+    def compare(self, smaller: CalibrationResult, larger: CalibrationResult, loss: RobustLoss) -> NestedTest:
+        """The F-test and BIC of ``larger`` against the nested ``smaller``, full fits on the calibration poses,
+        both under ``loss``; the noise scale is ``larger``'s, its set-aside poses counted by their influence."""
+        return nested_test(self.deviance(smaller, loss), int(smaller.parameters.free.sum()),
+                           self.deviance(larger, loss), int(larger.parameters.free.sum()), self.n_fit_eq,
+                           self.deviance(larger, loss, noise=True))
+
+    def mask(self, res: CalibrationResult) -> np.ndarray:
+        """Poses that count in held-out means: those the robust loss did not set aside."""
+        return res.loss.weight(self.u2(res, res.loss)) >= 0.5
+
+    def torques(self, res: CalibrationResult) -> np.ndarray:
+        """Gravity torques (N m) of the calibration poses under a fit, computed once per fit."""
+        if self._torques is None or self._torques[0] is not res:
+            m = res.model
+            self._torques = (res, m.torques(self.cal.q, res.parameters.values, m.covariates(self.cal)))
+        return self._torques[1]
+
+    def cv(self, res: CalibrationResult, mask: np.ndarray) -> dict:
+        """Held-out means (mm) by kind of fold of a fit, linearised at it, over the poses of ``mask``."""
+        return by_kind(Linearized.of(res, self.cal).cv(self.schemes, self.prior), mask)
+
+    def candidates(self, current: CalibrationResult, accepted: list[Candidate]) -> list[Candidate]:
+        """Every candidate not yet in the model (:class:`.catalogue.Catalogue`)."""
+        skip = self.unexplained.excluded_causes | {c for c, n in self.later.items() if n == len(accepted)}
+        out = self.catalogue.candidates(current, accepted, self.unexplained.excluded, skip,
+                                        lambda: self.torques(current))
+        self.periodograms = self.catalogue.periodograms
+        return out
+
+    def n_tests(self, cands: list[Candidate]) -> int:
+        return self.catalogue.n_tests(cands)
+
+    def record(self, res: CalibrationResult, step: int, causes: list[Candidate] | None = None) -> None:
+        """``res`` is the model of step ``step``; with ``causes``, also the accepted model of the search that
+        holds them (a model the final check can fall back to)."""
+        self.fits_of_steps.append((res, step))
+        if causes is not None:
+            self.history.append((list(causes), res))
+
+    def drop_finding(self, cand: Candidate) -> None:
+        """Remove the finding of ``cand`` and what is kept for it."""
+        self.findings = [f for f in self.findings if f.candidate != cand]
+        self.support.pop(cand, None)
+        self.before.pop(cand, None)
