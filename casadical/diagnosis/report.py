@@ -7,9 +7,9 @@ from dataclasses import dataclass, field
 
 from ..result import AngleStats, CalibrationResult, ErrorStats
 from .candidates import Candidate
-from .decision import action, gain, gain_words, label, scope, size, table, where, wrap, wrap_spec
 from .periodogram import Periodogram
 from .statistics import NestedTest
+from .words import action, gain, gain_words, label, scope, size, table, where, wrap, wrap_spec
 
 
 def finite(x: float | None) -> float | None:

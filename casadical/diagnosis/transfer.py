@@ -25,8 +25,8 @@ from ..data import Measurements
 from ..errors import InputError
 from ..result import CalibrationResult
 from .candidates import Candidate, compose_spec
-from .decision import gain_words
 from .state import DiagnosisRun
+from .words import gain_words
 
 
 @dataclass

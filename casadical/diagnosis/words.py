@@ -1,4 +1,4 @@
-"""What a diagnosis means for the robot: each finding in a few words, its size and what to do about it.
+"""The diagnosis in words: what it means for the robot, each finding in a few words, its size, what to do.
 
 The reports (terminal summary, HTML page, JSON) open with one row per
 finding: a short label, where it lives, its size in the final model (with
