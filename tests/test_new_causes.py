@@ -121,3 +121,56 @@ def test_a_calibration_file_keeps_them(tmp_path):
     assert back.model.spec == res.model.spec
     assert np.abs(back.predict(val) - res.predict(val)).max() < 1e-12
     assert math.isclose(back.parameters["cmount"].value, res.parameters["cmount"].value)
+
+
+def test_each_session_its_own_mount(tmp_path):
+    """Two sessions on mounts of different compliance (a column of another height): a term per session finds
+    each, the robot's geometry shared."""
+    from hidden import session_of
+    from truth import measure
+
+    from casadical.data import Measurements
+
+    C = TILT / largest_moment(ARM4)
+    rng = np.random.default_rng(7)
+    true = TrueRobot.draw(Arm.from_dict(ARM4), Effects(mount_compliance=C), rng)
+    case = Case("arm4", "mounts", 7, true.effects, set(), sessions=True)
+    files = []
+    for name, n in (("cal", 100), ("val", 100)):
+        shots = None
+        for s, c in (("A", C), ("B", 3 * C)):
+            ses = session_of(case, s)
+            ses.mount_compliance = c
+            more = measure(true, sample(true, n, rng), rng, session=ses)
+            shots = more if shots is None else shots + more
+        files.append(Measurements.read_csv(shots.write_csv(tmp_path / f"{name}.csv"), n_joints=4,
+                                           require_positions=True))
+    cal, val = files
+    robot = robot_from_dict(ARM4)
+    res = calibrate(robot, cal, "kinematic+mount_compliance@A+mount_compliance@B", "lm", warn=False,
+                    session_tools=True)                # the probe was re-mounted for B (hidden.session_of)
+    for name, c in (("cmount@A", C), ("cmount@B", 3 * C)):
+        p = res.parameters[name]
+        assert abs(p.value - c) < 4 * p.std and p.std < 0.1 * C, (name, p.value / c, p.std / c)
+    assert res.stats(val).mean_mm < 0.045
+    one = calibrate(robot, cal, "kinematic+mount_compliance", "lm", warn=False, session_tools=True)
+    assert one.stats(val).mean_mm > 3 * res.stats(val).mean_mm       # one mount for both cannot be either
+
+
+def test_a_calibration_taken_further_joins_the_couplings():
+    from casadical.calibration.further import merge_terms
+
+    out, named = merge_terms(parse_spec("kinematic+joint_coupling[4:3]"), parse_spec("joint_coupling[3:2]"))
+    assert [t.spec() for t in out][1:] == ["joint_coupling[3:2,4:3]"] and named == {"joint_coupling"}
+
+
+def test_a_mount_at_its_bound_says_what_that_means():
+    from casadical.parameters import Parameter
+    from casadical.physics import inside_bounds
+
+    p = {"cmount": Parameter("cmount", 0.0, "rad/(N*m)", 1e-8, "mount_compliance", lower=0.0, upper=1e-5,
+                             value=-1e-9),
+         "cpl5_4": Parameter("cpl5_4", 0.0, "rad/rad", 1e-4, "joint_coupling", 5, lower=-0.01, upper=0.01,
+                             value=0.01)}
+    text = [v.text for v in inside_bounds(p, ["cmount", "cpl5_4"])]
+    assert "away from its weights" in text[0] and "coupling ratio" in text[1]
