@@ -31,11 +31,14 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
+import casadi as ca
 import numpy as np
 from numpy.polynomial import legendre
 
 from ..data import Measurements
+from ..kinematics import Geometry, chain_angles, forward, mount_moment
 from ..result import CalibrationResult
+from ..terms.mount_compliance import max_mount_moment
 from .candidates import Candidate
 from .report import Finding
 from .state import DiagnosisRun
@@ -48,6 +51,8 @@ DEGREE = 4
 MAX_STRUCTURES = 3
 #: random folds of the held-out check
 FOLDS = 5
+#: where the point stands for the instrument
+INSTRUMENT = ("azimuth", "elevation", "distance")
 
 
 @dataclass
@@ -80,10 +85,14 @@ def describe_pair(covariate: str, effect: str, joint: int | None) -> str:
         own = covariate == f"q{joint}"
         return (f"joint {joint}'s angle error varies with "
                 + ("its own reading (not as any catalogue cause of that joint)" if own else cov))
+    if effect == "tilt":
+        if joint is None:
+            return f"the robot's base tilts with {cov}"
+        return f"joint {joint}'s axis tilts " + ("as it turns" if covariate == f"q{joint}" else f"with {cov}")
     if effect == "point_base":
         return f"the point moves in the robot's base frame with {cov}"
     text = f"the point moves in the measurement frame with {cov}"
-    if covariate in ("azimuth", "elevation", "distance"):
+    if covariate in INSTRUMENT:
         text += ": the instrument's own error or the robot's, only another session (the instrument placed " \
                 "elsewhere) can tell"
     return text
@@ -94,9 +103,25 @@ def _covariate_words(cov: str) -> str:
         return f"joint {cov[1:]}'s reading"
     if cov.startswith("tau"):
         return f"joint {cov[3:]}'s gravity torque"
+    if cov == "moment":
+        return "the moment of the weights about the base"
     if cov == "time":
         return "the time of the pose (its order in the measurements)"
     return f"the point's {cov} as the instrument sees it"
+
+
+def _direction_key(cov: str, effect: str, joint: int | None):
+    """The key of an effect's directions: the instrument's own errors move the point as their covariate says."""
+    if effect == "point_measurement" and cov in INSTRUMENT:
+        return effect, cov
+    return effect, joint
+
+
+def _range(v: np.ndarray):
+    """A covariate's range on the calibration poses (per component for the moment)."""
+    if v.ndim == 2:
+        return [(float(np.min(v[:, k])), float(np.max(v[:, k]))) for k in range(v.shape[1])]
+    return float(np.min(v)), float(np.max(v))
 
 
 def _basis(x: np.ndarray, ref: tuple[float, float]) -> np.ndarray:
@@ -106,10 +131,62 @@ def _basis(x: np.ndarray, ref: tuple[float, float]) -> np.ndarray:
     return legendre.legvander(t, DEGREE)[:, 1:]
 
 
-def covariates(res: CalibrationResult, data: Measurements, torques: np.ndarray) -> dict[str, np.ndarray]:
-    """Every covariate of the screen at ``data``'s poses (rad, N m, s, m)."""
+def _has_masses(robot) -> bool:
+    return max_mount_moment(robot) > 0
+
+
+def _frames_function(robot) -> ca.Function:
+    """Readings and payload -> the moment of the weights about the base (3), then for each joint its axis (3),
+    a point on it (3) and the x axis of the link after it (3), and the tool point (3); robot base frame, nominal
+    geometry (a covariate and a direction need no calibrated millimetres)."""
+    q, m = ca.SX.sym("q", robot.n), ca.SX.sym("m")
+    geom = Geometry.nominal(robot)
+    fr = forward(robot, chain_angles(robot, q, geom), geom)
+    outs = [mount_moment(robot, fr, m)] if _has_masses(robot) else [ca.SX.zeros(3, 1)]
+    for i in range(robot.n):
+        outs += [fr.axis[i], fr.origin[i], fr.link[i][0][:, 0]]
+    outs.append(fr.tool[1])
+    return ca.Function("structure_frames", [q, m], [ca.vertcat(*outs)])
+
+
+@dataclass
+class Poses:
+    """What the screen needs of each pose, robot base frame: the moment of the weights, the joints' axes, points
+    on them and the x axes of the links after them, the tool point; and each pose's base rotation (to the
+    measurement frame)."""
+
+    moment: np.ndarray      # (N, 3)
+    axis: np.ndarray        # (N, n, 3)
+    origin: np.ndarray      # (N, n, 3)
+    link_x: np.ndarray      # (N, n, 3)
+    point: np.ndarray       # (N, 3)
+    R: np.ndarray           # (N, 3, 3) base -> measurement frame
+
+    @classmethod
+    def of(cls, res: CalibrationResult, data: Measurements) -> "Poses":
+        robot, N = res.model.robot, len(data)
+        payload = data.get("payload_kg")
+        m = np.full(N, robot.payload_mass) if payload is None else np.asarray(payload, float)
+        out = np.array(_frames_function(robot).map(N)(data.q.T, m[None, :])).T
+        n = robot.n
+        per_joint = out[:, 3:3 + 9 * n].reshape(N, n, 3, 3)
+        if data.sessions is None:
+            R = np.broadcast_to(res.base_matrix()[:3, :3], (N, 3, 3)).copy()
+        else:
+            R = np.empty((N, 3, 3))
+            for s in data.session_names:
+                R[data.sessions == s] = res.base_matrix(s)[:3, :3]
+        return cls(out[:, :3], per_joint[:, :, 0], per_joint[:, :, 1], per_joint[:, :, 2], out[:, -3:], R)
+
+
+def covariates(res: CalibrationResult, data: Measurements, torques: np.ndarray, poses: Poses
+               ) -> dict[str, np.ndarray]:
+    """Every covariate of the screen at ``data``'s poses (rad, N m, s, m); ``moment`` is (N, 2): about the base
+    frame's x and y axes."""
     out = {f"q{j + 1}": data.q[:, j] for j in range(data.q.shape[1])}
     out.update({f"tau{j + 1}": torques[:, j] for j in range(torques.shape[1])})
+    if _has_masses(res.model.robot):
+        out["moment"] = poses.moment[:, :2]
     t = data.get("time_s")
     out["time"] = np.asarray(t, float) if t is not None else np.arange(len(data), dtype=float)
     x, y, z = data.xyz.T
@@ -119,34 +196,63 @@ def covariates(res: CalibrationResult, data: Measurements, torques: np.ndarray) 
     return out
 
 
-def directions(res: CalibrationResult, data: Measurements) -> dict[tuple[str, int | None], np.ndarray]:
+def directions(res: CalibrationResult, data: Measurements, poses: Poses
+               ) -> dict[tuple[str, int | None], np.ndarray]:
     """Each effect's directions at ``data``'s poses, (N, 3, k) in the measurement frame: a joint's angle (the
-    point's derivative w.r.t. its reading), the robot's base frame's axes, the measurement frame's axes."""
+    point's derivative w.r.t. its reading); a joint's axis tilting (the point turned about the two axes across
+    the joint's axis, fixed in the link after it, through a point of the axis); the base tilting on its mount (turned
+    about the base frame's x and y axes); the robot's base frame's axes; the measurement frame's axes."""
     m, p = res.model, res.parameters
     _, Jq = m.predict_q_jacobian(data.q, p.values, m.covariates(data), res.base0)
-    out: dict[tuple[str, int | None], np.ndarray] = {("angle", j + 1): Jq[:, :, j:j + 1] for j in range(Jq.shape[2])}
-    if data.sessions is None:
-        R = np.broadcast_to(res.base_matrix()[:3, :3], (len(data), 3, 3))
-    else:
-        R = np.empty((len(data), 3, 3))
-        for s in data.session_names:
-            R[data.sessions == s] = res.base_matrix(s)[:3, :3]
-    out[("point_base", None)] = np.ascontiguousarray(R)
-    out[("point_measurement", None)] = np.broadcast_to(np.eye(3), (len(data), 3, 3)).copy()
+    N, n = len(data), Jq.shape[2]
+    out: dict[tuple[str, int | None], np.ndarray] = {("angle", j + 1): Jq[:, :, j:j + 1] for j in range(n)}
+    to_meas = lambda v: np.einsum("nij,nj->ni", poses.R, v)      # noqa: E731
+    for j in range(n):
+        z, o = poses.axis[:, j], poses.origin[:, j]
+        u1 = poses.link_x[:, j] - np.einsum("ni,ni->n", poses.link_x[:, j], z)[:, None] * z
+        u1 /= np.linalg.norm(u1, axis=1, keepdims=True)
+        u2 = np.cross(z, u1)
+        lever = poses.point - o
+        out[("tilt", j + 1)] = np.stack([to_meas(np.cross(u1, lever)), to_meas(np.cross(u2, lever))], axis=2)
+    ex, ey = np.eye(3)[0], np.eye(3)[1]
+    out[("tilt", None)] = np.stack([to_meas(np.cross(np.broadcast_to(ex, (N, 3)), poses.point)),
+                                    to_meas(np.cross(np.broadcast_to(ey, (N, 3)), poses.point))], axis=2)
+    out[("point_base", None)] = np.ascontiguousarray(poses.R)
+    # the instrument at the measurement frame's origin: the point moved along the frame's axes (with time), or
+    # as the instrument's own errors move it: turned about the vertical axis (azimuth), about the horizontal axis
+    # across the line of sight (elevation), along the line of sight (distance)
+    p = data.xyz
+    ez = np.broadcast_to(np.eye(3)[2], (N, 3))
+    across = np.cross(ez, p)
+    across /= np.maximum(np.linalg.norm(across, axis=1, keepdims=True), 1e-12)
+    out[("point_measurement", None)] = np.broadcast_to(np.eye(3), (N, 3, 3)).copy()
+    out[("point_measurement", "azimuth")] = np.cross(ez, p)[:, :, None]
+    out[("point_measurement", "elevation")] = np.cross(across, p)[:, :, None]
+    out[("point_measurement", "distance")] = (p / np.maximum(np.linalg.norm(p, axis=1, keepdims=True), 1e-12)
+                                              )[:, :, None]
     return out
 
 
-def pairs(n_joints: int) -> list[tuple[str, str, int | None]]:
+def pairs(n_joints: int, moment: bool) -> list[tuple[str, str, int | None]]:
     """Every (covariate, effect, joint) the screen tries."""
-    robot_cov = [f"q{j}" for j in range(1, n_joints + 1)] + [f"tau{j}" for j in range(1, n_joints + 1)] + ["time"]
-    out = [(c, "angle", j) for j in range(1, n_joints + 1) for c in robot_cov if c != f"tau{j}"]
+    readings = [f"q{j}" for j in range(1, n_joints + 1)]
+    robot_cov = readings + [f"tau{j}" for j in range(1, n_joints + 1)] + ["moment"] * moment + ["time"]
+    out = [(c, "angle", j) for j in range(1, n_joints + 1) for c in robot_cov]
+    out += [(c, "tilt", j) for j in range(1, n_joints + 1) for c in readings]
+    out += [(c, "tilt", None) for c in ["moment"] * moment + ["time"]]
     out += [(c, "point_base", None) for c in robot_cov]
     out += [(c, "point_measurement", None) for c in ("azimuth", "elevation", "distance", "time")]
     return out
 
 
-def _columns(cov: np.ndarray, ref: tuple[float, float], dirs: np.ndarray) -> np.ndarray:
-    """(N, 3, DEGREE * k): each basis function times each direction."""
+def _columns(cov: np.ndarray, ref, dirs: np.ndarray) -> np.ndarray:
+    """(N, 3, DEGREE * k): each basis function times each direction. A covariate of two components (the moment
+    about x and y): a tilt about the base's x (y) axis by a function of the moment about it; any other effect by
+    functions of each component."""
+    if cov.ndim == 2:
+        if dirs.shape[2] == 2:     # the base's tilt about x and about y
+            return np.concatenate([_columns(cov[:, k], ref[k], dirs[:, :, k:k + 1]) for k in (0, 1)], axis=2)
+        return np.concatenate([_columns(cov[:, k], ref[k], dirs) for k in (0, 1)], axis=2)
     B = _basis(cov, ref)
     return (dirs[:, :, :, None] * B[:, None, None, :]).reshape(len(cov), 3, -1)
 
@@ -202,15 +308,16 @@ class StructureScreen:
     def __init__(self, res: CalibrationResult, cal: Measurements, torques: np.ndarray, alpha: float,
                  seed: int = 0):
         self.res, self.cal = res, cal
-        self.cov = covariates(res, cal, torques)
-        self.dirs = directions(res, cal)
-        self.refs = {k: (float(np.min(v)), float(np.max(v))) for k, v in self.cov.items()}
-        self.tried = pairs(cal.q.shape[1])
+        self.poses = Poses.of(res, cal)
+        self.cov = covariates(res, cal, torques, self.poses)
+        self.dirs = directions(res, cal, self.poses)
+        self.refs = {k: (_range(v)) for k, v in self.cov.items()}
+        self.tried = pairs(cal.q.shape[1], "moment" in self.cov)
         self.level = math.log10(alpha / len(self.tried))
         self.folds = np.array_split(np.random.default_rng(seed).permutation(len(cal)), FOLDS)
 
     def columns(self, cov: str, effect: str, joint: int | None) -> np.ndarray:
-        return _columns(self.cov[cov], self.refs[cov], self.dirs[(effect, joint)])
+        return _columns(self.cov[cov], self.refs[cov], self.dirs[_direction_key(cov, effect, joint)])
 
     def strongest(self, base: np.ndarray, r: np.ndarray, w: np.ndarray, skip=(), only=None) -> Found | None:
         """The pair that explains most of ``r`` beside the columns ``base`` (N, 3, p) at weights ``w``, if it is
@@ -252,8 +359,7 @@ def screen(res: CalibrationResult, cal: Measurements, val: Measurements, cal_tor
     scr = StructureScreen(res, cal, cal_torques, alpha, seed)
     r, w = lin.r, lin.weights
     sw = np.sqrt(np.repeat(w, 3))
-    cov_v = covariates(res, val, val_torques)
-    lin_v = dir_v = base_v = None
+    lin_v = dir_v = base_v = cov_v = None
     found: list[Structure] = []
     base = lin.J
     while len(found) < MAX_STRUCTURES:
@@ -265,9 +371,11 @@ def screen(res: CalibrationResult, cal: Measurements, val: Measurements, cal_tor
         base = np.concatenate([base, s.X], axis=2)
         x1 = np.linalg.lstsq(_weighted(base, sw), r.ravel() * sw, rcond=None)[0]
         if lin_v is None:
-            lin_v, dir_v = Linearized.of(res, val), directions(res, val)
+            poses_v = Poses.of(res, val)
+            lin_v, dir_v = Linearized.of(res, val), directions(res, val, poses_v)
+            cov_v = covariates(res, val, val_torques, poses_v)
             base_v = lin_v.J
-        Xv = _columns(cov_v[s.covariate], scr.refs[s.covariate], dir_v[(s.effect, s.joint)])
+        Xv = _columns(cov_v[s.covariate], scr.refs[s.covariate], dir_v[_direction_key(s.covariate, s.effect, s.joint)])
         base_v = np.concatenate([base_v, Xv], axis=2)
         change = base_v @ x1
         before = np.linalg.norm(lin_v.r, axis=1)

@@ -115,7 +115,8 @@ def where(f: "Finding") -> str:
 
 def _structure_where(structure: dict, joint: int | None) -> str:
     """Where structure the screen found lives, short: ``joint 4's angle, with q3``."""
-    effect = {"angle": f"joint {joint}'s angle", "point_base": "point, base frame",
+    effect = {"angle": f"joint {joint}'s angle", "tilt": f"joint {joint}'s axis" if joint else "the base's tilt",
+              "point_base": "point, base frame",
               "point_measurement": "point, measurement frame"}.get(structure["effect"], structure["effect"])
     return f"{effect}, with {structure['covariate']}"
 
