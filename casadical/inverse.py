@@ -77,7 +77,7 @@ ROUNDING = 1e-10
 #: default bound on the joint motion per unit of correction (deg per mm, or per mrad of orientation): 0.66 % of
 #: the 13,406 poses of the UR10 data (series A and B) are beyond it with the orientation held (1.66 % beyond 1 deg
 #: per mm), 0.01 % for the position alone; at q2 = -90, q3 = 0, q5 = 0 the exact correction would need 399
-#: (benchmarks/study_singular.py)
+#: (benchmarks/studies/study_singular.py)
 MAX_DEG_PER_MM = 2.0
 
 

@@ -51,7 +51,7 @@ if TYPE_CHECKING:      # casadi is imported where a function is compiled: the ot
     import casadi as ca
 
 #: flags of every compilation: -O1 compiles the large Jacobian and Gauss-Newton Functions in about
-#: 60% of -O2's time and evaluates them as fast (benchmarks/bench_calibrate_cli.py)
+#: 60% of -O2's time and evaluates them as fast (benchmarks/speed/bench_calibrate_cli.py)
 FLAGS = ("-O1", "-fPIC", "-shared")
 DEFAULT_MAX_MB = 256.0
 _SUFFIX = ".so"

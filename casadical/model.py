@@ -44,7 +44,7 @@ from .threads import evaluation_threads
 
 #: batches of this many poses or more run compiled code, compiled once per machine and kept in the disk cache
 #: (casadical.jitcache); smaller ones use it only if the cache has it. Measured on the UR10 kinematic model
-#: (benchmarks/bench_calibrate_cli.py): compiling costs ~1.2 s of CPU more than a run on the VM, once, and
+#: (benchmarks/speed/bench_calibrate_cli.py): compiling costs ~1.2 s of CPU more than a run on the VM, once, and
 #: saves ~0.55 s per later 200-pose calibration, so it pays from the third run
 JIT_MIN_POSES = 100
 #: a model's own functions that a fit evaluates once (its torques, their derivatives, the probe's rotation) are

@@ -20,7 +20,7 @@ settings on exit. Thread counts of these libraries are process-wide, so the
 limit holds for every Python thread while any is inside. Entering and
 leaving costs 5-14 us when nested in another limit and 5-27 us when it
 changes a library's limit (2-core VM at load 3-8, two OpenBLAS libraries
-loaded; ``benchmarks/bench_plan_poses.py``); the scan for loaded libraries
+loaded; ``benchmarks/speed/bench_plan_poses.py``); the scan for loaded libraries
 (~8 ms) is done once and repeated only after new modules have been imported.
 
 Examples

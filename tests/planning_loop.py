@@ -1,4 +1,4 @@
-"""The planning loop on simulated data (tests and benchmarks/study_next_poses.py).
+"""The planning loop on simulated data (tests and benchmarks/studies/study_next_poses.py).
 
 A cause the first poses cannot resolve is hidden in an arm measured by the
 independent truth (tests/truth: its own forward model, no casadical code);

@@ -232,7 +232,7 @@ def test_structure_no_cause_explains_is_unexplained(seed):
     as unexplained structure on joint 2 and kept out of the model, and never named an encoder scale error
     (the trend it looks like over part of the range). Known limit (docs/diagnosis.md): physical terms of
     the same joints (compliance) absorb part of it, and in one seed of three a harmonic of the rest passes:
-    the named set is not asserted here (benchmarks/study_hidden_effects.py reports it)."""
+    the named set is not asserted here (benchmarks/studies/study_hidden_effects.py reports it)."""
     rep = run(Effects(reading_error={2: lambda q: 1e-4 * (q - 0.6) ** 2}), seed, n_cal=120)
     named = causes(rep)
     assert ("encoder_scale", 2, None) not in named, named

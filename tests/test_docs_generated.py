@@ -1,6 +1,6 @@
 """The tables the docs quote from scripts are the scripts' output, and still what the code gives.
 
-``benchmarks/regenerate_docs.py`` holds the blocks (``<!-- generated: NAME (COMMAND) -->`` ...
+``benchmarks/docs/regenerate_docs.py`` holds the blocks (``<!-- generated: NAME (COMMAND) -->`` ...
 ``<!-- end generated -->``), the jobs that print them and how to find them in the output. The fast tests
 check the markers (every block registered, named with its job's command, a table; every registered block
 quoted once) and that the comparison catches a changed figure and ignores a changed timing. Under
@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "benchmarks"))
+sys.path.insert(0, str(ROOT / "benchmarks" / "docs"))
 import regenerate_docs as rd  # noqa: E402
 
 
@@ -40,18 +40,18 @@ def test_every_job_runs_a_script_or_command_that_exists():
 
 def test_marker_problems_are_found(tmp_path):
     doc = tmp_path / "x.md"
-    doc.write_text("<!-- generated: no-such-block (python benchmarks/x.py) -->\n| a |\n|---|\n| 1 |\n"
+    doc.write_text("<!-- generated: no-such-block (python benchmarks/studies/x.py) -->\n| a |\n|---|\n| 1 |\n"
                    "<!-- end generated -->\n"
-                   "<!-- generated: ur10-heldout (python benchmarks/study_ur10.py --seeds 0) -->\n| a |\n|---|\n"
-                   "| 1 |\n<!-- end generated -->\n"
-                   "<!-- generated: guide-aic (python benchmarks/guide_figures.py) -->\nsome text\n"
+                   "<!-- generated: ur10-heldout (python benchmarks/studies/study_ur10.py --seeds 0) -->\n"
+                   "| a |\n|---|\n| 1 |\n<!-- end generated -->\n"
+                   "<!-- generated: guide-aic (python benchmarks/docs/guide_figures.py) -->\nsome text\n"
                    "<!-- end generated -->\n")
     problems = "\n".join(rd.marker_problems(rd.quoted_blocks([doc])))
     assert "no block 'no-such-block'" in problems
-    assert "names the command 'python benchmarks/study_ur10.py --seeds 0'" in problems
+    assert "names the command 'python benchmarks/studies/study_ur10.py --seeds 0'" in problems
     assert "guide-aic should hold a Markdown table" in problems
     assert "timing columns" in problems          # ur10-heldout's timing columns are not in that table
-    doc.write_text("<!-- generated: guide-aic (python benchmarks/guide_figures.py) -->\n| a |\n")
+    doc.write_text("<!-- generated: guide-aic (python benchmarks/docs/guide_figures.py) -->\n| a |\n")
     with pytest.raises(rd.MarkerError, match="has no 'end generated' marker"):
         rd.quoted_blocks([doc])
 
@@ -77,7 +77,7 @@ def test_a_changed_figure_is_caught_and_a_changed_timing_is_not():
     figure = _with_cell(q.text, 2, "mean (mm)", lambda c: c[:4] + str((int(c[4]) + 1) % 10) + c[5:])
     assert figure != q.text
     diff = rd.compare(q, figure)
-    assert diff is not None and "ur10.md, line" in diff and "python benchmarks/study_ur10.py" in diff
+    assert diff is not None and "ur10.md, line" in diff and "python benchmarks/studies/study_ur10.py" in diff
     doc_cell = rd._cells(q.text.splitlines()[4])[5]
     now_cell = rd._cells(figure.splitlines()[4])[5]
     assert any(ln.startswith("-|") and doc_cell in ln for ln in diff.splitlines())
@@ -97,7 +97,7 @@ def test_write_replaces_only_changed_blocks(tmp_path):
     doc = tmp_path / "x.md"
     table = ("| model | free | AIC | BIC | validation mean mm |\n|---|---|---|---|---|\n"
              "| `k` | 1 | 2.00 | 3.00 | 0.4 |\n")
-    doc.write_text("text\n<!-- generated: guide-aic (python benchmarks/guide_figures.py) -->\n" + table
+    doc.write_text("text\n<!-- generated: guide-aic (python benchmarks/docs/guide_figures.py) -->\n" + table
                    + "<!-- end generated -->\nmore\n")
     assert rd.write(rd.quoted_blocks([doc]), {"guide": "AIC and BIC ...\n\n" + table}) == []
     assert rd.write(rd.quoted_blocks([doc]), {"guide": "AIC and BIC ...\n\n" + table.replace("0.4", "0.5")}) == [doc]
@@ -110,4 +110,5 @@ def test_quoted_tables_match_the_code(job):
     """Run the job (its documented seeds and arguments); every block it fills must match, timings aside."""
     output = rd.run_job(job, verbose=False)
     problems = rd.check_job(job, output)
-    assert not problems, "\n\n".join(problems) + "\n\nregenerate: python benchmarks/regenerate_docs.py --jobs " + job
+    assert not problems, ("\n\n".join(problems) + "\n\nregenerate: python benchmarks/docs/regenerate_docs.py --jobs "
+                          + job)

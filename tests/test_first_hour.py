@@ -49,7 +49,7 @@ import subprocess  # noqa: E402
 import sys  # noqa: E402
 import warnings  # noqa: E402
 
-sys.path.insert(0, str(ROOT / "benchmarks"))
+sys.path.insert(0, str(ROOT / "benchmarks" / "docs"))
 from guide_runner import parse  # noqa: E402
 
 #: options whose value is a file or folder a command writes

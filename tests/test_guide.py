@@ -1,7 +1,7 @@
 """docs/guide.md runs top to bottom as written, and what it quotes is what the commands print.
 
 The conventions (which fences run, which quote an output, which compare with a file) are in
-``benchmarks/guide_runner.py``. The whole guide runs under ``pytest -m slow`` (about 3 minutes on 2
+``benchmarks/docs/guide_runner.py``. The whole guide runs under ``pytest -m slow`` (about 3 minutes on 2
 cores, 5 at load 5: two diagnoses with --transfer, the README job and a 40-repetition study); the fast
 tests here check the conventions on small guides of their own, so that the runner demonstrably fails
 where a step fails or a quoted figure differs.
@@ -17,7 +17,7 @@ from pathlib import Path
 import pytest
 
 ROOT = Path(__file__).resolve().parents[1]
-sys.path.insert(0, str(ROOT / "benchmarks"))
+sys.path.insert(0, str(ROOT / "benchmarks" / "docs"))
 import guide_runner  # noqa: E402
 from guide_runner import GuideFailure, check_lines, check_output, parse, quoted_pattern, run  # noqa: E402
 

@@ -1,7 +1,7 @@
 """Start-up: a command imports what it uses and nothing else (issue 26, item 4).
 
 Each command runs in a fresh process that prints what it imported; the
-figures of each command's start-up are ``benchmarks/bench_startup.py``'s.
+figures of each command's start-up are ``benchmarks/speed/bench_startup.py``'s.
 """
 
 import json
