@@ -48,10 +48,10 @@ from ..threads import limited_threads
 from .backward import drop_redundant, drop_unphysical
 from .candidates import Candidate, compose_spec, shortlist
 from .catalogue import Catalogue, not_tried
+from .compensator import compensator_step
 from .design import assess, priors
 from .findings import UnexplainedLog, describe
 from .gaps import set_aside_note, untried_alternatives
-from .layer import layer_step
 from .nameable import JOINT_CAUSES, cause_checks, unjudged
 from .never_worse import final_check, validation_note
 from .periodogram import Periodogram
@@ -452,8 +452,8 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
     parametric = current
     final, final_spec = current, compose_spec(accepted, geometric)
     if s.blackbox:
-        final, final_spec = layer_step(current, final_spec, cal, val, dg.schemes, s, dg.steps, dg.findings, say,
-                                       parent=dg.step_of(current))
+        final, final_spec = compensator_step(current, final_spec, cal, val, dg.schemes, s, dg.steps, dg.findings, say,
+                                             parent=dg.step_of(current))
     say("findings: their values, evidence and figures in the final model")
     describe(dg.findings, dg.support, dg.before, final, cal)
     untried_alternatives(dg.findings, dg.not_tried)      # a joint's named cause may be its untried compliance

@@ -153,9 +153,9 @@ def findings_study(dg, final: CalibrationResult, parametric: CalibrationResult, 
               f"the structure kept out of joint {f.candidate.joint}: the model with it" for f in dg.findings]
     out = study(final, dg.kinematic, without, len(dg.findings), other, s.transfer_base_poses, n_refit, s.seed,
                 dg.say, labels=labels, todo=todo)
-    # the named causes alone there (the final model unless a black box was added)
+    # the named causes alone there (the final model unless the GP compensator was added)
     if parametric is not final:
-        dg.say("transfer: the named causes alone, without the session compensator")
+        dg.say("transfer: the named causes alone, without the GP compensator")
     named_only = out.final if parametric is final else travel(parametric, other, out.split)
     for k, f in enumerate(dg.findings):
         if k in out.gains:

@@ -35,7 +35,7 @@ _NOT_PLANNED = ("unexplained",)
 
 
 def parametric_spec(spec: str) -> str:
-    """The final model's specification without its black-box layer and session frames (planned for apart)."""
+    """The final model's specification without its GP compensator and session frames (planned for apart)."""
     keep = [t.spec() for t in parse_spec(spec) if t.cause not in _NOT_PLANNED
             and t.name not in ("sessions", "tool_orientation")]
     return "+".join(keep)
