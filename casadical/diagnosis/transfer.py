@@ -124,7 +124,7 @@ def findings_study(dg, final: CalibrationResult, parametric: CalibrationResult, 
                    geometric: bool, other: Measurements) -> TransferStudy:
     """Take a diagnosis (``dg``: its findings, fits and kinematic model) to ``other``; set each finding's verdict.
 
-    ``parametric`` is the model of the named causes (``final`` without a black box); a named finding is
+    ``parametric`` is the model of the named causes (``final`` without the GP compensator); a named finding is
     judged against the model refitted without it, structure kept out against the model refitted with it.
     """
     s = dg.s

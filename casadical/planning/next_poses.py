@@ -30,7 +30,7 @@ from ..threads import limited_threads
 from .augment import Criterion, DsDesign, ds_design
 from .questions import Question
 
-#: terms of a final model that are not parameters to plan for: black boxes, the probe's orientation
+#: terms of a final model that are not parameters to plan for: compensators, the probe's orientation
 _NOT_PLANNED = ("unexplained",)
 
 
