@@ -12,10 +12,11 @@ sessions). It applies only where its predictive uncertainty says it knows
 the residual; elsewhere the physical model stands alone, and
 :func:`gp_compensator_coverage` says at how many poses that was.
 
-:func:`gp_compensator_held_out` judges the compensator as the diagnosis judges every step: on
-cross-validation folds (random, time-blocked, joint-blocked, each session
-left out), with the hyperparameters of the fit on all poses and the
-process conditioned on each fold's training poses only.
+:func:`gp_compensator_held_out` judges the compensator as the diagnosis
+judges every step: on cross-validation folds (random, time-blocked,
+joint-blocked, each session left out), with the hyperparameters of the fit
+on all poses and the process conditioned on each fold's training poses
+only.
 """
 
 from __future__ import annotations
@@ -49,8 +50,8 @@ def gp_compensator_data(result: CalibrationResult, data: Measurements) -> tuple[
 
 
 def fit_gp_compensator(result: CalibrationResult, data: Measurements, max_std_ratio: float = MAX_STD_RATIO,
-              seed: int = 0, progress: Callable[[str], None] | None = None
-              ) -> tuple[dict[str | None, ResidualGP], dict[str | None, np.ndarray]]:
+                       seed: int = 0, progress: Callable[[str], None] | None = None
+                       ) -> tuple[dict[str | None, ResidualGP], dict[str | None, np.ndarray]]:
     """A Gaussian process of the residual per session (key None for data of one session), and the poses of
     ``data`` each learnt from; ``progress`` receives a line per session."""
     X, Y, keep = gp_compensator_data(result, data)
@@ -69,7 +70,7 @@ def fit_gp_compensator(result: CalibrationResult, data: Measurements, max_std_ra
 
 
 def with_gp_compensator(result: CalibrationResult, gps: dict[str | None, ResidualGP], data: Measurements,
-               note: str) -> CalibrationResult:
+                        note: str) -> CalibrationResult:
     """``result`` with the processes added to its model as ``gp_compensator`` terms (the values kept)."""
     m = result.model
     terms = [t for t in m.terms if t.name != "gp_compensator"]

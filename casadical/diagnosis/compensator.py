@@ -2,9 +2,9 @@
 
 After the named causes, what remains is learnt by the GP compensator, one
 per session (:mod:`casadical.compensators.per_session`: a Gaussian process
-of the joint readings, applied where it knows). It is judged on the calibration poses'
-folds (its hyperparameters from all poses, the process conditioned on each
-fold's training poses): it must lower the held-out error significantly where
+of the joint readings, applied where it knows). It is judged on the
+calibration poses' folds (its hyperparameters from all poses, the process
+conditioned on each fold's training poses): it must lower the held-out error significantly where
 the model interpolates (random folds; paired, one-sided, at the diagnosis's
 level), not raise it where it must extrapolate (time blocks, joint-range
 blocks, each session left out: there it should know that it does not know,
