@@ -10,7 +10,7 @@ URDF gives 0.41 mm.
 
 :func:`geometric_equivalent` refits the geometry alone to reproduce the
 full physical model (the causes of the robot: terms of the measurement
-session, such as a drift or the session compensator, are left out) over
+session, such as a drift or the GP compensator, are left out) over
 the calibrated workspace: the calibration's own poses, at a stated
 payload (a file written by an earlier version holds none: then poses
 drawn within the joint limits, said in a warning). What the geometry cannot reproduce is reported as its departure

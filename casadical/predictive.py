@@ -7,9 +7,10 @@ Two parts, independent and added in variance:
   Jacobian at the pose, ``Sigma = J C J^T`` (linearised; a Monte Carlo of
   ``C`` agrees within a few per cent where the model is nearly linear in its
   parameters, as calibration models are);
-- the **accuracy layer** (a session compensator, :mod:`casadical.accuracy`):
-  its Gaussian processes' predictive std where they know the residual,
-  their prior std where they do not (there the layer adds nothing and the
+- the **GP compensator** (one per session,
+  :mod:`casadical.compensators.per_session`): its Gaussian processes'
+  predictive std where they know the residual, their prior std where they
+  do not (there the compensator adds nothing and the
   residual the named causes leave is all there is).
 
 The figure per pose is ``sqrt(trace Sigma)``: the rms length of the 3-D
@@ -34,8 +35,8 @@ def prediction_std(result: CalibrationResult, data: Measurements) -> tuple[np.nd
     -------
     params : ndarray, shape (N,)
         From the parameters' covariance: ``sqrt(trace(J C J^T))``.
-    layer : ndarray, shape (N,) or None
-        From the accuracy layer (None without one): ``sqrt`` of the sum of its three components' variances.
+    compensator : ndarray, shape (N,) or None
+        From the GP compensator (None without one): ``sqrt`` of the sum of its three components' variances.
 
     Raises
     ------
@@ -52,18 +53,18 @@ def prediction_std(result: CalibrationResult, data: Measurements) -> tuple[np.nd
     G = J[:, :, idx]                                   # (N, 3, k)
     var = np.einsum("nik,kl,nil->n", G, unc.covariance, G)
     params = np.sqrt(np.clip(var, 0.0, None))
-    layer = None
+    compensator = None
     for t in model.terms:
         inner = t.inner if isinstance(t, SessionLocal) else t
         if inner.name != "gp_compensator" or inner.gp is None:
             continue
         rows = np.arange(len(data)) if not isinstance(t, SessionLocal) else (
             np.flatnonzero(data.sessions == t.session_name) if data.sessions is not None else np.zeros(0, int))
-        if layer is None:
-            layer = np.zeros(len(data))
+        if compensator is None:
+            compensator = np.zeros(len(data))
         if len(rows):
-            layer[rows] = np.sqrt(np.sum(inner.gp.predictive_std(data.q[rows]) ** 2, axis=1))
-    return params, layer
+            compensator[rows] = np.sqrt(np.sum(inner.gp.predictive_std(data.q[rows]) ** 2, axis=1))
+    return params, compensator
 
 
 def accuracy_map(result: CalibrationResult, measured_q: np.ndarray | None = None, joints: tuple[int, int] | None = None,

@@ -6,9 +6,9 @@ superset's vector (the terms it lacks at their zero effect), its covariates by n
 any joint and harmonic enters through the chain angle as ``s sin(h q_j) + c cos(h q_j)``, its columns the
 Jacobian w.r.t. that offset times ``sin`` and ``cos``; a term of one session (``c2@B``) is its cause's
 term with the parameter per pose (``c2 + [pose in B] c2@B``: every such cause is linear in its
-parameters), its column the cause's at that session's poses; a session compensator's Gaussian process
+parameters), its column the cause's at that session's poses; a GP compensator's Gaussian process
 (frozen) is evaluated in numpy and enters as an offset of the tool point before the base pose. A model the
-superset cannot express (a compensator's network in the graph, the legacy backlash sign, a drift of the
+superset cannot express (an RBF compensator's network in the graph, the legacy backlash sign, a drift of the
 robot and of a session together) has no mapping and is evaluated on its own graph.
 
 The superset's four functions (``fk``: the measured quantities; ``jac``: them and their Jacobian w.r.t.
@@ -83,7 +83,7 @@ def chain_offset(j: int) -> str:
 
 class PointOffset(ErrorTerm):
     """A per-pose offset of the tool point in the robot's base frame (covariates ``point_offset_x/y/z``, m):
-    where a frozen compensator's prediction enters (a session compensator's Gaussian process, evaluated in
+    where a frozen compensator's prediction enters (a GP compensator's Gaussian process, evaluated in
     numpy by :meth:`Mapping.inputs`, as the compensator's own graph adds it before the base pose)."""
 
     name = "point_offset"

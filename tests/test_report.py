@@ -675,7 +675,7 @@ def test_readme_verbose_has_the_steps_and_their_models(readme_job, tmp_path):
     legend = "\n".join(lines[at["models ("] + 1:at["evidence of each"]])
     specs = re.sub(r"\+\n\s+", "+", re.sub(r",\n\s+", ",", legend))
     doc = json.loads((d / "report.json").read_text())
-    for k, s in enumerate(doc["steps"][:-1], 1):      # (the last: the accuracy layer, not tried here)
+    for k, s in enumerate(doc["steps"][:-1], 1):      # (the last: the GP compensator, not tried here)
         assert re.search(rf"^\s+{k}\s+{re.escape(s['model'])}$", specs, re.M), s["model"]
     assert "+ encoder scale j1" in r.stdout and "not accepted: " in r.stdout
     assert not _signed_gain(r.stdout)

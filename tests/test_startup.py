@@ -49,13 +49,14 @@ def files(tmp_path_factory):
     return d
 
 
-def test_calibrate_imports_no_planning_no_layer_no_scipy(files):
-    """A kinematic calibration of positions: no scipy (its linear algebra comes with the accuracy layer, its
-    rotations with measured orientations), no planning, importers, compensators or accuracy layer."""
+def test_calibrate_imports_no_planning_no_compensator_no_scipy(files):
+    """A kinematic calibration of positions: no scipy (its linear algebra comes with the GP compensator, its
+    rotations with measured orientations), no planning, importers or compensators (the GP compensator's
+    casadical.compensators.per_session among them)."""
     mods = _imported(["calibrate", str(files / "arm.toml"), str(files / "poses.csv"), "--model", "kinematic",
                       "--out", str(files / "cal.json"), "--force", "--quiet"], files)
     assert "casadical.calibration" in mods
-    assert _packages(mods, NEVER + ("scipy", "casadical.accuracy", "casadical.compensators")) == []
+    assert _packages(mods, NEVER + ("scipy", "casadical.compensators", "casadical.compensators.per_session")) == []
 
 
 def test_predict_imports_no_calibration_pipeline(files):

@@ -106,7 +106,7 @@ def test_the_superset_gives_every_models_own_numbers(arm, seed):
 @pytest.mark.parametrize("arm", [ARM4, ARM7], ids=["arm4-mdh", "arm7-mdh-beta"])
 @pytest.mark.parametrize("orientation", [False, True])
 def test_session_compensators_map_onto_the_superset(arm, orientation):
-    """A session compensator's Gaussian process (frozen: evaluated in numpy, an offset of the tool point before
+    """A GP compensator's Gaussian process (frozen: evaluated in numpy, an offset of the tool point before
     the base pose) gives the model's own graph's positions, orientation residuals and Jacobians, where its
     gate and its session say it applies and nowhere else."""
     from casadical.compensators.gp import ResidualGP

@@ -8,7 +8,7 @@ Targets (issue "Diagnosis"): 80 calibration + 200 validation poses within
 diagnosis without the score test would do in its first round: calibrate the
 model extended by each candidate, one by one. Issue 19 asked for a diagnosis
 of 2,000 poses to be measured (about 25 s on a busy machine before it): the
-third case, and with --real the real data, the accuracy layer included.
+third case, and with --real the real data, the GP compensator included.
 """
 
 from __future__ import annotations
@@ -80,7 +80,7 @@ def main() -> None:
         cal, val = data.subset(idx), data.subset(np.setdiff1d(np.arange(len(data)), idx))
         t = time.perf_counter()
         rep = diagnose(load_robot("ur10"), cal, val, DiagnosisSettings())
-        print(f"\nreal UR10 series A, 2,000 + {len(val):,} poses (full pose, accuracy layer): diagnose "
+        print(f"\nreal UR10 series A, 2,000 + {len(val):,} poses (full pose, GP compensator): diagnose "
               f"{time.perf_counter() - t:.1f} s; final {rep.final_model}: validation mean "
               f"{rep.final_validation.mean_mm:.4f} mm (kinematic {rep.kinematic_validation.mean_mm:.4f})")
 

@@ -89,7 +89,7 @@ def _casadical(args: list[str], d: Path, tree: Path | None = None) -> None:
 
 def inputs(d: Path, tree: Path | None) -> None:
     """The data: the README's split of series B (300 calibration poses), 40 of the other poses as validation
-    (full pose, and their positions alone), a calibration with the session compensator
+    (full pose, and their positions alone), a calibration with the GP compensator
     (``kinematic+gp_compensator``) for predict, compensate, export, and a kinematic one of the positions.
     The calibrations are made by ``tree`` (the older code, whose files the newer reads)."""
     _casadical(["split", str(SERIES), "-n", "300", "--seed", "0", "--out-cal", str(d / "cal.csv"), "--out-val",

@@ -1,15 +1,15 @@
-"""Real UR10 series A and B: causes that are physics, the accuracy layer, and what carries to the other series.
+"""Real UR10 series A and B: causes that are physics, the GP compensator, and what carries to the other series.
 
 For each source series (A, B) and seed, on 300 random calibration poses of it (the rest of the series judges
 in series, never fitted):
 
-1. ``diagnose`` (the default: full pose, the accuracy layer), with ``--transfer`` to the other series;
+1. ``diagnose`` (the default: full pose, the GP compensator), with ``--transfer`` to the other series;
 2. **rules**: every cause the final model names passes every rule of ``casadical.physics`` (inside its bounds,
    told from the geometry, significant, meaningful over the data);
 3. **in series**: the final model's mean error on the untouched poses, beside a kinematic calibration of the
    same poses plus a plain Gaussian process of its residual (one length scale per joint and per component,
    applied at every pose: the simple alternative the issue names) and the kinematic calibration alone; and,
-   per split, the accuracy layer against that plain GP, mean and worst error, with the named causes it
+   per split, the GP compensator against that plain GP, mean and worst error, with the named causes it
    extends (issue 25 item 6: at least as good in every split, never raising the worst case);
 4. **across**: the physical model (the named causes of the robot; what belongs to the session is dropped by the
    transfer) frozen in the other series with the geometry refitted there on 300 poses, against a kinematic refit
@@ -102,12 +102,13 @@ def one(robot, src: Measurements, other: Measurements, name: str, n: int, seed: 
     final = rep.final
     kin_mm, kin_gp_mm, kin_max, kin_gp_max = kinematic_gp(robot, cal, val)
     doc = rep.to_dict()
-    layer = next((s for s in rep.steps if s.model.endswith("gp_compensator")), None)
-    parent = rep.steps[layer.parent] if layer is not None and layer.parent is not None else None
+    compensator = next((s for s in rep.steps if s.model.endswith("gp_compensator")), None)
+    parent = rep.steps[compensator.parent] if compensator is not None and compensator.parent is not None \
+        else None
     out = {"series": name, "n": n, "seed": seed, "time_s": took, "final_model": rep.final_model,
            "final_val_mm": rep.final_validation.mean_mm, "kinematic_val_mm": kin_mm, "kinematic_gp_val_mm": kin_gp_mm,
            "final_max_mm": rep.final_validation.max_mm, "kinematic_max_mm": kin_max, "kinematic_gp_max_mm": kin_gp_max,
-           "layer_kept": bool(layer is not None and layer.accepted),
+           "compensator_kept": bool(compensator is not None and compensator.accepted),
            "named_val_mm": [parent.validation.mean_mm, parent.validation.max_mm] if parent is not None else None,
            "broken_rules": broken_rules(final, cal), "across": across(final, robot, other, n, seed),
            "findings": [{"label": f.label(), "cause": f.cause, "scope": f.scope, "in_model": f.in_model,
@@ -159,8 +160,8 @@ def main() -> None:
                   f"{r['time_s']:.0f} s", flush=True)
             print(f"      {r['final_model']}")
             named = r["named_val_mm"]
-            print(f"      layer vs plain GP: final {r['final_val_mm']:.4f} / max {r['final_max_mm']:.4f} mm "
-                  f"({'layer kept' if r['layer_kept'] else 'no layer'}; the named causes it extends "
+            print(f"      GP compensator vs plain GP: final {r['final_val_mm']:.4f} / max {r['final_max_mm']:.4f} mm "
+                  f"({'compensator kept' if r['compensator_kept'] else 'no compensator'}; the named causes it extends "
                   + (f"{named[0]:.4f} / {named[1]:.4f}" if named else "-") + f"), kinematic + plain GP "
                   f"{r['kinematic_gp_val_mm']:.4f} / {r['kinematic_gp_max_mm']:.4f}, kinematic "
                   f"{r['kinematic_val_mm']:.4f} / {r['kinematic_max_mm']:.4f}")

@@ -1,11 +1,11 @@
-"""Real UR10 sessions: the accuracy layer against a plain GP, and a diagnosed model taken to another session.
+"""Real UR10 sessions: the GP compensator against a plain GP, and a diagnosed model taken to another session.
 
 The sessions: series A cut where the tracker stopped for more than an hour (the pieces of 600 poses or more:
 three sessions, A1-A3) and series B. For each source session and seed, on 300 random calibration poses of it
 (the rest of the session judges, never fitted):
 
-1. **in series**: ``diagnose`` (the default: full pose, the accuracy layer); the final model's mean and max
-   error on the untouched poses, the model the layer extends (the named causes), a kinematic calibration of the
+1. **in series**: ``diagnose`` (the default: full pose, the GP compensator); the final model's mean and max
+   error on the untouched poses, the model the compensator extends (the named causes), a kinematic calibration of the
    same poses and it plus a plain Gaussian process of its residual (:class:`casadical.compensators.gp.ResidualGP`
    applied at every pose);
 2. **taken to each other session** as ``calibrate FINAL.json OTHER.csv --model kinematic`` does (the geometry
@@ -90,11 +90,12 @@ def one(robot, name: str, src: Measurements, others: dict, seed: int) -> dict:
     took = time.perf_counter() - t0
     final = rep.final
     kin_e, gp_e = plain_gp(robot, cal, val, seed)
-    layer = next((s for s in rep.steps if s.model.endswith("gp_compensator")), None)
-    parent = rep.steps[layer.parent] if layer is not None and layer.parent is not None else None
+    compensator = next((s for s in rep.steps if s.model.endswith("gp_compensator")), None)
+    parent = rep.steps[compensator.parent] if compensator is not None and compensator.parent is not None \
+        else None
     out = {"source": name, "seed": seed, "time_s": took, "final_model": rep.final_model,
            "final": stats(final.errors(val)), "kinematic": stats(kin_e), "kinematic_gp": stats(gp_e),
-           "layer_kept": bool(layer is not None and layer.accepted),
+           "compensator_kept": bool(compensator is not None and compensator.accepted),
            "parametric": (parent.validation.mean_mm, parent.validation.max_mm) if parent is not None else None,
            "notes": rep.notes, "transfers": {}}
     for other, data in others.items():
@@ -138,7 +139,7 @@ def main() -> None:
     robot = load_robot("ur10")
     sess = sessions()
     print("sessions: " + ", ".join(f"{k} {len(v)} poses" for k, v in sess.items()))
-    print("source seed | in series (mean / max, mm): kinematic | kin + plain GP | named causes | final (layer) "
+    print("source seed | in series (mean / max, mm): kinematic | kin + plain GP | named causes | final (compensator) "
           "| transfers to the other sessions: carried vs kinematic refit (mm)")
     results = []
     for name in args.sessions or list(sess):
@@ -151,7 +152,7 @@ def main() -> None:
                            f"{t['kinematic_mm']:.4f} {verdict(t)}" for k, t in r["transfers"].items())
             print(f"{name} {seed} | {r['kinematic'][0]:.4f} / {r['kinematic'][1]:.4f} | {r['kinematic_gp'][0]:.4f} / "
                   f"{r['kinematic_gp'][1]:.4f} | {par} | {r['final'][0]:.4f} / {r['final'][1]:.4f} "
-                  f"({'kept' if r['layer_kept'] else 'not kept'}) | {tr} | {r['time_s']:.0f} s", flush=True)
+                  f"({'kept' if r['compensator_kept'] else 'not kept'}) | {tr} | {r['time_s']:.0f} s", flush=True)
     counts = {v: 0 for v in ("better", "tied", "worse", "refused")}
     for r in results:
         for t in r["transfers"].values():

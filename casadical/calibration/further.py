@@ -51,7 +51,7 @@ def take_further(run: CalibrationRun) -> None:
     """Sets ``model``, ``params`` and ``kept`` from the calibration ``run.prior`` and the terms asked for."""
     prior, data, opts = run.prior, run.data, run.options
     merged, named = merge_terms(list(prior.model.terms), run.terms)
-    # what describes the session the calibration was measured in (drift, a session compensator) is not
+    # what describes the session the calibration was measured in (drift, a GP compensator) is not
     # the robot's: it is dropped, unless the model names it (then it is estimated for these poses)
     dropped = [t for t in merged if t.session and (t.name not in named or isinstance(t, SessionLocal)
                                                    or t.name == "sessions")

@@ -3,7 +3,7 @@
 ``+tool`` frees the tool offset; full-pose data add the probe's mounting
 rotation (``tool_orientation``) to any model; a compensator that is still
 to be fitted (``+rbf_compensator``, ``+gp_compensator``) is taken out of the
-terms and fitted after the model (:mod:`.compensator`, :mod:`.layer`).
+terms and fitted after the model (:mod:`.rbf_compensator`, :mod:`.gp_compensator`).
 """
 
 from __future__ import annotations

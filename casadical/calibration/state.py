@@ -92,7 +92,7 @@ class CalibrationRun:
     built: Model | None = None           # the caller's own model (with the probe's mounting, for full pose)
     free_tool: bool = False              # ``+tool``: the tool offset is estimated too
     want_rbf: bool = False               # ``+rbf_compensator``: fitted after the model (add_rbf_compensator)
-    want_gp: bool = False                # ``+gp_compensator``: fitted after the model (add_accuracy_layer)
+    want_gp: bool = False                # ``+gp_compensator``: fitted after the model (add_gp_compensator)
 
     # build_model: the model and its parameters, which of them are free
     model: Model | None = None

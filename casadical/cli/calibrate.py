@@ -58,7 +58,7 @@ def register(sub) -> None:
                         "down-weighted and reported) or none (plain least squares); default %(default)s")
     p.add_argument("--fix", default="", help="comma-separated parameters to hold at nominal (default: none)")
     p.add_argument("--keep-compensator", action="store_true",
-                   help="with a calibration JSON in place of ROBOT: keep its session compensator (gp_compensator), "
+                   help="with a calibration JSON in place of ROBOT: keep its GP compensator (gp_compensator), "
                         "which is dropped otherwise like every term of the session it was fitted on")
     add_session_tool(p)
     p.add_argument("--validate", metavar="VAL.csv",
@@ -87,7 +87,7 @@ def run(args) -> int:
     check_outputs({"--out": args.out, "--html": args.html}, [args.robot, *args.data, args.validate], args.force)
     robot = robot_or_calibration(args.robot, args)
     if args.keep_compensator and not (isinstance(robot, CalibrationResult) and robot.model.term("gp_compensator")):
-        raise InputError("--keep-compensator keeps the session compensator of a calibration taken further: "
+        raise InputError("--keep-compensator keeps the GP compensator of a calibration taken further: "
                          + (f"{args.robot} has none" if isinstance(robot, CalibrationResult)
                             else "give a calibration JSON in place of ROBOT"))
     n = robot.model.robot.n if isinstance(robot, CalibrationResult) else robot.n

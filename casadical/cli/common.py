@@ -341,15 +341,15 @@ def warn_session_frame(sessions: list[str], data, holder: str) -> None:
 
 
 def compensator_line(cal, data) -> str:
-    """Where the session compensator (the accuracy layer) applied, in words ('' without one)."""
-    from ..accuracy import layer_coverage
+    """Where the GP compensator (one per session) applied, in words ('' without one)."""
+    from ..compensators.per_session import gp_compensator_coverage
 
-    known, total = layer_coverage(cal, data)
+    known, total = gp_compensator_coverage(cal, data)
     if not total:
         return ""
-    return (f"session compensator (a Gaussian process of the residual): applied at {known} of {total} poses; "
-            f"at the other {total - known} it does not know the residual (too far from the poses it learnt from) and "
-            "the physical model stands alone")
+    return (f"GP compensator (a Gaussian process of the residual, one per session): applied at {known} of {total} "
+            f"poses; at the other {total - known} it does not know the residual (too far from the poses it learnt "
+            "from) and the physical model stands alone")
 
 
 # --- progress ------------------------------------------------------------------------

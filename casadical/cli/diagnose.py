@@ -28,7 +28,7 @@ def register(sub) -> None:
     p = sub.add_parser("diagnose", help="find what the model gets wrong, name the cause, measure the gain",
                        description="Calibrate on DATA step by step (nominal, geometric, then candidate causes: "
                                    "joint compliance and progressive stiffness, encoder scale, backlash, thermal "
-                                   "expansion, drift, periodic gear errors, then a black-box compensator). A "
+                                   "expansion, drift, periodic gear errors, then the GP compensator). A "
                                    "cause is accepted only when the calibration data support it: significance "
                                    "(F-test, BIC) and held-out errors on folds that must extrapolate (time "
                                    "blocks, joint-range blocks) as well as interpolate; a periodic error must "
@@ -75,7 +75,7 @@ def register(sub) -> None:
     p.add_argument("--robust", default="huber", choices=["huber", "none"],
                    help="loss of every fit, as for calibrate (default: %(default)s)")
     p.add_argument("--no-blackbox", "--no-layer", action="store_true",
-                   help="skip the accuracy layer (a session compensator of what the named causes leave)")
+                   help="skip the GP compensator (a Gaussian process, one per session, of what the named causes leave)")
     p.add_argument("--position-only", action="store_true",
                    help="fit on the positions alone; without it, data with a measured orientation (rx_deg, ry_deg, "
                         "rz_deg) are fitted on the full pose, as by calibrate (the screening of candidates works on "

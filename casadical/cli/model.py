@@ -50,7 +50,7 @@ def register(sub) -> None:
     p.add_argument("--out", required=True, metavar="OUT.csv", help="output CSV")
     p.add_argument("--std", action="store_true",
                    help="also write std_mm, the predicted position's uncertainty at each pose (rms 3-D error of the "
-                        "prediction): the parameters' covariance (std_params_mm) and, with an accuracy layer, its "
+                        "prediction): the parameters' covariance (std_params_mm) and, with a GP compensator, its "
                         "predictive std (std_layer_mm); MODEL must be a calibration JSON")
     add_checks(p)
     add_urdf_chain(p)

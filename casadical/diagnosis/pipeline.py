@@ -21,9 +21,9 @@ session's; :mod:`.catalogue`). The poses the final fit sets aside are
 tested for shared structure before they are called bad measurements
 (:mod:`casadical.set_aside`, :mod:`.gaps`), and what these data cannot test
 is said (:func:`.catalogue.not_tried`). The validation poses judge every step and are never used
-to accept one. The accuracy layer last (:mod:`.layer`: a session
-compensator that applies where it knows) takes what no named cause
-explains; :mod:`.transfer` takes the findings to another series.
+to accept one. The GP compensator last (:mod:`.compensator`: one per
+session, applied where it knows) takes what no named cause explains;
+:mod:`.transfer` takes the findings to another series.
 
 Each stage is a function ``stage(run)`` of its own module that reads what the stages before it set on the
 :class:`~.state.DiagnosisRun` and sets its own fields; :data:`STAGES` is their order. To add a stage, write
@@ -38,10 +38,10 @@ from typing import Callable
 from ..data import Measurements
 from ..robot import Robot
 from ..threads import limited_threads
+from .compensator import add_compensator
 from .describe import describe_findings
 from .geometry import fit_geometry
 from .judge import judge_final_model
-from .layer import add_compensator
 from .never_worse import keep_never_worse
 from .nominal import fit_nominal
 from .outcome import assemble_report
@@ -63,7 +63,7 @@ STAGES: tuple[Callable[[DiagnosisRun], None], ...] = (
     drop_redundant,     # final check: is every cause still needed?
     drop_unphysical,    # final check: is every cause still physics?
     keep_never_worse,   # final check: never worse than the kinematic model, in mean and worst case
-    add_compensator,    # the session compensator of what no named cause explains, judged like every step
+    add_compensator,    # the GP compensator of what no named cause explains (one per session), judged like a step
     describe_findings,  # each finding's values, evidence, figure and scope; the structure that cannot be named
     judge_final_model,  # the validation poses on the final model; the residual, sag and set-aside poses
     transfer_findings,  # with another series: does each finding hold up there?

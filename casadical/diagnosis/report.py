@@ -68,14 +68,14 @@ class Step:
     @property
     def label(self) -> str:
         """A few words: ``nominal``, ``kinematic``, ``+ compliance j2``, ``+ periodic j2 h17``, ``+ drift @B``,
-        ``+ session compensator``; the whole model is :attr:`model`."""
+        ``+ GP compensator``; the whole model is :attr:`model`."""
         c = self.candidate
         if c is None:
             return self.model          # the nominal model
         if c.cause == "geometric":
             return "kinematic"
         if c.cause == "unexplained":
-            return "+ session compensator"
+            return "+ GP compensator"
         return "+ " + c.label(short=True)
 
     def to_dict(self) -> dict:

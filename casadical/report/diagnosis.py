@@ -25,7 +25,7 @@ def short_label(cand) -> str:
 
 
 def step_label(step: Step) -> str:
-    """A step in a few words (:attr:`Step.label`): ``kinematic``, ``+ compliance j2``, ``+ session compensator``."""
+    """A step in a few words (:attr:`Step.label`): ``kinematic``, ``+ compliance j2``, ``+ GP compensator``."""
     return step.label
 
 
@@ -117,7 +117,7 @@ def _final_label(report: DiagnosisReport) -> str:
     named = sum(f.in_model and f.cause not in ("geometric", "unexplained") for f in report.findings)
     bb = any(f.in_model and f.cause == "unexplained" for f in report.findings)
     base = "kinematic" if any(f.cause == "geometric" for f in report.findings) else "nominal"
-    return base + (f" + {named} cause(s)" if named else "") + (" + session compensator" if bb else "")
+    return base + (f" + {named} cause(s)" if named else "") + (" + GP compensator" if bb else "")
 
 
 # --- the answer: findings and what to do, the final model's errors ----------------------
@@ -508,7 +508,7 @@ def _accuracy(page: Page, report: DiagnosisReport, poses, joints) -> None:
     others = ", ".join(f"q{k + 1} {v:.0f}" for k, v in enumerate(m["others_deg"]) if k + 1 not in (ja, jb))
     where = "the calibration poses' median" if poses is not None else "the middle of their ranges"
     caption = (f"Predicted uncertainty of the final model's tool point (rms 3-D error of the prediction, mm: the "
-               f"parameters' covariance plus the accuracy layer's predictive std) over joints {ja} and {jb}; the "
+               f"parameters' covariance plus the GP compensator's predictive std) over joints {ja} and {jb}; the "
                f"other joints at {where} ({others} deg)." + (" Dots: the calibration poses." if poses is not None
                                                             else ""))
     ref = page.figure(partial(_accuracy_plot, m), "fig-accuracy", caption)

@@ -1,6 +1,6 @@
-"""The accuracy layer (issue 25 item 6, issue 26 item 3): the same hyperparameters as scikit-learn's fit at a
-fraction of its cost, its support chosen on the folds, and at least as good as a plain GP of the kinematic
-residual, on an arm that is not built in."""
+"""The GP compensator, the diagnosis's last step (issue 25 item 6, issue 26 item 3): the same hyperparameters
+as scikit-learn's fit at a fraction of its cost, its support chosen on the folds, and at least as good as a
+plain GP of the kinematic residual, on an arm that is not built in."""
 
 import math
 
@@ -13,7 +13,7 @@ from casadical import calibrate
 from casadical.compensators.gp import FIT_ITERATIONS, LENGTH_BOUNDS, ResidualGP, log_likelihood, squared_differences
 from casadical.data import Measurements
 from casadical.diagnosis import DiagnosisSettings, diagnose
-from casadical.diagnosis.layer import SUPPORTS
+from casadical.diagnosis.compensator import SUPPORTS
 from casadical.robot import robot_from_dict
 
 
@@ -53,11 +53,11 @@ def test_likelihood_and_fit_are_scikit_learns():
 
 
 @pytest.mark.parametrize("seed", [0, 1])
-def test_layer_at_least_as_good_as_a_plain_gp(tmp_path, seed):
+def test_gp_compensator_at_least_as_good_as_a_plain_gp(tmp_path, seed):
     """A seven-axis arm with a compliance, a gear error and a smooth error no named cause explains (a coupling
-    of joints 2 and 4, 0.3 mm): the final model, with the layer, predicts the other poses at least as well as a
+    of joints 2 and 4, 0.3 mm): the final model, with the GP compensator, predicts the other poses at least as well as a
     kinematic calibration plus a plain Gaussian process of its residual, and its worst error is no higher
-    (5 %); the layer's support is one of those tried, chosen on the folds."""
+    (5 %); the compensator's support is one of those tried, chosen on the folds."""
     robot = robot_from_dict(ARM7_DH)
     rng = np.random.default_rng(seed)
     truth = TrueRobot.draw(Arm.from_dict(ARM7_DH), Effects(stiffness={2: 4e4},
@@ -76,14 +76,14 @@ def test_layer_at_least_as_good_as_a_plain_gp(tmp_path, seed):
     R = kin.base_matrix()[:3, :3]
     gp = ResidualGP.fit(cal.q, kin.residuals(cal) @ R, seed=seed)
     plain = np.linalg.norm(kin.predict(val) + gp.predict(val.q) @ R.T - val.xyz, axis=1) * 1000
-    layer = next(f for f in rep.findings if f.cause == "unexplained" and f.in_model)
-    assert layer.holds_up["support"] in SUPPORTS
+    compensator = next(f for f in rep.findings if f.cause == "unexplained" and f.in_model)
+    assert compensator.holds_up["support"] in SUPPORTS
     assert rep.final_validation.mean_mm <= plain.mean(), (rep.final_model, rep.final_validation.mean_mm, plain.mean())
     assert rep.final_validation.max_mm <= 1.05 * plain.max(), (rep.final_validation.max_mm, plain.max())
 
 
 def test_paired_gain_is_scipys_wilcoxon():
-    """The layer's test of its gain: scipy's one-sided Wilcoxon signed-rank test, with zeros and ties, computed
+    """The GP compensator's test of its gain: scipy's one-sided Wilcoxon signed-rank test, with zeros and ties, computed
     without importing scipy.stats for large samples."""
     from scipy import stats
 
@@ -94,7 +94,7 @@ def test_paired_gain_is_scipys_wilcoxon():
         for shift in (0.0, 0.05, 0.2):
             before = rng.gamma(2.0, 1.0, n)
             after = before - rng.normal(shift, 0.3, n)
-            after[: n // 5] = before[: n // 5]                    # poses where the layer adds nothing
+            after[: n // 5] = before[: n // 5]                    # poses where the compensator adds nothing
             before[-10:], after[-10:] = np.round(before[-10:], 1), np.round(after[-10:], 1)    # ties
             expected = stats.wilcoxon(before - after, alternative="greater").pvalue
             assert paired_gain(before, after) == pytest.approx(expected, rel=1e-9, abs=1e-300)

@@ -1,21 +1,22 @@
-"""The accuracy layer: a session compensator on top of the physical model, and where it holds.
+"""The GP compensator (one per session): fitted, applied where it knows, judged on folds.
 
 The named causes make the physical model: what holds for the robot, in
 any session. What they leave is partly structure of the session (the
 tracker's own errors, the state of the robot that day) that no cause
-explains but that predicts other poses of the same session. The accuracy
-layer learns it with a Gaussian process of the joint readings
+explains but that predicts other poses of the same session. The GP
+compensator learns it with a Gaussian process of the joint readings
 (:class:`casadical.compensators.gp.ResidualGP`, one per session), in the
 robot base frame of each pose's session, and adds it to the model as a
 ``gp_compensator`` term (``gp_compensator@<session>`` with several
 sessions). It applies only where its predictive uncertainty says it knows
 the residual; elsewhere the physical model stands alone, and
-:func:`layer_coverage` says at how many poses that was.
+:func:`gp_compensator_coverage` says at how many poses that was.
 
-:func:`held_out` judges the layer as the diagnosis judges every step: on
-cross-validation folds (random, time-blocked, joint-blocked, each session
-left out), with the hyperparameters of the fit on all poses and the
-process conditioned on each fold's training poses only.
+:func:`gp_compensator_held_out` judges the compensator as the diagnosis
+judges every step: on cross-validation folds (random, time-blocked,
+joint-blocked, each session left out), with the hyperparameters of the fit
+on all poses and the process conditioned on each fold's training poses
+only.
 """
 
 from __future__ import annotations
@@ -25,20 +26,20 @@ from typing import Callable
 
 import numpy as np
 
-from .compensators.gp import MAX_STD_RATIO, ResidualGP
-from .data import Measurements, session_index
-from .model import Model
-from .result import CalibrationResult, learning_mask, rebuilt
-from .terms import SessionLocal, make_term
-from .threads import limited_threads
+from ..data import Measurements, session_index
+from ..model import Model
+from ..result import CalibrationResult, learning_mask, rebuilt
+from ..terms import SessionLocal, make_term
+from ..threads import limited_threads
+from .gp import MAX_STD_RATIO, ResidualGP
 
 #: a session's process learns from at most this many of its poses (drawn at random): its cost grows with the cube
 #: of the poses, in the fit and in every held-out fold, and its size in the model with their number
 MAX_POSES = 600
 
 
-def layer_data(result: CalibrationResult, data: Measurements) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """What the layer learns from: joint readings (rad), residuals (measured minus predicted, m) in the robot
+def gp_compensator_data(result: CalibrationResult, data: Measurements) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What the GP compensator learns from: joint readings (rad), residuals (measured minus predicted, m) in the robot
     base frame of each pose's session, and the poses to learn from (those the robust loss did not set aside)."""
     r = result.residuals(data)
     Y = np.empty_like(r)
@@ -48,12 +49,12 @@ def layer_data(result: CalibrationResult, data: Measurements) -> tuple[np.ndarra
     return data.q, Y, learning_mask(result, data)
 
 
-def fit_layer(result: CalibrationResult, data: Measurements, max_std_ratio: float = MAX_STD_RATIO,
-              seed: int = 0, progress: Callable[[str], None] | None = None
-              ) -> tuple[dict[str | None, ResidualGP], dict[str | None, np.ndarray]]:
+def fit_gp_compensator(result: CalibrationResult, data: Measurements, max_std_ratio: float = MAX_STD_RATIO,
+                       seed: int = 0, progress: Callable[[str], None] | None = None
+                       ) -> tuple[dict[str | None, ResidualGP], dict[str | None, np.ndarray]]:
     """A Gaussian process of the residual per session (key None for data of one session), and the poses of
     ``data`` each learnt from; ``progress`` receives a line per session."""
-    X, Y, keep = layer_data(result, data)
+    X, Y, keep = gp_compensator_data(result, data)
     gps: dict[str | None, ResidualGP] = {}
     rows: dict[str | None, np.ndarray] = {}
     for s, idx in session_index(data).items():
@@ -68,8 +69,8 @@ def fit_layer(result: CalibrationResult, data: Measurements, max_std_ratio: floa
     return gps, rows
 
 
-def with_layer(result: CalibrationResult, gps: dict[str | None, ResidualGP], data: Measurements,
-               note: str) -> CalibrationResult:
+def with_gp_compensator(result: CalibrationResult, gps: dict[str | None, ResidualGP], data: Measurements,
+                        note: str) -> CalibrationResult:
     """``result`` with the processes added to its model as ``gp_compensator`` terms (the values kept)."""
     m = result.model
     terms = [t for t in m.terms if t.name != "gp_compensator"]
@@ -79,8 +80,8 @@ def with_layer(result: CalibrationResult, gps: dict[str | None, ResidualGP], dat
     return rebuilt(result, Model(m.robot, terms if m.geometric_free else terms[1:], jit=m.jit), data, note)
 
 
-def layer_coverage(result: CalibrationResult, data: Measurements) -> tuple[int, int]:
-    """At how many of ``data``'s poses the result's session compensator applies, of how many it could
+def gp_compensator_coverage(result: CalibrationResult, data: Measurements) -> tuple[int, int]:
+    """At how many of ``data``'s poses the result's GP compensator applies, of how many it could
     (the poses of the sessions it has a process for); (0, 0) without one."""
     known = total = 0
     for t in result.model.terms:
@@ -95,13 +96,13 @@ def layer_coverage(result: CalibrationResult, data: Measurements) -> tuple[int, 
 
 
 @dataclass
-class LayerFolds:
-    """Held-out predictions of the layer on every fold: what judging it, and choosing its support, needs.
+class GPCompensatorFolds:
+    """Held-out predictions of the GP compensator on every fold: what judging it, and choosing its support, needs.
 
     Attributes
     ----------
     before : ndarray, shape (N,)
-        Residual norm (m) of each pose of ``keep`` without the layer.
+        Residual norm (m) of each pose of ``keep`` without the compensator.
     folds : dict of str to list of (ndarray, ndarray, ndarray, ndarray)
         By kind: for each fold, its held-out poses (indices into ``keep``'s poses), their residuals (m, (m, 3)),
         the fold's process's prediction there (m) and its predictive std over the prior (:meth:`ResidualGP.std_ratio`).
@@ -114,33 +115,34 @@ class LayerFolds:
     n_schemes: dict
 
     def after(self, kind: str, support: float) -> np.ndarray:
-        """Residual norm (m) of each pose with the layer, held out in the folds of ``kind`` (averaged over its
-        schemes), the layer applied where its std ratio is below ``support``."""
+        """Residual norm (m) of each pose with the compensator, held out in the folds of ``kind`` (averaged over
+        its schemes), the compensator applied where its std ratio is below ``support``."""
         out = np.zeros(len(self.before))
         for at, Y, pred, ratio in self.folds[kind]:
             out[at] += np.linalg.norm(Y - pred * (ratio < support)[:, None], axis=1)
         return out / self.n_schemes[kind]
 
     def means_mm(self, support: float) -> dict[str, tuple[float, float]]:
-        """Held-out mean (mm) without and with the layer, by kind."""
+        """Held-out mean (mm) without and with the compensator, by kind."""
         b = float(self.before.mean() * 1000)
         return {k: (b, float(self.after(k, support).mean() * 1000)) for k in self.folds}
 
     def worst_mm(self, support: float) -> dict[str, tuple[float, float]]:
-        """Worst held-out error (mm) without and with the layer, by kind."""
+        """Worst held-out error (mm) without and with the compensator, by kind."""
         b = float(self.before.max() * 1000)
         return {k: (b, float(self.after(k, support).max() * 1000)) for k in self.folds}
 
 
 @limited_threads()
-def held_out(gps: dict[str | None, ResidualGP], learnt: dict[str | None, np.ndarray], data: Measurements,
-             Y: np.ndarray, keep: np.ndarray, schemes, progress: Callable[[str], None] | None = None) -> LayerFolds:
-    """Held-out residuals (m) without and with the layer, by kind of fold, at the poses of ``keep``.
+def gp_compensator_held_out(gps: dict[str | None, ResidualGP], learnt: dict[str | None, np.ndarray],
+                            data: Measurements, Y: np.ndarray, keep: np.ndarray, schemes,
+                            progress: Callable[[str], None] | None = None) -> GPCompensatorFolds:
+    """Held-out residuals (m) without and with the GP compensator, by kind of fold, at the poses of ``keep``.
 
     Each fold's process is the session's process (hyperparameters of the
     fit on all poses) conditioned on the poses it learnt from (``learnt``,
     indices into ``data``) that are among the fold's training poses; where
-    it does not know it adds nothing (:meth:`LayerFolds.after`: for any support).
+    it does not know it adds nothing (:meth:`GPCompensatorFolds.after`: for any support).
     ``progress`` receives a line per kind of fold.
     """
     sessions = session_index(data)
@@ -165,4 +167,4 @@ def held_out(gps: dict[str | None, ResidualGP], learnt: dict[str | None, np.ndar
                         x = data.q[test[at]]
                         pred[at], ratio[at] = g.predict(x), g.std_ratio(x)
                 folds[kind].append((np.searchsorted(idx_keep, test), Y[test], pred, ratio))
-    return LayerFolds(np.linalg.norm(Y[idx_keep], axis=1), folds, n_schemes)
+    return GPCompensatorFolds(np.linalg.norm(Y[idx_keep], axis=1), folds, n_schemes)

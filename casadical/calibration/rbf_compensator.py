@@ -1,9 +1,9 @@
 """Stage ``add_rbf_compensator`` (``+rbf_compensator``): an RBF network fitted to what the model leaves.
 
 The network maps sin q, cos q and the gravity torques to the residual in the
-robot base frame (:func:`compensator_data`); it is added to the model as a
+robot base frame (:func:`rbf_compensator_data`); it is added to the model as a
 ``rbf_compensator`` term only if it lowers the cross-validated error
-(:func:`fit_compensator`).
+(:func:`fit_rbf_compensator`).
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ from ..terms.rbf_compensator import features
 from .state import CalibrationRun
 
 
-def compensator_data(result: CalibrationResult, data: Measurements) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def rbf_compensator_data(result: CalibrationResult, data: Measurements) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """What a residual compensator of ``result`` learns from: features, residuals, poses to train on.
 
     Features are sin q, cos q and the gravity torques; residuals (measured
@@ -35,7 +35,7 @@ def compensator_data(result: CalibrationResult, data: Measurements) -> tuple[np.
     return X, Y, learning_mask(result, data)
 
 
-def with_compensator(result: CalibrationResult, network, data: Measurements, note: str) -> CalibrationResult:
+def with_rbf_compensator(result: CalibrationResult, network, data: Measurements, note: str) -> CalibrationResult:
     """``result`` with a fitted network added to its model as a ``rbf_compensator`` term."""
     m = result.model
     model = Model(m.robot, list(m.terms if m.geometric_free else m.terms[1:])
@@ -43,7 +43,7 @@ def with_compensator(result: CalibrationResult, network, data: Measurements, not
     return rebuilt(result, model, data, note)
 
 
-def fit_compensator(result: CalibrationResult, data: Measurements, seed: int = 0,
+def fit_rbf_compensator(result: CalibrationResult, data: Measurements, seed: int = 0,
                     warn: bool = True) -> CalibrationResult:
     """``result`` with an RBF network fitted to its residuals added as a ``rbf_compensator`` term.
 
@@ -55,7 +55,7 @@ def fit_compensator(result: CalibrationResult, data: Measurements, seed: int = 0
     """
     from ..compensators.guard import fit_guarded  # here, not at import: 9 ms of every command's start-up
 
-    X, Y, keep = compensator_data(result, data)
+    X, Y, keep = rbf_compensator_data(result, data)
     net, info = fit_guarded(rbf_candidates(int(keep.sum()), seed), X[keep], Y[keep], seed=seed)
     if net is None:
         out = replace(result, notes=list(result.notes))
@@ -63,7 +63,7 @@ def fit_compensator(result: CalibrationResult, data: Measurements, seed: int = 0
         if warn:
             warnings.warn(out.notes[-1], CasadicalWarning, stacklevel=2)
         return out
-    return with_compensator(result, net, data, f"rbf_compensator: {net.n_centers_} Gaussian units fitted to "
+    return with_rbf_compensator(result, net, data, f"rbf_compensator: {net.n_centers_} Gaussian units fitted to "
                                                f"the residuals of {int(keep.sum())} poses ({info['reason']})")
 
 
@@ -82,4 +82,4 @@ def add_rbf_compensator(run: CalibrationRun) -> None:
     """With ``+rbf_compensator``: replaces ``result`` by one with the network fitted to its residuals (or a note
     that it was not added)."""
     if run.want_rbf:
-        run.result = fit_compensator(run.result, run.data, warn=run.options.warn)
+        run.result = fit_rbf_compensator(run.result, run.data, warn=run.options.warn)

@@ -1,4 +1,5 @@
-"""The accuracy layer: a Gaussian process of the residual that knows where it holds (casadical.accuracy)."""
+"""The GP compensator (one per session): a Gaussian process of the residual that knows where it holds
+(casadical.compensators.per_session)."""
 
 import json
 import math
@@ -48,7 +49,7 @@ def test_the_process_is_scikit_learns():
         sk = GaussianProcessRegressor(k, normalize_y=True, optimizer=None).fit(X, Y[:, a])
         mean, std = sk.predict(Xt, return_std=True)
         assert np.allclose(gp.predict(Xt)[:, a], mean, rtol=1e-8, atol=1e-14)
-        # scikit-learn's std includes the white noise; the layer's ratio is of the smooth part
+        # scikit-learn's std includes the white noise; the compensator's ratio is of the smooth part
         ratio = np.sqrt(np.clip(std ** 2 / gp.y_std[a] ** 2 - gp.noise_var[a], 0, None) / gp.signal_var[a])
         assert np.all(gp.std_ratio(Xt) >= ratio - 1e-6)
     x = ca.SX.sym("x", 4)
@@ -61,9 +62,9 @@ def test_the_process_is_scikit_learns():
 
 
 @pytest.mark.parametrize("seed", SEEDS)
-def test_the_layer_takes_what_no_cause_names(seed):
+def test_the_gp_compensator_takes_what_no_cause_names(seed):
     """A hidden compliance and a smooth error in no catalogue: the compliance is named, the rest is taken by
-    the session compensator (an unexplained finding of the session, in the final model), which lowers the
+    the GP compensator (an unexplained finding of the session, in the final model), which lowers the
     held-out error of that session; a calibration taken to another session drops it (and says so)."""
     robot = robot_from_dict(ARM7_DH)
     _, truth = simulate(robot, 10, Effects(stiffness={2: 2e4}), seed=seed, floor_z=None)
@@ -71,8 +72,8 @@ def test_the_layer_takes_what_no_cause_names(seed):
     rep = diagnose(robot, cal, val, DiagnosisSettings(seed=seed))
     named = [(f.cause, f.candidate.joint) for f in rep.findings if f.in_model and f.cause != "geometric"]
     assert ("joint_compliance", 2) in named and ("unexplained", None) in named, named
-    layer = next(f for f in rep.findings if f.in_model and f.cause == "unexplained")
-    assert layer.scope == "session" and "gp_compensator" in rep.final_model
+    compensator = next(f for f in rep.findings if f.in_model and f.cause == "unexplained")
+    assert compensator.scope == "session" and "gp_compensator" in rep.final_model
     kept = [s for s in rep.steps if s.accepted]
     assert kept[-1].validation.mean_mm < 0.8 * kept[-2].validation.mean_mm
     other = another_session(truth, (0.8, 0.4, 0.0), (0.0, 0.0, 1.0))
@@ -82,8 +83,8 @@ def test_the_layer_takes_what_no_cause_names(seed):
 
 
 @pytest.mark.parametrize("seed", SEEDS)
-def test_no_layer_on_noise(seed):
-    """Geometry and noise only: nothing for the layer to learn, and it is not kept."""
+def test_no_gp_compensator_on_noise(seed):
+    """Geometry and noise only: nothing for the GP compensator to learn, and it is not kept."""
     robot = robot_from_dict(ARM5)
     cal, truth = simulate(robot, 120, Effects(), seed=seed, floor_z=None)
     val, _ = simulate(robot, 150, truth=truth, seed=seed + 500, floor_z=None)
@@ -114,7 +115,7 @@ def test_predict_says_where_the_compensator_applies(tmp_path, capsys):
     capsys.readouterr()
     assert main(["predict", str(out), str(tmp_path / "val.csv"), "--out", str(tmp_path / "p.csv")]) == 0
     text = capsys.readouterr().out
-    assert "session compensator" in text and "of 100 poses" in text
+    assert "GP compensator" in text and "of 100 poses" in text
     far = val.subset(np.arange(20))
     for j in (1, 2, 3):             # joints 1-3 turned 200 deg: poses the process never saw
         far.columns[f"q{j}_deg"] = far.columns[f"q{j}_deg"] + 200.0

@@ -1,7 +1,7 @@
-"""The accuracy layer's hyperparameters: this code's likelihood against scikit-learn's, same run, same answer.
+"""The GP compensator's hyperparameters: this code's likelihood against scikit-learn's, same run, same answer.
 
 On the README job's data (series B of the bundled UR10 data, 300 calibration poses, seed 0; the named causes
-the diagnosis finds there), the layer's Gaussian processes are fitted two ways, in turn:
+the diagnosis finds there), the GP compensator's Gaussian processes are fitted two ways, in turn:
 
 - ``casadical``: :meth:`casadical.compensators.gp.ResidualGP.fit` (the marginal likelihood and its gradient
   from the joints' squared distances, one Cholesky factor and its inverse per evaluation);
@@ -9,13 +9,13 @@ the diagnosis finds there), the layer's Gaussian processes are fitted two ways, 
   start, ``normalize_y`` and L-BFGS-B iterations (how fe55b8a fitted them).
 
 Each is timed in CPU seconds of this process (median of ``--repeats``, alternating), and both hyperparameter
-sets are then judged the same way: the layer's held-out means on the calibration poses' folds and its
+sets are then judged the same way: the compensator's held-out means on the calibration poses' folds and its
 validation mean on the other 1,195 poses (they must agree: the same objective from the same start).
 
 Usage::
 
-    python benchmarks/speed/bench_layer.py              # about a minute
-    python benchmarks/speed/bench_layer.py --repeats 9
+    python benchmarks/speed/bench_gp_compensator.py              # about a minute
+    python benchmarks/speed/bench_gp_compensator.py --repeats 9
 """
 
 from __future__ import annotations
@@ -34,13 +34,17 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from casadical import calibrate, load_robot  # noqa: E402
-from casadical.accuracy import held_out, layer_data, with_layer  # noqa: E402
 from casadical.compensators.gp import FIT_ITERATIONS, FIT_POSES, LENGTH_BOUNDS, ResidualGP  # noqa: E402
+from casadical.compensators.per_session import (  # noqa: E402
+    gp_compensator_data,
+    gp_compensator_held_out,
+    with_gp_compensator,
+)
 from casadical.data import Measurements  # noqa: E402
 from casadical.diagnosis.validation import joint_levers, schemes  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[2] / "problems" / "datasets" / "ur10-ipa"
-#: the model the README job's diagnosis ends with before its layer (docs/diagnosis.md)
+#: the model the README job's diagnosis ends with before its GP compensator (docs/diagnosis.md)
 SPEC = "kinematic+joint_compliance[2]+joint_periodic[1:15,2:8,2:17,3:3,3:17,5:21]+encoder_scale[2]"
 
 
@@ -82,7 +86,7 @@ def main() -> None:
     idx = np.sort(np.random.default_rng(0).permutation(len(b))[:300])
     cal, val = b.subset(idx), b.subset(np.setdiff1d(np.arange(len(b)), idx))
     res = calibrate(robot, cal, SPEC, "lm", warn=False)
-    X, Y, keep = layer_data(res, cal)
+    X, Y, keep = gp_compensator_data(res, cal)
     ways = {"casadical": lambda: ResidualGP.fit(X[keep], Y[keep]),
             "scikit-learn": lambda: sklearn_fit(X[keep], Y[keep])}
     times: dict[str, list[float]] = {k: [] for k in ways}
@@ -96,13 +100,13 @@ def main() -> None:
             times[name].append(time.process_time() - t)
     sch = schemes(cal.q, cal.rows, 5, 0, joint_levers(robot, cal))
     learnt = {None: np.flatnonzero(keep)}
-    print(f"the layer's hyperparameters on {int(keep.sum())} poses (README job, series B, 300 poses, seed 0), "
+    print(f"the GP compensator's hyperparameters on {int(keep.sum())} poses (README job, series B, 300 poses, seed 0), "
           f"{args.repeats} runs each, in turn")
     print("fit          | CPU s (median, min-max) | held-out mean random / time / joint (mm) | validation mean (mm)")
     for name, gp in fits.items():
-        folds = held_out({None: gp}, learnt, cal, Y, keep, sch)
+        folds = gp_compensator_held_out({None: gp}, learnt, cal, Y, keep, sch)
         m = folds.means_mm(gp.max_std_ratio)
-        v = with_layer(res, {None: gp}, cal, "").stats(val).mean_mm
+        v = with_gp_compensator(res, {None: gp}, cal, "").stats(val).mean_mm
         t = times[name]
         print(f"{name:<12} | {statistics.median(t):.3f} ({min(t):.3f}-{max(t):.3f})       | "
               + " / ".join(f"{m[k][1]:.4f}" for k in ("random", "time", "joint")) + f"           | {v:.4f}")
