@@ -21,9 +21,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "tests"))
+sys.path.append(str(Path(__file__).resolve().parents[1]))  # the tests' helpers as ``tests.helpers``
 
-from planning_loop import SCENARIOS, loop  # noqa: E402
+from tests.helpers.planning_loop import SCENARIOS, loop  # noqa: E402
 
 #: the worked examples the docs quote: scenario -> seed
 EXAMPLES = {"narrow range": 0, "robot or session": 0, "compliance or scale": 1}

@@ -10,10 +10,10 @@ import counts as much as one at the top of a module.
 
 from __future__ import annotations
 
-import import_graph
 import pytest
 
 from casadical.errors import InputError, RobotFileError
+from tests import import_graph
 
 
 @pytest.fixture(scope="module")

@@ -11,7 +11,7 @@ from casadical import Measurements, calibrate, load_calibration, load_robot
 from casadical.errors import ConvergenceWarning, CorrelationWarning, IdentifiabilityError, IdentifiabilityWarning
 from casadical.simulate import Effects, simulate
 
-UR10_B = Path(__file__).resolve().parent.parent / "problems" / "datasets" / "ur10-ipa" / "series_b.csv"
+UR10_B = Path(__file__).resolve().parents[2] / "problems" / "datasets" / "ur10-ipa" / "series_b.csv"
 STIFF = {2: 1.7e6, 3: 1.2e6, 4: 0.3e6, 5: 0.57e6}
 
 

@@ -13,8 +13,6 @@ import warnings
 
 import numpy as np
 import pytest
-from arms import ARM6, ARM7, to_toml
-from truth import Arm, Effects, TrueRobot, measure, sample
 
 from casadical import calibrate, load_calibration
 from casadical.cli import main
@@ -22,6 +20,8 @@ from casadical.data import Measurements
 from casadical.errors import DataFileError
 from casadical.inverse import compensate
 from casadical.robot import robot_from_dict
+from tests.helpers.arms import ARM6, ARM7, to_toml
+from tests.truth import Arm, Effects, TrueRobot, measure, sample
 
 
 def measured(path, robot, q, rng, **kw) -> Measurements:

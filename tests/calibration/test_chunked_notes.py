@@ -3,7 +3,6 @@ angle Jacobian of the set-aside poses alone: the same figures as all poses at on
 
 import numpy as np
 import pytest
-from arms import ARM4, ARM5
 
 import casadical.problem as problem
 from casadical import calibrate
@@ -12,6 +11,7 @@ from casadical.physics import first_order_sag
 from casadical.robot import robot_from_dict
 from casadical.set_aside import of_model, set_aside_structure
 from casadical.simulate import Effects, simulate
+from tests.helpers.arms import ARM4, ARM5
 
 
 @pytest.mark.parametrize("arm,seed", [(ARM4, 0), (ARM5, 1), (ARM5, 2)])

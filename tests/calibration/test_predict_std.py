@@ -2,12 +2,12 @@
 
 import numpy as np
 import pytest
-from arms import ARM4, to_toml
-from truth import Arm, Effects, TrueRobot, measure, sample
 
 from casadical.calibration import load_calibration
 from casadical.cli import main
 from casadical.data import Measurements
+from tests.helpers.arms import ARM4, to_toml
+from tests.truth import Arm, Effects, TrueRobot, measure, sample
 
 
 @pytest.mark.parametrize("seed", [0, 1])

@@ -4,13 +4,13 @@ import json
 
 import numpy as np
 import pytest
-from arms import ARM4_BETA
 
 from casadical import calibrate, load_robot
 from casadical.cli import main
 from casadical.problem import RobustLoss
 from casadical.robot import robot_from_dict
 from casadical.simulate import Effects, simulate
+from tests.helpers.arms import ARM4_BETA
 
 
 def _spoil(data, rows, rng, size_mm=20.0):

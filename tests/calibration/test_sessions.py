@@ -6,7 +6,6 @@ import warnings
 
 import numpy as np
 import pytest
-from arms import ARM5, ARM7_DH, to_toml
 
 from casadical import calibrate
 from casadical.cli import main
@@ -14,6 +13,7 @@ from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.robot import robot_from_dict
 from casadical.sessions import combine
 from casadical.simulate import Effects, another_session, simulate
+from tests.helpers.arms import ARM5, ARM7_DH, to_toml
 
 SEEDS = [0, 1, 2]
 ARMS = {"seven-axis DH": (ARM7_DH, 2e4), "five-axis DH": (ARM5, 6e4)}

@@ -16,7 +16,6 @@ import warnings
 
 import numpy as np
 import pytest
-from arms import ARM4, to_toml
 
 from casadical.calibration import calibrate, load_calibration
 from casadical.cli import main
@@ -32,6 +31,7 @@ from casadical.significance import (
     t_two_sided_p,
 )
 from casadical.simulate import Effects, simulate
+from tests.helpers.arms import ARM4, to_toml
 
 SEEDS = range(5)
 STIFF = 4e6          # N m/rad on joint 2: t of its compliance about 15-20 at 60 poses

@@ -7,15 +7,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from arms import ARM4
 
 from casadical import calibrate
 from casadical.calibration import pipeline
 from casadical.errors import ConvergenceWarning
 from casadical.robot import robot_from_dict
 from casadical.simulate import Effects, simulate
+from tests.helpers.arms import ARM4
 
-GUIDE = Path(__file__).resolve().parent.parent / "docs" / "guide.md"
+GUIDE = Path(__file__).resolve().parents[2] / "docs" / "guide.md"
 
 
 def _data(seed: int, n: int = 40):

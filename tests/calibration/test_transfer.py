@@ -5,12 +5,12 @@ import math
 
 import numpy as np
 import pytest
-from arms import ARM7_DH
 
 from casadical import calibrate, load_calibration, load_robot
 from casadical.cli import main
 from casadical.robot import robot_from_dict
 from casadical.simulate import Effects, simulate
+from tests.helpers.arms import ARM7_DH
 
 
 def _series(robot, truth, n, seed, base_xyz, base_rpy):

@@ -10,13 +10,13 @@ import warnings
 
 import numpy as np
 import pytest
-from arms import ARMS, to_toml
 
 from casadical.cli import main
 from casadical.data import Measurements
 from casadical.methods import method_names
 from casadical.methods.compare import compare
 from casadical.robot import load_robot
+from tests.helpers.arms import ARMS, to_toml
 
 K2 = 5e5
 

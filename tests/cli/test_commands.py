@@ -225,7 +225,7 @@ def test_predict_renames_measured_orientations_it_does_not_predict(tmp_path):
     beside the model's point would be taken for a target orientation by compensate)."""
     import csv
     from pathlib import Path
-    series_b = Path(__file__).resolve().parent.parent / "problems" / "datasets" / "ur10-ipa" / "series_b.csv"
+    series_b = Path(__file__).resolve().parents[2] / "problems" / "datasets" / "ur10-ipa" / "series_b.csv"
     cal, val = tmp_path / "cal.csv", tmp_path / "val.csv"
     assert main(["split", str(series_b), "-n", "200", "--out-cal", str(cal), "--out-val", str(val)]) == 0
     assert main(["calibrate", "ur10", str(cal), "--model", "kinematic", "--position-only", "--solver", "lm",

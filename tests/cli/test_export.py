@@ -8,13 +8,13 @@ import warnings
 import numpy as np
 import pytest
 import yourdfpy
-from arms import ARM7_DH
 
 from casadical import calibrate, load_calibration, load_robot
 from casadical.cli import main
 from casadical.parameter_table import COLUMNS, parameter_table
 from casadical.robot import robot_from_dict
 from casadical.simulate import Effects, simulate
+from tests.helpers.arms import ARM7_DH
 
 
 def read_table(path) -> tuple[str, list[dict]]:
@@ -232,7 +232,7 @@ def test_readme_export_is_no_worse_than_a_kinematic_calibration(tmp_path, capsys
 
     from casadical.data import Measurements
 
-    series_b = Path(__file__).resolve().parent.parent / "problems" / "datasets" / "ur10-ipa" / "series_b.csv"
+    series_b = Path(__file__).resolve().parents[2] / "problems" / "datasets" / "ur10-ipa" / "series_b.csv"
     cal, val = tmp_path / "cal.csv", tmp_path / "val.csv"
     assert main(["split", str(series_b), "-n", "300", "--seed", "0", "--out-cal", str(cal), "--out-val", str(val)]) == 0
     final, kin = tmp_path / "final.json", tmp_path / "kin.json"

@@ -9,13 +9,13 @@ import json
 from pathlib import Path
 
 import pytest
-from test_export import urdf_errors
-from test_robust import cli
 
 from casadical import Measurements
+from tests.cli.test_export import urdf_errors
+from tests.helpers.cli import cli
 
-ROOT = Path(__file__).resolve().parents[1]
-DATA = Path(__file__).resolve().parent / "data"
+ROOT = Path(__file__).resolve().parents[2]
+DATA = Path(__file__).resolve().parents[1] / "data"
 SERIES_B = ROOT / "problems" / "datasets" / "ur10-ipa" / "series_b.csv"
 
 

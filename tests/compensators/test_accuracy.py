@@ -5,7 +5,6 @@ import math
 
 import numpy as np
 import pytest
-from arms import ARM5, ARM7_DH, to_toml
 
 from casadical import calibrate, load_calibration
 from casadical.cli import main
@@ -13,6 +12,7 @@ from casadical.compensators.gp import ResidualGP
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.robot import robot_from_dict
 from casadical.simulate import Effects, another_session, simulate
+from tests.helpers.arms import ARM5, ARM7_DH, to_toml
 
 SEEDS = [0, 1, 2]
 

@@ -9,11 +9,8 @@ import math
 import tempfile
 from pathlib import Path
 
-import hidden
 import numpy as np
 import pytest
-from arms import ARM3
-from truth import Effects, Session, measure, sample
 
 from casadical import load_robot
 from casadical.cli import main
@@ -21,6 +18,9 @@ from casadical.data import Measurements
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.simulate import Effects as SimEffects
 from casadical.simulate import simulate
+from tests.helpers import hidden
+from tests.helpers.arms import ARM3
+from tests.truth import Effects, Session, measure, sample
 
 SEEDS = [0, 1, 2]
 YS100 = hidden.robot_doc("ys100")

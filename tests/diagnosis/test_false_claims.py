@@ -26,7 +26,6 @@ the search that lost the cause or named a false one.
 import json
 import warnings
 
-import hidden
 import numpy as np
 import pytest
 
@@ -34,6 +33,7 @@ from casadical.cli import main
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.diagnosis.never_worse import Held
 from casadical.diagnosis.statistics import nested_test, set_aside_share
+from tests.helpers import hidden
 
 
 def diagnosed(robot: str, effect: str, seed: int):

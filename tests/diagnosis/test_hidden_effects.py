@@ -9,10 +9,10 @@ matrix); the default run takes one case per effect, on robots in turn. The cases
 
 import warnings
 
-import hidden
 import pytest
 
 from casadical.diagnosis import DiagnosisSettings, diagnose
+from tests.helpers import hidden
 
 #: cases of the matrix the diagnosis does not claim exactly today, kept out of the assertions: (robot, effect,
 #: seed) -> what it names instead (benchmarks/study_hidden_effects.py). None today: the last six (a drift on the

@@ -6,8 +6,6 @@ import math
 
 import numpy as np
 import pytest
-from arms import ARM7_DH
-from truth import Arm, Effects, TrueRobot, measure, sample
 
 from casadical import calibrate
 from casadical.compensators.gp import FIT_ITERATIONS, LENGTH_BOUNDS, ResidualGP, log_likelihood, squared_differences
@@ -15,6 +13,8 @@ from casadical.data import Measurements
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.diagnosis.layer import SUPPORTS
 from casadical.robot import robot_from_dict
+from tests.helpers.arms import ARM7_DH
+from tests.truth import Arm, Effects, TrueRobot, measure, sample
 
 
 @pytest.mark.filterwarnings("ignore:The optimal value found")

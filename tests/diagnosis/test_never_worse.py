@@ -13,13 +13,13 @@ import math
 
 import numpy as np
 import pytest
-from arms import ARM5, ARM6
-from truth import Arm, Effects, TrueRobot, measure, sample
 
 from casadical import calibrate
 from casadical.data import Measurements
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.robot import robot_from_dict
+from tests.helpers.arms import ARM5, ARM6
+from tests.truth import Arm, Effects, TrueRobot, measure, sample
 
 
 def measured(tmp_path, name, robot, q, rng, **kw) -> Measurements:

@@ -7,7 +7,6 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from arms import ARM3, ARM4
 
 from casadical import calibrate, load_robot
 from casadical.data import Measurements
@@ -15,9 +14,10 @@ from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.physics import term_causes, value_violations, violations
 from casadical.robot import robot_from_dict
 from casadical.simulate import Effects, simulate
+from tests.helpers.arms import ARM3, ARM4
 
 SEEDS = [0, 1, 2]
-UR10_B = Path(__file__).resolve().parent.parent / "problems" / "datasets" / "ur10-ipa" / "series_b.csv"
+UR10_B = Path(__file__).resolve().parents[2] / "problems" / "datasets" / "ur10-ipa" / "series_b.csv"
 
 
 def narrow(arm: dict, joint: int, lo: float, hi: float):

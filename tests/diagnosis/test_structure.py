@@ -11,8 +11,6 @@ import warnings
 
 import numpy as np
 import pytest
-from arms import ARM3, ARM4, ARM4_BETA, ARM5, ARM7, ARM7_DH, to_toml
-from truth import Arm, Effects, Session, TrueRobot, measure, sample
 
 from casadical import calibrate
 from casadical.cli import main
@@ -22,6 +20,8 @@ from casadical.errors import ParallelAxesWarning
 from casadical.robot import load_robot, robot_from_dict
 from casadical.sessions import combine
 from casadical.set_aside import direction_test, order_test, session_test, set_aside_structure
+from tests.helpers.arms import ARM3, ARM4, ARM4_BETA, ARM5, ARM7, ARM7_DH, to_toml
+from tests.truth import Arm, Effects, Session, TrueRobot, measure, sample
 
 
 def read(shots, path) -> Measurements:

@@ -18,10 +18,11 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from arms import ARM4, ARM4_BETA, ARM5, ARM5_COUPLED, ARM7, ARM7_DH
-from truth import Arm, Effects, Session, TrueRobot, measure, sample
 
-ROBOTS_DIR = Path(__file__).resolve().parent.parent / "problems" / "robots"
+from tests.helpers.arms import ARM4, ARM4_BETA, ARM5, ARM5_COUPLED, ARM7, ARM7_DH
+from tests.truth import Arm, Effects, Session, TrueRobot, measure, sample
+
+ROBOTS_DIR = Path(__file__).resolve().parents[2] / "problems" / "robots"
 
 #: a claim: (cause, joint, harmonic, scope); scope "robot", "session" (of the one session) or "session B"; a
 #: backlash by the last move is ``backlash_motion`` (the model's term; the truth's ``backlash_motion``), one by the

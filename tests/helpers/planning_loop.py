@@ -21,12 +21,12 @@ from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
-from arms import ARM5, ARM7_DH, to_toml
-from truth import Arm, Effects, Session, TrueRobot, sample
-from truth import measure as shoot
 
 from casadical.cli import main
 from casadical.data import Measurements
+from tests.helpers.arms import ARM5, ARM7_DH, to_toml
+from tests.truth import Arm, Effects, Session, TrueRobot, sample
+from tests.truth import measure as shoot
 
 #: where the tracker stood in each session (the robot base in the measurement frame)
 TRACKER = {"A": Session("A", (1.5, -0.5, 0.3), (0.0, 0.0, 0.7)),

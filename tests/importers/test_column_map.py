@@ -28,7 +28,7 @@ from casadical.model import Model
 from casadical.robot import robot_from_dict
 from casadical.simulate import Effects, simulate
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 DATASET = ROOT / "problems" / "datasets" / "ur10-ipa"
 RAW_B = DATASET / "raw" / "Series_B" / "measurements_joint_configurations.csv"
 

@@ -13,7 +13,7 @@ from casadical.data import Measurements
 from casadical.errors import DataFileError, DataWarning, InputError
 from casadical.importers.ur10 import convert_ur10, read_ur10
 
-DATASET = Path(__file__).resolve().parents[1] / "problems" / "datasets" / "ur10-ipa"
+DATASET = Path(__file__).resolve().parents[2] / "problems" / "datasets" / "ur10-ipa"
 RAW_A = DATASET / "raw" / "Series_A" / "measurements_grid.csv"
 RAW_B = DATASET / "raw" / "Series_B" / "measurements_joint_configurations.csv"
 

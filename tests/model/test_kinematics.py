@@ -111,7 +111,7 @@ def test_jacobian_matches_finite_differences():
 def test_angle_jacobian_is_the_derivative_of_a_joint_angle_error(name):
     """predict_angle_jacobian: the column of a periodic error is the angle derivative times sin/cos, on MDH and
     DH arms with and without beta, 4 to 7 joints, and the HH800's four-bar (where theta's column differs)."""
-    from arms import ARMS
+    from tests.helpers.arms import ARMS
 
     robot = load_robot(name) if name in ("ys100", "hh800") else robot_from_dict(ARMS[name])
     harm = [(j, 2 + j) for j in range(1, robot.n + 1)]

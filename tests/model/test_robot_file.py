@@ -1,11 +1,16 @@
-"""Robot TOML loading: built-ins and every kind of bad field."""
+"""Robot TOML loading: built-ins, every kind of bad field, encodings and huge numbers."""
 
+import copy
 import math
 
+import numpy as np
 import pytest
 
 from casadical import load_robot
 from casadical.errors import RobotFileError
+from casadical.robot import robot_from_dict
+from tests.helpers.arms import ARMS, to_toml
+from tests.helpers.cli import cli, one_error
 
 GOOD = """
 name = "two"
@@ -66,3 +71,46 @@ def test_unknown_robot_and_bad_toml(write):
         load_robot("ys1000")
     with pytest.raises(RobotFileError, match="not valid TOML"):
         load_robot(write("x.toml", "name = \n"))
+
+
+# --- robot TOML -----------------------------------------------------------------------------------
+
+
+def test_robot_toml_encodings(tmp_path, capsys):
+    text = to_toml(ARMS["arm4"])
+    (tmp_path / "bom.toml").write_bytes(b"\xef\xbb\xbf" + text.encode())
+    assert load_robot(tmp_path / "bom.toml").n == 4
+    (tmp_path / "latin.toml").write_bytes(text.replace("palletiser", "palletis\u00e9r").encode("latin-1"))
+    with pytest.raises(RobotFileError, match="not UTF-8"):
+        load_robot(tmp_path / "latin.toml")
+    code, _, err = cli(capsys, "inspect", tmp_path / "latin.toml", "--poses", "5")
+    assert code == 2
+    one_error(err, "latin.toml", "not UTF-8", "0xe9")
+
+
+@pytest.mark.parametrize("key,value,match", [
+    ("a_m", "1e400", "must be finite"),
+    ("a_m", "99999999999999999999999999999", "metres"),
+    ("a_m", "1e300", "metres"),
+    ("mass_kg", "1e308", "kg"),
+    ("max_deg", "1e10", "degrees"),
+    ("max_deg", "9" * 400, "must be finite"),
+])
+def test_robot_toml_huge_numbers(tmp_path, key, value, match):
+    lines = to_toml(ARMS["arm4"]).splitlines()
+    start = [i for i, line in enumerate(lines) if line == "[[joint]]"][2]       # joint 3
+    k = next(i for i in range(start, len(lines)) if lines[i].startswith(key + " ="))
+    lines[k] = f"{key} = {value}"
+    (tmp_path / "r.toml").write_text("\n".join(lines))
+    with pytest.raises(RobotFileError, match=match) as e:
+        load_robot(tmp_path / "r.toml")
+    assert e.value.column == f"joint[3].{key}"
+
+
+@pytest.mark.parametrize("direction", [[0, 0, -1e308], [1e308, 1e308, 0], [0, 0, -1e-320]])
+def test_gravity_of_any_finite_size(direction):
+    doc = copy.deepcopy(ARMS["arm5"])
+    doc["gravity"] = {"direction": direction}
+    g = robot_from_dict(doc).gravity
+    d = np.array(direction, dtype=float) / np.max(np.abs(direction))
+    np.testing.assert_allclose(g, 9.81 * d / np.linalg.norm(d))

@@ -7,6 +7,7 @@ import pytest
 
 from casadical import Model, load_robot
 from casadical.simulate import Effects, load_protocol, sample_poses, simulate
+from tests.helpers.cli import cli, one_error
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])
@@ -98,3 +99,20 @@ def test_protocol_file_with_a_byte_order_mark_and_a_huge_number(tmp_path):
                     encoding="utf-8")
     with pytest.raises(InputError, match=r"periodic_deg\[1\]"):
         load_protocol(str(huge))
+
+
+# --- a malformed protocol is one line (issue 10) ----------------------------------------------
+
+
+@pytest.mark.parametrize("text", [
+    'robot = "ys100"\nsets = 3\n',
+    'robot = "ys100"\n[sets]\na = "x"\n',
+    'robot = "ys100"\n[sets]\na = 5\n[truth]\nperiodic_deg = [[1, 2]]\n',
+    'robot = "ys100"\n[sets]\na = 5\n[workspace]\nbox_min_m = [0, 0]\nbox_max_m = [1, 1, 1]\n',
+    'robot = "nosuch.toml"\n[sets]\na = 5\n',
+])
+def test_malformed_protocol(tmp_path, capsys, text):
+    (tmp_path / "p.toml").write_text(text)
+    code, _, err = cli(capsys, "simulate", tmp_path / "p.toml", "--out-dir", tmp_path / "out")
+    assert code == 2
+    one_error(err)

@@ -15,7 +15,6 @@ import sys
 
 import numpy as np
 import pytest
-from arms import ARM3, ARM4, ARM5, ARM7, to_toml
 
 from casadical.batch import batch
 from casadical.kinematics import base_pose_matrix
@@ -24,6 +23,7 @@ from casadical.robot import robot_from_dict
 from casadical.simulate import Effects, sample_poses, simulate
 from casadical.superset import Mapping, outputs, superset_for
 from casadical.terms import make_term
+from tests.helpers.arms import ARM3, ARM4, ARM5, ARM7, to_toml
 
 #: every term the superset expresses, shared and of one session (two sessions, B with its own tool)
 SPEC = ("kinematic+joint_compliance+nonlinear_stiffness[2]+encoder_scale[1,3]+backlash[2]+backlash_motion[1]"

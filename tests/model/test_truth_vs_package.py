@@ -16,15 +16,15 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from arms import ARM4, ARM5, ARM5_COUPLED, ARM7
-from truth import Arm, Effects, Session, TrueRobot, measure, sample
 
 from casadical.data import Measurements
 from casadical.kinematics import base_pose_matrix
 from casadical.model import Model, pose_to_base0
 from casadical.robot import robot_from_dict
+from tests.helpers.arms import ARM4, ARM5, ARM5_COUPLED, ARM7
+from tests.truth import Arm, Effects, Session, TrueRobot, measure, sample
 
-ROBOTS = Path(__file__).resolve().parent.parent / "problems" / "robots"
+ROBOTS = Path(__file__).resolve().parents[2] / "problems" / "robots"
 ARMS = {"arm4 (MDH, no beta)": ARM4, "arm5 (DH, beta on 3)": ARM5, "arm7 (MDH, beta on 4)": ARM7,
         "arm5 coupled (MDH, beta on 3, parallelogram coupling)": ARM5_COUPLED,
         "hh800 (MDH, four-bar)": tomllib.loads((ROBOTS / "hh800.toml").read_text())}

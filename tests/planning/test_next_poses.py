@@ -11,10 +11,10 @@ import json
 
 import numpy as np
 import pytest
-from planning_loop import SCENARIOS, loop, setup
 
 from casadical.cli import main
 from casadical.planning.augment import Criterion, criterion_value, ds_design, relax_ds_cvxpy
+from tests.helpers.planning_loop import SCENARIOS, loop, setup
 
 
 @pytest.mark.parametrize("interest", [[4], [4, 5], list(range(6))])

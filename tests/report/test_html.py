@@ -18,7 +18,6 @@ from html.parser import HTMLParser
 
 import numpy as np
 import pytest
-from arms import ARM4, ARM5, ARM7, to_toml
 
 from casadical.calibration import calibrate
 from casadical.cli import main
@@ -28,6 +27,7 @@ from casadical.diagnosis.candidates import Candidate
 from casadical.report import calibration_html, diagnosis_html
 from casadical.robot import robot_from_dict
 from casadical.simulate import Effects, simulate
+from tests.helpers.arms import ARM4, ARM5, ARM7, to_toml
 
 try:                        # drives the browser through the DevTools protocol
     from playwright.sync_api import sync_playwright
@@ -581,7 +581,7 @@ def _cli(*args):
 #: the page of the README job before the report put the answer first (HTML 18,465 px tall, the findings at
 #: 5,743 px, after a 56-row steps table); the summary on stdout was 19,724 bytes with a 4,123-character line
 BEFORE_HEIGHT_PX = 18_465
-SERIES_B = os.path.join(os.path.dirname(__file__), "..", "problems", "datasets", "ur10-ipa", "series_b.csv")
+SERIES_B = os.path.join(os.path.dirname(__file__), "..", "..", "problems", "datasets", "ur10-ipa", "series_b.csv")
 
 
 @pytest.fixture(scope="module")
@@ -606,7 +606,7 @@ def test_readme_quotes_what_the_job_prints_or_says_where_a_figure_comes_from(rea
     makes it (issue 28: 'kinematic calibration plus a Gaussian process of its residual 0.241 mm', which the job
     does not print, had no source)."""
     d, r, doc = readme_job
-    readme = open(os.path.join(os.path.dirname(__file__), "..", "README.md"), encoding="utf-8").read()
+    readme = open(os.path.join(os.path.dirname(__file__), "..", "..", "README.md"), encoding="utf-8").read()
     paragraph = readme.split("On this split it names", 1)[1].split("Then, to the robot", 1)[0]
     printed = [float(x) for x in re.findall(r"\d+\.\d+", r.stdout)]
     figures = 0
@@ -746,9 +746,8 @@ def test_diagnosis_report_maps_where_the_model_is_accurate(browser, tmp_path):
     """diagnose --html --map-joints 2,3: a map of the predicted uncertainty over joints 2 and 3 with the
     calibration poses on it, readable in a real browser; it is lowest where the poses are (5-axis DH arm,
     joint 2 measured over 40 deg of its 180)."""
-    import truth
-
     from casadical.predictive import accuracy_map
+    from tests import truth
 
     (tmp_path / "arm.toml").write_text(to_toml(ARM5))
     rng = np.random.default_rng(0)

@@ -11,7 +11,6 @@ import time
 
 import numpy as np
 import pytest
-from arms import ARM3
 
 from casadical import jitcache
 from casadical.calibration import calibrate
@@ -19,6 +18,7 @@ from casadical.cli import main
 from casadical.model import Model
 from casadical.robot import robot_from_dict
 from casadical.simulate import Effects, simulate
+from tests.helpers.arms import ARM3
 
 pytestmark = pytest.mark.skipif(jitcache.compiler() is None, reason="no C compiler")
 

@@ -9,10 +9,10 @@ import subprocess
 import sys
 
 import pytest
-from arms import ARM4
 
 from casadical.robot import robot_from_dict
 from casadical.simulate import Effects, simulate
+from tests.helpers.arms import ARM4
 
 #: packages no command below uses
 NEVER = ("sklearn", "matplotlib", "cvxpy", "dask", "distributed", "pandas", "casadical.planning",
@@ -39,7 +39,7 @@ def _packages(mods: set[str], names) -> list[str]:
 @pytest.fixture(scope="module")
 def files(tmp_path_factory):
     """Position-only poses of an arm that is not built in, its TOML file, and a kinematic calibration."""
-    from arms import to_toml
+    from tests.helpers.arms import to_toml
 
     d = tmp_path_factory.mktemp("startup")
     robot = robot_from_dict(ARM4)

@@ -156,10 +156,9 @@ def test_same_numbers_with_and_without_the_limit():
 def test_blocks_give_the_same_bits_as_one_batch(monkeypatch, name):
     """Every per-pose output (positions, Jacobians, rotations, torques, offsets) is the same in 1, 2 or 3
     blocks, with per-pose covariates (temperature, time, motion direction) sliced with their poses."""
-    from arms import ARMS
-
     from casadical.model import Model
     from casadical.robot import robot_from_dict
+    from tests.helpers.arms import ARMS
 
     robot = robot_from_dict(ARMS[name])
     model = Model(robot, "kinematic+compliance+backlash+thermal_expansion+drift+periodic[2:1,3:2]", jit=False)
@@ -186,11 +185,10 @@ def test_blocks_give_the_same_bits_as_one_batch(monkeypatch, name):
 
 
 def test_small_batches_and_compiled_code_stay_in_one_block(monkeypatch):
-    from arms import ARM3
-
     from casadical import jitcache
     from casadical.model import BLOCK_MIN, Model
     from casadical.robot import robot_from_dict
+    from tests.helpers.arms import ARM3
 
     monkeypatch.setenv(EVAL_ENV, "4")
     model = Model(load_robot("ur10"), "kinematic", jit=False)
