@@ -2,8 +2,8 @@
 
 The data are made by the independent truth (tests/truth: no casadical code), the diagnosis runs with its
 full search (DiagnosisSettings defaults). A claim is exact when the named causes (cause, joint, harmonic,
-scope) are the hidden ones, no more and no less (tests/hidden.py). The slow test
-tests/test_hidden_effects.py asserts the cases this prints as exact.
+scope) are the hidden ones, no more and no less (tests/helpers/hidden.py). The slow test
+tests/diagnosis/test_hidden_effects.py asserts the cases this prints as exact.
 
 Usage::
 

@@ -1,6 +1,6 @@
 """plan-poses REPORT.json on simulated arms: planned poses against random ones, side by side (docs/planning.md).
 
-For each scenario of tests/planning_loop.py (a cause the first poses cannot
+For each scenario of tests/helpers/planning_loop.py (a cause the first poses cannot
 resolve, on an arm that is not built in, measured by the independent truth
 of the tests) and each seed: diagnose the first poses, plan M of 500
 candidates (485 repeat the measured region, 15 reach beyond it: other poses,

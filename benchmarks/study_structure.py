@@ -1,7 +1,7 @@
 """Structure is not bad data, every cause per session, nothing skipped in silence (issue 25 items 2-4): figures.
 
 Each case is made by the independent truth (tests/truth) on robots that are not built in, as in
-tests/test_structure.py, and diagnosed (or calibrated) by the casadical on the path: run it with the code of
+tests/diagnosis/test_structure.py, and diagnosed (or calibrated) by the casadical on the path: run it with the code of
 another commit on ``PYTHONPATH`` to put its figures beside these (it reads only what every version reports:
 the final model, the findings, the notes)::
 

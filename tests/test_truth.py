@@ -2,7 +2,7 @@
 
 Nothing here uses casadical: the expected values are written out from the definitions of docs/formats.md
 (link transforms, base pose, measurement CSV), docs/guide.md's term table and docs/diagnosis.md's sign
-conventions. tests/test_truth_vs_package.py compares the truth with casadical's model.
+conventions. tests/model/test_truth_vs_package.py compares the truth with casadical's model.
 """
 
 import csv

@@ -1,7 +1,8 @@
 """Diagnosis: a hidden effect must be named exactly (cause, joint, harmonic, scope); noise alone gives no finding.
 
 The data are made by the independent truth (tests/truth, no casadical code) and read as a user's files;
-tests/hidden.py judges the claims. Every effect on robots that are not built in: tests/test_hidden_effects.py.
+tests/helpers/hidden.py judges the claims. Every effect on robots that are not built in:
+tests/diagnosis/test_hidden_effects.py.
 """
 
 import json

@@ -1,7 +1,7 @@
 """Every hidden effect on robots that are not built in, made by the independent truth, diagnosed with the full
 search: the diagnosis names exactly the hidden causes (cause, joint, harmonic, scope), nothing else.
 
-Robots (tests/hidden.py): 4 to 7 axes, MDH and DH, Hayati beta or none, a joint driven through a
+Robots (tests/helpers/hidden.py): 4 to 7 axes, MDH and DH, Hayati beta or none, a joint driven through a
 parallelogram coupling. Effects: none, each cause alone, two sessions, several causes at once.
 ``pytest -m slow`` runs every robot, effect and seed (benchmarks/study_hidden_effects.py prints the same
 matrix); the default run takes one case per effect, on robots in turn. The cases in KNOWN are left out.
@@ -16,7 +16,7 @@ from tests.helpers import hidden
 
 #: cases of the matrix the diagnosis does not claim exactly today, kept out of the assertions: (robot, effect,
 #: seed) -> what it names instead (benchmarks/study_hidden_effects.py). None today: the last six (a drift on the
-#: 7-axis arms, several causes on arm7, the bad shots on arm5-coupled) are tests/test_false_claims.py's
+#: 7-axis arms, several causes on arm7, the bad shots on arm5-coupled) are tests/diagnosis/test_false_claims.py's
 KNOWN: dict = {}
 
 ALL = [(r, e, s) for r in hidden.ROBOTS for e in hidden.EFFECTS for s in (0, 1, 2)]

@@ -272,8 +272,8 @@ def test_every_kind_not_tried_says_why_and_what_would_allow_it(tmp_path, capsys)
 def test_parallel_axes_without_beta_warn_naming_the_link(tmp_path):
     """DH: axes i and i+1 are parallel when link i's alpha is 0 (its beta is link i's); MDH: axes i-1 and i when
     link i's alpha is 0. A robot file without beta there warns when it is read, naming the file and the link; with
-    it, or where no consecutive axes are parallel, it does not. The built-in robots do not warn; of tests/arms.py,
-    ARM4 (MDH, no beta) and
+    it, or where no consecutive axes are parallel, it does not. The built-in robots do not warn; of
+    tests/helpers/arms.py, ARM4 (MDH, no beta) and
     ARM5 (DH, beta on link 3 but not on link 2) do."""
     def warned(doc):
         path = tmp_path / "arm.toml"
