@@ -20,7 +20,7 @@ from casadical.data import Measurements
 from casadical.errors import CalibrationFileError, InputError
 from casadical.robot import robot_from_dict
 from casadical.simulate import Effects, simulate
-from tests.helpers.arms import ARM5, ARM7
+from tests.helpers.arms import ARM5, ARM7, to_toml
 
 MOUNT = (0.3, -1.2, 2.5)    # rad: far from any reference, pitch 69 deg
 EFFECTS = Effects(noise=50e-6, orientation_noise=math.radians(0.01), tool_rpy=MOUNT,
@@ -274,7 +274,7 @@ def test_cli_full_pose_calibrate_predict_and_position_only(tmp_path, capsys):
     robot = robot_from_dict(ARM7, "arm")
     data, truth = simulate(robot, 60, EFFECTS, seed=4, floor_z=-10.0)
     val, _ = simulate(robot, 20, truth=truth, seed=40, floor_z=-10.0)
-    (tmp_path / "arm.toml").write_text(__import__("arms").to_toml(ARM7))
+    (tmp_path / "arm.toml").write_text(to_toml(ARM7))
     data.write_csv(tmp_path / "cal.csv")
     val.write_csv(tmp_path / "val.csv")
     with warnings.catch_warnings():
