@@ -6,7 +6,7 @@ symbolic model (:mod:`casadical.model`) turns it into CasADi expressions.
 This module imports no reader of another file type: the URDF reader
 (:mod:`casadical.urdf`) builds on it, and loading a robot by file type
 (built-in name, TOML, URDF) is :func:`casadical.loading.load_robot`, above
-both (``tests/test_imports.py`` keeps it so).
+both (``tests/test_import_graph.py`` keeps it so).
 """
 
 from __future__ import annotations

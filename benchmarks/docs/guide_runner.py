@@ -10,7 +10,7 @@ root):
   ``casadical`` is this checkout's package (``python -m casadical``).
 - a ```` ```text ```` block never runs: synopses with placeholders
   (``CAL.json TARGETS.csv``), install lines, error messages shown as
-  examples. test_docs.py still parses every ``casadical`` line in it.
+  examples. tests/docs/test_commands_in_docs.py still parses every ``casadical`` line in it.
 - a ```` ```toml ```` block whose first line is a comment naming a file,
   ``# NAME.toml: ...``, is written to NAME.toml before the next ``sh``
   block runs (the guide's mapping files); other ``toml`` blocks are examples.
@@ -25,7 +25,7 @@ root):
 - ``python`` blocks are not run (fragments that continue the text).
 
 ``python benchmarks/docs/guide_runner.py`` runs it and prints each step with its
-time; ``tests/test_guide.py`` is the test.
+time; ``tests/docs/test_guide.py`` is the test.
 """
 
 from __future__ import annotations

@@ -27,10 +27,10 @@ Usage::
     python benchmarks/docs/regenerate_docs.py --save out/docs-runs    # keep each job's output there
     python benchmarks/docs/regenerate_docs.py --reuse out/docs-runs   # use saved outputs, run nothing
 
-``tests/test_docs_generated.py`` checks the markers (fast) and, under ``pytest -m slow``, runs the
+``tests/docs/test_generated.py`` checks the markers (fast) and, under ``pytest -m slow``, runs the
 check job by job. All jobs take 21-30 minutes on 2 cores, hidden-effects 10 of them (load 1-8;
 docs/benchmarks.md, "Docs that cannot drift", has the time of each); the guide itself is run by
-``tests/test_guide.py``.
+``tests/docs/test_guide.py``.
 """
 
 from __future__ import annotations

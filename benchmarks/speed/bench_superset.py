@@ -38,7 +38,7 @@ import casadi as ca  # noqa: E402
 import numpy as np  # noqa: E402
 
 HERE = Path(__file__).resolve().parent
-sys.path.insert(0, str(HERE.parents[1] / "tests"))
+sys.path.append(str(HERE.parents[1]))  # the tests' helpers as ``tests.helpers``, after any casadical on PYTHONPATH
 
 from casadical import jitcache, load_robot  # noqa: E402
 from casadical.batch import Batch  # noqa: E402
@@ -67,7 +67,7 @@ def best_cpu(fn, repeats: int) -> float:
 
 
 def robots(names):
-    import arms
+    from tests.helpers import arms
     for n in names:
         yield robot_from_dict(arms.ARMS[n], n) if n in arms.ARMS else load_robot(n)
 

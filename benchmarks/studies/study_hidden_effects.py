@@ -2,8 +2,8 @@
 
 The data are made by the independent truth (tests/truth: no casadical code), the diagnosis runs with its
 full search (DiagnosisSettings defaults). A claim is exact when the named causes (cause, joint, harmonic,
-scope) are the hidden ones, no more and no less (tests/hidden.py). The slow test
-tests/test_hidden_effects.py asserts the cases this prints as exact.
+scope) are the hidden ones, no more and no less (tests/helpers/hidden.py). The slow test
+tests/diagnosis/test_hidden_effects.py asserts the cases this prints as exact.
 
 Usage::
 
@@ -23,10 +23,10 @@ import warnings
 from concurrent.futures import ProcessPoolExecutor
 from pathlib import Path
 
-TESTS = Path(__file__).resolve().parents[2] / "tests"
-sys.path.insert(0, str(TESTS))
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.append(str(ROOT))  # the tests' helpers as ``tests.helpers``, after any casadical on PYTHONPATH
 
-import hidden  # noqa: E402
+from tests.helpers import hidden  # noqa: E402
 
 
 def fmt(claims) -> str:

@@ -1,6 +1,6 @@
 """plan-poses REPORT.json on simulated arms: planned poses against random ones, side by side (docs/planning.md).
 
-For each scenario of tests/planning_loop.py (a cause the first poses cannot
+For each scenario of tests/helpers/planning_loop.py (a cause the first poses cannot
 resolve, on an arm that is not built in, measured by the independent truth
 of the tests) and each seed: diagnose the first poses, plan M of 500
 candidates (485 repeat the measured region, 15 reach beyond it: other poses,
@@ -21,9 +21,9 @@ import sys
 import tempfile
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[2] / "tests"))
+sys.path.append(str(Path(__file__).resolve().parents[2]))  # the tests' helpers as ``tests.helpers``
 
-from planning_loop import SCENARIOS, loop  # noqa: E402
+from tests.helpers.planning_loop import SCENARIOS, loop  # noqa: E402
 
 #: the worked examples the docs quote: scenario -> seed
 EXAMPLES = {"narrow range": 0, "robot or session": 0, "compliance or scale": 1}

@@ -1,7 +1,7 @@
 """Structure is not bad data, every cause per session, nothing skipped in silence (issue 25 items 2-4): figures.
 
 Each case is made by the independent truth (tests/truth) on robots that are not built in, as in
-tests/test_structure.py, and diagnosed (or calibrated) by the casadical on the path: run it with the code of
+tests/diagnosis/test_structure.py, and diagnosed (or calibrated) by the casadical on the path: run it with the code of
 another commit on ``PYTHONPATH`` to put its figures beside these (it reads only what every version reports:
 the final model, the findings, the notes)::
 
@@ -25,16 +25,15 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(ROOT / "tests"))
-
-from arms import ARM3, ARM4_BETA, ARM5, ARM7, ARM7_DH  # noqa: E402
-from truth import Arm, Effects, Session, TrueRobot, measure, sample  # noqa: E402
+sys.path.append(str(ROOT))  # the tests' helpers as ``tests.helpers``, after the casadical on PYTHONPATH
 
 from casadical import calibrate  # noqa: E402
 from casadical.data import Measurements  # noqa: E402
 from casadical.diagnosis import DiagnosisSettings, diagnose  # noqa: E402
 from casadical.robot import robot_from_dict  # noqa: E402
 from casadical.sessions import combine  # noqa: E402
+from tests.helpers.arms import ARM3, ARM4_BETA, ARM5, ARM7, ARM7_DH  # noqa: E402
+from tests.truth import Arm, Effects, Session, TrueRobot, measure, sample  # noqa: E402
 
 FLOOR_MM = 2 * math.sqrt(2 / math.pi) * 0.020
 

@@ -1,0 +1,1 @@
+"""Tests of casadical.report, the HTML reports."""
