@@ -6,7 +6,8 @@ as a user's file; the claim is exact when the diagnosis names that set, no more 
 the test allows an ambiguity explicitly *and* the report declares it (the finding it names lists the
 true cause among those it cannot tell apart).
 
-Used by tests/diagnosis/test_diagnose.py, tests/diagnosis/test_hidden_effects.py and benchmarks/studies/study_hidden_effects.py.
+Used by tests/diagnosis/test_diagnose.py, tests/diagnosis/test_hidden_effects.py and
+benchmarks/studies/study_hidden_effects.py.
 """
 
 from __future__ import annotations
