@@ -13,8 +13,8 @@ Run from the repository root:  python examples/05_plan_poses.py
 import numpy as np
 
 from casadical import Model, calibrate, load_robot
+from casadical.data.simulate import Effects, sample_poses, simulate
 from casadical.planning import select_poses
-from casadical.simulate import Effects, sample_poses, simulate
 
 robot = load_robot("ys100")
 model = Model(robot, "kinematic+compliance")      # the model the poses must identify

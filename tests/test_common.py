@@ -31,11 +31,11 @@ import pytest
 from casadical import calibrate, load_calibration, load_robot
 from casadical.compensators import RBFNetwork
 from casadical.compensators.gp import ResidualGP
+from casadical.data.sessions import combine
+from casadical.data.simulate import Effects, another_session, sample_poses, simulate
 from casadical.methods import MethodResult, method_names, run_method
 from casadical.methods.base import lookup
 from casadical.model import Model
-from casadical.sessions import combine
-from casadical.simulate import Effects, another_session, sample_poses, simulate
 from casadical.terms import REGISTRY, make_term
 
 ROBOT = load_robot("ys100")
@@ -89,7 +89,7 @@ UNBOUNDED = {
     ("sessions", "base_"): "each session's base pose is where its tracker stood: any pose",
     ("tool_orientation", "tool_"): "the probe may be mounted at any rotation",
     ("nonlinear_stiffness", "cubic"): "a progressive spring may stiffen or soften (either sign, any size); "
-                                      "the physics rules judge its value (casadical/physics.py)",
+                                      "the physics rules judge its value (casadical/stats/physics.py)",
 }
 
 

@@ -49,7 +49,8 @@ def test_the_graph_reader_counts_the_package_a_from_import_runs(tmp_path):
 def test_robot_imports_no_reader_of_other_file_types(graph):
     below = import_graph.closure(graph, "casadical.robot")
     assert not [m for m in below if m.startswith(("casadical.urdf", "casadical.loading"))], sorted(below)
-    assert below <= {"casadical.errors", "casadical.files", "casadical.interrupts"}   # (signals: the standard library)
+    # (signals: the standard library)
+    assert below <= {"casadical.errors", "casadical.runtime.files", "casadical.runtime.interrupts"}
 
 
 def test_the_urdf_package_depends_on_robot_one_way(graph):
@@ -58,8 +59,8 @@ def test_the_urdf_package_depends_on_robot_one_way(graph):
         assert module not in import_graph.closure(graph, "casadical.robot")
     # no cycle holds the robot, the model, the terms or the URDF package
     for comp in import_graph.cycles(graph):
-        assert not comp & {"casadical.robot", "casadical.model", "casadical.kinematics", "casadical.terms",
-                           "casadical.urdf", "casadical.loading"}, sorted(comp)
+        assert not comp & {"casadical.robot", "casadical.model.symbolic", "casadical.model.kinematics",
+                           "casadical.terms", "casadical.urdf", "casadical.loading"}, sorted(comp)
 
 
 def test_the_graph_reader_sees_lazy_imports(tmp_path):
@@ -78,20 +79,23 @@ def test_the_graph_reader_sees_lazy_imports(tmp_path):
 
 
 def test_load_robot_by_file_type(tmp_path):
-    """casadical.load_robot reads every type; casadical.robot.load_robot built-ins and TOML, and says where URDF is."""
+    """casadical.load_robot, the one load_robot, reads every type; Robot.load built-ins and TOML, and says where
+    URDF is."""
     import casadical
     from casadical import loading, robot
+    from casadical.robot import Robot
 
     assert casadical.load_robot is loading.load_robot
-    assert robot.load_robot("ur10").n == loading.load_robot("ur10").n == 6
+    assert not hasattr(robot, "load_robot")
+    assert Robot.load("ur10").n == loading.load_robot("ur10").n == 6
     urdf = tmp_path / "arm.urdf"
     urdf.write_text('<robot name="arm"><link name="a"/><link name="b"/><joint name="j" type="revolute">'
                     '<parent link="a"/><child link="b"/><axis xyz="0 0 1"/>'
                     '<limit lower="-1" upper="1" effort="1" velocity="1"/></joint></robot>')
     assert loading.load_robot(urdf).n == 1
-    with pytest.raises(RobotFileError, match=r"arm.urdf: casadical.robot.load_robot reads built-in robots and TOML "
-                                             r"files; read a URDF with casadical.load_robot"):
-        robot.load_robot(urdf)
+    with pytest.raises(RobotFileError, match=r"arm.urdf: Robot.load reads built-in robots and TOML files; read a "
+                                             r"URDF with casadical.load_robot"):
+        Robot.load(urdf)
     with pytest.raises(InputError, match="chooses the chain of a URDF file"):
         loading.load_robot("ur10", tip="tool0")
 

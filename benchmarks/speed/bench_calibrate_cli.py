@@ -90,8 +90,8 @@ def baseline(kind: str, data_csv: str, spec: str, free_json: str, out: str) -> N
     from scipy.optimize import least_squares
 
     from casadical.data import Measurements
+    from casadical.loading import load_robot
     from casadical.model import Model
-    from casadical.robot import load_robot
 
     robot = load_robot("ur10")
     data = Measurements.read_csv(data_csv, n_joints=6, require_positions=True)
@@ -180,8 +180,8 @@ def wall(cmd: list[str], env: dict) -> tuple[float, float]:
 
 
 def accuracy(spec, cal, val, values, base0):
+    from casadical.loading import load_robot
     from casadical.model import Model
-    from casadical.robot import load_robot
 
     m = Model(load_robot("ur10"), spec, jit=False)
 

@@ -23,12 +23,12 @@ import numpy as np
 
 from casadical import calibrate, load_robot
 from casadical.data import Measurements
+from casadical.data.simulate import Effects, simulate
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.diagnosis.candidates import compose_spec
 from casadical.diagnosis.prepare import check_data
 from casadical.diagnosis.screening import Screen
 from casadical.diagnosis.state import DiagnosisRun
-from casadical.simulate import Effects, simulate
 
 
 def case(n_cal: int, n_val: int, seed: int = 0):

@@ -2,7 +2,7 @@
 
 Issue 26 set its targets for a diagnosis whose largest cost was evaluating models on CasADi's virtual
 machine. This script measures, for the jobs of ``bench_speed.py`` (same files, same commands), the CPU time
-spent inside CasADi's evaluations (every :meth:`casadical.batch.Batch.evaluate`, in whichever thread it runs:
+spent inside CasADi's evaluations (every :meth:`casadical.model._batch.Batch.evaluate`, in whichever thread it runs:
 the compiled superset's functions and the models' own) against the whole process's CPU (its children
 included: the HTML report's figure processes). "Without evaluation" is the whole less the evaluation: what
 the job would cost if every model evaluation were free, the floor a faster model cannot go below.
@@ -40,8 +40,8 @@ from bench_speed import TARGETS, prepare, run_env  # noqa: E402
 
 def child(out: str, argv: list[str]) -> None:
     """Run ``casadical argv`` in this process with ``Batch.evaluate`` timed (thread CPU, every thread)."""
-    from casadical import batch
     from casadical.cli import main
+    from casadical.model import _batch as batch
 
     spent, lock = [0.0], threading.Lock()
     evaluate = batch.Batch.evaluate

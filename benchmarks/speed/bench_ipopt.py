@@ -61,9 +61,9 @@ def table(N: int, repeats: int) -> None:
         from casadical.calibration.solve import _solve
     except ImportError:     # before calibrate() became a pipeline (fe55b8a)
         from casadical.calibration import _solve
+    from casadical.data.simulate import Effects, simulate
     from casadical.model import Model
     from casadical.problem import CalibrationProblem
-    from casadical.simulate import Effects, simulate
     from casadical.solvers import make_solver
 
     warnings.simplefilter("ignore")

@@ -19,8 +19,8 @@ import time
 import casadi as ca
 import numpy as np
 
-from casadical import jitcache, load_robot
-from casadical.model import Model
+from casadical import load_robot
+from casadical.model import Model, jitcache
 
 
 def builtin_jit(fun: ca.Function, name: str, folder: str) -> ca.Function:

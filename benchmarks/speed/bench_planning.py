@@ -59,10 +59,10 @@ import numpy as np  # noqa: E402
 
 
 def _pool(robot_name: str, model_spec: str, N: int, seed: int):
+    from casadical.data.simulate import sample_poses
+    from casadical.loading import load_robot
     from casadical.model import Model
     from casadical.planning import design_problem
-    from casadical.robot import load_robot
-    from casadical.simulate import sample_poses
 
     robot = load_robot(robot_name)
     model = Model(robot, model_spec)

@@ -242,7 +242,7 @@ def main() -> int:
     import casadi
     import scipy
 
-    from casadical.simulate import load_protocol
+    from casadical.data.simulate import load_protocol
 
     methods = ["ipopt"] + ([] if args.no_before else ["before"]) + ["lm"] + ([] if args.no_scipy else ["scipy"])
     if args.base:   # the base tree's casadical methods, each right after this tree's

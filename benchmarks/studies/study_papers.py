@@ -35,10 +35,10 @@ import numpy as np
 
 os.environ.setdefault("CASADICAL_JIT", "0")   # small batches: the VM is faster than compiling
 
+from casadical.data.simulate import load_protocol  # noqa: E402
 from casadical.methods import run_method  # noqa: E402
 from casadical.methods.compare import plot  # noqa: E402
 from casadical.model import Model  # noqa: E402
-from casadical.simulate import load_protocol  # noqa: E402
 
 # --- the papers' numbers (docs/papers.md) -------------------------------------------
 
@@ -357,7 +357,7 @@ def experiment_rbf() -> dict:
     The truth is the CA protocol's robot (compliance of joints 2-5, unmodelled
     by KM) in a cell in front of the robot; validation on 200 poses.
     """
-    from casadical.simulate import simulate
+    from casadical.data.simulate import simulate
 
     say("\n## Why GA-RBF gains little: torque inputs against training poses\n")
     proto = load_protocol("ca-ys100")

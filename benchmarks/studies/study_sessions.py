@@ -115,7 +115,7 @@ def one(robot, name: str, src: Measurements, others: dict, seed: int) -> dict:
 def take(final, data: Measurements):
     """``calibrate FINAL.json OTHER.csv --model kinematic``: the library call the command makes."""
     try:
-        from casadical.carry import carry  # the transfer that judges what it carries
+        from casadical.apply.carry import carry  # the transfer that judges what it carries
     except ImportError:
         return calibrate(final, data, "kinematic", warn=False)
     return carry(final, data, "kinematic", warn=False)

@@ -29,9 +29,9 @@ sys.path.append(str(ROOT))  # the tests' helpers as ``tests.helpers``, after the
 
 from casadical import calibrate  # noqa: E402
 from casadical.data import Measurements  # noqa: E402
+from casadical.data.sessions import combine  # noqa: E402
 from casadical.diagnosis import DiagnosisSettings, diagnose  # noqa: E402
 from casadical.robot import robot_from_dict  # noqa: E402
-from casadical.sessions import combine  # noqa: E402
 from tests.helpers.arms import ARM3, ARM4_BETA, ARM5, ARM7, ARM7_DH  # noqa: E402
 from tests.truth import Arm, Effects, Session, TrueRobot, measure, sample  # noqa: E402
 

@@ -58,8 +58,8 @@ from bench_model import cpu_model  # noqa: E402
 
 from casadical.calibration import calibrate  # noqa: E402
 from casadical.data import Measurements  # noqa: E402
+from casadical.loading import load_robot  # noqa: E402
 from casadical.model import Model  # noqa: E402
-from casadical.robot import load_robot  # noqa: E402
 
 DATA = ROOT / "problems" / "datasets" / "ur10-ipa"
 KC = "kinematic+compliance"

@@ -8,10 +8,10 @@ unless named; the base pose, the named terms and new parameters are free
 
 from __future__ import annotations
 
-from ..calibration_file import restore_term
+from ..data.calibration_file import restore_term
 from ..errors import CasadicalWarning
-from ..model import Model, spec_of
-from ..parameters import Parameters
+from ..model.parameters import Parameters
+from ..model.symbolic import Model, spec_of
 from ..terms import ErrorTerm, SessionLocal
 from .for_data import set_references, with_sessions
 from .state import CalibrationRun

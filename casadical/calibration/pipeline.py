@@ -12,12 +12,12 @@ from __future__ import annotations
 
 from typing import Callable
 
-from ..data import Measurements
-from ..model import Model
+from ..data.measurements import Measurements
+from ..model.symbolic import Model
 from ..problem import RobustLoss
 from ..result import CalibrationResult
 from ..robot import Robot
-from ..threads import limited_threads
+from ..runtime.threads import limited_threads
 from .build import build_model
 from .gp_compensator import add_gp_compensator
 from .identify import analyse_identifiability
@@ -106,7 +106,7 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         sigma_rot``, the two noise scales estimated from the data.
     allow_outside_limits, angles_are_degrees, positions_are_mm, allow_mismatch : bool
         Overrides of the plausibility checks of the poses
-        (:func:`casadical.checks.check_poses`); ``allow_mismatch``: poses
+        (:func:`casadical.data.checks.check_poses`); ``allow_mismatch``: poses
         the start model (nominal, or the calibration taken further) misses
         far beyond what it can mean, even with its base pose fitted to them.
     session_tools : bool or list of str

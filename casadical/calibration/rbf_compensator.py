@@ -13,9 +13,9 @@ from dataclasses import replace
 
 import numpy as np
 
-from ..data import Measurements
+from ..data.measurements import Measurements
 from ..errors import CasadicalWarning
-from ..model import Model
+from ..model.symbolic import Model
 from ..result import CalibrationResult, learning_mask, rebuilt
 from ..terms import make_term
 from ..terms.rbf_compensator import features

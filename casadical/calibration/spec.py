@@ -9,7 +9,7 @@ terms and fitted after the model (:mod:`.rbf_compensator`, :mod:`.gp_compensator
 from __future__ import annotations
 
 from ..errors import InputError
-from ..model import Model, parse_spec
+from ..model.symbolic import Model, parse_spec
 from ..terms import make_term
 from ..terms.rbf_compensator import RBFCompensator
 from ..terms.tool_orientation import ToolOrientation

@@ -21,16 +21,16 @@ import numpy as np
 from ..errors import CasadicalWarning
 
 if TYPE_CHECKING:
-    from ..data import Measurements
-    from ..identifiability import Identifiability
-    from ..model import Model
-    from ..parameters import Parameters
+    from ..data.measurements import Measurements
+    from ..model.parameters import Parameters
+    from ..model.symbolic import Model
     from ..problem import CalibrationProblem, Linearization, RobustLoss
     from ..result import CalibrationResult
     from ..robot import Robot
     from ..solvers import SolverResult
+    from ..stats.identifiability import Identifiability
+    from ..stats.uncertainty import Uncertainty
     from ..terms import ErrorTerm
-    from ..uncertainty import Uncertainty
 
 #: the files a warning of :meth:`CalibrationRun.note` passes over: it names the line that called ``calibrate``
 _INSIDE = (os.path.dirname(__file__) + os.sep, contextlib.__file__)

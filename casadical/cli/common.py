@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any, Iterable, TextIO
 
 from ..errors import InputError
-from ..files import EXISTS, atomic_write
+from ..runtime.files import EXISTS, atomic_write
 
 STDOUT = "-"
 
@@ -216,7 +216,7 @@ def add_json(p: argparse.ArgumentParser, what: str, required: bool = False) -> N
 
 
 def add_checks(p: argparse.ArgumentParser, mismatch: bool = True) -> None:
-    """The overrides of the plausibility checks of poses (:mod:`casadical.checks`).
+    """The overrides of the plausibility checks of poses (:mod:`casadical.data.checks`).
 
     ``--allow-mismatch`` is one of them on every command (``mismatch`` is
     accepted for the callers that asked for it when it was ``predict``'s
@@ -303,7 +303,7 @@ def robot_or_calibration(spec: str, args):
 
 
 def check_options(args) -> dict:
-    """Keyword overrides of :func:`casadical.checks.check_poses` from the options of :func:`add_checks`."""
+    """Keyword overrides of :func:`casadical.data.checks.check_poses` from the options of :func:`add_checks`."""
     return {"allow_outside_limits": args.allow_outside_limits, "angles_are_degrees": args.angles_are_degrees,
             "positions_are_mm": args.positions_are_mm, "allow_mismatch": args.allow_mismatch}
 

@@ -91,9 +91,9 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..data import Measurements
+    from ..data.measurements import Measurements
+    from ..data.sessions import combine, file_session_names
     from ..diagnosis import DiagnosisSettings, diagnose
-    from ..sessions import combine, file_session_names
 
     if not (args.json or args.html or args.out):
         raise InputError("nothing to write: give --json REPORT.json, --html REPORT.html and/or --out FINAL.json")
@@ -138,8 +138,8 @@ def run(args) -> int:
         write_json(args.json, doc, args.force)
         print(f"report -> {'standard output' if args.json == STDOUT else args.json}", file=out)
     if args.html:
-        from ..report import diagnosis_html  # matplotlib: imported only for the HTML report
-        from ..threads import evaluation_threads
+        from ..html import diagnosis_html  # matplotlib: imported only for the HTML report
+        from ..runtime.threads import evaluation_threads
 
         write_text(args.html, diagnosis_html(report, processes=evaluation_threads(), progress=say, poses=cal,
                                              map_joints=map_joints), args.force)

@@ -47,8 +47,8 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..equivalent import geometric_equivalent
-    from ..parameter_table import parameter_table
+    from ..apply.export_geometry import geometric_equivalent
+    from ..apply.parameter_table import parameter_table
     from ..result import CalibrationResult
     from ..urdf import robot_to_urdf
 

@@ -50,7 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..threads import limited_threads
+from ..runtime.threads import limited_threads
 
 #: a pose is one where the process knows when its predictive std is below this share of its prior std (UR10
 #: series A, 300 poses, seed 1: 86 % of the series' other poses, none of series B's, whose ratio is 1.000 at

@@ -26,11 +26,11 @@ from typing import Callable
 
 import numpy as np
 
-from ..data import Measurements, session_index
-from ..model import Model
+from ..data.measurements import Measurements, session_index
+from ..model.symbolic import Model
 from ..result import CalibrationResult, learning_mask, rebuilt
+from ..runtime.threads import limited_threads
 from ..terms import SessionLocal, make_term
-from ..threads import limited_threads
 from .gp import MAX_STD_RATIO, ResidualGP
 
 #: a session's process learns from at most this many of its poses (drawn at random): its cost grows with the cube

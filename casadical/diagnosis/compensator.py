@@ -34,7 +34,7 @@ from ..compensators.per_session import (
     gp_compensator_held_out,
     with_gp_compensator,
 )
-from ..data import Measurements
+from ..data.measurements import Measurements
 from ..result import CalibrationResult
 from .candidates import Candidate, compose_spec
 from .never_worse import WORST_SHARE

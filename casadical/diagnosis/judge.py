@@ -2,7 +2,7 @@
 
 Reads ``final``, ``parametric`` and ``kinematic``; sets ``final_errors`` and ``final_val`` (its validation
 errors) and ``set_aside`` (the poses the final fit set aside, tested for shared structure before they are
-called bad measurements: :mod:`casadical.set_aside`), and adds the notes: a worst validation error above the
+called bad measurements: :mod:`casadical.stats.outliers`), and adds the notes: a worst validation error above the
 kinematic model's (:func:`.never_worse.validation_note`), the remaining residual, the sag the model predicts,
 the set-aside poses.
 """
@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import math
 
-from ..physics import sag_note
 from ..result import ErrorStats, learning_mask
-from ..set_aside import of_fit
+from ..stats.outliers import of_fit
+from ..stats.physics import sag_note
 from .gaps import set_aside_note
 from .never_worse import validation_note
 from .state import DiagnosisRun
@@ -32,7 +32,7 @@ def judge_final_model(run: DiagnosisRun) -> None:
     sag = sag_note(final, cal)
     if sag:
         run.notes.append(sag)
-    # the poses the final fit set aside: bad measurements, or structure it lacks (casadical.set_aside)
+    # the poses the final fit set aside: bad measurements, or structure it lacks (casadical.stats.outliers)
     run.set_aside = of_fit(run.parametric, cal, learning_mask(final, cal) == 0)
     if run.set_aside.n_set_aside:
         run.notes.append(set_aside_note(run.set_aside, run.not_tried, cal.path))

@@ -177,7 +177,7 @@ class Finding:
 
 @dataclass
 class DiagnosisReport:
-    """Everything :func:`diagnose` found (JSON: :meth:`to_dict`, HTML: :func:`casadical.report.diagnosis_html`).
+    """Everything :func:`diagnose` found (JSON: :meth:`to_dict`, HTML: :func:`casadical.html.diagnosis_html`).
 
     Attributes
     ----------
@@ -190,7 +190,7 @@ class DiagnosisReport:
         With several sessions: the final model's validation errors in each.
     set_aside : dict
         The poses the final fit's robust loss set aside, tested for shared
-        structure (:meth:`casadical.set_aside.SetAsideStructure.to_dict`).
+        structure (:meth:`casadical.stats.outliers.SetAsideStructure.to_dict`).
     not_tried : list of dict
         Each kind of cause these data cannot test, with why and what would
         allow it (:class:`casadical.diagnosis.catalogue.NotTried`).

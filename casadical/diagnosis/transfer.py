@@ -21,7 +21,7 @@ from typing import Callable
 import numpy as np
 
 from ..calibration import calibrate
-from ..data import Measurements
+from ..data.measurements import Measurements
 from ..errors import InputError
 from ..result import CalibrationResult
 from .candidates import Candidate, compose_spec

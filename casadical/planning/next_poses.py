@@ -20,13 +20,13 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..data import Measurements
+from ..data.measurements import Measurements
 from ..diagnosis.candidates import compose_spec
 from ..errors import IdentifiabilityError, InputError, listing
-from ..identifiability import analyse
-from ..model import Model, parse_spec
+from ..model.symbolic import Model, parse_spec
 from ..robot import Robot
-from ..threads import limited_threads
+from ..runtime.threads import limited_threads
+from ..stats.identifiability import analyse
 from .augment import Criterion, DsDesign, ds_design
 from .questions import Question
 

@@ -20,8 +20,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from ..errors import ModelError
-from ..kinematics import Frames, Geometry, chain_angles, drive_torques, forward, gravity_torques
-from ..parameters import Parameter
+from ..model.kinematics import Frames, Geometry, chain_angles, drive_torques, forward, gravity_torques
+from ..model.parameters import Parameter
 from ..robot import GRAVITY, Robot
 
 REGISTRY: dict[str, type["ErrorTerm"]] = {}
@@ -57,7 +57,8 @@ class Context:
 
     def torques(self) -> list:
         """Gravity torque each joint's drive carries, undeflected configuration, row payload
-        (:func:`~casadical.kinematics.drive_torques`: the torque about the joint's axis unless joints are coupled)."""
+        (:func:`~casadical.model.kinematics.drive_torques`: the torque about the joint's axis unless joints are
+        coupled)."""
         if self._torques is None:
             tau = gravity_torques(self.robot, self.frames(), self.cov["payload_kg"])
             self._torques = drive_torques(self.robot, self.q, self.geom, tau) if self.drives else tau

@@ -8,8 +8,8 @@ import numpy as np
 import pytest
 
 from casadical import Measurements, calibrate, load_calibration, load_robot
+from casadical.data.simulate import Effects, simulate
 from casadical.errors import ConvergenceWarning, CorrelationWarning, IdentifiabilityError, IdentifiabilityWarning
-from casadical.simulate import Effects, simulate
 
 UR10_B = Path(__file__).resolve().parents[2] / "problems" / "datasets" / "ur10-ipa" / "series_b.csv"
 STIFF = {2: 1.7e6, 3: 1.2e6, 4: 0.3e6, 5: 0.57e6}

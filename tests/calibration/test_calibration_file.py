@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from casadical import calibrate, load_calibration, load_robot
+from casadical.data.simulate import Effects, simulate
 from casadical.errors import CalibrationFileError
-from casadical.simulate import Effects, simulate
 from tests.helpers.cli import cli, one_error
 
 

@@ -15,10 +15,10 @@ import numpy as np
 import pytest
 
 from casadical import calibrate, load_calibration
+from casadical.apply.inverse import compensate
 from casadical.cli import main
 from casadical.data import Measurements
 from casadical.errors import DataFileError
-from casadical.inverse import compensate
 from casadical.robot import robot_from_dict
 from tests.helpers.arms import ARM6, ARM7, to_toml
 from tests.truth import Arm, Effects, TrueRobot, measure, sample

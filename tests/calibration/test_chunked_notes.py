@@ -7,10 +7,10 @@ import pytest
 import casadical.problem as problem
 from casadical import calibrate
 from casadical.data import Measurements
-from casadical.physics import first_order_sag
+from casadical.data.simulate import Effects, simulate
 from casadical.robot import robot_from_dict
-from casadical.set_aside import of_model, set_aside_structure
-from casadical.simulate import Effects, simulate
+from casadical.stats.outliers import of_model, set_aside_structure
+from casadical.stats.physics import first_order_sag
 from tests.helpers.arms import ARM4, ARM5
 
 

@@ -7,8 +7,8 @@ import numpy as np
 
 from casadical import calibrate, load_robot
 from casadical.cli import main
-from casadical.coverage import Coverage
-from casadical.simulate import Effects, simulate
+from casadical.data.simulate import Effects, simulate
+from casadical.stats.coverage import Coverage
 
 
 def _narrow(robot, j, lo, hi):

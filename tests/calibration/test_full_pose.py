@@ -17,9 +17,9 @@ from scipy.spatial.transform import Rotation
 
 from casadical import calibrate, load_calibration
 from casadical.data import Measurements
+from casadical.data.simulate import Effects, simulate
 from casadical.errors import CalibrationFileError, InputError
 from casadical.robot import robot_from_dict
-from casadical.simulate import Effects, simulate
 from tests.helpers.arms import ARM5, ARM7, to_toml
 
 MOUNT = (0.3, -1.2, 2.5)    # rad: far from any reference, pitch 69 deg
@@ -245,7 +245,7 @@ def test_tool_orientation_without_orientation_data_is_an_error():
 def test_compensate_holds_the_targets_probe_orientation():
     """Targets that are full poses the calibrated model reaches at known joints: compensate finds those joints."""
     from casadical import load_robot
-    from casadical.inverse import compensate
+    from casadical.apply.inverse import compensate
     robot = load_robot("ur10")
     eff = Effects(noise=20e-6, orientation_noise=math.radians(0.005), tool_rpy=(0.0, 0.0, -1.5708))
     data, truth = simulate(robot, 80, eff, seed=1)

@@ -10,12 +10,12 @@ import numpy as np
 import pytest
 
 from casadical import Measurements, Model, calibrate, load_calibration, load_robot
+from casadical.apply.inverse import TargetError, compensate
 from casadical.cli import main
+from casadical.data.simulate import Effects, sample_poses, simulate
 from casadical.errors import ConvergenceWarning, InputError
-from casadical.inverse import TargetError, compensate
-from casadical.model import pose_to_base0
+from casadical.model.symbolic import pose_to_base0
 from casadical.robot import robot_from_dict
-from casadical.simulate import Effects, sample_poses, simulate
 
 SEEDS = [0, 1, 2]
 BASE = dict(base_xyz=(1.8, -0.6, 0.3), base_rpy=(0.01, -0.02, 2.4))  # a tracker anywhere, any rotation
@@ -79,7 +79,7 @@ def well_conditioned(robot, q, hold, floor=0.05):
 def nominal_rotation_at_calibrated_base(cal, q0):
     """What the programmer taught, computed apart from compensate: a nominal model at the calibrated base."""
     xyz, rpy = cal.base_pose()
-    from casadical.kinematics import base_pose_matrix
+    from casadical.model.kinematics import base_pose_matrix
     T = base_pose_matrix(xyz, rpy)
     return Model(cal.model.robot, "nominal").flange_rotation(q0, base0=pose_to_base0(T))
 

@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from casadical import load_robot
+from casadical.data.simulate import Effects, simulate
 from casadical.model import Model
 from casadical.problem import MEMO_NUMBERS, CalibrationProblem, RobustLoss
-from casadical.simulate import Effects, simulate
 
 
 def problem(full_pose: bool, n: int = 120, seed: int = 0):

@@ -9,10 +9,10 @@ import pytest
 
 from casadical import calibrate
 from casadical.cli import main
+from casadical.data.sessions import combine
+from casadical.data.simulate import Effects, another_session, simulate
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.robot import robot_from_dict
-from casadical.sessions import combine
-from casadical.simulate import Effects, another_session, simulate
 from tests.helpers.arms import ARM5, ARM7_DH, to_toml
 
 SEEDS = [0, 1, 2]
@@ -135,8 +135,8 @@ def test_the_base_reference_is_shown_wherever_the_base_parameters_are(tmp_path, 
     section and the exported table say which, and the base pose it gives."""
     import math
 
-    from casadical.parameter_table import parameter_table
-    from casadical.report import calibration_html
+    from casadical.apply.parameter_table import parameter_table
+    from casadical.html import calibration_html
 
     robot, cal, _, _ = two_sessions(ARM7_DH, 2e4, 3, drift=(0.0, 0.0, 0.0))
     res = calibrate(robot, cal, "kinematic+compliance[2]", "lm", warn=False)
@@ -195,7 +195,7 @@ def test_terms_of_one_session_in_a_calibration():
     import tempfile
 
     from casadical import load_calibration
-    from casadical.physics import term_causes
+    from casadical.stats.physics import term_causes
 
     robot, cal, val, _ = two_sessions(ARM7_DH, 2e4, 0)
     res = calibrate(robot, cal, "kinematic+compliance[2]+joint_periodic[2:3]@B+drift@B", "lm", warn=False,

@@ -10,9 +10,9 @@ import pytest
 
 from casadical import calibrate
 from casadical.calibration import pipeline
+from casadical.data.simulate import Effects, simulate
 from casadical.errors import ConvergenceWarning
 from casadical.robot import robot_from_dict
-from casadical.simulate import Effects, simulate
 from tests.helpers.arms import ARM4
 
 GUIDE = Path(__file__).resolve().parents[2] / "docs" / "guide.md"

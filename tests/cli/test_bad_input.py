@@ -12,9 +12,9 @@ import pytest
 
 from casadical import load_robot
 from casadical.cli import main
+from casadical.data.simulate import Effects, simulate
 from casadical.errors import DataFileError
 from casadical.robot import robot_from_dict
-from casadical.simulate import Effects, simulate
 from tests.helpers.arms import ARM5
 from tests.helpers.cli import arm_files, cli, one_error  # the command line in-process, its one-line errors
 

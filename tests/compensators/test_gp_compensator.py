@@ -10,9 +10,9 @@ import pytest
 from casadical import calibrate, load_calibration
 from casadical.cli import main
 from casadical.compensators.gp import ResidualGP
+from casadical.data.simulate import Effects, another_session, simulate
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.robot import robot_from_dict
-from casadical.simulate import Effects, another_session, simulate
 from tests.helpers.arms import ARM5, ARM7_DH, to_toml
 
 SEEDS = [0, 1, 2]

@@ -16,9 +16,9 @@ import pytest
 from casadical import load_robot
 from casadical.cli import main
 from casadical.data import Measurements
+from casadical.data.simulate import Effects as SimEffects
+from casadical.data.simulate import simulate
 from casadical.diagnosis import DiagnosisSettings, diagnose
-from casadical.simulate import Effects as SimEffects
-from casadical.simulate import simulate
 from tests.helpers import hidden
 from tests.helpers.arms import ARM3
 from tests.truth import Effects, Session, measure, sample

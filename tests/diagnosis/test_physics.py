@@ -1,5 +1,5 @@
 """A named cause must be physics: inside its bounds, told apart from the geometry, significant, and
-meaningful over the data (casadical.physics, its use by the diagnosis)."""
+meaningful over the data (casadical.stats.physics, its use by the diagnosis)."""
 
 import math
 from dataclasses import replace
@@ -10,10 +10,10 @@ import pytest
 
 from casadical import calibrate, load_robot
 from casadical.data import Measurements
+from casadical.data.simulate import Effects, simulate
 from casadical.diagnosis import DiagnosisSettings, diagnose
-from casadical.physics import term_causes, value_violations, violations
 from casadical.robot import robot_from_dict
-from casadical.simulate import Effects, simulate
+from casadical.stats.physics import term_causes, value_violations, violations
 from tests.helpers.arms import ARM3, ARM4
 
 SEEDS = [0, 1, 2]

@@ -22,11 +22,11 @@ import pytest
 from casadical import calibrate
 from casadical.cli import main
 from casadical.data import Measurements
+from casadical.data.simulate import Effects, simulate
 from casadical.errors import ColumnMapError, DataFileError, DataWarning
 from casadical.importers import import_file, load_column_map, read_mapped
 from casadical.model import Model
 from casadical.robot import robot_from_dict
-from casadical.simulate import Effects, simulate
 
 ROOT = Path(__file__).resolve().parents[2]
 DATASET = ROOT / "problems" / "datasets" / "ur10-ipa"

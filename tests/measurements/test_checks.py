@@ -20,11 +20,11 @@ import numpy as np
 import pytest
 
 from casadical import calibrate, load_calibration, load_robot
-from casadical.checks import check_poses
 from casadical.data import Measurements
+from casadical.data.checks import check_poses
+from casadical.data.simulate import Effects, simulate
 from casadical.errors import DataFileError, DataWarning
 from casadical.robot import PROBLEMS, robot_from_dict
-from casadical.simulate import Effects, simulate
 from tests.helpers.arms import ARMS
 from tests.helpers.cli import cli, one_error
 

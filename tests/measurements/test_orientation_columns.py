@@ -1,5 +1,6 @@
 """Measured orientations in a measurement file (rx_deg, ry_deg, rz_deg): all three or none, numbers, intrinsic XYZ
-rotations that follow their columns (casadical/data.py). Full-pose calibration: tests/calibration/test_full_pose.py.
+rotations that follow their columns (casadical/data/measurements.py). Full-pose calibration:
+tests/calibration/test_full_pose.py.
 """
 
 import numpy as np

@@ -8,12 +8,12 @@ import numpy as np
 import pytest
 
 from casadical import cli
+from casadical.data.simulate import Effects, simulate
 from casadical.errors import InputError
+from casadical.loading import load_robot
 from casadical.methods import MethodResult, method_names, run_method
 from casadical.methods.compare import compare, format_table
 from casadical.model import Model
-from casadical.robot import load_robot
-from casadical.simulate import Effects, simulate
 from casadical.terms import make_term
 
 ROBOT = load_robot("ys100")

@@ -168,7 +168,7 @@ def test_compliance_deflects_along_torque():
 def test_hh800_loop_reduces_to_linear_coupling():
     robot = load_robot("hh800")
     linear = replace(robot, loop=None)
-    from casadical.simulate import sample_poses
+    from casadical.data.simulate import sample_poses
     q = sample_poses(robot, 40, np.random.default_rng(5), floor_z=None)
     np.testing.assert_allclose(Model(robot, "nominal").predict(q), Model(linear, "nominal").predict(q),
                                atol=1e-12)
@@ -177,7 +177,7 @@ def test_hh800_loop_reduces_to_linear_coupling():
 def test_hh800_loop_closes_with_other_lengths():
     import casadi as ca
 
-    from casadical.kinematics import fourbar_rocker_angle
+    from casadical.model.kinematics import fourbar_rocker_angle
     rng = np.random.default_rng(9)
     for _ in range(20):
         lam, phi = rng.uniform(0.5, 2.5), 0.0

@@ -16,12 +16,12 @@ import sys
 import numpy as np
 import pytest
 
-from casadical.batch import batch
-from casadical.kinematics import base_pose_matrix
-from casadical.model import Model, parse_spec, pose_to_base0
+from casadical.data.simulate import Effects, sample_poses, simulate
+from casadical.model._batch import batch
+from casadical.model.kinematics import base_pose_matrix
+from casadical.model.superset import Mapping, outputs, superset_for
+from casadical.model.symbolic import Model, parse_spec, pose_to_base0
 from casadical.robot import robot_from_dict
-from casadical.simulate import Effects, sample_poses, simulate
-from casadical.superset import Mapping, outputs, superset_for
 from casadical.terms import make_term
 from tests.helpers.arms import ARM3, ARM4, ARM5, ARM7, to_toml
 

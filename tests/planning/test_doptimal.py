@@ -13,8 +13,9 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 from casadical import cli
+from casadical.data.simulate import load_protocol, sample_poses
 from casadical.errors import IdentifiabilityError, IdentifiabilityWarning, InputError
-from casadical.identifiability import analyse
+from casadical.loading import load_robot
 from casadical.model import Model
 from casadical.planning import (
     RelaxationSettings,
@@ -33,9 +34,9 @@ from casadical.planning import (
 )
 from casadical.planning.doptimal import _Pool, _swap_ratios
 from casadical.planning.observability import _analyse_pool, pool_jacobian
-from casadical.robot import PROBLEMS, load_robot, robot_from_dict
-from casadical.simulate import load_protocol, sample_poses
-from casadical.threads import set_threads
+from casadical.robot import PROBLEMS, robot_from_dict
+from casadical.runtime.threads import set_threads
+from casadical.stats.identifiability import analyse
 
 
 def _random_pool(N: int, p: int, seed: int, r: int = 3) -> np.ndarray:

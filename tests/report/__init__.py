@@ -1,1 +1,1 @@
-"""Tests of casadical.report, the HTML reports."""
+"""Tests of casadical.html, the HTML reports."""

@@ -22,11 +22,11 @@ import pytest
 from casadical.calibration import calibrate
 from casadical.cli import main
 from casadical.data import Measurements
+from casadical.data.simulate import Effects, simulate
 from casadical.diagnosis import DiagnosisSettings, Finding, diagnose
 from casadical.diagnosis.candidates import Candidate
-from casadical.report import calibration_html, diagnosis_html
+from casadical.html import calibration_html, diagnosis_html
 from casadical.robot import robot_from_dict
-from casadical.simulate import Effects, simulate
 from tests.helpers.arms import ARM4, ARM5, ARM7, to_toml
 
 try:                        # drives the browser through the DevTools protocol
@@ -289,7 +289,7 @@ def test_figures_drawn_in_processes_are_the_same_page(diagnosis_page, calibratio
 
 def _lines(prefix: str, n: int, fails=lambda k: False) -> list:
     """Jobs of ``n`` small figures for render(); ``fails(k)``: figure k raises instead of drawing."""
-    from casadical.report.figures import figure, styled
+    from casadical.html.figures import figure, styled
 
     @styled
     def line(k):
@@ -306,7 +306,7 @@ def test_a_figure_a_child_cannot_draw_is_drawn_here():
     """A child process that fails leaves its share to this process: nothing is missing or out of order."""
     import os
 
-    from casadical.report.figures import render
+    from casadical.html.figures import render
 
     parent = os.getpid()
     jobs = _lines("f", 5, fails=lambda k: os.getpid() != parent and k % 2)
@@ -317,7 +317,7 @@ def test_figures_where_no_child_process_can_be_made(monkeypatch):
     """No semaphores or shared memory (some containers): this process draws every figure."""
     import concurrent.futures
 
-    from casadical.report.figures import render
+    from casadical.html.figures import render
 
     def no_pool(*args, **kwargs):
         raise OSError(38, "Function not implemented")
@@ -332,7 +332,7 @@ def test_two_reports_drawn_at_once_keep_their_own_figures():
     """Two threads drawing in processes at the same time: each page gets its own figures, in order."""
     import threading
 
-    from casadical.report.figures import render
+    from casadical.html.figures import render
 
     jobs = {name: _lines(name, 6) for name in ("a", "b")}
     out, errors = {}, []
@@ -746,7 +746,7 @@ def test_diagnosis_report_maps_where_the_model_is_accurate(browser, tmp_path):
     """diagnose --html --map-joints 2,3: a map of the predicted uncertainty over joints 2 and 3 with the
     calibration poses on it, readable in a real browser; it is lowest where the poses are (5-axis DH arm,
     joint 2 measured over 40 deg of its 180)."""
-    from casadical.predictive import accuracy_map
+    from casadical.stats.predictive import accuracy_map
     from tests import truth
 
     (tmp_path / "arm.toml").write_text(to_toml(ARM5))

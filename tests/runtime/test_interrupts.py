@@ -1,5 +1,5 @@
 """Interrupts stop the work: a signal at any moment of a command is one line, and its outputs appear all or none
-(casadical/interrupts.py, casadical/files.py; issues 21 and 10).
+(casadical/runtime/interrupts.py, casadical/runtime/files.py; issues 21 and 10).
 
 Signals are sent to real ``casadical`` processes at a moment where the work
 runs (IPOPT iterating, figure workers drawing, gcc compiling); robots that matter are arms
@@ -21,8 +21,8 @@ import pytest
 
 from casadical import load_robot
 from casadical.data import Measurements
-from casadical.files import atomic_write, outputs_together
-from casadical.interrupts import handle_signals
+from casadical.runtime.files import atomic_write, outputs_together
+from casadical.runtime.interrupts import handle_signals
 from tests.helpers.cli import arm_files, cli, one_error
 
 ROOT = Path(__file__).resolve().parents[2]

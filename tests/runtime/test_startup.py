@@ -10,13 +10,13 @@ import sys
 
 import pytest
 
+from casadical.data.simulate import Effects, simulate
 from casadical.robot import robot_from_dict
-from casadical.simulate import Effects, simulate
 from tests.helpers.arms import ARM4
 
 #: packages no command below uses
 NEVER = ("sklearn", "matplotlib", "cvxpy", "dask", "distributed", "pandas", "casadical.planning",
-         "casadical.importers", "casadical.methods", "casadical.study", "casadical.report", "casadical.diagnosis")
+         "casadical.importers", "casadical.methods", "casadical.study", "casadical.html", "casadical.diagnosis")
 
 
 def _imported(args: list[str], cwd) -> set[str]:
@@ -67,13 +67,13 @@ def test_predict_imports_no_calibration_pipeline(files):
     mods = _imported(["predict", str(files / "cal.json"), str(files / "poses.csv"), "--out",
                       str(files / "p.csv"), "--force"], files)
     assert "casadical.result" in mods
-    assert _packages(mods, NEVER + ("scipy", "casadical.calibration", "casadical.simulate")) == []
+    assert _packages(mods, NEVER + ("scipy", "casadical.calibration", "casadical.data.simulate")) == []
 
 
 def test_split_imports_no_model_no_planning(files):
     mods = _imported(["split", str(files / "poses.csv"), "-n", "20", "--out-cal", str(files / "c.csv"),
                       "--out-val", str(files / "v.csv"), "--force"], files)
-    assert _packages(mods, NEVER + ("casadi", "casadical.model", "casadical.identifiability")) \
+    assert _packages(mods, NEVER + ("casadi", "casadical.model.symbolic", "casadical.stats.identifiability")) \
         == []
 
 
@@ -89,4 +89,4 @@ def test_calibrate_that_sets_poses_aside_imports_no_scipy_stats(files, tmp_path)
     mods = _imported(["calibrate", "arm.toml", "shots.csv", "--model", "kinematic", "--out", "cal.json", "--force",
                       "--quiet"], tmp_path)
     assert json.loads((tmp_path / "cal.json").read_text())
-    assert "casadical.set_aside" in mods and "scipy.stats" not in mods
+    assert "casadical.stats.outliers" in mods and "scipy.stats" not in mods

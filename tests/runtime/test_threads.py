@@ -1,4 +1,4 @@
-"""casadical.threads: the BLAS/OpenMP limit is in force inside, restored after, and can be overridden; large
+"""casadical.runtime.threads: the BLAS/OpenMP limit is in force inside, restored after, and can be overridden; large
 batches of poses are evaluated in blocks, side by side, to the same bits."""
 
 from __future__ import annotations
@@ -12,8 +12,8 @@ from threadpoolctl import threadpool_limits
 
 from casadical import cli
 from casadical.errors import SettingError
-from casadical.robot import load_robot
-from casadical.threads import (
+from casadical.loading import load_robot
+from casadical.runtime.threads import (
     ENV,
     EVAL_ENV,
     EVAL_MAX,
@@ -185,8 +185,8 @@ def test_blocks_give_the_same_bits_as_one_batch(monkeypatch, name):
 
 
 def test_small_batches_and_compiled_code_stay_in_one_block(monkeypatch):
-    from casadical import jitcache
-    from casadical.model import BLOCK_MIN, Model
+    from casadical.model import jitcache
+    from casadical.model.symbolic import BLOCK_MIN, Model
     from casadical.robot import robot_from_dict
     from tests.helpers.arms import ARM3
 
@@ -238,7 +238,7 @@ def test_a_block_that_fails_is_waited_for(monkeypatch):
     that, and the block ends by itself (``returned`` still unset); a call that did not wait sets it first."""
     import threading
 
-    from casadical.model import Model, _Batch
+    from casadical.model.symbolic import Model, _Batch
 
     monkeypatch.setenv(EVAL_ENV, "2")
     model = Model(load_robot("ur10"), "kinematic", jit=False)

@@ -13,11 +13,11 @@ import pytest
 import yourdfpy
 
 from casadical import Model, calibrate, load_robot
-from casadical.alignment import align
 from casadical.cli import main
+from casadical.data.simulate import Effects, sample_poses, simulate
 from casadical.errors import ModelError, RobotFileError
 from casadical.robot import robot_from_dict
-from casadical.simulate import Effects, sample_poses, simulate
+from casadical.stats.alignment import align
 from casadical.urdf import PARALLEL_TOL_DEG, robot_from_urdf, robot_to_urdf
 
 TOL_M = 1e-9
