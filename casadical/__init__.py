@@ -9,24 +9,25 @@ __version__ = "0.1.0"
 #: public name -> its module; imported on first use, so that commands which need no model (``split``,
 #: ``--help``) start without CasADi (PEP 562)
 _EXPORTS = {"CalibrationResult": "result", "calibrate": "calibration", "load_calibration": "result",
-            "Measurements": "data", "CasadicalError": "errors", "Model": "model", "parse_spec": "model",
-            "Parameter": "parameters", "Parameters": "parameters", "Robot": "robot", "load_robot": "loading"}
+            "Measurements": "data.measurements", "CasadicalError": "errors", "Model": "model.symbolic",
+            "parse_spec": "model.symbolic", "Parameter": "model.parameters", "Parameters": "model.parameters",
+            "Robot": "robot", "load_robot": "loading"}
 
 __all__ = ["CalibrationResult", "CasadicalError", "Measurements", "calibrate", "load_calibration", "Model", "Parameter",
            "Parameters", "Robot", "load_robot", "parse_spec", "__version__"]
 
 if _typing.TYPE_CHECKING:
     from .calibration import calibrate
-    from .data import Measurements
+    from .data.measurements import Measurements
     from .errors import CasadicalError
     from .loading import load_robot
-    from .model import Model, parse_spec
-    from .parameters import Parameter, Parameters
+    from .model.parameters import Parameter, Parameters
+    from .model.symbolic import Model, parse_spec
     from .result import CalibrationResult, load_calibration
     from .robot import Robot
 else:
     def __getattr__(name: str):
-        """A public name, or a submodule (``casadical.simulate`` after ``import casadical``, as before)."""
+        """A public name, or a submodule (``casadical.data.simulate`` after ``import casadical``, as before)."""
         module = _EXPORTS.get(name)
         if module is not None:
             value = getattr(_import_module(f".{module}", __name__), name)

@@ -99,7 +99,7 @@ class ExtrapolationWarning(CasadicalWarning):
 
 
 class PhysicsWarning(CasadicalWarning):
-    """A term of the model that, as fitted, is not the physical cause its name says (casadical.physics)."""
+    """A term of the model that, as fitted, is not the physical cause its name says (casadical.stats.physics)."""
 
 
 class CorrelationWarning(CasadicalWarning):

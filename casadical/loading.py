@@ -3,7 +3,7 @@
 It sits above both :mod:`casadical.robot` (the robot description and its
 TOML form) and :mod:`casadical.urdf` (which builds on the former), so that
 neither imports the other's way back. ``casadical.load_robot`` is this
-module's :func:`load_robot`.
+module's :func:`load_robot`, the one function of that name.
 """
 
 from __future__ import annotations

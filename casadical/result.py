@@ -16,29 +16,29 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .calibration_file import restored_terms, validate_calibration_document
-from .checks import check_calibration_fits, check_poses
-from .coverage import Coverage
-from .data import Measurements, session_index
+from .data.calibration_file import restored_terms, validate_calibration_document
+from .data.checks import check_calibration_fits, check_poses
+from .data.measurements import Measurements, session_index
 from .errors import CalibrationFileError, CasadicalError, InputError, listing
-from .files import atomic_write
-from .identifiability import Identifiability
-from .kinematics import matrix_to_rpy
-from .model import Model, base0_to_pose
-from .parameters import Parameters
+from .model.kinematics import matrix_to_rpy
+from .model.parameters import Parameters
+from .model.symbolic import Model, base0_to_pose
 from .problem import RobustLoss
 from .robot import robot_from_dict, robot_to_dict
-from .significance import (
+from .runtime.files import atomic_write
+from .solvers import SolverResult
+from .stats.coverage import Coverage
+from .stats.identifiability import Identifiability
+from .stats.significance import (
     LEVEL,
     FitStatistics,
     ParameterTest,
-    parameter_table,
+    parameter_table_text,
     parameter_tests,
     stiffness_interval,
     t_critical,
 )
-from .solvers import SolverResult
-from .uncertainty import Uncertainty
+from .stats.uncertainty import Uncertainty
 
 
 @dataclass
@@ -200,7 +200,7 @@ class CalibrationResult:
 
     def tool_rotation(self) -> np.ndarray:
         """The probe's mounting rotation on the flange (3x3): ``Rz(tool_yaw) Ry(tool_pitch) Rx(tool_roll) R0``."""
-        from .kinematics import base_pose_matrix
+        from .model.kinematics import base_pose_matrix
         self._check_orientation()
         p = self.parameters
         D = base_pose_matrix([0.0, 0.0, 0.0], [p[f"tool_{k}"].value for k in ("roll", "pitch", "yaw")])[:3, :3]
@@ -261,7 +261,7 @@ class CalibrationResult:
 
     def base_matrix(self, session: str | None = None) -> np.ndarray:
         """Robot base in the measurement frame (of ``session``; default: the primary one), 4x4."""
-        from .kinematics import base_pose_matrix
+        from .model.kinematics import base_pose_matrix
         p = self.parameters
         sessions = self.sessions
         if session is None or not sessions or session == sessions[0]:
@@ -329,7 +329,7 @@ class CalibrationResult:
         """Each free parameter tested against its nominal value: t, p, significance, interval, relative std.
 
         Student's t with the fit's degrees of freedom (the normal
-        distribution when they are not known); see :mod:`casadical.significance`.
+        distribution when they are not known); see :mod:`casadical.stats.significance`.
         """
         return parameter_tests(self.parameters, self._dof(), level)
 
@@ -355,9 +355,9 @@ class CalibrationResult:
         """Errors on held-out poses, kept in :attr:`validation` (and written to the JSON).
 
         The poses pass the plausibility checks of every command
-        (:func:`casadical.checks.check_poses`) and the check ``predict``
+        (:func:`casadical.data.checks.check_poses`) and the check ``predict``
         makes that they belong to this calibration (a mean error a hundred
-        times its own: :func:`casadical.checks.check_calibration_fits`).
+        times its own: :func:`casadical.data.checks.check_calibration_fits`).
 
         Parameters
         ----------
@@ -406,7 +406,7 @@ class CalibrationResult:
         tests = self.significance()
         lines += ["", "identified parameters (angles in deg, lengths in mm; t = deviation/std, significant at "
                       f"{100 * LEVEL:g} % when |t| > {t_critical(LEVEL, self._dof()):.3g}; rel.std = std/|deviation|):",
-                  parameter_table(self.parameters, tests)]
+                  parameter_table_text(self.parameters, tests)]
         st = self.stiffness()
         if st:
             lines += ["", "joint stiffness k = 1/c:"]

@@ -1,12 +1,12 @@
 """Robot descriptions: the TOML contract (INTERFACE.md section 1) and built-ins.
 
 A :class:`Robot` holds nominal values only, in SI units (m, rad, kg). The
-symbolic model (:mod:`casadical.model`) turns it into CasADi expressions.
+symbolic model (:mod:`casadical.model.symbolic`) turns it into CasADi expressions.
 
 This module imports no reader of another file type: the URDF reader
 (:mod:`casadical.urdf`) builds on it, and loading a robot by file type
 (built-in name, TOML, URDF) is :func:`casadical.loading.load_robot`, above
-both (``tests/test_imports.py`` keeps it so).
+both (``tests/test_import_graph.py`` keeps it so).
 """
 
 from __future__ import annotations
@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from .errors import InputError, ParallelAxesWarning, RobotFileError
-from .files import read_toml
+from .runtime.files import read_toml
 
 GRAVITY = 9.81
 PROBLEMS = Path(__file__).resolve().parent.parent / "problems"
@@ -92,9 +92,19 @@ class Robot:
     def load(cls, spec: str | Path) -> "Robot":
         """Load a built-in robot by name (``ys100``, ``hh800``, ``ur10``) or a TOML file.
 
-        Any robot file, URDF too: :func:`casadical.load_robot`.
+        Any robot file, URDF too: :func:`casadical.load_robot` (:mod:`casadical.loading`, the one
+        ``load_robot``), which this module cannot import (the URDF reader builds on it).
+
+        Raises
+        ------
+        RobotFileError
+            Unknown name, unreadable file, a URDF file, or any invalid field.
         """
-        return load_robot(spec)
+        path = robot_file(spec)
+        if path.suffix.lower() == ".urdf":
+            raise RobotFileError("Robot.load reads built-in robots and TOML files; read a URDF with "
+                                 "casadical.load_robot", file=str(spec))
+        return robot_from_toml(path)
 
 
 # --- TOML loading -----------------------------------------------------------------
@@ -142,36 +152,6 @@ def robot_from_toml(path: str | Path) -> Robot:
     robot = robot_from_dict(read_toml(path, RobotFileError), str(path))
     warn_parallel_axes(robot.joints, robot.convention, str(path))
     return robot
-
-
-def load_robot(spec: str | Path, tip: str | None = None, base: str | None = None,
-               tool: tuple[float, float, float] | None = None) -> Robot:
-    """Load a built-in robot by name or a robot TOML file.
-
-    Robot files of every type (TOML and URDF) are read by
-    :func:`casadical.load_robot` (:mod:`casadical.loading`), which sits above
-    this module and the URDF reader; this one reads what needs nothing but
-    this module, so that it imports no reader of other file types.
-
-    Parameters
-    ----------
-    spec : str or Path
-    tip, base, tool : None
-        Chain options of a URDF file: refused here (use :func:`casadical.load_robot`).
-
-    Raises
-    ------
-    RobotFileError
-        Unknown name, unreadable file, a URDF file, or any invalid field.
-    InputError
-        ``tip``, ``base`` or ``tool`` given.
-    """
-    path = robot_file(spec)
-    if path.suffix.lower() == ".urdf":
-        raise RobotFileError("casadical.robot.load_robot reads built-in robots and TOML files; read a URDF with "
-                             "casadical.load_robot (casadical.loading.load_robot)", file=str(spec))
-    check_not_urdf_options(spec, tip, base, tool)
-    return robot_from_toml(path)
 
 
 def check_not_urdf_options(spec: str | Path, tip, base, tool) -> None:

@@ -16,16 +16,16 @@ import warnings
 
 import numpy as np
 import pytest
-from arms import ARMS, to_toml
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from casadical import calibrate, load_calibration, load_robot
-from casadical.checks import check_poses
 from casadical.data import Measurements
+from casadical.data.checks import check_poses
+from casadical.data.simulate import Effects, simulate
 from casadical.errors import CasadicalError
 from casadical.robot import BUILTIN_DIR, robot_from_dict
-from casadical.simulate import Effects, simulate
+from tests.helpers.arms import ARMS, to_toml
 
 #: the default run: the same examples every time (no flaky CI); -m slow draws new ones
 FAST = settings(max_examples=100, deadline=2000, database=None, derandomize=True,

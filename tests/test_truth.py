@@ -2,7 +2,7 @@
 
 Nothing here uses casadical: the expected values are written out from the definitions of docs/formats.md
 (link transforms, base pose, measurement CSV), docs/guide.md's term table and docs/diagnosis.md's sign
-conventions. tests/test_truth_vs_package.py compares the truth with casadical's model.
+conventions. tests/model/test_truth_vs_package.py compares the truth with casadical's model.
 """
 
 import csv
@@ -10,8 +10,9 @@ from math import cos, radians, sin
 
 import numpy as np
 import pytest
-from truth import Arm, Effects, Session, TrueRobot, four_bar, last_moves, measure, sample
-from truth import transforms as tf
+
+from tests.truth import Arm, Effects, Session, TrueRobot, four_bar, last_moves, measure, sample
+from tests.truth import transforms as tf
 
 G = 9.81
 L1, L2, M1, M2, MP = 0.8, 0.6, 20.0, 10.0, 5.0
@@ -225,7 +226,7 @@ def test_four_bar():
 
 
 def test_reads_the_toml_text_as_the_dict(tmp_path):
-    from arms import ARM7, to_toml
+    from tests.helpers.arms import ARM7, to_toml
     a, b = Arm.from_dict(ARM7), Arm.from_toml(to_toml(ARM7))
     rng = np.random.default_rng(1)
     q = sample(TrueRobot(a), 20, rng)

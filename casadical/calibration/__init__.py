@@ -36,8 +36,8 @@ The package is :func:`calibrate` as a pipeline of named stages
 - :mod:`.precision` ``estimate_precision``: standard errors, correlations, significance;
 - :mod:`.outcome` ``note_set_aside``, ``assemble_result``: the poses set aside, the result;
 - :mod:`.physics_notes` ``note_physics``: terms that are not physics as fitted;
-- :mod:`.compensator` ``add_rbf_compensator``, :mod:`.layer` ``add_accuracy_layer``: what is
-  learnt after the model.
+- :mod:`.rbf_compensator` ``add_rbf_compensator``, :mod:`.gp_compensator` ``add_gp_compensator``: the
+  compensators, learnt after the model.
 
 :mod:`.state` holds what a calibration carries from stage to stage.
 """

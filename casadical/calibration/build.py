@@ -11,9 +11,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..data import Measurements
+from ..data.measurements import Measurements
 from ..errors import InputError
-from ..model import Model
+from ..model.symbolic import Model
 from ..robot import Robot
 from .for_data import model_for
 from .further import take_further

@@ -6,9 +6,9 @@ diagnosis, which builds the models it tries for the same data.
 
 from __future__ import annotations
 
-from ..data import Measurements
+from ..data.measurements import Measurements
 from ..errors import InputError
-from ..model import Model, parse_spec
+from ..model.symbolic import Model, parse_spec
 from ..robot import Robot
 from ..terms import ErrorTerm, ReferencedTerm, SessionLocal, make_term
 

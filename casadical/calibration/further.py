@@ -8,10 +8,10 @@ unless named; the base pose, the named terms and new parameters are free
 
 from __future__ import annotations
 
-from ..calibration_file import restore_term
+from ..data.calibration_file import restore_term
 from ..errors import CasadicalWarning
-from ..model import Model, spec_of
-from ..parameters import Parameters
+from ..model.parameters import Parameters
+from ..model.symbolic import Model, spec_of
 from ..terms import ErrorTerm, SessionLocal
 from .for_data import set_references, with_sessions
 from .state import CalibrationRun
@@ -53,7 +53,7 @@ def take_further(run: CalibrationRun) -> None:
     """Sets ``model``, ``params`` and ``kept`` from the calibration ``run.prior`` and the terms asked for."""
     prior, data, opts = run.prior, run.data, run.options
     merged, named = merge_terms(list(prior.model.terms), run.terms)
-    # what describes the session the calibration was measured in (drift, a session compensator) is not
+    # what describes the session the calibration was measured in (drift, a GP compensator) is not
     # the robot's: it is dropped, unless the model names it (then it is estimated for these poses)
     dropped = [t for t in merged if t.session and (t.name not in named or isinstance(t, SessionLocal)
                                                    or t.name == "sessions")

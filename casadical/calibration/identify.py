@@ -10,12 +10,12 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..data.simulate import sample_poses
 from ..errors import IdentifiabilityError, IdentifiabilityWarning
-from ..identifiability import analyse
-from ..model import Model
-from ..parameters import Parameters
+from ..model.parameters import Parameters
+from ..model.symbolic import Model
 from ..problem import ROT_WEIGHT_PRIOR, jacobian_factor
-from ..simulate import sample_poses
+from ..stats.identifiability import analyse
 from .state import CalibrationRun
 
 _GENERIC: dict = {}

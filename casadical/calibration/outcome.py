@@ -2,7 +2,7 @@
 
 A pose whose robust weight falls below :data:`DOWNWEIGHT_REPORT` is named by
 its file line: a likely bad measurement, unless the poses set aside share
-structure the model lacks (:mod:`casadical.set_aside`); the result holds the model, the
+structure the model lacks (:mod:`casadical.stats.outliers`); the result holds the model, the
 parameters, the errors overall and per session, the coverage of the joint
 ranges and the fit statistics.
 """
@@ -13,12 +13,12 @@ import math
 
 import numpy as np
 
-from .. import set_aside
-from ..coverage import Coverage
-from ..data import session_index
+from ..data.measurements import session_index
 from ..errors import listing
 from ..result import CalibrationResult, ErrorStats
-from ..significance import FitStatistics
+from ..stats import outliers as set_aside
+from ..stats.coverage import Coverage
+from ..stats.significance import FitStatistics
 from .state import CalibrationRun
 
 #: a pose whose robust weight falls below this is reported as set aside
@@ -42,7 +42,7 @@ def note_set_aside(run: CalibrationRun) -> None:
     if down:
         scale = (f"{loss.sigma * 1000:.4f} mm" if not full_pose else
                  f"{loss.sigma * 1000:.4f} mm and {math.degrees(loss.sigma_rot):.4f} deg")
-        # bad measurements, or poses that share structure the model lacks (casadical.set_aside)
+        # bad measurements, or poses that share structure the model lacks (casadical.stats.outliers)
         shared = set_aside.of_model(run.model, run.params.values, run.base0, data, lin.weights < DOWNWEIGHT_REPORT,
                                     run.cov)
         run.notes.append(f"the robust loss set aside {len(down)} pose(s) of {data.path} whose residual exceeds "

@@ -1,6 +1,6 @@
 """Stage ``note_physics``: the terms that, as fitted, are not the physical cause their names say.
 
-:mod:`casadical.physics` judges each fitted cause: told apart from the
+:mod:`casadical.stats.physics` judges each fitted cause: told apart from the
 geometry, meaningful over the data (bounds and significance have notes of
 their own); and says when a compliant joint sags so far that the model's
 first order (torques of the undeflected arm) leaves more than the noise.
@@ -8,18 +8,18 @@ first order (torques of the undeflected arm) leaves more than the noise.
 
 from __future__ import annotations
 
-from ..data import Measurements
+from ..data.measurements import Measurements
 from ..errors import PhysicsWarning
-from ..physics import sag_note, term_causes, violations
 from ..result import CalibrationResult
+from ..stats.physics import sag_note, term_causes, violations
 from .state import CalibrationRun
 
 
 def physics_notes(result: CalibrationResult, data: Measurements) -> list[str]:
     """Notes on the terms that, as fitted, are not the physical cause their names say
-    (:mod:`casadical.physics`: told apart from the geometry, meaningful over the data; bounds and significance
+    (:mod:`casadical.stats.physics`: told apart from the geometry, meaningful over the data; bounds and significance
     have notes of their own), and on a compliance whose first order leaves more than the noise
-    (:func:`~casadical.physics.sag_note`)."""
+    (:func:`~casadical.stats.physics.sag_note`)."""
     out = []
     for cause in term_causes(result):
         free = [n for n in cause.parameters if not result.parameters[n].fixed]   # the fixed: said by the analysis

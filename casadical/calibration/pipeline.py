@@ -12,20 +12,20 @@ from __future__ import annotations
 
 from typing import Callable
 
-from ..data import Measurements
-from ..model import Model
+from ..data.measurements import Measurements
+from ..model.symbolic import Model
 from ..problem import RobustLoss
 from ..result import CalibrationResult
 from ..robot import Robot
-from ..threads import limited_threads
+from ..runtime.threads import limited_threads
 from .build import build_model
-from .compensator import add_rbf_compensator
+from .gp_compensator import add_gp_compensator
 from .identify import analyse_identifiability
-from .layer import add_accuracy_layer
 from .outcome import assemble_result, note_set_aside
 from .physics_notes import note_physics
 from .precision import estimate_precision
 from .prepare import prepare_data
+from .rbf_compensator import add_rbf_compensator
 from .solve import solve_parameters
 from .spec import read_model_spec
 from .start import start_pose
@@ -44,7 +44,7 @@ STAGES: tuple[Callable[[CalibrationRun], None], ...] = (
     assemble_result,          # the CalibrationResult
     note_physics,             # terms that, as fitted, are not the physics their names say
     add_rbf_compensator,      # +rbf_compensator
-    add_accuracy_layer,       # +gp_compensator
+    add_gp_compensator,       # +gp_compensator
 )
 
 
@@ -75,7 +75,8 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         ``+rbf_compensator`` fits a Gaussian RBF network to what the model
         leaves (in the robot base frame) and adds it to the model;
         ``+gp_compensator`` a Gaussian process of the joint readings per
-        session, applied where it knows (:mod:`casadical.accuracy`).
+        session, applied where it knows (the GP compensator, one per session:
+        :mod:`casadical.compensators.per_session`).
     solver : {"ipopt", "lm", "gn", "auto"}
         ``auto`` runs Levenberg-Marquardt and hands over to IPOPT if the
         solution leaves the parameter bounds.
@@ -105,7 +106,7 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         sigma_rot``, the two noise scales estimated from the data.
     allow_outside_limits, angles_are_degrees, positions_are_mm, allow_mismatch : bool
         Overrides of the plausibility checks of the poses
-        (:func:`casadical.checks.check_poses`); ``allow_mismatch``: poses
+        (:func:`casadical.data.checks.check_poses`); ``allow_mismatch``: poses
         the start model (nominal, or the calibration taken further) misses
         far beyond what it can mean, even with its base pose fitted to them.
     session_tools : bool or list of str
@@ -113,7 +114,7 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         base pose): every session other than the first (True), or the named
         ones, has its own tool offset too (the probe was re-mounted).
     keep_compensator : bool
-        Taking a calibration further: keep its session compensator
+        Taking a calibration further: keep its GP compensator
         (``gp_compensator``, which a transfer drops like every term of the
         calibration's session), as when the new poses are of the same
         session (a new tracker set-up in the middle of it).

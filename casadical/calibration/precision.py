@@ -1,10 +1,10 @@
 """Stage ``estimate_precision``: how well the poses determine each parameter, and what is not significant.
 
 Standard errors from sigma^2 A^-1 at the solution (A: the loss's
-Gauss-Newton matrix; :func:`casadical.uncertainty.from_normal`), with notes
+Gauss-Newton matrix; :func:`casadical.stats.uncertainty.from_normal`), with notes
 on strong correlations and parameters at a bound
-(:func:`casadical.uncertainty.warn_problems`) and on terms whose parameters
-the poses do not determine (:func:`casadical.significance.warn_not_significant`).
+(:func:`casadical.stats.uncertainty.warn_problems`) and on terms whose parameters
+the poses do not determine (:func:`casadical.stats.significance.warn_not_significant`).
 """
 
 from __future__ import annotations
@@ -14,8 +14,8 @@ import warnings
 
 import numpy as np
 
-from ..significance import warn_not_significant
-from ..uncertainty import from_normal, warn_problems
+from ..stats.significance import warn_not_significant
+from ..stats.uncertainty import from_normal, warn_problems
 from .state import CalibrationRun
 
 

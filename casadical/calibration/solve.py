@@ -15,10 +15,10 @@ from dataclasses import fields
 import numpy as np
 
 from ..errors import ConvergenceWarning, IdentifiabilityError, SolverError
-from ..identifiability import Identifiability, triangular_factor
 from ..problem import CalibrationProblem, pose_chunks
 from ..solvers import Ipopt, make_solver
 from ..solvers.ipopt import HANDOVER
+from ..stats.identifiability import Identifiability, triangular_factor
 from ..terms.tool_orientation import ToolOrientation
 from .state import CalibrationRun
 

@@ -3,13 +3,13 @@
 ``+tool`` frees the tool offset; full-pose data add the probe's mounting
 rotation (``tool_orientation``) to any model; a compensator that is still
 to be fitted (``+rbf_compensator``, ``+gp_compensator``) is taken out of the
-terms and fitted after the model (:mod:`.compensator`, :mod:`.layer`).
+terms and fitted after the model (:mod:`.rbf_compensator`, :mod:`.gp_compensator`).
 """
 
 from __future__ import annotations
 
 from ..errors import InputError
-from ..model import Model, parse_spec
+from ..model.symbolic import Model, parse_spec
 from ..terms import make_term
 from ..terms.rbf_compensator import RBFCompensator
 from ..terms.tool_orientation import ToolOrientation

@@ -3,7 +3,7 @@
 Each session's base pose is the closed-form alignment (Kabsch) of the start
 model's tool points to the measured ones, so the tracker may stand anywhere
 at any rotation; the plausibility checks of the poses
-(:func:`casadical.checks.check_poses`) judge the start model against them;
+(:func:`casadical.data.checks.check_poses`) judge the start model against them;
 full-pose data start the probe's mounting rotation in closed form too
 (:func:`mean_mounting`).
 """
@@ -12,12 +12,12 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..alignment import align
-from ..checks import check_poses
-from ..data import Measurements, session_index
+from ..data.checks import check_poses
+from ..data.measurements import Measurements, session_index
 from ..errors import IdentifiabilityError
-from ..model import Model, pose_to_base0
-from ..parameters import Parameters
+from ..model.parameters import Parameters
+from ..model.symbolic import Model, pose_to_base0
+from ..stats.alignment import align
 from .state import CalibrationRun
 
 

@@ -21,16 +21,16 @@ import numpy as np
 from ..errors import CasadicalWarning
 
 if TYPE_CHECKING:
-    from ..data import Measurements
-    from ..identifiability import Identifiability
-    from ..model import Model
-    from ..parameters import Parameters
+    from ..data.measurements import Measurements
+    from ..model.parameters import Parameters
+    from ..model.symbolic import Model
     from ..problem import CalibrationProblem, Linearization, RobustLoss
     from ..result import CalibrationResult
     from ..robot import Robot
     from ..solvers import SolverResult
+    from ..stats.identifiability import Identifiability
+    from ..stats.uncertainty import Uncertainty
     from ..terms import ErrorTerm
-    from ..uncertainty import Uncertainty
 
 #: the files a warning of :meth:`CalibrationRun.note` passes over: it names the line that called ``calibrate``
 _INSIDE = (os.path.dirname(__file__) + os.sep, contextlib.__file__)
@@ -92,7 +92,7 @@ class CalibrationRun:
     built: Model | None = None           # the caller's own model (with the probe's mounting, for full pose)
     free_tool: bool = False              # ``+tool``: the tool offset is estimated too
     want_rbf: bool = False               # ``+rbf_compensator``: fitted after the model (add_rbf_compensator)
-    want_gp: bool = False                # ``+gp_compensator``: fitted after the model (add_accuracy_layer)
+    want_gp: bool = False                # ``+gp_compensator``: fitted after the model (add_gp_compensator)
 
     # build_model: the model and its parameters, which of them are free
     model: Model | None = None

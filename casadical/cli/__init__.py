@@ -5,7 +5,7 @@ and column at fault on bad input. Anything unexpected is one line too, with
 a request to report it; ``--debug`` shows the traceback. Ctrl-C and SIGTERM
 (or SIGHUP) stop any command with one line and exit 130 (143, 129); a
 command's output files appear together when it succeeds, or none of them
-(:func:`casadical.files.outputs_together`).
+(:func:`casadical.runtime.files.outputs_together`).
 
 Each command lives in a module of this package with one pattern: a
 ``register(sub)`` that adds its parser and sets ``func``; shared helpers are
@@ -20,12 +20,13 @@ import sys
 import traceback
 import warnings
 
-from .. import __version__, interrupts
+from .. import __version__
 from ..errors import CasadicalError, CasadicalWarning
-from ..files import outputs_together
-from ..interrupts import exit_code, handle_signals
-from ..jitcache import announcing
-from ..threads import evaluation_threads, limited_threads
+from ..model.jitcache import announcing
+from ..runtime import interrupts
+from ..runtime.files import outputs_together
+from ..runtime.interrupts import exit_code, handle_signals
+from ..runtime.threads import evaluation_threads, limited_threads
 from . import cache, calibrate, compare, compensate, data, diagnose, export, model, planning, study
 from .common import Status
 
@@ -86,7 +87,7 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
 def _check_cache_settings() -> None:
     """A bad CASADICAL_JIT or CASADICAL_CACHE_MAX_MB is said before any work (casadi is imported only if set)."""
     if os.environ.get("CASADICAL_JIT") is not None or os.environ.get("CASADICAL_CACHE_MAX_MB") is not None:
-        from ..jitcache import jit_setting, max_bytes
+        from ..model.jitcache import jit_setting, max_bytes
         jit_setting()
         max_bytes()
 

@@ -22,7 +22,7 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from .. import jitcache
+    from ..model import jitcache
 
     if args.clear:
         n = jitcache.clear()

@@ -58,7 +58,7 @@ def register(sub) -> None:
                         "down-weighted and reported) or none (plain least squares); default %(default)s")
     p.add_argument("--fix", default="", help="comma-separated parameters to hold at nominal (default: none)")
     p.add_argument("--keep-compensator", action="store_true",
-                   help="with a calibration JSON in place of ROBOT: keep its session compensator (gp_compensator), "
+                   help="with a calibration JSON in place of ROBOT: keep its GP compensator (gp_compensator), "
                         "which is dropped otherwise like every term of the session it was fitted on")
     add_session_tool(p)
     p.add_argument("--validate", metavar="VAL.csv",
@@ -78,16 +78,16 @@ def register(sub) -> None:
 
 def run(args) -> int:
     from ..calibration import calibrate
-    from ..checks import check_held_out
-    from ..data import Measurements
+    from ..data.checks import check_held_out
+    from ..data.measurements import Measurements
+    from ..data.sessions import read_sessions
     from ..errors import InputError
     from ..result import CalibrationResult
-    from ..sessions import read_sessions
 
     check_outputs({"--out": args.out, "--html": args.html}, [args.robot, *args.data, args.validate], args.force)
     robot = robot_or_calibration(args.robot, args)
     if args.keep_compensator and not (isinstance(robot, CalibrationResult) and robot.model.term("gp_compensator")):
-        raise InputError("--keep-compensator keeps the session compensator of a calibration taken further: "
+        raise InputError("--keep-compensator keeps the GP compensator of a calibration taken further: "
                          + (f"{args.robot} has none" if isinstance(robot, CalibrationResult)
                             else "give a calibration JSON in place of ROBOT"))
     n = robot.model.robot.n if isinstance(robot, CalibrationResult) else robot.n
@@ -102,10 +102,10 @@ def run(args) -> int:
     status = Status(args.quiet)
     with status.slow(f"calibrate: fitting model {args.model} to {len(data)} poses ({args.solver}, robust loss "
                      f"{args.robust})"):
-        # a calibration taken further judges each cause it carries on these poses (casadical.carry)
+        # a calibration taken further judges each cause it carries on these poses (casadical.apply.carry)
         fit = calibrate
         if isinstance(robot, CalibrationResult):
-            from ..carry import carry as fit
+            from ..apply.carry import carry as fit
         result = fit(robot, data, args.model, solver=args.solver, solver_options=opts,
                      fix=tuple(f.strip() for f in args.fix.split(",") if f.strip()), robust=args.robust,
                      session_tools=args.session_tool, position_only=args.position_only,
@@ -117,8 +117,8 @@ def run(args) -> int:
     print(fold_long_lines(result.summary()), file=out)
     print(f"\ncalibration -> {args.out}", file=out)
     if args.html:
-        from ..report import calibration_html
-        from ..threads import evaluation_threads
+        from ..html import calibration_html
+        from ..runtime.threads import evaluation_threads
         before, label = None, "nominal model, base pose fitted"
         if isinstance(robot, CalibrationResult):    # the calibration taken further: the error it starts from
             before = calibrate(robot, data, "base", "lm", warn=False, robust=args.robust,

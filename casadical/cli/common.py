@@ -19,7 +19,7 @@ from pathlib import Path
 from typing import Any, Iterable, TextIO
 
 from ..errors import InputError
-from ..files import EXISTS, atomic_write
+from ..runtime.files import EXISTS, atomic_write
 
 STDOUT = "-"
 
@@ -216,7 +216,7 @@ def add_json(p: argparse.ArgumentParser, what: str, required: bool = False) -> N
 
 
 def add_checks(p: argparse.ArgumentParser, mismatch: bool = True) -> None:
-    """The overrides of the plausibility checks of poses (:mod:`casadical.checks`).
+    """The overrides of the plausibility checks of poses (:mod:`casadical.data.checks`).
 
     ``--allow-mismatch`` is one of them on every command (``mismatch`` is
     accepted for the callers that asked for it when it was ``predict``'s
@@ -303,7 +303,7 @@ def robot_or_calibration(spec: str, args):
 
 
 def check_options(args) -> dict:
-    """Keyword overrides of :func:`casadical.checks.check_poses` from the options of :func:`add_checks`."""
+    """Keyword overrides of :func:`casadical.data.checks.check_poses` from the options of :func:`add_checks`."""
     return {"allow_outside_limits": args.allow_outside_limits, "angles_are_degrees": args.angles_are_degrees,
             "positions_are_mm": args.positions_are_mm, "allow_mismatch": args.allow_mismatch}
 
@@ -341,15 +341,15 @@ def warn_session_frame(sessions: list[str], data, holder: str) -> None:
 
 
 def compensator_line(cal, data) -> str:
-    """Where the session compensator (the accuracy layer) applied, in words ('' without one)."""
-    from ..accuracy import layer_coverage
+    """Where the GP compensator (one per session) applied, in words ('' without one)."""
+    from ..compensators.per_session import gp_compensator_coverage
 
-    known, total = layer_coverage(cal, data)
+    known, total = gp_compensator_coverage(cal, data)
     if not total:
         return ""
-    return (f"session compensator (a Gaussian process of the residual): applied at {known} of {total} poses; "
-            f"at the other {total - known} it does not know the residual (too far from the poses it learnt from) and "
-            "the physical model stands alone")
+    return (f"GP compensator (a Gaussian process of the residual, one per session): applied at {known} of {total} "
+            f"poses; at the other {total - known} it does not know the residual (too far from the poses it learnt "
+            "from) and the physical model stands alone")
 
 
 # --- progress ------------------------------------------------------------------------

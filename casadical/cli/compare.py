@@ -51,8 +51,8 @@ def register(sub) -> None:
 
 
 def cmd_compare(args) -> int:
-    from ..checks import check_held_out, check_poses, check_validation_frames
-    from ..data import Measurements
+    from ..data.checks import check_held_out, check_poses, check_validation_frames
+    from ..data.measurements import Measurements
     from ..methods.base import MethodResult
     from ..methods.compare import compare, format_table, parse_methods, plot, pyplot, to_json
 

@@ -58,8 +58,8 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..data import Measurements
-    from ..inverse import compensate
+    from ..apply.inverse import compensate
+    from ..data.measurements import Measurements
     from ..result import load_calibration
 
     check_outputs({"--out": args.out}, [args.cal, args.targets], args.force)

@@ -70,7 +70,7 @@ def _add_import_options(p) -> None:
 
 
 def run_split(args) -> int:
-    from ..data import Measurements
+    from ..data.measurements import Measurements
 
     check_outputs({"--out-cal": args.out_cal, "--out-val": args.out_val}, [args.data], args.force)
     data = Measurements.read_csv(args.data)
@@ -95,7 +95,7 @@ def run_split(args) -> int:
 
 
 def run_simulate(args) -> int:
-    from ..simulate import load_protocol
+    from ..data.simulate import load_protocol
 
     proto = load_protocol(args.protocol)
     out = Path(args.out_dir)

@@ -30,7 +30,7 @@ def register(sub) -> None:
     p = sub.add_parser("diagnose", help="find what the model gets wrong, name the cause, measure the gain",
                        description="Calibrate on DATA step by step (nominal, geometric, then candidate causes: "
                                    "joint compliance and progressive stiffness, encoder scale, backlash, thermal "
-                                   "expansion, drift, periodic gear errors, then a black-box compensator). A "
+                                   "expansion, drift, periodic gear errors, then the GP compensator). A "
                                    "cause is accepted only when the calibration data support it: significance "
                                    "(F-test, BIC) and held-out errors on folds that must extrapolate (time "
                                    "blocks, joint-range blocks) as well as interpolate; a periodic error must "
@@ -77,7 +77,7 @@ def register(sub) -> None:
     p.add_argument("--robust", default="huber", choices=["huber", "none"],
                    help="loss of every fit, as for calibrate (default: %(default)s)")
     p.add_argument("--no-blackbox", "--no-layer", action="store_true",
-                   help="skip the accuracy layer (a session compensator of what the named causes leave)")
+                   help="skip the GP compensator (a Gaussian process, one per session, of what the named causes leave)")
     p.add_argument("--no-structure", action="store_true",
                    help="skip the structure screen (what the named causes leave, against every joint's reading and "
                         "torque, time and the instrument's view: docs/diagnosis.md)")
@@ -99,9 +99,9 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..data import Measurements
+    from ..data.measurements import Measurements
+    from ..data.sessions import combine, file_session_names
     from ..diagnosis import DiagnosisSettings, diagnose
-    from ..sessions import combine, file_session_names
 
     if not (args.json or args.html or args.out):
         raise InputError("nothing to write: give --json REPORT.json, --html REPORT.html and/or --out FINAL.json")
@@ -147,8 +147,8 @@ def run(args) -> int:
         write_json(args.json, doc, args.force)
         print(f"report -> {'standard output' if args.json == STDOUT else args.json}", file=out)
     if args.html:
-        from ..report import diagnosis_html  # matplotlib: imported only for the HTML report
-        from ..threads import evaluation_threads
+        from ..html import diagnosis_html  # matplotlib: imported only for the HTML report
+        from ..runtime.threads import evaluation_threads
 
         write_text(args.html, diagnosis_html(report, processes=evaluation_threads(), progress=say, poses=cal,
                                              map_joints=map_joints), args.force)

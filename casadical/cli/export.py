@@ -27,7 +27,7 @@ def register(sub) -> None:
                                    "errors, ...) is exported as the geometry refitted to reproduce its full model "
                                    "over its calibration poses; how far that geometry departs from the full model is "
                                    "printed, and compensate (the full model) gives the rest. Terms of the "
-                                   "measurement session (drift, the session compensator) are never exported.")
+                                   "measurement session (drift, the GP compensator) are never exported.")
     p.add_argument("source", metavar="CAL.json",
                    help="calibration JSON written by 'calibrate', or a robot (built-in, TOML or URDF: nominal values)")
     p.add_argument("--urdf", metavar="OUT.urdf", help="the geometric model as URDF")
@@ -47,8 +47,8 @@ def register(sub) -> None:
 
 
 def run(args) -> int:
-    from ..equivalent import geometric_equivalent
-    from ..parameter_table import parameter_table
+    from ..apply.export_geometry import geometric_equivalent
+    from ..apply.parameter_table import parameter_table
     from ..result import CalibrationResult
     from ..urdf import robot_to_urdf
 

@@ -50,7 +50,7 @@ def register(sub) -> None:
     p.add_argument("--out", required=True, metavar="OUT.csv", help="output CSV")
     p.add_argument("--std", action="store_true",
                    help="also write std_mm, the predicted position's uncertainty at each pose (rms 3-D error of the "
-                        "prediction): the parameters' covariance (std_params_mm) and, with an accuracy layer, its "
+                        "prediction): the parameters' covariance (std_params_mm) and, with a GP compensator, its "
                         "predictive std (std_layer_mm); MODEL must be a calibration JSON")
     add_checks(p)
     add_urdf_chain(p)
@@ -59,9 +59,9 @@ def register(sub) -> None:
 
 
 def run_inspect(args) -> int:
-    from ..identifiability import analyse
-    from ..model import Model
-    from ..simulate import sample_poses
+    from ..data.simulate import sample_poses
+    from ..model.symbolic import Model
+    from ..stats.identifiability import analyse
 
     check_outputs({"--json": args.json}, [args.robot], args.force)
     robot = robot_from_args(args.robot, args)
@@ -107,11 +107,11 @@ def param_json(p) -> dict:
 
 
 def run_predict(args) -> int:
-    from ..alignment import align
-    from ..checks import check_calibration_fits, check_poses
-    from ..data import RXYZ, Measurements
-    from ..model import Model
+    from ..data.checks import check_calibration_fits, check_poses
+    from ..data.measurements import RXYZ, Measurements
+    from ..model.symbolic import Model
     from ..result import CalibrationResult, ErrorStats
+    from ..stats.alignment import align
 
     check_outputs({"--out": args.out}, [args.model, args.poses], args.force)
     source = robot_or_calibration(args.model, args)
@@ -156,7 +156,7 @@ def run_predict(args) -> int:
         # read as the model's (compensate takes it for the target orientation)
         out = out.with_columns({f"measured_{k}" if k in RXYZ else k: v for k, v in out.columns.items()})
     if args.std:
-        from ..predictive import prediction_std
+        from ..stats.predictive import prediction_std
 
         try:
             sp, sl = prediction_std(cal, data)

@@ -10,7 +10,7 @@ import time
 import numpy as np
 
 from ..errors import IdentifiabilityError, InputError
-from ..files import atomic_open
+from ..runtime.files import atomic_open
 from .common import (
     Status,
     add_checks,
@@ -112,9 +112,9 @@ def cmd_plan_poses(args) -> int:
     for opt, given in (("--measured", args.measured), ("--question", args.question), ("--session", args.session)):
         if given:
             raise InputError(f"{opt} is for plan-poses REPORT.json (a diagnosis report in place of ROBOT)")
-    from ..checks import check_distinct_poses, check_poses
-    from ..data import Measurements
-    from ..model import Model
+    from ..data.checks import check_distinct_poses, check_poses
+    from ..data.measurements import Measurements
+    from ..model.symbolic import Model
     from ..planning.observability import JIT_MIN_CANDIDATES, design_problem
     from ..planning.selectors import PlanSettings, select_poses
 
@@ -172,14 +172,14 @@ def cmd_plan_report(args) -> int:
     import json
     import os
 
-    from ..checks import check_poses
-    from ..data import Measurements, session_name
+    from ..data.checks import check_poses
+    from ..data.measurements import Measurements, session_name
+    from ..data.sessions import combine
     from ..errors import RobotFileError
-    from ..model import Model
+    from ..model.symbolic import Model
     from ..planning.next_poses import parametric_spec, plan_next
     from ..planning.questions import open_questions
     from ..robot import robot_from_dict
-    from ..sessions import combine
 
     report_path = args.robot
     check_outputs({"--out": args.out, "--json": args.json}, [report_path, args.candidates, *(args.measured or [])],
@@ -326,8 +326,8 @@ def _parse_box(text: str) -> tuple[tuple[float, ...], tuple[float, ...]]:
 
 
 def cmd_candidates(args) -> int:
-    from ..data import Measurements
-    from ..simulate import sample_poses
+    from ..data.measurements import Measurements
+    from ..data.simulate import sample_poses
 
     check_outputs({"--out": args.out}, [args.robot], args.force)
     floor = None if args.floor_z.strip().lower() == "none" else _float(args.floor_z, "--floor-z")

@@ -6,7 +6,7 @@ import sys
 from pathlib import Path
 
 from ..errors import InputError
-from ..interrupts import answered, exit_code
+from ..runtime.interrupts import answered, exit_code
 from .common import Status, add_json, add_quiet, check_outputs, human_stream, int_at_least, write_json
 
 

@@ -1,17 +1,24 @@
-"""Data-driven compensators of the residual positioning error.
+"""The compensators: what no named cause explains, learnt from the data.
 
 After a model-based calibration, what is left of the measured position
 error is learnt by a regressor mapping per-pose features ``X`` (n, d) to
-residuals ``Y`` (n, 3):
+residuals ``Y`` (n, 3). Every compensator lives in this package:
 
-- :class:`RBFNetwork` -- Gaussian radial-basis network (the GA paper: six
-  effective joint torques -> residual error, eqs. 17-19);
-- :class:`MLP` -- one-hidden-layer network (the TLBO paper: 6-5-3 network
-  on joint angles), trained by backprop, L-BFGS or TLBO.
+- the **GP compensator** (:mod:`.gp`, :class:`~.gp.ResidualGP`): a Gaussian
+  process of the joint readings, one per session (:mod:`.per_session`:
+  fitted, applied where it knows, judged on folds); the model term
+  ``gp_compensator``;
+- the **RBF compensator** (:class:`RBFNetwork`): Gaussian radial-basis
+  network (the GA paper: six effective joint torques -> residual error,
+  eqs. 17-19); the model term ``rbf_compensator``;
+- the **MLP compensator** (:class:`MLP`): one-hidden-layer network (the
+  TLBO paper: 6-5-3 network on joint angles), trained by backprop, L-BFGS
+  or TLBO.
 
-Both standardise inputs and outputs internally, so features of ~1e3 N m and
-residuals of ~1e-4 m can be passed unscaled, and both share the
-:class:`Compensator` interface: ``fit(X, Y) -> self``, ``predict(X) -> (n, k)``.
+:mod:`.guard` keeps a network only if cross-validation says it lowers the
+held-out error. The RBF and MLP compensators both standardise inputs and
+outputs internally, so features of ~1e3 N m and residuals of ~1e-4 m can be
+passed unscaled, and both share the :class:`Compensator` interface: ``fit(X, Y) -> self``, ``predict(X) -> (n, k)``.
 """
 
 from __future__ import annotations

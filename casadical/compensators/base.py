@@ -1,4 +1,4 @@
-"""The interface every compensator shares: standardised regression from features to residuals
+"""The interface the RBF and MLP compensators share: standardised regression from features to residuals
 (:class:`Compensator`), and the column standardisation it uses (:class:`Standardizer`)."""
 
 from __future__ import annotations

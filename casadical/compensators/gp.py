@@ -1,4 +1,4 @@
-"""A Gaussian process on the residual: the accuracy layer that knows where it holds.
+"""A Gaussian process on the residual: the GP compensator's regressor, which knows where it holds.
 
 What the named causes leave is learnt as a function of the joint readings,
 one Gaussian process per component of the residual (x, y, z in the robot
@@ -25,7 +25,7 @@ scikit-learn: its kernel objects build the gradient as an ``N x N x n``
 stack and invert ``K`` by a solve for every evaluation and component; the
 same numbers from the squared distances of each joint (computed once for the
 three components) and ``K``'s inverse from its Cholesky factor cost 0.27 of
-its CPU on the README job (``benchmarks/bench_layer.py``; a test checks the
+its CPU on the README job (``benchmarks/speed/bench_gp_compensator.py``; a test checks the
 likelihood, its gradient and the fitted hyperparameters against
 scikit-learn's). The fitted process is then held as plain numbers (training poses,
 residuals, hyperparameters) conditioned on every pose, and evaluated here
@@ -50,7 +50,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import InputError
-from ..threads import limited_threads
+from ..runtime.threads import limited_threads
 
 #: a pose is one where the process knows when its predictive std is below this share of its prior std (UR10
 #: series A, 300 poses, seed 1: 86 % of the series' other poses, none of series B's, whose ratio is 1.000 at

@@ -1,4 +1,4 @@
-"""Fitting a residual compensator with a cross-validation guard.
+"""Fitting an RBF or MLP compensator with a cross-validation guard.
 
 A network trained on 20-50 residuals can learn noise as readily as
 structure. Before the final fit, k-fold cross-validation on the training

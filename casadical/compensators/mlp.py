@@ -1,4 +1,4 @@
-"""One-hidden-layer perceptron compensator (the TLBO paper's 6-5-3 network).
+"""The MLP compensator: a one-hidden-layer perceptron (the TLBO paper's 6-5-3 network).
 
 ``y = W2 f(W1 x + b1) + b2`` with a linear output layer, on standardised
 inputs and outputs.  The TLBO paper trains a 6-5-3 network (joint angles ->

@@ -1,4 +1,4 @@
-"""Gaussian radial-basis-function network (the GA paper's compensator).
+"""The RBF compensator: a Gaussian radial-basis-function network (the GA paper's).
 
 The GA paper (eqs. 17-19) maps the six effective joint torques to the three
 residual position errors with hidden units ``o = exp(-n^2)``,

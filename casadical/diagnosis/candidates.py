@@ -4,10 +4,10 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
-#: causes in a few words, for reports
+#: causes in a few words, for reports (``unexplained`` of no joint: the GP compensator; of a joint: ``unexplained j1``)
 SHORT = {"geometric": "kinematic", "joint_compliance": "compliance", "nonlinear_stiffness": "progressive stiffness",
          "joint_periodic": "periodic", "encoder_scale": "encoder scale", "backlash": "backlash",
-         "thermal_expansion": "thermal", "drift": "drift", "warmup": "warm-up", "unexplained": "black box"}
+         "thermal_expansion": "thermal", "drift": "drift", "warmup": "warm-up"}
 
 
 @dataclass(frozen=True)
@@ -64,6 +64,8 @@ class Candidate:
 
     def label(self, short: bool = False) -> str:
         """``joint_periodic joint 2 harmonic 17``; short (reports): ``periodic j2 h17``."""
+        if short and self.cause == "unexplained" and self.joint is None:
+            return "GP compensator"
         parts = [SHORT.get(self.cause, self.cause.replace("_", " ")) if short else self.cause]
         if self.joint is not None:
             link = self.cause == "thermal_expansion"

@@ -23,9 +23,9 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from ..data import Measurements
-from ..physics import sign_changes
+from ..data.measurements import Measurements
 from ..robot import Robot
+from ..stats.physics import sign_changes
 from .candidates import Candidate
 from .periodogram import Periodogram, joint_errors, periodogram
 from .plots import joint_view

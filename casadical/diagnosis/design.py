@@ -26,7 +26,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..data import Measurements
+from ..data.measurements import Measurements
 from ..result import CalibrationResult
 
 #: fewer measured coordinates than this per free parameter of the kinematic model make a weak design

@@ -7,7 +7,7 @@ import math
 
 import numpy as np
 
-from ..data import Measurements
+from ..data.measurements import Measurements
 from ..result import CalibrationResult
 from .candidates import Candidate
 from .evidence import Evidence, Support

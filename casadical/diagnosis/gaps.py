@@ -1,7 +1,7 @@
 """What the diagnosis could not explain, in words: the poses its final fit set aside, and what was not tried.
 
 The poses the robust loss sets aside are tested for shared structure
-(:mod:`casadical.set_aside`) before they are called bad measurements.
+(:mod:`casadical.stats.outliers`) before they are called bad measurements.
 Structure that remains after the search is reported with where it lives
 and, where a kind of cause could not be tried on these data
 (:mod:`.catalogue`), with what would allow it.
@@ -10,7 +10,7 @@ and, where a kind of cause could not be tried on these data
 from __future__ import annotations
 
 from ..errors import listing
-from ..set_aside import SetAsideStructure
+from ..stats.outliers import SetAsideStructure
 from .catalogue import NotTried
 
 #: the kinds of structure each kind of cause not tried could explain

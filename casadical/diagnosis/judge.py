@@ -2,7 +2,7 @@
 
 Reads ``final``, ``parametric`` and ``kinematic``; sets ``final_errors`` and ``final_val`` (its validation
 errors) and ``set_aside`` (the poses the final fit set aside, tested for shared structure before they are
-called bad measurements: :mod:`casadical.set_aside`; those the structure screen brings back within the robust
+called bad measurements: :mod:`casadical.stats.outliers`; those the structure screen brings back within the robust
 loss's limit are the largest misses of that structure, ``structure_misses``), and adds the notes: a worst
 validation error above the kinematic model's (:func:`.never_worse.validation_note`), the remaining residual
 (in units of the instrument's noise where it is known: ``noise``, :mod:`.noise`), the sag the model
@@ -13,9 +13,9 @@ from __future__ import annotations
 
 import math
 
-from ..physics import sag_note
 from ..result import ErrorStats, learning_mask
-from ..set_aside import of_fit
+from ..stats.outliers import of_fit
+from ..stats.physics import sag_note
 from .gaps import set_aside_note
 from .never_worse import validation_note
 from .noise import noise_floor
@@ -39,7 +39,7 @@ def judge_final_model(run: DiagnosisRun) -> None:
     if sag:
         run.notes.append(sag)
     # the poses the final fit set aside: the largest misses of structure the screen found, bad measurements, or
-    # structure it lacks (casadical.set_aside)
+    # structure it lacks (casadical.stats.outliers)
     set_aside = learning_mask(final, cal) == 0
     misses = {}
     for structure, finding in run.structures:

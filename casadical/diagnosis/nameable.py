@@ -25,7 +25,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..data import Measurements
+from ..data.measurements import Measurements
 from .candidates import Candidate
 from .periodic import NEIGHBOUR_MARGIN, halves, resolution
 from .screening import LinearFit, Screen

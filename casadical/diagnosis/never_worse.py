@@ -14,7 +14,7 @@ worse than the kinematic one gives way to the latest model of the search that do
 kinematic model itself), and a note says what was dropped and why.
 
 The validation poses then say, as a judge, whether the final model's worst error rose by more than
-:data:`WORST_SHARE` over the kinematic model's or over the model the accuracy layer extends
+:data:`WORST_SHARE` over the kinematic model's or over the model the GP compensator extends
 (:func:`validation_note`): where, how much, whether the folds saw it, and whether those poses are ones no
 model of the robot predicts (beyond the robust loss's limit: a bad measurement or a transient).
 """
@@ -202,8 +202,8 @@ def _add_geometry_finding(run: DiagnosisRun, fit: CalibrationResult, without: Ca
 def validation_note(final: CalibrationResult, kinematic: CalibrationResult, extended: CalibrationResult | None,
                     val, val_errors, held_text: str = "") -> str | None:
     """A note (judge only) when the final model's worst validation error is more than :data:`WORST_SHARE` above
-    the kinematic model's, or above that of the model the accuracy layer extends (``extended``; None: no
-    layer): where, how much, what the folds said (``held_text``), and the poses no model of the robot predicts.
+    the kinematic model's, or above that of the model the GP compensator extends (``extended``; None: no
+    compensator): where, how much, what the folds said (``held_text``), and the poses no model of the robot predicts.
 
     ``val_errors(res)``: a model's position errors (m) on ``val``.
     """
@@ -215,7 +215,7 @@ def validation_note(final: CalibrationResult, kinematic: CalibrationResult, exte
         e_ext = val_errors(extended) * 1000
         if e_final.max() > e_ext.max() * (1 + WORST_SHARE):
             rises.append(f"{(e_final.max() / e_ext.max() - 1):.0%} above the {e_ext.max():.4f} mm of the model the "
-                         "session compensator extends")
+                         "GP compensator extends")
     if not rises:
         return None
     i = int(np.argmax(e_final))

@@ -2,12 +2,12 @@
 
 Reads the calibration and validation poses; sets ``nominal`` and the first step. The nominal model also
 checks that each session's validation poses are in their own tracker frame
-(:func:`casadical.checks.check_validation_frames`).
+(:func:`casadical.data.checks.check_validation_frames`).
 """
 
 from __future__ import annotations
 
-from ..checks import check_validation_frames
+from ..data.checks import check_validation_frames
 from .report import Step
 from .state import DiagnosisRun
 

@@ -31,8 +31,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import special
 
-from ..data import Measurements
-from ..parameters import Parameter
+from ..data.measurements import Measurements
+from ..model.parameters import Parameter
 from .screening import LinearFit, Screen, periodic_columns
 
 #: the data must prefer a harmonic to each neighbour by this log-likelihood-ratio (x2): 2 ln 100

@@ -13,17 +13,17 @@ harmonics and from geometry and agree over the two halves of the joint's
 range (:mod:`.periodic`); structure that passes the statistics but not
 these checks is reported as ``unexplained`` and kept out of the model.
 At the end every accepted cause is tested again against the final model
-(:mod:`.redundancy`) and must still be physics (:mod:`.unphysical`, :mod:`casadical.physics`);
+(:mod:`.redundancy`) and must still be physics (:mod:`.unphysical`, :mod:`casadical.stats.physics`);
 the final model never does worse than the kinematic one where it must
 extrapolate. With several sessions every cause is asked whether one value
 serves every session (the robot's) or only one session's own (the
 session's; :mod:`.catalogue`). The poses the final fit sets aside are
 tested for shared structure before they are called bad measurements
-(:mod:`casadical.set_aside`, :mod:`.gaps`), and what these data cannot test
+(:mod:`casadical.stats.outliers`, :mod:`.gaps`), and what these data cannot test
 is said (:func:`.catalogue.not_tried`). The validation poses judge every step and are never used
-to accept one. The accuracy layer last (:mod:`.layer`: a session
-compensator that applies where it knows) takes what no named cause
-explains; :mod:`.transfer` takes the findings to another series.
+to accept one. The GP compensator last (:mod:`.compensator`: one per
+session, applied where it knows) takes what no named cause explains;
+:mod:`.transfer` takes the findings to another series.
 
 Each stage is a function ``stage(run)`` of its own module that reads what the stages before it set on the
 :class:`~.state.DiagnosisRun` and sets its own fields; :data:`STAGES` is their order. To add a stage, write
@@ -35,13 +35,13 @@ from __future__ import annotations
 
 from typing import Callable
 
-from ..data import Measurements
+from ..data.measurements import Measurements
 from ..robot import Robot
-from ..threads import limited_threads
+from ..runtime.threads import limited_threads
+from .compensator import add_compensator
 from .describe import describe_findings
 from .geometry import fit_geometry
 from .judge import judge_final_model
-from .layer import add_compensator
 from .never_worse import keep_never_worse
 from .nominal import fit_nominal
 from .outcome import assemble_report
@@ -67,7 +67,7 @@ STAGES: tuple[Callable[[DiagnosisRun], None], ...] = (
     drop_stand_ins,     # final check: does every named cause explain the structure it stands for?
     keep_never_worse,   # final check: never worse than the kinematic model, in mean and worst case
     screen_structure,   # what the named causes leave: structure no catalogue cause explains, and where it lives
-    add_compensator,    # the session compensator of what no named cause explains, judged like every step
+    add_compensator,    # the GP compensator of what no named cause explains (one per session), judged like a step
     describe_findings,  # each finding's values, evidence, figure and scope; the structure that cannot be named
     judge_final_model,  # the validation poses on the final model; the residual, sag and set-aside poses
     transfer_findings,  # with another series: does each finding hold up there?
@@ -95,7 +95,7 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
         taken there (:mod:`casadical.diagnosis.transfer`).
     **checks : bool
         Overrides of the plausibility checks of the poses
-        (:func:`casadical.checks.check_poses`: ``allow_outside_limits``,
+        (:func:`casadical.data.checks.check_poses`: ``allow_outside_limits``,
         ``angles_are_degrees``, ``positions_are_mm``, ``allow_mismatch``:
         poses of ``cal``, ``val`` or ``other`` the nominal model misses by
         more than 5 % of the robot's reach with its base pose fitted).
@@ -103,8 +103,8 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
     Raises
     ------
     DataFileError
-        Every validation (or ``other``) pose is a calibration pose (:func:`casadical.checks.check_held_out`,
-        :func:`~casadical.checks.check_other_series`; some of them: a warning), or a check of the poses fails.
+        Every validation (or ``other``) pose is a calibration pose (:func:`casadical.data.checks.check_held_out`,
+        :func:`~casadical.data.checks.check_other_series`; some of them: a warning), or a check of the poses fails.
     """
     run = DiagnosisRun(robot, cal, val, settings or DiagnosisSettings(), progress or (lambda _: None), other,
                        checks)

@@ -6,7 +6,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..data import Measurements
+from ..data.measurements import Measurements
 from ..result import CalibrationResult
 from .candidates import Candidate
 from .periodogram import joint_errors

@@ -8,13 +8,13 @@ any fit.
 
 from __future__ import annotations
 
-from ..checks import check_held_out, check_other_series, check_poses
+from ..data.checks import check_held_out, check_other_series, check_poses
 from .catalogue import Catalogue
 from .state import DiagnosisRun
 
 
 def check_data(run: DiagnosisRun) -> None:
-    """Check the poses (:func:`casadical.checks.check_poses`, the joint count first), that the validation (and
+    """Check the poses (:func:`casadical.data.checks.check_poses`, the joint count first), that the validation (and
     other) poses are not the calibration poses; then set up what every later stage counts on."""
     cal = run.cal
     for d in [cal, run.val] + ([run.other] if run.other is not None else []):

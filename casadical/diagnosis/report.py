@@ -68,14 +68,14 @@ class Step:
     @property
     def label(self) -> str:
         """A few words: ``nominal``, ``kinematic``, ``+ compliance j2``, ``+ periodic j2 h17``, ``+ drift @B``,
-        ``+ session compensator``; the whole model is :attr:`model`."""
+        ``+ GP compensator``; the whole model is :attr:`model`."""
         c = self.candidate
         if c is None:
             return self.model          # the nominal model
         if c.cause == "geometric":
             return "kinematic"
         if c.cause == "unexplained":
-            return "+ session compensator"
+            return "+ GP compensator"
         return "+ " + c.label(short=True)
 
     def to_dict(self) -> dict:
@@ -183,7 +183,7 @@ class Finding:
 
 @dataclass
 class DiagnosisReport:
-    """Everything :func:`diagnose` found (JSON: :meth:`to_dict`, HTML: :func:`casadical.report.diagnosis_html`).
+    """Everything :func:`diagnose` found (JSON: :meth:`to_dict`, HTML: :func:`casadical.html.diagnosis_html`).
 
     Attributes
     ----------
@@ -196,7 +196,7 @@ class DiagnosisReport:
         With several sessions: the final model's validation errors in each.
     set_aside : dict
         The poses the final fit's robust loss set aside, tested for shared
-        structure (:meth:`casadical.set_aside.SetAsideStructure.to_dict`).
+        structure (:meth:`casadical.stats.outliers.SetAsideStructure.to_dict`).
     not_tried : list of dict
         Each kind of cause these data cannot test, with why and what would
         allow it (:class:`casadical.diagnosis.catalogue.NotTried`).

@@ -25,7 +25,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..calibration.for_data import model_for
-from ..data import Measurements
+from ..data.measurements import Measurements
 from ..problem import CalibrationProblem
 from ..result import CalibrationResult
 from ..terms.periodic import JointPeriodic

@@ -23,8 +23,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from ..physics import value_violations, violations
 from ..result import CalibrationResult, ErrorStats
+from ..stats.physics import value_violations, violations
 from .candidates import Candidate, compose_spec, shortlist
 from .catalogue import not_tried
 from .evidence import Evidence, Support
@@ -118,7 +118,7 @@ def search_causes(run: DiagnosisRun) -> None:
 
 def judge_full_fit(run: DiagnosisRun, cand: Candidate, new_fit: CalibrationResult, level: float) -> Verdict:
     """The full fit of ``cand`` against the current model: significant at ``level`` and by BIC, physics
-    (:func:`casadical.physics.violations`), not worse on the folds where the model extrapolates."""
+    (:func:`casadical.stats.physics.violations`), not worse on the folds where the model extrapolates."""
     current = run.current
     test = run.compare(current, new_fit, current.loss)
     reasons = []

@@ -26,8 +26,8 @@ class DiagnosisSettings:
     confirm : int
         Candidates fitted for real per round and tier (best scores first).
     blackbox : bool
-        Try the accuracy layer on what remains (a session compensator:
-        :mod:`casadical.diagnosis.layer`).
+        Try the GP compensator (one per session) on what remains
+        (:mod:`casadical.diagnosis.compensator`).
     stability_alpha : float
         Level of the test that a periodic error's amplitude and phase agree
         on the two halves of the joint's range.

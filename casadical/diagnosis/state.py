@@ -20,7 +20,7 @@ import numpy as np
 
 from ..calibration.for_data import model_for
 from ..calibration.pipeline import calibrate
-from ..data import Measurements
+from ..data.measurements import Measurements
 from ..problem import RobustLoss
 from ..result import AngleStats, CalibrationResult, ErrorStats
 from ..robot import Robot
@@ -35,7 +35,7 @@ from .statistics import NestedTest, nested_test, set_aside_share
 from .validation import Linearized, by_kind, joint_levers, schemes
 
 if TYPE_CHECKING:
-    from ..set_aside import SetAsideStructure
+    from ..stats.outliers import SetAsideStructure
     from .design import Design
     from .noise import NoiseFloor
     from .report import DiagnosisReport

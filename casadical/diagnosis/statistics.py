@@ -85,7 +85,7 @@ def paired_gain(before: np.ndarray, after: np.ndarray) -> float:
     :func:`scipy.stats.wilcoxon` (``alternative="greater"``, its defaults). Above :data:`ASYMPTOTIC_PAIRS` pairs
     it takes the normal approximation (zeros dropped, average ranks, the ties' correction), computed here from
     ``scipy.special``: the same p-value (a test checks it) without importing ``scipy.stats``, 0.4 s of CPU of
-    every diagnosis with the accuracy layer.
+    every diagnosis with the GP compensator.
     """
     d = np.asarray(before, float) - np.asarray(after, float)
     if np.allclose(d, 0):

@@ -21,7 +21,7 @@ from typing import Callable
 import numpy as np
 
 from ..calibration import calibrate
-from ..data import Measurements
+from ..data.measurements import Measurements
 from ..errors import InputError
 from ..result import CalibrationResult
 from .candidates import Candidate, compose_spec
@@ -133,7 +133,7 @@ def findings_study(run: DiagnosisRun, final: CalibrationResult, parametric: Cali
                    accepted: list[Candidate], geometric: bool, other: Measurements) -> TransferStudy:
     """Take a diagnosis (``run``: its findings, fits and kinematic model) to ``other``; set each finding's verdict.
 
-    ``parametric`` is the model of the named causes (``final`` without a black box); a named finding is
+    ``parametric`` is the model of the named causes (``final`` without the GP compensator); a named finding is
     judged against the model refitted without it, structure kept out against the model refitted with it.
     """
     s = run.s
@@ -162,9 +162,9 @@ def findings_study(run: DiagnosisRun, final: CalibrationResult, parametric: Cali
               f"the structure kept out of joint {f.candidate.joint}: the model with it" for f in run.findings]
     out = study(final, run.kinematic, without, len(run.findings), other, s.transfer_base_poses, n_refit, s.seed,
                 run.say, labels=labels, todo=todo)
-    # the named causes alone there (the final model unless a black box was added)
+    # the named causes alone there (the final model unless the GP compensator was added)
     if parametric is not final:
-        run.say("transfer: the named causes alone, without the session compensator")
+        run.say("transfer: the named causes alone, without the GP compensator")
     named_only = out.final if parametric is final else travel(parametric, other, out.split)
     for k, f in enumerate(run.findings):
         if k in out.gains:

@@ -1,6 +1,6 @@
 """Stage ``drop_unphysical``: every named cause must still be physics in the final model.
 
-The rules of :mod:`casadical.physics` (inside its bounds, told apart from the geometry, significant,
+The rules of :mod:`casadical.stats.physics` (inside its bounds, told apart from the geometry, significant,
 physically meaningful over the data): a cause that breaks one is dropped, the model refitted without it, and
 the check runs again. Reads and sets ``current`` and ``accepted``; a dropped cause is never screened again
 (``unexplained.excluded_causes``), and a note says why it went.
@@ -8,7 +8,7 @@ the check runs again. Reads and sets ``current`` and ``accepted``; a dropped cau
 
 from __future__ import annotations
 
-from ..physics import violations
+from ..stats.physics import violations
 from .candidates import compose_spec
 from .redundancy import own_parameters
 from .state import DiagnosisRun
@@ -16,7 +16,7 @@ from .state import DiagnosisRun
 
 def drop_unphysical(run: DiagnosisRun) -> None:
     """Drop, one at a time, the named causes the final model holds that break a rule of
-    :mod:`casadical.physics` (the first such cause, in the order accepted), refitting without each."""
+    :mod:`casadical.stats.physics` (the first such cause, in the order accepted), refitting without each."""
     if not run.accepted:
         return
     run.say("final check: is every cause still physics?")

@@ -28,10 +28,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..data import Measurements
-from ..model import Model
+from ..data.measurements import Measurements
+from ..model.symbolic import Model
 from ..robot import Robot
-from ..threads import evaluation_pool, evaluation_threads
+from ..runtime.threads import evaluation_pool, evaluation_threads
 
 
 @dataclass

@@ -81,12 +81,12 @@ def relative(std: float, value: float) -> str:
 
 def label(f: "Finding") -> str:
     """A finding in a few words: ``geometry``, ``compliance j2``, ``periodic j2 h17``, ``drift @B``,
-    ``session compensator``, ``unexplained j1``."""
+    ``GP compensator``, ``unexplained j1``."""
     c = f.candidate
     if c.cause == "geometric":
         return "geometry"
     if c.cause == "unexplained":
-        return "session compensator" if f.in_model else f"unexplained j{c.joint}" if c.joint else "unexplained"
+        return "GP compensator" if f.in_model else f"unexplained j{c.joint}" if c.joint else "unexplained"
     return c.label(short=True)
 
 

@@ -30,7 +30,7 @@ from pathlib import Path
 from typing import Any, Sequence
 
 from ..errors import ColumnMapError
-from ..files import read_toml
+from ..runtime.files import read_toml
 
 __all__ = ["ColumnMap", "TimeColumn", "column_map_from_dict", "load_column_map", "presets"]
 

@@ -30,9 +30,9 @@ from pathlib import Path
 
 import numpy as np
 
-from ..data import NUMERIC_OPTIONAL, XYZ, Measurements, looks_like_radians
+from ..data.measurements import NUMERIC_OPTIONAL, XYZ, Measurements, looks_like_radians
 from ..errors import ColumnMapError, DataFileError, DataWarning, InputError, listing
-from ..files import EXISTS
+from ..runtime.files import EXISTS
 from .column_map import DEVIATION_SIGNS, JOINT_UNITS, LENGTH_UNITS, RESERVED, ColumnMap
 
 __all__ = ["Imported", "Mapped", "import_file", "read_mapped"]
@@ -93,7 +93,7 @@ class Imported:
         return len(next(iter(self.columns.values())))
 
     def measurements(self) -> Measurements:
-        """The imported rows as :class:`~casadical.data.Measurements`."""
+        """The imported rows as :class:`~casadical.data.measurements.Measurements`."""
         return Measurements(self.columns, self.path)
 
 
@@ -484,7 +484,7 @@ def _check_position_unit(columns: dict[str, np.ndarray], cmap: ColumnMap, t: _Ta
     """Positions in mm declared as metres: points kilometres apart are no robot's, whatever the tracker."""
     if not all(c in columns for c in XYZ) or len(t.rows) < 3:
         return
-    from ..checks import spread
+    from ..data.checks import spread
 
     s = spread(np.column_stack([columns[c] for c in XYZ]))
     if s <= MAX_SPREAD_MM:

@@ -81,7 +81,7 @@ def convert_ur10(src: str | os.PathLike[str], dst: str | os.PathLike[str],
     src : str or path-like
         Raw file, see :func:`read_ur10`.
     dst : str or path-like
-        Contract CSV to write (:meth:`casadical.data.Measurements.write_csv`).
+        Contract CSV to write (:meth:`casadical.data.measurements.Measurements.write_csv`).
     overwrite : bool, default False
         Replace ``dst`` if it exists.
     sort_by_time : bool, default True

@@ -19,7 +19,7 @@ name                 what it does
 ===================  ===========================================================
 
 >>> from casadical.methods import run_method, method_names
->>> from casadical.simulate import load_protocol
+>>> from casadical.data.simulate import load_protocol
 >>> proto = load_protocol("ca-ys100")
 >>> sets, truth = proto.generate()
 >>> r = run_method("SKCM-CA", proto.robot, sets["calibration"], sets["validation"])  # doctest: +SKIP
@@ -32,7 +32,7 @@ Adding a method means one module in this folder: subclass
 
 from __future__ import annotations
 
-from ..data import Measurements
+from ..data.measurements import Measurements
 from ..errors import InputError
 from ..robot import Robot
 from . import ga_rbf, km, nn_skcm, nominal, skcm, skcm_ca, skcm_ga, skcm_ipopt, tlbo_nn_skcm  # noqa: F401  (registration)

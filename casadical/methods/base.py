@@ -16,7 +16,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from ..data import Measurements
+from ..data.measurements import Measurements
 from ..errors import InputError
 from ..result import CalibrationResult, ErrorStats
 from ..robot import Robot
@@ -199,7 +199,7 @@ def frame_rotations(result: CalibrationResult, data: Measurements, frame: str) -
         return np.broadcast_to(np.eye(3), (N, 3, 3))
     if frame != "joint1":
         raise InputError(f"unknown compensator frame {frame!r}; use 'measurement' or 'joint1'")
-    from ..kinematics import base_pose_matrix
+    from ..model.kinematics import base_pose_matrix
     xyz, rpy = result.base_pose()
     Rb = base_pose_matrix(xyz, rpy)[:3, :3]
     p = result.parameters

@@ -14,11 +14,11 @@ from typing import Callable, Iterable
 import numpy as np
 
 from .. import __version__
-from ..checks import check_held_out
-from ..data import Measurements
+from ..data.checks import check_held_out
+from ..data.measurements import Measurements
 from ..errors import CasadicalError
-from ..files import atomic_open
 from ..robot import Robot
+from ..runtime.files import atomic_open
 from . import make_method, method_names
 from .base import Inputs, MethodResult, lookup
 
@@ -61,7 +61,7 @@ def compare(robot: Robot, cal: Measurements, val: Measurements | None = None, ex
     Raises
     ------
     DataFileError
-        Every validation pose is a calibration (or extra) pose (:func:`casadical.checks.check_held_out`;
+        Every validation pose is a calibration (or extra) pose (:func:`casadical.data.checks.check_held_out`;
         some of them: a warning).
     """
     names = parse_methods(methods)

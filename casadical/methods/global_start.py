@@ -28,7 +28,7 @@ import numpy as np
 
 from ..calibration import calibrate
 from ..errors import InputError, SolverError
-from ..model import Model
+from ..model.symbolic import Model
 from ..optim import Box, OptimResult
 from ..result import CalibrationResult, ErrorStats
 from ._search import K_BOUNDS, Linearised, OneStep, Variable, distinct_best, make_optimizer, stiffness_box

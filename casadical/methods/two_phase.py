@@ -26,7 +26,7 @@ from ..optim import Box, OptimResult
 from ..problem import CalibrationProblem
 from ..result import CalibrationResult, ErrorStats
 from ..solvers import make_solver
-from ..uncertainty import estimate
+from ..stats.uncertainty import estimate
 from ._search import K_BOUNDS, Linearised, make_optimizer, stiffness_box
 from .base import Inputs, Method, MethodResult, compliance_model, compliant_joints, new_result
 

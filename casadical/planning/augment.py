@@ -53,7 +53,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import InputError
-from ..threads import limited_threads
+from ..runtime.threads import limited_threads
 from .doptimal import _cap_project, _Pool, _swap_ratios, _top, solve_in_turn
 
 

@@ -62,7 +62,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import IdentifiabilityError, InputError, SolverError
-from ..threads import limited_threads
+from ..runtime.threads import limited_threads
 
 
 @dataclass

@@ -20,22 +20,22 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from ..data import Measurements
+from ..data.measurements import Measurements
 from ..diagnosis.candidates import compose_spec
 from ..errors import IdentifiabilityError, InputError, listing
-from ..identifiability import analyse
-from ..model import Model, parse_spec
+from ..model.symbolic import Model, parse_spec
 from ..robot import Robot
-from ..threads import limited_threads
+from ..runtime.threads import limited_threads
+from ..stats.identifiability import analyse
 from .augment import Criterion, DsDesign, ds_design
 from .questions import Question
 
-#: terms of a final model that are not parameters to plan for: black boxes, the probe's orientation
+#: terms of a final model that are not parameters to plan for: compensators, the probe's orientation
 _NOT_PLANNED = ("unexplained",)
 
 
 def parametric_spec(spec: str) -> str:
-    """The final model's specification without its black-box layer and session frames (planned for apart)."""
+    """The final model's specification without its GP compensator and session frames (planned for apart)."""
     keep = [t.spec() for t in parse_spec(spec) if t.cause not in _NOT_PLANNED
             and t.name not in ("sessions", "tool_orientation")]
     return "+".join(keep)

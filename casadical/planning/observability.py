@@ -12,7 +12,7 @@ identifiable parameters, positions only):
 - ``O5 = 1 / sum(1 / sigma_i)`` (Sun & Hollerbach).
 
 The Jacobian columns are those of the *identifiable* parameters only
-(:func:`casadical.identifiability.analyse` on the candidate pool), each
+(:func:`casadical.stats.identifiability.analyse` on the candidate pool), each
 multiplied by the parameter's ``scale`` (its typical deviation, e.g. 1 mm,
 1 mrad, or the compliance that deflects a joint 0.1 mrad at full load). The
 entries are then metres of tool displacement per typical deviation, and the
@@ -28,8 +28,8 @@ from dataclasses import asdict, dataclass, field
 import numpy as np
 
 from ..errors import IdentifiabilityError, InputError
-from ..identifiability import Identifiability, analyse, triangular_factor
-from ..threads import limited_threads
+from ..runtime.threads import limited_threads
+from ..stats.identifiability import Identifiability, analyse, triangular_factor
 
 #: poses per Jacobian evaluation of a candidate pool (bounds memory and CasADi's map size)
 JACOBIAN_CHUNK = 4096
@@ -223,7 +223,7 @@ def design_problem(model, q: np.ndarray, cov: np.ndarray | None = None, *,
 
     Parameters
     ----------
-    model : casadical.model.Model
+    model : casadical.model.symbolic.Model
     q : ndarray, shape (N, n_joints)
         Candidate joint readings (rad).
     cov : ndarray, optional
@@ -273,7 +273,7 @@ def reference_identifiable(model, base0: np.ndarray | None = None, n: int = 200)
     degenerate (identical or too similar poses, no load where compliance
     needs one). Covariates are the robot's defaults (its payload).
     """
-    from ..simulate import sample_poses
+    from ..data.simulate import sample_poses
 
     q = sample_poses(model.robot, n, np.random.default_rng(0), floor_z=None)
     J = model.predict_jacobian(q, base0=base0)[1]
@@ -311,7 +311,7 @@ def pool_jacobian(model, q: np.ndarray, cov: np.ndarray | None = None, base0: np
 
 
 def _analyse_pool(J: np.ndarray, params) -> Identifiability:
-    """:func:`casadical.identifiability.analyse` of a large pool's Jacobian, on a ``P x P`` factor.
+    """:func:`casadical.stats.identifiability.analyse` of a large pool's Jacobian, on a ``P x P`` factor.
 
     ``J = Q R`` (Householder QR, in chunks of rows) keeps every angle and
     length between columns, which is all the analysis uses. Saves a

@@ -40,7 +40,7 @@ from dataclasses import dataclass, field, replace
 from ..diagnosis.candidates import Candidate
 from ..errors import InputError
 
-#: causes whose parameters a named finding has (not the geometry, not a black box)
+#: causes whose parameters a named finding has (not the geometry, not the GP compensator)
 _NAMED = ("joint_compliance", "nonlinear_stiffness", "joint_periodic", "encoder_scale", "backlash",
           "thermal_expansion", "drift")
 

@@ -16,7 +16,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import IdentifiabilityWarning, InputError, listing
-from ..threads import limited_threads
+from ..runtime.threads import limited_threads
 from .doptimal import DOptimalDesign, RelaxationSettings, _check_m, d_efficiency, d_optimal_design, relax_multiplicative
 from .observability import DesignProblem, Observability, design_problem, log_det_information, o1_batch, observability
 
@@ -158,7 +158,7 @@ def select_poses(model, q_candidates: np.ndarray | None, m: int, method: str = "
 
     Parameters
     ----------
-    model : casadical.model.Model
+    model : casadical.model.symbolic.Model
         E.g. ``Model(robot, "kinematic+compliance")``.
     q_candidates : ndarray, shape (N, n_joints)
         Candidate joint readings (rad). Ignored if ``problem`` is given.

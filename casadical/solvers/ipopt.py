@@ -11,7 +11,7 @@ both minimise the same objective (full pose too: each pose's residual is
 gradient and the Hessian, and the trials of a backtracking line search
 evaluate the loss alone (:meth:`~casadical.problem.CalibrationProblem.cost`).
 The model is evaluated as every calibration evaluates it (compiled once per robot,
-:mod:`casadical.superset`): no function is compiled per model, and a built
+:mod:`casadical.model.superset`): no function is compiled per model, and a built
 solver serves every problem with the same number of free parameters.
 
 With ``hessian="exact"`` the objective is the mapped model Function with
@@ -30,8 +30,8 @@ import casadi as ca
 import numpy as np
 
 from ..errors import SolverError
-from ..interrupts import checkpoint, noticed, wanted
 from ..problem import CalibrationProblem
+from ..runtime.interrupts import checkpoint, noticed, wanted
 from .base import Solver, SolverResult
 
 #: built solvers shared by every Ipopt instance of the process, least recently used dropped first: the
@@ -359,7 +359,7 @@ class _Stop(ca.Callback):
 
 class _Checkpoint(ca.Callback):
     """The exact-Hessian solver's iteration callback where a test has the process signal itself
-    (:func:`casadical.interrupts.checkpoint`)."""
+    (:func:`casadical.runtime.interrupts.checkpoint`)."""
 
     def __init__(self, nx: int):
         ca.Callback.__init__(self)

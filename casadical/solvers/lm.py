@@ -16,8 +16,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import SolverError
-from ..interrupts import checkpoint
 from ..problem import CalibrationProblem
+from ..runtime.interrupts import checkpoint
 from .base import Solver, SolverResult
 
 

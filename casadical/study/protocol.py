@@ -14,13 +14,7 @@ import json
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 
-from ..errors import CasadicalError, InputError
-from ..files import named_toml, read_toml
-from ..loading import load_robot
-from ..model import Model
-from ..planning.selectors import METHODS as SELECTORS
-from ..robot import PROBLEMS, Robot, robot_from_dict, robot_to_dict
-from ..simulate import (
+from ..data.simulate import (
     MAX_POSES,
     Effects,
     TomlValidator,
@@ -29,6 +23,12 @@ from ..simulate import (
     resolve_path,
     workspace_from_table,
 )
+from ..errors import CasadicalError, InputError
+from ..loading import load_robot
+from ..model.symbolic import Model
+from ..planning.selectors import METHODS as SELECTORS
+from ..robot import PROBLEMS, Robot, robot_from_dict, robot_to_dict
+from ..runtime.files import named_toml, read_toml
 
 STUDY_DIR = PROBLEMS / "studies"
 #: most repetitions a protocol may ask for (the studies of docs/studies.md run 40-200; a run keeps a few
@@ -109,7 +109,7 @@ class Study:
     effects : Effects
         The hidden truth every repetition draws a robot from.
     workspace : dict
-        Pose filter (:func:`casadical.simulate.sample_poses` options).
+        Pose filter (:func:`casadical.data.simulate.sample_poses` options).
     seed : int
         Study seed; repetition ``r`` draws everything from ``(seed, r)``.
     repetitions : int

@@ -24,8 +24,8 @@ from typing import Callable
 
 from .. import __version__
 from ..errors import CasadicalError, InputError
-from ..interrupts import checkpoint, deferred
-from ..threads import usable_cores
+from ..runtime.interrupts import checkpoint, deferred
+from ..runtime.threads import usable_cores
 from .protocol import Study
 from .store import ResultStore
 from .task import error_rows, run_task

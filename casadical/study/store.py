@@ -33,8 +33,8 @@ import numpy as np
 
 from .. import __version__
 from ..errors import CasadicalError, CasadicalWarning, InputError
-from ..files import atomic_open, atomic_write
-from ..interrupts import checkpoint
+from ..runtime.files import atomic_open, atomic_write
+from ..runtime.interrupts import checkpoint
 from .protocol import Study
 from .task import COLUMNS, TIME_COLUMNS
 

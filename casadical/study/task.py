@@ -27,13 +27,13 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from ..calibration import calibrate
-from ..data import Measurements
+from ..data.measurements import Measurements
+from ..data.simulate import Truth, sample_poses, simulate, true_model
 from ..methods import run_method
 from ..methods.base import Inputs, Method, MethodResult, new_result
-from ..model import Model
+from ..model.symbolic import Model
 from ..planning import PlanSettings, design_problem, select_poses
 from ..robot import Robot, robot_to_dict
-from ..simulate import Truth, sample_poses, simulate, true_model
 from .protocol import MethodSpec, PlanSpec, Study
 
 #: The results table: column name and kind (``int``, ``float``, ``str``, ``map``), in order.

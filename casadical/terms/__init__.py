@@ -2,7 +2,7 @@
 
 ``make_term("joint_compliance", joints=[2, 3])`` or a model specification
 such as ``"kinematic+compliance[2,3]+periodic[2:1]"`` (see
-:func:`casadical.model.parse_spec`).
+:func:`casadical.model.symbolic.parse_spec`).
 """
 
 from . import (  # noqa: F401

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import casadi as ca
 
-from ..parameters import Parameter
+from ..model.parameters import Parameter
 from ..robot import Robot
 from .base import ReferencedTerm, register
 

@@ -1,4 +1,4 @@
-"""Session compensator: a Gaussian process of the residual, applied where it knows."""
+"""The GP compensator (one per session): a Gaussian process of the residual, applied where it knows."""
 
 from __future__ import annotations
 

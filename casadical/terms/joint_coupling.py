@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from ..errors import ModelError
-from ..parameters import Parameter
+from ..model.parameters import Parameter
 from ..robot import Robot
 from .base import Context, ErrorTerm, register
 

@@ -6,7 +6,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import ModelError
-from ..parameters import Parameter
+from ..model.parameters import Parameter
 from ..robot import GRAVITY, Robot
 from .base import Context, ErrorTerm, reach, register
 

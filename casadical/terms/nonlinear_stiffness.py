@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from ..parameters import Parameter
+from ..model.parameters import Parameter
 from ..robot import Robot
 from .base import Context, ErrorTerm, max_gravity_torque, register
 

@@ -7,7 +7,7 @@ import math
 import casadi as ca
 
 from ..errors import ModelError
-from ..parameters import Parameter
+from ..model.parameters import Parameter
 from ..robot import Robot
 from .base import Context, ErrorTerm, register
 

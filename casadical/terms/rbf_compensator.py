@@ -1,4 +1,4 @@
-"""Residual compensator: a fitted RBF network adds the structure no named cause explains."""
+"""The RBF compensator: a fitted RBF network adds the structure no named cause explains."""
 
 from __future__ import annotations
 
@@ -65,5 +65,5 @@ class RBFCompensator(ErrorTerm):
 
 
 def features(q: np.ndarray, torques: np.ndarray) -> np.ndarray:
-    """The compensator's features of poses: ``sin q, cos q, torques`` (N, 3n)."""
+    """The RBF compensator's features of poses: ``sin q, cos q, torques`` (N, 3n)."""
     return np.column_stack([np.sin(q), np.cos(q), torques])

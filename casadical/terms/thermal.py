@@ -5,8 +5,8 @@ from __future__ import annotations
 from dataclasses import replace
 
 from ..errors import ModelError
-from ..kinematics import Geometry
-from ..parameters import Parameter
+from ..model.kinematics import Geometry
+from ..model.parameters import Parameter
 from ..robot import Robot
 from .base import Context, ReferencedTerm, register
 

@@ -8,7 +8,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import ModelError
-from ..parameters import Parameter
+from ..model.parameters import Parameter
 from ..robot import Robot
 from .base import ReferencedTerm, register
 

@@ -23,7 +23,7 @@ import numpy as np
 
 from .. import __version__
 from ..errors import ModelError
-from ..kinematics import Geometry, base_pose_matrix, forward, matrix_to_rpy, pose_matrix
+from ..model.kinematics import Geometry, base_pose_matrix, forward, matrix_to_rpy, pose_matrix
 from ..robot import Robot
 from ..terms import Context, make_term
 
@@ -47,7 +47,7 @@ def robot_to_urdf(source: "CalibrationResult | Robot", description: str | None =
     description : str, optional
         What the geometry is, for the file's comment (default: the
         calibration's model and the terms the file leaves out); see
-        :func:`casadical.equivalent.geometric_equivalent` for a model with
+        :func:`casadical.apply.export_geometry.geometric_equivalent` for a model with
         terms a URDF cannot carry.
 
     Returns

@@ -1,12 +1,12 @@
 """An independent truth for the tests: measured-like data of a robot, made without casadical.
 
-casadical's simulator (:mod:`casadical.simulate`) evaluates the very terms
+casadical's simulator (:mod:`casadical.data.simulate`) evaluates the very terms
 the calibration and the diagnosis fit, so a wrong sign, phase, unit or
 convention in a term would be shared by the data and the fit. This package
 writes the robot and each effect again from its physical definition, in
 plain numpy with its own transforms, and writes the measurement CSV of
 docs/formats.md; the tests read that CSV as a user's file. casadical never
-imports it (tests/test_imports.py), and it imports nothing of casadical.
+imports it (tests/test_import_graph.py), and it imports nothing of casadical.
 
     arm = Arm.from_dict(ARM4)                      # or Arm.from_toml(text)
     robot = TrueRobot.draw(arm, Effects(stiffness={2: 5e5}), rng)

@@ -1,4 +1,5 @@
-"""A robot's nominal numbers, read from its TOML text or the dict of ``tests/arms.py`` (docs/formats.md section 1).
+"""A robot's nominal numbers, read from its TOML text or the dict of ``tests/helpers/arms.py``
+(docs/formats.md section 1).
 
 Read here, not through casadical: unit conversions (degrees, the gravity
 direction) are part of what the truth checks.

@@ -23,7 +23,7 @@ docs/formats.md section 1), not from casadical's terms:
   for an arm without couplings). Torques are those of the **deflected**
   arm: the equilibrium is found by fixed-point iteration. (casadical takes
   those of the undeflected arm: an approximation, second order in the
-  deflection, 3e-3 of the effect at 1 mrad; tests/test_truth_vs_package.py.)
+  deflection, 3e-3 of the effect at 1 mrad; tests/model/test_truth_vs_package.py.)
 - **Joint compliance**: ``e_j += tau_j / k_j``: the joint gives way in the
   direction of its torque. **Progressive stiffness**: ``e_j += k3_j
   tau_j^3`` beyond it (k3 < 0: stiffens with load).

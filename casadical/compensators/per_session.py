@@ -1,0 +1,170 @@
+"""The GP compensator (one per session): fitted, applied where it knows, judged on folds.
+
+The named causes make the physical model: what holds for the robot, in
+any session. What they leave is partly structure of the session (the
+tracker's own errors, the state of the robot that day) that no cause
+explains but that predicts other poses of the same session. The GP
+compensator learns it with a Gaussian process of the joint readings
+(:class:`casadical.compensators.gp.ResidualGP`, one per session), in the
+robot base frame of each pose's session, and adds it to the model as a
+``gp_compensator`` term (``gp_compensator@<session>`` with several
+sessions). It applies only where its predictive uncertainty says it knows
+the residual; elsewhere the physical model stands alone, and
+:func:`gp_compensator_coverage` says at how many poses that was.
+
+:func:`gp_compensator_held_out` judges the compensator as the diagnosis
+judges every step: on cross-validation folds (random, time-blocked,
+joint-blocked, each session left out), with the hyperparameters of the fit
+on all poses and the process conditioned on each fold's training poses
+only.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Callable
+
+import numpy as np
+
+from ..data.measurements import Measurements, session_index
+from ..model.symbolic import Model
+from ..result import CalibrationResult, learning_mask, rebuilt
+from ..runtime.threads import limited_threads
+from ..terms import SessionLocal, make_term
+from .gp import MAX_STD_RATIO, ResidualGP
+
+#: a session's process learns from at most this many of its poses (drawn at random): its cost grows with the cube
+#: of the poses, in the fit and in every held-out fold, and its size in the model with their number
+MAX_POSES = 600
+
+
+def gp_compensator_data(result: CalibrationResult, data: Measurements) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """What the GP compensator learns from: joint readings (rad), residuals (measured minus predicted, m) in the robot
+    base frame of each pose's session, and the poses to learn from (those the robust loss did not set aside)."""
+    r = result.residuals(data)
+    Y = np.empty_like(r)
+    for s, idx in session_index(data).items():
+        R = result.base_matrix(s or None)[:3, :3]
+        Y[idx] = r[idx] @ R                 # rows: R^T r
+    return data.q, Y, learning_mask(result, data)
+
+
+def fit_gp_compensator(result: CalibrationResult, data: Measurements, max_std_ratio: float = MAX_STD_RATIO,
+                       seed: int = 0, progress: Callable[[str], None] | None = None
+                       ) -> tuple[dict[str | None, ResidualGP], dict[str | None, np.ndarray]]:
+    """A Gaussian process of the residual per session (key None for data of one session), and the poses of
+    ``data`` each learnt from; ``progress`` receives a line per session."""
+    X, Y, keep = gp_compensator_data(result, data)
+    gps: dict[str | None, ResidualGP] = {}
+    rows: dict[str | None, np.ndarray] = {}
+    for s, idx in session_index(data).items():
+        idx = idx[keep[idx]]
+        if len(idx) > MAX_POSES:
+            idx = np.sort(np.random.default_rng(seed).choice(idx, MAX_POSES, replace=False))
+        if progress is not None:
+            progress(f"  hyperparameters of the processes{f' of session {s}' if s else ''}: {len(idx)} poses, "
+                     "x, y and z")
+        gps[s or None] = ResidualGP.fit(X[idx], Y[idx], max_std_ratio=max_std_ratio, seed=seed)
+        rows[s or None] = idx
+    return gps, rows
+
+
+def with_gp_compensator(result: CalibrationResult, gps: dict[str | None, ResidualGP], data: Measurements,
+                        note: str) -> CalibrationResult:
+    """``result`` with the processes added to its model as ``gp_compensator`` terms (the values kept)."""
+    m = result.model
+    terms = [t for t in m.terms if t.name != "gp_compensator"]
+    for s, gp in gps.items():
+        term = make_term("gp_compensator", gp=gp)
+        terms.append(term if s is None else SessionLocal(term, s))
+    return rebuilt(result, Model(m.robot, terms if m.geometric_free else terms[1:], jit=m.jit), data, note)
+
+
+def gp_compensator_coverage(result: CalibrationResult, data: Measurements) -> tuple[int, int]:
+    """At how many of ``data``'s poses the result's GP compensator applies, of how many it could
+    (the poses of the sessions it has a process for); (0, 0) without one."""
+    known = total = 0
+    for t in result.model.terms:
+        inner = t.inner if isinstance(t, SessionLocal) else t
+        if inner.name != "gp_compensator" or inner.gp is None:
+            continue
+        rows = np.arange(len(data)) if not isinstance(t, SessionLocal) else \
+            np.flatnonzero(data.sessions == t.session_name) if data.sessions is not None else np.arange(0)
+        total += len(rows)
+        known += int(inner.gp.knows(data.q[rows]).sum())
+    return known, total
+
+
+@dataclass
+class GPCompensatorFolds:
+    """Held-out predictions of the GP compensator on every fold: what judging it, and choosing its support, needs.
+
+    Attributes
+    ----------
+    before : ndarray, shape (N,)
+        Residual norm (m) of each pose of ``keep`` without the compensator.
+    folds : dict of str to list of (ndarray, ndarray, ndarray, ndarray)
+        By kind: for each fold, its held-out poses (indices into ``keep``'s poses), their residuals (m, (m, 3)),
+        the fold's process's prediction there (m) and its predictive std over the prior (:meth:`ResidualGP.std_ratio`).
+    n_schemes : dict of str to int
+        Schemes of each kind (a pose is held out once in each).
+    """
+
+    before: np.ndarray
+    folds: dict
+    n_schemes: dict
+
+    def after(self, kind: str, support: float) -> np.ndarray:
+        """Residual norm (m) of each pose with the compensator, held out in the folds of ``kind`` (averaged over
+        its schemes), the compensator applied where its std ratio is below ``support``."""
+        out = np.zeros(len(self.before))
+        for at, Y, pred, ratio in self.folds[kind]:
+            out[at] += np.linalg.norm(Y - pred * (ratio < support)[:, None], axis=1)
+        return out / self.n_schemes[kind]
+
+    def means_mm(self, support: float) -> dict[str, tuple[float, float]]:
+        """Held-out mean (mm) without and with the compensator, by kind."""
+        b = float(self.before.mean() * 1000)
+        return {k: (b, float(self.after(k, support).mean() * 1000)) for k in self.folds}
+
+    def worst_mm(self, support: float) -> dict[str, tuple[float, float]]:
+        """Worst held-out error (mm) without and with the compensator, by kind."""
+        b = float(self.before.max() * 1000)
+        return {k: (b, float(self.after(k, support).max() * 1000)) for k in self.folds}
+
+
+@limited_threads()
+def gp_compensator_held_out(gps: dict[str | None, ResidualGP], learnt: dict[str | None, np.ndarray],
+                            data: Measurements, Y: np.ndarray, keep: np.ndarray, schemes,
+                            progress: Callable[[str], None] | None = None) -> GPCompensatorFolds:
+    """Held-out residuals (m) without and with the GP compensator, by kind of fold, at the poses of ``keep``.
+
+    Each fold's process is the session's process (hyperparameters of the
+    fit on all poses) conditioned on the poses it learnt from (``learnt``,
+    indices into ``data``) that are among the fold's training poses; where
+    it does not know it adds nothing (:meth:`GPCompensatorFolds.after`: for any support).
+    ``progress`` receives a line per kind of fold.
+    """
+    sessions = session_index(data)
+    idx_keep = np.flatnonzero(keep)
+    folds: dict[str, list] = {}
+    n_schemes: dict[str, int] = {}
+    for kind in dict.fromkeys(s.kind for s in schemes):
+        group = [s for s in schemes if s.kind == kind]
+        if progress is not None:
+            progress(f"  held-out errors on the {kind} folds ({sum(len(g.folds) for g in group)} folds)")
+        folds[kind], n_schemes[kind] = [], len(group)
+        for scheme in group:
+            for F in scheme.folds:
+                test = np.intersect1d(F, idx_keep)
+                pred, ratio = np.zeros((len(test), 3)), np.ones(len(test))
+                for s, rows in sessions.items():
+                    own = learnt[s or None]
+                    train = np.setdiff1d(own, F)
+                    at = np.isin(test, rows)
+                    if len(train) >= 10 and at.any():
+                        g = gps[s or None].refit(np.searchsorted(own, train))
+                        x = data.q[test[at]]
+                        pred[at], ratio[at] = g.predict(x), g.std_ratio(x)
+                folds[kind].append((np.searchsorted(idx_keep, test), Y[test], pred, ratio))
+    return GPCompensatorFolds(np.linalg.norm(Y[idx_keep], axis=1), folds, n_schemes)

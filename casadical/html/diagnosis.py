@@ -1,0 +1,537 @@
+"""The HTML report of a diagnosis: steps, findings with their evidence, what transfers, the final model."""
+
+from __future__ import annotations
+
+import math
+from functools import partial
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from .figures import AFTER, BEFORE, CURVE, SERIES, ecdf, figure, legend_above, styled, ticks
+from .page import Page, Raw, esc, gain, model_label, num, sig
+from .parameters import parameter_table_html
+
+if TYPE_CHECKING:
+    from ..diagnosis.report import DiagnosisReport, Finding, Step
+
+#: casadical.diagnosis.validation.KINDS (not imported: the diagnosis package pulls in scipy)
+KINDS = ("random", "time", "joint")
+
+
+def short_label(cand) -> str:
+    """A candidate cause in a few words: ``compliance j2``, ``periodic j2 h17``, ``backlash j3 (motion)``."""
+    return "nominal" if cand is None else cand.label(short=True)
+
+
+def step_label(step: Step) -> str:
+    """A step in a few words (:attr:`Step.label`): ``kinematic``, ``+ compliance j2``, ``+ GP compensator``."""
+    return step.label
+
+
+def diagnosis_html(report: DiagnosisReport, processes: int = 1, progress=None, poses=None,
+                   map_joints: tuple[int, int] | None = None) -> str:
+    """A self-contained HTML report of a diagnosis (inline CSS and SVG, no script, no network).
+
+    The answer first: the findings with what to do about each and the final
+    model's errors fill the first screen; the evidence (each finding's
+    checks and figure, the steps, the structure kept out, the transfer, the
+    periodograms, the parameters) follows.
+
+    Parameters
+    ----------
+    report : DiagnosisReport
+        What :func:`casadical.diagnosis.diagnose` returned.
+    processes : int
+        Draw the figures in this many processes (:func:`casadical.html.figures.render`).
+    progress : callable, optional
+        Receives a line of text before and after the figures are drawn.
+    poses : Measurements, optional
+        The calibration poses, drawn on the map of where the model is accurate.
+    map_joints : (int, int), optional
+        The two joints of that map (default: the two along which the model's uncertainty varies most).
+    """
+    page = Page(f"casadical diagnosis: {report.robot}")
+    v = report.final_validation
+    final = model_label(page, _final_label(report), report.final_model)
+    page.heading(f"Diagnosis of {report.robot}", 1)
+    text = (f"Final model {final}: validation mean {v.mean_mm:.4f} mm over {v.n_poses} validation poses that were "
+            "never fitted and never decided anything")
+    k = report.kinematic_validation
+    if k is not None:
+        text += f"; {gain(k.mean_mm - v.mean_mm)} than the kinematic calibration ({k.mean_mm:.4f} mm)"
+    nominal = report.steps[0].validation if report.steps else None
+    if nominal is not None:
+        text += f" and {gain(nominal.mean_mm - v.mean_mm)} than the nominal model ({nominal.mean_mm:.4f} mm)"
+    named = [f for f in report.findings if f.in_model and f.cause not in ("geometric", "unexplained")]
+    kept_out = [f for f in report.findings if not f.in_model]
+    page.para(text + f". {len(named)} cause(s) named beyond the geometry, {len(kept_out)} joint(s) with structure "
+              f"kept out of the model; {len(report.steps)} models tried in {report.time_s:.1f} s.", "lead")
+
+    _decision(page, report)
+    _errors(page, report)
+    sections = [("evidence", "Evidence for each finding"), ("steps", "Steps"),
+                ("unexplained", "Structure kept out of the model"), ("transfer", "On another series"),
+                ("periodograms", "What is left"), ("accuracy", "Where the model is accurate"),
+                ("not-tried", "Not tried on these data"), ("parameters", "Final parameters"),
+                ("notes", "Notes and settings")]
+    present = {"unexplained": bool(kept_out), "transfer": bool(report.transfer),
+               "periodograms": bool(report.periodograms), "evidence": bool(report.findings),
+               "accuracy": report.final.uncertainty is not None and report.final.model.robot.n >= 2,
+               "not-tried": bool(report.not_tried)}
+    page.para("The evidence behind them, further down:")
+    page.items([page.ref(a, t) for a, t in sections if present.get(a, True)], "ol")
+
+    _findings(page, report)
+    _steps(page, report)
+    if kept_out:
+        _kept_out(page, report, kept_out)
+    if report.transfer:
+        _transfer(page, report)
+    if report.periodograms:
+        page.heading("What is left: periodograms of the final residual", anchor="periodograms")
+        ref = page.figure(partial(_periodograms, report), "fig-periodograms",
+                          "Share of each joint's projected calibration residual that one harmonic of its reading "
+                          "explains, per harmonic (cycles per turn). Dotted lines: harmonics in the final model.")
+        page.para(f"A single tall peak in {ref} is a periodic error the model lacks; a forest of small ones "
+                  "is noise or structure no single harmonic holds.")
+    if present["accuracy"]:
+        _accuracy(page, report, poses, map_joints)
+    if report.not_tried:
+        page.heading("Not tried on these data", anchor="not-tried")
+        page.para("Kinds of cause these poses cannot test, why, and what would let the diagnosis try them.")
+        page.table(["cause", "joints", "why", "what would allow it"],
+                   [[n["cause"].replace("_", " "), ", ".join(map(str, n.get("joints", []))) or "-", n["why"],
+                     n["allow"]] for n in report.not_tried], text_columns=(0, 1, 2, 3), wrap_columns=(2, 3))
+    page.heading("Final parameters", anchor="parameters")
+    page.para("The final model fitted on the calibration poses (what <code>diagnose --out</code> writes). "
+              "Angles in degrees, lengths in millimetres; greyed rows are held.")
+    parameter_table_html(page, report.final, fold=True)
+    page.heading("Notes and settings", anchor="notes")
+    page.items([esc(n) for n in report.notes])
+    page.pairs([(k, esc(str(v))) for k, v in report.settings.items()])
+    return page.html(processes, progress)
+
+
+def _final_label(report: DiagnosisReport) -> str:
+    named = sum(f.in_model and f.cause not in ("geometric", "unexplained") for f in report.findings)
+    bb = any(f.in_model and f.cause == "unexplained" for f in report.findings)
+    base = "kinematic" if any(f.cause == "geometric" for f in report.findings) else "nominal"
+    return base + (f" + {named} cause(s)" if named else "") + (" + GP compensator" if bb else "")
+
+
+# --- the answer: findings and what to do, the final model's errors ----------------------
+
+
+def _decision(page: Page, report: DiagnosisReport) -> None:
+    page.heading("Findings: what to do", anchor="findings")
+    if not report.findings:
+        page.para("Nothing: not even the geometry is supported by the calibration data.")
+        return
+    evidence = _evidence_anchors(report)
+    rows, classes, actions = [], [], []
+    for k, (f, row) in enumerate(zip(report.findings, report.decision()), 1):
+        anchor = evidence.get(id(f))
+        name = page.ref(anchor, row["label"]) if anchor else row["label"]
+        g = gain(f.gain_mm) if f.in_model else "kept out"
+        rows.append([str(k), name, row["where"], row["size"].replace(" +- ", " \u00b1 "), g, row["scope"]])
+        classes.append("" if f.in_model else "off")
+        actions.append("What to do: " + row["action"])
+    page.para(f"Each cause the data support, with its size in the final model (&plusmn; its standard error), its "
+              f"gain on the {report.final_validation.n_poses} validation poses (against the model it extends), "
+              "whether it is a property of the robot or of the measurement session, and under it what to do about it. "
+              "Greyed: structure kept out of the model.")
+    page.table(["#", "finding", "where", "size", "gain on validation", "scope"], rows,
+               text_columns=(1, 2, 3, 4, 5), row_classes=classes, details=actions)
+
+
+def _evidence_anchors(report: DiagnosisReport) -> dict[int, str]:
+    """Where each finding's evidence is on the page (by id of the finding)."""
+    out = {id(f): f"finding-{k}" for k, f in enumerate([f for f in report.findings if f.in_model], 1)}
+    out.update({id(f): "unexplained" for f in report.findings if not f.in_model})
+    return out
+
+
+def _errors(page: Page, report: DiagnosisReport) -> None:
+    page.heading("Errors of the final model", anchor="errors")
+    v = report.final_validation
+    pose = report.final_orientation is not None
+    models = [("nominal (base pose fitted)", report.steps[0].validation if report.steps else None),
+              ("kinematic", report.kinematic_validation), ("final", v)]
+    rows = []
+    for name, st in models:
+        if st is None:
+            continue
+        rows.append([name, str(st.n_poses), num(st.mean_mm), num(st.max_mm), num(st.rms_mm),
+                     gain(st.mean_mm - v.mean_mm) if name != "final" else ""])
+    for s, st in report.final_sessions.items():
+        rows.append([f"final, session {s}", str(st.n_poses), num(st.mean_mm), num(st.max_mm), num(st.rms_mm), ""])
+    page.table(["model, on the validation poses", "poses", "mean mm", "max mm", "rms mm", "final against it"],
+               rows, text_columns=(0, 5))
+    extra = []
+    if pose:
+        o = report.final_orientation
+        extra.append(f"Orientation of the probe (full pose): mean {o.mean_deg:.4f} deg, max {o.max_deg:.4f} deg, "
+                     f"rms {o.rms_deg:.4f} deg.")
+    if report.transfer:
+        t = report.transfer
+        extra.append(esc(f"On {_name(t['file'])}: {t['final']['base_mm']:.4f} mm with the base pose re-estimated "
+                         f"(kinematic {t['kinematic']['base_mm']:.4f}), {t['final']['refit_mm']:.4f} mm with the "
+                         f"geometry refitted (kinematic {t['kinematic']['refit_mm']:.4f}): ")
+                     + page.ref("transfer", "details") + ".")
+    if extra:
+        page.para(" ".join(extra))
+
+
+# --- steps ---------------------------------------------------------------------------
+
+
+def _held_cells(s: Step) -> list:
+    cv = s.cv_mm or {}
+    return [Raw(num(cv.get(k)) + (f"<br><small>{gain(_drop(cv, k), unit='')}</small>"
+                                  if _drop(cv, k) is not None else "")) for k in KINDS]
+
+
+def _val_cell(s: Step) -> Raw:
+    vm = num(s.validation.mean_mm)
+    if s.gain_mm is not None:
+        vm += f"<br><small>{gain(s.gain_mm, unit='')}</small>"
+    return Raw(vm)
+
+
+def _steps(page: Page, report: DiagnosisReport) -> None:
+    page.heading("Steps", anchor="steps")
+    number = {id(s): k for k, s in enumerate(report.steps, 1)}
+    acc = [s for s in report.steps if s.accepted]
+    rejected = [s for s in report.steps if not s.accepted]
+
+    def extends(s: Step) -> str:
+        return "\u2013" if s.parent is None else str(s.parent + 1)
+
+    page.para("Each step extends a model by one cause; it is accepted only on the calibration poses (significance "
+              "and held-out means on folds that interpolate, follow time, and extrapolate over joint ranges). The "
+              "validation columns judge and never decide. Under each mean, its gain (mm) against the model the "
+              "step extends (column <i>extends</i>: that model's step). Hover over a step for its whole model, or "
+              "see the footnotes.")
+    page.table(["#", "accepted step", "extends", "calibration rms mm", "held-out mean, random folds, mm",
+                "held-out mean, time folds, mm", "held-out mean, joint folds, mm", "validation mean mm",
+                "validation max mm", "validation rms mm"],
+               [[str(number[id(s)]), model_label(page, step_label(s), s.model), extends(s),
+                 num(s.calibration.rms_mm), *_held_cells(s), _val_cell(s), num(s.validation.max_mm),
+                 num(s.validation.rms_mm)] for s in acc], text_columns=(1,))
+    if rejected:
+        better = sum(1 for s in rejected if (s.gain_mm or 0) > 0)
+        page.para(f"{len(rejected)} candidate steps were not accepted ({better} of them would have lowered this "
+                  "series' validation mean: a gain here is no reason to accept a cause that does not hold up where "
+                  "the model must extrapolate).")
+        with page.folded(f"The {len(rejected)} steps not accepted, each against the model it extends, and why"):
+            page.table(["#", "step", "extends", "held-out mean, random folds, mm", "held-out mean, time folds, mm",
+                        "held-out mean, joint folds, mm", "validation mean mm", "why not accepted"],
+                       [[str(number[id(s)]), model_label(page, step_label(s), s.model), extends(s), *_held_cells(s),
+                         _val_cell(s), s.reason] for s in rejected], text_columns=(1,), wrap_columns=(7,),
+                       row_classes=["off"] * len(rejected))
+    steps = [s for s in acc if s.candidate is not None]
+    if steps:
+        ref = page.figure(partial(_along_steps, steps), "fig-steps",
+                          "Validation mean error and held-out means on the calibration poses along the accepted "
+                          f"steps (the nominal model, not shown: {report.steps[0].validation.mean_mm:.4f} mm).")
+        page.para(f"How the error falls along the accepted steps: {ref}.")
+    e0 = np.asarray(report.plots.get("val_errors_nominal_mm", []), float)
+    e1 = np.asarray(report.plots.get("val_errors_final_mm", []), float)
+    if len(e0) and len(e1):
+        ref = page.figure(partial(_per_pose, e0, e1), "fig-poses",
+                          "Position error of each validation pose, nominal model (base fitted) and final model: "
+                          "distribution (top) and per pose (bottom).")
+        page.para(f"Every validation pose before and after: {ref}; the median goes from {np.median(e0):.4f} mm "
+                  f"to {np.median(e1):.4f} mm, the worst from {e0.max():.4f} mm to {e1.max():.4f} mm.")
+
+
+@styled
+def _along_steps(steps: list[Step]):
+    fig, ax = figure(8.6, 3.6)
+    ax = ax[0, 0]
+    x = np.arange(len(steps))
+    ax.plot(x, [s.validation.mean_mm for s in steps], "o-", color=AFTER, lw=2.2, label="validation mean")
+    for kind, colour in zip(KINDS, (SERIES[2], SERIES[3], SERIES[1])):
+        y = [(s.cv_mm or {}).get(kind) for s in steps]
+        ax.plot(x, [math.nan if v is None else v for v in y], "s--", color=colour, lw=1.1, ms=3,
+                label=f"held-out, {kind} folds")
+    ax.set_xticks(x, [step_label(s) for s in steps], rotation=40, ha="right", rotation_mode="anchor")
+    ax.set_ylabel("mean position error (mm)")
+    ticks(ax, x=False)
+    legend_above(ax)
+    return fig
+
+
+@styled
+def _per_pose(e0: np.ndarray, e1: np.ndarray):
+    fig, ax = figure(8.6, 5.6, 2, 1)
+    ecdf(ax[0, 0], e0, e1, "nominal model (base fitted)", "final model")
+    legend_above(ax[0, 0])
+    a = ax[1, 0]
+    idx = np.arange(len(e0))
+    a.plot(idx, e0, ".", color=BEFORE, ms=2.5, alpha=0.6, label="nominal")
+    a.plot(idx, e1, ".", color=AFTER, ms=2.5, alpha=0.8, label="final")
+    a.set(xlabel="validation pose (file order)", ylabel="position error (mm)")
+    ticks(a)
+    return fig
+
+
+# --- findings ------------------------------------------------------------------------
+
+
+def _findings(page: Page, report: DiagnosisReport) -> None:
+    page.heading("Evidence for each finding", anchor="evidence")
+    shown = [f for f in report.findings if f.in_model]
+    if len(shown) <= 1:
+        page.para("No cause beyond the geometry: the kinematic model explains the data down to what the "
+                  "checks can support.")
+    other = report.transfer.get("file", "the other series") if report.transfer else ""
+    for k, f in enumerate(shown):
+        anchor = f"finding-{k + 1}"
+        head = f"{k + 1}. {f.label()}"
+        page.parts.append(f'<h3 id="{anchor}">{esc(head)}: {gain(f.gain_mm)} on validation</h3>')
+        entries = []
+        if f.parameters:
+            entries.append(("values", esc(", ".join(
+                f"{n} = {sig(p['value'])}" + (f" \u00b1 {sig(p['std'], 2)}" if p.get("std") is not None else "")
+                + f" {p['unit']}" for n, p in f.parameters.items()))))
+        hu = f.holds_up or {}
+        if "test" in hu:
+            entries.append(("significance", esc(hu["test"] + " on the calibration poses")))
+        if "resolution" in hu:
+            entries.append(("resolution", esc(_resolution(hu["resolution"]))))
+        for a in f.ambiguous_with:
+            alike = f" (similarity {a['similarity']})" if "similarity" in a else ""
+            entries.append(("ambiguous with", esc(f"{a['label']}{alike}: {a['tell_apart']}")))
+        if f.transfer:
+            entries.append((f"on {_name(other)}", _transfer_text(f.transfer)))
+        page.pairs(entries)
+        if hu:
+            page.details("The evidence in words", f.evidence)
+        elif f.evidence:
+            page.para(esc(f.evidence))
+        if "cv_mm" in hu or hu.get("halves"):
+            with page.folded("Held-out means by kind of fold" + (" and the two halves" if hu.get("halves") else "")):
+                if "cv_mm" in hu:
+                    page.table(["held-out folds", "before mm", "with it mm", "gain"],
+                               [[kind, num(hu["cv_mm"].get(f"{kind}_before")), num(hu["cv_mm"].get(kind)),
+                                 gain(_drop(hu["cv_mm"], kind))] for kind in KINDS if kind in hu["cv_mm"]
+                                or f"{kind}_before" in hu["cv_mm"]], text_columns=(0, 3))
+                if hu.get("halves"):
+                    _halves_table(page, hu["halves"])
+        if f.plot:
+            page.figure(partial(_finding_plot, f), f"fig-{anchor}", _finding_caption(f))
+
+
+def _drop(cv: dict, kind: str) -> float | None:
+    a, b = cv.get(f"{kind}_before"), cv.get(kind)
+    return None if a is None or b is None else a - b
+
+
+def _resolution(r: dict) -> str:
+    lo, hi = r.get("band", ["?", "?"])
+    if r.get("resolved"):
+        return (f"resolved over the {r.get('range_deg', math.nan):.0f} deg the joint covers: no neighbouring "
+                f"harmonic fits as well (margin {r.get('neighbour_margin', math.nan):.3g}); "
+                f"{100 * r.get('outside_geometry', math.nan):.0f} % of it lies outside what the geometry fits")
+    return (f"not resolved: harmonics {lo}..{hi} fit about as well over the {r.get('range_deg', math.nan):.0f} "
+            "deg the joint covers")
+
+
+def _halves_table(page: Page, halves: list[dict]) -> None:
+    rows = []
+    for h in halves:
+        what = "joint range: lower / upper half" if h.get("split") == "joint" else "time: first / second half"
+        if "amplitude_arcsec" in h:
+            a, b = h["amplitude_arcsec"]
+            pa, pb = h["phase_deg"]
+            size, phase = f"{a:.1f} / {b:.1f} arcsec", f"{pa:.0f} / {pb:.0f} deg"
+        else:
+            a, b = h["values"]
+            size, phase = f"{sig(a, 3)} / {sig(b, 3)} {h.get('unit', '')}", ""
+        rows.append([what, size, phase, f"{h['chi2']:.1f}", "agree" if h["agree"] else "disagree"])
+    page.table(["stable over", "size (each half)", "phase (each half)", "chi2", "verdict"], rows,
+               text_columns=(0, 1, 2, 4))
+
+
+def _transfer_text(t: dict) -> Raw:
+    return Raw(f"{esc(t['verdict'])}: {gain(t['base_gain_mm'])} with the base pose re-estimated, "
+               f"{gain(t['refit_gain_mm'])} with the geometry refitted")
+
+
+def _name(path: str) -> str:
+    return path.replace("\\", "/").rsplit("/", 1)[-1]
+
+
+def _finding_caption(f: Finding) -> str:
+    if "partial" in f.plot:
+        return (f"{f.label()}: the calibration residual as joint {f.candidate.joint}'s angle error plus the fitted "
+                "effect (points) against the cause's variable, and the fitted effect (line).")
+    return f"{f.label()}: calibration residual before and after the finding, against its variable."
+
+
+@styled
+def _finding_plot(f: Finding):
+    pl = f.plot
+    fig, ax = figure(6.8, 3.2)
+    ax = ax[0, 0]
+    x = np.asarray(pl["x"], float)
+    if "partial" in pl:
+        ax.plot(x, pl["partial"], ".", color=AFTER, ms=3, alpha=0.55, label="residual + fitted effect")
+        ax.plot(pl["curve_x"], pl["curve_y"], "-", color=CURVE, lw=2, label="fitted effect")
+    else:
+        ax.plot(x, pl["before"], ".", color=BEFORE, ms=3, alpha=0.6, label="before")
+        ax.plot(x, pl["after"], ".", color=AFTER, ms=3, alpha=0.7, label="after")
+    ax.set(xlabel=pl["xlabel"], ylabel=_wrap(pl["ylabel"]))
+    ticks(ax)
+    legend_above(ax, markerscale=2.5)
+    return fig
+
+
+def _wrap(label: str, width: int = 34) -> str:
+    """An axis label on two lines when long (a label longer than its axis would be cut)."""
+    if len(label) <= width:
+        return label
+    cut = label.rfind(" ", 0, len(label) // 2 + 8)
+    return label if cut < 0 else label[:cut] + "\n" + label[cut + 1:]
+
+
+# --- unexplained, transfer, periodograms ------------------------------------------------
+
+
+def _kept_out(page: Page, report: DiagnosisReport, kept: list[Finding]) -> None:
+    page.heading("Structure kept out of the model", anchor="unexplained")
+    page.para("Significant on the calibration poses, but it does not hold up as a cause (not resolved from its "
+              "neighbouring harmonics, or not the same over the halves of the joint's range), so the final model "
+              "leaves it out. What it would have given: on this series' validation poses, and taken to the other "
+              "series the same two ways as the findings.")
+    other = _name(report.transfer.get("file", "")) if report.transfer else ""
+    rows, details = [], []
+    for f in kept:
+        structures = f.holds_up.get("structures", [])
+        sizes = [s["amplitude_arcsec"] for s in structures if "amplitude_arcsec" in s]
+        row = [f"joint {f.candidate.joint}" if f.candidate.joint else "", str(len(structures)),
+               f"{max(sizes):.1f} arcsec" if sizes else "", gain(f.potential_gain_mm)]
+        if other:
+            row.append(_transfer_text(f.transfer) if f.transfer else "")
+        rows.append(row)
+        details.append(f.where)
+    header = ["where", "structures", "largest", "on this series' validation"] + ([f"on {other}"] if other else [])
+    page.table(header, rows, text_columns=(0, 2, 3), wrap_columns=(4,), details=details)
+    rows = [[f"joint {f.candidate.joint}", s.get("what", ""), s.get("why", "")]
+            for f in kept for s in f.holds_up.get("structures", [])]
+    if rows:
+        with page.folded(f"Why each of the {len(rows)} structures was kept out"):
+            page.table(["where", "structure", "why kept out"], rows, text_columns=(0, 1), wrap_columns=(2,))
+
+
+def _transfer(page: Page, report: DiagnosisReport) -> None:
+    t = report.transfer
+    page.heading(f"On another series: {_name(t['file'])}", anchor="transfer")
+    fb, fr = t["final"]["base_mm"], t["final"]["refit_mm"]
+    kb, kr = t["kinematic"]["base_mm"], t["kinematic"]["refit_mm"]
+    page.para(esc(f"The final and the kinematic model taken to {t['file']} the two ways a calibration travels: "
+                  f"only the base pose re-estimated on {t['n_base']} of its poses (a new tracker set-up), or the "
+                  f"geometry refitted on {t['n_refit']} of them with the findings frozen (a new series of the same "
+                  "robot); the other poses judge."))
+    page.table(["taken there with", "kinematic mean mm", "final mean mm", "final against kinematic"],
+               [["base pose re-estimated", num(kb), num(fb), gain(kb - fb)],
+                ["geometry refitted", num(kr), num(fr), gain(kr - fr)]], text_columns=(0, 3))
+    ref = page.figure(partial(_transfer_plot, t), "fig-transfer",
+                      f"Mean error on {_name(t['file'])}, kinematic and final model, both ways of taking them there.")
+    rows = [[f.label(), gain(f.transfer["base_gain_mm"]), gain(f.transfer["refit_gain_mm"]), f.transfer["verdict"]]
+            for f in report.findings if f.transfer and f.in_model]
+    if rows:
+        page.para(f"Each finding there ({ref} shows the whole model): the model with the finding against the same "
+                  "model without it.")
+        page.table(["finding", "base re-estimated", "geometry refitted", "verdict"], rows,
+                   text_columns=(0, 1, 2, 3))
+
+
+@styled
+def _transfer_plot(t: dict):
+    fig, ax = figure(5.6, 3.0)
+    ax = ax[0, 0]
+    x = np.arange(2)
+    w = 0.36
+    for k, (who, colour) in enumerate((("kinematic", BEFORE), ("final", AFTER))):
+        vals = [t[who]["base_mm"], t[who]["refit_mm"]]
+        bars = ax.bar(x + (k - 0.5) * w, vals, w, color=colour, label=f"{who} model")
+        ax.bar_label(bars, fmt="%.3f", padding=2, fontsize=8)
+    ax.set_xticks(x, ["base pose re-estimated", "geometry refitted"])
+    ax.set_ylabel("mean position error (mm)")
+    ax.margins(y=0.15)
+    ax.grid(axis="x", visible=False)
+    ticks(ax, x=False)
+    legend_above(ax)
+    return fig
+
+
+@styled
+def _periodograms(report: DiagnosisReport):
+    pgs = report.periodograms
+    ncols = 2 if len(pgs) > 3 else 1
+    nrows = math.ceil(len(pgs) / ncols)
+    fig, ax = figure(8.6, 1.45 * nrows + 0.9, nrows, ncols, sharex=True, sharey=True)
+    in_model: dict[int, list[int]] = {}
+    for f in report.findings:
+        c = f.candidate
+        if f.in_model and c.cause == "joint_periodic":
+            in_model.setdefault(c.joint, []).append(c.harmonic)
+    for k, pg in enumerate(pgs):
+        a = ax[k // ncols, k % ncols]
+        for h in in_model.get(pg.joint, []):
+            a.axvline(h, color="#888", lw=0.9, ls=":")
+        a.plot(pg.harmonics, pg.power, color=AFTER, lw=1.2)
+        a.text(0.99, 0.92, f"joint {pg.joint}", transform=a.transAxes, ha="right", va="top", fontsize=9,
+               bbox={"facecolor": "white", "edgecolor": "none", "pad": 1})
+        ticks(a, n=5)
+        if k % ncols == 0:
+            a.set_ylabel("share")
+    for k in range(len(pgs), nrows * ncols):
+        ax[k // ncols, k % ncols].set_visible(False)
+    for a in ax[-1]:
+        a.set_xlabel("harmonic (cycles per turn)")
+    if len(pgs) % ncols:
+        ax[-2, -1].xaxis.set_tick_params(labelbottom=True)
+        ax[-2, -1].set_xlabel("harmonic (cycles per turn)")
+    return fig
+
+
+def _accuracy(page: Page, report: DiagnosisReport, poses, joints) -> None:
+    from ..stats.predictive import accuracy_map
+
+    m = accuracy_map(report.final, poses.q if poses is not None else None, joints)
+    ja, jb = m["joints"]
+    page.heading("Where the model is accurate", anchor="accuracy")
+    others = ", ".join(f"q{k + 1} {v:.0f}" for k, v in enumerate(m["others_deg"]) if k + 1 not in (ja, jb))
+    where = "the calibration poses' median" if poses is not None else "the middle of their ranges"
+    caption = (f"Predicted uncertainty of the final model's tool point (rms 3-D error of the prediction, mm: the "
+               f"parameters' covariance plus the GP compensator's predictive std) over joints {ja} and {jb}; the "
+               f"other joints at {where} ({others} deg)." + (" Dots: the calibration poses." if poses is not None
+                                                            else ""))
+    ref = page.figure(partial(_accuracy_plot, m), "fig-accuracy", caption)
+    lo, hi = float(np.min(m["std_mm"])), float(np.max(m["std_mm"]))
+    page.para(f"{ref}: from {lo:.4f} mm to {hi:.4f} mm over the two joints' ranges. Where it is low a program can "
+              "trust the model; where it is high, measure next (<code>plan-poses REPORT.json</code> picks the "
+              "poses; <code>predict FINAL.json POSES.csv --std</code> gives it at any pose).")
+
+
+@styled
+def _accuracy_plot(m: dict):
+    fig, axes = figure(6.4, 4.2)
+    ax = axes[0, 0]
+    ja, jb = m["joints"]
+    # filled contours: vector paths (a mesh's colour bar is an embedded bitmap), a small SVG
+    levels = ax.contourf(m["x_deg"], m["y_deg"], m["std_mm"], levels=12, cmap="viridis")
+    fig.colorbar(levels, ax=ax, label="predicted uncertainty (mm)")
+    if m["measured_deg"] is not None:
+        ax.scatter(m["measured_deg"][:, 0], m["measured_deg"][:, 1], s=9, c="white", edgecolors="black",
+                   linewidths=0.5, label="calibration poses")
+        legend_above(ax)
+    ax.set_xlabel(f"q{ja} (deg)")
+    ax.set_ylabel(f"q{jb} (deg)")
+    ax.grid(False)
+    ticks(ax)
+    return fig

@@ -1,0 +1,125 @@
+"""How well a calibrated model knows each pose: the uncertainty of its predicted position.
+
+Two parts, independent and added in variance:
+
+- the **parameters**: the named causes' (and the geometry's, the base's)
+  covariance ``C`` from the fit, carried to the tool point by the model's
+  Jacobian at the pose, ``Sigma = J C J^T`` (linearised; a Monte Carlo of
+  ``C`` agrees within a few per cent where the model is nearly linear in its
+  parameters, as calibration models are);
+- the **GP compensator** (one per session,
+  :mod:`casadical.compensators.per_session`): its Gaussian processes'
+  predictive std where they know the residual, their prior std where they
+  do not (there the compensator adds nothing and the
+  residual the named causes leave is all there is).
+
+The figure per pose is ``sqrt(trace Sigma)``: the rms length of the 3-D
+error of the prediction (not of a measurement: the tracker's own noise is
+not in it).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from ..data.measurements import Measurements
+from ..errors import InputError
+from ..result import CalibrationResult
+from ..terms import SessionLocal
+
+
+def prediction_std(result: CalibrationResult, data: Measurements) -> tuple[np.ndarray, np.ndarray | None]:
+    """Standard deviation (m) of the predicted tool point at each pose of ``data``.
+
+    Returns
+    -------
+    params : ndarray, shape (N,)
+        From the parameters' covariance: ``sqrt(trace(J C J^T))``.
+    compensator : ndarray, shape (N,) or None
+        From the GP compensator (None without one): ``sqrt`` of the sum of its three components' variances.
+
+    Raises
+    ------
+    InputError
+        The calibration holds no parameter covariance (a file written without one).
+    """
+    unc = result.uncertainty
+    if unc is None:
+        raise InputError("the calibration holds no parameter covariance (its 'uncertainty'): calibrate again with "
+                         "this version to predict with --std")
+    model = result.model
+    _, J = model.predict_jacobian(data.q, result.parameters.values, model.covariates(data), result.base0)
+    idx = [model.parameters.index(n) for n in unc.names]
+    G = J[:, :, idx]                                   # (N, 3, k)
+    var = np.einsum("nik,kl,nil->n", G, unc.covariance, G)
+    params = np.sqrt(np.clip(var, 0.0, None))
+    compensator = None
+    for t in model.terms:
+        inner = t.inner if isinstance(t, SessionLocal) else t
+        if inner.name != "gp_compensator" or inner.gp is None:
+            continue
+        rows = np.arange(len(data)) if not isinstance(t, SessionLocal) else (
+            np.flatnonzero(data.sessions == t.session_name) if data.sessions is not None else np.zeros(0, int))
+        if compensator is None:
+            compensator = np.zeros(len(data))
+        if len(rows):
+            compensator[rows] = np.sqrt(np.sum(inner.gp.predictive_std(data.q[rows]) ** 2, axis=1))
+    return params, compensator
+
+
+def accuracy_map(result: CalibrationResult, measured_q: np.ndarray | None = None, joints: tuple[int, int] | None = None,
+                 n: int = 41, seed: int = 0) -> dict:
+    """The predicted uncertainty over two joints' ranges, the others at the measured poses' median.
+
+    Parameters
+    ----------
+    result : CalibrationResult
+        With a parameter covariance.
+    measured_q : ndarray, shape (N, n_joints), optional
+        The measured poses (rad): drawn on the map, and their median holds the other joints.
+    joints : (int, int), optional
+        1-based. Default: the two joints along which the uncertainty varies most over 400 poses drawn
+        within the joint limits (the share of its variance that bins of each joint's reading explain).
+    n : int
+        Grid points per joint.
+
+    Returns
+    -------
+    dict
+        ``joints``, ``x_deg``, ``y_deg`` (grid axes), ``std_mm`` (n x n, rows along y), ``measured_deg``
+        (the measured poses' two readings, or None).
+    """
+    robot = result.model.robot
+    if robot.n < 2:
+        raise InputError("an accuracy map needs two joints")
+    lim = robot.limits
+    if joints is None:
+        from ..data.simulate import sample_poses
+
+        q = sample_poses(robot, 400, np.random.default_rng(seed), floor_z=None)
+        s = _total(result, q)
+        share = []
+        for j in range(robot.n):
+            bins = np.digitize(q[:, j], np.linspace(lim[j, 0], lim[j, 1], 9)[1:-1])
+            means = np.array([s[bins == b].mean() if np.any(bins == b) else s.mean() for b in bins])
+            share.append(np.var(means) / max(np.var(s), 1e-300))
+        a, b = sorted(np.argsort(share)[-2:] + 1)
+        joints = (int(a), int(b))
+    ja, jb = joints
+    if not (1 <= ja <= robot.n and 1 <= jb <= robot.n and ja != jb):
+        raise InputError(f"the map's joints must be two different joints of 1..{robot.n}, got {ja} and {jb}")
+    centre = np.median(measured_q, axis=0) if measured_q is not None and len(measured_q) else lim.mean(axis=1)
+    xa = np.linspace(lim[ja - 1, 0], lim[ja - 1, 1], n)
+    xb = np.linspace(lim[jb - 1, 0], lim[jb - 1, 1], n)
+    A, B = np.meshgrid(xa, xb)
+    q = np.tile(centre, (A.size, 1))
+    q[:, ja - 1], q[:, jb - 1] = A.ravel(), B.ravel()
+    std = _total(result, q).reshape(A.shape) * 1000
+    return {"joints": (ja, jb), "x_deg": np.degrees(xa), "y_deg": np.degrees(xb), "std_mm": std,
+            "measured_deg": None if measured_q is None else np.degrees(measured_q[:, [ja - 1, jb - 1]]),
+            "others_deg": np.degrees(centre)}
+
+
+def _total(result: CalibrationResult, q: np.ndarray) -> np.ndarray:
+    sp, sl = prediction_std(result, Measurements.from_arrays(q))
+    return sp if sl is None else np.sqrt(sp ** 2 + sl ** 2)

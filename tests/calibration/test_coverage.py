@@ -1,0 +1,61 @@
+"""Predict and compensate say when they extrapolate beyond what the calibration saw."""
+
+import math
+from dataclasses import replace
+
+import numpy as np
+
+from casadical import calibrate, load_robot
+from casadical.cli import main
+from casadical.data.simulate import Effects, simulate
+from casadical.stats.coverage import Coverage
+
+
+def _narrow(robot, j, lo, hi):
+    joints = list(robot.joints)
+    joints[j - 1] = replace(joints[j - 1], min=math.radians(lo), max=math.radians(hi))
+    return replace(robot, joints=joints)
+
+
+def test_predict_warns_outside_the_joint_ranges(tmp_path, capsys):
+    robot = load_robot("ys100")
+    cal, truth = simulate(_narrow(robot, 1, -40, 40), 60, Effects(), seed=3)
+    inside = cal.subset(np.arange(10))
+    outside, _ = simulate(_narrow(robot, 1, 60, 120), 5, truth=truth, seed=5)
+    cal.write_csv(tmp_path / "cal.csv")
+    inside.write_csv(tmp_path / "in.csv")
+    outside.write_csv(tmp_path / "out.csv")
+    assert main(["calibrate", "ys100", str(tmp_path / "cal.csv"), "--model", "kinematic", "--solver", "lm",
+                 "--out", str(tmp_path / "cal.json")]) == 0
+    capsys.readouterr()
+    assert main(["predict", str(tmp_path / "cal.json"), str(tmp_path / "in.csv"),
+                 "--out", str(tmp_path / "p1.csv")]) == 0
+    assert "outside the ranges" not in capsys.readouterr().err
+    assert main(["predict", str(tmp_path / "cal.json"), str(tmp_path / "out.csv"), "--out", str(tmp_path / "p2.csv"),
+                 "--allow-mismatch"]) == 0
+    err = capsys.readouterr().err
+    assert "5 pose(s) (lines 2, 3, 4, 5, 6) have joint readings outside the ranges" in err and "joints 1" in err
+
+
+def test_far_from_every_calibration_pose():
+    rng = np.random.default_rng(0)
+    q = rng.normal(0, 2, size=(300, 6))
+    q[:, 2] = rng.uniform(-90, 90, 300)
+    q[:, 2] = np.where(q[:, 2] > 0, q[:, 2] + 30, q[:, 2] - 30)     # a hole in joint 3: -30..30 never seen
+    cov = Coverage.of(q)
+    probe = np.zeros((2, 6))
+    probe[1, :] = q[0]
+    beyond, far = cov.outside(probe)
+    assert not beyond.any()
+    assert far[0] and not far[1]
+
+
+def test_coverage_travels_with_the_calibration(tmp_path):
+    robot = load_robot("ys100")
+    cal, _ = simulate(robot, 40, Effects(), seed=1)
+    res = calibrate(robot, cal, "kinematic", "lm", warn=False)
+    res.save(tmp_path / "c.json")
+    from casadical import load_calibration
+    back = load_calibration(tmp_path / "c.json")
+    assert np.allclose(back.coverage.q_min_deg, cal.q_deg.min(axis=0))
+    assert np.allclose(back.coverage.poses_deg, cal.q_deg, atol=1e-6)

@@ -1,0 +1,170 @@
+"""docs/guide.md runs top to bottom as written, and what it quotes is what the commands print.
+
+The conventions (which fences run, which quote an output, which compare with a file) are in
+``benchmarks/docs/guide_runner.py``. The whole guide runs under ``pytest -m slow`` (about 3 minutes on 2
+cores, 5 at load 5: two diagnoses with --transfer, the README job and a 40-repetition study); the fast
+tests here check the conventions on small guides of their own, so that the runner demonstrably fails
+where a step fails or a quoted figure differs.
+"""
+
+from __future__ import annotations
+
+import re
+import sys
+import textwrap
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(ROOT / "benchmarks" / "docs"))
+import guide_runner  # noqa: E402
+from guide_runner import GuideFailure, check_lines, check_output, parse, quoted_pattern, run  # noqa: E402
+
+GUIDE = ROOT / "docs" / "guide.md"
+
+
+def mini(tmp_path, text: str) -> Path:
+    path = tmp_path / "mini.md"
+    path.write_text(textwrap.dedent(text).lstrip())
+    return path
+
+
+# --- the guide as written ------------------------------------------------------------------------------
+
+
+def test_the_guide_is_read_as_steps():
+    """The parse finds what the guide holds: runnable blocks, their quoted outputs, the mapping file, the
+    export table checked against the file export writes; no placeholder synopsis in a block that runs."""
+    steps = parse(GUIDE.read_text(encoding="utf-8"))
+    sh = [s for s in steps if s.kind == "sh"]
+    assert len(sh) >= 15
+    assert sum(len(s.outputs) for s in sh) >= 6
+    assert [s.target for s in steps if s.kind == "toml"] == ["out/ur10-mapping.toml"]
+    assert [s.target for s in steps if s.kind == "lines"] == ["out/ur10_kinematic_table.md"] * 2
+    for s in sh:
+        for placeholder in ("CAL.json", "TARGETS.csv", "data.csv", "few_poses.csv", "pip install"):
+            assert placeholder not in s.text, f"guide.md, line {s.line}: a block that runs holds {placeholder}"
+    export = next(s for s in steps if s.kind == "lines")
+    assert len(guide_runner.table_lines(export.text)) >= 5
+
+
+@pytest.mark.slow
+def test_the_guide_runs_top_to_bottom(tmp_path):
+    """Every sh block of docs/guide.md, in order, in one fresh folder: each exits 0, each quoted output is
+    printed, the quoted rows of the export table are in the file; then a figure of that table changed by
+    one digit is caught on the same folder (the check can fail)."""
+    text = GUIDE.read_text(encoding="utf-8")        # one reading: the steps below are the ones that ran
+    (tmp_path / "guide.md").write_text(text, encoding="utf-8")
+    folder = tmp_path / "guide"
+    done, _ = run(folder, tmp_path / "guide.md")
+    assert len(done) >= 15
+    steps = parse(text)
+    export = next(s for s in steps if s.kind == "lines")
+    assert check_lines(export, folder) is None
+    changed = re.sub(r"(\| a2 \| mm \| -612\.0000 \| -613\.\d\d)(\d)",
+                     lambda m: m.group(1) + str((int(m.group(2)) + 1) % 10),
+                     export.text)
+    assert changed != export.text
+    export.text = changed
+    assert "a2" in check_lines(export, folder)
+    # a quoted output with one figure changed is not found in what its block printed
+    quoted = next((s, o) for s in steps if s.kind == "sh" for o in s.outputs if "0.3651" in o.text)
+    printed = next(d.output for d in done if d.step.line == quoted[0].line)
+    assert check_output(quoted[1], printed)
+    quoted[1].text = quoted[1].text.replace("0.3651", "0.3652")
+    assert not check_output(quoted[1], printed)
+
+
+# --- the conventions, on small guides -----------------------------------------------------------------------
+
+
+def test_quoted_output_elision_and_wrapping():
+    printed = "casadical: warning: x.csv: odd\nmapping (/a/b/presets/p.toml):\n  joints: j1 -> q1, j2 -> q2\n" \
+              "1495 rows -> b.csv\n"
+    assert quoted_pattern("mapping (.../presets/p.toml):\n  joints: j1 -> q1, ...\n1495 rows -> b.csv").search(printed)
+    assert quoted_pattern("warning: ...: odd\n...\n1495 rows\n-> b.csv").search(printed)     # wrapped line
+    assert not quoted_pattern("1496 rows -> b.csv").search(printed)
+    assert not quoted_pattern("1495 rows -> b.csv\nmapping").search(printed)                 # order matters
+
+
+def test_fences_that_run_and_fences_that_do_not(tmp_path):
+    guide = mini(tmp_path, """
+        ```text
+        casadical calibrate CAL.json DATA.csv --out OUT.json
+        ```
+
+        ```toml
+        # m.toml: a mapping
+        separator = ";"
+        ```
+
+        ```toml
+        separator = ","
+        ```
+
+        ```sh
+        casadical split problems/datasets/ur10-ipa/series_b.csv -n 300 --seed 0 --out-cal c.csv --out-val v.csv
+        test -f m.toml
+        ```
+
+        Prose between the block and its output.
+
+        ```
+        300 poses -> c.csv, ... (row order kept)
+        ```
+
+        ```python
+        raise SystemExit(1)
+        ```
+        """)
+    steps = parse(guide.read_text())
+    assert [s.kind for s in steps] == ["toml", "sh"]
+    assert len(steps[1].outputs) == 1
+    done, failures = run(tmp_path / "run", guide)
+    assert failures == [] and len(done) == 1
+    assert (tmp_path / "run" / "c.csv").is_file() and (tmp_path / "run" / "m.toml").is_file()
+
+
+def test_a_step_that_fails_stops_the_guide(tmp_path):
+    """An output that exists already (the guide's old fault) and a wrong figure in a quoted output."""
+    guide = mini(tmp_path, """
+        ```sh
+        casadical split problems/datasets/ur10-ipa/series_b.csv -n 300 --seed 0 --out-cal c.csv --out-val v.csv
+        ```
+
+        ```sh
+        casadical split problems/datasets/ur10-ipa/series_b.csv -n 300 --seed 0 --out-cal c.csv --out-val v.csv
+        ```
+        """)
+    with pytest.raises(GuideFailure, match=r"mini\.md, line 5: the block exits with 2(.|\n)*exists already"):
+        run(tmp_path / "a", guide)
+    guide = mini(tmp_path, """
+        ```sh
+        casadical split problems/datasets/ur10-ipa/series_b.csv -n 300 --seed 0 --out-cal c.csv --out-val v.csv
+        ```
+
+        ```
+        300 poses -> c.csv, 1196 poses -> v.csv (row order kept)
+        ```
+        """)
+    with pytest.raises(GuideFailure, match=r"line 5: the output quoted there is not what the block of line 1 prints"):
+        run(tmp_path / "b", guide)
+
+
+def test_a_table_quoted_from_a_file(tmp_path):
+    """The lines of a table after a ``check: lines of FILE`` comment must be lines of FILE."""
+    text = """
+        ```sh
+        printf '| a | b |\\n|---|---|\\n| 1 | 2 |\\n| 3 | 4 |\\n' > t.md
+        ```
+
+        <!-- check: lines of t.md -->
+        | a | b |
+        |---|---|
+        | 3 | 4 |
+        """
+    done, failures = run(tmp_path / "a", mini(tmp_path, text))
+    assert failures == []
+    with pytest.raises(GuideFailure, match=r"lines quoted from t\.md that it does not hold \(1\):\n\| 3 \| 5 \|"):
+        run(tmp_path / "b", mini(tmp_path, text.replace("        | 3 | 4 |\n", "        | 3 | 5 |\n")))

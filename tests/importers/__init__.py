@@ -1,0 +1,1 @@
+"""Tests of casadical.importers: column maps and the UR10 dataset converter."""

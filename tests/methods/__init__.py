@@ -1,0 +1,1 @@
+"""Tests of casadical.methods, the seed papers' calibration methods."""

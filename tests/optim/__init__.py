@@ -1,0 +1,1 @@
+"""Tests of casadical.optim, the population-based optimisers."""

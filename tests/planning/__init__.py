@@ -1,0 +1,1 @@
+"""Tests of casadical.planning: observability, D-optimal designs, next poses."""

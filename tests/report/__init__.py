@@ -1,0 +1,1 @@
+"""Tests of casadical.html, the HTML reports."""

@@ -1,0 +1,1 @@
+"""Tests of casadical.study, Monte Carlo studies."""

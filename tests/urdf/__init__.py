@@ -1,0 +1,1 @@
+"""Tests of casadical.urdf, reading and writing URDF."""
