@@ -238,7 +238,7 @@ def test_reads_the_toml_text_as_the_dict(tmp_path):
 # instrument's own errors -------------------------------------------------------------------------------------
 
 def _arm7_poses(n=12, seed=5):
-    from arms import ARM7
+    from tests.helpers.arms import ARM7
     rng = np.random.default_rng(seed)
     robot = TrueRobot.draw(Arm.from_dict(ARM7), Effects(stiffness={2: 3e5}), rng)
     return robot, sample(robot, n, rng)

