@@ -127,7 +127,7 @@ def test_each_session_its_own_mount(tmp_path):
     """Two sessions on mounts of different compliance (a column of another height): a term per session finds
     each, the robot's geometry shared."""
     from tests.helpers.hidden import session_of
-    from truth import measure
+    from tests.truth import measure
 
     from casadical.data import Measurements
 
