@@ -24,15 +24,10 @@ def set_aside_note(structure: SetAsideStructure, not_tried: list[NotTried], path
     finding number -> file lines; ``where``: the findings' words), bad measurements, or structure with where (and
     what would let the diagnosis try a cause of it)."""
     what = (f"the robust loss set aside {structure.n_set_aside} calibration pose(s) of {path} (lines "
-            + listing(structure.lines, 10) + "): " + structure.text())
-    if misses:
-        parts = [f"lines {listing([str(x) for x in lines], 10)} are the largest misses of the structure in finding "
-                 f"{n} ({where[n]}), not bad measurements" for n, lines in misses.items()]
-        if structure.n_set_aside:
-            parts.append(f"the other {structure.n_set_aside} (lines " + listing(structure.lines, 10) + "): "
-                         + structure.text())
-        what = (f"the robust loss set aside {structure.n_set_aside + sum(len(v) for v in misses.values())} "
-                f"calibration pose(s) of {path}: " + "; ".join(parts))
+            + listing(structure.lines, 10) + "): ")
+    parts = [f"lines {listing([str(x) for x in lines], 10)} are the largest misses of the structure in finding {n} "
+             f"({where[n]}), not bad measurements" for n, lines in (misses or {}).items()]
+    what += "; ".join(parts + [structure.text()] * bool(structure.text()))
     if not structure.structured:
         return what
     hints = []

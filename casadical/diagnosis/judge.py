@@ -13,6 +13,8 @@ from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from ..result import ErrorStats, learning_mask
 from ..stats.outliers import of_fit
 from ..stats.physics import sag_note
@@ -43,12 +45,13 @@ def judge_final_model(run: DiagnosisRun) -> None:
     set_aside = learning_mask(final, cal) == 0
     misses = {}
     for structure, finding in run.structures:
-        poses = structure.misses[set_aside[structure.misses]]
+        poses = np.setdiff1d(structure.misses[set_aside[structure.misses]],
+                             np.concatenate([np.zeros(0, int), *misses.values()]))
         if len(poses):
             misses[next(k for k, f in enumerate(run.findings, 1) if f is finding)] = poses
-            set_aside[poses] = False
     run.set_aside = of_fit(run.parametric, cal, set_aside)
+    run.set_aside.accounted = np.concatenate([np.zeros(0, int), *misses.values()])
     run.structure_misses = {n: [cal.line(int(i)) for i in poses] for n, poses in misses.items()}
-    if run.set_aside.n_set_aside or misses:
+    if run.set_aside.n_set_aside:
         run.notes.append(set_aside_note(run.set_aside, run.not_tried, cal.path, run.structure_misses,
                                         {n: run.findings[n - 1].where for n in misses}))
