@@ -11,6 +11,7 @@ from .common import (
     add_checks,
     add_force,
     add_json,
+    add_terms,
     add_urdf_chain,
     check_options,
     check_outputs,
@@ -36,6 +37,7 @@ def register(sub) -> None:
     p.add_argument("--seed", type=int, default=0, help="seed of the random poses (default: %(default)s)")
     add_json(p, "the model description")
     add_urdf_chain(p)
+    add_terms(p)
     add_force(p)
     p.set_defaults(func=run_inspect)
 
@@ -54,6 +56,7 @@ def register(sub) -> None:
                         "predictive std (std_layer_mm); MODEL must be a calibration JSON")
     add_checks(p)
     add_urdf_chain(p)
+    add_terms(p)
     add_force(p)
     p.set_defaults(func=run_predict)
 
