@@ -437,3 +437,41 @@ def test_inspect_shows_each_terms_expressions_and_what_the_poses_identify(wobbly
     doc = json.loads((tmp_path / "i.json").read_text())
     assert doc["user_terms"][0]["identifiable"] == {"axis_wobble.es": True, "axis_wobble.ec": True}
     assert doc["identifiability"]["poses"] == 120
+
+
+# --- the diagnosis ------------------------------------------------------------------------------
+
+def test_the_diagnosis_names_a_user_term_and_the_final_model_reaches_the_noise(wobbly, capsys, tmp_path):
+    report, final = tmp_path / "report.json", tmp_path / "final.json"
+    code = main(["diagnose", "ur10", str(wobbly / "cal.csv"), "--validate", str(wobbly / "val.csv"), "--terms",
+                 str(EXAMPLE), "--json", str(report), "--out", str(final), "--quiet"])
+    assert code == 0, capsys.readouterr().err
+    doc = json.loads(report.read_text())
+    named = [f for f in doc["findings"] if f["cause"] == "axis_wobble"]
+    assert len(named) == 1 and named[0]["user"] is True and named[0]["joint"] == 2, doc["findings"]
+    assert {f["cause"] for f in doc["findings"]} == {"geometric", "axis_wobble"}
+    assert doc["final"]["model"] == "kinematic+axis_wobble"
+    kinematic = next(s for s in doc["steps"] if s["model"] == "kinematic")
+    assert kinematic["validation"]["mean_mm"] > 0.1
+    assert doc["final"]["validation"]["mean_mm"] < 0.022      # the noise: 10 um per axis, 0.016 mm mean
+    assert json.loads(final.read_text())["user_terms"][0]["name"] == "axis_wobble"
+    # without the terms file the same data have no such cause to name
+    code = main(["diagnose", "ur10", str(wobbly / "cal.csv"), "--validate", str(wobbly / "val.csv"), "--json",
+                 str(report), "--force", "--quiet"])
+    assert code == 0 and all(not f.get("user") for f in json.loads(report.read_text())["findings"])
+
+
+def test_a_user_term_that_duplicates_a_catalogue_cause_is_declared_ambiguous_with_it(tmp_path, ur10, capsys):
+    data, truth = simulate(ur10, 150, Effects(noise=10e-6, encoder_scale={2: 3e-4}), seed=5)
+    val, _ = simulate(ur10, 80, truth=truth, seed=6)
+    data.write_csv(tmp_path / "cal.csv")
+    val.write_csv(tmp_path / "val.csv")
+    path = tmp_path / "scale.toml"
+    path.write_text('[[term]]\nname = "my_scale"\njoint = 2\nangle = "k * q2"\n' + PARAM)
+    code = main(["diagnose", "ur10", str(tmp_path / "cal.csv"), "--validate", str(tmp_path / "val.csv"), "--terms",
+                 str(path), "--json", str(tmp_path / "r.json"), "--quiet"])
+    assert code == 0, capsys.readouterr().err
+    found = [f for f in json.loads((tmp_path / "r.json").read_text())["findings"] if f["cause"] != "geometric"]
+    assert len(found) == 1 and found[0]["cause"] in ("encoder_scale", "my_scale"), found
+    other = "my_scale" if found[0]["cause"] == "encoder_scale" else "encoder_scale"
+    assert any(a["cause"] == other for a in found[0]["ambiguous_with"]), found
