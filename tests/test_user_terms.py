@@ -117,6 +117,8 @@ def test_expressions_accept_the_listed_grammar_and_agree_in_casadi_and_numpy():
     ("q1 if q2 else q3", "q1 if q2 else q3"),
     ("True", "True"),
     ("q1; q2", ";"),
+    ("sentinel()", "sentinel"),
+    ("__builtins__", "__builtins__"),
 ])
 def test_anything_else_is_refused_in_one_line_and_nothing_is_evaluated(tmp_path, monkeypatch, text, token):
     calls = []
@@ -150,6 +152,7 @@ def test_anything_else_is_refused_in_one_line_and_nothing_is_evaluated(tmp_path,
     monkeypatch.setattr(builtins, "compile", guarded_compile)
     monkeypatch.setattr(builtins, "eval", refuse("eval"))
     monkeypatch.setattr(builtins, "exec", refuse("exec"))
+    monkeypatch.setattr(builtins, "sentinel", lambda: calls.append("sentinel"), raising=False)
     path = tmp_path / "terms.toml"
     path.write_text(f'[[term]]\nname = "axis_wobble"\njoint = 2\nangle = {json.dumps(text)}\npoint = ["k", "0", "0"]\n'
                     '[term.parameters.k]\nscale = 1\nlower = -1\nupper = 1\n')
@@ -475,3 +478,20 @@ def test_a_user_term_that_duplicates_a_catalogue_cause_is_declared_ambiguous_wit
     assert len(found) == 1 and found[0]["cause"] in ("encoder_scale", "my_scale"), found
     other = "my_scale" if found[0]["cause"] == "encoder_scale" else "encoder_scale"
     assert any(a["cause"] == other for a in found[0]["ambiguous_with"]), found
+
+
+def test_a_term_of_scope_session_is_dropped_when_the_calibration_is_taken_to_other_data(wobbly, tmp_path, capsys):
+    path = tmp_path / "session.toml"
+    path.write_text(EXAMPLE.read_text().replace('name = "axis_wobble"', 'name = "axis_wobble"\nscope = "session"'))
+    cal, moved, again = tmp_path / "cal.json", tmp_path / "moved.json", tmp_path / "again.json"
+    assert main(["calibrate", "ur10", str(wobbly / "cal.csv"), "--model", "kinematic+axis_wobble", "--terms",
+                 str(path), "--out", str(cal), "--quiet"]) == 0, capsys.readouterr().err
+    assert main(["calibrate", str(cal), str(wobbly / "val.csv"), "--model", "base", "--out", str(moved),
+                 "--quiet"]) == 0
+    assert "axis_wobble dropped" in capsys.readouterr().err
+    assert json.loads(moved.read_text())["model"] == "kinematic"
+    # named again, it is estimated on the new data from the definition the calibration carries
+    assert main(["calibrate", str(cal), str(wobbly / "val.csv"), "--model", "base+axis_wobble", "--out",
+                 str(again), "--quiet"]) == 0, capsys.readouterr().err
+    doc = json.loads(again.read_text())
+    assert doc["model"] == "kinematic+axis_wobble" and doc["user_terms"][0]["scope"] == "session"

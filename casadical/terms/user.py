@@ -47,7 +47,8 @@ class UserTerm(ErrorTerm):
     def __init__(self, definition: TermDefinition, joints=None):
         self.definition = definition
         self.name = self.cause = definition.name
-        self.session = False
+        #: a term of scope "session" describes the measurement session: a calibration taken to other data drops it
+        self.session = definition.scope == "session"
         super().__init__(list(definition.joints) if definition.joints is not None else None)
         self.joints = None if definition.joints is None else list(definition.joints)
 
