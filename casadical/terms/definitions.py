@@ -135,9 +135,9 @@ def definitions_from_list(tables, file: str, key: str = "term") -> list[TermDefi
     return out
 
 
-def _number(value, what: str, err) -> float:
+def _number(value, what: str, key: str, err) -> float:
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
-        raise err(f"{what} must be a finite number, got {value!r}")
+        raise err(f"{key}.{what}", f"{what} must be a finite number, got {value!r}")
     return float(value)
 
 
@@ -237,7 +237,7 @@ def _parameters(table, err) -> tuple[ParameterDefinition, ...]:
         key = f"parameters.{pname}"
         if not _PARAMETER.match(pname) or pname in ex.FUNCTIONS or pname in ex.CONSTANTS \
                 or pname in ex.MOMENT_NAMES or pname in ex.POINT_NAMES or pname in ex.KNOWN_COLUMNS \
-                or ex._JOINT_NAME.match(pname) or ex._READING.match(pname):
+                or ex.joint_name(pname) or ex.is_reading(pname):
             raise err(key, f"{pname!r} cannot name a parameter (letters, digits and _, starting with a letter, and "
                       "not a name expressions already have: q1, tau1, mx, px, row, pi, sin, ...)")
         if not isinstance(spec, dict):
@@ -250,10 +250,8 @@ def _parameters(table, err) -> tuple[ParameterDefinition, ...]:
                 raise err(f"{key}.{k}", f"a parameter needs {k} (its typical size and physical bounds: scale, "
                           "lower, upper)")
 
-        def num(k, default=None):
-            return _number(spec.get(k, default), k, lambda m: err(f"{key}.{k}", m))   # noqa: B023
-
-        scale, lower, upper, start = num("scale"), num("lower"), num("upper"), num("start", 0.0)
+        scale, lower, upper, start = (_number(spec.get(k, default), k, key, err) for k, default in
+                                      (("scale", None), ("lower", None), ("upper", None), ("start", 0.0)))
         if scale <= 0:
             raise err(f"{key}.scale", f"scale must be positive, got {scale!r}")
         if not lower < upper:

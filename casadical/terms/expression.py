@@ -238,14 +238,23 @@ class _Walker:
                                   f"({names_help(sorted(self.parameters))})")
 
 
+def joint_name(name: str) -> tuple[str, int] | None:
+    """``("q", 2)`` for ``q2``, ``("tau", 3)`` for ``tau3``; None for any other name."""
+    m = _JOINT_NAME.match(name)
+    return (m.group(1), int(m.group(2))) if m else None
+
+
 def joint_names(expr: Expression) -> dict[str, set[int]]:
     """The joints whose reading (``q``) and load (``tau``) the expression uses."""
     out: dict[str, set[int]] = {"q": set(), "tau": set()}
-    for n in expr.names():
-        m = _JOINT_NAME.match(n)
-        if m:
-            out[m.group(1)].add(int(m.group(2)))
+    for kind, j in filter(None, map(joint_name, expr.names())):
+        out[kind].add(j)
     return out
+
+
+def is_reading(name: str) -> bool:
+    """``name`` is a reading or a measured value of the measurements (``q2_deg``, ``x_mm``, ...), never a name."""
+    return bool(_READING.match(name))
 
 
 def is_column(name: str, parameters) -> bool:

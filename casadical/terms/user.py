@@ -111,17 +111,16 @@ class UserTerm(ErrorTerm):
         env: dict = {}
         torques = None
         for name in d.names():
+            joint = ex.joint_name(name)
             if name in d.parameter_names:
                 env[name] = ctx.p[f"{self.name}.{name}"]
-            elif name in ex.MOMENT_NAMES or ex.joint_names(ex.Expression("name", name))["tau"]:
-                if torques is None:
+            elif name in ex.MOMENT_NAMES or (joint and joint[0] == "tau"):
+                if torques is None:     # while the geometry is being changed: of the geometry so far
                     torques = ctx if ctx.geom is not None else replace(ctx, geom=geom, _frames=None, _torques=None)
-                if name in ex.MOMENT_NAMES:
-                    env[name] = moment(torques)["xyz".index(name[1])]
-                else:
-                    env[name] = torques.torques()[int(name[3:]) - 1]
-            elif ex.joint_names(ex.Expression("name", name))["q"]:
-                env[name] = ctx.q[int(name[1:]) - 1]
+                env[name] = moment(torques)["xyz".index(name[1])] if joint is None else \
+                    torques.torques()[joint[1] - 1]
+            elif joint:
+                env[name] = ctx.q[joint[1] - 1]
             elif name in ex.POINT_NAMES:
                 env.update(point_names(ctx.point))
             else:
