@@ -20,7 +20,6 @@ from casadical.simulate import Effects, sample_poses, simulate
 from casadical.terms import REGISTRY
 from casadical.terms import expression as ex
 from casadical.terms.definitions import known, known_terms, read_terms_file
-from casadical.terms.user import UserTerm
 
 ROOT = Path(__file__).resolve().parent.parent
 EXAMPLE = ROOT / "problems" / "terms" / "axis_wobble.toml"
@@ -341,18 +340,23 @@ def _with(m, values):
 
 @pytest.fixture(scope="module")
 def wobbly(tmp_path_factory, ur10):
-    """Calibration and validation data of a UR10 whose joint 2 wobbles (es = 1 mrad, ec = -0.5 mrad)."""
+    """Calibration and validation data of a UR10 whose joint 2 wobbles (es = 1 mrad, ec = -0.5 mrad), made
+    without the user term: on a DH link without a Hayati tilt (beta2 = 0) a tilt of the link frame about its x
+    axis after the link transform is a change of the link's alpha, so each pose is the catalogue's geometric
+    model with alpha2 + es sin(q2) + ec cos(q2)."""
     folder = tmp_path_factory.mktemp("wobble")
-    defs = read_terms_file(EXAMPLE)
     data, truth = simulate(ur10, 120, Effects(noise=10e-6), seed=1)
     val, _ = simulate(ur10, 60, truth=truth, seed=2)
-    m = Model(ur10, truth.model.terms + [UserTerm(defs[0])], jit=False)
-    values = np.array([truth.values[truth.model.parameters.index(n)] if n in truth.model.parameters else 0.0
-                       for n in m.parameters.names])
-    values[m.parameters.index("axis_wobble.es")] = 1e-3
-    values[m.parameters.index("axis_wobble.ec")] = -5e-4
+    m, values = truth.model, truth.values.copy()
+    values[m.parameters.index("beta2")] = 0.0
+    alpha2 = m.parameters.index("alpha2")
     for d, name, seed in ((data, "cal.csv", 3), (val, "val.csv", 4)):
-        xyz = m.predict(d.q, values, m.covariates(d), truth.base0)
+        cov = m.covariates(d)
+        xyz = np.empty((len(d), 3))
+        for i, q in enumerate(d.q):
+            v = values.copy()
+            v[alpha2] += 1e-3 * math.sin(q[1]) - 5e-4 * math.cos(q[1])
+            xyz[i] = m.predict(q[None], v, cov[i:i + 1], truth.base0)[0]
         xyz = xyz + np.random.default_rng(seed).normal(0, 10e-6, xyz.shape)
         d.with_positions(xyz, prefix_existing="true_").write_csv(folder / name)
     return folder
