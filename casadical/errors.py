@@ -58,6 +58,26 @@ class ColumnMapError(InputError):
     """A column mapping (TOML file, preset or ``--map key=value``) is invalid; ``column`` holds the key."""
 
 
+class TermsFileError(InputError):
+    """A terms file (causes of one's own, TOML) or the definitions a calibration JSON carries is invalid.
+
+    One line naming the file, the term, the key and the token at fault: ``terms.toml, term 'axis_wobble', key
+    'frame[3]': '__import__' is not a name an expression may use (...)``.
+    """
+
+    def __init__(self, message: str, file: str | None = None, term: str | None = None, key: str | None = None):
+        self.term, self.key = term, key
+        super().__init__(message, file=file)
+
+    def _format(self) -> str:
+        where = [str(self.file)] if self.file is not None else []
+        if getattr(self, "term", None) is not None:
+            where.append(f"term {self.term!r}")
+        if getattr(self, "key", None) is not None:
+            where.append(f"key {self.key!r}")
+        return ", ".join(where) + ": " + self.message if where else self.message
+
+
 class ModelError(CasadicalError):
     """A model cannot be built from the given robot and error terms."""
 

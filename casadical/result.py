@@ -16,7 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .data.calibration_file import restored_terms, validate_calibration_document
+from .data.calibration_file import restored_terms, user_definitions, validate_calibration_document
 from .data.checks import check_calibration_fits, check_poses
 from .data.measurements import Measurements, session_index
 from .errors import CalibrationFileError, CasadicalError, InputError, listing
@@ -39,6 +39,7 @@ from .stats.significance import (
     t_critical,
 )
 from .stats.uncertainty import Uncertainty
+from .terms.definitions import add_known, known_terms
 
 
 @dataclass
@@ -483,6 +484,9 @@ class CalibrationResult:
                        "sigma_mm": self.loss.sigma * 1000 if self.loss.robust else None,
                        "downweighted": self.downweighted},
         }
+        users = list({t.definition.name: t.definition for t in self.model.user_terms}.values())
+        if users:   # the definitions of the user terms: predict, compensate, export need no terms file
+            doc["user_terms"] = [d.to_dict() for d in users]
         if self.coverage is not None:
             doc["coverage"] = self.coverage.to_dict()
         if self.sessions:
@@ -608,10 +612,14 @@ def load_calibration(path: str | Path) -> CalibrationResult:
         raise CalibrationFileError("no such file", file=path) from None
     except (OSError, ValueError, RecursionError) as e:  # ValueError: not JSON, not UTF-8
         raise CalibrationFileError(f"not a calibration JSON: {e}", file=path) from e
-    validate_calibration_document(doc, path)
+    users = user_definitions(doc, path)
+    with known_terms(users):
+        validate_calibration_document(doc, path)
+    add_known(users)    # for the rest of the command that reads the file (casadical.cli)
     try:
         robot = robot_from_dict(doc["robot"], path)
-        model = Model(robot, restored_terms(doc["model"], doc.get("terms", {}), robot.n))
+        with known_terms(users):
+            model = Model(robot, restored_terms(doc["model"], doc.get("terms", {}), robot.n))
         params = model.parameters.copy()
         for entry in doc["parameters"]:
             if entry.get("derived"):

@@ -202,6 +202,13 @@ def add_force(p: argparse.ArgumentParser) -> None:
                    help="replace output files that exist (never an input file)")
 
 
+def add_terms(p: argparse.ArgumentParser) -> None:
+    """``--terms FILE``: causes of the user's own (docs/formats.md, "Terms file")."""
+    p.add_argument("--terms", metavar="FILE", default=None,
+                   help="a terms file (TOML): causes of your own, named in --model like any term "
+                        "(kinematic+axis_wobble); see 'Terms file' in docs/formats.md")
+
+
 def add_quiet(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", "-q", action="store_true", help="no progress output on stderr")
 

@@ -9,6 +9,7 @@ import numpy as np
 from .common import (
     add_checks,
     add_force,
+    add_terms,
     check_options,
     check_outputs,
     compensator_line,
@@ -53,6 +54,7 @@ def register(sub) -> None:
                    help="hold no orientation (neither the targets' rx_deg, ry_deg, rz_deg nor the nominal flange's): "
                         "least joint change that reaches the point")
     add_checks(p)
+    add_terms(p)
     add_force(p)
     p.set_defaults(func=run)
 

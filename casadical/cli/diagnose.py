@@ -13,6 +13,7 @@ from .common import (
     add_quiet,
     add_row_spacing,
     add_session_tool,
+    add_terms,
     add_urdf_chain,
     check_options,
     check_outputs,
@@ -94,6 +95,7 @@ def register(sub) -> None:
     add_checks(p)
     add_quiet(p)
     add_urdf_chain(p)
+    add_terms(p)
     add_force(p)
     p.set_defaults(func=run)
 

@@ -43,7 +43,7 @@ def register(sub) -> None:
     add_urdf_chain(p)
     add_force(p)
     add_quiet(p)
-    p.set_defaults(func=run)
+    p.set_defaults(func=run, terms=None)   # the user terms a calibration JSON carries are known while it is read
 
 
 def run(args) -> int:

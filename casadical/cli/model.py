@@ -11,6 +11,7 @@ from .common import (
     add_checks,
     add_force,
     add_json,
+    add_terms,
     add_urdf_chain,
     check_options,
     check_outputs,
@@ -31,11 +32,13 @@ def register(sub) -> None:
     p.add_argument("robot", metavar="ROBOT", help="built-in robot (ys100, hh800, ur10), robot TOML or URDF file")
     p.add_argument("--model", default="kinematic+compliance",
                    help="error model, terms joined by '+' (default: %(default)s)")
-    p.add_argument("--poses", type=int_at_least(1), default=200,
-                   help="random poses for the identifiability analysis (default: %(default)s)")
+    p.add_argument("--poses", type=_poses, default=200, metavar="N|DATA.csv",
+                   help="random poses for the identifiability analysis, or a measurement CSV whose poses (and "
+                        "columns) to analyse (default: %(default)s random poses)")
     p.add_argument("--seed", type=int, default=0, help="seed of the random poses (default: %(default)s)")
     add_json(p, "the model description")
     add_urdf_chain(p)
+    add_terms(p)
     add_force(p)
     p.set_defaults(func=run_inspect)
 
@@ -54,6 +57,7 @@ def register(sub) -> None:
                         "predictive std (std_layer_mm); MODEL must be a calibration JSON")
     add_checks(p)
     add_urdf_chain(p)
+    add_terms(p)
     add_force(p)
     p.set_defaults(func=run_predict)
 
@@ -62,13 +66,25 @@ def run_inspect(args) -> int:
     from ..data.simulate import sample_poses
     from ..model.symbolic import Model
     from ..stats.identifiability import analyse
+    from ..terms.definitions import known
 
-    check_outputs({"--json": args.json}, [args.robot], args.force)
+    check_outputs({"--json": args.json}, [args.robot] + ([args.poses] if isinstance(args.poses, str) else []),
+                  args.force)
     robot = robot_from_args(args.robot, args)
-    model = Model(robot, args.model)
-    rng = np.random.default_rng(args.seed)
-    q = sample_poses(robot, args.poses, rng, floor_z=None)
-    _, J = model.predict_jacobian(q)
+    spec = args.model
+    if args.terms is not None:      # the terms file's terms are inspected, named in --model or not
+        named = {item.split("@")[0].split("[")[0].strip() for item in spec.split("+")}
+        spec = "+".join([spec] + [name for name in known() if name not in named])
+    model = Model(robot, spec)
+    if isinstance(args.poses, str):
+        from ..data import Measurements
+        data = Measurements.read_csv(args.poses, n_joints=robot.n)
+        q, cov, n_poses = data.q, model.covariates(data), len(data)
+    else:
+        rng = np.random.default_rng(args.seed)
+        q = sample_poses(robot, args.poses, rng, floor_z=None)
+        cov, n_poses = _random_covariates(model, len(q)), args.poses
+    _, J = model.predict_jacobian(q, cov=cov)
     ident = analyse(J, model.parameters)
     ident.apply(model.parameters)
     size = model.expression_size()
@@ -78,10 +94,14 @@ def run_inspect(args) -> int:
             "n_joints": robot.n, "covariates": model.covariate_names,
             "expression": {"parameters": size.n_parameters, "fk_instructions": size.fk_instructions,
                            "jacobian_instructions": size.jacobian_instructions, "fk_nodes": size.fk_nodes},
-            "identifiability": {"poses": args.poses, "condition_number": ident.condition_number,
+            "identifiability": {"poses": n_poses, "condition_number": ident.condition_number,
                                 "rank": len(ident.identifiable)},
             "parameters": [param_json(p) for p in model.parameters],
         }
+        if model.user_terms:
+            doc["user_terms"] = [{**t.definition.to_dict(), "identifiable": {
+                p.name: bool(p.identifiable) for p in model.parameters if p.term == t.name}}
+                for t in model.user_terms]
         write_json(args.json, doc, args.force)
         return 0
     print(f"robot {robot.name} ({robot.n} joints, {robot.convention.upper()} convention"
@@ -90,12 +110,57 @@ def run_inspect(args) -> int:
           f"{', '.join(model.covariate_names)}")
     print(f"symbolic size: forward kinematics {size.fk_instructions} instructions "
           f"({size.fk_nodes} nodes), with Jacobian {size.jacobian_instructions} instructions")
-    print(f"identifiability from {args.poses} random poses within the joint limits (seed {args.seed}): "
+    where = f"the {n_poses} poses of {args.poses}" if isinstance(args.poses, str) else \
+        f"{args.poses} random poses within the joint limits (seed {args.seed})"
+    print(f"identifiability from {where}: "
           f"{len(ident.identifiable)} of {len(ident.identifiable) + len(ident.unidentifiable)} "
           f"free parameters identifiable, condition number {ident.condition_number:.3g}")
+    for line in user_term_lines(model, isinstance(args.poses, str)):
+        print(line)
     print()
     print(model.parameters.table())
     return 0
+
+
+def _poses(text: str):
+    """``--poses``: a number of random poses, or a measurement CSV."""
+    if text.strip().lstrip("+-").isdigit():
+        return int_at_least(1)(text)
+    return text
+
+
+def _random_covariates(model, N: int) -> np.ndarray:
+    """Covariates of random poses: the model's defaults; a column only a user term reads is 0 there (``row``:
+    the pose's number)."""
+    cov = model.default_covariates(N)
+    for k, name in enumerate(model.covariate_names):
+        if name == "row":
+            cov[:, k] = np.arange(N)
+        elif not np.all(np.isfinite(cov[:, k])):
+            cov[:, k] = 0.0
+    return cov
+
+
+def user_term_lines(model, from_data: bool) -> list[str]:
+    """``inspect``'s words on each user term: its effects' expressions and which parameters the poses identify."""
+    lines = []
+    for t in model.user_terms:
+        d = t.definition
+        on = "" if d.joints is None else (f", joint {d.joints[0]}" if d.one_joint else
+                                          f", joints {', '.join(map(str, d.joints))}")
+        lines += ["", f"user term {d.name} ({d.file}{on}, scope {d.scope}):"]
+        for effect, texts in d.texts.items():
+            lines.append(f"  {effect} = " + (texts[0] if len(texts) == 1 and effect in ("angle", "offset")
+                                             else "[" + ", ".join(texts) + "]"))
+        for p in model.parameters:
+            if p.term == d.name:
+                lines.append(f"  {p.name}: " + ("identifiable" if p.identifiable else
+                                                f"NOT identifiable ({p.reason})"))
+        cols = [c for c in d.columns() if c != "row"]
+        if cols and not from_data:
+            lines.append(f"  reads {', '.join(cols)}: 0 at the random poses; give --poses DATA.csv to judge it on "
+                         "measured poses")
+    return lines
 
 
 def param_json(p) -> dict:

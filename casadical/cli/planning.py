@@ -17,6 +17,7 @@ from .common import (
     add_force,
     add_json,
     add_quiet,
+    add_terms,
     add_urdf_chain,
     check_options,
     check_outputs,
@@ -66,6 +67,7 @@ def register(sub) -> None:
     add_checks(p)
     add_quiet(p)
     add_urdf_chain(p)
+    add_terms(p)
     add_force(p)
     p.set_defaults(func=cmd_plan_poses)
 

@@ -17,11 +17,12 @@ from typing import Any
 import numpy as np
 
 from .. import __version__
-from ..errors import CalibrationFileError, ModelError, RobotFileError, listing
+from ..errors import CalibrationFileError, ModelError, RobotFileError, TermsFileError, listing
 from ..model.symbolic import assemble_terms, parse_spec
 from ..robot import Robot, robot_from_dict
 from ..runtime.files import finite_number
 from ..terms import ErrorTerm, SessionLocal
+from ..terms.definitions import definitions_from_list
 
 STATS_KEYS = ("n_poses", "mean_mm", "max_mm", "std_mm", "rms_mm")
 #: largest count of equations or parameters a file may give (beyond, no float holds it exactly)
@@ -86,6 +87,16 @@ def validate_calibration_document(doc: Any, path: str) -> None:
     notes = doc.get("notes", [])
     if not isinstance(notes, list) or not all(isinstance(n, str) for n in notes):
         raise err("notes", "must be a list of strings")
+
+
+def user_definitions(doc: Any, path: str) -> list:
+    """The definitions of the user terms a calibration JSON carries (``user_terms``, checked as a terms file's)."""
+    if not isinstance(doc, dict) or "user_terms" not in doc:
+        return []
+    try:
+        return definitions_from_list(doc["user_terms"], path, "user_terms")
+    except TermsFileError as e:
+        raise CalibrationFileError(str(e).removeprefix(f"{path}, "), file=path, column="user_terms") from e
 
 
 def _terms(robot: Robot, spec: str, err) -> list:

@@ -28,6 +28,10 @@ class Candidate:
         session.
     time_constant : float or None
         For a warm-up: its time constant (s).
+    user : tuple of str
+        For a cause of the user's own (a term of a terms file,
+        :mod:`casadical.terms.user`; ``cause`` is its name): its parameters'
+        names (``axis_wobble.es``, ...). Empty for the catalogue's causes.
     """
 
     cause: str
@@ -36,6 +40,7 @@ class Candidate:
     source: str | None = None
     session: str | None = None
     time_constant: float | None = None
+    user: tuple[str, ...] = ()
 
     def shared(self) -> "Candidate":
         """The same cause with one value for every session."""
@@ -93,12 +98,16 @@ class Candidate:
             d["session"] = self.session
         if self.time_constant is not None:
             d["time_constant_s"] = self.time_constant
+        if self.user:
+            d["user"] = True
         return d
 
     def parameter_names(self) -> list[str]:
         """Names of the parameters this candidate adds to a model."""
         if self.session is not None:
             return [f"{n}@{self.session}" for n in self.shared().parameter_names()]
+        if self.user:
+            return list(self.user)
         j, h = self.joint, self.harmonic
         return {
             "joint_compliance": [f"c{j}"],
@@ -149,6 +158,7 @@ def _terms(candidates: list[Candidate]) -> list[str]:
     if any(c.cause == "drift" for c in candidates):
         parts.append("drift")
     parts += [f"warmup[{c.time_constant:g}]" for c in candidates if c.cause == "warmup"][:1]
+    parts += sorted({c.cause for c in candidates if c.user})     # causes of the user's own, by their names
     return parts
 
 

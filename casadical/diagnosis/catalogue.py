@@ -26,6 +26,7 @@ import numpy as np
 from ..data.measurements import Measurements
 from ..robot import Robot
 from ..stats.physics import sign_changes
+from ..terms.definitions import known
 from .candidates import Candidate
 from .periodogram import Periodogram, joint_errors, periodogram
 from .plots import joint_view
@@ -245,6 +246,7 @@ class Catalogue:
                 out += [Candidate("warmup", session=s, time_constant=T) for s in scopes
                         if not any(a.cause == "warmup" and a.session == s for a in accepted)
                         for T in self.warmups.get(s, [])]
+        out += self.user_candidates()
         self.update_periodograms(current)
         scopes = [(None, self.periodograms)] + list(self._own.items())
         for s, grams in scopes:
@@ -260,6 +262,21 @@ class Catalogue:
         # (:func:`.redundancy.drop_redundant`) drops the stand-in once both are in
         return [c for c in dict.fromkeys(out) if c not in have and c not in excluded_causes
                 and not (c.cause == "backlash" and not self.sign_changes(torques, c))]
+
+    def user_candidates(self) -> list[Candidate]:
+        """The causes of the user's own (a terms file's, known during the command): each the robot's (scope
+        ``robot``) and, with several sessions, each session's own (scope ``robot`` or ``session``); none without
+        a terms file."""
+        out = []
+        for d in known().values():
+            cand = Candidate(d.name, d.joints[0] if d.one_joint else None,
+                             user=tuple(f"{d.name}.{p}" for p in d.parameter_names))
+            several = len(self.sessions) > 1
+            if d.scope == "robot" or not several:
+                out.append(cand)
+            if several:
+                out += [replace(cand, session=s) for s in self.sessions]
+        return out
 
     def sign_changes(self, torques, cand: Candidate) -> bool:
         """Backlash needs its sign source to change sign in the data: otherwise it is a joint offset."""

@@ -56,6 +56,10 @@ class UnexplainedLog:
             else:
                 what = f"a step of {-v:.1f} arcsec against the sign of the joint's load"
             item = {"half_play_arcsec": v, "what": what}
+        elif cand.user:
+            self.excluded_causes.add(cand)
+            fitted = ", ".join(f"{n} = {values[n]:.4g}" for n in cand.parameter_names() if n in values)
+            item = {"what": f"a part the user term {cand.cause} describes ({fitted}, SI units)"}
         else:
             self.excluded_causes.add(cand)
             c = values.get(f"c{j}", 0.0)

@@ -70,6 +70,12 @@ class Geometry:
     tool: list
     base: list  # deviation of the base pose: x, y, z, roll, pitch, yaw
     loop: list = field(default_factory=list)  # crank, coupler, rocker
+    #: a change of link frames after their link transforms, by 1-based joint: [dx, dy, dz, rx, ry, rz] applied as
+    #: Tx Ty Tz Rz Ry Rx (a user term's ``frame`` effect, casadical.terms.user); none in the catalogue's models
+    links: dict = field(default_factory=dict)
+    #: a change of the robot base right after the estimated base pose, [dx, dy, dz, rx, ry, rz] as ``links``
+    #: (a user term's ``base`` effect); empty: none
+    mount: list = field(default_factory=list)
 
     @classmethod
     def nominal(cls, robot: Robot) -> "Geometry":
@@ -138,12 +144,15 @@ def forward(robot: Robot, angles: list, geom: Geometry) -> Frames:
     it term by term, three times faster to make (a model builds two chains).
     """
     n = robot.n
-    F = _chain_function(robot.convention, n)
+    F = _chain_function(robot.convention, n, bool(geom.links))
 
     def column(values) -> ca.SX:
         return ca.vertcat(*[v if isinstance(v, ca.SX) else ca.SX(v) for v in values]) if len(values) else ca.SX(0, 1)
 
-    out = F.call([column(angles), *(column(getattr(geom, k)) for k in _CHAIN_GEOMETRY), column(geom.tool)])[0]
+    args = [column(angles), *(column(getattr(geom, k)) for k in _CHAIN_GEOMETRY), column(geom.tool)]
+    if geom.links:      # the link frames' changes, 6 numbers a joint (0 where none)
+        args.append(column([v for i in range(1, n + 1) for v in geom.links.get(i, [0.0] * 6)]))
+    out = F.call(args)[0]
     axes, origins, links = [], [], []
     for i in range(n):
         k = 18 * i
@@ -157,9 +166,15 @@ def forward(robot: Robot, angles: list, geom: Geometry) -> Frames:
 _CHAIN_GEOMETRY = ("alpha", "a", "beta", "b", "d", "theta")
 
 
+def small_pose(dx, dy, dz, rx, ry, rz) -> Pose:
+    """Tx(dx) Ty(dy) Tz(dz) Rz(rz) Ry(ry) Rx(rx): a user term's change of a frame."""
+    return compose(trans(dx, dy, dz), rotz(rz), roty(ry), rotx(rx))
+
+
 @functools.lru_cache(maxsize=None)
-def _chain_function(convention: str, n: int) -> ca.Function:
-    """The chain of :func:`forward` as a Function of (angles, alpha, a, beta, b, d, theta, tool).
+def _chain_function(convention: str, n: int, links: bool = False) -> ca.Function:
+    """The chain of :func:`forward` as a Function of (angles, alpha, a, beta, b, d, theta, tool) (and, with
+    ``links``, of each link frame's change, 6 numbers a joint, after the tool).
 
     Output: one column holding, per joint, its axis, a point on it and its
     link pose (R column-major, t), then the tool pose.
@@ -167,6 +182,7 @@ def _chain_function(convention: str, n: int) -> ca.Function:
     angles = ca.SX.sym("angles", n)
     geo = {k: ca.SX.sym(k, n) for k in _CHAIN_GEOMETRY}
     tool = ca.SX.sym("tool", 3)
+    change = ca.SX.sym("links", 6 * n) if links else None
     pose: Pose = (ca.SX.eye(3), ca.SX.zeros(3, 1))
     out = []
     for i in range(n):
@@ -179,10 +195,13 @@ def _chain_function(convention: str, n: int) -> ca.Function:
         else:
             axis, origin = pose[0][:, 2], pose[1]
             pose = compose(pose, rotz(th), trans(0, 0, d), trans(a), rotx(alpha), roty(beta), trans(0, b))
+        if links:
+            pose = compose(pose, small_pose(*(change[6 * i + k] for k in range(6))))
         out += [axis, origin, ca.vec(pose[0]), pose[1]]
     end = compose(pose, trans(tool[0], tool[1], tool[2]))
     out += [ca.vec(end[0]), end[1]]
-    return ca.Function(f"chain_{convention}_{n}", [angles, *geo.values(), tool], [ca.vertcat(*out)])
+    return ca.Function(f"chain_{convention}_{n}" + ("_links" if links else ""),
+                       [angles, *geo.values(), tool] + ([change] if links else []), [ca.vertcat(*out)])
 
 
 def gravity_torques(robot: Robot, frames: Frames, payload_mass) -> list:

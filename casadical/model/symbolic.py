@@ -33,11 +33,13 @@ from ..errors import CasadicalWarning, DataFileError, ModelError
 from ..robot import Robot
 from ..runtime.threads import evaluation_threads
 from ..terms import REGISTRY, Context, ErrorTerm, SessionLocal, covariate_names, make_term
+from ..terms.definitions import known as known_user_terms
+from ..terms.user import UserTerm
 from . import jitcache
 from ._batch import BLOCK_MIN, batch, mapped  # noqa: F401 (names the tests use)
 from ._batch import Batch as _Batch
 from ._batch import Blocks as _Blocks
-from .kinematics import Geometry, base_pose_matrix, chain_angles, compose, forward, rpy_pose, small_rotation
+from .kinematics import Geometry, base_pose_matrix, chain_angles, compose, forward, rpy_pose, small_pose, small_rotation
 from .parameters import Parameters
 from .superset import Mapping
 from .superset import outputs as superset_outputs
@@ -53,7 +55,7 @@ JIT_MIN_POSES = 100
 #: candidate the diagnosis tries
 JIT_ONCE_MIN_POSES = 20_000
 _EVALUATED_ONCE = frozenset({"tau", "tau_q_jac", "probe"})
-_SPEC_ITEM = re.compile(r"^\s*([a-z_]+)\s*(?:\[([^\]]*)\])?\s*(?:@\s*([A-Za-z0-9_.-]+))?\s*$")
+_SPEC_ITEM = re.compile(r"^\s*([a-z_][a-z0-9_]*)\s*(?:\[([^\]]*)\])?\s*(?:@\s*([A-Za-z0-9_.-]+))?\s*$")
 
 
 def parse_spec(spec: str) -> list[ErrorTerm]:
@@ -76,9 +78,17 @@ def parse_spec(spec: str) -> list[ErrorTerm]:
             if session:
                 raise ModelError(f"{item!r}: the base pose of each session is always estimated; drop @{session}")
             continue
+        user = known_user_terms()
+        if name in user and name not in REGISTRY:     # a cause of the user's own (casadical.terms.definitions)
+            if args is not None:
+                raise ModelError(f"{item!r}: the user term {name} acts where its terms file says; drop [{args}]")
+            term = UserTerm(user[name])
+            terms.append(SessionLocal(term, session) if session else term)
+            continue
         if name not in REGISTRY:
             raise ModelError(f"unknown model item {name!r} in {spec!r}; known: nominal, "
-                             + ", ".join(sorted(REGISTRY)))
+                             + ", ".join(sorted(REGISTRY)) + (f"; user terms: {', '.join(sorted(user))}" if user
+                                                              else " (a cause of your own: --terms FILE)"))
         kwargs: dict = {}
         if args is not None and args.strip():
             try:
@@ -239,6 +249,8 @@ class Model:
         for t in self.terms:
             R0, t0 = t.reference(ctx, R0, t0)
         base = compose((R0, t0), rpy_pose(*geom.base))
+        if geom.mount:      # a user term's change of the base, right after the estimated base pose
+            base = compose(base, small_pose(*geom.mount))
         point, tool_rotation, to_measurement = frames.tool[1], frames.tool[0], base[0]
         tilts = [v for v in (t.base_tilt(ctx) for t in self.terms) if v is not None]
         if tilts:       # the base tilts on its mount: the whole arm turns about the base frame's origin
@@ -250,6 +262,7 @@ class Model:
             if off is not None:
                 point = point + off
         xyz = base[1] + ca.mtimes(base[0], point)
+        ctx.point = xyz
         for t in self.terms:
             off = t.base_offset(ctx)
             if off is not None:
@@ -268,7 +281,7 @@ class Model:
             raise ModelError(f"model {self.spec}: its terms' tool rotations disagree with its graph's")
         self._symbols = {"q": q, "p": p, "c": c, "b0": b0, "xyz": xyz, "tau": tau, "dq": dq, "flange": flange,
                          "chain": chain, "drive": drive, "drives": drives, "geom": geom, "R": to_measurement,
-                         "probe": probe}
+                         "probe": probe, "checks": ctx.checks}
 
     def _graph(self, which: str) -> tuple:
         """``(inputs, outputs, broadcast inputs, summed outputs)`` of a per-pose Function, built on first use.
@@ -605,9 +618,11 @@ class Model:
             if name == "payload_kg":
                 cols.append(np.full(N, self.robot.payload_mass))
             elif name in ("temperature_c", "time_s"):
-                # at the reference of the term that reads it, the term has no effect
-                owner = next(t for t in self.terms if name in t.covariates)
-                cols.append(np.full(N, owner.t_ref))
+                # at the reference of the term that reads it, the term has no effect (a user term's, read only
+                # by user terms: not a number, which their check of the data names)
+                owner = next((t for t in self.terms if name in t.covariates and not isinstance(
+                    getattr(t, "inner", t), UserTerm)), None)
+                cols.append(np.full(N, owner.t_ref if owner is not None else np.nan))
             else:
                 cols.append(np.zeros(N))
         return np.column_stack(cols) if cols else np.zeros((N, 0))
@@ -642,12 +657,48 @@ class Model:
         for t in self.terms:
             for name, values in t.covariate_values(data).items():
                 out[:, self.covariate_names.index(name)] = values
+        if self.user_terms:
+            self.check_finite(data, out)
         return out
+
+    @property
+    def user_terms(self) -> list[UserTerm]:
+        """The model's user terms (:mod:`casadical.terms.user`), of one session too."""
+        return [t for t in (getattr(t, "inner", t) for t in self.terms) if isinstance(t, UserTerm)]
+
+    def check_finite(self, data, cov: np.ndarray, params=None, base0=None) -> None:
+        """Every user term's expression is a finite number at every pose of ``data`` (parameters: the model's
+        values; base pose: the robot file's).
+
+        Raises
+        ------
+        DataFileError
+            Naming the file and row of the first pose where one is not, the term and its key.
+        """
+        checks = self._sym["checks"]
+        if not checks:
+            return
+        S = self._sym
+        f = ca.Function("user_checks", [S["q"], S["p"], S["c"], S["b0"]],
+                        [ca.vertcat(*[ca.SX(v) if not isinstance(v, ca.SX) else v for _, _, v in checks])])
+        N = len(data)
+        p = self.parameters.values if params is None else np.asarray(params, dtype=float)
+        b0 = self.base0_nominal() if base0 is None else base0
+        values = np.asarray(f.map(N)(data.q.T, p, np.asarray(cov, dtype=float).T, b0)).T.reshape(N, len(checks))
+        bad = ~np.isfinite(values)
+        if bad.any():
+            i, k = np.argwhere(bad)[0]
+            term, key, _ = checks[k]
+            raise DataFileError(f"user term {term.name!r}, key {key!r} ({term.definition.file}): the expression "
+                                f"{term.text(key)!r} is {values[i, k]} at this pose, "
+                                "not a finite number", file=data.file(i), row=data.line(i))
 
     def term(self, name: str) -> ErrorTerm | None:
         """The model's term called ``name`` (or alias), if any."""
         cls = REGISTRY.get(name)
-        return next((t for t in self.terms if cls is not None and isinstance(t, cls)), None)
+        if cls is None:     # a user term, by its name
+            return next((t for t in self.terms if isinstance(t, UserTerm) and t.name == name), None)
+        return next((t for t in self.terms if isinstance(t, cls)), None)
 
 
 def _angular_jacobian(R, q):

@@ -93,7 +93,16 @@ _FIELDS = {f: f for f in ("cause", "joint", "harmonic", "source", "session")} | 
 
 def _candidate(d: dict) -> Candidate:
     known = Candidate.__dataclass_fields__
-    return Candidate(**{v: d[k] for k, v in _FIELDS.items() if d.get(k) is not None and v in known})
+    c = Candidate(**{v: d[k] for k, v in _FIELDS.items() if d.get(k) is not None and v in known})
+    if d.get("user"):       # a cause of the user's own: its parameters from its definition (--terms FILE)
+        from ..errors import InputError
+        from ..terms.definitions import known as known_terms
+        definition = known_terms().get(c.cause)
+        if definition is None:
+            raise InputError(f"the report names {c.cause!r}, a cause of your own: give its terms file with --terms "
+                             "FILE")
+        c = replace(c, user=tuple(f"{c.cause}.{p}" for p in definition.parameter_names))
+    return c
 
 
 def _scope(c: Candidate) -> str:

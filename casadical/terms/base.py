@@ -46,6 +46,14 @@ class Context:
     #: joint errors are the drives' (on the readings, before couplings and loops); False: on the chain angles
     #: (calibration files written before, :class:`~casadical.terms.geometric.Geometric` ``drive_errors``)
     drives: bool = True
+    #: the model's point in the measurement frame before the terms' point offsets (set before
+    #: :meth:`ErrorTerm.base_offset` is asked; a user term's ``point`` effect reads it)
+    point: Any = None
+    #: 1 at the poses where a term of one session acts, 0 elsewhere: a term whose geometry change
+    #: :class:`~casadical.terms.local.SessionLocal` may make local (``gated``) multiplies its change by it
+    gate: Any = None
+    #: (term, key, expression) of the expressions to be checked finite at the data's poses (user terms')
+    checks: list = field(default_factory=list)
     _frames: Frames | None = field(default=None, repr=False)
     _torques: list | None = field(default=None, repr=False)
     _moment: Any = field(default=None, repr=False)

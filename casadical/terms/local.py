@@ -22,7 +22,9 @@ class SessionLocal(ErrorTerm):
     with ``scope: "session"``, and never carried to other data (a transfer
     drops it; an export never holds it). Terms that act through joint
     offsets, the measured point or the robot frame can be made local; a
-    change of the geometry (thermal expansion) cannot.
+    change of the geometry (thermal expansion) cannot, unless the term
+    switches its change off itself where the context's ``gate`` is 0
+    (``gated``: a user term's frame, tool and base effects).
 
     Parameters
     ----------
@@ -33,7 +35,7 @@ class SessionLocal(ErrorTerm):
     session = True
 
     def __init__(self, inner: ErrorTerm, session: str):
-        if type(inner).geometry is not ErrorTerm.geometry:
+        if type(inner).geometry is not ErrorTerm.geometry and not getattr(inner, "gated", False):
             raise ModelError(f"{inner.name} changes the geometry: it cannot be a term of one session only")
         super().__init__(inner.joints)
         self.inner, self.session_name = inner, str(session)
@@ -91,11 +93,17 @@ class SessionLocal(ErrorTerm):
     def parameters(self, robot: Robot) -> list[Parameter]:
         return [replace(p, name=self.suffix(p.name)) for p in self.inner.parameters(robot)]
 
-    def _local(self, ctx: Context) -> Context:
-        ctx.torques()    # computed once, shared with the inner term's view
+    def _local(self, ctx: Context, torques: bool = True) -> Context:
+        if torques:
+            ctx.torques()    # computed once, shared with the inner term's view
         names = [p.name for p in self.inner.parameters(ctx.robot)]
         return replace(ctx, p={**ctx.p, **{n: ctx.p[self.suffix(n)] for n in names}},
                        cov={**ctx.cov, **{c: ctx.cov[self.rename(c)] for c in self.inner.covariates}})
+
+    def geometry(self, ctx: Context, geom):
+        if type(self.inner).geometry is ErrorTerm.geometry:
+            return geom
+        return self.inner.geometry(replace(self._local(ctx, False), gate=ctx.cov[indicator(self.session_name)]), geom)
 
     def joint_offsets(self, ctx: Context) -> dict:
         h = ctx.cov[indicator(self.session_name)]
