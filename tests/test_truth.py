@@ -232,3 +232,122 @@ def test_reads_the_toml_text_as_the_dict(tmp_path):
     q = sample(TrueRobot(a), 20, rng)
     assert np.array_equal(point(TrueRobot(a), q), point(TrueRobot(b), q))
     assert a.links[3].beta == 0.0 and a.links[2].beta is None and a.convention == "mdh"
+
+
+# --- effects outside the catalogue: joint coupling, another joint's reading, axis tilt, mount compliance, the
+# instrument's own errors -------------------------------------------------------------------------------------
+
+def _arm7_poses(n=12, seed=5):
+    from tests.helpers.arms import ARM7
+    rng = np.random.default_rng(seed)
+    robot = TrueRobot.draw(Arm.from_dict(ARM7), Effects(stiffness={2: 3e5}), rng)
+    return robot, sample(robot, n, rng)
+
+
+def test_new_effects_at_zero_change_nothing():
+    robot, q = _arm7_poses()
+    zero = Effects(stiffness={2: 3e5}, coupling={(6, 5): 0.0}, cross_error={(3, 2): lambda x: 0.0 * x},
+                   axis_tilt={4: (0.0, 0.0)}, mount_compliance=0.0)
+    for mount in (0.0, (0.0, 0.0)):
+        zero.mount_compliance = mount
+        a, b = robot.state(q), robot.with_effects(zero).state(q)
+        assert np.array_equal(robot.tool_point(a), robot.tool_point(b))
+        assert np.array_equal(a.flange, b.flange) and b.tilt is None
+    ses = Session(angle_error=(0.0, 0.3), distance_scale=0.0, base_xyz=(2.0, 1.0, 0.0))
+    assert np.array_equal(measure(robot, q, session=ses, noise=0.0).xyz,
+                          measure(robot, q, session=Session(base_xyz=(2.0, 1.0, 0.0)), noise=0.0).xyz)
+
+
+def test_joint_coupling_and_another_joints_reading_by_hand():
+    """e_j += c q_k and e_j += f(q_k): joint j's angle moves by them, signs as written (c > 0 turns joint j
+    forward when q_k > 0)."""
+    c, f = 2e-3, (lambda x: 1e-3 * x ** 2)
+    q = np.radians([[50.0, -20.0], [-30.0, 70.0]])
+    got = point(nominal(PLANAR, Effects(coupling={(2, 1): c})), q)
+    got2 = point(nominal(PLANAR, Effects(cross_error={(1, 2): f})), q)
+    for i, (q1, q2) in enumerate(q):
+        assert np.allclose(got[i], planar_point(q1, q2 + c * q1), atol=1e-15)
+        assert np.allclose(got2[i], planar_point(q1 + f(q2), q2), atol=1e-15)
+    # a 3-D arm: the same as the nominal arm at readings with joint 6 moved by c q5 (exact: no couplings there)
+    robot, q = _arm7_poses()
+    moved = q.copy()
+    moved[:, 5] += c * q[:, 4]
+    coupled = robot.with_effects(Effects(stiffness={2: 3e5}, coupling={(6, 5): c}))
+    assert np.allclose(point(coupled, q), point(robot, moved), atol=1e-14)
+
+
+def test_axis_tilt_tips_the_link_about_its_x_axis():
+    """The link after joint 2 turns by Rx(w), w = a sin q2 + b cos q2: a tool 0.1 m along its z axis swings
+    to -0.1 sin w along the link's y; points on the link's x axis stay."""
+    doc = {**PLANAR, "tool": {"d_m": 0.1}}
+    a, b = 2e-3, -1e-3
+    q = np.radians([[30.0, 45.0], [-60.0, 120.0]])
+    got = point(nominal(doc, Effects(axis_tilt={2: (a, b)})), q)
+    for i, (q1, q2) in enumerate(q):
+        w = a * sin(q2) + b * cos(q2)
+        y_link = np.array([-sin(q1 + q2), cos(q1 + q2), 0.0])
+        expected = planar_point(q1, q2) + 0.1 * np.array([0, 0, cos(w)]) - 0.1 * sin(w) * y_link
+        assert np.allclose(got[i], expected, atol=1e-15)
+    assert np.allclose(point(nominal(PLANAR, Effects(axis_tilt={2: (a, b)})), q), point(nominal(PLANAR), q),
+                       atol=1e-15)
+
+
+def test_mount_compliance_tilts_the_base_towards_the_weights():
+    """theta = C M, M = sum c x (m g) about the base frame's origin; the rotation by theta about the origin."""
+    # planar arm, gravity along -y: M is along z and equals joint 1's torque (its axis is the base's z): the
+    # whole arm turns about joint 1 by C tau1
+    C = 2e-6
+    q = np.radians([[20.0, 30.0], [150.0, -40.0]])
+    got = point(nominal(PLANAR, Effects(mount_compliance=C)), q)
+    for i, (q1, q2) in enumerate(q):
+        assert np.allclose(got[i], planar_point(q1 + C * planar_torques(q1, q2)[0], q2), atol=1e-15)
+    assert (got[:, 1] < point(nominal(PLANAR), q)[:, 1]).all()        # both sink (the weights pull them down)
+    # one link along x, gravity -z, 10 kg at its middle and 5 kg of payload at its end (1 m): at q = 0 the
+    # moment is (0, 9.81 (10 * 0.5 + 5 * 1), 0) and Ry(C M_y) turns the end down; at q = 90 deg it is about -x
+    doc = {"name": "one", "convention": "dh", "payload": {"mass_kg": 5.0},
+           "joint": [{"alpha_deg": 0, "a_m": 1.0, "d_m": 0.0, "mass_kg": 10.0, "com_m": [-0.5, 0, 0]}]}
+    M = G * (10 * 0.5 + 5 * 1.0)
+    for mount, (cx, cy) in ((C, (C, C)), ((1e-6, 3e-6), (1e-6, 3e-6))):
+        r = nominal(doc, Effects(mount_compliance=mount))
+        s = r.state(np.radians([[0.0], [90.0]]))
+        assert np.allclose(s.moment, [[0, M, 0], [-M, 0, 0]], atol=1e-12)
+        assert np.allclose(r.tool_point(s), [[cos(cy * M), 0, -sin(cy * M)], [0, cos(cx * M), -sin(cx * M)]],
+                           atol=1e-15)
+        # the flange's orientation turns with it: Ry(C M) at q = 0
+        assert np.allclose(s.flange[0, :3, :3], tf.rot("y", cy * M)[0, :3, :3], atol=1e-15)
+    # a session's own mount; the measured orientation turns too
+    r = nominal(doc, Effects(mount_compliance=C))
+    q0 = np.zeros((1, 1))
+    own = measure(r, q0, session=Session(mount_compliance=3 * C), noise=0.0, orientation_noise=0.0)
+    assert np.allclose(own.xyz, [[cos(3 * C * M), 0, -sin(3 * C * M)]], atol=1e-15)
+    assert np.allclose(own.R[0], tf.rot("y", 3 * C * M)[0, :3, :3], atol=1e-15)
+    # a 3-D arm, first order: the point moves by theta x p, theta from the weights summed here
+    robot, q = _arm7_poses()
+    base = robot.state(q)
+    C = 1e-6
+    tilted = robot.with_effects(Effects(stiffness={2: 3e5}, mount_compliance=C)).state(q)
+    arm = robot.arm
+    M = sum(np.cross(base.links[:, i, :3, :3] @ arm.links[i].com + base.links[:, i, :3, 3], arm.links[i].mass *
+                     arm.gravity) for i in range(arm.n))
+    p = robot.tool_point(base)
+    M = M + np.cross(base.flange[:, :3, :3] @ arm.payload_com + p, arm.payload * arm.gravity)
+    move = robot.tool_point(tilted) - p
+    assert np.abs(move).max() > 2e-5
+    assert np.allclose(move, np.cross(C * M, p), atol=1e-8)      # second order: |theta|^2 |p| < 3e-9 m
+
+
+def test_instrument_angle_and_distance_errors():
+    """The tracker turns a point about its vertical axis by A sin(az + phi) and reads (1 + s) times its
+    distance: a point at azimuth az moves A sin(az + phi) r_xy across, s r along."""
+    robot = nominal(PLANAR)
+    q = np.radians([[30.0, 45.0], [100.0, -30.0], [-40.0, 10.0]])
+    where = Session(base_xyz=(2.0, -1.0, 0.5))
+    clean = measure(robot, q, session=where, noise=0.0).xyz
+    A, phi, s = 1e-4, 0.7, 2e-5
+    turned = measure(robot, q, session=Session(base_xyz=(2.0, -1.0, 0.5), angle_error=(A, phi)), noise=0.0).xyz
+    scaled = measure(robot, q, session=Session(base_xyz=(2.0, -1.0, 0.5), distance_scale=s), noise=0.0).xyz
+    for i, (x, y, z) in enumerate(clean):
+        w = A * np.sin(np.arctan2(y, x) + phi)
+        assert np.allclose(turned[i], [x * cos(w) - y * sin(w), x * sin(w) + y * cos(w), z], atol=1e-15)
+        assert np.allclose(turned[i] - clean[i], w * np.array([-y, x, 0.0]), atol=1e-8)   # first order (w^2 r)
+        assert np.allclose(scaled[i], (1 + s) * clean[i], atol=1e-15)

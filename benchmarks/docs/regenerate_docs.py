@@ -101,6 +101,7 @@ JOBS: dict[str, Job] = {
     "singular": Job((_py("studies/study_singular.py"),), 0.1),
     "next-poses": Job((_py("studies/study_next_poses.py"),), 1.8),
     "hidden-effects": Job((_py("studies/study_hidden_effects.py"),), 10),
+    "open-world": Job((_py("studies/study_open_world.py"),), 2),
 }
 
 
@@ -166,6 +167,8 @@ BLOCKS: dict[str, Block] = {
     # docs/diagnosis.md
     "hidden-effects-summary": Block("hidden-effects", (r"^### Exact claims per effect",)),
     "hidden-effects-failing": Block("hidden-effects", (r"^### Claims that are not exact",)),
+    "open-world-outside": Block("open-world", (r"^### Effects outside the catalogue",)),
+    "open-world-noise": Block("open-world", (r"^### Noise alone",)),
     # docs/guide.md
     "guide-aic": Block("guide", (r"^AIC and BIC",)),
     "guide-urdf": Block("guide", (r"^URDF read by yourdfpy",)),

@@ -189,6 +189,8 @@ def _without(term, dropped: set[str], model: Model):
     if hasattr(term, "harmonics"):
         left = [jh for jh, s in zip(term.harmonics, names[0::2]) if s not in dropped]
         return type(term)(left)
+    if hasattr(term, "pairs"):           # a joint coupling: one parameter per (joint, source joint) pair
+        return type(term)(pairs=[jk for jk, n in zip(term.pairs, names) if n not in dropped])
     left = [p.joint for p in term.parameters(model.robot) if p.name not in dropped]
     return restore_term(type(term)(joints=sorted(set(left))), term.settings())
 

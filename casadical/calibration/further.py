@@ -35,6 +35,8 @@ def merge_terms(prior: list[ErrorTerm], new: list[ErrorTerm]) -> tuple[list[Erro
         if hasattr(t, "harmonics"):
             merged = sorted(set(p.harmonics) | set(t.harmonics))
             out[same] = restore_term(type(t)(merged), p.settings())
+        elif hasattr(t, "pairs"):            # a joint coupling: (joint, source joint) pairs joined
+            out[same] = type(t)(pairs=sorted(set(p.pairs) | set(t.pairs)))
         elif t.joints is not None and p.joints is not None and set(t.joints) - set(p.joints):
             out[same] = restore_term(type(t)(sorted(set(p.joints) | set(t.joints))), p.settings())
     return out, named

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import math
+
 from ..errors import InputError
 from .common import (
     STDOUT,
@@ -76,6 +78,12 @@ def register(sub) -> None:
                    help="loss of every fit, as for calibrate (default: %(default)s)")
     p.add_argument("--no-blackbox", "--no-layer", action="store_true",
                    help="skip the GP compensator (a Gaussian process, one per session, of what the named causes leave)")
+    p.add_argument("--no-structure", action="store_true",
+                   help="skip the structure screen (what the named causes leave, against every joint's reading and "
+                        "torque, time and the instrument's view: docs/diagnosis.md)")
+    p.add_argument("--noise-mm", type=float_in(0, math.inf), metavar="SIGMA", default=None,
+                   help="the instrument's noise per axis (mm, 1 sigma): the report gives what the final model leaves "
+                        "in units of it (without it: from repeated poses, where the data hold some)")
     p.add_argument("--position-only", action="store_true",
                    help="fit on the positions alone; without it, data with a measured orientation (rx_deg, ry_deg, "
                         "rz_deg) are fitted on the full pose, as by calibrate (the screening of candidates works on "
@@ -122,7 +130,8 @@ def run(args) -> int:
                                  blackbox=not args.no_blackbox, seed=args.seed, robust=args.robust,
                                  position_only=args.position_only,
                                  transfer_base_poses=args.transfer_base_poses or DiagnosisSettings.transfer_base_poses,
-                                 transfer_refit_poses=args.transfer_refit_poses, session_tools=args.session_tool)
+                                 transfer_refit_poses=args.transfer_refit_poses, session_tools=args.session_tool,
+                                 structure=not args.no_structure, noise_mm=args.noise_mm)
     status = Status(args.quiet)
     say = status.timed_line()
     report = diagnose(robot, cal, val, settings, progress=say if args.verbose else _brief(say), other=other,

@@ -18,11 +18,16 @@ EXPLAINS = {"order": ("drift", "warmup"), "load": ("joint_compliance",), "direct
             "region": ("joint_compliance",)}
 
 
-def set_aside_note(structure: SetAsideStructure, not_tried: list[NotTried], path: str) -> str:
-    """The note on the final fit's set-aside poses: bad measurements, or structure with where (and what would let
-    the diagnosis try a cause of it)."""
+def set_aside_note(structure: SetAsideStructure, not_tried: list[NotTried], path: str,
+                   misses: dict[int, list[int]] | None = None, where: dict[int, str] | None = None) -> str:
+    """The note on the final fit's set-aside poses: the largest misses of structure the screen found (``misses``:
+    finding number -> file lines; ``where``: the findings' words), bad measurements, or structure with where (and
+    what would let the diagnosis try a cause of it)."""
     what = (f"the robust loss set aside {structure.n_set_aside} calibration pose(s) of {path} (lines "
-            + listing(structure.lines, 10) + "): " + structure.text())
+            + listing(structure.lines, 10) + "): ")
+    parts = [f"lines {listing([str(x) for x in lines], 10)} are the largest misses of the structure in finding {n} "
+             f"({where[n]}), not bad measurements" for n, lines in (misses or {}).items()]
+    what += "; ".join(parts + [structure.text()] * bool(structure.text()))
     if not structure.structured:
         return what
     hints = []

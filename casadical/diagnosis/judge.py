@@ -2,20 +2,25 @@
 
 Reads ``final``, ``parametric`` and ``kinematic``; sets ``final_errors`` and ``final_val`` (its validation
 errors) and ``set_aside`` (the poses the final fit set aside, tested for shared structure before they are
-called bad measurements: :mod:`casadical.stats.outliers`), and adds the notes: a worst validation error above the
-kinematic model's (:func:`.never_worse.validation_note`), the remaining residual, the sag the model predicts,
-the set-aside poses.
+called bad measurements: :mod:`casadical.stats.outliers`; those the structure screen brings back within the robust
+loss's limit are the largest misses of that structure, ``structure_misses``), and adds the notes: a worst
+validation error above the kinematic model's (:func:`.never_worse.validation_note`), the remaining residual
+(in units of the instrument's noise where it is known: ``noise``, :mod:`.noise`), the sag the model
+predicts, the set-aside poses.
 """
 
 from __future__ import annotations
 
 import math
 
+import numpy as np
+
 from ..result import ErrorStats, learning_mask
 from ..stats.outliers import of_fit
 from ..stats.physics import sag_note
 from .gaps import set_aside_note
 from .never_worse import validation_note
+from .noise import noise_floor
 from .state import DiagnosisRun
 
 
@@ -29,10 +34,24 @@ def judge_final_model(run: DiagnosisRun) -> None:
     if final.uncertainty is not None:
         run.notes.append(f"remaining calibration residual {final.uncertainty.sigma * 1000:.4f} mm per axis (rms); "
                          f"validation rms {final_val.rms_mm / math.sqrt(3):.4f} mm per axis")
+    run.noise = noise_floor(cal, run.s.noise_mm, final_val.rms_mm)
+    if run.noise is not None:
+        run.notes.append(run.noise.text())
     sag = sag_note(final, cal)
     if sag:
         run.notes.append(sag)
-    # the poses the final fit set aside: bad measurements, or structure it lacks (casadical.stats.outliers)
-    run.set_aside = of_fit(run.parametric, cal, learning_mask(final, cal) == 0)
+    # the poses the final fit set aside: the largest misses of structure the screen found, bad measurements, or
+    # structure it lacks (casadical.stats.outliers)
+    set_aside = learning_mask(final, cal) == 0
+    misses = {}
+    for structure, finding in run.structures:
+        poses = np.setdiff1d(structure.misses[set_aside[structure.misses]],
+                             np.concatenate([np.zeros(0, int), *misses.values()]))
+        if len(poses):
+            misses[next(k for k, f in enumerate(run.findings, 1) if f is finding)] = poses
+    run.set_aside = of_fit(run.parametric, cal, set_aside)
+    run.set_aside.accounted = np.concatenate([np.zeros(0, int), *misses.values()])
+    run.structure_misses = {n: [cal.line(int(i)) for i in poses] for n, poses in misses.items()}
     if run.set_aside.n_set_aside:
-        run.notes.append(set_aside_note(run.set_aside, run.not_tried, cal.path))
+        run.notes.append(set_aside_note(run.set_aside, run.not_tried, cal.path, run.structure_misses,
+                                        {n: run.findings[n - 1].where for n in misses}))

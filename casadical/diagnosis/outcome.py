@@ -24,5 +24,7 @@ def assemble_report(run: DiagnosisRun) -> None:
         run.study.to_dict() if run.study is not None else {}, asdict(run.s),
         final_sessions=final.session_stats(run.val) if len(run.sessions) > 1 else {},
         final_orientation=run.val_angles(final),
-        set_aside=structure.to_dict() if structure.n_set_aside else {},
-        not_tried=[n.to_dict() for n in run.not_tried])
+        set_aside={**(structure.to_dict() if structure.n_set_aside else {}),
+                   **({"structure_misses": [{"finding": n, "lines": v} for n, v in run.structure_misses.items()]}
+                      if run.structure_misses else {})},
+        not_tried=[n.to_dict() for n in run.not_tried], noise=run.noise.to_dict() if run.noise is not None else {})

@@ -50,7 +50,9 @@ from .redundancy import drop_redundant
 from .report import DiagnosisReport
 from .search import search_causes
 from .settings import DiagnosisSettings
+from .stand_ins import drop_stand_ins
 from .state import DiagnosisRun
+from .structure import screen_structure
 from .transfer import transfer_findings
 from .unphysical import drop_unphysical
 
@@ -62,7 +64,9 @@ STAGES: tuple[Callable[[DiagnosisRun], None], ...] = (
     search_causes,      # rounds: screen every candidate cause, fit the best, accept one the data support
     drop_redundant,     # final check: is every cause still needed?
     drop_unphysical,    # final check: is every cause still physics?
+    drop_stand_ins,     # final check: does every named cause explain the structure it stands for?
     keep_never_worse,   # final check: never worse than the kinematic model, in mean and worst case
+    screen_structure,   # what the named causes leave: structure no catalogue cause explains, and where it lives
     add_compensator,    # the GP compensator of what no named cause explains (one per session), judged like a step
     describe_findings,  # each finding's values, evidence, figure and scope; the structure that cannot be named
     judge_final_model,  # the validation poses on the final model; the residual, sag and set-aside poses

@@ -131,6 +131,10 @@ class Finding:
         sessions); ``session``: a property of one session (its own
         parameters, ``@session``; a drift), kept out of what a calibration
         carries to other data.
+    structure : dict
+        For structure the structure screen found (:mod:`.structure`): its
+        ``covariate``, ``effect``, ``p_value``, ``size_mm`` and
+        ``potential_gain_mm`` (top-level keys of the JSON finding).
     """
 
     candidate: Candidate
@@ -145,6 +149,7 @@ class Finding:
     transfer: dict = field(default_factory=dict)
     plot: dict = field(default_factory=dict)
     scope: str | None = None
+    structure: dict = field(default_factory=dict)
 
     @property
     def cause(self) -> str:
@@ -167,6 +172,7 @@ class Finding:
             d["holds_up"] = self.holds_up
         if self.transfer:
             d["transfer"] = self.transfer
+        d.update(self.structure)
         return d
 
     def label(self) -> str:
@@ -194,6 +200,9 @@ class DiagnosisReport:
     not_tried : list of dict
         Each kind of cause these data cannot test, with why and what would
         allow it (:class:`casadical.diagnosis.catalogue.NotTried`).
+    noise : dict
+        The instrument's noise floor and the final model's leftover in its
+        units, where the noise is known (:class:`casadical.diagnosis.noise.NoiseFloor`).
     """
 
     robot: str
@@ -213,6 +222,7 @@ class DiagnosisReport:
     final_orientation: AngleStats | None = None
     set_aside: dict = field(default_factory=dict)
     not_tried: list = field(default_factory=list)
+    noise: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         from ..robot import robot_to_dict
@@ -248,6 +258,8 @@ class DiagnosisReport:
             doc["final"]["orientation"] = self.final_orientation.to_dict(n_poses=False)
         if self.transfer:
             doc["transfer"] = self.transfer
+        if self.noise:
+            doc["final"]["noise"] = self.noise
         doc["robot_description"] = robot_to_dict(self.final.model.robot)   # what plan-poses REPORT.json builds on
         return doc
 

@@ -47,6 +47,15 @@ class DiagnosisSettings:
     session_tools : bool
         With several sessions: each session after the first has its own
         tool offset too (the probe was re-mounted).
+    structure : bool
+        Screen what the named causes leave for structure no catalogue cause
+        explains (:mod:`casadical.diagnosis.structure`), and check that every
+        named cause explains the structure it stands for
+        (:mod:`casadical.diagnosis.stand_ins`).
+    noise_mm : float or None
+        The instrument's noise per axis (mm, 1 sigma), as the user states it:
+        the report gives the final model's leftover in units of it (None: from
+        repeated poses where the data hold some, :mod:`casadical.diagnosis.noise`).
     """
 
     alpha: float = 0.001
@@ -62,6 +71,8 @@ class DiagnosisSettings:
     transfer_refit_poses: int | None = None
     seed: int = 0
     session_tools: bool = False
+    structure: bool = True
+    noise_mm: float | None = None
 
     def __post_init__(self) -> None:
         if not 0 < self.alpha < 1 or not 0 < self.stability_alpha < 1:
@@ -70,5 +81,7 @@ class DiagnosisSettings:
         for name in ("max_harmonic", "folds", "confirm", "transfer_base_poses"):
             if getattr(self, name) < (2 if name == "folds" else 1):
                 raise InputError(f"{name} must be at least {2 if name == 'folds' else 1}, got {getattr(self, name)}")
+        if self.noise_mm is not None and not 0 < self.noise_mm < float("inf"):
+            raise InputError(f"noise_mm must be a positive number of mm, got {self.noise_mm}")
         if self.max_rounds < 0:
             raise InputError(f"max_rounds must not be negative, got {self.max_rounds}")

@@ -37,6 +37,7 @@ from .validation import Linearized, by_kind, joint_levers, schemes
 if TYPE_CHECKING:
     from ..stats.outliers import SetAsideStructure
     from .design import Design
+    from .noise import NoiseFloor
     from .report import DiagnosisReport
     from .transfer import TransferStudy
 
@@ -90,6 +91,9 @@ class DiagnosisRun:
     support: dict[Candidate, Support] = field(default_factory=dict)
     periodograms: list[Periodogram] = field(default_factory=list)
 
+    # screen_structure: what the named causes leave: (structure, its finding), strongest first
+    structures: list = field(default_factory=list)
+
     # keep_never_worse
     held_text: str = ""            # the final check's worst held-out errors, in words
 
@@ -102,6 +106,8 @@ class DiagnosisRun:
     final_errors: np.ndarray | None = None
     final_val: ErrorStats | None = None
     set_aside: SetAsideStructure | None = None
+    structure_misses: dict[int, list[int]] = field(default_factory=dict)   # finding number -> file lines
+    noise: NoiseFloor | None = None
 
     # transfer_findings, assemble_report
     study: TransferStudy | None = None

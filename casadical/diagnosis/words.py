@@ -99,6 +99,8 @@ def where(f: "Finding") -> str:
         if f.in_model:
             sessions = [s for s in (f.holds_up or {}).get("length_scales_deg", {}) if s]
             return "what the causes leave" + (f", sessions {', '.join(sessions)}" if len(sessions) > 1 else "")
+        if f.structure:
+            return _structure_where(f.structure, c.joint)
         return f"joint {c.joint}" if c.joint else ""
     if c.cause == "thermal_expansion":
         text = "every link" if c.joint is None else f"link {c.joint}"
@@ -109,6 +111,14 @@ def where(f: "Finding") -> str:
     if c.cause == "backlash":
         text += ", by the last move" if c.source == "motion" else ", by the load"
     return text + (f", session {c.session}" if c.session is not None else "")
+
+
+def _structure_where(structure: dict, joint: int | None) -> str:
+    """Where structure the screen found lives, short: ``joint 4's angle, with q3``."""
+    effect = {"angle": f"joint {joint}'s angle", "tilt": f"joint {joint}'s axis" if joint else "the base's tilt",
+              "point_base": "point, base frame",
+              "point_measurement": "point, measurement frame"}.get(structure["effect"], structure["effect"])
+    return f"{effect}, with {structure['covariate']}"
 
 
 def size(f: "Finding", final: "CalibrationResult") -> str:
@@ -123,6 +133,8 @@ def size(f: "Finding", final: "CalibrationResult") -> str:
         if f.in_model:
             k, n = hu.get("validation_known", [None, None])
             return f"applies at {k} of {n} validation poses" if n else "a Gaussian process per session"
+        if f.structure:
+            return f"{f.structure['size_mm']:.4f} mm on validation"
         items = hu.get("structures", [])
         if not items:
             return ""
@@ -186,6 +198,12 @@ def action(f: "Finding", report: "DiagnosisReport") -> str:
     if c.cause == "unexplained" and f.in_model:
         return ("applies in this session where it knows; compensate and predict use it; a transfer to another "
                 "session drops it (scope session)")
+    if c.cause == "unexplained" and f.structure:
+        instrument = f.structure["covariate"] in ("azimuth", "elevation", "distance")
+        return (f"a cause no catalogue holds (a flexible term would give {gain_words(f.potential_gain_mm)} here): "
+                "state it as a term of your own and diagnose again (docs/guide.md, 'When the report says "
+                "unexplained')" + ("; a session with the instrument placed elsewhere tells the instrument's error "
+                                  "from the robot's" if instrument else ""))
     if c.cause == "unexplained":
         j = c.joint
         gain_here = gain_words(f.potential_gain_mm)

@@ -208,6 +208,27 @@ def gravity_torques(robot: Robot, frames: Frames, payload_mass) -> list:
     return taus
 
 
+def mount_moment(robot: Robot, frames: Frames, payload_mass):
+    """Moment of the weights of every link and the payload about the robot base frame's origin (N m, 3x1, robot
+    base frame): ``sum_j c_j x (m_j g)``, the payload at the tool frame (what tilts a compliant mount)."""
+    g = ca.DM(robot.gravity)
+    moment = ca.SX.zeros(3, 1)
+    for i, j in enumerate(robot.joints):
+        R, t = frames.link[i]
+        moment = moment + ca.cross(t + ca.mtimes(R, ca.DM(j.com)), j.mass * g)
+    R, t = frames.tool
+    return moment + ca.cross(t + ca.mtimes(R, ca.DM(robot.payload_com)), payload_mass * g)
+
+
+def small_rotation(theta):
+    """The rotation by the rotation vector ``theta`` (3x1, rad) for angles well below 0.1 rad: Rodrigues'
+    ``I + a K + b K^2`` with ``a = sin|t| / |t|``, ``b = (1 - cos|t|) / |t|^2`` by their series (``1 - t^2 / 6``,
+    ``1/2 - t^2 / 24``: 1e-14 off at 0.01 rad), smooth at zero where the closed form is not."""
+    K = ca.skew(theta)
+    t2 = ca.dot(theta, theta)
+    return ca.SX.eye(3) + (1 - t2 / 6) * K + (0.5 - t2 / 24) * ca.mtimes(K, K)
+
+
 def coupled(robot: Robot) -> bool:
     """True if a chain angle is made of other joints' readings too (a coupling or a loop)."""
     return robot.loop is not None or any(j.coupling is not None for j in robot.joints)

@@ -37,7 +37,7 @@ from . import jitcache
 from ._batch import BLOCK_MIN, batch, mapped  # noqa: F401 (names the tests use)
 from ._batch import Batch as _Batch
 from ._batch import Blocks as _Blocks
-from .kinematics import Geometry, base_pose_matrix, chain_angles, compose, forward, rpy_pose
+from .kinematics import Geometry, base_pose_matrix, chain_angles, compose, forward, rpy_pose, small_rotation
 from .parameters import Parameters
 from .superset import Mapping
 from .superset import outputs as superset_outputs
@@ -239,7 +239,12 @@ class Model:
         for t in self.terms:
             R0, t0 = t.reference(ctx, R0, t0)
         base = compose((R0, t0), rpy_pose(*geom.base))
-        point = frames.tool[1]
+        point, tool_rotation, to_measurement = frames.tool[1], frames.tool[0], base[0]
+        tilts = [v for v in (t.base_tilt(ctx) for t in self.terms) if v is not None]
+        if tilts:       # the base tilts on its mount: the whole arm turns about the base frame's origin
+            tilt = small_rotation(sum(tilts[1:], tilts[0]))
+            point, tool_rotation = ca.mtimes(tilt, point), ca.mtimes(tilt, tool_rotation)
+            to_measurement = ca.mtimes(base[0], tilt)
         for t in self.terms:
             off = t.robot_frame_offset(ctx)
             if off is not None:
@@ -251,7 +256,7 @@ class Model:
                 xyz = xyz + off
         tau = ca.vertcat(*ctx.torques()) if robot.n else ca.SX.zeros(0)
         dq = ca.vertcat(*[ca.SX(o) if not isinstance(o, ca.SX) else o for o in offsets])
-        flange = ca.mtimes(base[0], frames.tool[0])  # flange (last link) rotation, measurement frame
+        flange = ca.mtimes(base[0], tool_rotation)  # flange (last link) rotation, measurement frame
         # full pose: the probe's rotation, from the same base composition as the point (the flange, every term,
         # times the probe's mounting); without the reference mounting R0, which the data carry (Model docstring)
         probe = flange
@@ -262,7 +267,7 @@ class Model:
         if (probe is not flange) != self.orientation:
             raise ModelError(f"model {self.spec}: its terms' tool rotations disagree with its graph's")
         self._symbols = {"q": q, "p": p, "c": c, "b0": b0, "xyz": xyz, "tau": tau, "dq": dq, "flange": flange,
-                         "chain": chain, "drive": drive, "drives": drives, "geom": geom, "R": base[0],
+                         "chain": chain, "drive": drive, "drives": drives, "geom": geom, "R": to_measurement,
                          "probe": probe}
 
     def _graph(self, which: str) -> tuple:

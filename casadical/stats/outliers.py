@@ -104,6 +104,9 @@ class SetAsideStructure:
         Each set-aside pose as ``file:line`` (or line), in index order.
     index : ndarray of int
         The set-aside poses (indices into the data).
+    accounted : ndarray of int
+        Set-aside poses that structure found elsewhere accounts for (the largest misses of the structure the
+        diagnosis' structure screen reports): never called bad measurements.
     """
 
     n_poses: int
@@ -112,6 +115,7 @@ class SetAsideStructure:
     alpha: float = ALPHA
     lines: list[str] = field(default_factory=list)
     index: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
+    accounted: np.ndarray = field(default_factory=lambda: np.zeros(0, int))
 
     @property
     def significant(self) -> list[StructureTest]:
@@ -129,8 +133,8 @@ class SetAsideStructure:
         return np.unique(np.concatenate([t.poses for t in sig])) if sig else np.zeros(0, int)
 
     def bad(self) -> np.ndarray:
-        """Set-aside poses no significant structure holds: the likely bad measurements."""
-        return np.setdiff1d(self.index, self.held())
+        """Set-aside poses no significant structure holds (nor accounts for): the likely bad measurements."""
+        return np.setdiff1d(self.index, np.union1d(self.held(), self.accounted))
 
     def _lines(self, poses: np.ndarray) -> list[str]:
         at = {int(i): k for k, i in enumerate(self.index)}
@@ -141,6 +145,12 @@ class SetAsideStructure:
         if not self.n_set_aside:
             return ""
         sig = self.significant
+        bad = self.bad()
+        if len(self.accounted) and not len(bad) and not sig:
+            return ""
+        if len(self.accounted) and not sig:      # the rest of the set-aside poses, with nothing of their own
+            return (f"the other {len(bad)} (lines " + listing(self._lines(bad), 10) + ") share no structure: "
+                    "likely bad measurements")
         if self.n_set_aside < 2:
             return "likely a bad measurement (a single pose: no structure to test)"
         if not sig:
@@ -151,7 +161,6 @@ class SetAsideStructure:
         m = len(self.tests)
         parts = [f"{t.where} ({len(t.poses)} of them, p = {max(t.p_value * m, 1e-300):.2g})" for t in sig]
         text = "not bad measurements but structure the model lacks: " + "; ".join(parts)
-        bad = self.bad()
         if len(bad):
             text += (f"; the other {len(bad)} (lines " + listing(self._lines(bad), 10)
                      + ") share none of it: likely bad measurements")

@@ -39,6 +39,7 @@ motor) is not play, and is reported as such.
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass
 
 import numpy as np
@@ -221,7 +222,7 @@ def inside_bounds(params, names: list[str]) -> list[Violation]:
             continue
         bound = p.lower if side == "lower" else p.upper
         where = "at" if abs(p.value - bound) <= tol else ("below" if side == "lower" else "above")
-        meaning = _MEANING.get(n.split("@")[0].rstrip("0123456789"), {}).get(side, "")
+        meaning = _MEANING.get(_kind(n), {}).get(side, "")
         out.append(Violation("bounds", (n,), f"{n} = {_show(p, p.value)} is {where} its {side} bound "
                                              f"{_show(p, bound)}{meaning}"))
     return out
@@ -236,7 +237,18 @@ _MEANING = {
     "backlash_m": {"lower": " (a play cannot be negative: the output would lead its motor, not trail it)"},
     "escale": {"lower": " (a scale error beyond 1 % is not an encoder's)",
                "upper": " (a scale error beyond 1 % is not an encoder's)"},
+    "cpl": {"lower": " (a coupling beyond 1 % is a wrong coupling ratio in the robot file, not a gear's error)",
+            "upper": " (a coupling beyond 1 % is a wrong coupling ratio in the robot file, not a gear's error)"},
+    **{k: {"lower": " (no positive compliance: the mount is stiffer than these poses can tell, or the fit needs "
+                    "the base to tilt away from its weights)",
+           "upper": " (a tilt of 0.01 rad at the largest moment: a mount coming loose, not a compliance)"}
+       for k in ("cmount", "cmount_x", "cmount_y")},
 }
+
+
+def _kind(name: str) -> str:
+    """A parameter's name without its session and joints: ``c2@B`` -> ``c``, ``cpl5_4`` -> ``cpl``."""
+    return re.sub(r"[0-9][0-9_]*$", "", name.split("@")[0])
 
 
 def significant(result, names: list[str], alpha: float = ALPHA) -> list[Violation]:

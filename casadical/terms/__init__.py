@@ -12,6 +12,8 @@ from . import (  # noqa: F401
     encoder_scale,
     geometric,
     gp_compensator,
+    joint_coupling,
+    mount_compliance,
     nonlinear_stiffness,
     periodic,
     rbf_compensator,

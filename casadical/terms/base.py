@@ -20,7 +20,7 @@ from typing import Any, ClassVar
 import numpy as np
 
 from ..errors import ModelError
-from ..model.kinematics import Frames, Geometry, chain_angles, drive_torques, forward, gravity_torques
+from ..model.kinematics import Frames, Geometry, chain_angles, drive_torques, forward, gravity_torques, mount_moment
 from ..model.parameters import Parameter
 from ..robot import GRAVITY, Robot
 
@@ -48,6 +48,7 @@ class Context:
     drives: bool = True
     _frames: Frames | None = field(default=None, repr=False)
     _torques: list | None = field(default=None, repr=False)
+    _moment: Any = field(default=None, repr=False)
 
     def frames(self) -> Frames:
         """Frames of the undeflected configuration (current geometry)."""
@@ -63,6 +64,13 @@ class Context:
             tau = gravity_torques(self.robot, self.frames(), self.cov["payload_kg"])
             self._torques = drive_torques(self.robot, self.q, self.geom, tau) if self.drives else tau
         return self._torques
+
+    def moment(self):
+        """Moment of the weights about the robot base frame's origin (3x1, N m), undeflected configuration, row
+        payload (:func:`~casadical.model.kinematics.mount_moment`)."""
+        if self._moment is None:
+            self._moment = mount_moment(self.robot, self.frames(), self.cov["payload_kg"])
+        return self._moment
 
 
 class ErrorTerm:
@@ -118,6 +126,13 @@ class ErrorTerm:
 
         Unlike :meth:`base_offset` it turns with the base pose, so it holds
         wherever the tracker stands.
+        """
+        return None
+
+    def base_tilt(self, ctx: Context):
+        """Rotation vector (3x1, rad, robot base frame) by which the robot base frame turns about its origin
+        before joint 1: a tilt of the mount (default: none). The model turns the tool point and the flange's
+        orientation by the rotation of the terms' vectors summed (:func:`~casadical.model.kinematics.small_rotation`).
         """
         return None
 

@@ -108,3 +108,7 @@ class SessionLocal(ErrorTerm):
     def robot_frame_offset(self, ctx: Context):
         off = self.inner.robot_frame_offset(self._local(ctx))
         return None if off is None else ctx.cov[indicator(self.session_name)] * off
+
+    def base_tilt(self, ctx: Context):
+        tilt = self.inner.base_tilt(self._local(ctx))
+        return None if tilt is None else ctx.cov[indicator(self.session_name)] * tilt

@@ -38,6 +38,7 @@ def effects(name: str, tau: np.ndarray) -> tuple[Effects, str, float]:
     0.5 mrad (joint 3) at theirs, the progressive part takes back 30 % of joint 2's.
     """
     k2, k3 = tau[1] / 1e-3, tau[2] / 0.5e-3
+    n = len(tau)
     return {
         "compliance": (Effects(stiffness={2: k2, 3: k3}), "joint_compliance[2,3]", 3e-3),
         "progressive stiffness": (Effects(stiffness={2: k2}, cubic={2: -0.3e-3 / tau[1] ** 3}),
@@ -50,11 +51,18 @@ def effects(name: str, tau: np.ndarray) -> tuple[Effects, str, float]:
         "thermal expansion": (Effects(thermal_alpha=2e-5, t_ref=22.0), "thermal_expansion", 1e-9),
         "thermal expansion of links": (Effects(thermal_links={2: 25e-6, 3: -15e-6}, t_ref=22.0),
                                        "thermal_expansion[2,3]", 1e-9),
+        "joint coupling": (Effects(coupling={(n, n - 1): 2e-3, (3, 2): 1e-3}), f"joint_coupling[3:2,{n}:{n - 1}]",
+                           1e-9),
+        # the mount tilts about 0.5 mrad (joint 2's torque stands for the weights' moment about the mount)
+        "mount compliance": (Effects(mount_compliance=0.5e-3 / tau[1]), "mount_compliance", 1e-9),
+        "mount compliance about x and y": (Effects(mount_compliance=(0.3e-3 / tau[1], 0.6e-3 / tau[1])),
+                                           "mount_compliance[xy]", 1e-9),
     }[name]
 
 
 EFFECTS = ["compliance", "progressive stiffness", "gear error", "encoder scale", "torque backlash",
-           "motion backlash", "thermal expansion", "thermal expansion of links"]
+           "motion backlash", "thermal expansion", "thermal expansion of links", "joint coupling", "mount compliance",
+           "mount compliance about x and y"]
 
 
 def values(model: Model, true: TrueRobot, drift=(0.0, 0.0, 0.0), mount=(0.0, 0.0, 0.0)) -> np.ndarray:
@@ -86,6 +94,13 @@ def values(model: Model, true: TrueRobot, drift=(0.0, 0.0, 0.0), mount=(0.0, 0.0
             put(f"{prefix}{j}", x)
     if e.thermal_alpha:
         put("thermal_alpha", e.thermal_alpha)
+    for (j, k), x in e.coupling.items():
+        put(f"cpl{j}_{k}", x)
+    if np.ndim(e.mount_compliance):
+        put("cmount_x", e.mount_compliance[0])
+        put("cmount_y", e.mount_compliance[1])
+    elif e.mount_compliance:
+        put("cmount", e.mount_compliance)
     if any(drift):
         for k, x in zip("xyz", drift):
             put(f"drift_{k}", x)
@@ -272,3 +287,25 @@ def test_what_the_first_order_leaves_is_the_truths_equilibrium(arm, sag, tmp_pat
         assert said and warned and "joint 2 sags up to" in said[0], said
     else:
         assert miss < 1e-6 and not said and not warned
+
+
+@pytest.mark.parametrize("arm", ["arm4 (MDH, no beta)", "arm5 (DH, beta on 3)"])
+def test_a_tilted_mount_turns_the_probe_as_the_truth(arm, tmp_path):
+    """The base's tilt on its mount turns the measured orientation as well as the point."""
+    doc = ARMS[arm]
+    rng = np.random.default_rng(9)
+    q = sample(TrueRobot(Arm.from_dict(doc)), 30, rng)
+    eff = Effects(mount_compliance=1e-3 / torque_scale(Arm.from_dict(doc), q)[1])
+    true = TrueRobot.draw(Arm.from_dict(doc), eff, rng)
+    s = Session(base_xyz=(1.5, -0.5, 0.3), base_rpy=(0.1, -0.2, 0.7), mount_rpy=(0.2, -0.1, 1.5))
+    data = read(measure(true, q, rng, session=s, noise=0.0, orientation_noise=0.0), tmp_path, true.arm.n)
+    model = package_model(robot_from_dict(doc), "kinematic+mount_compliance+tool_orientation", eff)
+    v = values(model, true, mount=s.mount_rpy)
+    b0 = pose_to_base0(base_pose_matrix(s.base_xyz, s.base_rpy))
+    cov = model.covariates(data)
+    assert np.abs(model.predict(data.q, v, cov, b0) - data.xyz).max() < 1e-12
+    turn = np.einsum("nji,njk->nik", data.rotations, model.probe_rotation(data.q, v, cov, b0))
+    assert np.abs(turn - np.eye(3)).max() < 1e-12
+    v[model.parameters.index("cmount")] = 0.0           # without the tilt the probe is turned by it (~1 mrad)
+    turn = np.einsum("nji,njk->nik", data.rotations, model.probe_rotation(data.q, v, cov, b0))
+    assert np.abs(turn - np.eye(3)).max() > 2e-4

@@ -15,7 +15,12 @@ imports it (tests/test_import_graph.py), and it imports nothing of casadical.
     shots.write_csv("cal.csv")
 
 The conventions are stated in :mod:`truth.robot` (the arm and its drives)
-and :mod:`truth.campaign` (sessions, orientation, noise, the file).
+and :mod:`truth.campaign` (sessions, orientation, noise, the file). Besides
+the causes of casadical's diagnosis catalogue the truth makes effects
+outside it: a joint's error from another joint's reading (``coupling``,
+``cross_error``), a tipping axis (``axis_tilt``), a base tilting on a
+compliant mount (``mount_compliance``, per session too) and the tracker's
+own errors (``Session.angle_error``, ``Session.distance_scale``).
 """
 
 from .arm import Arm, FourBar, Link

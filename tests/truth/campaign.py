@@ -12,6 +12,17 @@ bad shots, and the measurement CSV of docs/formats.md section 2.
   small random rotation (its noise) about the probe's axes.
 - A bad shot is a point off by a gross error (``bad_mm``) in a random
   direction.
+- The instrument's own errors (of the tracker, not the robot), on the point
+  in the measurement frame (the tracker at its origin, its vertical axis
+  its z), before the noise: an **angular error** of its azimuth, the point
+  turned about the z axis by ``A sin(az + phi)``, ``az = atan2(y, x)`` the
+  point's azimuth as the tracker sees it (``Session.angle_error = (A,
+  phi)``, rad); a **distance scale** error, the point at ``(1 + s)`` times
+  its distance from the tracker (``Session.distance_scale = s``). The
+  measured orientation is not turned by them.
+- A session's ``mount_compliance`` (None: the robot's,
+  :class:`truth.robot.Effects`) is the compliance of the mount the robot
+  stood on then.
 """
 
 from __future__ import annotations
@@ -37,6 +48,9 @@ class Session:
     mount_rpy: tuple = (0.0, 0.0, 0.0)          # rad: the probe's frame on the flange (orientation only)
     drift: tuple = (0.0, 0.0, 0.0)              # m/s: the measurement frame translates
     t_ref: float = 0.0                          # s: when the base pose holds
+    mount_compliance: float | tuple | None = None   # rad/(N m): the mount's in this session (None: the robot's)
+    angle_error: tuple = (0.0, 0.0)             # (A, phi) rad: the tracker's azimuth error A sin(az + phi)
+    distance_scale: float = 0.0                 # s: the tracker measures (1 + s) times the distance
 
     def base(self) -> np.ndarray:
         return tf.pose(self.base_xyz, self.base_rpy)[0]
@@ -118,12 +132,14 @@ def measure(robot: TrueRobot, q: np.ndarray, rng: np.random.Generator | None = N
     if any(session.drift) and "time_s" not in cols:
         raise ValueError("a drift needs the rows' times (time_s)")
     temp = cols.get("temperature_c")
-    state = robot.state(q, cols.get("payload_kg"), temp, last_moves(q) if moves is None else moves)
+    state = robot.state(q, cols.get("payload_kg"), temp, last_moves(q) if moves is None else moves,
+                        mount=session.mount_compliance)
     point = robot.tool_point(state, temp, np.asarray(session.tool_shift, float))
     B = session.base()
     xyz = point @ B[:3, :3].T + B[:3, 3]
     if any(session.drift):
         xyz = xyz + np.outer(cols["time_s"] - session.t_ref, session.drift)
+    xyz = instrument(xyz, session)
     xyz = xyz + rng.normal(0.0, noise, (N, 3))
     R = None
     if orientation_noise is not None:
@@ -135,6 +151,19 @@ def measure(robot: TrueRobot, q: np.ndarray, rng: np.random.Generator | None = N
         u = rng.normal(size=(len(rows), 3))
         xyz[rows] += bad_mm / 1000 * u / np.linalg.norm(u, axis=1)[:, None]
     return Shots(q, xyz, R, cols, [session.name] * N, np.sort(rows))
+
+
+def instrument(xyz: np.ndarray, session: Session) -> np.ndarray:
+    """What the tracker reads for the points ``xyz`` (measurement frame, (N, 3)): its azimuth error turns them
+    about its vertical axis by ``A sin(az + phi)``, its distance scale stretches them by ``1 + s``."""
+    A, phi = session.angle_error
+    if A:
+        w = A * np.sin(np.arctan2(xyz[:, 1], xyz[:, 0]) + phi)
+        c, s = np.cos(w), np.sin(w)
+        xyz = np.column_stack([c * xyz[:, 0] - s * xyz[:, 1], s * xyz[:, 0] + c * xyz[:, 1], xyz[:, 2]])
+    if session.distance_scale:
+        xyz = (1 + session.distance_scale) * xyz
+    return xyz
 
 
 def sample(robot: TrueRobot, n: int, rng: np.random.Generator, floor_z: float | None = 0.0,

@@ -39,6 +39,38 @@ docs/formats.md section 1), not from casadical's terms:
 - **Thermal expansion**: every length (links' a, b, d, the tool, the loop)
   times ``1 + alpha (T - t_ref)``; per link: that row's a, b and d times ``1
   + alpha_j (T - t_ref)``. Centres of mass do not move.
+
+Effects outside casadical's diagnosis catalogue (what the hidden-effect
+matrix hides so that the diagnosis must say "unexplained", or what the
+new terms of casadical/terms must find):
+
+- **Joint coupling** (the gear coupling of a wrist: one drive's motion
+  turns the next joint's gears): ``e_j += c_jk q_k``, joint k's *reading*
+  (``Effects.coupling[(j, k)] = c_jk``, rad/rad).
+- **Another joint's reading, any function**: ``e_j += f(q_k)``
+  (``Effects.cross_error[(j, k)] = f``); ``reading_error`` is a function of
+  the joint's own reading.
+- **Axis tilt** (a wobbling bearing): the link turning about joint j turns
+  also about its own x axis by ``w = a sin(c_j) + b cos(c_j)``, c_j joint
+  j's chain angle (its reading plus its errors, theta not included): the
+  link transform becomes ``... Rz(c_j + theta_j) Rx(w) ...`` (the rest of
+  the row after it: mdh ``Tz(d)``, dh ``Tz(d) Tx(a) Rx(alpha) Ry(beta)
+  Ty(b)``). Not an angle error: the axis itself tips
+  (``Effects.axis_tilt[j] = (a, b)``, rad).
+- **Mount compliance**: the robot's base frame tilts on its mount (a
+  pedestal, a column, a track's carriage) under the moment of the weights
+  ``M = sum_i c_i x (m_i g)`` of every link and the payload about the base
+  frame's origin (the mount point; ``g`` the robot file's gravity in the
+  base frame, the centres of the deflected arm). The tilt is the rotation
+  by the vector ``theta = C M`` (one compliance ``C`` >= 0, rad/(N m); or
+  ``(Cx, Cy)``: ``theta = (Cx M_x, Cy M_y, 0)``, for a robot standing on its
+  base), about the base frame's origin, before joint 1: every frame of the
+  arm, the tool point and the flange's orientation turn with it. The arm
+  tilts *towards* its weights (a weight at +x: ``M_y > 0``, Ry turns +x
+  down). ``Effects.mount_compliance``; a session may have its own
+  (``Session.mount_compliance``: the column's height differs). The
+  torques are those of the untilted arm (the tilt changes gravity's
+  direction in the arm by theta, 1e-4: second order).
 """
 
 from __future__ import annotations
@@ -68,6 +100,14 @@ class Effects:
     t_ref: float = 20.0                                                # deg C at which the geometry holds
     #: an angle error of joint j as any function of its reading (rad -> rad): structure in no catalogue
     reading_error: dict[int, Callable] = field(default_factory=dict)
+    #: e_j += c_jk q_k by (j, k): joint j's drive turned by joint k's reading (rad/rad)
+    coupling: dict[tuple[int, int], float] = field(default_factory=dict)
+    #: e_j += f(q_k) by (j, k): joint j's error as any function of joint k's reading (rad -> rad)
+    cross_error: dict[tuple[int, int], Callable] = field(default_factory=dict)
+    #: (a, b) rad by joint: the link after joint j turns about its x axis by a sin(c_j) + b cos(c_j)
+    axis_tilt: dict[int, tuple[float, float]] = field(default_factory=dict)
+    #: rad/(N m): the base tilts by C M (one C) or (Cx M_x, Cy M_y, 0) (a pair)
+    mount_compliance: float | tuple[float, float] = 0.0
 
 
 @dataclass
@@ -103,6 +143,8 @@ class State:
     flange: np.ndarray         # (N, 4, 4) last link frame
     torque: np.ndarray         # (N, n) gravity torque about each joint's axis (chain)
     drive_torque: np.ndarray   # (N, n) what each drive carries
+    moment: np.ndarray | None = None   # (N, 3) moment of every weight about the base frame's origin (N m)
+    tilt: np.ndarray | None = None     # (N, 3) rotation vector of the base on its mount (rad), None: none
 
 
 def last_moves(q: np.ndarray) -> np.ndarray:
@@ -206,15 +248,19 @@ class TrueRobot:
         links, axes, origins = [], [], []
         for i in range(n):
             alpha, a, beta, b, d, theta = (geo[k][:, i] for k in ("alpha", "a", "beta", "b", "d", "theta"))
+            turn = tf.rot("z", chain[:, i] + theta)
+            if i + 1 in self.effects.axis_tilt:       # the bearing wobbles: the link tips about its x axis
+                ta, tb = self.effects.axis_tilt[i + 1]
+                turn = tf.chain(turn, tf.rot("x", ta * np.sin(chain[:, i]) + tb * np.cos(chain[:, i])))
             if arm.convention == "mdh":
                 T = tf.chain(T, tf.rot("x", alpha), tf.trans(a), tf.rot("y", beta), tf.trans(0.0, b))
                 axes.append(T[:, :3, 2])
                 origins.append(T[:, :3, 3])
-                T = tf.chain(T, tf.rot("z", chain[:, i] + theta), tf.trans(0.0, 0.0, d))
+                T = tf.chain(T, turn, tf.trans(0.0, 0.0, d))
             else:
                 axes.append(T[:, :3, 2])
                 origins.append(T[:, :3, 3])
-                T = tf.chain(T, tf.rot("z", chain[:, i] + theta), tf.trans(0.0, 0.0, d), tf.trans(a),
+                T = tf.chain(T, turn, tf.trans(0.0, 0.0, d), tf.trans(a),
                              tf.rot("x", alpha), tf.rot("y", beta), tf.trans(0.0, b))
             links.append(T)
         links = np.stack(links, axis=1)
@@ -230,7 +276,10 @@ class TrueRobot:
             for c, mass in zip(centres[i:], masses[i:]):
                 moment += np.cross(c - origins[:, i], mass[:, None] * arm.gravity)
             torque[:, i] = np.einsum("nk,nk->n", axes[:, i], moment)
-        return State(np.zeros((N, n)), chain, links, axes, origins, T, torque, torque)
+        mount = np.zeros((N, 3))
+        for c, mass in zip(centres, masses):
+            mount += np.cross(c, mass[:, None] * arm.gravity)
+        return State(np.zeros((N, n)), chain, links, axes, origins, T, torque, torque, mount)
 
     # --- the drives ---------------------------------------------------------------------
 
@@ -247,6 +296,10 @@ class TrueRobot:
             e[:, j - 1] -= b * moves[:, j - 1]
         for j, f in eff.reading_error.items():
             e[:, j - 1] += f(q[:, j - 1])
+        for (j, k), c in eff.coupling.items():
+            e[:, j - 1] += c * q[:, k - 1]
+        for (j, k), f in eff.cross_error.items():
+            e[:, j - 1] += f(q[:, k - 1])
         return e
 
     def load_errors(self, tau: np.ndarray) -> np.ndarray:
@@ -263,12 +316,13 @@ class TrueRobot:
         return e
 
     def state(self, q: np.ndarray, payload=None, temperature=None, moves: np.ndarray | None = None,
-              iterations: int = 50) -> State:
+              iterations: int = 50, mount=None) -> State:
         """The arm at readings ``q`` (rad, (N, n)) in equilibrium under gravity.
 
         ``payload``: kg per pose (default the robot file's); ``temperature``: deg C per pose (default: the
         reference, no growth); ``moves``: the sign of each joint's last move (default: :func:`last_moves` of
-        ``q`` in row order).
+        ``q`` in row order); ``mount``: the mount's compliance (as ``Effects.mount_compliance``; default the
+        robot's).
         """
         q = np.atleast_2d(np.asarray(q, float))
         N = len(q)
@@ -287,7 +341,8 @@ class TrueRobot:
             if done:
                 break
         s = self.frames(self.chain_angles(m, geo), geo, payload)
-        return replace(s, drive=m, drive_torque=np.einsum("nij,ni->nj", self.chain_jacobian(m, geo), s.torque))
+        s = replace(s, drive=m, drive_torque=np.einsum("nij,ni->nj", self.chain_jacobian(m, geo), s.torque))
+        return tilted(s, self.effects.mount_compliance if mount is None else mount)
 
     def tool_point(self, state: State, temperature=None, shift=np.zeros(3)) -> np.ndarray:
         """The measured point (robot base frame, (N, 3)): the tool point (grown with the temperature) plus the
@@ -296,6 +351,29 @@ class TrueRobot:
         geo = self.geometry_at(None if temperature is None else np.broadcast_to(temperature, (N,)), N)
         p = geo["tool"] + shift
         return np.einsum("nij,nj->ni", state.flange[:, :3, :3], p) + state.flange[:, :3, 3]
+
+
+def tilted(s: State, compliance) -> State:
+    """``s`` with the base tilted on its mount: every frame turned about the base frame's origin by the rotation
+    vector ``C M`` (or ``(Cx M_x, Cy M_y, 0)``); unchanged for a zero compliance."""
+    C = np.broadcast_to(np.asarray(compliance, float), (2,)) if np.ndim(compliance) else None
+    if C is None:
+        if compliance == 0:
+            return s
+        theta = compliance * s.moment
+    else:
+        if not C.any():
+            return s
+        theta = np.column_stack([C[0] * s.moment[:, 0], C[1] * s.moment[:, 1], np.zeros(len(s.moment))])
+    R = tf.rotation_vector_to_matrix(theta)
+    links = s.links.copy()
+    links[:, :, :3, :3] = np.einsum("nij,nkjl->nkil", R, s.links[:, :, :3, :3])
+    links[:, :, :3, 3] = np.einsum("nij,nkj->nki", R, s.links[:, :, :3, 3])
+    flange = s.flange.copy()
+    flange[:, :3, :3] = R @ s.flange[:, :3, :3]
+    flange[:, :3, 3] = np.einsum("nij,nj->ni", R, s.flange[:, :3, 3])
+    return replace(s, links=links, flange=flange, axes=np.einsum("nij,nkj->nki", R, s.axes),
+                   origins=np.einsum("nij,nkj->nki", R, s.origins), tilt=theta)
 
 
 def four_bar(link_dir, crank_dir, ground, crank, coupler, rocker) -> np.ndarray:

@@ -1,0 +1,142 @@
+"""Stage ``drop_stand_ins``: a cause is named only where it explains the structure it stands for.
+
+A catalogue cause fitted to structure that lives elsewhere lowers the error too: a joint's encoder scale
+takes part of another joint's angle error that grows with this joint's reading; a compliance and a first
+harmonic take part of an angle error quadratic in the reading; a first harmonic of joint 1 takes the
+instrument's azimuth error. Naming such a stand-in is worse than naming nothing: an engineer acts on it. So
+every joint cause the search accepted is asked, in the final model of the named causes, with its parameters
+switched off (linearised at the fit) and a flexible term of the structure screen (:mod:`.structure`) beside
+it, three questions (each test at the diagnosis' level):
+
+1. **Where does the structure it took live?** The strongest pair of covariate and effect in that residual.
+   Where it is another pair than the cause's own shape (its joint's angle against its own variable: the
+   reading for a scale or a gear error, the gravity torque for a compliance or a play), and that pair explains
+   more than a flexible term of the cause's own shape does (where the two variables are nearly functions of
+   each other, a parallelogram arm's torque of joint 2 and its reading, the data cannot tell them apart and
+   the physical cause stands), the cause must still be significant beside a flexible term of that pair.
+2. **Does it follow its own variable?** Where the strongest pair is its own shape, a gear error or a play
+   must add something beside a flexible term of its variable, or that term must leave nothing beside it (a
+   fourth harmonic standing for an error quadratic in the reading does neither). A compliance or a scale is
+   the first-order part of any structure of its own variable and is not asked.
+3. **On one session, can it be told from the instrument?** The instrument's own errors (its azimuth,
+   elevation, distance) move the point as the robot's joints do; a cause that explains nothing beside a
+   flexible term of one of them, where that term is significant, cannot be told from it on these data.
+
+A cause that fails is only the closest catalogue approximation of that structure: it is dropped, the model
+refitted without it, and the check runs again; a note says what it approximated and why. The structure screen
+then reports the structure itself, with its size.
+
+Reads and sets ``current`` and ``accepted``; drops the findings of the stand-ins and excludes them from the
+search.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..result import CalibrationResult
+from .candidates import Candidate, compose_spec
+from .redundancy import own_parameters
+from .state import DiagnosisRun
+from .statistics import NestedTest, nested_test
+from .structure import INSTRUMENT, Found, StructureScreen, _weighted, describe_pair
+from .validation import Linearized
+
+#: a joint cause's own variable: its joint's reading or its gravity torque
+OWN_VARIABLE = {"joint_compliance": "tau", "nonlinear_stiffness": "tau", "backlash": "tau",
+                "encoder_scale": "q", "joint_periodic": "q"}
+#: causes that are the first-order part of any structure of their own variable
+FIRST_ORDER = ("joint_compliance", "nonlinear_stiffness", "encoder_scale")
+
+
+def stands_in(current: CalibrationResult, accepted: list[Candidate], cand: Candidate, scr: StructureScreen,
+              alpha: float) -> tuple[Found, str] | None:
+    """The structure ``cand`` only approximates in ``current`` and why (see the module), or None."""
+    if cand.cause not in OWN_VARIABLE or cand.joint is None or cand.session is not None:
+        return None
+    lin = Linearized.of(current, scr.cal)
+    cols = [lin.names.index(n) for n in own_parameters(cand, accepted) if n in lin.names]
+    if not cols:
+        return None
+    keep = [k for k in range(lin.J.shape[2]) if k not in cols]
+    values = np.array([current.parameters[lin.names[k]].value / lin.scale[k] for k in cols])
+    r0 = lin.r - lin.J[:, :, cols] @ values       # the cause switched off
+    sw = np.sqrt(np.repeat(lin.weights, 3))
+    ask = _Questions(r0.ravel() * sw, sw, lin.J[:, :, keep], lin.J[:, :, cols], math.log10(alpha))
+    own = (f"{OWN_VARIABLE[cand.cause]}{cand.joint}", "angle", cand.joint)
+    flexible = scr.columns(*own)
+    found = scr.strongest(ask.rest, r0, lin.weights)
+    if found is not None and (found.covariate, found.effect, found.joint) != own:
+        # 1. the structure lives elsewhere, beyond what its own shape can take: does the cause add anything?
+        if ask.significant(ask.beside(flexible, found.X)):
+            test = ask.beside(found.X, ask.mine)
+            if not ask.significant(test):
+                return found, f"beside a flexible term of that structure it explains nothing more ({test.text()})"
+    elif found is not None and cand.cause not in FIRST_ORDER:
+        # 2. structure of its own variable: does the cause follow it?
+        left = ask.beside(ask.mine, flexible)
+        adds = ask.beside(flexible, ask.mine)
+        if ask.significant(left) and not ask.significant(adds):
+            return found, (f"a flexible term of its own variable takes what it does and more ({left.text()}); "
+                           f"beside that term it explains nothing more ({adds.text()})")
+    if scr.cal.sessions is None:
+        # 3. one session: can it be told from the instrument's own error?
+        for pair in (p for p in scr.tried if p[0] in INSTRUMENT):
+            X = scr.columns(*pair)
+            alone, test = ask.beside(None, X), ask.beside(X, ask.mine)
+            if ask.significant(alone) and not ask.significant(test):
+                return Found(*pair, X, alone.log10_p, alone.text(), 0.0), (
+                    f"on one session it cannot be told from the instrument's own error ({alone.text()}): beside it "
+                    f"it explains nothing more ({test.text()})")
+    return None
+
+
+@dataclass
+class _Questions:
+    """F-tests on the residual ``rw`` (weighted, the cause switched off) of columns beside the model's other
+    parameters (``rest``) and more: ``mine``, the cause's own columns."""
+
+    rw: np.ndarray
+    sw: np.ndarray
+    rest: np.ndarray
+    mine: np.ndarray
+    level: float
+
+    def significant(self, test: NestedTest) -> bool:
+        return test.log10_p < self.level and test.delta_bic < 0
+
+    def beside(self, more: np.ndarray | None, extra: np.ndarray) -> NestedTest:
+        """The test of ``extra`` beside the rest of the model and ``more`` ((N, 3, k) each)."""
+        base = self.rest if more is None else np.concatenate([self.rest, more], axis=2)
+        A0 = _weighted(base, self.sw)
+        A1 = np.hstack([A0, _weighted(extra, self.sw)])
+        ssr = [float(np.sum((self.rw - A @ np.linalg.lstsq(A, self.rw, rcond=None)[0]) ** 2)) for A in (A0, A1)]
+        k = int(np.linalg.matrix_rank(A1)) - int(np.linalg.matrix_rank(A0))
+        return nested_test(ssr[0], A0.shape[1], ssr[1], A0.shape[1] + max(k, 1), len(self.rw))
+
+
+def drop_stand_ins(run: DiagnosisRun) -> None:
+    if not run.s.structure or not run.accepted:
+        return
+    run.say("final check: does every named cause explain the structure it stands for?")
+    while run.accepted:
+        scr = StructureScreen(run.current, run.cal, run.torques(run.current), run.s.alpha, run.s.seed)
+        hit = next(((c, h) for c in run.accepted
+                    if (h := stands_in(run.current, run.accepted, c, scr, run.s.alpha)) is not None), None)
+        if hit is None:
+            break
+        cand, (found, why) = hit
+        rest = [a for a in run.accepted if a != cand]
+        run.drop_finding(cand)
+        run.unexplained.excluded_causes.add(cand)
+        where = describe_pair(found.covariate, found.effect, found.joint)
+        run.notes.append(f"{cand.label()} was dropped at the end: it is only the closest catalogue approximation of "
+                         f"structure it does not explain ({where}; p = {10 ** found.log10_p:.2g}): {why}; the "
+                         "structure screen reports that structure and its size")
+        run.say(f"  dropped {cand.label()}: the closest catalogue approximation of structure it does not explain "
+                f"({where})")
+        run.current = run.fit(compose_spec(rest, run.geometric), start=run.current)
+        run.accepted = rest

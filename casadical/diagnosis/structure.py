@@ -1,0 +1,418 @@
+"""Stage ``screen_structure``: what the model of the named causes leaves, and where it lives.
+
+The catalogue never holds every cause a robot has. After the named causes, what the model leaves on the
+calibration poses is tested against what an error can vary with (the **covariates**: every joint's reading
+``qK``, every joint's gravity torque ``tauK``, the pose's ``time`` or order, and where the point stands for the
+instrument: ``azimuth``, ``elevation``, ``distance``), in each way an error can show (the **effects**: a
+joint's ``angle``; the point moving in the robot's base frame, ``point_base``; the point moving in the
+measurement frame, ``point_measurement``). Each pair is a flexible smooth term: Legendre polynomials of degree
+1 to :data:`DEGREE` of the covariate scaled to [-1, 1], times the effect's directions (a joint's angle: the
+point's derivative w.r.t. its reading; a frame: its three axes). The model's own parameters are refitted
+beside it (linearised at the final fit, robust weights), so structure the model can already take counts for
+nothing.
+
+A pair is structure when both hold on the calibration poses:
+
+- an F-test of its columns at the diagnosis' level divided among every pair tried (Bonferroni), and
+- held-out gain: on random folds of the calibration poses, the model with the term predicts the left-out
+  poses better than the model without it, for most of the poses (a paired sign test at the same level).
+
+The strongest pair is kept, its columns join the model, and the rest are tested again (up to
+:data:`MAX_STRUCTURES`). Each becomes an ``unexplained`` finding (not in the model) that says where it lives
+in words, with its ``covariate``, ``effect``, ``p_value``, its size on the validation poses (``size_mm``:
+the mean norm of the term fitted on the calibration poses, judge only) and what the flexible term would gain
+there (``potential_gain_mm``). The validation poses never decide.
+
+Reads ``current`` (the model of the named causes), the folds and the level; adds the findings.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import casadi as ca
+import numpy as np
+from numpy.polynomial import legendre
+
+from ..data import Measurements
+from ..model.kinematics import Geometry, chain_angles, forward, mount_moment
+from ..result import CalibrationResult
+from ..terms.mount_compliance import max_mount_moment
+from .candidates import Candidate
+from .report import Finding
+from .state import DiagnosisRun
+from .statistics import nested_test
+from .validation import Linearized
+
+#: highest degree of the Legendre basis of a covariate
+DEGREE = 4
+#: at most this many structures are reported
+MAX_STRUCTURES = 3
+#: random folds of the held-out check
+FOLDS = 5
+#: where the point stands for the instrument
+INSTRUMENT = ("azimuth", "elevation", "distance")
+
+
+@dataclass
+class Structure:
+    """One structure the model leaves: what it varies with, how it shows, its test and sizes."""
+
+    covariate: str
+    effect: str
+    joint: int | None            # the joint whose angle it moves (effect ``angle``)
+    log10_p: float
+    test_text: str
+    size_mm: float               # mean norm of the fitted term on the validation poses
+    potential_gain_mm: float     # validation mean without it minus with it
+    held_out_share: float        # share of left-out calibration poses it predicts better
+    misses: np.ndarray = field(default_factory=lambda: np.zeros(0, int))   # set-aside poses it accounts for
+
+    def words(self) -> str:
+        """Where it lives, in words an engineer reads."""
+        return describe_pair(self.covariate, self.effect, self.joint)
+
+    def to_dict(self) -> dict:
+        return {"covariate": self.covariate, "effect": self.effect, "p_value": 10 ** self.log10_p,
+                "size_mm": self.size_mm, "potential_gain_mm": self.potential_gain_mm}
+
+
+def describe_pair(covariate: str, effect: str, joint: int | None) -> str:
+    """A pair of covariate and effect in words an engineer reads."""
+    cov = _covariate_words(covariate)
+    if effect == "angle":
+        own = covariate == f"q{joint}"
+        return (f"joint {joint}'s angle error varies with "
+                + ("its own reading (not as any catalogue cause of that joint)" if own else cov))
+    if effect == "tilt":
+        if joint is None:
+            return f"the robot's base tilts with {cov}"
+        return f"joint {joint}'s axis tilts " + ("as it turns" if covariate == f"q{joint}" else f"with {cov}")
+    if effect == "point_base":
+        return f"the point moves in the robot's base frame with {cov}"
+    text = f"the point moves in the measurement frame with {cov}"
+    if covariate in INSTRUMENT:
+        text += ": the instrument's own error or the robot's, only another session (the instrument placed " \
+                "elsewhere) can tell"
+    return text
+
+
+def _covariate_words(cov: str) -> str:
+    if cov.startswith("q"):
+        return f"joint {cov[1:]}'s reading"
+    if cov.startswith("tau"):
+        return f"joint {cov[3:]}'s gravity torque"
+    if cov == "moment":
+        return "the moment of the weights about the base"
+    if cov == "time":
+        return "the time of the pose (its order in the measurements)"
+    return f"the point's {cov} as the instrument sees it"
+
+
+def _direction_key(cov: str, effect: str, joint: int | None):
+    """The key of an effect's directions: the instrument's own errors move the point as their covariate says."""
+    if effect == "point_measurement" and cov in INSTRUMENT:
+        return effect, cov
+    return effect, joint
+
+
+def _range(v: np.ndarray):
+    """A covariate's range on the calibration poses (per component for the moment)."""
+    if v.ndim == 2:
+        return [(float(np.min(v[:, k])), float(np.max(v[:, k]))) for k in range(v.shape[1])]
+    return float(np.min(v)), float(np.max(v))
+
+
+def _basis(x: np.ndarray, ref: tuple[float, float]) -> np.ndarray:
+    """Legendre polynomials of degree 1..DEGREE of ``x`` scaled by ``ref`` (lo, hi) to [-1, 1]: (N, DEGREE)."""
+    lo, hi = ref
+    t = np.clip(2 * (x - lo) / (hi - lo) - 1, -1.5, 1.5) if hi > lo else np.zeros_like(x)
+    return legendre.legvander(t, DEGREE)[:, 1:]
+
+
+def _has_masses(robot) -> bool:
+    return max_mount_moment(robot) > 0
+
+
+def _frames_function(robot) -> ca.Function:
+    """Readings and payload -> the moment of the weights about the base (3), then for each joint its axis (3),
+    a point on it (3) and the x axis of the link after it (3), and the tool point (3); robot base frame, nominal
+    geometry (a covariate and a direction need no calibrated millimetres)."""
+    q, m = ca.SX.sym("q", robot.n), ca.SX.sym("m")
+    geom = Geometry.nominal(robot)
+    fr = forward(robot, chain_angles(robot, q, geom), geom)
+    outs = [mount_moment(robot, fr, m)] if _has_masses(robot) else [ca.SX.zeros(3, 1)]
+    for i in range(robot.n):
+        outs += [fr.axis[i], fr.origin[i], fr.link[i][0][:, 0]]
+    outs.append(fr.tool[1])
+    return ca.Function("structure_frames", [q, m], [ca.vertcat(*outs)])
+
+
+@dataclass
+class Poses:
+    """What the screen needs of each pose, robot base frame: the moment of the weights, the joints' axes, points
+    on them and the x axes of the links after them, the tool point; and each pose's base rotation (to the
+    measurement frame)."""
+
+    moment: np.ndarray      # (N, 3)
+    axis: np.ndarray        # (N, n, 3)
+    origin: np.ndarray      # (N, n, 3)
+    link_x: np.ndarray      # (N, n, 3)
+    point: np.ndarray       # (N, 3)
+    R: np.ndarray           # (N, 3, 3) base -> measurement frame
+
+    @classmethod
+    def of(cls, res: CalibrationResult, data: Measurements) -> "Poses":
+        robot, N = res.model.robot, len(data)
+        payload = data.get("payload_kg")
+        m = np.full(N, robot.payload_mass) if payload is None else np.asarray(payload, float)
+        out = np.array(_frames_function(robot).map(N)(data.q.T, m[None, :])).T
+        n = robot.n
+        per_joint = out[:, 3:3 + 9 * n].reshape(N, n, 3, 3)
+        if data.sessions is None:
+            R = np.broadcast_to(res.base_matrix()[:3, :3], (N, 3, 3)).copy()
+        else:
+            R = np.empty((N, 3, 3))
+            for s in data.session_names:
+                R[data.sessions == s] = res.base_matrix(s)[:3, :3]
+        return cls(out[:, :3], per_joint[:, :, 0], per_joint[:, :, 1], per_joint[:, :, 2], out[:, -3:], R)
+
+
+def covariates(res: CalibrationResult, data: Measurements, torques: np.ndarray, poses: Poses
+               ) -> dict[str, np.ndarray]:
+    """Every covariate of the screen at ``data``'s poses (rad, N m, s, m); ``moment`` is (N, 2): about the base
+    frame's x and y axes."""
+    out = {f"q{j + 1}": data.q[:, j] for j in range(data.q.shape[1])}
+    out.update({f"tau{j + 1}": torques[:, j] for j in range(torques.shape[1])})
+    if _has_masses(res.model.robot):
+        out["moment"] = poses.moment[:, :2]
+    t = data.get("time_s")
+    out["time"] = np.asarray(t, float) if t is not None else np.arange(len(data), dtype=float)
+    x, y, z = data.xyz.T
+    out["azimuth"] = np.arctan2(y, x)
+    out["elevation"] = np.arctan2(z, np.hypot(x, y))
+    out["distance"] = np.linalg.norm(data.xyz, axis=1)
+    return out
+
+
+def directions(res: CalibrationResult, data: Measurements, poses: Poses
+               ) -> dict[tuple[str, int | None], np.ndarray]:
+    """Each effect's directions at ``data``'s poses, (N, 3, k) in the measurement frame: a joint's angle (the
+    point's derivative w.r.t. its reading); a joint's axis tilting (the point turned about the two axes across
+    the joint's axis, fixed in the link after it, through a point of the axis); the base tilting on its mount (turned
+    about the base frame's x and y axes); the robot's base frame's axes; the measurement frame's axes."""
+    m, p = res.model, res.parameters
+    _, Jq = m.predict_q_jacobian(data.q, p.values, m.covariates(data), res.base0)
+    N, n = len(data), Jq.shape[2]
+    out: dict[tuple[str, int | None], np.ndarray] = {("angle", j + 1): Jq[:, :, j:j + 1] for j in range(n)}
+    to_meas = lambda v: np.einsum("nij,nj->ni", poses.R, v)      # noqa: E731
+    for j in range(n):
+        z, o = poses.axis[:, j], poses.origin[:, j]
+        u1 = poses.link_x[:, j] - np.einsum("ni,ni->n", poses.link_x[:, j], z)[:, None] * z
+        u1 /= np.linalg.norm(u1, axis=1, keepdims=True)
+        u2 = np.cross(z, u1)
+        lever = poses.point - o
+        out[("tilt", j + 1)] = np.stack([to_meas(np.cross(u1, lever)), to_meas(np.cross(u2, lever))], axis=2)
+    ex, ey = np.eye(3)[0], np.eye(3)[1]
+    out[("tilt", None)] = np.stack([to_meas(np.cross(np.broadcast_to(ex, (N, 3)), poses.point)),
+                                    to_meas(np.cross(np.broadcast_to(ey, (N, 3)), poses.point))], axis=2)
+    out[("point_base", None)] = np.ascontiguousarray(poses.R)
+    # the instrument at the measurement frame's origin: the point moved along the frame's axes (with time), or
+    # as the instrument's own errors move it: turned about the vertical axis (azimuth), about the horizontal axis
+    # across the line of sight (elevation), along the line of sight (distance)
+    p = data.xyz
+    ez = np.broadcast_to(np.eye(3)[2], (N, 3))
+    across = np.cross(ez, p)
+    across /= np.maximum(np.linalg.norm(across, axis=1, keepdims=True), 1e-12)
+    out[("point_measurement", None)] = np.broadcast_to(np.eye(3), (N, 3, 3)).copy()
+    out[("point_measurement", "azimuth")] = np.cross(ez, p)[:, :, None]
+    out[("point_measurement", "elevation")] = np.cross(across, p)[:, :, None]
+    out[("point_measurement", "distance")] = (p / np.maximum(np.linalg.norm(p, axis=1, keepdims=True), 1e-12)
+                                              )[:, :, None]
+    return out
+
+
+def pairs(n_joints: int, moment: bool) -> list[tuple[str, str, int | None]]:
+    """Every (covariate, effect, joint) the screen tries."""
+    readings = [f"q{j}" for j in range(1, n_joints + 1)]
+    robot_cov = readings + [f"tau{j}" for j in range(1, n_joints + 1)] + ["moment"] * moment + ["time"]
+    out = [(c, "angle", j) for j in range(1, n_joints + 1) for c in robot_cov]
+    out += [(c, "tilt", j) for j in range(1, n_joints + 1) for c in readings]
+    out += [(c, "tilt", None) for c in ["moment"] * moment + ["time"]]
+    out += [(c, "point_base", None) for c in robot_cov]
+    out += [(c, "point_measurement", None) for c in ("azimuth", "elevation", "distance", "time")]
+    return out
+
+
+def _columns(cov: np.ndarray, ref, dirs: np.ndarray) -> np.ndarray:
+    """(N, 3, DEGREE * k): each basis function times each direction. A covariate of two components (the moment
+    about x and y): a tilt about the base's x (y) axis by a function of the moment about it; any other effect by
+    functions of each component."""
+    if cov.ndim == 2:
+        if dirs.shape[2] == 2:     # the base's tilt about x and about y
+            return np.concatenate([_columns(cov[:, k], ref[k], dirs[:, :, k:k + 1]) for k in (0, 1)], axis=2)
+        return np.concatenate([_columns(cov[:, k], ref[k], dirs) for k in (0, 1)], axis=2)
+    B = _basis(cov, ref)
+    return (dirs[:, :, :, None] * B[:, None, None, :]).reshape(len(cov), 3, -1)
+
+
+def _weighted(X: np.ndarray, sw: np.ndarray) -> np.ndarray:
+    return X.reshape(-1, X.shape[2]) * sw[:, None]
+
+
+def _held_out_share(J: np.ndarray, X: np.ndarray, r: np.ndarray, w: np.ndarray, folds: list[np.ndarray]
+                    ) -> tuple[float, int, int]:
+    """Left-out poses predicted better with the term than without: (share, wins, counted)."""
+    wins = counted = 0
+    for test in folds:
+        train = np.setdiff1d(np.arange(len(r)), test)
+        sw = np.sqrt(np.repeat(w[train], 3))
+        rt = r[train].ravel() * sw
+        A0 = _weighted(J[train], sw)
+        A1 = np.hstack([A0, _weighted(X[train], sw)])
+        x0 = np.linalg.lstsq(A0, rt, rcond=None)[0]
+        x1 = np.linalg.lstsq(A1, rt, rcond=None)[0]
+        e0 = np.linalg.norm(r[test] - J[test] @ x0, axis=1)
+        e1 = np.linalg.norm(r[test] - np.concatenate([J[test], X[test]], axis=2) @ x1, axis=1)
+        keep = w[test] >= 0.5
+        wins += int(np.sum((e1 < e0) & keep))
+        counted += int(np.sum(keep))
+    return (wins / counted if counted else 0.0), wins, counted
+
+
+def _sign_log10_p(wins: int, n: int) -> float:
+    """log10 of the one-sided sign test's p-value of ``wins`` of ``n`` (normal approximation)."""
+    if n == 0:
+        return 0.0
+    z = (wins - 0.5 * n) / math.sqrt(0.25 * n)
+    return math.log10(max(0.5 * math.erfc(z / math.sqrt(2)), 1e-300))
+
+
+@dataclass
+class Found:
+    """The strongest structure of a residual: its pair, its columns on the calibration poses, its test."""
+
+    covariate: str
+    effect: str
+    joint: int | None
+    X: np.ndarray
+    log10_p: float
+    test_text: str
+    held_out_share: float
+
+
+class StructureScreen:
+    """The structure screen of one fit on the calibration poses: its covariates, effects' directions, folds."""
+
+    def __init__(self, res: CalibrationResult, cal: Measurements, torques: np.ndarray, alpha: float,
+                 seed: int = 0):
+        self.res, self.cal = res, cal
+        self.poses = Poses.of(res, cal)
+        self.cov = covariates(res, cal, torques, self.poses)
+        self.dirs = directions(res, cal, self.poses)
+        self.refs = {k: (_range(v)) for k, v in self.cov.items()}
+        self.tried = pairs(cal.q.shape[1], "moment" in self.cov)
+        self.level = math.log10(alpha / len(self.tried))
+        self.folds = np.array_split(np.random.default_rng(seed).permutation(len(cal)), FOLDS)
+
+    def columns(self, cov: str, effect: str, joint: int | None) -> np.ndarray:
+        return _columns(self.cov[cov], self.refs[cov], self.dirs[_direction_key(cov, effect, joint)])
+
+    def strongest(self, base: np.ndarray, r: np.ndarray, w: np.ndarray, skip=(), only=None) -> Found | None:
+        """The pair that explains most of ``r`` beside the columns ``base`` (N, 3, p) at weights ``w``, if it is
+        significant at the level and predicts left-out poses better (see the module); ``skip``: pairs not to
+        try; ``only``: the pairs to try (default: every pair)."""
+        sw = np.sqrt(np.repeat(w, 3))
+        Q, _ = np.linalg.qr(_weighted(base, sw))
+        rw = r.ravel() * sw
+        r0 = rw - Q @ (Q.T @ rw)
+        ssr0 = float(r0 @ r0)
+        scored = []
+        for pair in self.tried if only is None else only:
+            if pair in skip:
+                continue
+            X = self.columns(*pair)
+            Xw = _weighted(X, sw)
+            Xw = Xw - Q @ (Q.T @ Xw)
+            k = int(np.linalg.matrix_rank(Xw, tol=1e-10 * max(np.abs(Xw).max(), 1e-300)))
+            if k == 0:
+                continue
+            coef, *_ = np.linalg.lstsq(Xw, r0, rcond=None)
+            ssr1 = float(np.sum((r0 - Xw @ coef) ** 2))
+            test = nested_test(ssr0, base.shape[2], ssr1, base.shape[2] + k, len(rw))
+            scored.append((test.log10_p, pair, X, test))
+        scored.sort(key=lambda t: t[0])
+        for log10_p, (cov, effect, joint), X, test in scored:
+            if log10_p >= self.level or test.delta_bic >= 0:
+                return None
+            share, wins, counted = _held_out_share(base, X, r, w, self.folds)
+            if share > 0.5 and _sign_log10_p(wins, counted) < self.level:
+                return Found(cov, effect, joint, X, log10_p, test.text(), share)
+        return None
+
+
+def screen(res: CalibrationResult, cal: Measurements, val: Measurements, cal_torques: np.ndarray,
+           val_torques: np.ndarray, alpha: float, seed: int = 0) -> list[Structure]:
+    """The structures ``res`` leaves on ``cal`` (see the module), strongest first."""
+    lin = Linearized.of(res, cal)
+    scr = StructureScreen(res, cal, cal_torques, alpha, seed)
+    r, w = lin.r, lin.weights
+    sw = np.sqrt(np.repeat(w, 3))
+    lin_v = dir_v = base_v = cov_v = None
+    found: list[Structure] = []
+    base = lin.J
+    while len(found) < MAX_STRUCTURES:
+        s = scr.strongest(base, r, w, skip={(f.covariate, f.effect, f.joint) for f in found})
+        if s is None:
+            break
+        # the term fitted with the model's parameters on the calibration poses, taken to the validation poses
+        # (the parameters refitted beside it: the term alone is not what it changes where it is confounded)
+        base = np.concatenate([base, s.X], axis=2)
+        x1 = np.linalg.lstsq(_weighted(base, sw), r.ravel() * sw, rcond=None)[0]
+        if lin_v is None:
+            poses_v = Poses.of(res, val)
+            lin_v, dir_v = Linearized.of(res, val), directions(res, val, poses_v)
+            cov_v = covariates(res, val, val_torques, poses_v)
+            base_v = lin_v.J
+        Xv = _columns(cov_v[s.covariate], scr.refs[s.covariate], dir_v[_direction_key(s.covariate, s.effect, s.joint)])
+        base_v = np.concatenate([base_v, Xv], axis=2)
+        change = base_v @ x1
+        before = np.linalg.norm(lin_v.r, axis=1)
+        after = np.linalg.norm(lin_v.r - change, axis=1)
+        # the poses the robust loss set aside that this structure (with those before it) brings back within its
+        # limit: the largest misses of the structure, not bad measurements
+        left = r - base @ x1
+        back = np.flatnonzero((w < 0.5) & (res.loss.weight(np.einsum("ij,ij->i", left, left)) >= 0.5))
+        back = np.setdiff1d(back, np.concatenate([f.misses for f in found] + [np.zeros(0, int)]))
+        found.append(Structure(s.covariate, s.effect, s.joint, s.log10_p, s.test_text,
+                               float(np.mean(np.linalg.norm(change, axis=1)) * 1000),
+                               float((before.mean() - after.mean()) * 1000), s.held_out_share, back))
+    return found
+
+
+def screen_structure(run: DiagnosisRun) -> None:
+    """Stage: screen what the model of the named causes (``current``) leaves; each structure found is an
+    ``unexplained`` finding, not in the model."""
+    if not run.s.structure:
+        return
+    res = run.current
+    run.say("structure screen: what the named causes leave, against every joint's reading and torque, time, "
+            "and the instrument's view")
+    val_torques = res.model.torques(run.val.q, res.parameters.values, res.model.covariates(run.val))
+    found = screen(res, run.cal, run.val, run.torques(res), val_torques, run.s.alpha, run.s.seed)
+    if not found:
+        run.say("  nothing the named causes leave is structure")
+    for s in found:
+        run.say(f"  {s.words()} (p = {10 ** s.log10_p:.2g}; {s.size_mm:.4f} mm on the validation poses)")
+        finding = Finding(
+            Candidate("unexplained", s.joint), 0.0,
+            f"structure no cause of the catalogue explains: {s.words()}; {s.test_text} on the calibration poses "
+            f"(a flexible term of degree {DEGREE} in the covariate, the model's parameters refitted beside it); it "
+            f"predicts {s.held_out_share:.0%} of the left-out calibration poses better; judged on the validation "
+            f"poses it is {s.size_mm:.4f} mm on average, and a flexible term would lower their mean error by "
+            f"{s.potential_gain_mm:.4f} mm",
+            in_model=False, where=s.words(), potential_gain_mm=s.potential_gain_mm,
+            structure=s.to_dict())
+        run.findings.append(finding)
+        run.structures.append((s, finding))

@@ -1,0 +1,106 @@
+"""Mount compliance: the robot's base tilts under the moment of its weights about the mount."""
+
+from __future__ import annotations
+
+import casadi as ca
+import numpy as np
+
+from ..errors import ModelError
+from ..model.parameters import Parameter
+from ..robot import GRAVITY, Robot
+from .base import Context, ErrorTerm, reach, register
+
+#: largest tilt admitted at the largest moment the robot can put on its mount (rad): half a degree is a mount
+#: coming loose, not a compliance
+MAX_TILT = 0.01
+
+
+def max_mount_moment(robot: Robot) -> float:
+    """Upper bound of the moment of the weights about the base frame's origin (N m): every mass at full reach."""
+    return GRAVITY * (sum(j.mass for j in robot.joints) + robot.payload_mass) * reach(robot, 1)
+
+
+@register
+class MountCompliance(ErrorTerm):
+    """The robot's base frame turns about its origin by ``C M`` (rad), ``M`` the moment of the weights.
+
+    A pedestal, a column or a track's carriage gives way under the moment
+    the arm's weights put on it: ``M = sum_j c_j x (m_j g)`` about the base
+    frame's origin (the mount point; every link's weight at its centre of
+    mass, the row's payload at its centre in the tool frame, the robot
+    file's gravity; the undeflected configuration, as the joints' torques).
+    The base tilts by the rotation vector ``theta = C M`` (``C`` >= 0,
+    rad/(N m)): towards the weights. The rotation is applied before joint
+    1, about the base frame's origin: the tool point and the flange's
+    orientation turn with it.
+
+    A constant tilt is a rotation of the base pose, which the calibration
+    fits anyway: only the part of the tilt that varies with the moment is
+    identifiable, from poses that swing the weights about (joint 1 turning
+    the arm's moment around, joints 2 and 3 stretching it, payloads).
+
+    Parameters
+    ----------
+    axes : {"", "xy"}
+        ``""`` (``mount_compliance``): one compliance ``cmount``, the same
+        about every horizontal axis (a round column). ``"xy"``
+        (``mount_compliance[xy]``): ``cmount_x`` and ``cmount_y`` about the
+        base frame's x and y axes, ``theta = (Cx M_x, Cy M_y, 0)`` (a track's
+        carriage, stiffer along the track); for a robot standing on (or
+        hanging from) its base, gravity along its z axis.
+
+    Raises
+    ------
+    ModelError
+        The robot file gives no masses (the moment cannot be computed).
+    """
+
+    name = "mount_compliance"
+    cause = "mount_compliance"
+    covariates = ("payload_kg",)
+
+    def __init__(self, joints=None, axes: str = ""):
+        super().__init__(None)
+        self.axes = str(axes)
+        if self.axes not in ("", "xy"):
+            raise ModelError(f"mount_compliance: axes must be '' (one compliance) or 'xy' (one about x, one about "
+                             f"y), got {axes!r}")
+
+    @classmethod
+    def arguments(cls, args: str) -> dict:
+        """``mount_compliance[xy]``: a compliance about x and one about y."""
+        if args.strip() != "xy":
+            raise ValueError("mount_compliance takes [xy] (a compliance about the base's x axis and one about its "
+                             "y axis) or nothing (one compliance)")
+        return {"axes": "xy"}
+
+    def bind(self, robot: Robot) -> None:
+        if max_mount_moment(robot) <= 0:
+            raise ModelError(f"mount_compliance: {robot.name} has no masses (mass_kg and com_m of its joints, or a "
+                             "payload, in the robot file): the moment of its weights about the mount cannot be "
+                             "computed")
+        g = np.asarray(robot.gravity, float)
+        if self.axes == "xy" and np.hypot(g[0], g[1]) > 1e-9 * np.linalg.norm(g):
+            raise ModelError(f"mount_compliance[xy]: {robot.name}'s gravity is not along its base's z axis; "
+                             "use mount_compliance (one compliance)")
+
+    def spec(self) -> str:
+        return f"{self.name}[{self.axes}]" if self.axes else self.name
+
+    def settings(self) -> dict:
+        return {"axes": self.axes}
+
+    def names(self) -> list[str]:
+        return ["cmount_x", "cmount_y"] if self.axes else ["cmount"]
+
+    def parameters(self, robot: Robot) -> list[Parameter]:
+        top = max_mount_moment(robot)
+        # a unit step of the scaled variable tilts the base 0.1 mrad at the largest moment
+        return [Parameter(n, 0.0, "rad/(N*m)", 1e-4 / top, self.name, lower=0.0, upper=MAX_TILT / top)
+                for n in self.names()]
+
+    def base_tilt(self, ctx: Context):
+        M = ctx.moment()
+        if self.axes:
+            return ca.vertcat(ctx.p["cmount_x"] * M[0], ctx.p["cmount_y"] * M[1], 0)
+        return ctx.p["cmount"] * M
