@@ -1,8 +1,8 @@
 """casadical: calibration of industrial robot arms with CasADi and IPOPT."""
 
 import typing as _typing
-from importlib import import_module as _import_module
-from importlib.util import find_spec as _find_spec
+
+from ._lazy import lazy
 
 __version__ = "0.1.0"
 
@@ -26,18 +26,4 @@ if _typing.TYPE_CHECKING:
     from .result import CalibrationResult, load_calibration
     from .robot import Robot
 else:
-    def __getattr__(name: str):
-        """A public name, or a submodule (``casadical.data.simulate`` after ``import casadical``, as before)."""
-        module = _EXPORTS.get(name)
-        if module is not None:
-            value = getattr(_import_module(f".{module}", __name__), name)
-        elif not name.startswith("_") and _find_spec(f"{__name__}.{name}") is not None:
-            value = _import_module(f".{name}", __name__)
-        else:
-            raise AttributeError(f"module 'casadical' has no attribute {name!r}")
-        globals()[name] = value
-        return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_EXPORTS})
+    __getattr__, __dir__ = lazy(__name__, globals(), _EXPORTS)

@@ -2,8 +2,8 @@
 plausibility checks of poses, and the validation of a calibration file."""
 
 import typing as _typing
-from importlib import import_module as _import_module
-from importlib.util import find_spec as _find_spec
+
+from .._lazy import lazy
 
 #: public name -> its module; imported on first use, so that importing one module of the package does not
 #: import the others (PEP 562)
@@ -14,18 +14,4 @@ __all__ = ["Measurements"]
 if _typing.TYPE_CHECKING:
     from .measurements import Measurements
 else:
-    def __getattr__(name: str):
-        """A public name, or a submodule."""
-        module = _EXPORTS.get(name)
-        if module is not None:
-            value = getattr(_import_module(f".{module}", __name__), name)
-        elif not name.startswith("_") and _find_spec(f"{__name__}.{name}") is not None:
-            value = _import_module(f".{name}", __name__)
-        else:
-            raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-        globals()[name] = value
-        return value
-
-
-def __dir__() -> list[str]:
-    return sorted({*globals(), *_EXPORTS})
+    __getattr__, __dir__ = lazy(__name__, globals(), _EXPORTS)
