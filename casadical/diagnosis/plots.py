@@ -36,6 +36,10 @@ def residual_plot(cand: Candidate, before: CalibrationResult, after: Calibration
             ylabel = f"residual along the {'drift' if cand.cause == 'drift' else 'warm-up offset'} (mm)"
         return {"x": np.asarray(x, float).tolist(), "before": ys[0].tolist(), "after": ys[1].tolist(),
                 "xlabel": xlabel, "ylabel": ylabel}
+    if cand.joint is None:      # a cause of one's own that acts on no joint: the errors before and after
+        ys = [np.linalg.norm(r.residuals(d), axis=1) * 1000 for r in (before, after)]
+        return {"x": np.asarray(d.rows, float).tolist(), "before": ys[0].tolist(), "after": ys[1].tolist(),
+                "xlabel": "row (measurement order)", "ylabel": "position error (mm)"}
     j, m, p = cand.joint, after.model, after.parameters
     cov = m.covariates(d)
     resid, directions = view() if view else joint_view(after, d)
