@@ -68,6 +68,9 @@ class Structure:
     potential_gain_mm: float     # validation mean without it minus with it
     held_out_share: float        # share of left-out calibration poses it predicts better
     misses: np.ndarray = field(default_factory=lambda: np.zeros(0, int))   # set-aside poses it accounts for
+    coefficients: np.ndarray = field(default_factory=lambda: np.zeros(0))   # of its flexible term, as fitted
+    ranges: list = field(default_factory=list)   # the covariate's range(s) on the calibration poses
+    time_name: str = "time_s"                    # the name its time covariate has in a terms file
 
     def words(self) -> str:
         """Where it lives, in words an engineer reads."""
@@ -76,6 +79,59 @@ class Structure:
     def to_dict(self) -> dict:
         return {"covariate": self.covariate, "effect": self.effect, "p_value": 10 ** self.log10_p,
                 "size_mm": self.size_mm, "potential_gain_mm": self.potential_gain_mm}
+
+    def term(self, name: str) -> dict:
+        """Its flexible term as a table of a terms file (docs/formats.md section 10): the same Legendre
+        polynomials of the covariate, scaled to its range on the calibration poses, in the effect of a cause of
+        one's own, one parameter per coefficient (``c1``, ...) starting at its fitted value. A place to start
+        from (replace it by a physical form), and what ``plan-poses REPORT.json`` plans the poses of."""
+        names = {"moment": ["mx", "my"], "time": [self.time_name]}.get(self.covariate, [self.covariate])
+        c = iter(range(1, len(self.coefficients) + 1))
+
+        def series(var: str, rng) -> str:
+            lo, hi = rng
+            t = f"(2 * ({var} - {lo:.9g}) / {hi - lo:.9g} - 1)"
+            polys = [t, f"(3 * {t} ** 2 - 1) / 2", f"(5 * {t} ** 3 - 3 * {t}) / 2",
+                     f"(35 * {t} ** 4 - 30 * {t} ** 2 + 3) / 8"][:DEGREE]
+            return " + ".join(f"c{next(c)} * {poly}" for poly in polys)
+
+        # the coefficients as _columns lays them out: for each component of the covariate (the moment's about x,
+        # then about y), direction by direction, degree by degree; the base's tilt pairs each axis with its own
+        ranges = self.ranges if len(names) > 1 else [self.ranges]
+        if self.covariate == "moment" and self.effect == "tilt":
+            per_dir = [[series(var, rng)] for var, rng in zip(names, ranges)]
+        else:
+            n_dir = len(self.coefficients) // (DEGREE * len(names))
+            per_dir = [[] for _ in range(n_dir)]
+            for var, rng in zip(names, ranges):
+                for d in range(n_dir):
+                    per_dir[d].append(series(var, rng))
+        f = ["(" + " + ".join(parts) + ")" if parts else "0" for parts in per_dir]
+        table: dict = {"name": name}
+        if self.effect == "angle":
+            table.update(joint=self.joint, angle=f[0])
+        elif self.effect == "tilt" and self.joint is not None:
+            table.update(joint=self.joint, frame=["0", "0", "0", f[0], f[1], "0"])
+        elif self.effect == "tilt":
+            table.update(base=["0", "0", "0", f[0], f[1], "0"])
+        elif self.effect == "point_base":
+            table.update(base=[f[0], f[1], f[2], "0", "0", "0"])
+        elif self.covariate == "azimuth":
+            table.update(point=[f"-{f[0]} * py", f"{f[0]} * px", "0"])
+        elif self.covariate == "elevation":
+            rho = "sqrt(px ** 2 + py ** 2)"
+            table.update(point=[f"{f[0]} * px * pz / {rho}", f"{f[0]} * py * pz / {rho}", f"-{f[0]} * {rho}"])
+        elif self.covariate == "distance":
+            table.update(point=[f"{f[0]} * px / distance", f"{f[0]} * py / distance", f"{f[0]} * pz / distance"])
+        else:
+            table.update(point=f[:3])
+        metres = self.effect in ("point_base", "point_measurement") and self.covariate not in ("azimuth",
+                                                                                                "elevation")
+        top = max(float(np.abs(self.coefficients).max(initial=0.0)), 1e-6)
+        table["parameters"] = {f"c{i + 1}": {"scale": top, "lower": -20 * top, "upper": 20 * top,
+                                             "unit": "m" if metres else "rad", "start": float(v)}
+                               for i, v in enumerate(self.coefficients)}
+        return table
 
 
 def describe_pair(covariate: str, effect: str, joint: int | None) -> str:
@@ -387,7 +443,9 @@ def screen(res: CalibrationResult, cal: Measurements, val: Measurements, cal_tor
         back = np.setdiff1d(back, np.concatenate([f.misses for f in found] + [np.zeros(0, int)]))
         found.append(Structure(s.covariate, s.effect, s.joint, s.log10_p, s.test_text,
                                float(np.mean(np.linalg.norm(change, axis=1)) * 1000),
-                               float((before.mean() - after.mean()) * 1000), s.held_out_share, back))
+                               float((before.mean() - after.mean()) * 1000), s.held_out_share, back,
+                               x1[-s.X.shape[2]:], scr.refs[s.covariate],
+                               "time_s" if cal.get("time_s") is not None else "row"))
     return found
 
 
@@ -413,6 +471,6 @@ def screen_structure(run: DiagnosisRun) -> None:
             f"poses it is {s.size_mm:.4f} mm on average, and a flexible term would lower their mean error by "
             f"{s.potential_gain_mm:.4f} mm",
             in_model=False, where=s.words(), potential_gain_mm=s.potential_gain_mm,
-            structure=s.to_dict())
+            structure={**s.to_dict(), "term": s.term(f"structure{len(run.structures) + 1}")})
         run.findings.append(finding)
         run.structures.append((s, finding))

@@ -201,9 +201,11 @@ def action(f: "Finding", report: "DiagnosisReport") -> str:
     if c.cause == "unexplained" and f.structure:
         instrument = f.structure["covariate"] in ("azimuth", "elevation", "distance")
         return (f"a cause no catalogue holds (a flexible term would give {gain_words(f.potential_gain_mm)} here): "
-                "state it as a term of your own and diagnose again (docs/guide.md, 'When the report says "
-                "unexplained')" + ("; a session with the instrument placed elsewhere tells the instrument's error "
-                                  "from the robot's" if instrument else ""))
+                "state it as a term of your own (the finding's term in the JSON report is one to start from) and "
+                "diagnose again (docs/guide.md, 'When the report says unexplained'); plan-poses REPORT.json plans "
+                "the poses that tell its form"
+                + ("; a session with the instrument placed elsewhere tells the instrument's error from the robot's"
+                   if instrument else ""))
     if c.cause == "unexplained":
         j = c.joint
         gain_here = gain_words(f.potential_gain_mm)

@@ -8,6 +8,10 @@ A diagnosis says honestly what it could not resolve (``diagnose --json``):
   the other cause; the parameters asked about: both causes'; the test
   that tells them apart: the accepted cause's parameters, with the other
   in the model;
+- **unexplained** structure the structure screen found (a finding with a
+  ``term``: its flexible term as a cause of one's own, :mod:`casadical.diagnosis.structure`).
+  Model: the final model plus that term; tested: its coefficients, at their
+  fitted values;
 - **unexplained** structure: significant structure that could not be named
   (``holds_up.structures``: a harmonic not resolved from its neighbours,
   a trend whose halves disagree, ...). Model: the final model plus the
@@ -39,6 +43,7 @@ from dataclasses import dataclass, field, replace
 
 from ..diagnosis.candidates import Candidate
 from ..errors import InputError
+from ..terms.definitions import add_known, definitions_from_list
 
 #: causes whose parameters a named finding has (not the geometry, not the GP compensator)
 _NAMED = ("joint_compliance", "nonlinear_stiffness", "joint_periodic", "encoder_scale", "backlash",
@@ -160,6 +165,15 @@ def open_questions(report: dict, final_values: dict[str, float], path: str = "")
                 add(kind, f"{text} (finding {k + 1})", [other],
                     names + [n for n in other.parameter_names() if n not in names],
                     {n: final_values[n] for n in names if n in final_values}, level, k)
+        if cause == "unexplained" and not f.get("in_model", False) and f.get("term"):
+            # structure the structure screen found: its flexible term, a cause of one's own, is the question
+            d = definitions_from_list([f["term"]], path, key=f"findings[{k}].term")[0]
+            add_known([d])
+            user = tuple(f"{d.name}.{p}" for p in d.parameter_names)
+            add("unexplained", f"{f.get('where', d.name)}: which form, and how large? (finding {k + 1})",
+                [Candidate(d.name, f.get("joint"), user=user)], list(user),
+                {f"{d.name}.{p.name}": p.start for p in d.parameters}, scan_level, k)
+            continue
         if cause == "unexplained" and not f.get("in_model", False):
             periodic_seen: set = set()
             for item in (f.get("holds_up") or {}).get("structures", []):

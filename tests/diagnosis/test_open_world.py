@@ -15,11 +15,12 @@ import warnings
 import numpy as np
 import pytest
 
+from casadical import calibrate
 from casadical.cli import main
 from casadical.data import Measurements
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.diagnosis.noise import repeated_sigma
-from casadical.terms.definitions import known_terms, read_terms_file
+from casadical.terms.definitions import definitions_from_list, known_terms, read_terms_file
 from tests.helpers import hidden
 from tests.helpers.arms import to_toml
 from tests.truth import Arm, Effects, TrueRobot, measure, sample
@@ -200,3 +201,39 @@ def test_with_a_term_of_ones_own_the_effect_is_named_and_the_noise_reached(effec
         floor = np.mean(np.linalg.norm(hidden.noise_free(c, true, val) - val.xyz, axis=1)) * 1000
         assert report.final_validation.mean_mm <= 1.3 * floor, (effect, seed, report.final_validation.mean_mm,
                                                                  floor)
+
+
+@pytest.mark.parametrize("robot,effect", [("arm4", "joint coupling"), ("arm5", "mount compliance"),
+                                          ("arm4", "axis tilt"), ("arm4", "tracker angle error")])
+def test_a_structures_term_is_a_cause_of_ones_own_that_takes_it(robot, effect):
+    """A structure finding's ``term`` (its flexible term as a table of a terms file) is a valid cause of one's
+    own: the final model calibrated with it comes within 1.3x the noise floor on the validation poses."""
+    c = hidden.case(robot, effect, 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rob, cal, val, true = hidden.make_data(c)
+        report = diagnose(rob, cal, val, DiagnosisSettings(seed=0, blackbox=False))
+        table = json.loads(json.dumps(next(f for f in report.findings if f.structure).to_dict()["term"]))
+        with known_terms(definitions_from_list([table], "report.json")):
+            fit = calibrate(rob, cal, f"{report.final_model}+{table['name']}", "lm", warn=False)
+    floor = np.mean(np.linalg.norm(hidden.noise_free(c, true, val) - val.xyz, axis=1)) * 1000
+    assert fit.stats(val).mean_mm <= 1.3 * floor < report.final_validation.mean_mm, (fit.stats(val), floor)
+
+
+def test_plan_poses_plans_for_a_structure(tmp_path, capsys):
+    """``plan-poses REPORT.json`` takes a structure finding as an open question: its term's coefficients."""
+    c = hidden.case("arm4", "joint coupling", 0)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        hidden.make_data(c, folder=tmp_path)
+    robot = tmp_path / "arm.toml"
+    robot.write_text(to_toml(hidden.robot_doc("arm4")))
+    report, cand, out = tmp_path / "report.json", tmp_path / "cand.csv", tmp_path / "next.csv"
+    assert main(["diagnose", str(robot), str(tmp_path / "cal.csv"), "--validate", str(tmp_path / "val.csv"),
+                 "--json", str(report), "--quiet"]) == 0
+    assert main(["candidates", str(robot), "-n", "300", "--out", str(cand)]) == 0
+    capsys.readouterr()
+    assert main(["plan-poses", str(report), str(cand), "-m", "8", "--out", str(out), "--quiet"]) == 0
+    text = capsys.readouterr().out
+    assert "joint 4's angle error varies with joint 3's reading: which form, and how large?" in text, text
+    assert len(out.read_text().splitlines()) == 9
