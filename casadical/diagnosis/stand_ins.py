@@ -42,7 +42,7 @@ from .candidates import Candidate, compose_spec
 from .redundancy import own_parameters
 from .state import DiagnosisRun
 from .statistics import NestedTest, nested_test
-from .structure import INSTRUMENT, Found, StructureScreen, _weighted, describe_pair
+from .structure import INSTRUMENT, Found, StructureScreen, describe_pair, weighted
 from .validation import Linearized
 
 #: a joint cause's own variable: its joint's reading or its gravity torque
@@ -111,8 +111,8 @@ class _Questions:
     def beside(self, more: np.ndarray | None, extra: np.ndarray) -> NestedTest:
         """The test of ``extra`` beside the rest of the model and ``more`` ((N, 3, k) each)."""
         base = self.rest if more is None else np.concatenate([self.rest, more], axis=2)
-        A0 = _weighted(base, self.sw)
-        A1 = np.hstack([A0, _weighted(extra, self.sw)])
+        A0 = weighted(base, self.sw)
+        A1 = np.hstack([A0, weighted(extra, self.sw)])
         ssr = [float(np.sum((self.rw - A @ np.linalg.lstsq(A, self.rw, rcond=None)[0]) ** 2)) for A in (A0, A1)]
         k = int(np.linalg.matrix_rank(A1)) - int(np.linalg.matrix_rank(A0))
         return nested_test(ssr[0], A0.shape[1], ssr[1], A0.shape[1] + max(k, 1), len(self.rw))

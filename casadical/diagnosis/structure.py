@@ -313,7 +313,8 @@ def _columns(cov: np.ndarray, ref, dirs: np.ndarray) -> np.ndarray:
     return (dirs[:, :, :, None] * B[:, None, None, :]).reshape(len(cov), 3, -1)
 
 
-def _weighted(X: np.ndarray, sw: np.ndarray) -> np.ndarray:
+def weighted(X: np.ndarray, sw: np.ndarray) -> np.ndarray:
+    """(N, 3, k) columns as the rows of a weighted least-squares problem: (3N, k), each pose by its weight."""
     return X.reshape(-1, X.shape[2]) * sw[:, None]
 
 
@@ -325,8 +326,8 @@ def _held_out_share(J: np.ndarray, X: np.ndarray, r: np.ndarray, w: np.ndarray, 
         train = np.setdiff1d(np.arange(len(r)), test)
         sw = np.sqrt(np.repeat(w[train], 3))
         rt = r[train].ravel() * sw
-        A0 = _weighted(J[train], sw)
-        A1 = np.hstack([A0, _weighted(X[train], sw)])
+        A0 = weighted(J[train], sw)
+        A1 = np.hstack([A0, weighted(X[train], sw)])
         x0 = np.linalg.lstsq(A0, rt, rcond=None)[0]
         x1 = np.linalg.lstsq(A1, rt, rcond=None)[0]
         e0 = np.linalg.norm(r[test] - J[test] @ x0, axis=1)
@@ -380,7 +381,7 @@ class StructureScreen:
         significant at the level and predicts left-out poses better (see the module); ``skip``: pairs not to
         try; ``only``: the pairs to try (default: every pair)."""
         sw = np.sqrt(np.repeat(w, 3))
-        Q, _ = np.linalg.qr(_weighted(base, sw))
+        Q, _ = np.linalg.qr(weighted(base, sw))
         rw = r.ravel() * sw
         r0 = rw - Q @ (Q.T @ rw)
         ssr0 = float(r0 @ r0)
@@ -389,7 +390,7 @@ class StructureScreen:
             if pair in skip:
                 continue
             X = self.columns(*pair)
-            Xw = _weighted(X, sw)
+            Xw = weighted(X, sw)
             Xw = Xw - Q @ (Q.T @ Xw)
             k = int(np.linalg.matrix_rank(Xw, tol=1e-10 * max(np.abs(Xw).max(), 1e-300)))
             if k == 0:
@@ -425,7 +426,7 @@ def screen(res: CalibrationResult, cal: Measurements, val: Measurements, cal_tor
         # the term fitted with the model's parameters on the calibration poses, taken to the validation poses
         # (the parameters refitted beside it: the term alone is not what it changes where it is confounded)
         base = np.concatenate([base, s.X], axis=2)
-        x1 = np.linalg.lstsq(_weighted(base, sw), r.ravel() * sw, rcond=None)[0]
+        x1 = np.linalg.lstsq(weighted(base, sw), r.ravel() * sw, rcond=None)[0]
         if lin_v is None:
             poses_v = Poses.of(res, val)
             lin_v, dir_v = Linearized.of(res, val), directions(res, val, poses_v)
