@@ -25,8 +25,10 @@ def set_aside_note(structure: SetAsideStructure, not_tried: list[NotTried], path
     what would let the diagnosis try a cause of it)."""
     what = (f"the robust loss set aside {structure.n_set_aside} calibration pose(s) of {path} (lines "
             + listing(structure.lines, 10) + "): ")
-    parts = [f"lines {listing([str(x) for x in lines], 10)} are the largest misses of the structure in finding {n} "
-             f"({where[n]}), not bad measurements" for n, lines in (misses or {}).items()]
+    parts = [(f"line {lines[0]} is the largest miss" if len(lines) == 1 else
+              f"lines {listing([str(x) for x in lines], 10)} are the largest misses")
+             + f" of the structure in finding {n} ({where[n]}), not bad measurements"
+             for n, lines in (misses or {}).items()]
     what += "; ".join(parts + [structure.text()] * bool(structure.text()))
     if not structure.structured:
         return what
