@@ -7,7 +7,8 @@ from dataclasses import dataclass, replace
 #: causes in a few words, for reports (``unexplained`` of no joint: the GP compensator; of a joint: ``unexplained j1``)
 SHORT = {"geometric": "kinematic", "joint_compliance": "compliance", "nonlinear_stiffness": "progressive stiffness",
          "joint_periodic": "periodic", "encoder_scale": "encoder scale", "backlash": "backlash",
-         "thermal_expansion": "thermal", "drift": "drift", "warmup": "warm-up"}
+         "thermal_expansion": "thermal", "drift": "drift", "warmup": "warm-up", "joint_coupling": "coupling",
+         "mount_compliance": "mount compliance"}
 
 
 @dataclass(frozen=True)
@@ -28,6 +29,9 @@ class Candidate:
         session.
     time_constant : float or None
         For a warm-up: its time constant (s).
+    source_joint : int or None
+        For a joint coupling: the joint whose reading ``joint``'s angle error
+        follows (``joint_coupling[j:k]``, parameter ``cpl<j>_<k>``).
     """
 
     cause: str
@@ -36,6 +40,7 @@ class Candidate:
     source: str | None = None
     session: str | None = None
     time_constant: float | None = None
+    source_joint: int | None = None
 
     def shared(self) -> "Candidate":
         """The same cause with one value for every session."""
@@ -71,6 +76,8 @@ class Candidate:
             link = self.cause == "thermal_expansion"
             parts.append(("link" if link else "j") + str(self.joint) if short
                          else f"{'link' if link else 'joint'} {self.joint}")
+        if self.source_joint is not None:
+            parts[-1] += f"<-j{self.source_joint}" if short else f" from joint {self.source_joint}'s reading"
         if self.harmonic is not None:
             parts.append(f"h{self.harmonic}" if short else f"harmonic {self.harmonic}")
         if self.source == "motion":
@@ -93,6 +100,8 @@ class Candidate:
             d["session"] = self.session
         if self.time_constant is not None:
             d["time_constant_s"] = self.time_constant
+        if self.source_joint is not None:
+            d["source_joint"] = self.source_joint
         return d
 
     def parameter_names(self) -> list[str]:
@@ -109,6 +118,8 @@ class Candidate:
             "thermal_expansion": ["thermal_alpha" if j is None else f"thermal_alpha{j}"],
             "drift": ["drift_x", "drift_y", "drift_z"],
             "warmup": ["warmup_x", "warmup_y", "warmup_z"],
+            "joint_coupling": [f"cpl{j}_{self.source_joint}"],
+            "mount_compliance": ["cmount"],
         }[self.cause]
 
 
@@ -149,6 +160,11 @@ def _terms(candidates: list[Candidate]) -> list[str]:
     if any(c.cause == "drift" for c in candidates):
         parts.append("drift")
     parts += [f"warmup[{c.time_constant:g}]" for c in candidates if c.cause == "warmup"][:1]
+    cpl = sorted({(c.joint, c.source_joint) for c in candidates if c.cause == "joint_coupling"})
+    if cpl:
+        parts.append(f"joint_coupling[{','.join(f'{j}:{k}' for j, k in cpl)}]")
+    if any(c.cause == "mount_compliance" for c in candidates):
+        parts.append("mount_compliance")
     return parts
 
 
@@ -180,6 +196,16 @@ TELL_APART = {
         "arm's reach, drift of the measurement frame does not",
     frozenset({"warmup", "drift"}):
         "measure for longer, or repeat the first poses at the end: a warm-up settles, a drift goes on",
+    frozenset({"joint_coupling", "encoder_scale"}):
+        "move joint {j} and the joint its error would follow independently (one still while the other turns): a "
+        "scale grows with joint {j}'s own reading, a coupling with the other's",
+    frozenset({"joint_coupling"}):
+        "move each of the joints the error could follow while the others stand still",
+    frozenset({"mount_compliance", "joint_compliance"}):
+        "turn joint 1 with the arm stretched: the base's tilt follows the moment about the mount, a joint's "
+        "deflection its own torque",
+    frozenset({"mount_compliance", "thermal_expansion"}):
+        "repeat poses at another temperature with the arm stretched and folded",
     frozenset({"warmup"}):
         "measure for longer, or repeat the first poses at the end: the time constant shows in how fast the "
         "first poses' offset dies away",
@@ -189,7 +215,9 @@ TELL_APART = {
 #: what a cause of a joint varies with, for telling the robot's from one session's own
 _VARIES = {"encoder_scale": "move joint {j} over a wider range", "joint_periodic": "move joint {j} over a wider range",
            "backlash": "load joint {j} with torques of both signs", "joint_compliance": "load joint {j} over a wider "
-           "range of torques", "nonlinear_stiffness": "load joint {j} over a wider range of torques"}
+           "range of torques", "nonlinear_stiffness": "load joint {j} over a wider range of torques",
+           "mount_compliance": "swing the arm's weight about the base (joint 1 turning, the arm stretched and folded)",
+           "joint_coupling": "move joint {j} and its source joint independently over wider ranges"}
 
 
 def tell_apart(a: Candidate, b: Candidate) -> str:

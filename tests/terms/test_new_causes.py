@@ -126,10 +126,9 @@ def test_a_calibration_file_keeps_them(tmp_path):
 def test_each_session_its_own_mount(tmp_path):
     """Two sessions on mounts of different compliance (a column of another height): a term per session finds
     each, the robot's geometry shared."""
+    from casadical.data import Measurements
     from tests.helpers.hidden import session_of
     from tests.truth import measure
-
-    from casadical.data import Measurements
 
     C = TILT / largest_moment(ARM4)
     rng = np.random.default_rng(7)
