@@ -45,7 +45,7 @@ from ..result import CalibrationResult
 from .candidates import Candidate, compose_spec
 from .redundancy import own_parameters
 from .state import DiagnosisRun
-from .statistics import NestedTest, nested_test
+from .statistics import NestedTest, nested_test, set_aside_share
 from .structure import INSTRUMENT, Found, StructureScreen, _weighted, describe_pair
 from .validation import Linearized
 
@@ -83,7 +83,9 @@ def stands_in(current: CalibrationResult, accepted: list[Candidate], cand: Candi
     values = np.array([current.parameters[lin.names[k]].value / lin.scale[k] for k in cols])
     r0 = lin.r - lin.J[:, :, cols] @ values       # the cause switched off
     sw = np.sqrt(np.repeat(lin.weights, 3))
-    ask = _Questions(r0.ravel() * sw, sw, lin.J[:, :, keep], lin.J[:, :, cols], math.log10(alpha))
+    share = np.repeat(set_aside_share(lin.weights), 3)
+    ask = _Questions(r0.ravel() * sw, sw, lin.J[:, :, keep], lin.J[:, :, cols], math.log10(alpha),
+                     share if np.any(share < 1) else None)
     flexible = scr.columns(*own)
     found = scr.strongest(ask.rest, r0, lin.weights)
     if found is not None and (found.covariate, found.effect, found.joint) != own:
@@ -121,6 +123,8 @@ class _Questions:
     rest: np.ndarray
     mine: np.ndarray
     level: float
+    #: per equation, how much a pose's term counts in the tests' noise scale (:func:`.statistics.set_aside_share`)
+    share: np.ndarray | None = None
 
     def significant(self, test: NestedTest) -> bool:
         return test.log10_p < self.level and test.delta_bic < 0
@@ -130,9 +134,12 @@ class _Questions:
         base = self.rest if more is None else np.concatenate([self.rest, more], axis=2)
         A0 = _weighted(base, self.sw)
         A1 = np.hstack([A0, _weighted(extra, self.sw)])
-        ssr = [float(np.sum((self.rw - A @ np.linalg.lstsq(A, self.rw, rcond=None)[0]) ** 2)) for A in (A0, A1)]
+        res = [self.rw - A @ np.linalg.lstsq(A, self.rw, rcond=None)[0] for A in (A0, A1)]
+        ssr = [float(r @ r) for r in res]
         k = int(np.linalg.matrix_rank(A1)) - int(np.linalg.matrix_rank(A0))
-        return nested_test(ssr[0], A0.shape[1], ssr[1], A0.shape[1] + max(k, 1), len(self.rw))
+        # a robust fit's set-aside poses count in the noise scale by their influence, as in the search's tests
+        noise = None if self.share is None else float((res[1] ** 2) @ self.share)
+        return nested_test(ssr[0], A0.shape[1], ssr[1], A0.shape[1] + max(k, 1), len(self.rw), noise)
 
 
 def drop_stand_ins(run: DiagnosisRun) -> None:

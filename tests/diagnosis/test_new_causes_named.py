@@ -1,0 +1,74 @@
+"""The catalogue's joint coupling and mount compliance, hidden by the independent truth (tests/truth) on arms that
+are not built in: the diagnosis names exactly the hidden cause, nothing else.
+
+- a joint coupling: the last joint's angle error 2 mrad per rad of the joint before it (a wrist's gearing); the
+  claim is ``joint_coupling`` of joint n from joint n-1's reading (the source joint is part of the claim);
+- a mount compliance: the base tilting 0.3 mrad at the largest moment of the weights.
+
+The default run takes each cause on one arm, three seeds; ``pytest -m slow`` every arm of
+tests/helpers/hidden.py's open-world set (arm4, arm5, arm7-dh).
+"""
+
+import json
+import warnings
+
+import pytest
+
+from casadical.diagnosis import DiagnosisSettings, diagnose
+from tests.helpers import hidden
+
+ROBOTS = ("arm4", "arm5", "arm7-dh")
+SEEDS = (0, 1, 2)
+FAST = [("arm5", "joint coupling"), ("arm4", "mount compliance")]
+ALL = [(r, e) for e in hidden.CATALOGUED for r in ROBOTS if (r, e) not in FAST]
+
+
+def run(c: hidden.Case, seed: int):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rob, cal, val, _ = hidden.make_data(c)
+        return diagnose(rob, cal, val, DiagnosisSettings(seed=seed, session_tools=c.sessions))
+
+
+def check(robot: str, effect: str) -> None:
+    for seed in SEEDS:
+        c = hidden.case(robot, effect, seed)
+        report = run(c, seed)
+        hidden.assert_claims(report, c.expected)
+        f = next(f for f in report.findings if f.in_model and f.cause in ("joint_coupling", "mount_compliance"))
+        d = json.loads(json.dumps(f.to_dict()))
+        if effect == "joint coupling":
+            (n, k), = c.effects.coupling
+            assert (d["cause"], d["joint"], d["source_joint"]) == ("joint_coupling", n, k), d
+            assert f"mrad per rad of joint {k}" in f.evidence
+        else:
+            assert d["cause"] == "mount_compliance" and "joint" not in d and "source_joint" not in d, d
+            assert "the base tilts" in f.evidence
+        # the structure screen finds nothing left where the cause is named
+        assert not [g for g in report.findings if g.structure], (robot, effect, seed)
+
+
+@pytest.mark.parametrize("robot,effect", FAST)
+def test_a_new_cause_is_named_exactly(robot, effect):
+    check(robot, effect)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("robot,effect", ALL)
+def test_a_new_cause_is_named_exactly_on_every_arm(robot, effect):
+    check(robot, effect)
+
+
+def test_the_source_joint_is_part_of_the_claim():
+    """A coupling from another joint than the truth's is a false claim and a miss, not a match."""
+    from casadical.diagnosis.candidates import Candidate
+    from casadical.diagnosis.report import Finding
+
+    class Report:
+        def __init__(self, *findings):
+            self.findings = [Finding(Candidate("geometric"), 1.0, ""), *findings]
+
+    right = hidden.coupling_claim(5, 4)
+    assert hidden.judge(Report(Finding(Candidate("joint_coupling", 5, source_joint=4), 0.1, "")), {right}).exact
+    wrong = hidden.judge(Report(Finding(Candidate("joint_coupling", 5, source_joint=3), 0.1, "")), {right})
+    assert not wrong.exact and wrong.missing == {right}
