@@ -15,6 +15,7 @@ import warnings
 import pytest
 
 from casadical.diagnosis import DiagnosisSettings, diagnose
+from casadical.diagnosis.candidates import Candidate
 from tests.helpers import hidden
 
 ROBOTS = ("arm4", "arm5", "arm7-dh")
@@ -61,7 +62,6 @@ def test_a_new_cause_is_named_exactly_on_every_arm(robot, effect):
 
 def test_the_source_joint_is_part_of_the_claim():
     """A coupling from another joint than the truth's is a false claim and a miss, not a match."""
-    from casadical.diagnosis.candidates import Candidate
     from casadical.diagnosis.report import Finding
 
     class Report:
@@ -72,3 +72,42 @@ def test_the_source_joint_is_part_of_the_claim():
     assert hidden.judge(Report(Finding(Candidate("joint_coupling", 5, source_joint=4), 0.1, "")), {right}).exact
     wrong = hidden.judge(Report(Finding(Candidate("joint_coupling", 5, source_joint=3), 0.1, "")), {right})
     assert not wrong.exact and wrong.missing == {right}
+
+
+def test_the_catalogue_offers_them_where_the_data_can_test_them():
+    """A coupling for every ordered pair of joints that move (the robot's only), a mount compliance (and each
+    session's) where the robot has masses and the moment changes; without masses, said in not_tried."""
+    import numpy as np
+
+    from casadical import calibrate
+    from casadical.data.simulate import sample_poses, simulate
+    from casadical.diagnosis.catalogue import Catalogue, not_tried
+    from casadical.diagnosis.settings import DiagnosisSettings
+    from casadical.robot import robot_from_dict
+    from tests.helpers.arms import ARM5
+
+    def offered(doc, still=None):
+        robot = robot_from_dict(doc)
+        q = sample_poses(robot, 60, np.random.default_rng(0), floor_z=None)
+        if still is not None:
+            q[:, still - 1] = 0.3
+        cal, _ = simulate(robot, q, seed=0)
+        res = calibrate(robot, cal, "kinematic", "lm", warn=False)
+        cat = Catalogue(robot, cal, DiagnosisSettings())
+        torques = np.ones((len(cal), robot.n))
+        cands = cat.candidates(res, [], set(), set(), lambda: torques)
+        return cands, not_tried(robot, cal, torques, DiagnosisSettings())
+
+    cands, _ = offered(ARM5)
+    pairs = {(c.joint, c.source_joint) for c in cands if c.cause == "joint_coupling"}
+    assert pairs == {(j, k) for j in range(1, 6) for k in range(1, 6) if j != k}
+    assert [c for c in cands if c.cause == "mount_compliance"] == [Candidate("mount_compliance")]
+    assert Candidate("joint_coupling", 5, source_joint=4).to_dict() == {"cause": "joint_coupling", "joint": 5,
+                                                                         "source_joint": 4}
+    cands, _ = offered(ARM5, still=2)
+    assert all(2 not in (c.joint, c.source_joint) for c in cands if c.cause == "joint_coupling")
+    massless = {**ARM5, "payload": {}, "joint": [{k: v for k, v in r.items() if k not in ("mass_kg", "com_m")}
+                                                 for r in ARM5["joint"]]}
+    cands, why = offered(massless)
+    assert not [c for c in cands if c.cause == "mount_compliance"]
+    assert any(n.cause == "mount_compliance" and "masses" in n.why for n in why)
