@@ -170,10 +170,7 @@ def size(f: "Finding", final: "CalibrationResult") -> str:
     if c.cause == "joint_coupling":
         return f"{v[0] * 1e3:.3g} mrad per rad of joint {c.source_joint}{relative(s[0], v[0])}"
     if c.cause == "mount_compliance":
-        from ..terms.mount_compliance import max_mount_moment
-
-        top = max_mount_moment(final.model.robot)
-        return f"tilt {v[0] * top * 1e3:.3g} mrad with every weight at full reach{relative(s[0], v[0])}"
+        return f"tilt {v[0] * 1e6:.3g} mrad per kN m of moment{relative(s[0], v[0])}"
     if c.cause == "drift":
         speed = float(np.linalg.norm(v))
         std = math.sqrt(((v * s) ** 2).sum()) / speed if speed > 0 else math.nan

@@ -111,3 +111,21 @@ def test_the_catalogue_offers_them_where_the_data_can_test_them():
     cands, why = offered(massless)
     assert not [c for c in cands if c.cause == "mount_compliance"]
     assert any(n.cause == "mount_compliance" and "masses" in n.why for n in why)
+
+
+def test_plan_poses_asks_their_questions():
+    """A named coupling ambiguous with an encoder scale, and a mount compliance not significant: plan-poses's
+    questions carry the coupling's source joint and the mount's parameter."""
+    from casadical.planning.questions import open_questions
+
+    doc = {"findings": [
+        {"cause": "joint_coupling", "joint": 5, "source_joint": 4, "in_model": True,
+         "ambiguous_with": [{"cause": "encoder_scale", "joint": 5}]},
+        {"cause": "mount_compliance", "in_model": True}],
+        "final": {"parameters": [{"name": "cpl5_4", "value": 2e-3, "significant": True, "t": 40.0},
+                                 {"name": "cmount", "value": 1e-8, "significant": False, "t": 1.2}]}}
+    qs = open_questions(doc, {"cpl5_4": 2e-3, "cmount": 1e-8})
+    amb = next(q for q in qs if q.kind == "ambiguous")
+    assert "coupling j5<-j4" in amb.text and amb.interest[0] == "cpl5_4" and "escale5" in amb.interest
+    weak = next(q for q in qs if q.kind == "not significant")
+    assert "cmount" in weak.text
