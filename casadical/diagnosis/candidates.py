@@ -60,13 +60,16 @@ class Candidate:
     def tier(self) -> int:
         """The order in which a round tries causes; a tier is tried only when no cause of an earlier one is
         supported. 1: a physical cause of the robot with a parameter or two per joint (what a calibration
-        is for, and what holds on other data; a mount compliance too, one parameter of the robot's mount);
-        2: a joint coupling (physical too, but one of n (n - 1) pairs of joints: where a joint's own cause
-        and a coupling from another joint fit the same residual, as an encoder scale of a parallelogram's
-        joint 3 and a coupling from joint 2 do, the joint's own is the likelier and is tried first);
-        3: drift of the measurement session (it also stands for any structure that follows the order of
-        the measurements); 4: a periodic error (flexible, many harmonics to choose from)."""
-        return {"joint_coupling": 2, "drift": 3, "warmup": 3, "joint_periodic": 4}.get(self.cause, 1)
+        is for, and what holds on other data); 2: a physical cause that shares its shape with a joint's own
+        where the two fit the same residual, the joint's own the likelier: a joint coupling (one of n (n - 1)
+        pairs: an encoder scale of a parallelogram's joint 3 and a coupling of it from joint 2) and a mount
+        compliance (the moment of vertical weights is the same about every point of a vertical line: the
+        base's tilt about a horizontal axis is the shoulder's compliance where the shoulder stands above the
+        base, as on the UR10); 3: drift of the measurement session (it also stands for any structure that
+        follows the order of the measurements); 4: a periodic error (flexible, many harmonics to choose
+        from)."""
+        return {"joint_coupling": 2, "mount_compliance": 2, "drift": 3, "warmup": 3, "joint_periodic": 4}.get(
+            self.cause, 1)
 
     @property
     def family(self) -> "Candidate":
