@@ -12,7 +12,7 @@ SHORT = {"geometric": "kinematic", "joint_compliance": "compliance", "nonlinear_
 
 
 #: the tiers of :attr:`Candidate.tier`, in the order a round tries them
-TIERS = (1, 2, 3, 4)
+TIERS = (1, 2, 3, 4, 5)
 
 
 @dataclass(frozen=True)
@@ -60,15 +60,18 @@ class Candidate:
     def tier(self) -> int:
         """The order in which a round tries causes; a tier is tried only when no cause of an earlier one is
         supported. 1: a physical cause of the robot with a parameter or two per joint (what a calibration
-        is for, and what holds on other data); 2: a physical cause that shares its shape with a joint's own
-        where the two fit the same residual, the joint's own the likelier: a joint coupling (one of n (n - 1)
-        pairs: an encoder scale of a parallelogram's joint 3 and a coupling of it from joint 2) and a mount
-        compliance (the moment of vertical weights is the same about every point of a vertical line: the
+        is for, and what holds on other data); 2: a mount compliance, physical too but sharing its shape with
+        a joint's own (the moment of vertical weights is the same about every point of a vertical line: the
         base's tilt about a horizontal axis is the shoulder's compliance where the shoulder stands above the
-        base, as on the UR10); 3: drift of the measurement session (it also stands for any structure that
-        follows the order of the measurements); 4: a periodic error (flexible, many harmonics to choose
-        from)."""
-        return {"joint_coupling": 2, "mount_compliance": 2, "drift": 3, "warmup": 3, "joint_periodic": 4}.get(
+        base, as on the UR10, whose joint 2 compliance it took the place of, to be dropped as a stand-in at
+        the end); 3: drift of the measurement session (it also stands for any structure that follows the
+        order of the measurements); 4: a periodic error (flexible, many harmonics to choose from); 5: a joint
+        coupling, last: one of n (n - 1) pairs, a straight line in another joint's reading that a joint's
+        own cause, a gear error or a parallelogram's geometry also takes (tried earlier, on the closed-chain
+        HH800 protocol it took the place of joint 3's encoder scale, and on the UR10 README job it took the
+        place of the gear errors of the rounds that follow; tried last, it is named where none of these
+        takes the residual)."""
+        return {"mount_compliance": 2, "drift": 3, "warmup": 3, "joint_periodic": 4, "joint_coupling": 5}.get(
             self.cause, 1)
 
     @property
