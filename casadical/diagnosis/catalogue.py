@@ -5,9 +5,14 @@ Each kind of cause is a candidate of the robot (one value for every
 session) and, with data of several sessions, of each session alone
 (``... @S``: a gear error, an encoder scale, a compliance or the mount's
 give of one session's set-up). A joint coupling (joint j's angle error
-proportional to joint k's reading, for every ordered pair of joints that
-move) is the robot's only: a wrist's gearing is the same in every session,
-and n (n - 1) pairs more per session would only dilute the level. A mount
+proportional to joint k's reading) is screened for every pair of joints
+that move with the source before the joint (k < j): a joint's drive train
+passes through the joints before it (a wrist's motors sit in the forearm),
+so its error can follow their readings, never a later joint's (a later
+joint's source stands for other structure: on the UR10 README job joint 1
+from joint 5 took the place of joint 5's gear error). It is the robot's
+only: a wrist's gearing is the same in every session, and the pairs again
+per session would only dilute the level. A mount
 compliance needs the robot file's masses (the moment of the weights about
 the base) and a moment that changes over the poses (a constant tilt is the
 base pose's). Periodic errors come from the periodograms of the residual's
@@ -258,7 +263,8 @@ class Catalogue:
                     Candidate("backlash", j, source="torque"), Candidate("backlash", j, source="motion")]
         several = len(self.sessions) > 1
         moving = [j for j in range(1, self.robot.n + 1) if np.ptp(self.cal.q[:, j - 1]) > 0]
-        out += [Candidate("joint_coupling", j, source_joint=k) for j in moving for k in moving if k != j]
+        # a coupling's source joint comes before it: a drive train passes through the joints before its joint
+        out += [Candidate("joint_coupling", j, source_joint=k) for j in moving for k in moving if k < j]
         if self.mount is None:
             self.mount = [s for s in [None] + (self.sessions if several else [])
                           if moment_changes(self.robot, self.cal if s is None else
