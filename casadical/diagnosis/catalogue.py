@@ -12,7 +12,11 @@ so its error can follow their readings, never a later joint's (a later
 joint's source stands for other structure: on the UR10 README job joint 1
 from joint 5 took the place of joint 5's gear error). It is the robot's
 only: a wrist's gearing is the same in every session, and the pairs again
-per session would only dilute the level. A mount
+per session would only dilute the level; and it is not tried on poses that
+move one joint at a time (a joint's error that follows another's reading
+shows at one configuration of the arm only, where it fits anything: on a
+weak design of 24 such poses a coupling of joint 3 from joint 1 more than
+doubled the validation error). A mount
 compliance needs the robot file's masses (the moment of the weights about
 the base) and a moment that changes over the poses (a constant tilt is the
 base pose's). Periodic errors come from the periodograms of the residual's
@@ -39,6 +43,7 @@ from ..robot import Robot
 from ..stats.physics import sign_changes
 from ..terms.mount_compliance import max_mount_moment, mount_moments
 from .candidates import Candidate
+from .design import ONE_AT_A_TIME, moving_joint
 from .periodogram import Periodogram, joint_errors, periodogram
 from .plots import joint_view
 from .settings import DiagnosisSettings
@@ -125,6 +130,10 @@ def not_tried(robot: Robot, cal: Measurements, torques: np.ndarray, settings: Di
                             "poses (a constant tilt is the base pose's)",
                             "poses that swing the arm's weight about the base: joint 1 turning with the arm "
                             "stretched, the arm stretched and folded, or payloads"))
+    if robot.n > 1 and one_at_a_time(cal):
+        out.append(NotTried("joint_coupling", "the poses move one joint at a time: a joint's error that follows "
+                            "another joint's reading would show at one configuration of the arm only",
+                            "poses that move the joints together (random poses, or casadical plan-poses)"))
     one_way = [j for j in range(1, robot.n + 1) if not sign_changes(cal.moves[:, j - 1], "")[0]]
     if one_way:
         out.append(NotTried("backlash by the motion", "the joint moves in one direction only between the rows",
@@ -160,6 +169,13 @@ def not_tried(robot: Robot, cal: Measurements, torques: np.ndarray, settings: Di
                             f"{3 * settings.max_harmonic} or more poses (to scan up to --max-harmonic "
                             f"{settings.max_harmonic})"))
     return out
+
+
+def one_at_a_time(data: Measurements) -> bool:
+    """The poses move one joint at a time (from a common pose, or from the pose before): a joint's error that
+    follows another joint's reading shows at one configuration of the arm only, where any function of that
+    reading fits it (a coupling is not tried)."""
+    return moving_joint(data.q_deg[np.argsort(data.rows, kind="stable")])[0] >= ONE_AT_A_TIME
 
 
 def moment_changes(robot: Robot, data: Measurements) -> bool:
@@ -207,6 +223,7 @@ class Catalogue:
         self._own: dict[str, list[Periodogram]] = {}       # each session's
         self._of = None                                     # the fit they were computed for
         self.mount: list | None = None                      # scopes whose moment changes (None: the robot's)
+        self.couples: bool | None = None                    # couplings are tried (the poses move joints together)
         t = cal.get("time_s")
         if t is None:
             self.warmups: dict[str | None, list[float]] = {}
@@ -263,8 +280,12 @@ class Catalogue:
                     Candidate("backlash", j, source="torque"), Candidate("backlash", j, source="motion")]
         several = len(self.sessions) > 1
         moving = [j for j in range(1, self.robot.n + 1) if np.ptp(self.cal.q[:, j - 1]) > 0]
-        # a coupling's source joint comes before it: a drive train passes through the joints before its joint
-        out += [Candidate("joint_coupling", j, source_joint=k) for j in moving for k in moving if k < j]
+        # a coupling's source joint comes before it: a drive train passes through the joints before its joint;
+        # none on poses that move one joint at a time (not_tried says why)
+        if self.couples is None:
+            self.couples = not one_at_a_time(self.cal)
+        out += [Candidate("joint_coupling", j, source_joint=k) for j in moving for k in moving if k < j
+                and self.couples]
         if self.mount is None:
             self.mount = [s for s in [None] + (self.sessions if several else [])
                           if moment_changes(self.robot, self.cal if s is None else

@@ -76,8 +76,8 @@ def test_the_source_joint_is_part_of_the_claim():
 
 def test_the_catalogue_offers_them_where_the_data_can_test_them():
     """A coupling for every pair of joints that move, the source before the joint (the robot's only), a mount
-    compliance (and each session's) where the robot has masses and the moment changes; without masses, said in
-    not_tried."""
+    compliance (and each session's) where the robot has masses and the moment changes; without masses (or, for a
+    coupling, on poses that move one joint at a time) said in not_tried."""
     import numpy as np
 
     from casadical import calibrate
@@ -87,11 +87,15 @@ def test_the_catalogue_offers_them_where_the_data_can_test_them():
     from casadical.robot import robot_from_dict
     from tests.helpers.arms import ARM5
 
-    def offered(doc, still=None):
+    def offered(doc, still=None, one_at_a_time=False):
         robot = robot_from_dict(doc)
         q = sample_poses(robot, 60, np.random.default_rng(0), floor_z=None)
         if still is not None:
             q[:, still - 1] = 0.3
+        if one_at_a_time:       # each pose moves one joint from the first
+            q = np.repeat(q[:1], 60, axis=0)
+            for i in range(1, 60):
+                q[i, i % robot.n] += 0.02 * i
         cal, _ = simulate(robot, q, seed=0)
         res = calibrate(robot, cal, "kinematic", "lm", warn=False)
         cat = Catalogue(robot, cal, DiagnosisSettings())
@@ -107,6 +111,9 @@ def test_the_catalogue_offers_them_where_the_data_can_test_them():
                                                                          "source_joint": 4}
     cands, _ = offered(ARM5, still=2)
     assert all(2 not in (c.joint, c.source_joint) for c in cands if c.cause == "joint_coupling")
+    cands, why = offered(ARM5, one_at_a_time=True)       # a coupling would show at one configuration only
+    assert not [c for c in cands if c.cause == "joint_coupling"]
+    assert any(n.cause == "joint_coupling" and "one joint at a time" in n.why for n in why)
     massless = {**ARM5, "payload": {}, "joint": [{k: v for k, v in r.items() if k not in ("mass_kg", "com_m")}
                                                  for r in ARM5["joint"]]}
     cands, why = offered(massless)

@@ -156,14 +156,7 @@ def one_joint_at_a_time(arm, seed, folder):
     return data.subset(cal), data.subset(np.setdiff1d(np.arange(len(q)), cal))
 
 
-#: seed 1 since the catalogue screens joint couplings: a coupling of joint 4 from joint 3's reading is named for the
-#: part of joint 2's deflection that follows q3 in joint 3's sweep (joints 2 to 4 parallel; without masses the
-#: stand-in check has no torque to see the compliance by), and the set-aside poses no longer share structure
-#: (p = 0.009): a stand-in, the one open case of the new causes
-NAMES_A_COUPLING = pytest.mark.xfail(strict=True, reason="a joint coupling stands in for the untried compliance")
-
-
-@pytest.mark.parametrize("seed", [0, pytest.param(1, marks=NAMES_A_COUPLING), 2])
+@pytest.mark.parametrize("seed", [0, 1, 2])
 def test_a_compliance_the_robot_file_cannot_model_is_structure(seed, tmp_path):
     """A robot file without masses: the poses a compliant joint 2 bends most are set aside; their errors are
     angle errors of joint 2 (or of a joint parallel to it), reported as structure with what would let a
