@@ -208,7 +208,7 @@ def test_with_a_term_of_ones_own_the_effect_is_named_and_the_noise_reached(effec
                                                                  floor)
 
 
-@pytest.mark.parametrize("robot,effect", [("arm4", "joint coupling"), ("arm5", "mount compliance"),
+@pytest.mark.parametrize("robot,effect", [("arm4", "another joint's reading"), ("arm5", "quadratic reading error"),
                                           ("arm4", "axis tilt"), ("arm4", "tracker angle error")])
 def test_a_structures_term_is_a_cause_of_ones_own_that_takes_it(robot, effect):
     """A structure finding's ``term`` (its flexible term as a table of a terms file) is a valid cause of one's
@@ -227,7 +227,7 @@ def test_a_structures_term_is_a_cause_of_ones_own_that_takes_it(robot, effect):
 
 def test_plan_poses_plans_for_a_structure(tmp_path, capsys):
     """``plan-poses REPORT.json`` takes a structure finding as an open question: its term's coefficients."""
-    c = hidden.case("arm4", "joint coupling", 0)
+    c = hidden.case("arm4", "another joint's reading", 0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         hidden.make_data(c, folder=tmp_path)
@@ -240,5 +240,5 @@ def test_plan_poses_plans_for_a_structure(tmp_path, capsys):
     capsys.readouterr()
     assert main(["plan-poses", str(report), str(cand), "-m", "8", "--out", str(out), "--quiet"]) == 0
     text = capsys.readouterr().out
-    assert "joint 4's angle error varies with joint 3's reading: which form, and how large?" in text, text
+    assert "joint 3's angle error varies with joint 2's reading: which form, and how large?" in text, text
     assert len(out.read_text().splitlines()) == 9
