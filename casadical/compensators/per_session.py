@@ -8,9 +8,11 @@ compensator learns it with a Gaussian process of the joint readings
 (:class:`casadical.compensators.gp.ResidualGP`, one per session), in the
 robot base frame of each pose's session, and adds it to the model as a
 ``gp_compensator`` term (``gp_compensator@<session>`` with several
-sessions). It applies only where its predictive uncertainty says it knows
-the residual; elsewhere the physical model stands alone, and
-:func:`gp_compensator_coverage` says at how many poses that was.
+sessions). Its correction shrinks with its predictive uncertainty
+(:meth:`ResidualGP.weight`): whole near the poses it learnt from, nothing
+where it knows nothing, and there the physical model stands alone;
+:func:`gp_compensator_coverage` says at how many poses it applied (at least
+half of its posterior mean).
 
 :func:`gp_compensator_held_out` judges the compensator as the diagnosis
 judges every step: on cross-validation folds (random, time-blocked,
@@ -97,7 +99,7 @@ def gp_compensator_coverage(result: CalibrationResult, data: Measurements) -> tu
 
 @dataclass
 class GPCompensatorFolds:
-    """Held-out predictions of the GP compensator on every fold: what judging it, and choosing its support, needs.
+    """Held-out predictions of the GP compensator on every fold: what judging it, and choosing its shrinkage, needs.
 
     Attributes
     ----------
@@ -114,23 +116,38 @@ class GPCompensatorFolds:
     folds: dict
     n_schemes: dict
 
-    def after(self, kind: str, support: float) -> np.ndarray:
+    def after(self, kind: str, shrink: float) -> np.ndarray:
         """Residual norm (m) of each pose with the compensator, held out in the folds of ``kind`` (averaged over
-        its schemes), the compensator applied where its std ratio is below ``support``."""
+        its schemes), its correction shrunk with strength ``shrink`` (:func:`shrink_weight`)."""
         out = np.zeros(len(self.before))
         for at, Y, pred, ratio in self.folds[kind]:
-            out[at] += np.linalg.norm(Y - pred * (ratio < support)[:, None], axis=1)
+            out[at] += np.linalg.norm(Y - pred * shrink_weight(ratio, shrink)[:, None], axis=1)
         return out / self.n_schemes[kind]
 
-    def means_mm(self, support: float) -> dict[str, tuple[float, float]]:
+    def means_mm(self, shrink: float) -> dict[str, tuple[float, float]]:
         """Held-out mean (mm) without and with the compensator, by kind."""
         b = float(self.before.mean() * 1000)
-        return {k: (b, float(self.after(k, support).mean() * 1000)) for k in self.folds}
+        return {k: (b, float(self.after(k, shrink).mean() * 1000)) for k in self.folds}
 
-    def worst_mm(self, support: float) -> dict[str, tuple[float, float]]:
-        """Worst held-out error (mm) without and with the compensator, by kind."""
-        b = float(self.before.max() * 1000)
-        return {k: (b, float(self.after(k, support).max() * 1000)) for k in self.folds}
+    def worst_mm(self, shrink: float, band: float = np.inf) -> dict[str, tuple[float, float]]:
+        """Worst held-out error (mm) without and with the compensator, by kind, like with like: leaving out the
+        poses both miss by more than ``band`` (mm; a pose no model of the robot predicts, where a few um either
+        way say nothing of the compensator)."""
+        out = {}
+        for k in self.folds:
+            b, a = self.before * 1000, self.after(k, shrink) * 1000
+            like = ~((b > band) & (a > band))
+            out[k] = (float(b[like].max()), float(a[like].max())) if like.any() else (float(b.max()), float(a.max()))
+        return out
+
+    def missed(self, shrink: float, band: float) -> dict[str, int]:
+        """By kind, how many poses both models miss by more than ``band`` (mm): left out of :meth:`worst_mm`."""
+        return {k: int(((self.before * 1000 > band) & (self.after(k, shrink) * 1000 > band)).sum()) for k in self.folds}
+
+
+def shrink_weight(ratio: np.ndarray, shrink: float) -> np.ndarray:
+    """:meth:`ResidualGP.weight` from the std ratios: ``(1 - r^2)^shrink``, 0 at ``r >= 1``."""
+    return np.where(ratio < 1.0, np.clip(1.0 - ratio ** 2, 0.0, 1.0) ** shrink, 0.0)
 
 
 @limited_threads()
@@ -142,7 +159,7 @@ def gp_compensator_held_out(gps: dict[str | None, ResidualGP], learnt: dict[str 
     Each fold's process is the session's process (hyperparameters of the
     fit on all poses) conditioned on the poses it learnt from (``learnt``,
     indices into ``data``) that are among the fold's training poses; where
-    it does not know it adds nothing (:meth:`GPCompensatorFolds.after`: for any support).
+    it knows nothing it adds nothing (:meth:`GPCompensatorFolds.after`: for any shrinkage).
     ``progress`` receives a line per kind of fold.
     """
     sessions = session_index(data)

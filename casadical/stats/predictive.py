@@ -16,6 +16,22 @@ Two parts, independent and added in variance:
 The figure per pose is ``sqrt(trace Sigma)``: the rms length of the 3-D
 error of the prediction (not of a measurement: the tracker's own noise is
 not in it).
+
+A **95 % interval for a measured point** adds the noise
+(:func:`prediction_interval`): the measured point lies within
+
+    radius = chi_3(95 %) * sqrt(std^2 / 3 + sigma^2)         chi_3(95 %) = sqrt(7.815) = 2.796
+
+of the prediction, ``std`` the figure above (its three axes taken alike)
+and ``sigma`` the noise per axis: with a GP compensator, at the poses of
+its session, its processes' white-noise part (the scatter the joint
+readings do not predict, averaged over the three axes; the calibration's
+robust scale would count the structure the process already holds twice);
+elsewhere the calibration's noise scale per axis (its robust loss's
+``sigma`` times ``sqrt(m / (m - p))``, ``m`` equations and ``p``
+parameters: a fit's residuals are smaller than the noise by what its
+parameters absorb; or the residual's, so corrected, when the fit was plain
+least squares).
 """
 
 from __future__ import annotations
@@ -65,6 +81,49 @@ def prediction_std(result: CalibrationResult, data: Measurements) -> tuple[np.nd
         if len(rows):
             compensator[rows] = np.sqrt(np.sum(inner.gp.predictive_std(data.q[rows]) ** 2, axis=1))
     return params, compensator
+
+
+#: the 95 % quantile of a chi distribution with 3 degrees of freedom: sqrt(7.8147)
+CHI3_95 = 2.7955
+
+
+def noise_sigma(result: CalibrationResult, data: Measurements) -> np.ndarray:
+    """The noise per axis (m) at each pose of ``data`` that a measured point adds to the prediction: the GP
+    compensator's white noise at the poses of its session, the calibration's noise scale elsewhere (see the
+    module)."""
+    unc = result.uncertainty
+    if result.loss.robust:
+        sigma = result.loss.sigma
+        if unc is not None and unc.dof > 0:     # a fit's residuals are smaller than the noise by its parameters
+            sigma *= np.sqrt((unc.dof + len(unc.names)) / unc.dof)
+    else:
+        sigma = unc.sigma if unc is not None else float("nan")
+    out = np.full(len(data), sigma if np.isfinite(sigma) else 0.0)
+    for t in result.model.terms:
+        inner = t.inner if isinstance(t, SessionLocal) else t
+        if inner.name != "gp_compensator" or inner.gp is None:
+            continue
+        rows = np.arange(len(data)) if not isinstance(t, SessionLocal) else (
+            np.flatnonzero(data.sessions == t.session_name) if data.sessions is not None else np.zeros(0, int))
+        gp = inner.gp
+        out[rows] = np.sqrt(np.mean(gp.noise_var * gp.y_std ** 2))
+    return out
+
+
+def prediction_interval(result: CalibrationResult, data: Measurements,
+                        std: tuple[np.ndarray, np.ndarray | None] | None = None) -> np.ndarray:
+    """Radius (m) of the 95 % interval of a measured point around the prediction at each pose of ``data``:
+    ``CHI3_95 * sqrt(std^2 / 3 + sigma^2)`` (see the module); ``std``: :func:`prediction_std`'s answer when
+    already computed.
+
+    Raises
+    ------
+    InputError
+        The calibration holds no parameter covariance.
+    """
+    sp, sl = prediction_std(result, data) if std is None else std
+    total2 = sp ** 2 + (0.0 if sl is None else sl ** 2)
+    return CHI3_95 * np.sqrt(total2 / 3 + noise_sigma(result, data) ** 2)
 
 
 def accuracy_map(result: CalibrationResult, measured_q: np.ndarray | None = None, joints: tuple[int, int] | None = None,
