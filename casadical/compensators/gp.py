@@ -67,6 +67,9 @@ from ..runtime.threads import limited_threads
 #: series A, 300 poses, seed 1: 86 % of the series' other poses, none of series B's, whose ratio is 1.000 at
 #: every pose; at 0.8 the share in series was 76 % and its held-out mean 0.010 mm worse)
 MAX_STD_RATIO = 0.95
+#: the 95 % quantile of a chi distribution with 3 degrees of freedom, sqrt(7.8147): the factor of a 95 % interval of
+#: a measured point whose three axes are Gaussian alike (:mod:`casadical.stats.predictive`)
+CHI3_95 = 2.7955
 #: bounds of the length scales (rad)
 LENGTH_BOUNDS = (0.05, 100.0)
 #: the hyperparameters are fitted on at most this many poses (chosen at random), in at most this many iterations
@@ -136,6 +139,10 @@ class ResidualGP:
     shrink : float
         The strength ``p`` of :meth:`weight`'s shrinkage, ``(1 - r^2)^p``
         (0: the whole correction wherever ``r < max_std_ratio``).
+    interval_k : float
+        The factor of the 95 % interval of a measured point at the poses of
+        its session (:func:`casadical.stats.predictive.prediction_interval`):
+        :data:`CHI3_95`, or as the diagnosis calibrates it on its folds.
     """
 
     X: np.ndarray
@@ -147,6 +154,7 @@ class ResidualGP:
     y_std: np.ndarray
     max_std_ratio: float = MAX_STD_RATIO
     shrink: float = 0.0
+    interval_k: float = CHI3_95
 
     def __post_init__(self) -> None:
         from scipy.linalg import cho_factor, cho_solve  # here: a command whose model has no process needs none
@@ -211,7 +219,7 @@ class ResidualGP:
     def refit(self, rows: np.ndarray) -> "ResidualGP":
         """The same hyperparameters, conditioned on the training poses ``rows`` only (for held-out folds)."""
         return ResidualGP(self.X[rows], self.Y[rows], self.length_scales, self.signal_var, self.noise_var,
-                          self.y_mean, self.y_std, self.max_std_ratio, self.shrink)
+                          self.y_mean, self.y_std, self.max_std_ratio, self.shrink, self.interval_k)
 
     # --- prediction -----------------------------------------------------------------
 
@@ -256,6 +264,11 @@ class ResidualGP:
             self._ratios.pop(next(iter(self._ratios)))
         self._ratios[key] = out
         return out.copy()
+
+    def noise_std(self) -> float:
+        """The white-noise part of the residual, per axis (m): what the joint readings do not predict (the mean of
+        the three components' variances)."""
+        return float(np.sqrt(np.mean(self.noise_var * self.y_std ** 2)))
 
     def std_ratio_of(self, X: np.ndarray, a: int) -> np.ndarray:
         """Predictive std of component ``a`` over its prior std at poses ``X``."""
@@ -310,7 +323,8 @@ class ResidualGP:
         return {"kind": "gaussian_process", "length_scales_rad": self.length_scales.tolist(),
                 "signal_var": self.signal_var.tolist(), "noise_var": self.noise_var.tolist(),
                 "y_mean_m": self.y_mean.tolist(), "y_std_m": self.y_std.tolist(),
-                "max_std_ratio": self.max_std_ratio, "shrink": self.shrink, "q_rad": self.X.tolist(),
+                "max_std_ratio": self.max_std_ratio, "shrink": self.shrink, "interval_k": self.interval_k,
+                "q_rad": self.X.tolist(),
                 "residual_m": self.Y.tolist()}
 
     @classmethod
@@ -329,6 +343,7 @@ class ResidualGP:
             mean, std = np.asarray(d["y_mean_m"], float), np.asarray(d["y_std_m"], float)
             ratio = float(d.get("max_std_ratio", MAX_STD_RATIO))
             shrink = float(d.get("shrink", 0.0))
+            k = float(d.get("interval_k", CHI3_95))
         except (KeyError, TypeError, ValueError) as e:
             raise InputError(f"not a Gaussian process written by casadical ({e})") from e
         n = ls.shape[1] if ls.ndim == 2 else -1
@@ -338,7 +353,7 @@ class ResidualGP:
             raise InputError("a Gaussian process needs q_rad (N x n), residual_m (N x 3), 3 x n length scales "
                              "and 3-vectors signal_var, noise_var, y_mean_m, y_std_m, all finite")
         if not (np.all(ls > 0) and np.all(std > 0) and np.all(sv > 0) and np.all(nv > 0) and 0 < ratio <= 1
-                and math.isfinite(ratio) and 0 <= shrink < math.inf):
+                and math.isfinite(ratio) and 0 <= shrink < math.inf and 0 < k < math.inf):
             raise InputError("a Gaussian process needs positive length scales, variances and y_std_m, "
-                             "max_std_ratio in (0, 1] and a finite shrink >= 0")
-        return cls(X, Y, ls, sv, nv, mean, std, ratio, shrink)
+                             "max_std_ratio in (0, 1], a finite shrink >= 0 and a finite interval_k > 0")
+        return cls(X, Y, ls, sv, nv, mean, std, ratio, shrink, k)

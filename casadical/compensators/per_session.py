@@ -33,7 +33,7 @@ from ..model.symbolic import Model
 from ..result import CalibrationResult, learning_mask, rebuilt
 from ..runtime.threads import limited_threads
 from ..terms import SessionLocal, make_term
-from .gp import MAX_STD_RATIO, ResidualGP
+from .gp import CHI3_95, MAX_STD_RATIO, ResidualGP
 
 #: a session's process learns from at most this many of its poses (drawn at random): its cost grows with the cube
 #: of the poses, in the fit and in every held-out fold, and its size in the model with their number
@@ -105,9 +105,10 @@ class GPCompensatorFolds:
     ----------
     before : ndarray, shape (N,)
         Residual norm (m) of each pose of ``keep`` without the compensator.
-    folds : dict of str to list of (ndarray, ndarray, ndarray, ndarray)
+    folds : dict of str to list of tuples
         By kind: for each fold, its held-out poses (indices into ``keep``'s poses), their residuals (m, (m, 3)),
-        the fold's process's prediction there (m) and its predictive std over the prior (:meth:`ResidualGP.std_ratio`).
+        the fold's process's prediction there (m), its predictive std over the prior (:meth:`ResidualGP.std_ratio`),
+        its predictive and prior variances (m^2, (m, 3)) and its white noise per axis (m, (m,)).
     n_schemes : dict of str to int
         Schemes of each kind (a pose is held out once in each).
     """
@@ -120,9 +121,22 @@ class GPCompensatorFolds:
         """Residual norm (m) of each pose with the compensator, held out in the folds of ``kind`` (averaged over
         its schemes), its correction shrunk with strength ``shrink`` (:func:`shrink_weight`)."""
         out = np.zeros(len(self.before))
-        for at, Y, pred, ratio in self.folds[kind]:
+        for at, Y, pred, ratio, *_ in self.folds[kind]:
             out[at] += np.linalg.norm(Y - pred * shrink_weight(ratio, shrink)[:, None], axis=1)
         return out / self.n_schemes[kind]
+
+    def interval_k(self, shrink: float, level: float = 0.95) -> float:
+        """The factor of a 95 % interval of a measured point, calibrated on the random folds: the ``level``
+        quantile of each held-out pose's error over ``sqrt(std^2 / 3 + sigma^2)`` (``std`` what the fold's
+        process leaves, :meth:`ResidualGP.predictive_std`; ``sigma`` its white noise), never below
+        :data:`CHI3_95`."""
+        z = [np.zeros(0)]
+        for _, Y, pred, ratio, var, prior, noise in self.folds.get("random", []):
+            w = shrink_weight(ratio, shrink)[:, None]
+            s2 = np.sum(var + (1 - w) ** 2 * (prior - var), axis=1)
+            z.append(np.linalg.norm(Y - pred * w, axis=1) / np.sqrt(s2 / 3 + noise ** 2))
+        z = np.concatenate(z)
+        return max(CHI3_95, float(np.quantile(z, min(level, 1.0)))) if len(z) else CHI3_95
 
     def means_mm(self, shrink: float) -> dict[str, tuple[float, float]]:
         """Held-out mean (mm) without and with the compensator, by kind."""
@@ -175,6 +189,7 @@ def gp_compensator_held_out(gps: dict[str | None, ResidualGP], learnt: dict[str 
             for F in scheme.folds:
                 test = np.intersect1d(F, idx_keep)
                 pred, ratio = np.zeros((len(test), 3)), np.ones(len(test))
+                var, prior, noise = np.zeros((len(test), 3)), np.zeros((len(test), 3)), np.zeros(len(test))
                 for s, rows in sessions.items():
                     own = learnt[s or None]
                     train = np.setdiff1d(own, F)
@@ -182,6 +197,9 @@ def gp_compensator_held_out(gps: dict[str | None, ResidualGP], learnt: dict[str 
                     if len(train) >= 10 and at.any():
                         g = gps[s or None].refit(np.searchsorted(own, train))
                         x = data.q[test[at]]
-                        pred[at], ratio[at] = g.predict(x), g.std_ratio(x)
-                folds[kind].append((np.searchsorted(idx_keep, test), Y[test], pred, ratio))
+                        r = np.column_stack([g.std_ratio_of(x, a) for a in range(3)])
+                        pred[at], ratio[at] = g.predict(x), r.max(axis=1)
+                        prior[at] = g.signal_var * g.y_std ** 2
+                        var[at], noise[at] = r ** 2 * prior[at], g.noise_std()
+                folds[kind].append((np.searchsorted(idx_keep, test), Y[test], pred, ratio, var, prior, noise))
     return GPCompensatorFolds(np.linalg.norm(Y[idx_keep], axis=1), folds, n_schemes)

@@ -117,8 +117,11 @@ def compensator_step(current: CalibrationResult, spec: str, cal: Measurements, v
                           reason=reason, **link))
         progress(f"GP compensator rejected: {reason}")
         return current, spec
+    # the 95 % interval of a measured point, calibrated on the random folds; the poses the robust loss set aside
+    # count as outside it
+    k = folds.interval_k(shrink, 0.95 / max(float(keep.mean()), 0.95))
     for g in gps.values():
-        g.max_std_ratio, g.shrink = 1.0, shrink
+        g.max_std_ratio, g.shrink, g.interval_k = 1.0, shrink, k
     progress(f"  shrinkage chosen on the folds: its posterior mean times (1 - r^2)^{shrink:g}, r its std over its "
              "prior's")
     progress("  the final model with the GP compensator, on the validation poses")
@@ -140,7 +143,7 @@ def compensator_step(current: CalibrationResult, spec: str, cal: Measurements, v
           "here; it belongs to the session it was learnt in",
         where="GP compensator (gp_compensator): a Gaussian process of the residual",
         holds_up={"cv_mm": cv_mm, "worst_mm": {k: list(v) for k, v in worst.items()}, "support": 1.0,
-                  "shrink": shrink, "missed_by_both": missed,
+                  "shrink": shrink, "interval_k": k, "missed_by_both": missed,
                   "length_scales_deg": scales, "validation_known": [known, total]},
         scope="session"))
     progress(f"GP compensator kept: validation mean {v0.mean_mm:.4f} -> {v1.mean_mm:.4f} mm "
