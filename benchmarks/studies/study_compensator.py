@@ -83,7 +83,7 @@ def run(name: str, robot, cal: Measurements, val: Measurements, seed: int) -> di
     return out
 
 
-def motoman(seed: int) -> tuple:
+def motoman(seed: int, structure_mm: float = 0.5, bad_mm: float = 5.0) -> tuple:
     """The Motoman stand-in: calibration (391 poses) and held-out (195) files of the true robot, and the robot file
     casadical reads (the arm's nominal geometry)."""
     import copy
@@ -107,9 +107,9 @@ def motoman(seed: int) -> tuple:
         for name, n in (("cal", 391), ("val", 195)):
             q = sample(true, n, rng, floor_z=None)
             shots = measure(true, q, rng, session=Session("A", base_xyz=BASE_XYZ, base_rpy=BASE_RPY),
-                            temperature_c=temperatures(n, rng), bad=4 if name == "cal" else 0)
+                            temperature_c=temperatures(n, rng), bad=4 if name == "cal" else 0, bad_mm=bad_mm)
             # the large smooth structure no cause explains: 0.5 mm, of joints 2 and 3, in the measurement frame
-            shots.xyz = shots.xyz + 0.5e-3 * np.column_stack([np.sin(q[:, 1] + 2 * q[:, 2]),
+            shots.xyz = shots.xyz + structure_mm * 1e-3 * np.column_stack([np.sin(q[:, 1] + 2 * q[:, 2]),
                                                               np.cos(q[:, 1] - q[:, 2]), np.sin(2 * q[:, 1])])
             out.append(Measurements.read_csv(shots.write_csv(Path(tmp) / f"{name}.csv"), n_joints=6))
     return robot_from_dict(doc, "arm6-industrial"), out[0], out[1]
@@ -127,6 +127,8 @@ def main() -> None:
     ap.add_argument("--sets", nargs="+", default=["motoman", "a", "b"], help="motoman, a, b (UR10 series)")
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     ap.add_argument("--json", help="write the results here")
+    ap.add_argument("--structure-mm", type=float, default=0.5, help="motoman: the smooth structure's size (0.5)")
+    ap.add_argument("--bad-mm", type=float, default=5.0, help="motoman: the bad shots' size (5)")
     args = ap.parse_args()
     warnings.simplefilter("ignore")
     results = []
@@ -134,7 +136,7 @@ def main() -> None:
           "(shrink) | 95 % interval coverage | time")
     for name in args.sets:
         for seed in args.seeds:
-            robot, cal, val = motoman(seed) if name == "motoman" else ur10(name, seed)
+            robot, cal, val = motoman(seed, args.structure_mm, args.bad_mm) if name == "motoman" else ur10(name, seed)
             r = run(name, robot, cal, val, seed)
             results.append(r)
             print(f"{name} {seed} | {r['kinematic_mm']:.4f} / {r['kinematic_max_mm']:.4f} | {r['hybrid_mm']:.4f} / "

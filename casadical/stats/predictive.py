@@ -22,8 +22,12 @@ A **95 % interval for a measured point** adds the noise
 
     radius = k * sqrt(std^2 / 3 + sigma^2)         k = chi_3(95 %) = sqrt(7.815) = 2.796
 
-of the prediction, ``std`` the figure above (its three axes taken alike)
-and ``sigma`` the noise per axis. Where a GP compensator applies, ``k`` is
+of the prediction, ``std`` the figure above (its three axes taken alike;
+where a GP compensator's correction applies, a share ``w`` of it, the
+parameters' part counts ``(1 - w)^2``: the parameters' error at the pose
+is part of the residual the compensator learnt, a smooth function of the
+readings, and its predictive std holds it) and ``sigma`` the noise per
+axis. Where a GP compensator applies, ``k`` is
 the one the diagnosis calibrated on its calibration folds (the 95 %
 quantile of the held-out errors over their ``sqrt(std^2 / 3 + sigma^2)``,
 the poses the robust loss set aside counted outside; never below
@@ -112,6 +116,21 @@ def noise_sigma(result: CalibrationResult, data: Measurements) -> np.ndarray:
     return out
 
 
+def compensator_weight(result: CalibrationResult, data: Measurements) -> np.ndarray:
+    """The share of its correction the GP compensator applies at each pose of ``data`` (its
+    :meth:`~casadical.compensators.gp.ResidualGP.weight`; 0 where none applies or without one)."""
+    out = np.zeros(len(data))
+    for t in result.model.terms:
+        inner = t.inner if isinstance(t, SessionLocal) else t
+        if inner.name != "gp_compensator" or inner.gp is None:
+            continue
+        rows = np.arange(len(data)) if not isinstance(t, SessionLocal) else (
+            np.flatnonzero(data.sessions == t.session_name) if data.sessions is not None else np.zeros(0, int))
+        if len(rows):
+            out[rows] = inner.gp.weight(data.q[rows])
+    return out
+
+
 def interval_factor(result: CalibrationResult, data: Measurements) -> np.ndarray:
     """The factor of the 95 % interval at each pose of ``data``: :data:`CHI3_95`, or at the poses of a GP
     compensator's session the factor the diagnosis calibrated on its folds."""
@@ -139,7 +158,9 @@ def prediction_interval(result: CalibrationResult, data: Measurements,
         The calibration holds no parameter covariance.
     """
     sp, sl = prediction_std(result, data) if std is None else std
-    total2 = sp ** 2 + (0.0 if sl is None else sl ** 2)
+    # where the compensator's correction applies, the parameters' error at the pose is part of the residual it
+    # learnt (a smooth function of the readings), and its predictive std holds it
+    total2 = sp ** 2 if sl is None else (1 - compensator_weight(result, data)) ** 2 * sp ** 2 + sl ** 2
     return interval_factor(result, data) * np.sqrt(total2 / 3 + noise_sigma(result, data) ** 2)
 
 
