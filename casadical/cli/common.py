@@ -355,8 +355,9 @@ def compensator_line(cal, data) -> str:
     if not total:
         return ""
     return (f"GP compensator (a Gaussian process of the residual, one per session): applied at {known} of {total} "
-            f"poses; at the other {total - known} it does not know the residual (too far from the poses it learnt "
-            "from) and the physical model stands alone")
+            f"poses (at least half of its correction); at the other {total - known} it knows the residual less (too "
+            "far from the poses it learnt from), its correction shrinks toward nothing and the physical model stands "
+            "nearly alone")
 
 
 # --- progress ------------------------------------------------------------------------

@@ -79,6 +79,10 @@ def register(sub) -> None:
                    help="loss of every fit, as for calibrate (default: %(default)s)")
     p.add_argument("--no-blackbox", "--no-layer", action="store_true",
                    help="skip the GP compensator (a Gaussian process, one per session, of what the named causes leave)")
+    p.add_argument("--worst-case", action="store_true",
+                   help="where the final model's worst validation error is more than 5 %% above a kinematic "
+                        "calibration's, end with the model the report names to restore it (without the GP "
+                        "compensator, or fewer causes): a safe worst case over a lower mean")
     p.add_argument("--no-structure", action="store_true",
                    help="skip the structure screen (what the named causes leave, against every joint's reading and "
                         "torque, time and the instrument's view: docs/diagnosis.md)")
@@ -133,7 +137,8 @@ def run(args) -> int:
                                  position_only=args.position_only,
                                  transfer_base_poses=args.transfer_base_poses or DiagnosisSettings.transfer_base_poses,
                                  transfer_refit_poses=args.transfer_refit_poses, session_tools=args.session_tool,
-                                 structure=not args.no_structure, noise_mm=args.noise_mm)
+                                 structure=not args.no_structure, noise_mm=args.noise_mm,
+                                 worst_case=args.worst_case)
     status = Status(args.quiet)
     say = status.timed_line()
     report = diagnose(robot, cal, val, settings, progress=say if args.verbose else _brief(say), other=other,

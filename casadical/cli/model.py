@@ -54,7 +54,8 @@ def register(sub) -> None:
     p.add_argument("--std", action="store_true",
                    help="also write std_mm, the predicted position's uncertainty at each pose (rms 3-D error of the "
                         "prediction): the parameters' covariance (std_params_mm) and, with a GP compensator, its "
-                        "predictive std (std_layer_mm); MODEL must be a calibration JSON")
+                        "predictive std (std_layer_mm); and interval_mm, the radius of the 95 %% interval of a "
+                        "measured point (the noise added); MODEL must be a calibration JSON")
     add_checks(p)
     add_urdf_chain(p)
     add_terms(p)
@@ -221,7 +222,7 @@ def run_predict(args) -> int:
         # read as the model's (compensate takes it for the target orientation)
         out = out.with_columns({f"measured_{k}" if k in RXYZ else k: v for k, v in out.columns.items()})
     if args.std:
-        from ..stats.predictive import prediction_std
+        from ..stats.predictive import prediction_interval, prediction_std
 
         try:
             sp, sl = prediction_std(cal, data)
@@ -231,6 +232,7 @@ def run_predict(args) -> int:
         cols = {"std_mm": total * 1000, "std_params_mm": sp * 1000}
         if sl is not None:
             cols["std_layer_mm"] = sl * 1000
+        cols["interval_mm"] = prediction_interval(cal, data, (sp, sl)) * 1000
         out = out.with_columns({**out.columns, **cols})
     out.write_csv(args.out, overwrite=args.force)
     print(f"predicted {len(data)} poses -> {args.out}")

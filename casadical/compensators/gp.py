@@ -36,9 +36,20 @@ two agree with scikit-learn's own prediction.
 
 Unlike a network, the process says where it knows: its predictive standard
 deviation is small near the poses it learnt from and returns to its prior
-far from them. :meth:`ResidualGP.knows` marks the poses where it is below
-``max_std_ratio`` of the prior for every component; elsewhere the
-compensator does nothing and the physical model stands alone.
+far from them. Its correction is bounded by what it knows
+(:meth:`ResidualGP.weight`): the posterior mean times
+
+    w(x) = (1 - r(x)^2)^p        (0 where r(x) >= max_std_ratio)
+
+where ``r`` is the predictive std over the prior std (the largest of the
+three components) and ``1 - r^2`` the share of the prior's variance the
+poses it learnt from explain there. Near them ``r`` is small and the whole
+correction applies; as the pose moves away it shrinks smoothly to nothing
+at ``r = 1``, where the physical model stands alone. The strength ``p``
+(:attr:`ResidualGP.shrink`) is chosen by the diagnosis on the calibration
+folds; ``p = 0`` with ``max_std_ratio < 1`` is the on/off support of
+earlier versions (:data:`MAX_STD_RATIO`, the default of a process fitted
+outside the diagnosis and of files without ``shrink``).
 """
 
 from __future__ import annotations
@@ -56,6 +67,9 @@ from ..runtime.threads import limited_threads
 #: series A, 300 poses, seed 1: 86 % of the series' other poses, none of series B's, whose ratio is 1.000 at
 #: every pose; at 0.8 the share in series was 76 % and its held-out mean 0.010 mm worse)
 MAX_STD_RATIO = 0.95
+#: the 95 % quantile of a chi distribution with 3 degrees of freedom, sqrt(7.8147): the factor of a 95 % interval of
+#: a measured point whose three axes are Gaussian alike (:mod:`casadical.stats.predictive`)
+CHI3_95 = 2.7955
 #: bounds of the length scales (rad)
 LENGTH_BOUNDS = (0.05, 100.0)
 #: the hyperparameters are fitted on at most this many poses (chosen at random), in at most this many iterations
@@ -121,7 +135,14 @@ class ResidualGP:
         The standardisation of ``Y`` (scikit-learn's ``normalize_y``).
     max_std_ratio : float
         Where the predictive std of a component exceeds this share of its
-        prior std the process does not know (:meth:`knows`).
+        prior std the correction is 0 (:meth:`weight`).
+    shrink : float
+        The strength ``p`` of :meth:`weight`'s shrinkage, ``(1 - r^2)^p``
+        (0: the whole correction wherever ``r < max_std_ratio``).
+    interval_k : float
+        The factor of the 95 % interval of a measured point at the poses of
+        its session (:func:`casadical.stats.predictive.prediction_interval`):
+        :data:`CHI3_95`, or as the diagnosis calibrates it on its folds.
     """
 
     X: np.ndarray
@@ -132,6 +153,8 @@ class ResidualGP:
     y_mean: np.ndarray
     y_std: np.ndarray
     max_std_ratio: float = MAX_STD_RATIO
+    shrink: float = 0.0
+    interval_k: float = CHI3_95
 
     def __post_init__(self) -> None:
         from scipy.linalg import cho_factor, cho_solve  # here: a command whose model has no process needs none
@@ -196,7 +219,7 @@ class ResidualGP:
     def refit(self, rows: np.ndarray) -> "ResidualGP":
         """The same hyperparameters, conditioned on the training poses ``rows`` only (for held-out folds)."""
         return ResidualGP(self.X[rows], self.Y[rows], self.length_scales, self.signal_var, self.noise_var,
-                          self.y_mean, self.y_std, self.max_std_ratio)
+                          self.y_mean, self.y_std, self.max_std_ratio, self.shrink, self.interval_k)
 
     # --- prediction -----------------------------------------------------------------
 
@@ -242,23 +265,45 @@ class ResidualGP:
         self._ratios[key] = out
         return out.copy()
 
+    def noise_std(self) -> float:
+        """The white-noise part of the residual, per axis (m): what the joint readings do not predict (the mean of
+        the three components' variances)."""
+        return float(np.sqrt(np.mean(self.noise_var * self.y_std ** 2)))
+
+    def std_ratio_of(self, X: np.ndarray, a: int) -> np.ndarray:
+        """Predictive std of component ``a`` over its prior std at poses ``X``."""
+        v = self._solved(np.ascontiguousarray(X, float), a)
+        return np.sqrt(np.clip(1.0 - np.einsum("ij,ij->j", v, v) / self.signal_var[a], 0.0, 1.0))
+
     def predictive_std(self, X: np.ndarray) -> np.ndarray:
-        """Standard deviation (m, (N, 3)) of the residual at poses ``X`` that the process leaves: its
-        predictive std where it knows (:meth:`knows`), its prior std elsewhere (there it adds nothing and the
-        residual is what it would have been)."""
+        """Standard deviation (m, (N, 3)) of the residual at poses ``X`` that the process leaves once its
+        correction, the posterior mean ``m`` times :meth:`weight` ``w``, is applied: under the process's prior
+        the residual ``f - w m`` has the variance ``v + (1 - w)^2 (s^2 - v)`` (``v`` the predictive variance,
+        ``s^2 - v`` that of ``m``): its predictive std where the whole correction applies, its prior std where
+        none does (the residual is then what it would have been)."""
         X = np.ascontiguousarray(X, float)
         out = np.empty((len(X), 3))
-        known = self.knows(X)
+        w = self.weight(X)
         for a in range(3):
             v = self._solved(X, a)
-            var = np.where(known, self.signal_var[a] - np.einsum("ij,ij->j", v, v), self.signal_var[a])
-            out[:, a] = np.sqrt(np.clip(var, 0.0, None)) * self.y_std[a]
+            var = np.clip(self.signal_var[a] - np.einsum("ij,ij->j", v, v), 0.0, self.signal_var[a])
+            var = var + (1.0 - w) ** 2 * (self.signal_var[a] - var)
+            out[:, a] = np.sqrt(var) * self.y_std[a]
         return out
 
+    def weight(self, X: np.ndarray) -> np.ndarray:
+        """The share of its posterior mean the correction applies at each pose: ``(1 - r^2)^p`` with ``r`` the
+        :meth:`std_ratio` and ``p`` :attr:`shrink`, 0 where ``r >= max_std_ratio`` (1 near the poses it learnt
+        from, 0 where it knows nothing)."""
+        r = self.std_ratio(X)
+        w = np.clip(1.0 - r ** 2, 0.0, 1.0) ** self.shrink if self.shrink > 0 else np.ones(len(r))
+        return np.where(r < self.max_std_ratio, w, 0.0)
+
     def knows(self, X: np.ndarray) -> np.ndarray:
-        """Poses where the process knows the residual (every component's predictive std below
+        """Poses where the process knows the residual: its correction applies at least half of its posterior
+        mean (:meth:`weight` >= 0.5; with ``shrink`` 0: every component's predictive std below
         ``max_std_ratio`` of its prior)."""
-        return self.std_ratio(X) < self.max_std_ratio
+        return self.weight(X) >= 0.5
 
     def casadi(self, x):
         """The expected residual as a CasADi expression of the joint readings ``x`` (n x 1), m."""
@@ -278,7 +323,9 @@ class ResidualGP:
         return {"kind": "gaussian_process", "length_scales_rad": self.length_scales.tolist(),
                 "signal_var": self.signal_var.tolist(), "noise_var": self.noise_var.tolist(),
                 "y_mean_m": self.y_mean.tolist(), "y_std_m": self.y_std.tolist(),
-                "max_std_ratio": self.max_std_ratio, "q_rad": self.X.tolist(), "residual_m": self.Y.tolist()}
+                "max_std_ratio": self.max_std_ratio, "shrink": self.shrink, "interval_k": self.interval_k,
+                "q_rad": self.X.tolist(),
+                "residual_m": self.Y.tolist()}
 
     @classmethod
     def from_dict(cls, d: dict) -> "ResidualGP":
@@ -295,6 +342,8 @@ class ResidualGP:
             sv, nv = np.asarray(d["signal_var"], float), np.asarray(d["noise_var"], float)
             mean, std = np.asarray(d["y_mean_m"], float), np.asarray(d["y_std_m"], float)
             ratio = float(d.get("max_std_ratio", MAX_STD_RATIO))
+            shrink = float(d.get("shrink", 0.0))
+            k = float(d.get("interval_k", CHI3_95))
         except (KeyError, TypeError, ValueError) as e:
             raise InputError(f"not a Gaussian process written by casadical ({e})") from e
         n = ls.shape[1] if ls.ndim == 2 else -1
@@ -304,7 +353,7 @@ class ResidualGP:
             raise InputError("a Gaussian process needs q_rad (N x n), residual_m (N x 3), 3 x n length scales "
                              "and 3-vectors signal_var, noise_var, y_mean_m, y_std_m, all finite")
         if not (np.all(ls > 0) and np.all(std > 0) and np.all(sv > 0) and np.all(nv > 0) and 0 < ratio <= 1
-                and math.isfinite(ratio)):
-            raise InputError("a Gaussian process needs positive length scales, variances and y_std_m, and "
-                             "max_std_ratio in (0, 1]")
-        return cls(X, Y, ls, sv, nv, mean, std, ratio)
+                and math.isfinite(ratio) and 0 <= shrink < math.inf and 0 < k < math.inf):
+            raise InputError("a Gaussian process needs positive length scales, variances and y_std_m, "
+                             "max_std_ratio in (0, 1], a finite shrink >= 0 and a finite interval_k > 0")
+        return cls(X, Y, ls, sv, nv, mean, std, ratio, shrink, k)

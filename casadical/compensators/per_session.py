@@ -8,9 +8,11 @@ compensator learns it with a Gaussian process of the joint readings
 (:class:`casadical.compensators.gp.ResidualGP`, one per session), in the
 robot base frame of each pose's session, and adds it to the model as a
 ``gp_compensator`` term (``gp_compensator@<session>`` with several
-sessions). It applies only where its predictive uncertainty says it knows
-the residual; elsewhere the physical model stands alone, and
-:func:`gp_compensator_coverage` says at how many poses that was.
+sessions). Its correction shrinks with its predictive uncertainty
+(:meth:`ResidualGP.weight`): whole near the poses it learnt from, nothing
+where it knows nothing, and there the physical model stands alone;
+:func:`gp_compensator_coverage` says at how many poses it applied (at least
+half of its posterior mean).
 
 :func:`gp_compensator_held_out` judges the compensator as the diagnosis
 judges every step: on cross-validation folds (random, time-blocked,
@@ -31,7 +33,7 @@ from ..model.symbolic import Model
 from ..result import CalibrationResult, learning_mask, rebuilt
 from ..runtime.threads import limited_threads
 from ..terms import SessionLocal, make_term
-from .gp import MAX_STD_RATIO, ResidualGP
+from .gp import CHI3_95, MAX_STD_RATIO, ResidualGP
 
 #: a session's process learns from at most this many of its poses (drawn at random): its cost grows with the cube
 #: of the poses, in the fit and in every held-out fold, and its size in the model with their number
@@ -97,15 +99,16 @@ def gp_compensator_coverage(result: CalibrationResult, data: Measurements) -> tu
 
 @dataclass
 class GPCompensatorFolds:
-    """Held-out predictions of the GP compensator on every fold: what judging it, and choosing its support, needs.
+    """Held-out predictions of the GP compensator on every fold: what judging it, and choosing its shrinkage, needs.
 
     Attributes
     ----------
     before : ndarray, shape (N,)
         Residual norm (m) of each pose of ``keep`` without the compensator.
-    folds : dict of str to list of (ndarray, ndarray, ndarray, ndarray)
+    folds : dict of str to list of tuples
         By kind: for each fold, its held-out poses (indices into ``keep``'s poses), their residuals (m, (m, 3)),
-        the fold's process's prediction there (m) and its predictive std over the prior (:meth:`ResidualGP.std_ratio`).
+        the fold's process's prediction there (m), its predictive std over the prior (:meth:`ResidualGP.std_ratio`),
+        its predictive and prior variances (m^2, (m, 3)) and its white noise per axis (m, (m,)).
     n_schemes : dict of str to int
         Schemes of each kind (a pose is held out once in each).
     """
@@ -114,23 +117,51 @@ class GPCompensatorFolds:
     folds: dict
     n_schemes: dict
 
-    def after(self, kind: str, support: float) -> np.ndarray:
+    def after(self, kind: str, shrink: float) -> np.ndarray:
         """Residual norm (m) of each pose with the compensator, held out in the folds of ``kind`` (averaged over
-        its schemes), the compensator applied where its std ratio is below ``support``."""
+        its schemes), its correction shrunk with strength ``shrink`` (:func:`shrink_weight`)."""
         out = np.zeros(len(self.before))
-        for at, Y, pred, ratio in self.folds[kind]:
-            out[at] += np.linalg.norm(Y - pred * (ratio < support)[:, None], axis=1)
+        for at, Y, pred, ratio, *_ in self.folds[kind]:
+            out[at] += np.linalg.norm(Y - pred * shrink_weight(ratio, shrink)[:, None], axis=1)
         return out / self.n_schemes[kind]
 
-    def means_mm(self, support: float) -> dict[str, tuple[float, float]]:
+    def interval_k(self, shrink: float, level: float = 0.95) -> float:
+        """The factor of a 95 % interval of a measured point, calibrated on the random folds: the ``level``
+        quantile of each held-out pose's error over ``sqrt(std^2 / 3 + sigma^2)`` (``std`` what the fold's
+        process leaves, :meth:`ResidualGP.predictive_std`; ``sigma`` its white noise), never below
+        :data:`CHI3_95`."""
+        z = [np.zeros(0)]
+        for _, Y, pred, ratio, var, prior, noise in self.folds.get("random", []):
+            w = shrink_weight(ratio, shrink)[:, None]
+            s2 = np.sum(var + (1 - w) ** 2 * (prior - var), axis=1)
+            z.append(np.linalg.norm(Y - pred * w, axis=1) / np.sqrt(s2 / 3 + noise ** 2))
+        z = np.concatenate(z)
+        return max(CHI3_95, float(np.quantile(z, min(level, 1.0)))) if len(z) else CHI3_95
+
+    def means_mm(self, shrink: float) -> dict[str, tuple[float, float]]:
         """Held-out mean (mm) without and with the compensator, by kind."""
         b = float(self.before.mean() * 1000)
-        return {k: (b, float(self.after(k, support).mean() * 1000)) for k in self.folds}
+        return {k: (b, float(self.after(k, shrink).mean() * 1000)) for k in self.folds}
 
-    def worst_mm(self, support: float) -> dict[str, tuple[float, float]]:
-        """Worst held-out error (mm) without and with the compensator, by kind."""
-        b = float(self.before.max() * 1000)
-        return {k: (b, float(self.after(k, support).max() * 1000)) for k in self.folds}
+    def worst_mm(self, shrink: float, band: float = np.inf) -> dict[str, tuple[float, float]]:
+        """Worst held-out error (mm) without and with the compensator, by kind, like with like: leaving out the
+        poses both miss by more than ``band`` (mm; a pose no model of the robot predicts, where a few um either
+        way say nothing of the compensator)."""
+        out = {}
+        for k in self.folds:
+            b, a = self.before * 1000, self.after(k, shrink) * 1000
+            like = ~((b > band) & (a > band))
+            out[k] = (float(b[like].max()), float(a[like].max())) if like.any() else (float(b.max()), float(a.max()))
+        return out
+
+    def missed(self, shrink: float, band: float) -> dict[str, int]:
+        """By kind, how many poses both models miss by more than ``band`` (mm): left out of :meth:`worst_mm`."""
+        return {k: int(((self.before * 1000 > band) & (self.after(k, shrink) * 1000 > band)).sum()) for k in self.folds}
+
+
+def shrink_weight(ratio: np.ndarray, shrink: float) -> np.ndarray:
+    """:meth:`ResidualGP.weight` from the std ratios: ``(1 - r^2)^shrink``, 0 at ``r >= 1``."""
+    return np.where(ratio < 1.0, np.clip(1.0 - ratio ** 2, 0.0, 1.0) ** shrink, 0.0)
 
 
 @limited_threads()
@@ -142,7 +173,7 @@ def gp_compensator_held_out(gps: dict[str | None, ResidualGP], learnt: dict[str 
     Each fold's process is the session's process (hyperparameters of the
     fit on all poses) conditioned on the poses it learnt from (``learnt``,
     indices into ``data``) that are among the fold's training poses; where
-    it does not know it adds nothing (:meth:`GPCompensatorFolds.after`: for any support).
+    it knows nothing it adds nothing (:meth:`GPCompensatorFolds.after`: for any shrinkage).
     ``progress`` receives a line per kind of fold.
     """
     sessions = session_index(data)
@@ -158,6 +189,7 @@ def gp_compensator_held_out(gps: dict[str | None, ResidualGP], learnt: dict[str 
             for F in scheme.folds:
                 test = np.intersect1d(F, idx_keep)
                 pred, ratio = np.zeros((len(test), 3)), np.ones(len(test))
+                var, prior, noise = np.zeros((len(test), 3)), np.zeros((len(test), 3)), np.zeros(len(test))
                 for s, rows in sessions.items():
                     own = learnt[s or None]
                     train = np.setdiff1d(own, F)
@@ -165,6 +197,9 @@ def gp_compensator_held_out(gps: dict[str | None, ResidualGP], learnt: dict[str 
                     if len(train) >= 10 and at.any():
                         g = gps[s or None].refit(np.searchsorted(own, train))
                         x = data.q[test[at]]
-                        pred[at], ratio[at] = g.predict(x), g.std_ratio(x)
-                folds[kind].append((np.searchsorted(idx_keep, test), Y[test], pred, ratio))
+                        r = np.column_stack([g.std_ratio_of(x, a) for a in range(3)])
+                        pred[at], ratio[at] = g.predict(x), r.max(axis=1)
+                        prior[at] = g.signal_var * g.y_std ** 2
+                        var[at], noise[at] = r ** 2 * prior[at], g.noise_std()
+                folds[kind].append((np.searchsorted(idx_keep, test), Y[test], pred, ratio, var, prior, noise))
     return GPCompensatorFolds(np.linalg.norm(Y[idx_keep], axis=1), folds, n_schemes)

@@ -1,9 +1,11 @@
 """Stage ``judge_final_model``: what the validation poses say of the final model, and what it leaves.
 
 Reads ``final``, ``parametric`` and ``kinematic``; sets ``final_errors`` and ``final_val`` (its validation
-errors) and ``set_aside`` (the poses the final fit set aside, tested for shared structure before they are
-called bad measurements: :mod:`casadical.stats.outliers`; those the structure screen brings back within the robust
-loss's limit are the largest misses of that structure, ``structure_misses``), and adds the notes: a worst
+errors), ``interval_coverage`` (the share of the validation poses inside the final model's 95 % interval of a
+measured point, :func:`casadical.stats.predictive.prediction_interval`) and ``set_aside`` (the poses the final
+fit set aside, tested for shared structure before they are called bad measurements: :mod:`casadical.stats.outliers`;
+those the structure screen brings back within the robust loss's limit are the largest misses of that structure,
+``structure_misses``), and adds the notes: a worst
 validation error above the kinematic model's (:func:`.never_worse.validation_note`), the remaining residual
 (in units of the instrument's noise where it is known: ``noise``, :mod:`.noise`), the sag the model
 predicts, the set-aside poses.
@@ -38,6 +40,14 @@ def judge_final_model(run: DiagnosisRun) -> None:
     if note:
         run.notes.append(note)
     if final.uncertainty is not None:
+        from ..stats.predictive import prediction_interval
+
+        radius = prediction_interval(final, run.val)
+        inside = run.final_errors <= radius
+        run.interval_coverage = float(inside.mean())
+        run.notes.append(f"95 % intervals of a measured point (predict --std's interval_mm, median "
+                         f"{np.median(radius) * 1000:.4f} mm) hold {int(inside.sum())} of the {len(inside)} "
+                         f"validation poses ({run.interval_coverage:.1%})")
         run.notes.append(f"remaining calibration residual {final.uncertainty.sigma * 1000:.4f} mm per axis (rms); "
                          f"validation rms {final_val.rms_mm / math.sqrt(3):.4f} mm per axis")
     run.noise = noise_floor(cal, run.s.noise_mm, final_val.rms_mm)

@@ -55,6 +55,7 @@ from .state import DiagnosisRun
 from .structure import screen_structure
 from .transfer import transfer_findings
 from .unphysical import drop_unphysical
+from .worst_case import keep_worst_case
 
 #: the stages of :func:`diagnose`, in order
 STAGES: tuple[Callable[[DiagnosisRun], None], ...] = (
@@ -68,6 +69,7 @@ STAGES: tuple[Callable[[DiagnosisRun], None], ...] = (
     keep_never_worse,   # final check: never worse than the kinematic model, in mean and worst case
     screen_structure,   # what the named causes leave: structure no catalogue cause explains, and where it lives
     add_compensator,    # the GP compensator of what no named cause explains (one per session), judged like a step
+    keep_worst_case,    # a worst validation error above the kinematic model's: what to drop (--worst-case: dropped)
     describe_findings,  # each finding's values, evidence, figure and scope; the structure that cannot be named
     judge_final_model,  # the validation poses on the final model; the residual, sag and set-aside poses
     transfer_findings,  # with another series: does each finding hold up there?

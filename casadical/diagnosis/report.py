@@ -203,6 +203,9 @@ class DiagnosisReport:
     noise : dict
         The instrument's noise floor and the final model's leftover in its
         units, where the noise is known (:class:`casadical.diagnosis.noise.NoiseFloor`).
+    interval_coverage : float or None
+        The share of the validation poses whose measured point lies inside the final model's 95 % interval
+        (:func:`casadical.stats.predictive.prediction_interval`); None without a parameter covariance.
     """
 
     robot: str
@@ -223,6 +226,7 @@ class DiagnosisReport:
     set_aside: dict = field(default_factory=dict)
     not_tried: list = field(default_factory=list)
     noise: dict = field(default_factory=dict)
+    interval_coverage: float | None = None
 
     def to_dict(self) -> dict:
         from ..robot import robot_to_dict
@@ -260,6 +264,7 @@ class DiagnosisReport:
             doc["transfer"] = self.transfer
         if self.noise:
             doc["final"]["noise"] = self.noise
+        doc["final"]["interval_coverage"] = self.interval_coverage
         doc["robot_description"] = robot_to_dict(self.final.model.robot)   # what plan-poses REPORT.json builds on
         return doc
 

@@ -52,6 +52,12 @@ class DiagnosisSettings:
         explains (:mod:`casadical.diagnosis.structure`), and check that every
         named cause explains the structure it stands for
         (:mod:`casadical.diagnosis.stand_ins`).
+    worst_case : bool
+        Where the final model's worst validation error is more than 5 % above
+        the kinematic model's, end with the model the report names to restore
+        it (without the GP compensator, or fewer causes:
+        :mod:`casadical.diagnosis.worst_case`), a safe worst case chosen over
+        a lower mean; without it the report only says so.
     noise_mm : float or None
         The instrument's noise per axis (mm, 1 sigma), as the user states it:
         the report gives the final model's leftover in units of it (None: from
@@ -73,6 +79,7 @@ class DiagnosisSettings:
     session_tools: bool = False
     structure: bool = True
     noise_mm: float | None = None
+    worst_case: bool = False
 
     def __post_init__(self) -> None:
         if not 0 < self.alpha < 1 or not 0 < self.stability_alpha < 1:

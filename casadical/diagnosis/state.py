@@ -108,6 +108,7 @@ class DiagnosisRun:
     set_aside: SetAsideStructure | None = None
     structure_misses: dict[int, list[int]] = field(default_factory=dict)   # finding number -> file lines
     noise: NoiseFloor | None = None
+    interval_coverage: float | None = None   # share of the validation poses inside the final model's 95 % interval
 
     # transfer_findings, assemble_report
     study: TransferStudy | None = None

@@ -18,9 +18,11 @@ class GPCompensator(ErrorTerm):
     joint readings to the residual in the robot base frame; it is fitted to
     a calibration's residuals and then frozen (no parameters of its own).
     Its predictive uncertainty says where it knows: at a pose far from the
-    poses it learnt from it returns to its prior, and there the compensator
-    adds nothing (the covariate ``gp_gate``, 1 where it knows, 0 elsewhere,
-    made from the poses themselves), so the physical model stands alone.
+    poses it learnt from it returns to its prior, and its correction shrinks
+    with it (the covariate ``gp_gate``, the share of its posterior mean it
+    applies, :meth:`~casadical.compensators.gp.ResidualGP.weight`: 1 near the
+    poses it learnt from, 0 where it knows nothing, made from the poses
+    themselves), so that there the physical model stands alone.
 
     It belongs to the measurement session it was learnt in (``session``):
     structure that no named cause explains is mostly of that session (the
@@ -73,7 +75,8 @@ class GPCompensator(ErrorTerm):
         return ctx.cov["gp_gate"] * self.gp.casadi(ca.vertcat(*[ctx.q[i] for i in range(ctx.robot.n)]))
 
     def covariate_values(self, data) -> dict:
-        """``gp_gate``: 1 at the poses where the process knows the residual, 0 elsewhere."""
+        """``gp_gate``: the share of its posterior mean the process applies at each pose (its
+        :meth:`~casadical.compensators.gp.ResidualGP.weight`)."""
         if self.gp is None:
             return {"gp_gate": np.zeros(len(data))}
-        return {"gp_gate": self.gp.knows(data.q).astype(float)}
+        return {"gp_gate": self.gp.weight(data.q)}

@@ -136,3 +136,52 @@ def test_a_transfer_keeps_the_compensator_only_when_asked(tmp_path):
     kept = calibrate(res, few, "base", "lm", warn=False, keep_compensator=True)
     assert "gp_compensator" in kept.model.spec
     assert np.array_equal(kept.model.term("gp_compensator").gp.Y, res.model.term("gp_compensator").gp.Y)
+
+
+def test_the_correction_shrinks_with_what_it_knows():
+    """With a shrinkage strength p the correction is the posterior mean times (1 - r^2)^p, r its std over its
+    prior's: nearly whole near the poses it learnt from, nothing far from them; what it leaves has the variance
+    v + (1 - w)^2 (s^2 - v) (its predictive std where all applies, its prior's where none); the file keeps p."""
+    rng = np.random.default_rng(1)
+    X = rng.uniform(-2, 2, (80, 4))
+    Y = np.column_stack([np.sin(X[:, 0]), np.cos(X[:, 1]), X[:, 2] * X[:, 3]]) * 1e-4 + rng.normal(0, 2e-6, (80, 3))
+    gp = ResidualGP.fit(X, Y)
+    gp.max_std_ratio, gp.shrink = 1.0, 2.0
+    r = gp.std_ratio(X)
+    assert np.allclose(gp.weight(X), (1 - r ** 2) ** 2)
+    assert np.median(gp.weight(X)) > 0.9 and np.all(gp.weight(X + 50.0) == 0)
+    mid = X + rng.normal(0, 0.8, X.shape)
+    w = gp.weight(mid)
+    assert np.all(np.diff(gp.weight(X[:1] + np.linspace(0, 6, 30)[:, None])) <= 1e-12)   # shrinks going away
+    std = gp.predictive_std(mid)
+    for a in range(3):
+        v = (gp.std_ratio_of(mid, a) ** 2) * gp.signal_var[a]
+        assert np.allclose(std[:, a], np.sqrt(v + (1 - w) ** 2 * (gp.signal_var[a] - v)) * gp.y_std[a])
+    assert np.allclose(gp.predictive_std(X + 50.0), np.sqrt(gp.signal_var) * gp.y_std)
+    again = ResidualGP.from_dict(json.loads(json.dumps(gp.to_dict())))
+    assert again.shrink == 2.0 and np.array_equal(again.weight(mid), w)
+    old = gp.to_dict()
+    del old["shrink"]                    # a file of an earlier version: the on/off support
+    assert set(np.unique(ResidualGP.from_dict(old).weight(mid))) <= {0.0, 1.0}
+
+
+def test_the_worst_case_judge_compares_like_with_like():
+    """The GP compensator's worst held-out error leaves out the poses both models miss by more than the noise:
+    a rise there does not veto a real gain; a rise elsewhere does."""
+    from casadical.compensators.per_session import GPCompensatorFolds
+    from casadical.diagnosis.compensator import judge
+
+    rng = np.random.default_rng(0)
+    n = 200
+    Y = rng.normal(0, 1e-4, (n, 3))
+    Y[0] = [3e-3, 0, 0]                              # a pose both models miss by far
+    pred = 0.6 * Y                                   # a real gain at every pose
+    pred[0] = [-0.5e-3, 0, 0]                        # ... and a worse miss of the far pose
+    ratio = np.full(n, 0.1)
+    folds = GPCompensatorFolds(np.linalg.norm(Y, axis=1), {"random": [(np.arange(n), Y, pred, ratio)]},
+                               {"random": 1})
+    assert judge(folds, 1.0, 0.05)[0]                # judged on every pose: the worst case vetoes
+    assert not judge(folds, 1.0, 0.05, band=1.0)[0]  # the far pose left out: the gain stands
+    pred[5] = Y[5] + [1.5e-3, 0, 0]                  # a rise at a pose within the noise: it vetoes
+    reasons = judge(folds, 1.0, 0.05, band=1.0)[0]
+    assert reasons and "worst" in reasons[0]

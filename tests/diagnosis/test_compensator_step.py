@@ -11,7 +11,7 @@ from casadical import calibrate
 from casadical.compensators.gp import FIT_ITERATIONS, LENGTH_BOUNDS, ResidualGP, log_likelihood, squared_differences
 from casadical.data import Measurements
 from casadical.diagnosis import DiagnosisSettings, diagnose
-from casadical.diagnosis.compensator import SUPPORTS
+from casadical.diagnosis.compensator import SHRINKS
 from casadical.robot import robot_from_dict
 from tests.helpers.arms import ARM7_DH
 from tests.truth import Arm, Effects, TrueRobot, measure, sample
@@ -57,7 +57,7 @@ def test_gp_compensator_at_least_as_good_as_a_plain_gp(tmp_path, seed):
     """A seven-axis arm with a compliance, a gear error and a smooth error no named cause explains (a coupling
     of joints 2 and 4, 0.3 mm): the final model, with the GP compensator, predicts the other poses at least as well as a
     kinematic calibration plus a plain Gaussian process of its residual, and its worst error is no higher
-    (5 %); the compensator's support is one of those tried, chosen on the folds."""
+    (5 %); the strength of its shrinkage is one of those tried, chosen on the folds."""
     robot = robot_from_dict(ARM7_DH)
     rng = np.random.default_rng(seed)
     truth = TrueRobot.draw(Arm.from_dict(ARM7_DH), Effects(stiffness={2: 4e4},
@@ -77,7 +77,7 @@ def test_gp_compensator_at_least_as_good_as_a_plain_gp(tmp_path, seed):
     gp = ResidualGP.fit(cal.q, kin.residuals(cal) @ R, seed=seed)
     plain = np.linalg.norm(kin.predict(val) + gp.predict(val.q) @ R.T - val.xyz, axis=1) * 1000
     compensator = next(f for f in rep.findings if f.cause == "unexplained" and f.in_model)
-    assert compensator.holds_up["support"] in SUPPORTS
+    assert compensator.holds_up["shrink"] in SHRINKS
     assert rep.final_validation.mean_mm <= plain.mean(), (rep.final_model, rep.final_validation.mean_mm, plain.mean())
     assert rep.final_validation.max_mm <= 1.05 * plain.max(), (rep.final_validation.max_mm, plain.max())
 

@@ -327,14 +327,17 @@ def test_the_closed_chain_protocol_names_no_cause_the_truth_lacks(tmp_path):
     """The TLBO paper's protocol (HH800, 745 kg payload, 40 calibration poses; problems/protocols/tlbo-hh800.toml),
     simulated and diagnosed by the command line: every cause named is one the truth has (compliance of joints 2-5,
     gear errors of joints 2 and 3), no progressive stiffness (before: k2 7.87e7 against a true 6.16e7 with a cubic
-    term absorbing the difference)."""
+    term absorbing the difference). The GP compensator is no cause: where it is kept here (issue 38: its shrunk
+    correction lowers the folds' mean 0.0656 -> 0.0581 mm and the validation mean 0.0951 -> 0.0894 mm) it takes
+    the true gear errors this seed's 40 poses do not name."""
     assert main(["simulate", "tlbo-hh800", "--out-dir", str(tmp_path)]) == 0
     assert main(["diagnose", "hh800", str(tmp_path / "calibration.csv"), "--validate",
                  str(tmp_path / "validation.csv"), "--json", str(tmp_path / "r.json")]) == 0
     doc = json.loads((tmp_path / "r.json").read_text())
     truth = {("geometric", None, None)} | {("joint_compliance", j, None) for j in (2, 3, 4, 5)} | \
         {("joint_periodic", 2, 2), ("joint_periodic", 3, 1)}
-    found = {(f["cause"], f.get("joint"), f.get("harmonic")) for f in doc["findings"] if f["in_model"]}
+    found = {(f["cause"], f.get("joint"), f.get("harmonic")) for f in doc["findings"] if f["in_model"]
+             and not (f["cause"] == "unexplained" and "shrink" in f.get("holds_up", {}))}
     assert found <= truth, found - truth
 
 
