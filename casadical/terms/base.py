@@ -206,7 +206,8 @@ def covariate_names(terms: list[ErrorTerm]) -> list[str]:
 
 def reach(robot: Robot, first: int = 1) -> float:
     """Upper bound of the distance from joint ``first`` to the tool point (m)."""
-    links = sum(abs(j.a) + abs(j.d) + abs(j.b or 0.0) for j in robot.joints[first - 1:])
+    links = sum(abs(j.a) + abs(j.d) + abs(j.b or 0.0) + (max(abs(j.min), abs(j.max)) if j.prismatic else 0.0)
+                for j in robot.joints[first - 1:])
     loop = robot.loop.crank if robot.loop else 0.0
     return links + loop + float(sum(abs(robot.tool)))
 
