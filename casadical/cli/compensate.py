@@ -66,7 +66,7 @@ def run(args) -> int:
 
     check_outputs({"--out": args.out}, [args.cal, args.targets], args.force)
     cal = load_calibration(args.cal)
-    targets = Measurements.read_csv(args.targets, n_joints=cal.model.robot.n)
+    targets = Measurements.read_csv(args.targets, robot=cal.model.robot)
     warn_session_frame(cal.sessions, targets, args.cal)
     if len(targets) < JIT_MIN_ROWS:
         cal.model.jit = False
@@ -75,7 +75,8 @@ def run(args) -> int:
                         max_deg_per_mm=args.max_deg_per_mm,
                         **check_options(args))
     if cal.coverage is not None:    # the programmed joints: the same rows whatever is held (the corrections move
-        cal.coverage.warn(np.degrees(targets.q), targets.lines, args.targets)   # them by fractions of a degree)
+        cal.coverage.warn(targets.q_deg if any(targets.prismatic) else np.degrees(targets.q), targets.lines,
+                          args.targets)   # them by fractions of a degree)
     result.joints().write_csv(args.out, overwrite=args.force)
     print(result.summary())
     line = compensator_line(cal, targets)

@@ -214,11 +214,13 @@ def sample_poses(robot: Robot, n: int, rng: np.random.Generator, *,
     box : ((xmin, ymin, zmin), (xmax, ymax, zmax)), optional
         Keep poses whose tool point lies inside this box (robot base frame).
     margin : float
-        Keep this far from the joint limits (rad).
+        Keep this far from the joint limits (rad; as many millimetres as degrees for a prismatic joint).
     """
     if n < 1:
         raise InputError(f"number of poses must be at least 1, got {n}")
     lim = robot.limits.copy()
+    # the margin in degrees, millimetres on a linear axis
+    margin = robot.from_file_units(np.full(robot.n, math.degrees(margin)))
     lim[:, 0] += margin
     lim[:, 1] -= margin
     lim[lim[:, 0] > lim[:, 1]] = robot.limits[lim[:, 0] > lim[:, 1]]
@@ -290,7 +292,7 @@ def simulate(robot: Robot, q: np.ndarray | int, effects: Effects | None = None, 
         extra["temperature_c"] = np.clip(drift, lo, hi)
     if any(effects.drift):   # one pose a second
         extra["time_s"] = np.arange(len(q), dtype=float)
-    data = Measurements.from_arrays(q, None, **extra)
+    data = Measurements.from_arrays(q, None, prismatic=robot.prismatic, **extra)
     xyz = truth.predict(data) + rng.normal(0.0, effects.noise, size=(len(q), 3))
     data = data.with_positions(xyz)
     if effects.orientation_noise is not None:
