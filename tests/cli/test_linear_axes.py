@@ -129,3 +129,27 @@ def test_bad_readings_are_one_line(arm, capsys):
     code, _, err = cli(capsys, "predict", d / "robot.toml", d / "mm.csv", "--out", d / "x.csv")
     one_error(err, "mm.csv", "row 1", f"'q{axis + 1}_mm'", "revolute", rev)
     assert math.isfinite(float(lines[1].split(",")[0]))
+
+
+def test_export_writes_the_axis_as_a_prismatic_joint(arm, capsys):
+    """The URDF has the linear axis as a prismatic joint, and its tool point (yourdfpy, readings in m) is the
+    calibration's; the parameter table says which joint slides."""
+    import yourdfpy
+
+    name, axis, d = arm
+    ok(capsys, "export", d / "cal.json", "--urdf", d / "cal.urdf", "--table", d / "table.csv", "--quiet",
+       "--as-fitted")
+    u = yourdfpy.URDF.load(str(d / "cal.urdf"), load_meshes=False)
+    assert u.joint_map[f"joint_{axis}"].type == "prismatic"
+    assert [j.type for j in u.robot.joints].count("prismatic") == 1
+    from casadical import load_calibration
+    cal = load_calibration(d / "cal.json")
+    val = Measurements.read_csv(d / "val.csv", robot=cal.model.robot)
+    ref = []
+    for row in val.q[:10]:
+        u.update_cfg(row)
+        ref.append(u.get_transform("tool_point", "measurement_frame")[:3, 3])
+    assert np.abs(np.array(ref) - cal.predict(val.subset(np.arange(10)))).max() < 1e-9
+    assert f"joint {axis} prismatic" in (d / "table.csv").read_text().splitlines()[0]
+    robot = load_robot(d / "cal.urdf")            # read back: the axis is prismatic again
+    assert robot.prismatic[axis - 1] and sum(robot.prismatic) == 1
