@@ -92,8 +92,8 @@ class ParameterTable:
                      "controller that takes plain DH has no entry for them)")
         linear = [i for i, p in enumerate(self.prismatic, start=1) if p]
         if linear:
-            link += (f"; joint{'s' if len(linear) > 1 else ''} {', '.join(map(str, linear))} prismatic (a linear axis): "
-                     "Rz(theta) Tz(d + q), q its reading in mm")
+            link += (f"; joint{'s' if len(linear) > 1 else ''} {', '.join(map(str, linear))} prismatic (a linear "
+                     "axis): Rz(theta) Tz(d + q), q its reading in mm")
         return (f"{link}; measured point = base * links * Tx(tool_x) Ty(tool_y) Tz(tool_z); angles in deg, lengths "
                 f"in mm; {self.base}")
 
