@@ -45,7 +45,7 @@ def register(sub) -> None:
     p.add_argument("--max-change-deg", type=float_in(0, 360, hi_open=False), default=5.0,
                    help="largest change of a joint from its programmed value: a target that needs more is an "
                         "error; where holding the orientation would need more, only the point is reached "
-                        "(default: %(default)g deg)")
+                        "(default: %(default)g deg; as many mm for a prismatic joint, a linear axis)")
     p.add_argument("--max-deg-per-mm", type=float_in(0, math.inf), default=2.0, metavar="DEG",
                    help="largest joint motion per mm of correction (or per mrad of orientation) along any direction: "
                         "near a singular configuration, where an exact correction would need more, it is damped "

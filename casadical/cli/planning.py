@@ -91,7 +91,8 @@ def register(sub) -> None:
     p.add_argument("--box", default=None, metavar="XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX",
                    help="keep tool points inside this box, m")
     p.add_argument("--margin-deg", type=float_in(0, 180, lo_open=False), default=5.0,
-                   help="keep this far from the joint limits, degrees (default 5)")
+                   help="keep this far from the joint limits, degrees (millimetres for a prismatic joint, a linear "
+                        "axis; default 5)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     add_urdf_chain(p)
     add_force(p)
