@@ -86,8 +86,9 @@ def not_tried(robot: Robot, cal: Measurements, torques: np.ndarray, settings: Di
         out.append(NotTried("joint_compliance, joint_periodic, encoder_scale, backlash, joint_coupling",
                             "a prismatic joint (a linear axis): these are errors of a revolute joint's angle, and "
                             "a linear axis' own errors (scale per metre, pitch, straightness, the carriage's roll, "
-                            "pitch and yaw) are not in the catalogue yet; kinematic calibrates its zero and direction",
-                            "nothing in the data: a later version of the catalogue",
+                            "pitch and yaw) are not in the catalogue yet (the geometry calibrates where the axis "
+                            "lies and points)",
+                            "no data can: the catalogue has no error of a linear axis yet",
                             [j for j in range(1, robot.n + 1) if j not in revolute]))
     payload = cal.get("payload_kg")
     masses = any(j.mass > 0 for j in robot.joints) or robot.payload_mass > 0 or (

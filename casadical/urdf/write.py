@@ -142,8 +142,9 @@ def _comment(robot: Robot, model: str, sessions: list[str]) -> str:
     where = (f"  'measurement_frame' is the measurement frame of session {sessions[0]}, the calibration's first of "
              f"{', '.join(sessions)}\n  (every session's base pose is in the parameter table).\n" if sessions else "")
     return (f"\n  {robot.name}: geometric model written by casadical {__version__} ({model}).\n"
-            "  At joint readings q (radians, metres for a prismatic joint; the constant offsets theta are in the\n"
-            "  joint origins), link\n"
+            + ("  At joint readings q (radians, metres for a prismatic joint; the constant offsets theta are in\n"
+               "  the joint origins), link" if any(robot.prismatic) else
+               "  At joint readings q (radians; the constant offsets theta are in the joint origins), link") + "\n"
             "  'tool_point' seen from 'measurement_frame' is the measured point (its axes the probe's, for a\n"
             "  full-pose calibration); 'world' has gravity along -z.\n" + where +
             "  A URDF cannot carry, so this file does not contain: " + ", ".join(NOT_IN_URDF) + ".\n"
