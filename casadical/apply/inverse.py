@@ -405,7 +405,11 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
     # max_change_deg: millimetres for a prismatic joint (the reading's file unit)
     limit = readings_from_file_units(np.full(n, float(max_change_deg)), model.robot.prismatic)
     eps = singular_bound(max_deg_per_mm)
-    q, r, iterations, settled = _levenberg_marquardt(eqs, np.arange(N), targets.q, hold, tol, max_iter, limit, eps)
+    # the solver's joints are scaled so that a millimetre of a linear axis weighs as a degree of a revolute joint
+    # (in the least joint change, the bound per mm of correction, the largest change); all 1 without one
+    S = eqs.scale
+    u, r, iterations, settled = _levenberg_marquardt(eqs, np.arange(N), targets.q * S, hold, tol, max_iter,
+                                                     limit * S, eps)
     on_point = np.zeros(N, dtype=bool)    # rows solved for the point alone
     if hold:
         # rows where position and orientation cannot both be met near the programmed joints (a singular
@@ -413,19 +417,20 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
         loose = np.flatnonzero((np.linalg.norm(r[:, :3], axis=1) > tol)
                                | (np.linalg.norm(r[:, 3:], axis=1) > ORIENTATION_TOL * ORIENTATION_WEIGHT))
         if loose.size:
-            q[loose], r2, it2, settled[loose] = _levenberg_marquardt(eqs, loose, targets.q[loose], False, tol,
-                                                                     max_iter, limit, eps)
+            u[loose], r2, it2, settled[loose] = _levenberg_marquardt(eqs, loose, targets.q[loose] * S, False,
+                                                                     tol, max_iter, limit * S, eps)
             r[loose, :3] = r2
-            r[loose, 3:] = eqs.orientation(loose, q[loose]) * ORIENTATION_WEIGHT
+            r[loose, 3:] = eqs.orientation(loose, u[loose]) * ORIENTATION_WEIGHT
             iterations[loose] += it2
             on_point[loose] = True
     # the conditioning of each row's equations at its solution
     small, large = np.empty(N), np.empty(N)
     for rows, with_orientation in ((np.flatnonzero(~on_point), hold), (np.flatnonzero(on_point), False)):
         if rows.size:
-            sv = np.linalg.svd(eqs(rows, q[rows], with_orientation)[1], compute_uv=False)
+            sv = np.linalg.svd(eqs(rows, u[rows], with_orientation)[1], compute_uv=False)
             small[rows], large[rows] = sv[:, -1], sv[:, 0]
     damped = small < eps
+    q = u / S
     residual = np.linalg.norm(r[:, :3], axis=1)
     angle = np.linalg.norm(r[:, 3:], axis=1) / ORIENTATION_WEIGHT if hold else None
     start = np.linalg.norm(programmed - targets.xyz, axis=1)
@@ -435,7 +440,7 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
     if hold:
         loose = np.flatnonzero(result.converged & on_point & ~result.orientation_held)
         if loose.size:
-            sv = np.linalg.svd(eqs(loose, targets.q[loose], True)[1], compute_uv=False)   # at the programmed joints
+            sv = np.linalg.svd(eqs(loose, targets.q[loose] * S, True)[1], compute_uv=False)   # at the programmed joints
             warnings.warn(f"{targets.path}: the {'probe' if probe else 'flange'} orientation cannot be held within "
                           f"{max_change_deg:g} deg of the programmed joints and {max_deg_per_mm:g} deg per mm of "
                           f"correction (--max-deg-per-mm) on {loose.size} row(s), near a singular configuration: "
@@ -545,10 +550,14 @@ def _newton_step(J: np.ndarray, r: np.ndarray, W: np.ndarray, to_start: np.ndarr
 
 
 class _Equations:
-    """Residuals and Jacobians of rows ``index`` at joints ``q``: position (m), then weighted orientation."""
+    """Residuals and Jacobians of rows ``index`` at joints ``q``: position (m), then weighted orientation.
+
+    The joints are the solver's: each reading times :attr:`scale` (1 for a revolute joint, rad per mm for a linear
+    axis, so that a millimetre weighs as a degree), the Jacobian with respect to them."""
 
     def __init__(self, cal: CalibrationResult, targets: Measurements, hold: bool, probe: bool = False):
         self.cal, self.targets, self.model = cal, targets, cal.model
+        self.scale = np.where(np.array(cal.model.robot.prismatic, bool), np.radians(1.0) / 1e-3, 1.0)
         self.p, self.base0 = cal.parameters.values, cal.base0
         self.cov = self.model.covariates(targets)
         self.goal = targets.xyz
@@ -566,17 +575,20 @@ class _Equations:
     def __call__(self, index: np.ndarray, q: np.ndarray, hold: bool) -> tuple[np.ndarray, np.ndarray]:
         # the residual is CalibrationResult.predict itself, so that whatever it adds is honoured; the
         # Jacobian is the model's
+        q = q / self.scale
         r = self.cal.predict(_at(self.targets, index, q)) - self.goal[index]
         _, J = self.model.predict_q_jacobian(q, self.p, self.cov[index], self.base0)
+        J = J / self.scale
         if not hold:
             return r, J
         R, Jw = self.model.flange_rotation_jacobian(q, self.p, self.cov[index], self.base0)
+        Jw = Jw / self.scale
         return (np.concatenate([r, ORIENTATION_WEIGHT * self._from_held(R, index)], axis=1),
                 np.concatenate([J, ORIENTATION_WEIGHT * Jw], axis=1))
 
     def orientation(self, index: np.ndarray, q: np.ndarray) -> np.ndarray:
-        """Rotation vector from the held flange orientation to the model's at ``q`` (rad)."""
-        return self._from_held(self.model.flange_rotation(q, self.p, self.cov[index], self.base0), index)
+        """Rotation vector from the held flange orientation to the model's at the solver's joints ``q`` (rad)."""
+        return self._from_held(self.model.flange_rotation(q / self.scale, self.p, self.cov[index], self.base0), index)
 
     def _from_held(self, R: np.ndarray, index: np.ndarray) -> np.ndarray:
         """Rotation vectors from the held orientations of rows ``index`` to the rotations ``R`` (rad)."""

@@ -93,7 +93,10 @@ def test_compensate_moves_the_linear_axis_too(arm, capsys):
     out = Measurements.read_csv(d / "joints.csv")
     assert f"q{axis}_mm" in out.columns and f"dq{axis}_mm" in out.columns and f"programmed_q{axis}_mm" in out.columns
     assert np.abs(out.columns[f"dq{axis}_mm"]).max() > 1e-3       # the axis moved (mm)
-    assert out.columns["residual_mm"].max() < 1e-3
+    # every row on its target but those near a singular configuration (a stretched arm), damped where the joints
+    # would move more than 2 deg (a linear axis 2 mm) per mm of correction: a millimetre weighs as a degree
+    residual = out.columns["residual_mm"]
+    assert np.mean(residual < 1e-6) > 0.9 and residual.max() < 0.1, residual
 
 
 def test_candidates_plan_poses(arm, capsys):
