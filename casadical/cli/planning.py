@@ -351,7 +351,8 @@ def cmd_candidates(args) -> int:
     if box is not None:
         where.append(f"inside box {box[0]}..{box[1]} m")
     print(f"{args.n} candidate poses of {robot.name} within the joint limits (margin "
-          f"{args.margin_deg:g} deg){', ' + ', '.join(where) if where else ''} -> {args.out}")
+          f"{args.margin_deg:g} deg{' or mm' if any(robot.prismatic) else ''})"
+          f"{', ' + ', '.join(where) if where else ''} -> {args.out}")
     return 0
 
 
