@@ -156,3 +156,14 @@ def test_export_writes_the_axis_as_a_prismatic_joint(arm, capsys):
     assert f"joint {axis} prismatic" in (d / "table.csv").read_text().splitlines()[0]
     robot = load_robot(d / "cal.urdf")            # read back: the axis is prismatic again
     assert robot.prismatic[axis - 1] and sum(robot.prismatic) == 1
+
+
+def test_a_protocol_with_a_joint_error_on_the_axis_is_one_line(tmp_path, capsys):
+    from casadical.robot import PROBLEMS
+
+    text = (PROBLEMS / "protocols" / "track6.toml").read_text()
+    text = text.replace('"../robots/track6.toml"', repr(str(PROBLEMS / "robots" / "track6.toml")).replace("'", '"'))
+    (tmp_path / "p.toml").write_text(text.replace("stiffness = {3 = 1.73e6, 4 = 1.203e6}", "stiffness = {1 = 1e6}"))
+    code, _, err = cli(capsys, "simulate", tmp_path / "p.toml", "--out-dir", tmp_path / "sim")
+    assert code != 0
+    one_error(err, "p.toml", "'truth.stiffness.1'", "prismatic")
