@@ -83,7 +83,7 @@ def not_tried(robot: Robot, cal: Measurements, torques: np.ndarray, settings: Di
     out = []
     revolute = [j for j, jt in enumerate(robot.joints, start=1) if not jt.prismatic]
     if len(revolute) < robot.n:
-        out.append(NotTried("joint_compliance, joint_periodic, encoder_scale, backlash, joint_coupling",
+        out.append(NotTried("joint_compliance, joint_periodic, encoder_scale, backlash",
                             "a prismatic joint (a linear axis): these are errors of a revolute joint's angle, and "
                             "a linear axis' own errors (scale per metre, pitch, straightness, the carriage's roll, "
                             "pitch and yaw) are not in the catalogue yet (the geometry calibrates where the axis "
