@@ -63,7 +63,7 @@ def _rbf(robot, rng):
 #: every joint)
 BUILD = {
     "joint_periodic": lambda robot, rng: make_term("joint_periodic", harmonics=[(2, 1), (3, 2)]),
-    "joint_coupling": lambda robot, rng: make_term("joint_coupling", pairs=[(3, 2), (5, 4)]),
+    "joint_coupling": lambda robot, rng: make_term("joint_coupling", pairs=[(3, 2), (2, 1)]),
     "sessions": lambda robot, rng: make_term("sessions", names=["A", "B"], tools=["B"], references={
         "B": [0, -1, 0, 1, 0, 0, 0, 0, 1, 1.2, -0.8, 0.1]}),
     "gp_compensator": lambda robot, rng: make_term("gp_compensator", gp=_gp(robot, rng)),

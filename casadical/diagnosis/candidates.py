@@ -7,7 +7,12 @@ from dataclasses import dataclass, replace
 #: causes in a few words, for reports (``unexplained`` of no joint: the GP compensator; of a joint: ``unexplained j1``)
 SHORT = {"geometric": "kinematic", "joint_compliance": "compliance", "nonlinear_stiffness": "progressive stiffness",
          "joint_periodic": "periodic", "encoder_scale": "encoder scale", "backlash": "backlash",
-         "thermal_expansion": "thermal", "drift": "drift", "warmup": "warm-up"}
+         "thermal_expansion": "thermal", "drift": "drift", "warmup": "warm-up", "joint_coupling": "coupling",
+         "mount_compliance": "mount compliance"}
+
+
+#: the tiers of :attr:`Candidate.tier`, in the order a round tries them
+TIERS = (1, 2, 3, 4, 5)
 
 
 @dataclass(frozen=True)
@@ -32,6 +37,9 @@ class Candidate:
         For a cause of the user's own (a term of a terms file,
         :mod:`casadical.terms.user`; ``cause`` is its name): its parameters'
         names (``axis_wobble.es``, ...). Empty for the catalogue's causes.
+    source_joint : int or None
+        For a joint coupling: the joint whose reading ``joint``'s angle error
+        follows (``joint_coupling[j:k]``, parameter ``cpl<j>_<k>``).
     """
 
     cause: str
@@ -41,6 +49,7 @@ class Candidate:
     session: str | None = None
     time_constant: float | None = None
     user: tuple[str, ...] = ()
+    source_joint: int | None = None
 
     def shared(self) -> "Candidate":
         """The same cause with one value for every session."""
@@ -56,10 +65,19 @@ class Candidate:
     def tier(self) -> int:
         """The order in which a round tries causes; a tier is tried only when no cause of an earlier one is
         supported. 1: a physical cause of the robot with a parameter or two per joint (what a calibration
-        is for, and what holds on other data); 2: drift of the measurement session (it also stands for
-        any structure that follows the order of the measurements); 3: a periodic error (flexible, many
-        harmonics to choose from)."""
-        return {"drift": 2, "warmup": 2, "joint_periodic": 3}.get(self.cause, 1)
+        is for, and what holds on other data); 2: a mount compliance, physical too but sharing its shape with
+        a joint's own (the moment of vertical weights is the same about every point of a vertical line: the
+        base's tilt about a horizontal axis is the shoulder's compliance where the shoulder stands above the
+        base, as on the UR10, whose joint 2 compliance it took the place of, to be dropped as a stand-in at
+        the end); 3: drift of the measurement session (it also stands for any structure that follows the
+        order of the measurements); 4: a periodic error (flexible, many harmonics to choose from); 5: a joint
+        coupling, last: one of n (n - 1) pairs, a straight line in another joint's reading that a joint's
+        own cause, a gear error or a parallelogram's geometry also takes (tried earlier, on the closed-chain
+        HH800 protocol it took the place of joint 3's encoder scale, and on the UR10 README job it took the
+        place of the gear errors of the rounds that follow; tried last, it is named where none of these
+        takes the residual)."""
+        return {"mount_compliance": 2, "drift": 3, "warmup": 3, "joint_periodic": 4, "joint_coupling": 5}.get(
+            self.cause, 1)
 
     @property
     def family(self) -> "Candidate":
@@ -76,6 +94,8 @@ class Candidate:
             link = self.cause == "thermal_expansion"
             parts.append(("link" if link else "j") + str(self.joint) if short
                          else f"{'link' if link else 'joint'} {self.joint}")
+        if self.source_joint is not None:
+            parts[-1] += f"<-j{self.source_joint}" if short else f" from joint {self.source_joint}'s reading"
         if self.harmonic is not None:
             parts.append(f"h{self.harmonic}" if short else f"harmonic {self.harmonic}")
         if self.source == "motion":
@@ -100,6 +120,8 @@ class Candidate:
             d["time_constant_s"] = self.time_constant
         if self.user:
             d["user"] = True
+        if self.source_joint is not None:
+            d["source_joint"] = self.source_joint
         return d
 
     def parameter_names(self) -> list[str]:
@@ -118,6 +140,8 @@ class Candidate:
             "thermal_expansion": ["thermal_alpha" if j is None else f"thermal_alpha{j}"],
             "drift": ["drift_x", "drift_y", "drift_z"],
             "warmup": ["warmup_x", "warmup_y", "warmup_z"],
+            "joint_coupling": [f"cpl{j}_{self.source_joint}"],
+            "mount_compliance": ["cmount"],
         }[self.cause]
 
 
@@ -159,6 +183,11 @@ def _terms(candidates: list[Candidate]) -> list[str]:
         parts.append("drift")
     parts += [f"warmup[{c.time_constant:g}]" for c in candidates if c.cause == "warmup"][:1]
     parts += sorted({c.cause for c in candidates if c.user})     # causes of the user's own, by their names
+    cpl = sorted({(c.joint, c.source_joint) for c in candidates if c.cause == "joint_coupling"})
+    if cpl:
+        parts.append(f"joint_coupling[{','.join(f'{j}:{k}' for j, k in cpl)}]")
+    if any(c.cause == "mount_compliance" for c in candidates):
+        parts.append("mount_compliance")
     return parts
 
 
@@ -190,6 +219,16 @@ TELL_APART = {
         "arm's reach, drift of the measurement frame does not",
     frozenset({"warmup", "drift"}):
         "measure for longer, or repeat the first poses at the end: a warm-up settles, a drift goes on",
+    frozenset({"joint_coupling", "encoder_scale"}):
+        "move joint {j} and the joint its error would follow independently (one still while the other turns): a "
+        "scale grows with joint {j}'s own reading, a coupling with the other's",
+    frozenset({"joint_coupling"}):
+        "move each of the joints the error could follow while the others stand still",
+    frozenset({"mount_compliance", "joint_compliance"}):
+        "turn joint 1 with the arm stretched: the base's tilt follows the moment about the mount, a joint's "
+        "deflection its own torque",
+    frozenset({"mount_compliance", "thermal_expansion"}):
+        "repeat poses at another temperature with the arm stretched and folded",
     frozenset({"warmup"}):
         "measure for longer, or repeat the first poses at the end: the time constant shows in how fast the "
         "first poses' offset dies away",
@@ -199,7 +238,9 @@ TELL_APART = {
 #: what a cause of a joint varies with, for telling the robot's from one session's own
 _VARIES = {"encoder_scale": "move joint {j} over a wider range", "joint_periodic": "move joint {j} over a wider range",
            "backlash": "load joint {j} with torques of both signs", "joint_compliance": "load joint {j} over a wider "
-           "range of torques", "nonlinear_stiffness": "load joint {j} over a wider range of torques"}
+           "range of torques", "nonlinear_stiffness": "load joint {j} over a wider range of torques",
+           "mount_compliance": "swing the arm's weight about the base (joint 1 turning, the arm stretched and folded)",
+           "joint_coupling": "move joint {j} and its source joint independently over wider ranges"}
 
 
 def tell_apart(a: Candidate, b: Candidate) -> str:

@@ -3,8 +3,23 @@ every kind the data cannot test, with why and what would allow it.
 
 Each kind of cause is a candidate of the robot (one value for every
 session) and, with data of several sessions, of each session alone
-(``... @S``: a gear error, an encoder scale, a compliance of one session's
-set-up). Periodic errors come from the periodograms of the residual's
+(``... @S``: a gear error, an encoder scale, a compliance or the mount's
+give of one session's set-up). A joint coupling (joint j's angle error
+proportional to joint k's reading) is screened for every pair of joints
+that move with the source before the joint (k < j): a joint's drive train
+passes through the joints before it (a wrist's motors sit in the forearm),
+so its error can follow their readings, never a later joint's (a later
+joint's source stands for other structure: on the UR10 README job joint 1
+from joint 5 took the place of joint 5's gear error). It is the robot's
+only: a wrist's gearing is the same in every session, and the pairs again
+per session would only dilute the level; and it is not tried on poses that
+move one joint at a time (a joint's error that follows another's reading
+shows at one configuration of the arm only, where it fits anything: on a
+weak design of 24 such poses a coupling of joint 3 from joint 1 more than
+doubled the validation error). A mount
+compliance needs the robot file's masses (the moment of the weights about
+the base) and a moment that changes over the poses (a constant tilt is the
+base pose's). Periodic errors come from the periodograms of the residual's
 joint angle errors: the robot's over every pose, each session's over its
 own poses (a gear error of one session is diluted in the others'). A drift
 and a warm-up belong to their session by nature: with several sessions only
@@ -27,7 +42,9 @@ from ..data.measurements import Measurements
 from ..robot import Robot
 from ..stats.physics import sign_changes
 from ..terms.definitions import known
+from ..terms.mount_compliance import max_mount_moment, mount_moments
 from .candidates import Candidate
+from .design import ONE_AT_A_TIME, moving_joint
 from .periodogram import Periodogram, joint_errors, periodogram
 from .plots import joint_view
 from .settings import DiagnosisSettings
@@ -40,6 +57,9 @@ WARMUP_STEPS = 10
 SHORT_RANGE_DEG = 90.0
 #: gravity torques below this (N m) at every pose: the joint is not loaded
 NO_TORQUE = 1e-9
+#: the horizontal moment of the weights must change by this share of its largest possible value over the poses
+#: for the mount's give to show (a constant tilt is a rotation of the base pose)
+MOMENT_CHANGE = 1e-3
 
 
 @dataclass
@@ -83,7 +103,7 @@ def not_tried(robot: Robot, cal: Measurements, torques: np.ndarray, settings: Di
     out = []
     revolute = [j for j, jt in enumerate(robot.joints, start=1) if not jt.prismatic]
     if len(revolute) < robot.n:
-        out.append(NotTried("joint_compliance, joint_periodic, encoder_scale, backlash",
+        out.append(NotTried("joint_compliance, joint_periodic, encoder_scale, backlash, joint_coupling",
                             "a prismatic joint (a linear axis): these are errors of a revolute joint's angle, and "
                             "a linear axis' own errors (scale per metre, pitch, straightness, the carriage's roll, "
                             "pitch and yaw) are not in the catalogue yet (the geometry calibrates where the axis "
@@ -111,6 +131,19 @@ def not_tried(robot: Robot, cal: Measurements, torques: np.ndarray, settings: Di
             out.append(NotTried("backlash by the load", "the gravity torque keeps one sign over the poses (play "
                                 "would be a constant joint offset)", "poses on both sides of the balance, at least "
                                 "5 each", one_sign))
+    if max_mount_moment(robot) <= 0:
+        out.append(NotTried("mount_compliance", "the robot file gives no link masses and no payload: the moment of "
+                            "the weights about the base is unknown",
+                            "give the links' mass_kg and com_m (or a payload) in the robot file"))
+    elif not moment_changes(robot, cal):
+        out.append(NotTried("mount_compliance", "the moment of the weights about the base hardly changes over the "
+                            "poses (a constant tilt is the base pose's)",
+                            "poses that swing the arm's weight about the base: joint 1 turning with the arm "
+                            "stretched, the arm stretched and folded, or payloads"))
+    if robot.n > 1 and one_at_a_time(cal):
+        out.append(NotTried("joint_coupling", "the poses move one joint at a time: a joint's error that follows "
+                            "another joint's reading would show at one configuration of the arm only",
+                            "poses that move the joints together (random poses, or casadical plan-poses)"))
     one_way = [j for j in revolute if not sign_changes(cal.moves[:, j - 1], "")[0]]
     if one_way:
         out.append(NotTried("backlash by the motion", "the joint moves in one direction only between the rows",
@@ -128,7 +161,7 @@ def not_tried(robot: Robot, cal: Measurements, torques: np.ndarray, settings: Di
                             "measure while the temperature changes by a few kelvin"))
     still = [j for j in revolute if np.ptp(cal.q[:, j - 1]) <= 0]
     if still:
-        out.append(NotTried("joint_periodic, encoder_scale", "the joint does not move in the data",
+        out.append(NotTried("joint_periodic, encoder_scale, joint_coupling", "the joint does not move in the data",
                             "poses over the joint's range", still))
     short = {j: math.degrees(np.ptp(cal.q[:, j - 1])) for j in revolute if j not in still}
     short = {j: r for j, r in short.items() if r < SHORT_RANGE_DEG}
@@ -146,6 +179,23 @@ def not_tried(robot: Robot, cal: Measurements, torques: np.ndarray, settings: Di
                             f"{3 * settings.max_harmonic} or more poses (to scan up to --max-harmonic "
                             f"{settings.max_harmonic})"))
     return out
+
+
+def one_at_a_time(data: Measurements) -> bool:
+    """The poses move one joint at a time (from a common pose, or from the pose before): a joint's error that
+    follows another joint's reading shows at one configuration of the arm only, where any function of that
+    reading fits it (a coupling is not tried)."""
+    return moving_joint(data.q_deg[np.argsort(data.rows, kind="stable")])[0] >= ONE_AT_A_TIME
+
+
+def moment_changes(robot: Robot, data: Measurements) -> bool:
+    """The horizontal moment of the weights about the base changes over ``data``'s poses by
+    :data:`MOMENT_CHANGE` of its largest possible value (the robot has masses)."""
+    top = max_mount_moment(robot)
+    if top <= 0 or len(data) < 2:
+        return False
+    M = mount_moments(robot, data.q, data.get("payload_kg"))
+    return float(np.max(np.ptp(M, axis=0))) > MOMENT_CHANGE * top
 
 
 def max_harmonic(data: Measurements, settings: DiagnosisSettings) -> int:
@@ -182,6 +232,8 @@ class Catalogue:
         self.periodograms: list[Periodogram] = []          # the robot's, for the report
         self._own: dict[str, list[Periodogram]] = {}       # each session's
         self._of = None                                     # the fit they were computed for
+        self.mount: list | None = None                      # scopes whose moment changes (None: the robot's)
+        self.couples: bool | None = None                    # couplings are tried (the poses move joints together)
         t = cal.get("time_s")
         if t is None:
             self.warmups: dict[str | None, list[float]] = {}
@@ -240,6 +292,18 @@ class Catalogue:
             out += [Candidate("joint_compliance", j), Candidate("encoder_scale", j),
                     Candidate("backlash", j, source="torque"), Candidate("backlash", j, source="motion")]
         several = len(self.sessions) > 1
+        moving = [j for j in revolute if np.ptp(self.cal.q[:, j - 1]) > 0]
+        # a coupling's source joint comes before it: a drive train passes through the joints before its joint;
+        # none on poses that move one joint at a time (not_tried says why)
+        if self.couples is None:
+            self.couples = not one_at_a_time(self.cal)
+        out += [Candidate("joint_coupling", j, source_joint=k) for j in moving for k in moving if k < j
+                and self.couples]
+        if self.mount is None:
+            self.mount = [s for s in [None] + (self.sessions if several else [])
+                          if moment_changes(self.robot, self.cal if s is None else
+                                            self.cal.subset(self.cal.sessions == s))]
+        out += [Candidate("mount_compliance", session=s) for s in self.mount]
         temp = self.cal.get("temperature_c")
         if temp is not None and np.ptp(temp) > 0.1:
             out.append(Candidate("thermal_expansion"))

@@ -9,6 +9,7 @@ import numpy as np
 
 from ..data.measurements import Measurements
 from ..result import CalibrationResult
+from ..terms.mount_compliance import mount_moments
 from .candidates import Candidate
 from .evidence import Evidence, Support
 from .plots import joint_view, residual_plot
@@ -56,6 +57,11 @@ class UnexplainedLog:
             else:
                 what = f"a step of {-v:.1f} arcsec against the sign of the joint's load"
             item = {"half_play_arcsec": v, "what": what}
+        elif cand.cause == "joint_coupling":
+            self.excluded_causes.add(cand)
+            v = values[cand.parameter_names()[0]]
+            item = {"coupling": v, "what": f"a part that follows joint {cand.source_joint}'s reading "
+                                           f"({v * 1e3:.3g} mrad per rad)"}
         elif cand.user:
             self.excluded_causes.add(cand)
             fitted = ", ".join(f"{n} = {values[n]:.4g}" for n in cand.parameter_names() if n in values)
@@ -148,6 +154,15 @@ def what(cand: Candidate, res: CalibrationResult, cal: Measurements) -> str:
     if cand.cause == "thermal_expansion":
         where = "every length" if cand.joint is None else f"the lengths of link {cand.joint}"
         return f"expansion {P[cand.parameter_names()[0]].value * 1e6:.2f} ppm/K of {where}"
+    if cand.cause == "joint_coupling":
+        p = P[names[0]]
+        return (f"joint {cand.joint}'s angle error, {p.value * 1e3:.3g} mrad per rad of joint {cand.source_joint} "
+                f"(std {p.std * 1e3:.2g})")
+    if cand.cause == "mount_compliance":
+        p = P[names[0]]
+        M = np.linalg.norm(mount_moments(res.model.robot, cal.q, cal.get("payload_kg")), axis=1).max(initial=0.0)
+        return (f"the base tilts {p.value * M * 1e3:.3g} mrad at the largest moment of these poses ({M:.4g} N m; "
+                f"compliance {p.value:.3g} rad/(N m), std {p.std:.2g})")
     if cand.cause == "drift":
         v = np.array([P[n].value for n in cand.parameter_names()]) * 1e6
         return (f"the measured points move {np.linalg.norm(v):.3g} um per s (x, y, z: "

@@ -19,7 +19,7 @@ from ..result import ErrorStats, learning_mask
 from ..stats.outliers import of_fit
 from ..stats.physics import sag_note
 from .gaps import set_aside_note
-from .never_worse import validation_note
+from .never_worse import SET_ASIDE_WEIGHT, validation_note
 from .noise import noise_floor
 from .state import DiagnosisRun
 
@@ -28,7 +28,13 @@ def judge_final_model(run: DiagnosisRun) -> None:
     final, cal = run.final, run.cal
     run.final_errors = run.val_errors(final)
     run.final_val = final_val = ErrorStats.of(run.final_errors)
-    note = validation_note(final, run.kinematic, run.parametric, run.val, run.val_errors, run.held_text)
+    structure = None
+    if run.structures:     # the validation poses the structure the screen found brings back within the loss' limit
+        first, finding = run.structures[0]
+        r = run.parametric.predict(run.val) - run.val.xyz - run.structures[-1][0].val_change
+        structure = (final.loss.weight(np.einsum("ij,ij->i", r, r)) >= SET_ASIDE_WEIGHT,
+                     next(k for k, f in enumerate(run.findings, 1) if f is finding), finding.where)
+    note = validation_note(final, run.kinematic, run.parametric, run.val, run.val_errors, run.held_text, structure)
     if note:
         run.notes.append(note)
     if final.uncertainty is not None:

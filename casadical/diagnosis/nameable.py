@@ -1,7 +1,8 @@
 """Can a cause be named? The checks a candidate passes beyond the statistics, by its kind.
 
-- a function of a joint's reading (periodic error, encoder scale) is the
-  same over the lower and the upper half of the joint's range, and a
+- a function of a joint's reading (periodic error, encoder scale; a
+  coupling: of its source joint's reading) is the same over the lower and
+  the upper half of that joint's range, and a
   periodic error is resolved from its neighbouring harmonics and from the
   geometry (:mod:`.periodic`);
 - a drift (a velocity) is the same over the first and the second half of
@@ -34,7 +35,7 @@ from .screening import LinearFit, Screen
 #: (Compliance, progressive stiffness and backlash follow the load, not the reading; on real data their
 #: half-range estimates are biased by the structure still unmodelled in each half, so the test is not
 #: applied to them.)
-JOINT_CAUSES = ("joint_periodic", "encoder_scale")
+JOINT_CAUSES = ("joint_periodic", "encoder_scale", "joint_coupling")
 
 
 def unjudged(cand: Candidate) -> set[str]:
@@ -171,11 +172,14 @@ def cause_checks(scr: Screen, fit: LinearFit, cand: Candidate, cal: Measurements
         if not hv[0].agree:
             out["reasons"].append("the first and second half in time disagree: " + hv[0].text())
         return out
-    hv = out["halves"] = halves(fit, params, cal, cand.joint, alpha, cand.session)
+    # a coupling is a straight line in its source joint's reading: the same slope over either half of that range
+    reading = cand.source_joint if cand.cause == "joint_coupling" else cand.joint
+    hv = out["halves"] = halves(fit, params, cal, reading, alpha, cand.session)
     if cand.cause == "joint_periodic":
         rs = out["resolution"] = resolution(scr, cand.joint, cand.harmonic, cand.session)
         if not rs.resolved:
             out["reasons"].append(rs.text())
     if not hv[0].agree:
-        out["reasons"].append("the halves of the joint's range disagree: " + hv[0].text())
+        whose = f"joint {reading}'s" if cand.cause == "joint_coupling" else "the joint's"
+        out["reasons"].append(f"the halves of {whose} range disagree: " + hv[0].text())
     return out

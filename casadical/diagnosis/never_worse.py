@@ -200,12 +200,14 @@ def _add_geometry_finding(run: DiagnosisRun, fit: CalibrationResult, without: Ca
 
 
 def validation_note(final: CalibrationResult, kinematic: CalibrationResult, extended: CalibrationResult | None,
-                    val, val_errors, held_text: str = "") -> str | None:
+                    val, val_errors, held_text: str = "", structure: tuple | None = None) -> str | None:
     """A note (judge only) when the final model's worst validation error is more than :data:`WORST_SHARE` above
     the kinematic model's, or above that of the model the GP compensator extends (``extended``; None: no
     compensator): where, how much, what the folds said (``held_text``), and the poses no model of the robot predicts.
 
-    ``val_errors(res)``: a model's position errors (m) on ``val``.
+    ``val_errors(res)``: a model's position errors (m) on ``val``. ``structure``: (the validation poses that
+    structure the screen found accounts for, its finding's number and words): those poses are its largest misses,
+    not bad measurements.
     """
     e_final, e_kin = val_errors(final) * 1000, val_errors(kinematic) * 1000
     rises = []
@@ -232,8 +234,12 @@ def validation_note(final: CalibrationResult, kinematic: CalibrationResult, exte
         order = np.flatnonzero(away)[np.argsort(-e_final[away])]
         text += (f"; that pose{f' and {k - 1} more' if k > 1 else ''} ("
                  + listing([_where(val, j) for j in order], 5)
-                 + ") miss both models by far more than the noise (beyond the robust loss's limit): likely bad "
-                   "measurements or a transient no model of the robot predicts")
+                 + ") miss both models by far more than the noise (beyond the robust loss's limit): ")
+        if structure is not None and structure[0][i]:
+            text += (f"the largest misses of the structure in finding {structure[1]} ({structure[2]}), which no "
+                     "term of the model holds")
+        else:
+            text += "likely bad measurements or a transient no model of the robot predicts"
         if k < len(e_final):
             text += (f"; without {'them' if k > 1 else 'it'} the worst error is {e_final[~away].max():.4f} mm "
                      f"(kinematic {e_kin[~away].max():.4f} mm)")

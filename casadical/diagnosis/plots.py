@@ -8,6 +8,7 @@ import numpy as np
 
 from ..data.measurements import Measurements
 from ..result import CalibrationResult
+from ..terms.mount_compliance import mount_moments
 from .candidates import Candidate
 from .periodogram import joint_errors
 
@@ -22,9 +23,14 @@ def residual_plot(cand: Candidate, before: CalibrationResult, after: Calibration
 
     ``view``: a function giving :func:`joint_view` of ``after`` on ``d`` (shared by the figures of one model).
     """
-    if cand.cause in ("thermal_expansion", "drift", "warmup"):
+    if cand.cause in ("thermal_expansion", "drift", "warmup", "mount_compliance"):
         if cand.cause == "thermal_expansion":
             x, xlabel = d.get("temperature_c"), "temperature (deg C)"
+            ys = [np.linalg.norm(r.residuals(d), axis=1) * 1000 for r in (before, after)]
+            ylabel = "position error (mm)"
+        elif cand.cause == "mount_compliance":
+            x = np.linalg.norm(mount_moments(after.model.robot, d.q, d.get("payload_kg"))[:, :2], axis=1)
+            xlabel = "moment of the weights about the base, horizontal (N m)"
             ys = [np.linalg.norm(r.residuals(d), axis=1) * 1000 for r in (before, after)]
             ylabel = "position error (mm)"
         else:
@@ -54,6 +60,9 @@ def residual_plot(cand: Candidate, before: CalibrationResult, after: Calibration
         xlabel = f"phase of {cand.harmonic} cycles per turn of joint {j} (deg)"
     elif cand.cause == "encoder_scale":
         effect, x, xlabel = value * q, np.degrees(q), f"joint {j} reading (deg)"
+    elif cand.cause == "joint_coupling":
+        k = cand.source_joint
+        effect, x, xlabel = value * d.q[:, k - 1], np.degrees(d.q[:, k - 1]), f"joint {k} reading (deg)"
     elif cand.cause == "backlash" and cand.source == "motion":
         x = d.moves[:, j - 1]
         effect, xlabel = value * x, f"direction of the last move of joint {j}"

@@ -28,6 +28,7 @@ from ..calibration.for_data import model_for
 from ..data.measurements import Measurements
 from ..problem import CalibrationProblem
 from ..result import CalibrationResult
+from ..terms.joint_coupling import JointCoupling
 from ..terms.periodic import JointPeriodic
 from ..terms.warmup import Warmup, decay
 from .candidates import Candidate, compose_spec, tell_apart
@@ -35,8 +36,10 @@ from .statistics import NestedTest, nested_test, set_aside_share
 from .validation import Linearized, solve_identified, switch_off
 
 #: causes whose columns are computed here rather than by the model: a periodic error (the direction of its
-#: joint's angle times a sine of its harmonic) and a warm-up (a translation times its decay)
-ANALYTIC = ("joint_periodic", "warmup")
+#: joint's angle times a sine of its harmonic), a joint coupling (that direction times the source joint's
+#: reading: n (n - 1) pairs, one column each, need no term in the screen's model) and a warm-up (a translation
+#: times its decay)
+ANALYTIC = ("joint_periodic", "joint_coupling", "warmup")
 
 
 @dataclass
@@ -83,10 +86,11 @@ class Screen:
     """The current fit and every candidate, linearised together on the calibration poses.
 
     The model evaluated holds the current terms and the candidates other
-    than periodic errors and warm-ups; a periodic candidate's columns are
-    the exact derivative of the tool point w.r.t. its joint's angle times
-    ``sin`` and ``cos`` of its harmonic, a warm-up's a translation times its
-    decay, so screening again with other harmonics or time constants
+    than periodic errors, joint couplings and warm-ups; a periodic
+    candidate's columns are the exact derivative of the tool point w.r.t.
+    its joint's angle times ``sin`` and ``cos`` of its harmonic, a
+    coupling's that derivative times its source joint's reading, a
+    warm-up's a translation times its decay, so screening again with other harmonics or time constants
     (:meth:`with_candidates`) needs no new model and no new evaluation. A
     candidate of one session (``c2@B``, ``joint_periodic j1 h11 @B``) has its
     cause's columns at that session's poses and zeros elsewhere.
@@ -172,7 +176,9 @@ class Screen:
 
     def _analytic_parameters(self, c: Candidate) -> list:
         robot = self.model.robot
-        ps = (JointPeriodic([(c.joint, c.harmonic)]) if c.cause == "joint_periodic" else Warmup()).parameters(robot)
+        term = (JointPeriodic([(c.joint, c.harmonic)]) if c.cause == "joint_periodic" else
+                JointCoupling(pairs=[(c.joint, c.source_joint)]) if c.cause == "joint_coupling" else Warmup())
+        ps = term.parameters(robot)
         return [replace(p, name=n) for p, n in zip(ps, c.parameter_names())]
 
     def _column(self, c: Candidate, k: int, d: Measurements, J: np.ndarray, JA: np.ndarray) -> np.ndarray:
@@ -180,6 +186,8 @@ class Screen:
         model's free columns there, ``JA``: the directions of the joints' angles)."""
         if c.cause == "joint_periodic":
             col = periodic_columns(JA[:, :, c.joint - 1], d.q[:, c.joint - 1], c.harmonic)[:, :, k]
+        elif c.cause == "joint_coupling":
+            col = JA[:, :, c.joint - 1] * d.q[:, c.source_joint - 1, None]
         elif c.cause == "warmup":
             col = np.zeros((len(d), 3))
             col[:, k] = decay(d.get("time_s"), self.t0[c.session], c.time_constant)

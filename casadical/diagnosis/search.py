@@ -25,7 +25,7 @@ import numpy as np
 
 from ..result import CalibrationResult, ErrorStats
 from ..stats.physics import value_violations, violations
-from .candidates import Candidate, compose_spec, shortlist
+from .candidates import TIERS, Candidate, compose_spec, shortlist
 from .catalogue import not_tried
 from .evidence import Evidence, Support
 from .nameable import JOINT_CAUSES, cause_checks, unjudged
@@ -199,7 +199,7 @@ def try_tiers(run: DiagnosisRun, scr: Screen, scored: list[Scored], level: float
     """
     current, mask, base, cv0, cur_val = run.current, baseline.mask, baseline.fit, baseline.cv, baseline.validation
     pending: list[Evidence] = []
-    for tier in (1, 2, 3):
+    for tier in TIERS:
         passing: list[Trial] = []
         for sc in shortlist(scored, tier, level, run.s.confirm):
             cand = sc.candidate

@@ -4,20 +4,24 @@ A catalogue cause fitted to structure that lives elsewhere lowers the error too:
 takes part of another joint's angle error that grows with this joint's reading; a compliance and a first
 harmonic take part of an angle error quadratic in the reading; a first harmonic of joint 1 takes the
 instrument's azimuth error. Naming such a stand-in is worse than naming nothing: an engineer acts on it. So
-every joint cause the search accepted is asked, in the final model of the named causes, with its parameters
-switched off (linearised at the fit) and a flexible term of the structure screen (:mod:`.structure`) beside
-it, three questions (each test at the diagnosis' level):
+every joint cause (and a mount compliance) the search accepted is asked, in the final model of the named
+causes, with its parameters switched off (linearised at the fit) and a flexible term of the structure screen
+(:mod:`.structure`) beside it, three questions (each test at the diagnosis' level):
 
 1. **Where does the structure it took live?** The strongest pair of covariate and effect in that residual.
    Where it is another pair than the cause's own shape (its joint's angle against its own variable: the
-   reading for a scale or a gear error, the gravity torque for a compliance or a play), and that pair explains
-   more than a flexible term of the cause's own shape does (where the two variables are nearly functions of
-   each other, a parallelogram arm's torque of joint 2 and its reading, the data cannot tell them apart and
-   the physical cause stands), the cause must still be significant beside a flexible term of that pair.
+   reading for a scale or a gear error, the gravity torque for a compliance or a play, the source joint's
+   reading for a coupling; the base's tilt against the moment of the weights for a mount compliance), and
+   that pair explains more than a flexible term of the cause's own shape does (where the two variables are
+   nearly functions of each other, a parallelogram arm's torque of joint 2 and its reading, the data cannot
+   tell them apart and the physical cause stands), the cause must still be significant beside a flexible
+   term of that pair.
 2. **Does it follow its own variable?** Where the strongest pair is its own shape, a gear error or a play
    must add something beside a flexible term of its variable, or that term must leave nothing beside it (a
    fourth harmonic standing for an error quadratic in the reading does neither). A compliance or a scale is
-   the first-order part of any structure of its own variable and is not asked.
+   the first-order part of any structure of its own variable and is not asked. A coupling and a mount
+   compliance are asked: each is one of many pairs the search tries, and a straight line in another joint's
+   reading (or in the moment) must not stand for a curve in it.
 3. **On one session, can it be told from the instrument?** The instrument's own errors (its azimuth,
    elevation, distance) move the point as the robot's joints do; a cause that explains nothing beside a
    flexible term of one of them, where that term is significant, cannot be told from it on these data.
@@ -41,21 +45,35 @@ from ..result import CalibrationResult
 from .candidates import Candidate, compose_spec
 from .redundancy import own_parameters
 from .state import DiagnosisRun
-from .statistics import NestedTest, nested_test
+from .statistics import NestedTest, nested_test, set_aside_share
 from .structure import INSTRUMENT, Found, StructureScreen, describe_pair, weighted
 from .validation import Linearized
 
-#: a joint cause's own variable: its joint's reading or its gravity torque
+#: a cause's own variable: its joint's reading or its gravity torque; a joint coupling's, its source joint's
+#: reading (``q<k>``, effect: joint j's angle); a mount compliance's, the moment of the weights (effect: the
+#: base's tilt, no joint)
 OWN_VARIABLE = {"joint_compliance": "tau", "nonlinear_stiffness": "tau", "backlash": "tau",
-                "encoder_scale": "q", "joint_periodic": "q"}
+                "encoder_scale": "q", "joint_periodic": "q", "joint_coupling": "q", "mount_compliance": "moment"}
 #: causes that are the first-order part of any structure of their own variable
 FIRST_ORDER = ("joint_compliance", "nonlinear_stiffness", "encoder_scale")
+
+
+def own_shape(cand: Candidate) -> tuple[str, str, int | None]:
+    """The (covariate, effect, joint) of the structure screen that is ``cand``'s own shape."""
+    if cand.cause == "mount_compliance":
+        return "moment", "tilt", None
+    k = cand.source_joint if cand.cause == "joint_coupling" else cand.joint
+    return f"{OWN_VARIABLE[cand.cause]}{k}", "angle", cand.joint
 
 
 def stands_in(current: CalibrationResult, accepted: list[Candidate], cand: Candidate, scr: StructureScreen,
               alpha: float) -> tuple[Found, str] | None:
     """The structure ``cand`` only approximates in ``current`` and why (see the module), or None."""
-    if cand.cause not in OWN_VARIABLE or cand.joint is None or cand.session is not None:
+    if cand.cause not in OWN_VARIABLE or cand.session is not None or (
+            cand.joint is None and cand.cause != "mount_compliance"):
+        return None
+    own = own_shape(cand)
+    if own not in scr.tried:
         return None
     lin = Linearized.of(current, scr.cal)
     cols = [lin.names.index(n) for n in own_parameters(cand, accepted) if n in lin.names]
@@ -65,8 +83,9 @@ def stands_in(current: CalibrationResult, accepted: list[Candidate], cand: Candi
     values = np.array([current.parameters[lin.names[k]].value / lin.scale[k] for k in cols])
     r0 = lin.r - lin.J[:, :, cols] @ values       # the cause switched off
     sw = np.sqrt(np.repeat(lin.weights, 3))
-    ask = _Questions(r0.ravel() * sw, sw, lin.J[:, :, keep], lin.J[:, :, cols], math.log10(alpha))
-    own = (f"{OWN_VARIABLE[cand.cause]}{cand.joint}", "angle", cand.joint)
+    share = np.repeat(set_aside_share(lin.weights), 3)
+    ask = _Questions(r0.ravel() * sw, sw, lin.J[:, :, keep], lin.J[:, :, cols], math.log10(alpha),
+                     share if np.any(share < 1) else None)
     flexible = scr.columns(*own)
     found = scr.strongest(ask.rest, r0, lin.weights)
     if found is not None and (found.covariate, found.effect, found.joint) != own:
@@ -104,6 +123,8 @@ class _Questions:
     rest: np.ndarray
     mine: np.ndarray
     level: float
+    #: per equation, how much a pose's term counts in the tests' noise scale (:func:`.statistics.set_aside_share`)
+    share: np.ndarray | None = None
 
     def significant(self, test: NestedTest) -> bool:
         return test.log10_p < self.level and test.delta_bic < 0
@@ -113,9 +134,12 @@ class _Questions:
         base = self.rest if more is None else np.concatenate([self.rest, more], axis=2)
         A0 = weighted(base, self.sw)
         A1 = np.hstack([A0, weighted(extra, self.sw)])
-        ssr = [float(np.sum((self.rw - A @ np.linalg.lstsq(A, self.rw, rcond=None)[0]) ** 2)) for A in (A0, A1)]
+        res = [self.rw - A @ np.linalg.lstsq(A, self.rw, rcond=None)[0] for A in (A0, A1)]
+        ssr = [float(r @ r) for r in res]
         k = int(np.linalg.matrix_rank(A1)) - int(np.linalg.matrix_rank(A0))
-        return nested_test(ssr[0], A0.shape[1], ssr[1], A0.shape[1] + max(k, 1), len(self.rw))
+        # a robust fit's set-aside poses count in the noise scale by their influence, as in the search's tests
+        noise = None if self.share is None else float((res[1] ** 2) @ self.share)
+        return nested_test(ssr[0], A0.shape[1], ssr[1], A0.shape[1] + max(k, 1), len(self.rw), noise)
 
 
 def drop_stand_ins(run: DiagnosisRun) -> None:

@@ -81,7 +81,7 @@ def relative(std: float, value: float) -> str:
 
 def label(f: "Finding") -> str:
     """A finding in a few words: ``geometry``, ``compliance j2``, ``periodic j2 h17``, ``drift @B``,
-    ``GP compensator``, ``unexplained j1``."""
+    ``coupling j6<-j5``, ``mount compliance``, ``GP compensator``, ``unexplained j1``."""
     c = f.candidate
     if c.cause == "geometric":
         return "geometry"
@@ -106,6 +106,10 @@ def where(f: "Finding") -> str:
         text = "every link" if c.joint is None else f"link {c.joint}"
     elif c.cause == "drift":
         text = "measurement frame"
+    elif c.cause == "mount_compliance":
+        text = "the base's mount"
+    elif c.cause == "joint_coupling":
+        text = f"joint {c.joint}, from joint {c.source_joint}'s reading"
     else:
         text = f"joint {c.joint}"
     if c.cause == "backlash":
@@ -163,6 +167,10 @@ def size(f: "Finding", final: "CalibrationResult") -> str:
         return f"half play {math.degrees(v[0]) * 3600:.1f} arcsec{relative(s[0], v[0])}"
     if c.cause == "thermal_expansion":
         return f"{v[0] * 1e6:.2f} ppm/K{relative(s[0], v[0])}"
+    if c.cause == "joint_coupling":
+        return f"{v[0] * 1e3:.3g} mrad per rad of joint {c.source_joint}{relative(s[0], v[0])}"
+    if c.cause == "mount_compliance":
+        return f"tilt {v[0] * 1e6:.3g} mrad per kN m of moment{relative(s[0], v[0])}"
     if c.cause == "drift":
         speed = float(np.linalg.norm(v))
         std = math.sqrt(((v * s) ** 2).sum()) / speed if speed > 0 else math.nan
@@ -240,15 +248,16 @@ def _other_scope(f: "Finding") -> list[dict]:
     """The same cause of another scope (the robot's, or one session's own) that the poses cannot tell from it."""
     c = f.candidate
     return [a for a in f.ambiguous_with if a.get("cause") == c.cause and a.get("joint") == c.joint
-            and a.get("harmonic") == c.harmonic and a.get("source") == c.source and a.get("session") != c.session]
+            and a.get("harmonic") == c.harmonic and a.get("source") == c.source
+            and a.get("source_joint") == c.source_joint and a.get("session") != c.session]
 
 
 def _short(a: dict) -> str:
     """A candidate of an ambiguity (its dict) in a few words."""
     from .candidates import Candidate
 
-    return Candidate(**{k: a[k] for k in ("cause", "joint", "harmonic", "source", "session") if k in a}).label(
-        short=True)
+    return Candidate(**{k: a[k] for k in ("cause", "joint", "harmonic", "source", "session", "source_joint")
+                        if k in a}).label(short=True)
 
 
 def _name(path: str) -> str:

@@ -287,7 +287,8 @@ def _findings(page: Page, report: DiagnosisReport) -> None:
         page.para("No cause beyond the geometry: the kinematic model explains the data down to what the "
                   "checks can support.")
     other = report.transfer.get("file", "the other series") if report.transfer else ""
-    for k, f in enumerate(shown):
+    for f in shown:
+        k = report.findings.index(f)        # numbered as in the findings' table
         anchor = f"finding-{k + 1}"
         head = f"{k + 1}. {f.label()}"
         page.parts.append(f'<h3 id="{anchor}">{esc(head)}: {gain(f.gain_mm)} on validation</h3>')
@@ -402,6 +403,21 @@ def _wrap(label: str, width: int = 34) -> str:
 
 def _kept_out(page: Page, report: DiagnosisReport, kept: list[Finding]) -> None:
     page.heading("Structure kept out of the model", anchor="unexplained")
+    screened = [f for f in kept if f.structure]
+    if screened:
+        page.para("What the named causes leave, found by the structure screen against every joint's reading and "
+                  "load, the moment on the mount, time and the instrument's view, in each way an error can show "
+                  "(docs/diagnosis.md, 'What no cause explains'); its size and what a flexible term would give are "
+                  "judged on the validation poses. Each finding's term, in the JSON report, is a cause of your own "
+                  "to start from.")
+        page.table(["#", "where it lives", "varies with", "how", "p", "size on validation", "a flexible term would "
+                    "give"], [[str(report.findings.index(f) + 1), f.where, f.structure["covariate"],
+                               f.structure["effect"], f"{f.structure['p_value']:.2g}",
+                               f"{f.structure['size_mm']:.4f} mm", gain(f.potential_gain_mm)] for f in screened],
+                   text_columns=(1, 2, 3, 6), wrap_columns=(1,))
+    kept = [f for f in kept if not f.structure]
+    if not kept:
+        return
     page.para("Significant on the calibration poses, but it does not hold up as a cause (not resolved from its "
               "neighbouring harmonics, or not the same over the halves of the joint's range), so the final model "
               "leaves it out. What it would have given: on this series' validation poses, and taken to the other "

@@ -1,15 +1,16 @@
 """One compiled model per robot and sessions: every model the diagnosis tries is a mask of it (docs/speed.md).
 
-The superset holds every term a model of the robot may have (:func:`superset_terms`) and a per-pose
-offset of each chain angle. A model maps onto it once (:class:`Mapping`): its parameter values go into the
-superset's vector (the terms it lacks at their zero effect), its covariates by name; a periodic error of
-any joint and harmonic enters through the chain angle as ``s sin(h q_j) + c cos(h q_j)``, its columns the
-Jacobian w.r.t. that offset times ``sin`` and ``cos``; a term of one session (``c2@B``) is its cause's
-term with the parameter per pose (``c2 + [pose in B] c2@B``: every such cause is linear in its
-parameters), its column the cause's at that session's poses; a GP compensator's Gaussian process
-(frozen) is evaluated in numpy and enters as an offset of the tool point before the base pose. A model the
-superset cannot express (an RBF compensator's network in the graph, the legacy backlash sign, a drift of the
-robot and of a session together) has no mapping and is evaluated on its own graph.
+The superset holds every term a model of the robot may have (:func:`superset_terms`) and a per-pose offset of
+each chain angle. A model maps onto it once (:class:`Mapping`): its parameter values go into the superset's
+vector (the terms it lacks at their zero effect), its covariates by name; a periodic error of any joint and
+harmonic enters through the chain angle as ``s sin(h q_j) + c cos(h q_j)``, its columns the Jacobian w.r.t. that
+offset times ``sin`` and ``cos`` (a joint coupling likewise, as ``c q_k``, its column that Jacobian times the
+source joint's reading); a mount compliance is the superset's where the robot has masses; a term of one session
+(``c2@B``) is its cause's term with the parameter per pose (``c2 + [pose in B] c2@B``: every such cause is
+linear in its parameters, a mount's tilts add up), its column the cause's at that session's poses; a GP
+compensator's Gaussian process (frozen) is evaluated in numpy and enters as an offset of the tool point before
+the base pose. A model the superset cannot express (an RBF compensator's network in the graph, the legacy
+backlash sign, a drift of the robot and of a session together) has no mapping and is evaluated on its own graph.
 
 The superset's four functions (``fk``: the measured quantities; ``jac``: them and their Jacobian w.r.t.
 the parameters and the chain offsets; ``pose_*``: with the orientation residual, full pose) are compiled
@@ -31,20 +32,22 @@ import numpy as np
 from ..errors import CasadicalWarning
 from ..runtime.threads import evaluation_threads
 from ..terms import ErrorTerm, SessionLocal, covariate_names, make_term
+from ..terms.joint_coupling import JointCoupling
+from ..terms.mount_compliance import max_mount_moment
 from ..terms.periodic import JointPeriodic
 from . import jitcache
 from ._batch import Batch, batch, mapped
 
 #: the superset's terms besides the geometry, the sessions and the chain offsets (all joints, all links)
 TERMS = ("joint_compliance", "nonlinear_stiffness", "encoder_scale", "backlash", "backlash_motion",
-         "thermal_expansion", "drift", "tool_orientation")
+         "thermal_expansion", "drift", "tool_orientation", "mount_compliance")
 #: terms that deflect a joint by its gravity torque: a model without them has the superset without them, whose
 #: Jacobian skips the torques and their derivatives (a kinematic model's: 3x cheaper)
-TORQUE = ("joint_compliance", "nonlinear_stiffness", "backlash")
+TORQUE = ("joint_compliance", "nonlinear_stiffness", "backlash", "mount_compliance")
 #: causes a term of one session may have in the superset: linear in their parameters (a joint offset or a
 #: translation), so that the shared and the session's parameters add up per pose
 LOCAL = ("joint_compliance", "nonlinear_stiffness", "encoder_scale", "backlash", "backlash_motion", "drift",
-         "joint_periodic")
+         "joint_periodic", "joint_coupling", "mount_compliance")
 #: the covariates of the tool point's offset in the robot's base frame (a compensator's prediction)
 POINT_OFFSET = ("point_offset_x", "point_offset_y", "point_offset_z")
 #: supersets kept per process (a robot and its sessions each; least recently used dropped first)
@@ -121,6 +124,8 @@ def superset_terms(robot, frames=None, torques: bool = True) -> list[ErrorTerm]:
     terms += [make_term("encoder_scale", joints=revolute)]
     if torques:
         terms += [make_term("backlash", joints=revolute)]
+        if max_mount_moment(robot) > 0:     # the base's tilt under the moment of the weights (it needs the masses)
+            terms.append(make_term("mount_compliance"))
     terms += [make_term("backlash_motion", joints=revolute), make_term("thermal_expansion", t_ref=0.0),
               make_term("thermal_expansion", joints=every, t_ref=0.0), make_term("drift"),
               make_term("tool_orientation"), ChainOffsets(n), PointOffset()]
@@ -135,12 +140,13 @@ def frames_key(frames) -> tuple | None:
 class _Column:
     """Where a model's parameter is in the superset: ``index`` (a parameter, or after them a chain offset);
     ``session``: the session whose indicator multiplies it; ``harmonic`` and ``kind`` ("s", "c"): a periodic
-    error's."""
+    error's; ``kind`` "q" and ``source``: a joint coupling's (a chain offset times the source joint's reading)."""
 
     index: int
     session: str | None = None
     harmonic: int = 0
     kind: str = ""
+    source: int = 0
 
 
 class Mapping:
@@ -200,12 +206,15 @@ class Mapping:
                     compensators.append((t.rename(gate) if session else gate, session, inner.gp))
                 continue
             name = "backlash_motion" if getattr(inner, "source", None) == "motion" else inner.name
-            if name not in TERMS + ("geometric", "sessions", "joint_periodic") or (
+            if name not in TERMS + ("geometric", "sessions", "joint_periodic", "joint_coupling") or (
                     session is not None and name not in LOCAL) or (name == "backlash_motion" and not inner.lag):
                 return None
             if isinstance(inner, JointPeriodic):
                 for j, h in inner.harmonics:
                     columns += [_Column(len(params) + j - 1, session, h, k) for k in "sc"]
+                continue
+            if isinstance(inner, JointCoupling):    # c q_k added to joint j's angle: through its chain offset
+                columns += [_Column(len(params) + j - 1, session, kind="q", source=k) for j, k in inner.pairs]
                 continue
             for p in inner.parameters(robot):
                 if p.name not in index:
@@ -252,8 +261,11 @@ class Mapping:
     def _feature(self, q: np.ndarray, cov: np.ndarray, i: int) -> np.ndarray:
         """The factor of a periodic column: sin or cos of the harmonic of its joint's reading (at its session)."""
         c = self.columns[i]
-        x = c.harmonic * q[:, c.index - self.n_params]
-        f = np.sin(x) if c.kind == "s" else np.cos(x)
+        if c.kind == "q":
+            f = q[:, c.source - 1]
+        else:
+            x = c.harmonic * q[:, c.index - self.n_params]
+            f = np.sin(x) if c.kind == "s" else np.cos(x)
         return f if self.at[i] < 0 else f * cov[:, self.at[i]]
 
     def jacobian(self, D: np.ndarray, q: np.ndarray, cov: np.ndarray, columns: np.ndarray | None = None

@@ -6,6 +6,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import ModelError
+from ..model.kinematics import Geometry, chain_angles, forward, mount_moment
 from ..model.parameters import Parameter
 from ..robot import GRAVITY, Robot
 from .base import Context, ErrorTerm, reach, register
@@ -18,6 +19,21 @@ MAX_TILT = 0.01
 def max_mount_moment(robot: Robot) -> float:
     """Upper bound of the moment of the weights about the base frame's origin (N m): every mass at full reach."""
     return GRAVITY * (sum(j.mass for j in robot.joints) + robot.payload_mass) * reach(robot, 1)
+
+
+def mount_moments(robot: Robot, q: np.ndarray, payload_kg: np.ndarray | None = None) -> np.ndarray:
+    """The moment of the weights about the base frame's origin at the readings ``q`` (N, 3; N m, base frame,
+    nominal geometry, as :class:`MountCompliance` computes it): each row's payload if given, else the robot
+    file's; zeros without masses."""
+    q = np.atleast_2d(np.asarray(q, float))
+    if max_mount_moment(robot) <= 0:
+        return np.zeros((len(q), 3))
+    qs, m = ca.SX.sym("q", robot.n), ca.SX.sym("m")
+    geom = Geometry.nominal(robot)
+    f = ca.Function("mount_moment", [qs, m], [mount_moment(robot, forward(robot, chain_angles(robot, qs, geom),
+                                                                             geom), m)])
+    pay = np.full(len(q), robot.payload_mass) if payload_kg is None else np.asarray(payload_kg, float)
+    return np.array(f.map(len(q))(q.T, pay[None, :])).T
 
 
 @register

@@ -123,8 +123,10 @@ def test_report_mode_errors(tmp_path, capsys):
     assert doc["inputs"]["data"] == ["cal.csv"] and doc["final"]["sigma_mm"] > 0
     out = str(tmp_path / "n.csv")
     _quiet(capsys)
+    # the narrow range's scale error of joint 2: ambiguous with joint 2's first harmonic and with a coupling of
+    # joint 3 from joint 2's reading
     cases = [
-        (["--question", "3"], "--question 3: the report has 1 open question"),
+        (["--question", "3"], "--question 3: the report has 2 open questions"),
         (["--method", "ga"], "--method and --model are for plan-poses ROBOT"),
         (["--measured", str(tmp_path / "nope.csv")], "nope.csv"),
     ]
@@ -152,9 +154,10 @@ def test_report_mode_errors(tmp_path, capsys):
 
 
 def test_every_kind_of_question_is_read_and_planned(tmp_path, capsys):
-    """The questions of a real report (ambiguous scale error / first harmonic), with one named parameter marked
-    not significant: three questions, each planned alone with --question, each planned set lowering the
-    standard errors it asks about below the measured poses' and below the random sets' median."""
+    """The questions of a real report (ambiguous scale error / first harmonic, and scale error / a coupling of
+    joint 3 from joint 2's reading), with one named parameter marked not significant: three questions, each
+    planned alone with --question, each planned set lowering the standard errors it asks about below the
+    measured poses' and below the random sets' median."""
     env = setup(SCENARIOS["narrow range"], 0, tmp_path)
     p = env["paths"]
     rep = tmp_path / "rep.json"
@@ -168,9 +171,10 @@ def test_every_kind_of_question_is_read_and_planned(tmp_path, capsys):
     from casadical.planning.questions import open_questions
 
     qs = open_questions(doc, {"escale2": 6e-4})
-    assert [q.kind for q in qs] == ["ambiguous", "not significant"], [q.text for q in qs]
-    assert qs[1].interest == ["escale2"]
-    for n in (1, 2):
+    assert [q.kind for q in qs] == ["ambiguous", "ambiguous", "not significant"], [q.text for q in qs]
+    assert "coupling j3<-j2" in qs[1].text and "cpl3_2" in qs[1].interest
+    assert qs[2].interest == ["escale2"]
+    for n in (1, 2, 3):
         plan = tmp_path / f"plan{n}.json"
         assert main(["plan-poses", str(rep), p["cand"], "-m", "6", "--out", str(tmp_path / f"n{n}.csv"),
                      "--question", str(n), "--json", str(plan), "-q"]) == 0
