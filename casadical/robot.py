@@ -27,9 +27,18 @@ BUILTIN_DIR = PROBLEMS / "robots"
 BUILTINS = ("ys100", "hh800", "ur10")
 
 
+REVOLUTE, PRISMATIC = "revolute", "prismatic"
+JOINT_TYPES = (REVOLUTE, PRISMATIC)
+
+
 @dataclass
 class Joint:
-    """Nominal link and joint data of one revolute joint (SI units)."""
+    """Nominal link and joint data of one joint (SI units).
+
+    A revolute joint's reading (rad) adds to ``theta``; a prismatic joint's (a linear axis: track, lifting
+    column, gantry; m) adds to ``d``, and its ``theta`` is constant. ``min``/``max`` are the reading's limits
+    in the same units.
+    """
 
     alpha: float
     a: float
@@ -43,6 +52,17 @@ class Joint:
     com: np.ndarray = field(default_factory=lambda: np.zeros(3))
     coupling: np.ndarray | None = None
     coupling_offset: float = 0.0
+    kind: str = REVOLUTE
+
+    @property
+    def prismatic(self) -> bool:
+        """True for a linear axis (its reading a length along its z, added to ``d``)."""
+        return self.kind == PRISMATIC
+
+    @property
+    def unit(self) -> str:
+        """The unit of the reading in files and options: ``deg`` (revolute) or ``mm`` (prismatic)."""
+        return "mm" if self.prismatic else "deg"
 
 
 @dataclass
@@ -85,8 +105,36 @@ class Robot:
 
     @property
     def limits(self) -> np.ndarray:
-        """Joint limits of the readings, shape (n, 2), radians."""
+        """Joint limits of the readings, shape (n, 2), SI: radians (metres for a prismatic joint)."""
         return np.array([[j.min, j.max] for j in self.joints])
+
+    @property
+    def prismatic(self) -> tuple[bool, ...]:
+        """Per joint: a linear axis (reading in m, ``qK_mm`` in files) or not (rad, ``qK_deg``)."""
+        return tuple(j.prismatic for j in self.joints)
+
+    @property
+    def units(self) -> list[str]:
+        """Per joint, the unit of its reading in files and options: ``deg`` or ``mm``."""
+        return [j.unit for j in self.joints]
+
+    @property
+    def q_columns(self) -> list[str]:
+        """The reading columns of a measurement file: ``q1_deg``, ... (``qK_mm`` for a prismatic joint K)."""
+        return [f"q{i}_{j.unit}" for i, j in enumerate(self.joints, start=1)]
+
+    def to_file_units(self, q) -> np.ndarray:
+        """Readings (..., n) from SI (rad, m) to the files' units (deg, mm)."""
+        return readings_to_file_units(q, self.prismatic)
+
+    def from_file_units(self, q) -> np.ndarray:
+        """Readings (..., n) from the files' units (deg, mm) to SI (rad, m)."""
+        return readings_from_file_units(q, self.prismatic)
+
+    @property
+    def file_limits(self) -> np.ndarray:
+        """Joint limits, shape (n, 2), in the files' units (deg, mm)."""
+        return self.to_file_units(self.limits.T).T
 
     @classmethod
     def load(cls, spec: str | Path) -> "Robot":
@@ -107,11 +155,27 @@ class Robot:
         return robot_from_toml(path)
 
 
+def readings_to_file_units(q, prismatic) -> np.ndarray:
+    """Readings (..., n) from SI (rad; m where ``prismatic``) to the files' units (deg; mm)."""
+    q = np.asarray(q, dtype=float)
+    if not any(prismatic):
+        return np.degrees(q)
+    return np.where(np.asarray(prismatic, bool), q * 1000.0, np.degrees(q))
+
+
+def readings_from_file_units(q, prismatic) -> np.ndarray:
+    """Readings (..., n) from the files' units (deg; mm where ``prismatic``) to SI (rad; m)."""
+    q = np.asarray(q, dtype=float)
+    if not any(prismatic):
+        return np.radians(q)
+    return np.where(np.asarray(prismatic, bool), q / 1000.0, np.radians(q))
+
+
 # --- TOML loading -----------------------------------------------------------------
 
 _TOP_KEYS = {"name", "convention", "base", "joint", "tool", "payload", "gravity", "loop"}
 _JOINT_KEYS = {"alpha_deg", "a_m", "beta_deg", "b_m", "d_m", "theta_deg", "min_deg", "max_deg",
-               "mass_kg", "com_m", "coupling", "coupling_offset_deg"}
+               "mass_kg", "com_m", "coupling", "coupling_offset_deg", "type", "min_mm", "max_mm"}
 _TABLE_KEYS = {
     "base": {"xyz_m", "rpy_deg"},
     "tool": {"a_m", "b_m", "d_m"},
@@ -183,11 +247,35 @@ def robot_from_dict(data: dict[str, Any], file: str = "<dict>") -> Robot:
         if not isinstance(jt, dict):
             raise RobotFileError("must be a table", file=file, column=t)
         v.keys(jt, _JOINT_KEYS, t)
-        lo = v.number(jt, "min_deg", t, default=-180.0)
-        hi = v.number(jt, "max_deg", t, default=180.0)
-        if not lo < hi:
-            raise RobotFileError(f"min_deg ({lo}) must be below max_deg ({hi})", file=file,
-                                 column=f"{t}.min_deg")
+        kind = v.string(jt, "type", t, default=REVOLUTE)
+        if kind not in JOINT_TYPES:
+            raise RobotFileError(f"type must be \"revolute\" or \"prismatic\", got {kind!r}", file=file,
+                                 column=f"{t}.type")
+        if kind == PRISMATIC:
+            for k in ("min_deg", "max_deg", "coupling", "coupling_offset_deg"):
+                if k in jt:
+                    raise RobotFileError("a prismatic joint (a linear axis) " + (
+                        "takes its limits in millimetres: min_mm / max_mm" if k in ("min_deg", "max_deg")
+                        else "cannot be coupled: couplings combine revolute readings only"), file=file,
+                        column=f"{t}.{k}")
+            lo = v.number(jt, "min_mm", t, required=True)
+            hi = v.number(jt, "max_mm", t, required=True)
+            if not lo < hi:
+                raise RobotFileError(f"min_mm ({lo}) must be below max_mm ({hi})", file=file,
+                                     column=f"{t}.min_mm")
+            lo, hi = lo / 1000.0, hi / 1000.0
+        else:
+            for k in ("min_mm", "max_mm"):
+                if k in jt:
+                    raise RobotFileError("a revolute joint takes its limits in degrees: min_deg / max_deg (min_mm "
+                                         "/ max_mm are a prismatic joint's, type = \"prismatic\")", file=file,
+                                         column=f"{t}.{k}")
+            lo = v.number(jt, "min_deg", t, default=-180.0)
+            hi = v.number(jt, "max_deg", t, default=180.0)
+            if not lo < hi:
+                raise RobotFileError(f"min_deg ({lo}) must be below max_deg ({hi})", file=file,
+                                     column=f"{t}.min_deg")
+            lo, hi = math.radians(lo), math.radians(hi)
         mass = v.number(jt, "mass_kg", t, default=0.0)
         if mass < 0:
             raise RobotFileError(f"mass must not be negative, got {mass}", file=file,
@@ -203,11 +291,18 @@ def robot_from_dict(data: dict[str, Any], file: str = "<dict>") -> Robot:
             theta=math.radians(v.number(jt, "theta_deg", t, default=0.0)),
             beta=None if beta is None else math.radians(beta),
             b=v.number(jt, "b_m", t, default=None),
-            min=math.radians(lo), max=math.radians(hi), mass=mass,
+            min=lo, max=hi, mass=mass,
             com=v.vector(jt, "com_m", t, 3, default=np.zeros(3)),
             coupling=coupling,
             coupling_offset=math.radians(v.number(jt, "coupling_offset_deg", t, default=0.0)),
+            kind=kind,
         ))
+    for i, jt in enumerate(joints, start=1):     # couplings combine revolute readings only
+        if jt.coupling is not None:
+            named = [k for k, c in enumerate(jt.coupling, start=1) if c != 0 and joints[k - 1].prismatic]
+            if named:
+                raise RobotFileError(f"couples joint {named[0]}, a prismatic joint (a linear axis): couplings "
+                                     "combine revolute readings only", file=file, column=f"joint[{i}].coupling")
     tables = {}
     for tname, allowed in _TABLE_KEYS.items():
         tab = data.get(tname, {})
@@ -237,6 +332,9 @@ def robot_from_dict(data: dict[str, Any], file: str = "<dict>") -> Robot:
         for k, x in zip(("crank_m", "coupler_m", "rocker_m"), lengths):
             if x <= 0:
                 raise RobotFileError(f"length must be positive, got {x}", file=file, column=f"loop.{k}")
+        if joints[int(j) - 1].prismatic or joints[int(j) - 2].prismatic:
+            raise RobotFileError(f"the loop drives joint {int(j)} from joint {int(j) - 1}: both must be revolute",
+                                 file=file, column="loop.joint")
         loop = Loop(int(j), *lengths)
     return Robot(
         name=name, joints=joints, convention=convention,
@@ -336,6 +434,7 @@ class _Validator:
 _RANGES = {
     "_m": (100.0, "lengths are in metres and"),
     "_deg": (36000.0, "angles are in degrees and"),
+    "_mm": (100000.0, "lengths are in millimetres and"),
     "_kg": (1e5, "masses are in kg and"),
     "coupling": (100.0, "coupling factors"),
 }
@@ -350,8 +449,12 @@ def robot_to_dict(robot: Robot) -> dict[str, Any]:
             d["beta_deg"] = math.degrees(j.beta)
         if j.b is not None:
             d["b_m"] = j.b
-        d.update(d_m=j.d, theta_deg=math.degrees(j.theta), min_deg=math.degrees(j.min),
-                 max_deg=math.degrees(j.max), mass_kg=j.mass, com_m=[float(x) for x in j.com])
+        d.update(d_m=j.d, theta_deg=math.degrees(j.theta))
+        if j.prismatic:
+            d.update(type=PRISMATIC, min_mm=j.min * 1000.0, max_mm=j.max * 1000.0)
+        else:
+            d.update(min_deg=math.degrees(j.min), max_deg=math.degrees(j.max))
+        d.update(mass_kg=j.mass, com_m=[float(x) for x in j.com])
         if j.coupling is not None:
             d["coupling"] = [float(x) for x in j.coupling]
             d["coupling_offset_deg"] = math.degrees(j.coupling_offset)

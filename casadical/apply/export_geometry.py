@@ -127,7 +127,7 @@ def geometric_equivalent(cal: CalibrationResult, payload_kg: float | None = None
         return GeometricEquivalent(cal, None, [], [t.spec() for t in session if t.name != "sessions"], payload, 0)
     drawn = poses_deg is None and cal.coverage is None
     if drawn:
-        poses_deg = np.degrees(sample_poses(robot, DRAWN_POSES, np.random.default_rng(0)))
+        poses_deg = robot.to_file_units(sample_poses(robot, DRAWN_POSES, np.random.default_rng(0)))
         warnings.warn(f"the calibration holds no calibration poses (a file of an earlier casadical): its geometry is "
                       f"refitted over {DRAWN_POSES} poses drawn within the joint limits (5 deg inside them, the tool "
                       "above the robot's base), not over the workspace it was calibrated in; --as-fitted exports the "
@@ -135,7 +135,7 @@ def geometric_equivalent(cal: CalibrationResult, payload_kg: float | None = None
                       stacklevel=2)
     elif poses_deg is None:
         poses_deg = cal.coverage.poses_deg
-    q = np.radians(np.asarray(poses_deg, float))
+    q = robot.from_file_units(np.asarray(poses_deg, float))      # deg, mm for a prismatic joint
     full = Model(robot, [t for t in cal.model.terms if not t.session], jit=cal.model.jit)
     values = np.array([cal.parameters[n].value for n in full.parameters.names])
     cov = full.default_covariates(len(q))
@@ -146,7 +146,7 @@ def geometric_equivalent(cal: CalibrationResult, payload_kg: float | None = None
     if "payload_kg" in full.covariate_names:
         unloaded[:, full.covariate_names.index("payload_kg")] = 0.0 if payload > 0 else 100.0
     matters = bool(np.abs(full.predict(q, values, unloaded, cal.base0) - xyz).max() > 1e-9)
-    target = Measurements.from_arrays(q, xyz, payload_kg=np.full(len(q), payload))
+    target = Measurements.from_arrays(q, xyz, prismatic=robot.prismatic, payload_kg=np.full(len(q), payload))
     if cal.has_orientation:   # a full-pose calibration: the geometry reproduces the probe's orientation too
         target = target.with_orientations(full.probe_rotation(q, values, cov, cal.base0) @ cal.tool0)
     target.path = "the full model's tool points"

@@ -57,6 +57,7 @@ from ..data.checks import check_poses
 from ..data.measurements import XYZ, Measurements
 from ..errors import ConvergenceWarning, InputError, listing
 from ..result import CalibrationResult
+from ..robot import readings_from_file_units, readings_to_file_units
 
 #: relative damping lambda of the pseudo-inverses (a singular value s gets s / (s^2 + (lambda s_max)^2)):
 #: start, smallest, and largest before a row counts as stuck
@@ -122,8 +123,8 @@ class CompensationResult:
         rz_deg``), not the nominal flange orientation.
     limits : ndarray, shape (n, 2)
         Joint limits of the readings (rad).
-    max_change : float
-        Largest admissible change of a joint (rad).
+    max_change : float or ndarray, shape (n,)
+        Largest admissible change of a joint (rad; m for a prismatic joint, per joint).
     smallest_sv : ndarray, shape (N,)
         Smallest singular value of each row's equations at its solution
         (m per rad; orientation rows weigh 1 m per rad).
@@ -147,7 +148,7 @@ class CompensationResult:
     tolerance: float
     held: str
     limits: np.ndarray
-    max_change: float
+    max_change: float | np.ndarray
     probe: bool = False
     smallest_sv: np.ndarray | None = None
     largest_sv: np.ndarray | None = None
@@ -171,29 +172,45 @@ class CompensationResult:
             return None
         return self.orientation_error <= ORIENTATION_TOL
 
+    def _file(self, v, j: int) -> float:
+        """A reading or change of joint ``j`` (0-based) in its file unit (deg; mm for a prismatic joint)."""
+        return float(v) * 1000.0 if self.targets.prismatic[j] else float(np.degrees(v))
+
+    def _unit(self, j: int) -> str:
+        return "mm" if self.targets.prismatic[j] else "deg"
+
     def failures(self) -> list[TargetError]:
         """One error per failing row, in row order: not reached, or beyond a joint limit."""
         t = self.targets
-        change = np.abs(self.dq).max(axis=1)
+        n = self.q.shape[1]
+        limit = np.broadcast_to(np.asarray(self.max_change, float), (n,))
+        share = np.abs(self.dq) / limit             # of each joint's largest admissible change
         out = []
         for i in range(len(t)):
-            if not self.converged[i] or change[i] > self.max_change:
+            if not self.converged[i] or share[i].max() > 1:
+                j = int(np.argmax(share[i]))
+                within = f"{self._file(limit[j], j):g} {self._unit(j)}"
+                if any(t.prismatic) and not all(t.prismatic):
+                    r = next(k for k in range(n) if not t.prismatic[k])
+                    p = next(k for k in range(n) if t.prismatic[k])
+                    within = f"{self._file(limit[r], r):g} deg ({self._file(limit[p], p):g} mm on a linear axis)"
                 out.append(TargetError(
-                    f"the calibrated model does not reach this target within {np.degrees(self.max_change):g} deg "
+                    f"the calibrated model does not reach this target within {within} "
                     f"of the programmed joints: after {self.iterations[i]} iterations its tool point is "
                     f"{self.residual[i] * 1e3:.4g} mm from it (tolerance {self.tolerance * 1e3:g} mm) with joints "
-                    f"up to {np.degrees(change[i]):.3g} deg from the programmed ones; is the target outside the "
-                    "reach, near a singular configuration, or not in the measurement frame in mm?",
+                    f"up to {self._file(abs(self.dq[i, j]), j):.3g} {self._unit(j)} from the programmed ones; is the "
+                    "target outside the reach, near a singular configuration, or not in the measurement frame in mm?",
                     file=t.path, row=t.line(i)))
                 continue
-            for j in range(self.q.shape[1]):
+            for j in range(n):
                 lo, hi = self.limits[j]
                 v = self.q[i, j]
                 if v < lo or v > hi:
+                    u = self._unit(j)
                     out.append(TargetError(
-                        f"the corrected joint would be {np.degrees(v):.4f} deg, beyond its limit "
-                        f"{np.degrees(lo if v < lo else hi):g} deg (programmed {np.degrees(self.q0[i, j]):.4f} deg)",
-                        file=t.path, row=t.line(i), column=f"q{j + 1}_deg"))
+                        f"the corrected joint would be {self._file(v, j):.4f} {u}, beyond its limit "
+                        f"{self._file(lo if v < lo else hi, j):g} {u} (programmed {self._file(self.q0[i, j], j):.4f} "
+                        f"{u})", file=t.path, row=t.line(i), column=t.q_columns[j]))
                     break
         return out
 
@@ -220,15 +237,15 @@ class CompensationResult:
         """The output table: input columns with corrected ``q*_deg``, then ``programmed_q*_deg``,
         ``dq*_deg``, ``residual_mm`` and (orientation held) ``orientation_error_deg``."""
         t = self.targets
-        n = self.q.shape[1]
-        qcols = [f"q{j + 1}_deg" for j in range(n)]
+        qcols = t.q_columns              # qK_deg, qK_mm for a prismatic joint: in the file's units
         cols = dict(t.columns)
+        q, dq = readings_to_file_units(self.q, t.prismatic), readings_to_file_units(self.dq, t.prismatic)
         for j, c in enumerate(qcols):
-            cols[c] = np.degrees(self.q[:, j])
+            cols[c] = q[:, j]
         for c in qcols:
             cols["programmed_" + c] = t.columns[c]
         for j, c in enumerate(qcols):
-            cols["d" + c] = np.degrees(self.dq[:, j])
+            cols["d" + c] = dq[:, j]
         cols["residual_mm"] = self.residual * 1e3
         if self.orientation_error is not None:
             cols["orientation_error_deg"] = np.degrees(self.orientation_error)
@@ -236,13 +253,15 @@ class CompensationResult:
 
     def summary(self) -> str:
         """A few lines: rows, largest correction, largest residual, what is held."""
-        t, dq = self.targets, np.degrees(np.abs(self.dq))
+        t = self.targets
+        dq = readings_to_file_units(np.abs(self.dq), t.prismatic)
         i, j = np.unravel_index(np.argmax(dq), dq.shape)
         k = int(np.argmax(self.residual))
         s0 = self.start_residual * 1e3
         lines = [f"{len(t)} targets; at the programmed joints the calibrated tool point is {s0.mean():.4g} mm "
                  f"from them on average, {s0.max():.4g} mm at most",
-                 f"corrected: largest correction {dq[i, j]:.4f} deg (row {t.line(i)}, q{j + 1}_deg), "
+                 f"corrected: largest correction {dq[i, j]:.4f} {self._unit(j)} (row {t.line(i)}, "
+                 f"{t.q_columns[j]}), "
                  f"largest residual {self.residual[k] * 1e3:.3g} mm (row {t.line(k)}), "
                  f"at most {int(self.iterations.max())} iterations",
                  f"held: {self.held}"]
@@ -266,9 +285,10 @@ def conditioning(targets: Measurements, rows: np.ndarray, smallest: np.ndarray, 
                     for i, c, g in zip(rows, cond, per)], 10)
 
 
-def output_columns(n: int) -> list[str]:
-    """Columns :meth:`CompensationResult.joints` adds to the input's, for ``n`` joints."""
-    q = [f"q{j}_deg" for j in range(1, n + 1)]
+def output_columns(n: int, columns: list[str] | None = None) -> list[str]:
+    """Columns :meth:`CompensationResult.joints` adds to the input's, for ``n`` joints (reading ``columns``:
+    ``qK_deg``, ``qK_mm`` for a prismatic joint; default all in degrees)."""
+    q = columns or [f"q{j}_deg" for j in range(1, n + 1)]
     return ["programmed_" + c for c in q] + ["d" + c for c in q] + ["residual_mm", "orientation_error_deg"]
 
 
@@ -357,7 +377,7 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
         missing = next(c for c in XYZ if c not in targets.columns)
         raise InputError("has no target positions: columns x_mm, y_mm, z_mm (measurement frame) are required",
                          file=targets.path, row=1, column=missing)
-    clash = [c for c in output_columns(n) if c in targets.columns]
+    clash = [c for c in output_columns(n, targets.q_columns) if c in targets.columns]
     if clash:
         raise InputError("is an output column of compensate; give the original targets (programmed joints and "
                          "points), not a compensated file", file=targets.path, row=1, column=clash[0])
@@ -382,9 +402,14 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
     eqs = _Equations(cal, targets, hold, probe)
     tol = tolerance_mm * 1e-3
     N = len(targets)
-    limit = np.radians(max_change_deg)
+    # max_change_deg: millimetres for a prismatic joint (the reading's file unit)
+    limit = readings_from_file_units(np.full(n, float(max_change_deg)), model.robot.prismatic)
     eps = singular_bound(max_deg_per_mm)
-    q, r, iterations, settled = _levenberg_marquardt(eqs, np.arange(N), targets.q, hold, tol, max_iter, limit, eps)
+    # the solver's joints are scaled so that a millimetre of a linear axis weighs as a degree of a revolute joint
+    # (in the least joint change, the bound per mm of correction, the largest change); all 1 without one
+    S = eqs.scale
+    u, r, iterations, settled = _levenberg_marquardt(eqs, np.arange(N), targets.q * S, hold, tol, max_iter,
+                                                     limit * S, eps)
     on_point = np.zeros(N, dtype=bool)    # rows solved for the point alone
     if hold:
         # rows where position and orientation cannot both be met near the programmed joints (a singular
@@ -392,19 +417,20 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
         loose = np.flatnonzero((np.linalg.norm(r[:, :3], axis=1) > tol)
                                | (np.linalg.norm(r[:, 3:], axis=1) > ORIENTATION_TOL * ORIENTATION_WEIGHT))
         if loose.size:
-            q[loose], r2, it2, settled[loose] = _levenberg_marquardt(eqs, loose, targets.q[loose], False, tol,
-                                                                     max_iter, limit, eps)
+            u[loose], r2, it2, settled[loose] = _levenberg_marquardt(eqs, loose, targets.q[loose] * S, False,
+                                                                     tol, max_iter, limit * S, eps)
             r[loose, :3] = r2
-            r[loose, 3:] = eqs.orientation(loose, q[loose]) * ORIENTATION_WEIGHT
+            r[loose, 3:] = eqs.orientation(loose, u[loose]) * ORIENTATION_WEIGHT
             iterations[loose] += it2
             on_point[loose] = True
     # the conditioning of each row's equations at its solution
     small, large = np.empty(N), np.empty(N)
     for rows, with_orientation in ((np.flatnonzero(~on_point), hold), (np.flatnonzero(on_point), False)):
         if rows.size:
-            sv = np.linalg.svd(eqs(rows, q[rows], with_orientation)[1], compute_uv=False)
+            sv = np.linalg.svd(eqs(rows, u[rows], with_orientation)[1], compute_uv=False)
             small[rows], large[rows] = sv[:, -1], sv[:, 0]
     damped = small < eps
+    q = u / S
     residual = np.linalg.norm(r[:, :3], axis=1)
     angle = np.linalg.norm(r[:, 3:], axis=1) / ORIENTATION_WEIGHT if hold else None
     start = np.linalg.norm(programmed - targets.xyz, axis=1)
@@ -414,7 +440,7 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
     if hold:
         loose = np.flatnonzero(result.converged & on_point & ~result.orientation_held)
         if loose.size:
-            sv = np.linalg.svd(eqs(loose, targets.q[loose], True)[1], compute_uv=False)   # at the programmed joints
+            sv = np.linalg.svd(eqs(loose, targets.q[loose] * S, True)[1], compute_uv=False)   # at the programmed joints
             warnings.warn(f"{targets.path}: the {'probe' if probe else 'flange'} orientation cannot be held within "
                           f"{max_change_deg:g} deg of the programmed joints and {max_deg_per_mm:g} deg per mm of "
                           f"correction (--max-deg-per-mm) on {loose.size} row(s), near a singular configuration: "
@@ -430,14 +456,14 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
 
 
 def _levenberg_marquardt(eqs: "_Equations", index: np.ndarray, q_start: np.ndarray, hold: bool, tol: float,
-                         max_iter: int, max_change: float, eps: float
+                         max_iter: int, max_change, eps: float
                          ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """Solve rows ``index`` from ``q_start``: joints, residuals (position m, weighted orientation), steps, settled.
 
     Each step lowers ``|r|^2 + |W (q - q_start)|^2``, where ``W`` damps the
     directions of joint motion whose singular value is below ``eps``
     (:func:`_weak_rows`, at the step's joints). A step that would move a joint more than
-    ``max_change`` (rad) from the start counts as a failed step. A row stops
+    ``max_change`` (rad, m for a prismatic joint; per joint) from the start counts as a failed step. A row stops
     when it has settled (on the point, or at its damped solution) or when no
     damping makes progress.
     """
@@ -468,7 +494,7 @@ def _levenberg_marquardt(eqs: "_Equations", index: np.ndarray, q_start: np.ndarr
         # start; else more damping
         ok = ((_merit(rt, W, trial - q_start[act])
                <= np.maximum(_merit(r[act], W, q[act] - q_start[act]) * (1 + ROUNDING), floor))
-              & (np.abs(trial - q_start[act]).max(axis=1) <= max_change))
+              & ((np.abs(trial - q_start[act]) / max_change).max(axis=1) <= 1))
         good, bad = act[ok], act[~ok]
         q[good], r[good], J[good] = trial[ok], rt[ok], Jt[ok]
         lam[good] = np.maximum(lam[good] / 3.0, LAMBDA_MIN)
@@ -524,10 +550,14 @@ def _newton_step(J: np.ndarray, r: np.ndarray, W: np.ndarray, to_start: np.ndarr
 
 
 class _Equations:
-    """Residuals and Jacobians of rows ``index`` at joints ``q``: position (m), then weighted orientation."""
+    """Residuals and Jacobians of rows ``index`` at joints ``q``: position (m), then weighted orientation.
+
+    The joints are the solver's: each reading times :attr:`scale` (1 for a revolute joint, rad per mm for a linear
+    axis, so that a millimetre weighs as a degree), the Jacobian with respect to them."""
 
     def __init__(self, cal: CalibrationResult, targets: Measurements, hold: bool, probe: bool = False):
         self.cal, self.targets, self.model = cal, targets, cal.model
+        self.scale = np.where(np.array(cal.model.robot.prismatic, bool), np.radians(1.0) / 1e-3, 1.0)
         self.p, self.base0 = cal.parameters.values, cal.base0
         self.cov = self.model.covariates(targets)
         self.goal = targets.xyz
@@ -545,17 +575,20 @@ class _Equations:
     def __call__(self, index: np.ndarray, q: np.ndarray, hold: bool) -> tuple[np.ndarray, np.ndarray]:
         # the residual is CalibrationResult.predict itself, so that whatever it adds is honoured; the
         # Jacobian is the model's
+        q = q / self.scale
         r = self.cal.predict(_at(self.targets, index, q)) - self.goal[index]
         _, J = self.model.predict_q_jacobian(q, self.p, self.cov[index], self.base0)
+        J = J / self.scale
         if not hold:
             return r, J
         R, Jw = self.model.flange_rotation_jacobian(q, self.p, self.cov[index], self.base0)
+        Jw = Jw / self.scale
         return (np.concatenate([r, ORIENTATION_WEIGHT * self._from_held(R, index)], axis=1),
                 np.concatenate([J, ORIENTATION_WEIGHT * Jw], axis=1))
 
     def orientation(self, index: np.ndarray, q: np.ndarray) -> np.ndarray:
-        """Rotation vector from the held flange orientation to the model's at ``q`` (rad)."""
-        return self._from_held(self.model.flange_rotation(q, self.p, self.cov[index], self.base0), index)
+        """Rotation vector from the held flange orientation to the model's at the solver's joints ``q`` (rad)."""
+        return self._from_held(self.model.flange_rotation(q / self.scale, self.p, self.cov[index], self.base0), index)
 
     def _from_held(self, R: np.ndarray, index: np.ndarray) -> np.ndarray:
         """Rotation vectors from the held orientations of rows ``index`` to the rotations ``R`` (rad)."""
@@ -565,6 +598,7 @@ class _Equations:
 def _at(targets: Measurements, index: np.ndarray, q: np.ndarray) -> Measurements:
     """Rows ``index`` of the targets with joints ``q`` (rad); covariates and row order kept."""
     sub = targets.subset(index)
-    for j in range(q.shape[1]):
-        sub.columns[f"q{j + 1}_deg"] = np.degrees(q[:, j])
+    values = readings_to_file_units(q, targets.prismatic)
+    for j, c in enumerate(targets.q_columns):
+        sub.columns[c] = values[:, j]
     return sub

@@ -67,6 +67,8 @@ class ParameterTable:
     model: str
     rows: list[TableRow]
     base: str = "base_pose_* = robot base in the measurement frame"
+    #: joints that are linear axes (prismatic: q, in mm, adds to d and theta is constant)
+    prismatic: tuple = ()
 
     @property
     def hayati(self) -> list[int]:
@@ -88,6 +90,10 @@ class ParameterTable:
             link += (f", and for joint{'s' if len(joints) > 1 else ''} {', '.join(map(str, joints))} Hayati's "
                      f"{HAYATI[self.convention]} (a nearly parallel axis, which DH alone cannot describe; a "
                      "controller that takes plain DH has no entry for them)")
+        linear = [i for i, p in enumerate(self.prismatic, start=1) if p]
+        if linear:
+            link += (f"; joint{'s' if len(linear) > 1 else ''} {', '.join(map(str, linear))} prismatic (a linear "
+                     "axis): Rz(theta) Tz(d + q), q its reading in mm")
         return (f"{link}; measured point = base * links * Tx(tool_x) Ty(tool_y) Tz(tool_z); angles in deg, lengths "
                 f"in mm; {self.base}")
 
@@ -154,7 +160,7 @@ def parameter_table(source: "CalibrationResult | Robot", description: str | None
         rows.append(TableRow(j, f"k{j}", "N*m/rad", math.nan, k, math.nan, sk, True, False, f"derived: 1/c{j}"))
     base = base_words(source) if calibrated else \
         "base_pose_* = robot base in the measurement frame, the robot file's (nominal)"
-    return ParameterTable(robot.name, robot.convention, description or model, rows, base)
+    return ParameterTable(robot.name, robot.convention, description or model, rows, base, robot.prismatic)
 
 
 def base_words(result: "CalibrationResult") -> str:

@@ -92,10 +92,10 @@ def run(args) -> int:
         raise InputError("--keep-compensator keeps the GP compensator of a calibration taken further: "
                          + (f"{args.robot} has none" if isinstance(robot, CalibrationResult)
                             else "give a calibration JSON in place of ROBOT"))
-    n = robot.model.robot.n if isinstance(robot, CalibrationResult) else robot.n
-    data = timed(read_sessions(args.data, n_joints=n, require_positions=True), args)
+    arm = robot.model.robot if isinstance(robot, CalibrationResult) else robot
+    data = timed(read_sessions(args.data, robot=arm, require_positions=True), args)
     # read before the fit: a malformed file stops the command before the work
-    val = timed(Measurements.read_csv(args.validate, n_joints=n, require_positions=True), args) \
+    val = timed(Measurements.read_csv(args.validate, robot=arm, require_positions=True), args) \
         if args.validate else None
     if val is not None:
         check_held_out(data, val)          # before the fit: validation poses it has seen would judge nothing

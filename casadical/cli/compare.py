@@ -66,7 +66,7 @@ def cmd_compare(args) -> int:
     def read(path):
         if path is None:
             return None
-        data = Measurements.read_csv(path, n_joints=robot.n, require_positions=True)
+        data = Measurements.read_csv(path, robot=robot, require_positions=True)
         check_poses(data, robot, **check_options(args))
         return data
 

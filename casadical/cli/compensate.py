@@ -45,7 +45,7 @@ def register(sub) -> None:
     p.add_argument("--max-change-deg", type=float_in(0, 360, hi_open=False), default=5.0,
                    help="largest change of a joint from its programmed value: a target that needs more is an "
                         "error; where holding the orientation would need more, only the point is reached "
-                        "(default: %(default)g deg)")
+                        "(default: %(default)g deg; as many mm for a prismatic joint, a linear axis)")
     p.add_argument("--max-deg-per-mm", type=float_in(0, math.inf), default=2.0, metavar="DEG",
                    help="largest joint motion per mm of correction (or per mrad of orientation) along any direction: "
                         "near a singular configuration, where an exact correction would need more, it is damped "
@@ -66,7 +66,7 @@ def run(args) -> int:
 
     check_outputs({"--out": args.out}, [args.cal, args.targets], args.force)
     cal = load_calibration(args.cal)
-    targets = Measurements.read_csv(args.targets, n_joints=cal.model.robot.n)
+    targets = Measurements.read_csv(args.targets, robot=cal.model.robot)
     warn_session_frame(cal.sessions, targets, args.cal)
     if len(targets) < JIT_MIN_ROWS:
         cal.model.jit = False
@@ -75,7 +75,8 @@ def run(args) -> int:
                         max_deg_per_mm=args.max_deg_per_mm,
                         **check_options(args))
     if cal.coverage is not None:    # the programmed joints: the same rows whatever is held (the corrections move
-        cal.coverage.warn(np.degrees(targets.q), targets.lines, args.targets)   # them by fractions of a degree)
+        cal.coverage.warn(targets.q_deg if any(targets.prismatic) else np.degrees(targets.q), targets.lines,
+                          args.targets)   # them by fractions of a degree)
     result.joints().write_csv(args.out, overwrite=args.force)
     print(result.summary())
     line = compensator_line(cal, targets)

@@ -120,7 +120,7 @@ def run(args) -> int:
     map_joints = _joint_pair(args.map_joints, robot.n) if args.map_joints else None
 
     def read(path):
-        return timed(Measurements.read_csv(path, n_joints=robot.n, require_positions=True), args)
+        return timed(Measurements.read_csv(path, robot=robot, require_positions=True), args)
 
     cals, vals = [read(p) for p in args.data], [read(p) for p in args.validate]
     cal = cals[0] if len(cals) == 1 else combine(cals)

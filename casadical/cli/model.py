@@ -79,7 +79,7 @@ def run_inspect(args) -> int:
     model = Model(robot, spec)
     if isinstance(args.poses, str):
         from ..data import Measurements
-        data = Measurements.read_csv(args.poses, n_joints=robot.n)
+        data = Measurements.read_csv(args.poses, robot=robot)
         q, cov, n_poses = data.q, model.covariates(data), len(data)
     else:
         rng = np.random.default_rng(args.seed)
@@ -183,7 +183,7 @@ def run_predict(args) -> int:
     source = robot_or_calibration(args.model, args)
     if isinstance(source, CalibrationResult):
         cal, robot = source, source.model.robot
-        data = Measurements.read_csv(args.poses, n_joints=robot.n)
+        data = Measurements.read_csv(args.poses, robot=robot)
         warn_session_frame(cal.sessions, data, args.model)
         xyz = cal.predict(data)
     else:
@@ -192,7 +192,7 @@ def run_predict(args) -> int:
                              "parameter covariance)")
         cal, robot = None, source
         model = Model(robot, "nominal")
-        data = Measurements.read_csv(args.poses, n_joints=robot.n)
+        data = Measurements.read_csv(args.poses, robot=robot)
         xyz = model.predict(data.q, cov=model.covariates(data))
     # a robot's nominal model judges the poses as calibrate does (another robot's poses are refused); a
     # calibration's predictions are judged below against its own error

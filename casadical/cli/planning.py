@@ -91,7 +91,8 @@ def register(sub) -> None:
     p.add_argument("--box", default=None, metavar="XMIN,YMIN,ZMIN,XMAX,YMAX,ZMAX",
                    help="keep tool points inside this box, m")
     p.add_argument("--margin-deg", type=float_in(0, 180, lo_open=False), default=5.0,
-                   help="keep this far from the joint limits, degrees (default 5)")
+                   help="keep this far from the joint limits, degrees (millimetres for a prismatic joint, a linear "
+                        "axis; default 5)")
     p.add_argument("--seed", type=int, default=0, help="random seed (default: 0)")
     add_urdf_chain(p)
     add_force(p)
@@ -122,7 +123,7 @@ def cmd_plan_poses(args) -> int:
 
     check_outputs({"--out": args.out, "--json": args.json}, [args.robot, args.candidates], args.force)
     robot = robot_from_args(args.robot, args)
-    data = Measurements.read_csv(args.candidates, n_joints=robot.n)
+    data = Measurements.read_csv(args.candidates, robot=robot)
     N = len(data)
     if args.m > N:
         raise InputError(f"-m {args.m} asks for more poses than the {N} candidate rows", file=args.candidates)
@@ -222,9 +223,9 @@ def cmd_plan_report(args) -> int:
         if missing:
             raise InputError(f"the poses the report was made from are not at {missing[0]} (paths are relative to "
                              "the report's folder): give them with --measured DATA.csv ...", file=report_path)
-    parts = [Measurements.read_csv(p, n_joints=robot.n) for p in paths]
+    parts = [Measurements.read_csv(p, robot=robot) for p in paths]
     measured = parts[0] if len(parts) == 1 else combine(parts)
-    candidates = Measurements.read_csv(args.candidates, n_joints=robot.n)
+    candidates = Measurements.read_csv(args.candidates, robot=robot)
     check_poses(candidates, robot, **check_options(args))
     known = measured.session_names
     if candidates.sessions is not None:
@@ -335,21 +336,23 @@ def cmd_candidates(args) -> int:
     floor = None if args.floor_z.strip().lower() == "none" else _float(args.floor_z, "--floor-z")
     box = _parse_box(args.box) if args.box else None
     robot = robot_from_args(args.robot, args)
-    span = np.degrees(robot.limits[:, 1] - robot.limits[:, 0])
+    span = robot.file_limits[:, 1] - robot.file_limits[:, 0]     # deg, mm for a prismatic joint (its margin too)
     if 2 * args.margin_deg >= span.min():
         j = int(np.argmin(span)) + 1
         raise InputError(f"--margin-deg {args.margin_deg:g} leaves nothing of joint {j}'s range "
-                         f"({span[j - 1]:g} deg); use less than {span.min() / 2:g}", file=args.robot)
+                         f"({span[j - 1]:g} {robot.joints[j - 1].unit}); use less than {span.min() / 2:g}",
+                         file=args.robot)
     q = sample_poses(robot, args.n, np.random.default_rng(args.seed), floor_z=floor, box=box,
                      margin=math.radians(args.margin_deg))
-    Measurements.from_arrays(q).write_csv(args.out, overwrite=args.force)
+    Measurements.from_arrays(q, prismatic=robot.prismatic).write_csv(args.out, overwrite=args.force)
     where = []
     if floor is not None:
         where.append(f"tool above z = {floor:g} m")
     if box is not None:
         where.append(f"inside box {box[0]}..{box[1]} m")
     print(f"{args.n} candidate poses of {robot.name} within the joint limits (margin "
-          f"{args.margin_deg:g} deg){', ' + ', '.join(where) if where else ''} -> {args.out}")
+          f"{args.margin_deg:g} deg{' or mm' if any(robot.prismatic) else ''})"
+          f"{', ' + ', '.join(where) if where else ''} -> {args.out}")
     return 0
 
 

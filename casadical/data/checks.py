@@ -82,6 +82,8 @@ def check_poses(data: Measurements, robot: Robot, *, allow_outside_limits: bool 
     if data.n_joints != robot.n:
         raise DataFileError(f"has {data.n_joints} joint columns but robot {robot.name} has {robot.n} joints",
                             file=data.path, row=1)
+    from .measurements import check_reading_units
+    check_reading_units(data.q_columns, robot, data.path)    # qK_mm for a prismatic joint, qK_deg otherwise
     key = ("poses", robot.name, robot.n, robot.limits.tobytes(), robot.tool.tobytes())
     if key in data.checked:
         return
@@ -101,14 +103,15 @@ def check_poses(data: Measurements, robot: Robot, *, allow_outside_limits: bool 
 
 
 def check_joint_limits(data: Measurements, robot: Robot, allow: bool = False) -> None:
-    """Every joint reading within the robot's limits (``min_deg``, ``max_deg``).
+    """Every joint reading within the robot's limits (``min_deg``, ``max_deg``; ``min_mm``, ``max_mm`` for a
+    prismatic joint).
 
     A reading beyond a limit is a typing error, a pose of another robot or a
     robot file with wrong limits; the model is not valid there. With
     ``allow`` it is a warning.
     """
     q = data.q_deg
-    lim = np.degrees(robot.limits)
+    lim = robot.file_limits       # degrees, millimetres for a prismatic joint (its tolerance too)
     out = (q < lim[:, 0] - LIMIT_TOLERANCE_DEG) | (q > lim[:, 1] + LIMIT_TOLERANCE_DEG)
     if not out.any():
         return
@@ -116,14 +119,15 @@ def check_joint_limits(data: Measurements, robot: Robot, allow: bool = False) ->
     k = int(np.argmin(data.lines[rows] * (robot.n + 1) + joints))   # first in the file
     i, j = int(rows[k]), int(joints[k])
     more = f" ({len(rows)} readings in all)" if len(rows) > 1 else ""
-    where = dict(file=data.path, row=int(data.lines[i]), column=f"q{j + 1}_deg")
-    what = (f"joint reading {q[i, j]:g} deg is outside joint {j + 1}'s limits "
-            f"[{lim[j, 0]:g}, {lim[j, 1]:g}] deg of robot {robot.name}{more}")
+    unit = robot.joints[j].unit
+    where = dict(file=data.path, row=int(data.lines[i]), column=f"q{j + 1}_{unit}")
+    what = (f"joint reading {q[i, j]:g} {unit} is outside joint {j + 1}'s limits "
+            f"[{lim[j, 0]:g}, {lim[j, 1]:g}] {unit} of robot {robot.name}{more}")
     if allow:
         warnings.warn(str(DataFileError(what + f"; allowed by {FLAGS['limits']}", **where)), DataWarning,
                       stacklevel=3)
         return
-    raise DataFileError(what + "; correct the reading or the robot's min_deg/max_deg, or pass "
+    raise DataFileError(what + f"; correct the reading or the robot's min_{unit}/max_{unit}, or pass "
                         f"{FLAGS['limits']} to use it anyway", **where)
 
 
@@ -135,13 +139,16 @@ def check_angle_units(data: Measurements, robot: Robot, allow: bool = False) -> 
     +-2 pi degrees (on such a robot, calibration poses spread over tens of
     degrees).
     """
-    lim = np.degrees(np.abs(robot.limits)).max()
-    if allow or not looks_like_radians(data.q_deg) or lim <= 2 * math.pi:
+    angles = [j for j, jt in enumerate(robot.joints) if not jt.prismatic]
+    if not angles:
+        return
+    lim = np.degrees(np.abs(robot.limits[angles])).max()
+    if allow or not looks_like_radians(data.q_deg[:, angles]) or lim <= 2 * math.pi:
         return
     raise DataFileError(f"every joint reading of the {len(data)} rows lies within +-6.3: these look like "
                         "radians, but the q<j>_deg columns hold degrees; convert radians to degrees "
                         f"(multiply by 180/pi = 57.2958), or pass {FLAGS['angles']} if they are degrees",
-                        file=data.path, column="q1_deg")
+                        file=data.path, column=f"q{angles[0] + 1}_deg")
 
 
 def spread(points: np.ndarray) -> float:

@@ -1,6 +1,6 @@
 """Measurement files: the CSV contract of INTERFACE.md section 2.
 
-One row per pose, in measurement order: ``q1_deg..qN_deg``, optionally
+One row per pose, in measurement order: ``q1_deg..qN_deg`` (``qK_mm`` for a prismatic joint K), optionally
 ``x_mm, y_mm, z_mm`` (a file without them is a list of poses to predict or
 plan with), and optional ``payload_kg``, ``temperature_c``, ``time_s``.
 Where a 6-DoF probe measured the full pose, ``rx_deg, ry_deg, rz_deg`` hold
@@ -24,8 +24,9 @@ import numpy as np
 from ..errors import DataFileError, DataWarning
 from ..runtime.files import atomic_open
 
-_Q = re.compile(r"^q([1-9]\d*)_deg$")
-_Q_LIKE = re.compile(r"^q\d+_deg$")
+#: a joint's reading: ``qK_deg`` (revolute, degrees) or ``qK_mm`` (prismatic, millimetres)
+_Q = re.compile(r"^q([1-9]\d*)_(deg|mm)$")
+_Q_LIKE = re.compile(r"^q\d+_(deg|mm)$")
 XYZ = ("x_mm", "y_mm", "z_mm")
 #: measured orientation of the probe, measurement frame: R = Rx(rx) Ry(ry) Rz(rz) (intrinsic XYZ), degrees
 RXYZ = ("rx_deg", "ry_deg", "rz_deg")
@@ -76,10 +77,12 @@ class Measurements:
     sessions: np.ndarray | None = None
     sources: np.ndarray | None = None
     _n_joints: int = field(init=False)
+    _q_columns: list = field(init=False, repr=False)
 
     def __post_init__(self) -> None:
-        qs = sorted(int(m.group(1)) for c in self.columns if (m := _Q.match(c)))
+        qs = sorted((int(m.group(1)), c) for c in self.columns if (m := _Q.match(c)))
         self._n_joints = len(qs)
+        self._q_columns = [c for _, c in qs]
         # row order is time order: keep each pose's original position and the direction of
         # its joints' last move, so subsets (splits, cross-validation folds) keep them
         if self.rows is None:
@@ -110,13 +113,28 @@ class Measurements:
         return self._n_joints
 
     @property
+    def q_columns(self) -> list[str]:
+        """The reading columns, joint by joint: ``qK_deg`` (revolute) or ``qK_mm`` (prismatic)."""
+        return list(self._q_columns)
+
+    @property
+    def prismatic(self) -> tuple[bool, ...]:
+        """Per joint: its readings are a linear axis' (a ``qK_mm`` column)."""
+        return tuple(c.endswith("_mm") for c in self._q_columns)
+
+    @property
     def q_deg(self) -> np.ndarray:
-        return np.column_stack([self.columns[f"q{i}_deg"] for i in range(1, self._n_joints + 1)])
+        """Joint readings as in the file, shape (N, n): degrees (millimetres in a prismatic joint's column)."""
+        return np.column_stack([self.columns[c] for c in self._q_columns])
 
     @property
     def q(self) -> np.ndarray:
-        """Joint readings in radians, shape (N, n)."""
-        return np.radians(self.q_deg)
+        """Joint readings in SI units, shape (N, n): radians (metres for a prismatic joint)."""
+        q = self.q_deg
+        linear = self.prismatic
+        if not any(linear):
+            return np.radians(q)
+        return np.where(np.array(linear), q / 1000.0, np.radians(q))
 
     @property
     def has_positions(self) -> bool:
@@ -238,7 +256,7 @@ class Measurements:
 
     @classmethod
     def read_csv(cls, path: str | Path, n_joints: int | None = None,
-                 require_positions: bool = False) -> "Measurements":
+                 require_positions: bool = False, robot=None) -> "Measurements":
         """Read and validate a measurement file.
 
         Parameters
@@ -249,6 +267,9 @@ class Measurements:
             ``q1_deg..q<n_joints>_deg``.
         require_positions : bool
             The file must contain measured positions.
+        robot : Robot, optional
+            The robot the readings are of: its joint count (as ``n_joints``), and each joint's column must be
+            in its unit (``qK_mm`` for a prismatic joint, ``qK_deg`` for a revolute one).
 
         Raises
         ------
@@ -256,9 +277,13 @@ class Measurements:
             Naming file, row (1-based line; the header is row 1) and column.
         """
         path = str(path)
+        if robot is not None:
+            n_joints = robot.n
         # the rows are converted in chunks: the numbers of a 200,000-row file stay in memory, not its text
         with _csv_rows(path) as rows:
             header, numeric = _check_header(next(rows, None), path, n_joints, require_positions)
+            if robot is not None:
+                check_reading_units(header, robot, path)
             columns, lines = _read_body(rows, header, numeric, path)
         text = [h for h in header if columns[h] is None]
         if text:  # columns of words: read again for their exact text
@@ -283,11 +308,14 @@ class Measurements:
             w.writerows([_fmt(v) for v in row] for row in zip(*cols))
 
     @classmethod
-    def from_arrays(cls, q_rad: np.ndarray, xyz_m: np.ndarray | None = None,
+    def from_arrays(cls, q_rad: np.ndarray, xyz_m: np.ndarray | None = None, prismatic=(),
                     **extra: np.ndarray) -> "Measurements":
-        """Build from arrays (radians, metres); ``extra`` columns are added as given."""
+        """Build from arrays (radians, metres); ``extra`` columns are added as given. ``prismatic``: per joint, a
+        linear axis (its reading in metres, written to a ``qK_mm`` column); empty: none."""
         q_rad = np.atleast_2d(q_rad)
-        cols = {f"q{i + 1}_deg": np.degrees(q_rad[:, i]) for i in range(q_rad.shape[1])}
+        linear = [bool(prismatic) and bool(prismatic[i]) for i in range(q_rad.shape[1])]
+        cols = {(f"q{i + 1}_mm" if linear[i] else f"q{i + 1}_deg"):
+                (q_rad[:, i] * 1000.0 if linear[i] else np.degrees(q_rad[:, i])) for i in range(q_rad.shape[1])}
         if xyz_m is not None:
             for i, c in enumerate(XYZ):
                 cols[c] = np.asarray(xyz_m)[:, i] * 1000.0
@@ -361,6 +389,11 @@ def _check_header(first: list[str] | None, path: str, n_joints: int | None, requ
             # an extra column is kept and not read: 'Payload_kg' would be a payload silently left out
             raise DataFileError(f"column names are lower case: write {h.lower()!r}", file=path, row=1, column=h)
     qs = sorted(int(m.group(1)) for h in header if (m := _Q.match(h)))
+    twice = sorted({k for k in qs if qs.count(k) > 1})
+    if twice:
+        raise DataFileError(f"joint {twice[0]} has two reading columns (q{twice[0]}_deg and q{twice[0]}_mm): a "
+                            "revolute joint's is in degrees, a prismatic one's in millimetres", file=path, row=1,
+                            column=f"q{twice[0]}_mm")
     if not qs:
         raise DataFileError("has no joint columns: expected q1_deg, q2_deg, ..." + _other_separator(header, path),
                             file=path, row=1)
@@ -387,7 +420,8 @@ def _check_header(first: list[str] | None, path: str, n_joints: int | None, requ
     if require_positions and not present:
         raise DataFileError("has no measured positions: columns x_mm, y_mm, z_mm are required here",
                             file=path, row=1, column="x_mm")
-    numeric = {f"q{i}_deg" for i in qs} | set(present) | set(turned) | {c for c in NUMERIC_OPTIONAL if c in seen}
+    numeric = ({h for h in header if _Q.match(h)} | set(present) | set(turned)
+               | {c for c in NUMERIC_OPTIONAL if c in seen})
     return header, numeric
 
 
@@ -529,8 +563,25 @@ def looks_like_radians(q_deg: np.ndarray, tol: float = 1e-9) -> bool:
     return len(q_deg) >= MIN_ROWS_RADIANS and 0 < top <= 2 * math.pi + tol
 
 
+def check_reading_units(header: list[str], robot, path: str) -> None:
+    """Each joint's reading column in its joint's unit: ``qK_mm`` for a prismatic joint (a linear axis),
+    ``qK_deg`` for a revolute one (one line naming file, row 1 and the column)."""
+    for h in header:
+        m = _Q.match(h)
+        if not m or int(m.group(1)) > robot.n:
+            continue
+        k, unit = int(m.group(1)), m.group(2)
+        joint = robot.joints[k - 1]
+        if unit != joint.unit:
+            what = ("prismatic (a linear axis): its readings are millimetres, column" if joint.prismatic
+                    else "revolute: its readings are degrees, column")
+            raise DataFileError(f"joint {k} of {robot.name} is {what} q{k}_{joint.unit}", file=path, row=1,
+                                column=h)
+
+
 def _check_units(data: Measurements) -> None:
-    if looks_like_radians(data.q_deg):
+    angles = [j for j, linear in enumerate(data.prismatic) if not linear]
+    if angles and looks_like_radians(data.q_deg[:, angles]):
         warnings.warn(f"{data.path}: every joint reading is within +-6.3: "
                       "these look like radians, but _deg columns must hold degrees", DataWarning,
                       stacklevel=3)

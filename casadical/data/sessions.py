@@ -26,14 +26,15 @@ from .measurements import Measurements, session_name
 
 
 def read_sessions(paths: list[str], n_joints: int | None = None, require_positions: bool = False,
-                  names: list[str] | None = None) -> Measurements:
+                  names: list[str] | None = None, robot=None) -> Measurements:
     """Read one or several measurement files as the sessions of one data set.
 
     One file is read as it is (its ``session`` column, if any, names its
     sessions); several are combined by :func:`combine`, each file one
     session named after it (its ``session`` column, if any, wins).
     """
-    parts = [Measurements.read_csv(p, n_joints=n_joints, require_positions=require_positions) for p in paths]
+    parts = [Measurements.read_csv(p, n_joints=n_joints, require_positions=require_positions, robot=robot)
+             for p in paths]
     return parts[0] if len(parts) == 1 else combine(parts, names)
 
 

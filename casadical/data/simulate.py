@@ -214,11 +214,13 @@ def sample_poses(robot: Robot, n: int, rng: np.random.Generator, *,
     box : ((xmin, ymin, zmin), (xmax, ymax, zmax)), optional
         Keep poses whose tool point lies inside this box (robot base frame).
     margin : float
-        Keep this far from the joint limits (rad).
+        Keep this far from the joint limits (rad; as many millimetres as degrees for a prismatic joint).
     """
     if n < 1:
         raise InputError(f"number of poses must be at least 1, got {n}")
     lim = robot.limits.copy()
+    # the margin in degrees, millimetres on a linear axis
+    margin = robot.from_file_units(np.full(robot.n, math.degrees(margin)))
     lim[:, 0] += margin
     lim[:, 1] -= margin
     lim[lim[:, 0] > lim[:, 1]] = robot.limits[lim[:, 0] > lim[:, 1]]
@@ -290,7 +292,7 @@ def simulate(robot: Robot, q: np.ndarray | int, effects: Effects | None = None, 
         extra["temperature_c"] = np.clip(drift, lo, hi)
     if any(effects.drift):   # one pose a second
         extra["time_s"] = np.arange(len(q), dtype=float)
-    data = Measurements.from_arrays(q, None, **extra)
+    data = Measurements.from_arrays(q, None, prismatic=robot.prismatic, **extra)
     xyz = truth.predict(data) + rng.normal(0.0, effects.noise, size=(len(q), 3))
     data = data.with_positions(xyz)
     if effects.orientation_noise is not None:
@@ -432,6 +434,13 @@ def effects_from_table(t: dict, robot: Robot, file: str, table: str = "truth") -
     for j, k in stiffness.items():
         if k <= 0:
             raise InputError(f"stiffness must be positive, got {k}", file=file, column=f"{table}.stiffness.{j}")
+    # the catalogue's joint errors are a revolute joint's (casadical.terms.base): none on a linear axis
+    for key in ("stiffness", "backlash_deg", "backlash_motion_deg", "encoder_scale", "cubic"):
+        for j in v.per_joint(t, key, table, n):
+            if robot.joints[j - 1].prismatic:
+                raise InputError(f"joint {j} is prismatic (a linear axis): {key} is an error of a revolute joint's "
+                                 "angle (a linear axis' own errors are not in the catalogue yet)", file=file,
+                                 column=f"{table}.{key}.{j}")
     backlash = v.per_joint(t, "backlash_deg", table, n)
     backlash_motion = v.per_joint(t, "backlash_motion_deg", table, n)
     periodic = []
@@ -447,6 +456,10 @@ def effects_from_table(t: dict, robot: Robot, file: str, table: str = "truth") -
         if j != int(j) or not 1 <= j <= n or h != int(h) or h < 1:
             raise InputError(f"joint must be 1 to {n} and harmonic a whole number >= 1, got {item!r}",
                              file=file, column=where)
+        if robot.joints[int(j) - 1].prismatic:
+            raise InputError(f"joint {int(j)} is prismatic (a linear axis): a periodic gear error is a revolute "
+                             "joint's (a linear axis' own errors are not in the catalogue yet)", file=file,
+                             column=where)
         periodic.append((int(j), int(h), math.radians(amp), math.radians(ph)))
     return Effects(
         length_sigma=v.nonnegative(t, "length_sigma_mm", table, 0.5) / 1000,

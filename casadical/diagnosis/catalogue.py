@@ -101,6 +101,15 @@ def not_tried(robot: Robot, cal: Measurements, torques: np.ndarray, settings: Di
     ``torques``: the gravity torques of the poses (N m) under a first fit.
     """
     out = []
+    revolute = [j for j, jt in enumerate(robot.joints, start=1) if not jt.prismatic]
+    if len(revolute) < robot.n:
+        out.append(NotTried("joint_compliance, joint_periodic, encoder_scale, backlash, joint_coupling",
+                            "a prismatic joint (a linear axis): these are errors of a revolute joint's angle, and "
+                            "a linear axis' own errors (scale per metre, pitch, straightness, the carriage's roll, "
+                            "pitch and yaw) are not in the catalogue yet (the geometry calibrates where the axis "
+                            "lies and points)",
+                            "no data can: the catalogue has no error of a linear axis yet",
+                            [j for j in range(1, robot.n + 1) if j not in revolute]))
     payload = cal.get("payload_kg")
     masses = any(j.mass > 0 for j in robot.joints) or robot.payload_mass > 0 or (
         payload is not None and np.any(payload > 0))
@@ -111,12 +120,12 @@ def not_tried(robot: Robot, cal: Measurements, torques: np.ndarray, settings: Di
                             "give the links' mass_kg and com_m in the robot file, or a payload_kg column of a "
                             "known payload"))
     else:
-        idle = [j for j in range(1, robot.n + 1) if np.max(np.abs(torques[:, j - 1]), initial=0.0) < NO_TORQUE]
+        idle = [j for j in revolute if np.max(np.abs(torques[:, j - 1]), initial=0.0) < NO_TORQUE]
         if idle:
             out.append(NotTried("joint_compliance, nonlinear_stiffness, backlash by the load",
                                 "gravity does not load them at any pose (an axis along gravity, or no mass beyond it)",
                                 "nothing these poses could change: gravity never loads such a joint", idle))
-        one_sign = [j for j in range(1, robot.n + 1) if j not in idle
+        one_sign = [j for j in revolute if j not in idle
                     and not sign_changes(np.sign(torques[:, j - 1]), "")[0]]
         if one_sign:
             out.append(NotTried("backlash by the load", "the gravity torque keeps one sign over the poses (play "
@@ -135,7 +144,7 @@ def not_tried(robot: Robot, cal: Measurements, torques: np.ndarray, settings: Di
         out.append(NotTried("joint_coupling", "the poses move one joint at a time: a joint's error that follows "
                             "another joint's reading would show at one configuration of the arm only",
                             "poses that move the joints together (random poses, or casadical plan-poses)"))
-    one_way = [j for j in range(1, robot.n + 1) if not sign_changes(cal.moves[:, j - 1], "")[0]]
+    one_way = [j for j in revolute if not sign_changes(cal.moves[:, j - 1], "")[0]]
     if one_way:
         out.append(NotTried("backlash by the motion", "the joint moves in one direction only between the rows",
                             "poses approached from both directions, in measurement order", one_way))
@@ -150,11 +159,11 @@ def not_tried(robot: Robot, cal: Measurements, torques: np.ndarray, settings: Di
     elif np.ptp(temp) <= 0.1:
         out.append(NotTried("thermal_expansion", f"the temperature varies by {np.ptp(temp):.2g} K only",
                             "measure while the temperature changes by a few kelvin"))
-    still = [j for j in range(1, robot.n + 1) if np.ptp(cal.q[:, j - 1]) <= 0]
+    still = [j for j in revolute if np.ptp(cal.q[:, j - 1]) <= 0]
     if still:
         out.append(NotTried("joint_periodic, encoder_scale, joint_coupling", "the joint does not move in the data",
                             "poses over the joint's range", still))
-    short = {j: math.degrees(np.ptp(cal.q[:, j - 1])) for j in range(1, robot.n + 1) if j not in still}
+    short = {j: math.degrees(np.ptp(cal.q[:, j - 1])) for j in revolute if j not in still}
     short = {j: r for j, r in short.items() if r < SHORT_RANGE_DEG}
     if short:
         top = max(short.values())
@@ -276,11 +285,14 @@ class Catalogue:
         """
         have = set(accepted)
         out: list[Candidate] = []
-        for j in range(1, self.robot.n + 1):
+        # a revolute joint's errors only: a linear axis' own (scale per metre, pitch, straightness, roll, pitch
+        # and yaw of its carriage) are not in the catalogue yet, and these make no sense on it
+        revolute = [j for j, jt in enumerate(self.robot.joints, start=1) if not jt.prismatic]
+        for j in revolute:
             out += [Candidate("joint_compliance", j), Candidate("encoder_scale", j),
                     Candidate("backlash", j, source="torque"), Candidate("backlash", j, source="motion")]
         several = len(self.sessions) > 1
-        moving = [j for j in range(1, self.robot.n + 1) if np.ptp(self.cal.q[:, j - 1]) > 0]
+        moving = [j for j in revolute if np.ptp(self.cal.q[:, j - 1]) > 0]
         # a coupling's source joint comes before it: a drive train passes through the joints before its joint;
         # none on poses that move one joint at a time (not_tried says why)
         if self.couples is None:
@@ -315,6 +327,8 @@ class Catalogue:
         scopes = [(None, self.periodograms)] + list(self._own.items())
         for s, grams in scopes:
             for j, pg in enumerate(grams, start=1):
+                if j not in revolute:
+                    continue
                 ranked = [int(h) for h in pg.harmonics[np.argsort(-pg.power)] if (j, int(h), s) not in excluded][:2]
                 # the first harmonic always: over a small range it mimics an encoder scale error,
                 # and the ambiguity can only be reported if both are screened

@@ -49,7 +49,8 @@ class NoiseFloor:
 def repeated_sigma(data: Measurements) -> tuple[float, int] | None:
     """The noise per axis (m) from poses measured again (readings equal to :data:`REPEAT_DEG` in one session):
     the pooled scatter of their points about each group's mean, and its degrees of freedom; None without any."""
-    key = np.round(np.degrees(data.q) / REPEAT_DEG).astype(np.int64)
+    # degrees (as read: millimetres on a linear axis)
+    key = np.round((data.q_deg if any(data.prismatic) else np.degrees(data.q)) / REPEAT_DEG).astype(np.int64)
     if data.sessions is not None:
         key = np.column_stack([np.unique(data.sessions, return_inverse=True)[1], key])
     _, group, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)

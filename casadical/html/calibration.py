@@ -281,5 +281,5 @@ def _per_joint(data: Measurements, r1):
             ticks(a, y=False, n=3, least=3)
             if j == 0:
                 a.set_ylabel(f"{name} residual (mm)")
-        ax[-1, j].set_xlabel(f"q{j + 1} (deg)")
+        ax[-1, j].set_xlabel(f"q{j + 1} ({'mm' if data.prismatic[j] else 'deg'})")
     return fig

@@ -144,7 +144,7 @@ def forward(robot: Robot, angles: list, geom: Geometry) -> Frames:
     it term by term, three times faster to make (a model builds two chains).
     """
     n = robot.n
-    F = _chain_function(robot.convention, n, bool(geom.links))
+    F = _chain_function(robot.convention, n, bool(geom.links), robot.prismatic if any(robot.prismatic) else ())
 
     def column(values) -> ca.SX:
         return ca.vertcat(*[v if isinstance(v, ca.SX) else ca.SX(v) for v in values]) if len(values) else ca.SX(0, 1)
@@ -172,9 +172,12 @@ def small_pose(dx, dy, dz, rx, ry, rz) -> Pose:
 
 
 @functools.lru_cache(maxsize=None)
-def _chain_function(convention: str, n: int, links: bool = False) -> ca.Function:
+def _chain_function(convention: str, n: int, links: bool = False, prismatic: tuple = ()) -> ca.Function:
     """The chain of :func:`forward` as a Function of (angles, alpha, a, beta, b, d, theta, tool) (and, with
     ``links``, of each link frame's change, 6 numbers a joint, after the tool).
+
+    ``prismatic``: per joint, a linear axis (empty: none); its "angle" is its reading (m), added to ``d``, and
+    its ``theta`` is the constant turn about z.
 
     Output: one column holding, per joint, its axis, a point on it and its
     link pose (R column-major, t), then the tool pose.
@@ -187,7 +190,10 @@ def _chain_function(convention: str, n: int, links: bool = False) -> ca.Function
     out = []
     for i in range(n):
         alpha, a, beta, b, d = (geo[k][i] for k in ("alpha", "a", "beta", "b", "d"))
-        th = angles[i] + geo["theta"][i]
+        if prismatic and prismatic[i]:
+            th, d = geo["theta"][i], d + angles[i]
+        else:
+            th = angles[i] + geo["theta"][i]
         if convention == "mdh":
             pre = compose(pose, rotx(alpha), trans(a), roty(beta), trans(0, b))
             axis, origin = pre[0][:, 2], pre[1]
@@ -200,7 +206,8 @@ def _chain_function(convention: str, n: int, links: bool = False) -> ca.Function
         out += [axis, origin, ca.vec(pose[0]), pose[1]]
     end = compose(pose, trans(tool[0], tool[1], tool[2]))
     out += [ca.vec(end[0]), end[1]]
-    return ca.Function(f"chain_{convention}_{n}" + ("_links" if links else ""),
+    kinds = "_" + "".join("P" if p else "R" for p in prismatic) if prismatic else ""
+    return ca.Function(f"chain_{convention}_{n}" + ("_links" if links else "") + kinds,
                        [angles, *geo.values(), tool] + ([change] if links else []), [ca.vertcat(*out)])
 
 
@@ -208,7 +215,8 @@ def gravity_torques(robot: Robot, frames: Frames, payload_mass) -> list:
     """Torque of gravity about each joint axis (N m), robot base frame.
 
     tau_i = z_i . sum_{j >= i} (c_j - o_i) x (m_j g), with the payload at the
-    tool frame counted with every joint.
+    tool frame counted with every joint. A prismatic joint's is the force of
+    gravity along its axis (N): z_i . sum_{j >= i} m_j g.
     """
     g = ca.DM(robot.gravity)
     weights = []  # (centre of mass, force)
@@ -222,7 +230,7 @@ def gravity_torques(robot: Robot, frames: Frames, payload_mass) -> list:
         moment = ca.SX.zeros(3, 1)
         for k in range(i, robot.n + 1):
             c, f = weights[k]
-            moment = moment + ca.cross(c - frames.origin[i], f)
+            moment = moment + (f if robot.joints[i].prismatic else ca.cross(c - frames.origin[i], f))
         taus.append(ca.dot(frames.axis[i], moment))
     return taus
 

@@ -114,17 +114,19 @@ def superset_terms(robot, frames=None, torques: bool = True) -> list[ErrorTerm]:
     """
     n = robot.n
     every = list(range(1, n + 1))
+    # a revolute joint's errors on the revolute joints only (refused on a linear axis, casadical.terms.base)
+    revolute = [j for j in every if not robot.joints[j - 1].prismatic]
     terms = [make_term("geometric")]
     if frames is not None:
         terms.append(make_term("sessions", names=frames.names, tools=frames.tools))
     if torques:
-        terms += [make_term("joint_compliance", joints=every), make_term("nonlinear_stiffness", joints=every)]
-    terms += [make_term("encoder_scale", joints=every)]
+        terms += [make_term("joint_compliance", joints=revolute), make_term("nonlinear_stiffness", joints=revolute)]
+    terms += [make_term("encoder_scale", joints=revolute)]
     if torques:
-        terms += [make_term("backlash", joints=every)]
+        terms += [make_term("backlash", joints=revolute)]
         if max_mount_moment(robot) > 0:     # the base's tilt under the moment of the weights (it needs the masses)
             terms.append(make_term("mount_compliance"))
-    terms += [make_term("backlash_motion", joints=every), make_term("thermal_expansion", t_ref=0.0),
+    terms += [make_term("backlash_motion", joints=revolute), make_term("thermal_expansion", t_ref=0.0),
               make_term("thermal_expansion", joints=every, t_ref=0.0), make_term("drift"),
               make_term("tool_orientation"), ChainOffsets(n), PointOffset()]
     return terms

@@ -216,5 +216,5 @@ def accuracy_map(result: CalibrationResult, measured_q: np.ndarray | None = None
 
 
 def _total(result: CalibrationResult, q: np.ndarray) -> np.ndarray:
-    sp, sl = prediction_std(result, Measurements.from_arrays(q))
+    sp, sl = prediction_std(result, Measurements.from_arrays(q, prismatic=result.model.robot.prismatic))
     return sp if sl is None else np.sqrt(sp ** 2 + sl ** 2)

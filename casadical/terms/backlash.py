@@ -38,6 +38,7 @@ class Backlash(ErrorTerm):
 
     name = "backlash"
     cause = "backlash"
+    revolute_only = True
 
     #: settings of a calibration file that lacks them: files older than the lag convention
     LEGACY = {"lag": False}
@@ -86,6 +87,7 @@ class BacklashMotion(Backlash):
     name = "backlash_motion"
     aliases = ()
     cause = "backlash"
+    revolute_only = True
 
     def __init__(self, joints=None, lag: bool = True):
         super().__init__(joints, source="motion", lag=lag)

@@ -100,6 +100,10 @@ class ErrorTerm:
     #: describes the measurement session, not the robot (like the base pose): a calibration taken
     #: to other data starts such a term from zero
     session: ClassVar[bool] = False
+    #: an error of a revolute joint's angle (compliance, gear error, encoder scale, backlash, coupling): by
+    #: default on the revolute joints only, and refused on a prismatic joint (a linear axis' own errors are not
+    #: in the catalogue)
+    revolute_only: ClassVar[bool] = False
 
     def __init__(self, joints: list[int] | None = None):
         self.joints = None if joints is None else sorted({int(j) for j in joints})
@@ -107,11 +111,14 @@ class ErrorTerm:
     def bind(self, robot: Robot) -> None:
         """Check the term against the robot; resolve default joints."""
         if self.joints is None:
-            self.joints = list(range(1, robot.n + 1))
+            self.joints = [j for j in range(1, robot.n + 1)
+                           if not (self.revolute_only and robot.joints[j - 1].prismatic)]
         bad = [j for j in self.joints if not 1 <= j <= robot.n]
         if bad:
             raise ModelError(f"term {self.name}: joints {bad} do not exist on {robot.name} "
                              f"(joints 1..{robot.n})")
+        if self.revolute_only:
+            check_revolute(self.name, [j for j in self.joints], robot)
 
     def parameters(self, robot: Robot) -> list[Parameter]:
         """Parameters this term adds to the model."""
@@ -198,6 +205,15 @@ class ReferencedTerm(ErrorTerm):
         return {"t_ref": self.t_ref}
 
 
+def check_revolute(term: str, joints, robot: Robot) -> None:
+    """Refuse a revolute joint's error on a prismatic joint (one line)."""
+    linear = [j for j in joints if robot.joints[j - 1].prismatic]
+    if linear:
+        raise ModelError(f"term {term}: joint {linear[0]} of {robot.name} is prismatic (a linear axis); {term} is "
+                         "an error of a revolute joint's angle, and a linear axis' own errors (scale per metre, pitch, "
+                         "straightness, the carriage's roll, pitch and yaw) are not in the catalogue yet")
+
+
 def covariate_names(terms: list[ErrorTerm]) -> list[str]:
     """The covariates a model of ``terms`` reads per pose, in the order of its terms (the payload always)."""
     cov = list(dict.fromkeys(c for t in terms for c in t.covariates))
@@ -206,7 +222,8 @@ def covariate_names(terms: list[ErrorTerm]) -> list[str]:
 
 def reach(robot: Robot, first: int = 1) -> float:
     """Upper bound of the distance from joint ``first`` to the tool point (m)."""
-    links = sum(abs(j.a) + abs(j.d) + abs(j.b or 0.0) for j in robot.joints[first - 1:])
+    links = sum(abs(j.a) + abs(j.d) + abs(j.b or 0.0) + (max(abs(j.min), abs(j.max)) if j.prismatic else 0.0)
+                for j in robot.joints[first - 1:])
     loop = robot.loop.crank if robot.loop else 0.0
     return links + loop + float(sum(abs(robot.tool)))
 

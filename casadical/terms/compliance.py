@@ -27,6 +27,7 @@ class JointCompliance(ErrorTerm):
     name = "joint_compliance"
     aliases = ("compliance",)
     cause = "joint_compliance"
+    revolute_only = True
     covariates = ("payload_kg",)
 
     def __init__(self, joints=None, k_min: float = 1e3):

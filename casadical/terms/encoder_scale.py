@@ -13,6 +13,7 @@ class EncoderScale(ErrorTerm):
 
     name = "encoder_scale"
     cause = "encoder_scale"
+    revolute_only = True
 
     def parameters(self, robot: Robot) -> list[Parameter]:
         return [Parameter(f"escale{j}", 0.0, "1", 1e-4, self.name, j, lower=-0.01, upper=0.01)

@@ -5,7 +5,7 @@ from __future__ import annotations
 from ..errors import ModelError
 from ..model.parameters import Parameter
 from ..robot import Robot
-from .base import Context, ErrorTerm, register
+from .base import Context, ErrorTerm, check_revolute, register
 
 #: largest coupling factor admitted (rad/rad): beyond 1 % the robot file's coupling ratio is wrong, which is
 #: its ``coupling`` row's business, not a gear's error
@@ -37,6 +37,7 @@ class JointCoupling(ErrorTerm):
 
     name = "joint_coupling"
     cause = "joint_coupling"
+    revolute_only = True
 
     def __init__(self, joints=None, pairs=()):
         self.pairs = sorted({(int(j), int(k)) for j, k in pairs})
@@ -63,6 +64,7 @@ class JointCoupling(ErrorTerm):
         if bad:
             raise ModelError(f"term {self.name}: source joints {bad} do not exist on {robot.name} "
                              f"(joints 1..{robot.n})")
+        check_revolute(self.name, [k for _, k in self.pairs], robot)
 
     def spec(self) -> str:
         return f"{self.name}[{','.join(f'{j}:{k}' for j, k in self.pairs)}]"

@@ -19,6 +19,7 @@ class NonlinearStiffness(ErrorTerm):
 
     name = "nonlinear_stiffness"
     aliases = ("cubic_stiffness",)
+    revolute_only = True
     cause = "nonlinear_stiffness"
     covariates = ("payload_kg",)
 

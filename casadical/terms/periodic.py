@@ -27,6 +27,7 @@ class JointPeriodic(ErrorTerm):
 
     name = "joint_periodic"
     aliases = ("periodic",)
+    revolute_only = True
     cause = "joint_periodic"
 
     def __init__(self, harmonics: list[tuple[int, int]]):

@@ -33,7 +33,7 @@ import numpy as np
 
 from ..errors import RobotFileError
 from ..model.kinematics import matrix_to_rpy
-from ..robot import GRAVITY, Joint, Robot
+from ..robot import GRAVITY, PRISMATIC, REVOLUTE, Joint, Robot
 
 #: Consecutive axes closer to parallel than this (deg) get Hayati's beta. It
 #: equals the geometric term's angle box, so an exported calibration of a
@@ -41,6 +41,8 @@ from ..robot import GRAVITY, Joint, Robot
 PARALLEL_TOL_DEG = 5.0
 _EPS = 1e-9  # m: parallel axes closer than this are coaxial (the x axis is kept from the frame before)
 _REVOLUTE = ("revolute", "continuous")
+#: the joints of the chain: revolute ones and linear axes (a prismatic joint: its reading a length along its axis)
+_MOVABLE = _REVOLUTE + ("prismatic",)
 _TYPES = ("revolute", "continuous", "prismatic", "fixed", "floating", "planar")
 _PARSE_ERRORS = (KeyError, AttributeError, ValueError, TypeError, IndexError)
 
@@ -69,8 +71,9 @@ def robot_from_urdf(path: str | Path, tip: str | None = None, base: str | None =
     Returns
     -------
     Robot
-        MDH, one joint per revolute or continuous joint of the chain (fixed
-        joints folded in). Limits from ``<limit>`` (continuous: +-180 deg);
+        MDH, one joint per revolute, continuous or prismatic joint of the chain
+        (fixed joints folded in; a prismatic joint is a linear axis, its reading
+        added to d). Limits from ``<limit>`` (continuous: +-180 deg);
         each link's mass and centre of mass merged from every URDF link
         that moves with it; gravity along -z of the root link; a ``<mimic>``
         joint becomes a coupling row on the joint it follows.
@@ -79,7 +82,7 @@ def robot_from_urdf(path: str | Path, tip: str | None = None, base: str | None =
     ------
     RobotFileError
         Not XML, not a URDF, a loop, no revolute joint, an unknown or
-        branching tip, a prismatic joint on the chain, an axis of zero
+        branching tip, a planar or floating joint on the chain, an axis of zero
         length, non-finite numbers, a mimic casadical cannot couple: one
         line naming the file, the line and the element.
     """
@@ -89,7 +92,7 @@ def robot_from_urdf(path: str | Path, tip: str | None = None, base: str | None =
     base = tree.root() if base is None else tree.link(base, "base")
     tip = tree.default_tip(base) if tip is None else tree.link(tip, "tip")
     chain = tree.chain(base, tip)
-    movable = [j for j in chain if j.type in _REVOLUTE]
+    movable = [j for j in chain if j.type in _MOVABLE]
     index = {j.name: i for i, j in enumerate(movable)}
     n = len(movable)
 
@@ -121,7 +124,8 @@ def robot_from_urdf(path: str | Path, tip: str | None = None, base: str | None =
             com = _transform(np.linalg.inv(frames[i + 1]), moment[i + 1] / mass[i + 1])
         coupling, offset = doc.coupling(j, index, n)
         joints.append(Joint(alpha=alpha, a=a, d=d, theta=theta, beta=beta, min=lo, max=hi,
-                            mass=float(mass[i + 1]), com=com, coupling=coupling, coupling_offset=offset))
+                            mass=float(mass[i + 1]), com=com, coupling=coupling, coupling_offset=offset,
+                            kind=PRISMATIC if j.type == "prismatic" else REVOLUTE))
     # gravity: -z of the URDF root, in frame 0
     root_to_base = tree.zero_poses(tree.top(base))[base][:3, :3]
     down = frames[0][:3, :3].T @ root_to_base.T @ np.array([0.0, 0.0, -1.0])
@@ -300,7 +304,8 @@ class _Document:
             return -math.pi, math.pi
         lim = j.limit
         if lim is None or lim.lower is None or lim.upper is None:
-            raise self.error("joint", j.name, "a revolute joint needs <limit lower=... upper=...> (radians)")
+            raise self.error("joint", j.name, f"a {j.type} joint needs <limit lower=... upper=...> "
+                             + ("(metres)" if j.type == "prismatic" else "(radians)"))
         if not lim.lower < lim.upper:
             raise self.error("joint", j.name, f"lower limit {lim.lower} must be below upper limit {lim.upper}")
         return float(lim.lower), float(lim.upper)
@@ -310,6 +315,10 @@ class _Document:
         if j.mimic is None:
             return None, 0.0
         followed = j.mimic.joint
+        linear = [x for x in (j.name, followed) if any(k.name == x and k.type == "prismatic" for k in self.joints)]
+        if linear:
+            raise self.error("joint", j.name, f"<mimic> couples {linear[0]!r}, a prismatic joint; casadical couples "
+                             "revolute joints only")
         if followed not in index:
             raise self.error("joint", j.name, f"<mimic> follows {followed!r}, which is not a revolute joint "
                              "of the chain; casadical couples joints of the chain only")
@@ -399,7 +408,7 @@ class _Tree:
         return tips[0]
 
     def chain(self, base: str, tip: str) -> list:
-        """Joints from ``base`` down to ``tip``, each revolute, continuous or fixed."""
+        """Joints from ``base`` down to ``tip``, each revolute, continuous, prismatic or fixed."""
         chain, link = [], tip
         while link != base:
             if link not in self.parent:
@@ -408,10 +417,10 @@ class _Tree:
             link = self.parent[link].parent
         chain.reverse()
         for j in chain:
-            if j.type not in _REVOLUTE + ("fixed",):
+            if j.type not in _MOVABLE + ("fixed",):
                 raise self.doc.error("joint", j.name, f"is {j.type}, on the chain from {base!r} to {tip!r}: "
-                                     "casadical models revolute joints only")
-        if not any(j.type in _REVOLUTE for j in chain):
+                                     "casadical models revolute and prismatic joints only")
+        if not any(j.type in _MOVABLE for j in chain):
             raise RobotFileError(f"no revolute or continuous joint between links {base!r} and {tip!r}",
                                  file=self.doc.path)
         return chain

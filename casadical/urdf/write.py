@@ -77,7 +77,7 @@ def robot_to_urdf(source: "CalibrationResult | Robot", description: str | None =
     tool = pose_matrix(frames.tool)
     if not isinstance(source, Robot) and source.has_orientation:
         tool[:3, :3] = tool[:3, :3] @ source.tool_rotation()    # tool_point's axes are the probe's
-    # the frame each joint turns: its link frame before the turn
+    # the frame each joint turns (or, prismatic, slides along z): its link frame before the turn
     turn = []
     for i in range(n):
         if robot.convention == "mdh":
@@ -99,7 +99,8 @@ def robot_to_urdf(source: "CalibrationResult | Robot", description: str | None =
         name = f"link_{i + 1}"
         com = np.linalg.solve(turn[i], links[i] @ np.append(j.com, 1.0))[:3]
         _link(root, name, j.mass, com)
-        el = _joint(root, f"joint_{i + 1}", "revolute", parent, name, np.linalg.solve(parent_T, turn[i]),
+        # a prismatic joint slides along the same z its MDH/DH row's d lies on: the same joint frame
+        el = _joint(root, f"joint_{i + 1}", j.kind, parent, name, np.linalg.solve(parent_T, turn[i]),
                     axis=True)
         ET.SubElement(el, "limit", lower=_num(j.min), upper=_num(j.max), effort="0", velocity="0")
         if mimics[i] is not None:
@@ -141,7 +142,9 @@ def _comment(robot: Robot, model: str, sessions: list[str]) -> str:
     where = (f"  'measurement_frame' is the measurement frame of session {sessions[0]}, the calibration's first of "
              f"{', '.join(sessions)}\n  (every session's base pose is in the parameter table).\n" if sessions else "")
     return (f"\n  {robot.name}: geometric model written by casadical {__version__} ({model}).\n"
-            "  At joint readings q (radians; the constant offsets theta are in the joint origins), link\n"
+            + ("  At joint readings q (radians, metres for a prismatic joint; the constant offsets theta are in\n"
+               "  the joint origins), link" if any(robot.prismatic) else
+               "  At joint readings q (radians; the constant offsets theta are in the joint origins), link") + "\n"
             "  'tool_point' seen from 'measurement_frame' is the measured point (its axes the probe's, for a\n"
             "  full-pose calibration); 'world' has gravity along -z.\n" + where +
             "  A URDF cannot carry, so this file does not contain: " + ", ".join(NOT_IN_URDF) + ".\n"

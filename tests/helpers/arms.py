@@ -156,6 +156,44 @@ ARM5_COUPLED = {
     "payload": {"mass_kg": 20},
 }
 
+#: a four-axis arm on a 4 m linear track (joint 1, prismatic, MDH): the track runs along the base's y axis
+#: (alpha1 -90), joint 2 stands vertical on the carriage (alpha2 90)
+ARM4_TRACK = {
+    "name": "four-axis arm on a track", "convention": "mdh",
+    "joint": [
+        {"type": "prismatic", "alpha_deg": -90, "a_m": 0.0, "d_m": 0.0, "theta_deg": 0.0, "min_mm": 0.0,
+         "max_mm": 4000.0, "mass_kg": 120, "com_m": [0, 0, 0]},
+        {"alpha_deg": 90, "a_m": 0.0, "d_m": 0.5, "min_deg": -170, "max_deg": 170, "mass_kg": 40,
+         "com_m": [0, 0, -0.2]},
+        {"alpha_deg": -90, "a_m": 0.2, "d_m": 0.0, "min_deg": -80, "max_deg": 60, "mass_kg": 25,
+         "com_m": [0.4, 0, 0]},
+        {"alpha_deg": 0, "a_m": 0.9, "beta_deg": 0.0, "d_m": 0.0, "min_deg": -60, "max_deg": 150, "mass_kg": 15,
+         "com_m": [0.3, 0, 0]},
+        {"alpha_deg": 0, "a_m": 0.8, "beta_deg": 0.0, "d_m": 0.0, "min_deg": -200, "max_deg": 200, "mass_kg": 3,
+         "com_m": [0.05, 0, 0]},
+    ],
+    "tool": {"a_m": 0.15, "b_m": 0.03, "d_m": 0.05},
+    "payload": {"mass_kg": 30},
+}
+
+#: a three-axis arm on a lifting column (standard DH): the waist turns (joint 1), the column lifts the arm
+#: (joint 2, prismatic, 1.2 m), shoulder and elbow (joints 3 and 4, parallel: beta on link 3)
+ARM_COLUMN = {
+    "name": "arm on a lifting column", "convention": "dh",
+    "joint": [
+        {"alpha_deg": 0, "a_m": 0.0, "beta_deg": 0.0, "d_m": 0.3, "min_deg": -170, "max_deg": 170, "mass_kg": 40,
+         "com_m": [0, 0, -0.1]},
+        {"type": "prismatic", "alpha_deg": 90, "a_m": 0.2, "d_m": 0.2, "theta_deg": 0.0, "min_mm": 0.0,
+         "max_mm": 1200.0, "mass_kg": 30, "com_m": [0, 0, 0]},
+        {"alpha_deg": 0, "a_m": 0.7, "beta_deg": 0.0, "d_m": 0.0, "min_deg": -80, "max_deg": 80, "mass_kg": 15,
+         "com_m": [-0.3, 0, 0]},
+        {"alpha_deg": 0, "a_m": 0.5, "d_m": 0.0, "min_deg": -120, "max_deg": 120, "mass_kg": 5,
+         "com_m": [-0.2, 0, 0]},
+    ],
+    "tool": {"a_m": 0.1, "b_m": 0.02, "d_m": 0.05},
+    "payload": {"mass_kg": 10},
+}
+
 
 def to_toml(doc: dict) -> str:
     """The robot dict as TOML text (the subset these robots use: scalars, tables, [[joint]])."""

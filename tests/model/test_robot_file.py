@@ -114,3 +114,56 @@ def test_gravity_of_any_finite_size(direction):
     g = robot_from_dict(doc).gravity
     d = np.array(direction, dtype=float) / np.max(np.abs(direction))
     np.testing.assert_allclose(g, 9.81 * d / np.linalg.norm(d))
+
+
+TRACK = """
+name = "on a track"
+[[joint]]
+type = "prismatic"
+alpha_deg = -90
+a_m = 0.0
+d_m = 0.3
+theta_deg = 90
+min_mm = 0
+max_mm = 4000
+mass_kg = 80
+[[joint]]
+alpha_deg = 90
+a_m = 0.1
+d_m = 0.4
+coupling = [0, 1]
+[tool]
+d_m = 0.1
+"""
+
+
+def test_prismatic_joint_units_and_round_trip(write):
+    from casadical.robot import robot_to_dict
+
+    r = load_robot(write("t.toml", TRACK))
+    assert r.prismatic == (True, False) and r.units == ["mm", "deg"]
+    assert r.q_columns == ["q1_mm", "q2_deg"]
+    assert r.joints[0].min == 0.0 and r.joints[0].max == pytest.approx(4.0)     # metres
+    assert r.joints[0].theta == pytest.approx(math.pi / 2)
+    np.testing.assert_allclose(r.file_limits[0], [0.0, 4000.0])
+    np.testing.assert_allclose(r.from_file_units([[1500.0, 90.0]]), [[1.5, math.pi / 2]])
+    back = robot_from_dict(robot_to_dict(r))
+    assert back.prismatic == r.prismatic and back.joints[0].max == pytest.approx(4.0)
+
+
+@pytest.mark.parametrize("edit,where,what", [
+    (lambda s: s.replace("min_mm = 0", "min_deg = 0"), "joint[1].min_deg", "millimetres"),
+    (lambda s: s.replace("min_mm = 0\n", ""), "joint[1].min_mm", "missing required key"),
+    (lambda s: s.replace("max_mm = 4000", "max_mm = -1"), "joint[1].min_mm", "below"),
+    (lambda s: s.replace("d_m = 0.4", "d_m = 0.4\nmin_mm = 0"), "joint[2].min_mm", "degrees"),
+    (lambda s: s.replace('type = "prismatic"', 'type = "linear"'), "joint[1].type", "prismatic"),
+    (lambda s: s.replace("coupling = [0, 1]", "coupling = [1, 1]"), "joint[2].coupling", "revolute readings only"),
+    (lambda s: s.replace("mass_kg = 80", "mass_kg = 80\ncoupling = [1, 0]"), "joint[1].coupling", "coupled"),
+    (lambda s: s.replace("max_mm = 4000", "max_mm = 4e7"), "joint[1].max_mm", "millimetres"),
+])
+def test_bad_prismatic_fields_one_line(write, edit, where, what):
+    path = write("bad.toml", edit(TRACK))
+    with pytest.raises(RobotFileError) as e:
+        load_robot(path)
+    msg = str(e.value)
+    assert path in msg and repr(where) in msg and what in msg and "\n" not in msg

@@ -32,6 +32,8 @@ class Link:
     com: np.ndarray = field(default_factory=lambda: np.zeros(3))
     coupling: np.ndarray | None = None
     coupling_offset: float = 0.0
+    #: a linear axis (``type = "prismatic"``): the reading is a length (m) added to d, theta a constant
+    prismatic: bool = False
 
 
 @dataclass
@@ -63,7 +65,12 @@ class Arm:
 
     @property
     def limits(self) -> np.ndarray:
+        """Reading limits, SI: rad (m for a prismatic joint)."""
         return np.array([[k.lo, k.hi] for k in self.links])
+
+    @property
+    def prismatic(self) -> tuple[bool, ...]:
+        return tuple(k.prismatic for k in self.links)
 
     @classmethod
     def from_toml(cls, text: str) -> "Arm":
@@ -74,12 +81,17 @@ class Arm:
         deg = math.radians
         links = []
         for row in doc["joint"]:
+            linear = row.get("type", "revolute") == "prismatic"
+            if linear:       # limits in mm, the reading a length
+                lo, hi = row["min_mm"] / 1000.0, row["max_mm"] / 1000.0
+            else:
+                lo, hi = deg(row.get("min_deg", -180.0)), deg(row.get("max_deg", 180.0))
             links.append(Link(
                 alpha=deg(row["alpha_deg"]), a=float(row["a_m"]), d=float(row["d_m"]),
                 theta=deg(row.get("theta_deg", 0.0)),
                 beta=deg(row["beta_deg"]) if "beta_deg" in row else None,
                 b=float(row["b_m"]) if "b_m" in row else None,
-                lo=deg(row.get("min_deg", -180.0)), hi=deg(row.get("max_deg", 180.0)),
+                lo=lo, hi=hi, prismatic=linear,
                 mass=float(row.get("mass_kg", 0.0)), com=np.array(row.get("com_m", [0.0, 0.0, 0.0]), float),
                 coupling=np.array(row["coupling"], float) if "coupling" in row else None,
                 coupling_offset=deg(row.get("coupling_offset_deg", 0.0))))

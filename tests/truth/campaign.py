@@ -66,6 +66,7 @@ class Shots:
     columns: dict = field(default_factory=dict)     # payload_kg, temperature_c, time_s: per row
     session: list | None = None                     # session name per row (a 'session' column) or None
     bad: np.ndarray = field(default_factory=lambda: np.zeros(0, int))   # rows with a gross error
+    prismatic: tuple = ()               # per joint: a linear axis (its column qK_mm, mm); empty: none
 
     def __len__(self) -> int:
         return len(self.q)
@@ -78,12 +79,14 @@ class Shots:
         return Shots(np.vstack([self.q, other.q]), np.vstack([self.xyz, other.xyz]),
                      None if self.R is None else np.concatenate([self.R, other.R]),
                      {k: np.concatenate([v, other.columns[k]]) for k, v in self.columns.items()},
-                     names, np.concatenate([self.bad, other.bad + len(self)]))
+                     names, np.concatenate([self.bad, other.bad + len(self)]), self.prismatic)
 
     def header_and_rows(self, session_column: bool = False) -> tuple[list[str], list[list[str]]]:
         n = self.q.shape[1]
-        head = [f"q{j}_deg" for j in range(1, n + 1)] + ["x_mm", "y_mm", "z_mm"]
-        cols = [np.degrees(self.q[:, j]) for j in range(n)] + [self.xyz[:, k] * 1000 for k in range(3)]
+        linear = [bool(self.prismatic and self.prismatic[j]) for j in range(n)]
+        head = [f"q{j + 1}_{'mm' if linear[j] else 'deg'}" for j in range(n)] + ["x_mm", "y_mm", "z_mm"]
+        cols = [self.q[:, j] * 1000 if linear[j] else np.degrees(self.q[:, j]) for j in range(n)]
+        cols += [self.xyz[:, k] * 1000 for k in range(3)]
         for name in ("payload_kg", "temperature_c", "time_s"):
             if name in self.columns:
                 head.append(name)
@@ -150,7 +153,7 @@ def measure(robot: TrueRobot, q: np.ndarray, rng: np.random.Generator | None = N
     if len(rows):
         u = rng.normal(size=(len(rows), 3))
         xyz[rows] += bad_mm / 1000 * u / np.linalg.norm(u, axis=1)[:, None]
-    return Shots(q, xyz, R, cols, [session.name] * N, np.sort(rows))
+    return Shots(q, xyz, R, cols, [session.name] * N, np.sort(rows), robot.arm.prismatic)
 
 
 def instrument(xyz: np.ndarray, session: Session) -> np.ndarray:

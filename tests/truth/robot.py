@@ -248,7 +248,11 @@ class TrueRobot:
         links, axes, origins = [], [], []
         for i in range(n):
             alpha, a, beta, b, d, theta = (geo[k][:, i] for k in ("alpha", "a", "beta", "b", "d", "theta"))
-            turn = tf.rot("z", chain[:, i] + theta)
+            linear = arm.links[i].prismatic
+            if linear:      # a linear axis: the reading slides the link along z, theta is a constant turn
+                turn, d = tf.rot("z", theta), d + chain[:, i]
+            else:
+                turn = tf.rot("z", chain[:, i] + theta)
             if i + 1 in self.effects.axis_tilt:       # the bearing wobbles: the link tips about its x axis
                 ta, tb = self.effects.axis_tilt[i + 1]
                 turn = tf.chain(turn, tf.rot("x", ta * np.sin(chain[:, i]) + tb * np.cos(chain[:, i])))
@@ -274,7 +278,9 @@ class TrueRobot:
         for i in range(n):
             moment = np.zeros((N, 3))
             for c, mass in zip(centres[i:], masses[i:]):
-                moment += np.cross(c - origins[:, i], mass[:, None] * arm.gravity)
+                weight = mass[:, None] * arm.gravity
+                # a linear axis carries the force of the weights along it (N), a revolute one their moment
+                moment += weight if arm.links[i].prismatic else np.cross(c - origins[:, i], weight)
             torque[:, i] = np.einsum("nk,nk->n", axes[:, i], moment)
         mount = np.zeros((N, 3))
         for c, mass in zip(centres, masses):

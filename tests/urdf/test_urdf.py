@@ -19,6 +19,7 @@ from casadical.errors import ModelError, RobotFileError
 from casadical.robot import robot_from_dict
 from casadical.stats.alignment import align
 from casadical.urdf import PARALLEL_TOL_DEG, robot_from_urdf, robot_to_urdf
+from tests.helpers.arms import ARM4_TRACK, ARM_COLUMN
 
 TOL_M = 1e-9
 SEEDS = [0, 1, 2]
@@ -50,6 +51,8 @@ ROBOTS = {
     "dh5": lambda: robot_from_dict(random_robot(5, 5, "dh", False)),
     "dh6-beta-wall": lambda: robot_from_dict(random_robot(6, 6, "dh", True, gravity=(1.0, 0.0, 0.0))),
     "mdh7": lambda: robot_from_dict(random_robot(7, 7, "mdh", False, gravity=(0.0, 0.0, 1.0))),
+    "track (mdh, prismatic joint 1)": lambda: robot_from_dict(ARM4_TRACK),
+    "column (dh, prismatic joint 2)": lambda: robot_from_dict(ARM_COLUMN),
 }
 
 
@@ -94,7 +97,9 @@ def yourdfpy_torques(path: str, q: np.ndarray, names: list[str]) -> np.ndarray:
                 inertial = u.link_map[link].inertial
                 if inertial is not None and inertial.mass:
                     com = (u.get_transform(link) @ inertial.origin)[:3, 3]
-                    moment += np.cross(com - origin, inertial.mass * g)
+                    # a prismatic joint carries the weights' force along its axis, a revolute one their moment
+                    moment += (inertial.mass * g if j.type == "prismatic"
+                               else np.cross(com - origin, inertial.mass * g))
             tau.append(axis @ moment)
         out.append(tau)
     return np.array(out)
@@ -169,6 +174,7 @@ def test_nominal_robot_round_trip(tmp_path, robot_name):
     assert back.convention == "mdh" and back.n == robot.n
     assert [j.mass for j in back.joints] == pytest.approx([j.mass for j in robot.joints], rel=1e-12)
     np.testing.assert_allclose(np.degrees(back.limits), np.degrees(robot.limits), atol=1e-9)
+    assert back.prismatic == robot.prismatic         # a linear axis is read back as one
     # beta exactly where consecutive axes are (nearly) parallel; no link longer than the robot's reach
     frames = yourdfpy.URDF.load(path, load_meshes=False)
     axes = [np.array([0.0, 0.0, 1.0])] + [frames.get_transform(f"link_{i}", "world")[:3, 2]
@@ -406,8 +412,15 @@ BAD = {
     "cycle": (arm(joints=REV.format(n="j1", p="a", c="b") + REV.format(n="j2", p="b", c="c")
                   + REV.format(n="j3", p="c", c="a")), "closed loop"),
     "prismatic": (arm(joints=REV.format(n="j1", p="a", c="b")
-                       + REV.format(n="slide", p="b", c="c").replace("revolute", "prismatic")),
-                  "joint 'slide': is prismatic"),
+                       + REV.format(n="slide", p="b", c="c").replace("revolute", "prismatic")
+                       .replace('lower="-1" upper="1" ', "")),
+                  "joint 'slide': a prismatic joint needs <limit lower=... upper=...> (metres)"),
+    "prismatic-mimic": (arm(joints=REV.format(n="j1", p="a", c="b").replace("revolute", "prismatic")
+                             + REV.format(n="j2", p="b", c="c").replace("</joint>", '<mimic joint="j1"/></joint>')),
+                        "joint 'j2': <mimic> couples 'j1', a prismatic joint"),
+    "planar": (arm(joints=REV.format(n="j1", p="a", c="b")
+                    + REV.format(n="flat", p="b", c="c").replace("revolute", "planar")),
+               "joint 'flat': is planar"),
     "zero-axis": (arm(joints=REV.format(n="j1", p="a", c="b")
                        + REV.format(n="j2", p="b", c="c").replace('axis xyz="0 0 1"', 'axis xyz="0 0 0"')),
                   "joint 'j2': <axis> has zero length"),

@@ -1,0 +1,169 @@
+"""Every command on robots with a linear axis: a four-axis arm on a 4 m track (MDH, joint 1 prismatic) and an
+arm on a lifting column (DH, joint 2 prismatic), measured by the independent truth (tests/truth) with hidden
+geometric errors, the track's own among them (its zero, d1, and its direction, alpha1 and theta1); the readings
+of the linear axis in a ``qK_mm`` column."""
+
+import json
+import math
+import warnings
+
+import numpy as np
+import pytest
+
+from casadical.data import Measurements
+from casadical.loading import load_robot
+from tests.helpers.arms import ARM4_TRACK, ARM_COLUMN, to_toml
+from tests.helpers.cli import cli, one_error
+from tests.truth import Arm, Effects, Session, TrueRobot, measure, sample
+
+ARMS = {"track": (ARM4_TRACK, 1), "column": (ARM_COLUMN, 2)}
+
+
+def ok(capsys, *args):
+    code, out, err = cli(capsys, *args)
+    assert code == 0, (args, err)
+    return out
+
+
+@pytest.fixture(scope="module", params=sorted(ARMS))
+def arm(request, tmp_path_factory):
+    """The robot file, 100 truth poses (calibration) and 60 more (validation), and the truth."""
+    name = request.param
+    doc, axis = ARMS[name]
+    d = tmp_path_factory.mktemp(name)
+    (d / "robot.toml").write_text(to_toml(doc))
+    rng = np.random.default_rng(11)
+    true = TrueRobot.draw(Arm.from_dict(doc), Effects(), rng)
+    g = true.geometry            # the linear axis' own errors: its zero 3 mm off, its direction 1 mrad off
+    g.d[axis - 1] += 3e-3
+    g.alpha[axis - 1] += 1e-3
+    g.theta[axis - 1] += 1e-3
+    session = Session(base_xyz=(1.5, -0.5, 0.3), base_rpy=(0.0, 0.0, 0.6))
+    measure(true, sample(true, 100, rng), rng, session=session, noise=20e-6).write_csv(d / "cal.csv")
+    measure(true, sample(true, 60, rng), rng, session=session, noise=20e-6).write_csv(d / "val.csv")
+    return name, axis, d
+
+
+def test_split_inspect_and_the_column(arm, capsys):
+    name, axis, d = arm
+    header = (d / "cal.csv").read_text().splitlines()[0].split(",")
+    assert f"q{axis}_mm" in header and f"q{axis}_deg" not in header
+    ok(capsys, "split", d / "cal.csv", "-n", "70", "--out-cal", d / "a.csv", "--out-val", d / "b.csv")
+    robot = load_robot(d / "robot.toml")
+    a = Measurements.read_csv(d / "a.csv", robot=robot)
+    assert len(a) == 70 and a.prismatic[axis - 1] and a.q[:, axis - 1].max() < 4.0     # metres
+    out = ok(capsys, "inspect", d / "robot.toml", "--poses", "60", "--json")
+    doc = json.loads(out)
+    assert doc["n_joints"] == robot.n and doc["identifiability"]["rank"] > 6
+
+
+def test_calibrate_recovers_the_axis_and_predicts(arm, capsys):
+    name, axis, d = arm
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ok(capsys, "calibrate", d / "robot.toml", d / "cal.csv", "--model", "kinematic", "--out", d / "cal.json")
+        out = ok(capsys, "predict", d / "cal.json", d / "val.csv", "--out", d / "pred.csv")
+        mean = float(out.split("mean ")[1].split()[0])
+        assert mean < 0.06, out            # noise 0.02 mm per axis: the track's zero and direction are found
+        out = ok(capsys, "predict", d / "robot.toml", d / "val.csv", "--out", d / "nominal.csv")
+    pred = Measurements.read_csv(d / "pred.csv")
+    assert f"q{axis}_mm" in pred.columns and np.isfinite(pred.xyz).all()
+
+
+def test_diagnose_runs_and_names_nothing_on_the_axis(arm, capsys):
+    name, axis, d = arm
+    ok(capsys, "diagnose", d / "robot.toml", d / "cal.csv", "--validate", d / "val.csv", "--json", d / "report.json",
+       "--max-harmonic", "4", "--max-rounds", "2", "--no-blackbox", "--quiet", "--out", d / "final.json")
+    doc = json.loads((d / "report.json").read_text())
+    assert doc["final"]["validation"]["mean_mm"] < 0.06, doc["final"]
+    assert not [f for f in doc["findings"] if f.get("joint") == axis], doc["findings"]
+    ok(capsys, "predict", d / "final.json", d / "val.csv", "--out", d / "pred2.csv")
+
+
+def test_compensate_moves_the_linear_axis_too(arm, capsys):
+    name, axis, d = arm
+    val = Measurements.read_csv(d / "val.csv")
+    targets = Measurements({c: val.columns[c] for c in val.q_columns + ["x_mm", "y_mm", "z_mm"]})
+    rng = np.random.default_rng(2)
+    targets.columns["x_mm"] = targets.columns["x_mm"] + rng.normal(0, 0.5, len(targets))
+    targets.write_csv(d / "targets.csv")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ok(capsys, "compensate", d / "cal.json", d / "targets.csv", "--out", d / "joints.csv", "--position-only")
+    out = Measurements.read_csv(d / "joints.csv")
+    assert f"q{axis}_mm" in out.columns and f"dq{axis}_mm" in out.columns and f"programmed_q{axis}_mm" in out.columns
+    assert np.abs(out.columns[f"dq{axis}_mm"]).max() > 1e-3       # the axis moved (mm)
+    # every row on its target but those near a singular configuration (a stretched arm), damped where the joints
+    # would move more than 2 deg (a linear axis 2 mm) per mm of correction: a millimetre weighs as a degree
+    residual = out.columns["residual_mm"]
+    assert np.mean(residual < 1e-6) > 0.9 and residual.max() < 0.1, residual
+
+
+def test_candidates_plan_poses(arm, capsys):
+    name, axis, d = arm
+    robot = load_robot(d / "robot.toml")
+    ok(capsys, "candidates", d / "robot.toml", "-n", "150", "--floor-z", "none", "--out", d / "cand.csv")
+    cand = Measurements.read_csv(d / "cand.csv", robot=robot)
+    lim = robot.file_limits
+    assert len(cand) == 150 and np.all((cand.q_deg >= lim[:, 0]) & (cand.q_deg <= lim[:, 1]))
+    assert cand.q_deg[:, axis - 1].max() > 100.0        # millimetres
+    ok(capsys, "plan-poses", d / "robot.toml", d / "cand.csv", "-m", "20", "--model", "kinematic",
+       "--out", d / "sel.csv", "--json", d / "plan.json")
+    assert len(Measurements.read_csv(d / "sel.csv", robot=robot)) == 20
+
+
+def test_bad_readings_are_one_line(arm, capsys):
+    name, axis, d = arm
+    text = (d / "val.csv").read_text()
+    (d / "deg.csv").write_text(text.replace(f"q{axis}_mm", f"q{axis}_deg", 1))
+    code, _, err = cli(capsys, "predict", d / "robot.toml", d / "deg.csv", "--out", d / "x.csv")
+    assert code != 0
+    one_error(err, "deg.csv", "row 1", f"'q{axis}_deg'", "prismatic", f"q{axis}_mm")
+    lines = text.splitlines()
+    row = lines[1].split(",")
+    row[axis - 1] = "9000.0"                     # beyond the axis' max_mm
+    (d / "far.csv").write_text("\n".join([lines[0], ",".join(row)] + lines[2:]) + "\n")
+    code, _, err = cli(capsys, "calibrate", d / "robot.toml", d / "far.csv", "--model", "kinematic",
+                       "--out", d / "x.json")
+    assert code != 0
+    one_error(err, "far.csv", "row 2", f"'q{axis}_mm'", "9000 mm", "max_mm")
+    rev = f"q{axis + 1}_deg"
+    (d / "mm.csv").write_text(text.replace(rev, f"q{axis + 1}_mm", 1))
+    code, _, err = cli(capsys, "predict", d / "robot.toml", d / "mm.csv", "--out", d / "x.csv")
+    one_error(err, "mm.csv", "row 1", f"'q{axis + 1}_mm'", "revolute", rev)
+    assert math.isfinite(float(lines[1].split(",")[0]))
+
+
+def test_export_writes_the_axis_as_a_prismatic_joint(arm, capsys):
+    """The URDF has the linear axis as a prismatic joint, and its tool point (yourdfpy, readings in m) is the
+    calibration's; the parameter table says which joint slides."""
+    import yourdfpy
+
+    name, axis, d = arm
+    ok(capsys, "export", d / "cal.json", "--urdf", d / "cal.urdf", "--table", d / "table.csv", "--quiet",
+       "--as-fitted")
+    u = yourdfpy.URDF.load(str(d / "cal.urdf"), load_meshes=False)
+    assert u.joint_map[f"joint_{axis}"].type == "prismatic"
+    assert [j.type for j in u.robot.joints].count("prismatic") == 1
+    from casadical import load_calibration
+    cal = load_calibration(d / "cal.json")
+    val = Measurements.read_csv(d / "val.csv", robot=cal.model.robot)
+    ref = []
+    for row in val.q[:10]:
+        u.update_cfg(row)
+        ref.append(u.get_transform("tool_point", "measurement_frame")[:3, 3])
+    assert np.abs(np.array(ref) - cal.predict(val.subset(np.arange(10)))).max() < 1e-9
+    assert f"joint {axis} prismatic" in (d / "table.csv").read_text().splitlines()[0]
+    robot = load_robot(d / "cal.urdf")            # read back: the axis is prismatic again
+    assert robot.prismatic[axis - 1] and sum(robot.prismatic) == 1
+
+
+def test_a_protocol_with_a_joint_error_on_the_axis_is_one_line(tmp_path, capsys):
+    from casadical.robot import PROBLEMS
+
+    text = (PROBLEMS / "protocols" / "track6.toml").read_text()
+    text = text.replace('"../robots/track6.toml"', repr(str(PROBLEMS / "robots" / "track6.toml")).replace("'", '"'))
+    (tmp_path / "p.toml").write_text(text.replace("stiffness = {3 = 1.73e6, 4 = 1.203e6}", "stiffness = {1 = 1e6}"))
+    code, _, err = cli(capsys, "simulate", tmp_path / "p.toml", "--out-dir", tmp_path / "sim")
+    assert code != 0
+    one_error(err, "p.toml", "'truth.stiffness.1'", "prismatic")
