@@ -104,6 +104,9 @@ class Effects:
     coupling: dict[tuple[int, int], float] = field(default_factory=dict)
     #: e_j += f(q_k) by (j, k): joint j's error as any function of joint k's reading (rad -> rad)
     cross_error: dict[tuple[int, int], Callable] = field(default_factory=dict)
+    #: joint j gives way under joint k's torque: e_j += tau_k / k_jk (a drive train shared under load; in no
+    #: catalogue: a compliance answers its own joint's torque)
+    cross_stiffness: dict[tuple[int, int], float] = field(default_factory=dict)
     #: (a, b) rad by joint: the link after joint j turns about its x axis by a sin(c_j) + b cos(c_j)
     axis_tilt: dict[int, tuple[float, float]] = field(default_factory=dict)
     #: rad/(N m): the base tilts by C M (one C) or (Cx M_x, Cy M_y, 0) (a pair)
@@ -319,6 +322,8 @@ class TrueRobot:
             e[:, j - 1] += k3 * tau[:, j - 1] ** 3
         for j, b in eff.backlash.items():
             e[:, j - 1] += b * np.sign(tau[:, j - 1])
+        for (j, k), kk in eff.cross_stiffness.items():
+            e[:, j - 1] += tau[:, k - 1] / kk
         return e
 
     def state(self, q: np.ndarray, payload=None, temperature=None, moves: np.ndarray | None = None,
