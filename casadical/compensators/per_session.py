@@ -33,6 +33,7 @@ from ..model.symbolic import Model
 from ..result import CalibrationResult, learning_mask, rebuilt
 from ..runtime.threads import limited_threads
 from ..terms import SessionLocal, make_term
+from ..terms.gp_compensator import fitted_processes
 from .gp import CHI3_95, MAX_STD_RATIO, ResidualGP
 
 #: a session's process learns from at most this many of its poses (drawn at random): its cost grows with the cube
@@ -86,14 +87,9 @@ def gp_compensator_coverage(result: CalibrationResult, data: Measurements) -> tu
     """At how many of ``data``'s poses the result's GP compensator applies, of how many it could
     (the poses of the sessions it has a process for); (0, 0) without one."""
     known = total = 0
-    for t in result.model.terms:
-        inner = t.inner if isinstance(t, SessionLocal) else t
-        if inner.name != "gp_compensator" or inner.gp is None:
-            continue
-        rows = np.arange(len(data)) if not isinstance(t, SessionLocal) else \
-            np.flatnonzero(data.sessions == t.session_name) if data.sessions is not None else np.arange(0)
+    for gp, rows in fitted_processes(result.model.terms, data):
         total += len(rows)
-        known += int(inner.gp.knows(data.q[rows]).sum())
+        known += int(gp.knows(data.q[rows]).sum())
     return known, total
 
 

@@ -52,7 +52,7 @@ from ..compensators.gp import CHI3_95
 from ..data.measurements import Measurements
 from ..errors import InputError
 from ..result import CalibrationResult
-from ..terms import SessionLocal
+from ..terms.gp_compensator import fitted_processes
 
 
 def prediction_std(result: CalibrationResult, data: Measurements) -> tuple[np.ndarray, np.ndarray | None]:
@@ -81,16 +81,11 @@ def prediction_std(result: CalibrationResult, data: Measurements) -> tuple[np.nd
     var = np.einsum("nik,kl,nil->n", G, unc.covariance, G)
     params = np.sqrt(np.clip(var, 0.0, None))
     compensator = None
-    for t in model.terms:
-        inner = t.inner if isinstance(t, SessionLocal) else t
-        if inner.name != "gp_compensator" or inner.gp is None:
-            continue
-        rows = np.arange(len(data)) if not isinstance(t, SessionLocal) else (
-            np.flatnonzero(data.sessions == t.session_name) if data.sessions is not None else np.zeros(0, int))
+    for gp, rows in fitted_processes(model.terms, data):
         if compensator is None:
             compensator = np.zeros(len(data))
         if len(rows):
-            compensator[rows] = np.sqrt(np.sum(inner.gp.predictive_std(data.q[rows]) ** 2, axis=1))
+            compensator[rows] = np.sqrt(np.sum(gp.predictive_std(data.q[rows]) ** 2, axis=1))
     return params, compensator
 
 
@@ -106,13 +101,8 @@ def noise_sigma(result: CalibrationResult, data: Measurements) -> np.ndarray:
     else:
         sigma = unc.sigma if unc is not None else float("nan")
     out = np.full(len(data), sigma if np.isfinite(sigma) else 0.0)
-    for t in result.model.terms:
-        inner = t.inner if isinstance(t, SessionLocal) else t
-        if inner.name != "gp_compensator" or inner.gp is None:
-            continue
-        rows = np.arange(len(data)) if not isinstance(t, SessionLocal) else (
-            np.flatnonzero(data.sessions == t.session_name) if data.sessions is not None else np.zeros(0, int))
-        out[rows] = inner.gp.noise_std()
+    for gp, rows in fitted_processes(result.model.terms, data):
+        out[rows] = gp.noise_std()
     return out
 
 
@@ -120,14 +110,9 @@ def compensator_weight(result: CalibrationResult, data: Measurements) -> np.ndar
     """The share of its correction the GP compensator applies at each pose of ``data`` (its
     :meth:`~casadical.compensators.gp.ResidualGP.weight`; 0 where none applies or without one)."""
     out = np.zeros(len(data))
-    for t in result.model.terms:
-        inner = t.inner if isinstance(t, SessionLocal) else t
-        if inner.name != "gp_compensator" or inner.gp is None:
-            continue
-        rows = np.arange(len(data)) if not isinstance(t, SessionLocal) else (
-            np.flatnonzero(data.sessions == t.session_name) if data.sessions is not None else np.zeros(0, int))
+    for gp, rows in fitted_processes(result.model.terms, data):
         if len(rows):
-            out[rows] = inner.gp.weight(data.q[rows])
+            out[rows] = gp.weight(data.q[rows])
     return out
 
 
@@ -135,13 +120,8 @@ def interval_factor(result: CalibrationResult, data: Measurements) -> np.ndarray
     """The factor of the 95 % interval at each pose of ``data``: :data:`CHI3_95`, or at the poses of a GP
     compensator's session the factor the diagnosis calibrated on its folds."""
     out = np.full(len(data), CHI3_95)
-    for t in result.model.terms:
-        inner = t.inner if isinstance(t, SessionLocal) else t
-        if inner.name != "gp_compensator" or inner.gp is None:
-            continue
-        rows = np.arange(len(data)) if not isinstance(t, SessionLocal) else (
-            np.flatnonzero(data.sessions == t.session_name) if data.sessions is not None else np.zeros(0, int))
-        out[rows] = inner.gp.interval_k
+    for gp, rows in fitted_processes(result.model.terms, data):
+        out[rows] = gp.interval_k
     return out
 
 

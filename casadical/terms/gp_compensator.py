@@ -2,12 +2,15 @@
 
 from __future__ import annotations
 
+from collections.abc import Iterator
+
 import casadi as ca
 import numpy as np
 
 from ..errors import ModelError
 from ..robot import Robot
 from .base import Context, ErrorTerm, register
+from .local import SessionLocal
 
 
 @register
@@ -80,3 +83,17 @@ class GPCompensator(ErrorTerm):
         if self.gp is None:
             return {"gp_gate": np.zeros(len(data))}
         return {"gp_gate": self.gp.weight(data.q)}
+
+
+def fitted_processes(terms, data) -> Iterator[tuple]:
+    """Each fitted GP compensator among a model's ``terms``, with the rows of ``data`` it applies to: every row,
+    or those of its session (none where the data name no sessions)."""
+    for t in terms:
+        inner = t.inner if isinstance(t, SessionLocal) else t
+        if inner.name != "gp_compensator" or inner.gp is None:
+            continue
+        if not isinstance(t, SessionLocal):
+            yield inner.gp, np.arange(len(data))
+        else:
+            yield inner.gp, (np.flatnonzero(data.sessions == t.session_name) if data.sessions is not None
+                             else np.zeros(0, int))
