@@ -32,8 +32,8 @@ def judge_final_model(run: DiagnosisRun) -> None:
     run.final_val = final_val = ErrorStats.of(run.final_errors)
     structure = None
     if run.structures:     # the validation poses the structure the screen found brings back within the loss' limit
-        first, finding = run.structures[0]
-        r = run.parametric.predict(run.val) - run.val.xyz - run.structures[-1][0].val_change
+        _, finding = run.structures[0]
+        r = run.structures[-1][0].val_left
         structure = (final.loss.weight(np.einsum("ij,ij->i", r, r)) >= SET_ASIDE_WEIGHT,
                      next(k for k, f in enumerate(run.findings, 1) if f is finding), finding.where)
     note = validation_note(final, run.kinematic, run.parametric, run.val, run.val_errors, run.held_text, structure)

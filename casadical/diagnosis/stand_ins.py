@@ -66,16 +66,16 @@ def own_shape(cand: Candidate) -> tuple[str, str, int | None]:
     return f"{OWN_VARIABLE[cand.cause]}{k}", "angle", cand.joint
 
 
-def stands_in(current: CalibrationResult, accepted: list[Candidate], cand: Candidate, scr: StructureScreen,
-              alpha: float) -> tuple[Found, str] | None:
-    """The structure ``cand`` only approximates in ``current`` and why (see the module), or None."""
+def stands_in(current: CalibrationResult, lin: Linearized, accepted: list[Candidate], cand: Candidate,
+              scr: StructureScreen, alpha: float) -> tuple[Found, str] | None:
+    """The structure ``cand`` only approximates in ``current`` (``lin``: linearised at it on the calibration poses)
+    and why (see the module), or None."""
     if cand.cause not in OWN_VARIABLE or cand.session is not None or (
             cand.joint is None and cand.cause != "mount_compliance"):
         return None
     own = own_shape(cand)
     if own not in scr.tried:
         return None
-    lin = Linearized.of(current, scr.cal)
     cols = [lin.names.index(n) for n in own_parameters(cand, accepted) if n in lin.names]
     if not cols:
         return None
@@ -148,8 +148,9 @@ def drop_stand_ins(run: DiagnosisRun) -> None:
     run.say("final check: does every named cause explain the structure it stands for?")
     while run.accepted:
         scr = StructureScreen(run.current, run.cal, run.torques(run.current), run.s.alpha, run.s.seed)
+        lin = Linearized.of(run.current, run.cal)      # once a round: every cause is asked at the same fit
         hit = next(((c, h) for c in run.accepted
-                    if (h := stands_in(run.current, run.accepted, c, scr, run.s.alpha)) is not None), None)
+                    if (h := stands_in(run.current, lin, run.accepted, c, scr, run.s.alpha)) is not None), None)
         if hit is None:
             break
         cand, (found, why) = hit

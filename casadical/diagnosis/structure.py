@@ -71,8 +71,8 @@ class Structure:
     coefficients: np.ndarray = field(default_factory=lambda: np.zeros(0))   # of its flexible term, as fitted
     ranges: list = field(default_factory=list)   # the covariate's range(s) on the calibration poses
     time_name: str = "time_s"                    # the name its time covariate has in a terms file
-    val_change: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))   # what it and those before it
-                                                                                  # change at the validation poses
+    val_left: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))   # the validation residuals with it
+                                                                                # and those before it (m)
 
     def words(self) -> str:
         """Where it lives, in words an engineer reads."""
@@ -448,7 +448,7 @@ def screen(res: CalibrationResult, cal: Measurements, val: Measurements, cal_tor
                                float(np.mean(np.linalg.norm(change, axis=1)) * 1000),
                                float((before.mean() - after.mean()) * 1000), s.held_out_share, back,
                                x1[-s.X.shape[2]:], scr.refs[s.covariate],
-                               "time_s" if cal.get("time_s") is not None else "row", change))
+                               "time_s" if cal.get("time_s") is not None else "row", lin_v.r - change))
     return found
 
 
