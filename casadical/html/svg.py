@@ -312,7 +312,53 @@ class Figure:
 
     def svg(self, label: str) -> str:
         """The figure as an ``<svg>`` element (``label``: its accessible name)."""
-        t = self._ticks()
+        for _ in range(6):       # fewer ticks where their labels would not fit side by side, then again
+            t = self._ticks()
+            left, right, top, bottom, aw, ah, legends = self._layout(t)
+            if not self._thin(t, aw, ah):
+                break
+        out = [f'<svg xmlns="http://www.w3.org/2000/svg" role="img" aria-label="{esc(label)}" '
+               f'width="{fmt(self.W)}pt" height="{fmt(self.H)}pt" viewBox="0 0 {fmt(self.W)} {fmt(self.H)}" '
+               f'font-family="{FONT}">',
+               f'<rect width="{fmt(self.W)}" height="{fmt(self.H)}" fill="#fff"/>']
+        for r in range(self.nrows):
+            for c in range(self.ncols):
+                a = self.axes[r][c]
+                if not a.visible:
+                    continue
+                x = sum(left[:c + 1]) + sum(right[:c]) + c * aw
+                y = sum(top[:r + 1]) + sum(bottom[:r]) + r * ah
+                w, h = aw, ah
+                if a.square:
+                    side = min(w, h)
+                    x, y, w, h = x + (w - side) / 2, y, side, side
+                out.append(self._draw(a, (x, y, w, h), t[id(a)], legends.get(id(a), [])))
+        out.append("</svg>")
+        return "".join(out)
+
+    def _thin(self, t, aw: float, ah: float) -> bool:
+        """Fewer ticks on each numeric axis whose labels do not fit along it (the whole row or column when
+        shared); True if any changed."""
+        changed = False
+        for r, row in enumerate(self.axes):
+            for c, a in enumerate(row):
+                if not a.visible or a.categories is not None or a.row_names is not None:
+                    continue
+                _, _, xt, yt, xl, yl = t[id(a)]
+                w = aw * (1.0 if not a.square else min(aw, ah) / aw)
+                if a.show_xticklabels and len(xl) > 2 and \
+                        sum(text_width(s, a.tick_size) for s in xl) + 6 * len(xl) > w and a.xticks_n > 2:
+                    for g in self._shared(self.sharex, r, c):
+                        g.xticks_n, g.xleast = max(2, len(xl) - 2), 2
+                    changed = True
+                if len(yl) > 2 and len(yl) * a.tick_size * 1.5 > ah and a.yticks_n > 2:
+                    for g in self._shared(self.sharey, r, c):
+                        g.yticks_n, g.yleast = max(2, len(yl) - 2), 2
+                    changed = True
+        return changed
+
+    def _layout(self, t):
+        """Margins of each column (left, right) and row (top, bottom), the axes' size, the legends' rows."""
         R, C = self.nrows, self.ncols
         vis = [[a.visible for a in row] for row in self.axes]
         line_h = 1.25
@@ -359,24 +405,7 @@ class Figure:
                     legends[id(a)] = rows
                     top[r] = max(top[r], len(rows) * LEGEND * 1.5 + 4)
         ah = (self.H - sum(top) - sum(bottom)) / R
-        out = [f'<svg xmlns="http://www.w3.org/2000/svg" role="img" aria-label="{esc(label)}" '
-               f'width="{fmt(self.W)}pt" height="{fmt(self.H)}pt" viewBox="0 0 {fmt(self.W)} {fmt(self.H)}" '
-               f'font-family="{FONT}">',
-               f'<rect width="{fmt(self.W)}" height="{fmt(self.H)}" fill="#fff"/>']
-        for r in range(R):
-            for c in range(C):
-                a = self.axes[r][c]
-                if not vis[r][c]:
-                    continue
-                x = sum(left[:c + 1]) + sum(right[:c]) + c * aw
-                y = sum(top[:r + 1]) + sum(bottom[:r]) + r * ah
-                w, h = aw, ah
-                if a.square:
-                    side = min(w, h)
-                    x, y, w, h = x + (w - side) / 2, y, side, side
-                out.append(self._draw(a, (x, y, w, h), t[id(a)], legends.get(id(a), [])))
-        out.append("</svg>")
-        return "".join(out)
+        return left, right, top, bottom, aw, ah, legends
 
     # -- drawing
 
@@ -539,11 +568,14 @@ def _cells(it, px, py) -> str:
     else:
         f = (v - vmin) / ((vmax - vmin) or 1.0)
     xs, ys = px(xe), py(ye)
+    # colours of 256 steps of the map (a banded map's bands fall on their middles exactly enough)
+    table = [colour_at(stops, k / 255) for k in range(256)]
+    index = np.where(np.isfinite(f), np.rint(np.clip(f, 0, 1) * 255), -1).astype(int)
     out = ['<g shape-rendering="crispEdges">']
     paths: dict[str, list[str]] = {}           # without titles: one path a colour, a run of cells a rectangle
     for i in range(v.shape[0]):
         ya, yb = sorted((float(ys[i]), float(ys[i + 1])))
-        cols = [colour_at(stops, float(t)) for t in f[i]]
+        cols = ["#ffffff" if k < 0 else table[k] for k in index[i]]
         j = 0
         while j < v.shape[1]:
             k = j + 1

@@ -553,15 +553,19 @@ def look(browser, html: str, path) -> dict:
     return seen
 
 
-def assert_readable(seen: dict) -> None:
-    assert seen["problems"] == []
-    assert seen["overflow"] <= 0, "the page scrolls sideways at 1280 px"
-    assert seen["tables"] and all(t["fits"] or t["scrolls"] for t in seen["tables"])
+def assert_figures_readable(seen: dict) -> None:
     for s in seen["svgs"]:
         assert s["w"] > 50 and s["h"] > 50 and s["texts"] > 0, s
         assert s["worst"] <= 1.0, f"text outside figure {s['id']} by {s['worst']:.1f} px"
         assert s["overlaps"] == 0, f"text over text in figure {s['id']}"
         assert s["marks"] > 5, s
+
+
+def assert_readable(seen: dict) -> None:
+    assert seen["problems"] == []
+    assert seen["overflow"] <= 0, "the page scrolls sideways at 1280 px"
+    assert seen["tables"] and all(t["fits"] or t["scrolls"] for t in seen["tables"])
+    assert_figures_readable(seen)
     assert seen["links"] and all(a["ok"] for a in seen["links"]), [a for a in seen["links"] if not a["ok"]]
     assert seen["pdf"].startswith(b"%PDF") and len(seen["pdf"]) > 10_000
 
@@ -584,6 +588,52 @@ def test_diagnosis_report_in_a_browser(browser, diagnosis_page, tmp_path):
     assert titles["fig-poses"] == 2 * len(report.plots["val_errors_final_mm"]) and titles["fig-steps"] > 0
     assert all(n > 0 for k, n in titles.items() if k.startswith("fig-finding-")), titles
     assert any(a["text"].startswith("figure") for a in seen["links"])
+
+
+def test_awkward_figures_stay_readable_in_a_browser(browser, tmp_path):
+    """The layout is computed from estimated text widths: on awkward data (legends that wrap, large negative
+    numbers, tiny ones, a two-line axis label, long rotated categories, a grid of panels) every text stays
+    inside its figure and off every other text, in a real browser."""
+    from casadical.html.page import Page as Document
+    from casadical.html.svg import SERIES, figure
+
+    rng = np.random.default_rng(5)
+
+    def scatter():
+        fig, ax = figure(5.0, 3.0)
+        a = ax[0][0]
+        for k in range(6):
+            x, y = rng.normal(-123456, 5000, 40), rng.normal(0, 1e-4, 40)
+            a.points(x, y, SERIES[k], label=f"a rather long legend entry, number {k}",
+                     titles=[f"line {n}: {v:.4f} mm" for n, v in enumerate(y, 2)])
+        a.xlabel, a.ylabel, a.legend = "a long label of the horizontal axis (N m)", "first line\nsecond line (mm)", True
+        return fig
+
+    def steps():
+        fig, ax = figure(6.0, 3.2)
+        a = ax[0][0]
+        labels = [f"+ periodic j{k} h{10 * k + 7} and a long tail" for k in range(12)]
+        a.line(range(12), rng.uniform(0.1, 0.5, 12), SERIES[0], marker="o", label="validation mean")
+        a.categories, a.rotate, a.ylabel, a.legend = labels, 40.0, "mean position error (mm)", True
+        return fig
+
+    def grid():
+        fig, ax = figure(9.0, 4.5, 3, 5, sharey="row")
+        for r, row in enumerate(ax):
+            for c, a in enumerate(row):
+                a.points(rng.uniform(-180, 180, 30), rng.normal(0, 10.0 ** (r - 1), 30), SERIES[c])
+                a.hline(0)
+                a.ylabel = "z residual (mm)" if c == 0 else ""
+                a.xlabel = f"q{c + 1} (deg)" if r == 2 else ""
+        return fig
+
+    doc = Document("awkward figures")
+    for k, make in enumerate((scatter, steps, grid)):
+        doc.figure(make, f"fig-{k}", f"awkward figure {k}")
+    seen = look(browser, doc.html(), tmp_path / "awkward.html")
+    assert seen["problems"] == [] and len(seen["svgs"]) == 3
+    assert_figures_readable(seen)
+    assert seen["svgs"][0]["titles"] == 240
 
 
 # --- the README job: a report that ends in a decision -------------------------------------------------------
