@@ -41,11 +41,11 @@ def residual_plot(cand: Candidate, before: CalibrationResult, after: Calibration
             ys = [r.residuals(d) @ u * 1000 for r in (before, after)]
             ylabel = f"residual along the {'drift' if cand.cause == 'drift' else 'warm-up offset'} (mm)"
         return {"x": np.asarray(x, float).tolist(), "before": ys[0].tolist(), "after": ys[1].tolist(),
-                "xlabel": xlabel, "ylabel": ylabel}
+                "xlabel": xlabel, "ylabel": ylabel, **_hover(after, d)}
     if cand.joint is None:      # a cause of one's own that acts on no joint: the errors before and after
         ys = [np.linalg.norm(r.residuals(d), axis=1) * 1000 for r in (before, after)]
         return {"x": np.asarray(d.rows, float).tolist(), "before": ys[0].tolist(), "after": ys[1].tolist(),
-                "xlabel": "row (measurement order)", "ylabel": "position error (mm)"}
+                "xlabel": "row (measurement order)", "ylabel": "position error (mm)", **_hover(after, d)}
     j, m, p = cand.joint, after.model, after.parameters
     cov = m.covariates(d)
     resid, directions = view() if view else joint_view(after, d)
@@ -74,7 +74,13 @@ def residual_plot(cand: Candidate, before: CalibrationResult, after: Calibration
     order = np.argsort(x)
     return {"x": np.asarray(x, float).tolist(), "partial": ((s + effect) * ARCSEC).tolist(),
             "curve_x": np.asarray(x, float)[order].tolist(), "curve_y": (effect[order] * ARCSEC).tolist(),
-            "xlabel": xlabel, "ylabel": f"joint {j} angle error: residual + fitted effect (arcsec)"}
+            "xlabel": xlabel, "ylabel": f"joint {j} angle error: residual + fitted effect (arcsec)",
+            "lines": d.lines.tolist(), "error_mm": (np.linalg.norm(resid, axis=1) * 1000).tolist()}
+
+
+def _hover(res: CalibrationResult, d: Measurements) -> dict:
+    """What a figure's hover titles give of each pose: its CSV line and the position error of ``res`` (mm)."""
+    return {"lines": d.lines.tolist(), "error_mm": (np.linalg.norm(res.residuals(d), axis=1) * 1000).tolist()}
 
 
 def joint_view(res: CalibrationResult, d: Measurements) -> tuple[np.ndarray, np.ndarray]:
