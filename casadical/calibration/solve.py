@@ -47,19 +47,22 @@ def _solve(problem: CalibrationProblem, x0: np.ndarray, solver: str, opts: dict)
     return s.solve(problem, x0), s.name
 
 
-def solve_robust(problem: CalibrationProblem, x: np.ndarray, solver: str, opts: dict, estimate_scale: bool):
-    """Solve; with ``estimate_scale``, re-estimate the robust loss's noise scale until it settles."""
+def solve_robust(problem: CalibrationProblem, x: np.ndarray, solver: str, opts: dict, estimate_scale: bool,
+                 scale_at: np.ndarray | None = None):
+    """Solve from ``x``; with ``estimate_scale``, re-estimate the robust loss's noise scale until it settles
+    (first at ``scale_at``, default ``x``)."""
     res, name, solve_time, setup_time = None, "", 0.0, 0.0
+    at = x if scale_at is None else scale_at
     for _ in range(ROBUST_LOOPS if estimate_scale else 1):
         if estimate_scale and problem.full_pose:   # each kind's own robust scale: they weigh the two parts
-            rp, ro = problem.residual_norms(problem.values_from_x(x))
+            rp, ro = problem.residual_norms(problem.values_from_x(at))
             new = problem.loss.with_scales_from(rp, ro)
             if res is not None and max(abs(new.sigma / problem.loss.sigma - 1),
                                        abs(new.sigma_rot / problem.loss.sigma_rot - 1)) < 0.05:
                 break
             problem.loss = new
         elif estimate_scale:
-            norms = np.linalg.norm(problem.residuals(problem.values_from_x(x)).reshape(-1, 3), axis=1)
+            norms = np.linalg.norm(problem.residuals(problem.values_from_x(at)).reshape(-1, 3), axis=1)
             new = problem.loss.with_sigma_from(norms)
             if res is not None and abs(new.sigma / problem.loss.sigma - 1) < 0.05:
                 break
@@ -67,7 +70,7 @@ def solve_robust(problem: CalibrationProblem, x: np.ndarray, solver: str, opts: 
         res, name = _solve(problem, x, solver, opts)
         solve_time += res.solve_time_s
         setup_time += res.setup_time_s
-        x = res.x
+        x = at = res.x
     res.solve_time_s, res.setup_time_s = solve_time, setup_time
     return res, name
 
@@ -145,7 +148,7 @@ def solve_parameters(run: CalibrationRun) -> None:
     estimate = (not (math.isfinite(loss.sigma) and math.isfinite(loss.sigma_rot)) if run.full_pose
                 else loss.robust and not math.isfinite(loss.sigma))
     res, name = solve_robust(problem, problem.x_from_values(params.values), opts.solver, opts.solver_options,
-                             estimate)
+                             estimate, None if run.scale_at is None else problem.x_from_values(run.scale_at))
     if run.ident is not None and np.isfinite(res.cost):
         # a combination of other parameters in the nominal model that the fitted terms tell apart (the tilt
         # of joint 1 against gravity once a compliance deflects the arm): identified when these poses

@@ -133,13 +133,22 @@ class _Questions:
         """The test of ``extra`` beside the rest of the model and ``more`` ((N, 3, k) each)."""
         base = self.rest if more is None else np.concatenate([self.rest, more], axis=2)
         A0 = weighted(base, self.sw)
-        A1 = np.hstack([A0, weighted(extra, self.sw)])
-        res = [self.rw - A @ np.linalg.lstsq(A, self.rw, rcond=None)[0] for A in (A0, A1)]
+        (r0, k0), (r1, k1) = (_fit(A, self.rw) for A in (A0, np.hstack([A0, weighted(extra, self.sw)])))
+        res = [r0, r1]
         ssr = [float(r @ r) for r in res]
-        k = int(np.linalg.matrix_rank(A1)) - int(np.linalg.matrix_rank(A0))
+        k = k1 - k0
         # a robust fit's set-aside poses count in the noise scale by their influence, as in the search's tests
         noise = None if self.share is None else float((res[1] ** 2) @ self.share)
         return nested_test(ssr[0], A0.shape[1], ssr[1], A0.shape[1] + max(k, 1), len(self.rw), noise)
+
+
+def _fit(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, int]:
+    """The least-squares residual of ``b`` on the columns ``A`` and their rank, from one singular value
+    decomposition (``lstsq``'s and ``matrix_rank``'s default cut-off: machine epsilon times the larger
+    dimension times the largest singular value)."""
+    U, sv, _ = np.linalg.svd(A, full_matrices=False)
+    Uk = U[:, sv > np.finfo(float).eps * max(A.shape) * sv[0]] if sv.size else U[:, :0]
+    return b - Uk @ (Uk.T @ b), Uk.shape[1]
 
 
 def drop_stand_ins(run: DiagnosisRun) -> None:

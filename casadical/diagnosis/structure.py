@@ -320,24 +320,32 @@ def weighted(X: np.ndarray, sw: np.ndarray) -> np.ndarray:
     return X.reshape(-1, X.shape[2]) * sw[:, None]
 
 
-def _held_out_share(J: np.ndarray, X: np.ndarray, r: np.ndarray, w: np.ndarray, folds: list[np.ndarray]
-                    ) -> tuple[float, int, int]:
-    """Left-out poses predicted better with the term than without: (share, wins, counted)."""
-    wins = counted = 0
-    for test in folds:
-        train = np.setdiff1d(np.arange(len(r)), test)
-        sw = np.sqrt(np.repeat(w[train], 3))
-        rt = r[train].ravel() * sw
-        A0 = weighted(J[train], sw)
-        A1 = np.hstack([A0, weighted(X[train], sw)])
-        x0 = np.linalg.lstsq(A0, rt, rcond=None)[0]
-        x1 = np.linalg.lstsq(A1, rt, rcond=None)[0]
-        e0 = np.linalg.norm(r[test] - J[test] @ x0, axis=1)
-        e1 = np.linalg.norm(r[test] - np.concatenate([J[test], X[test]], axis=2) @ x1, axis=1)
-        keep = w[test] >= 0.5
-        wins += int(np.sum((e1 < e0) & keep))
-        counted += int(np.sum(keep))
-    return (wins / counted if counted else 0.0), wins, counted
+class _Folds:
+    """The random folds of the held-out check beside fixed columns ``J`` (N, 3, p) at weights ``w``: each fold's
+    fit without a term and its left-out errors are the same for every term tried, so they are made once."""
+
+    def __init__(self, J: np.ndarray, r: np.ndarray, w: np.ndarray, folds: list[np.ndarray]):
+        self.J, self.r, self.w = J, r, w
+        self.parts = []
+        for test in folds:
+            train = np.setdiff1d(np.arange(len(r)), test)
+            sw = np.sqrt(np.repeat(w[train], 3))
+            rt = r[train].ravel() * sw
+            A0 = weighted(J[train], sw)
+            x0 = np.linalg.lstsq(A0, rt, rcond=None)[0]
+            self.parts.append((test, train, sw, rt, A0, np.linalg.norm(r[test] - J[test] @ x0, axis=1)))
+
+    def held_out_share(self, X: np.ndarray) -> tuple[float, int, int]:
+        """Left-out poses predicted better with the term ``X`` than without: (share, wins, counted)."""
+        wins = counted = 0
+        for test, train, sw, rt, A0, e0 in self.parts:
+            A1 = np.hstack([A0, weighted(X[train], sw)])
+            x1 = np.linalg.lstsq(A1, rt, rcond=None)[0]
+            e1 = np.linalg.norm(self.r[test] - np.concatenate([self.J[test], X[test]], axis=2) @ x1, axis=1)
+            keep = self.w[test] >= 0.5
+            wins += int(np.sum((e1 < e0) & keep))
+            counted += int(np.sum(keep))
+        return (wins / counted if counted else 0.0), wins, counted
 
 
 def _sign_log10_p(wins: int, n: int) -> float:
@@ -394,18 +402,24 @@ class StructureScreen:
             X = self.columns(*pair)
             Xw = weighted(X, sw)
             Xw = Xw - Q @ (Q.T @ Xw)
-            k = int(np.linalg.matrix_rank(Xw, tol=1e-10 * max(np.abs(Xw).max(), 1e-300)))
+            # one singular value decomposition gives the rank (matrix_rank's tolerance) and the least-squares
+            # residual (lstsq's default cut-off: machine epsilon times the larger dimension)
+            U, sv, _ = np.linalg.svd(Xw, full_matrices=False)
+            k = int(np.sum(sv > 1e-10 * max(np.abs(Xw).max(), 1e-300)))
             if k == 0:
                 continue
-            coef, *_ = np.linalg.lstsq(Xw, r0, rcond=None)
-            ssr1 = float(np.sum((r0 - Xw @ coef) ** 2))
+            Uk = U[:, sv > np.finfo(float).eps * max(Xw.shape) * sv[0]]
+            ssr1 = float(np.sum((r0 - Uk @ (Uk.T @ r0)) ** 2))
             test = nested_test(ssr0, base.shape[2], ssr1, base.shape[2] + k, len(rw))
-            scored.append((test.log10_p, pair, X, test))
+            scored.append((test.log10_p, pair, test))     # not its columns: 140 pairs of 20,000 poses are 0.8 GB
         scored.sort(key=lambda t: t[0])
-        for log10_p, (cov, effect, joint), X, test in scored:
+        folds = None
+        for log10_p, (cov, effect, joint), test in scored:
             if log10_p >= self.level or test.delta_bic >= 0:
                 return None
-            share, wins, counted = _held_out_share(base, X, r, w, self.folds)
+            folds = folds or _Folds(base, r, w, self.folds)
+            X = self.columns(cov, effect, joint)
+            share, wins, counted = folds.held_out_share(X)
             if share > 0.5 and _sign_log10_p(wins, counted) < self.level:
                 return Found(cov, effect, joint, X, log10_p, test.text(), share)
         return None
