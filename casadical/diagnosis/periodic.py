@@ -83,7 +83,8 @@ class Resolution:
     def to_dict(self) -> dict:
         return {"outside_geometry": round(self.outside_geometry, 4),
                 "neighbour_margin": round(self.neighbour_margin, 3),
-                "band": list(self.band), "range_deg": round(self.range_deg, 2), "resolved": self.resolved}
+                "band": list(self.band), "range_deg": round(self.range_deg, 2), "resolved": self.resolved,
+                **({"range_mm": round(self.range_mm, 1)} if self.range_mm is not None else {})}
 
     def text(self) -> str:
         lo, hi = self.band

@@ -280,15 +280,16 @@ def _other_scope(f: "Finding") -> list[dict]:
     c = f.candidate
     return [a for a in f.ambiguous_with if a.get("cause") == c.cause and a.get("joint") == c.joint
             and a.get("harmonic") == c.harmonic and a.get("source") == c.source
-            and a.get("source_joint") == c.source_joint and a.get("session") != c.session]
+            and a.get("source_joint") == c.source_joint and a.get("direction") == c.direction
+            and a.get("angle") == c.angle and a.get("session") != c.session]
 
 
 def _short(a: dict) -> str:
     """A candidate of an ambiguity (its dict) in a few words."""
     from .candidates import Candidate
 
-    return Candidate(**{k: a[k] for k in ("cause", "joint", "harmonic", "source", "session", "source_joint")
-                        if k in a}).label(short=True)
+    return Candidate(**{k: a[k] for k in ("cause", "joint", "harmonic", "source", "session", "source_joint",
+                                          "direction", "angle") if k in a}).label(short=True)
 
 
 def _name(path: str) -> str:

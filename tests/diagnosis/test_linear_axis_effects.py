@@ -118,3 +118,29 @@ def test_what_the_catalogue_cannot_try_on_a_linear_axis():
     low = items[("joint_periodic (low harmonics of a linear axis)", (2,))]
     travel = float(np.ptp(cal.q[:, 1]))
     assert f"below {math.ceil(2 / travel)} cycles per metre" in low.why
+
+
+def test_every_error_of_a_column_at_once_in_words_json_and_html():
+    """The column's scale, pitch error, straightness and carriage pitch beside an arm joint's compliance, 300
+    poses: each named where it is, in mm, mm per m and mrad; the JSON carries a straightness' direction and a
+    carriage's angle; the HTML report (figures of the axis against its position, the periodic halves in mm) is
+    made (it failed on the halves of a periodic error in mm)."""
+    from casadical.html import diagnosis_html
+
+    arm = Arm.from_dict(hidden.robot_doc("column"))
+    c = hidden.linear_case("column", "axis and arm", 0)
+    c.effects.periodic = [(2, 4, 0.05e-3, 0.7)]
+    c.effects.carriage_angle = {(2, "pitch"): hidden.smooth(arm, 2, slope=0.1e-3, bow=0.08e-3)}
+    expected = c.expected | {("joint_periodic", 2, 4, "robot"), ("carriage_angle pitch", 2, None, "robot")}
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rob, cal, val, _ = hidden.make_data(c, n_cal=300)
+        report = diagnose(rob, cal, val, DiagnosisSettings(seed=0))
+    hidden.assert_claims(report, expected)
+    words = report.text()
+    assert "mm per m" in words and "cycles/m" in words and "mrad over the travel" in words
+    found = [f.candidate.to_dict() for f in report.findings]
+    assert {"cause": "straightness", "joint": 2, "direction": "y"} in found
+    assert {"cause": "carriage_angle", "joint": 2, "angle": "pitch"} in found
+    page = diagnosis_html(report, poses=cal)
+    assert "axis 2 position (mm)" in page and "cycles per metre" in page
