@@ -25,6 +25,15 @@ own poses (a gear error of one session is diluted in the others'). A drift
 and a warm-up belong to their session by nature: with several sessions only
 their own are tried.
 
+A linear axis (a prismatic joint: a track, a column) has its own kinds
+instead of a revolute joint's compliance, progressive stiffness and
+coupling (ISO 230-1): its scale per metre, a periodic error per metre from
+:data:`MIN_CYCLES` cycles over the travel the data cover, play by the
+motion (and by the load where gravity pushes along it), its straightness
+across it in x and y and its carriage's roll, pitch and yaw; the robot's
+only (a property of the axis, as a coupling is of the wrist) but for the
+per-joint kinds a session may have on its own.
+
 A kind the data cannot test is never skipped in silence: :class:`NotTried`
 says why and what would allow it (the links' masses or a payload column
 for a compliance, the poses' times for a drift or a warm-up, a temperature
