@@ -150,3 +150,23 @@ def test_a_linear_axis_errors_are_the_truths(arm):
         mirrored = v.copy()
         mirrored[own] = -v[own]
         assert np.linalg.norm(model.predict(q, mirrored, cov, b0) - shots.xyz, axis=1).max() > size
+
+
+def test_a_columns_give_under_the_arms_moment_has_the_extension_as_lever():
+    """The column's compliance under the arm's moment is ``mount_compliance``: the base tilts about its origin,
+    so the same arm pose moves the point the more the column is extended (its lever: the column's height), as in
+    the truth, whose tilted arm is the package's to rounding at both ends of the column."""
+    doc = ARM_COLUMN
+    a = Arm.from_dict(doc)
+    q = np.array([[0.3, 0.05, 0.4, -0.6], [0.3, 1.15, 0.4, -0.6]])     # the column low, then high
+    C = 2e-7
+    model = Model(robot(doc), "kinematic+mount_compliance")
+    v = model.parameters.nominal.copy()
+    v[model.parameters.index("cmount")] = C
+    cov = model.default_covariates(len(q))
+    moved = np.linalg.norm(model.predict(q, v, cov) - model.predict(q, None, cov), axis=1)
+    assert moved[1] > 1.3 * moved[0] > 0, moved        # the same moment, a longer lever (1.1 m higher)
+    true = TrueRobot(a, effects=Effects(mount_compliance=C))
+    rigid = TrueRobot(a)
+    truth = np.linalg.norm(true.tool_point(true.state(q)) - rigid.tool_point(rigid.state(q)), axis=1)
+    np.testing.assert_allclose(moved, truth, rtol=2e-3)
