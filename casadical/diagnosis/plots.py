@@ -9,6 +9,7 @@ import numpy as np
 from ..data.measurements import Measurements
 from ..result import CalibrationResult
 from ..terms.mount_compliance import mount_moments
+from ..terms.periodic import phase
 from .candidates import Candidate
 from .periodogram import joint_errors
 
@@ -23,8 +24,12 @@ def residual_plot(cand: Candidate, before: CalibrationResult, after: Calibration
 
     ``view``: a function giving :func:`joint_view` of ``after`` on ``d`` (shared by the figures of one model).
     """
-    if cand.cause in ("thermal_expansion", "drift", "warmup", "mount_compliance"):
-        if cand.cause == "thermal_expansion":
+    if cand.cause in ("thermal_expansion", "drift", "warmup", "mount_compliance", "straightness", "carriage_angle"):
+        if cand.cause in ("straightness", "carriage_angle"):
+            x, xlabel = d.q[:, cand.joint - 1] * 1000.0, f"axis {cand.joint} position (mm)"
+            ys = [np.linalg.norm(r.residuals(d), axis=1) * 1000 for r in (before, after)]
+            ylabel = "position error (mm)"
+        elif cand.cause == "thermal_expansion":
             x, xlabel = d.get("temperature_c"), "temperature (deg C)"
             ys = [np.linalg.norm(r.residuals(d), axis=1) * 1000 for r in (before, after)]
             ylabel = "position error (mm)"
@@ -52,6 +57,25 @@ def residual_plot(cand: Candidate, before: CalibrationResult, after: Calibration
     s, _ = joint_errors(resid, directions[:, :, j - 1])
     q = d.q[:, j - 1]
     value = p[cand.parameter_names()[0]].value
+    if m.robot.joints[j - 1].prismatic:      # a linear axis: its error along it (mm) against its position (mm)
+        if cand.cause == "joint_periodic":
+            sn, cs = (p[n].value for n in cand.parameter_names())
+            arg = phase(m.robot, j, cand.harmonic * q)
+            effect = sn * np.sin(arg) + cs * np.cos(arg)
+            x = np.degrees(arg) % 360.0
+            xlabel = f"phase of {cand.harmonic} cycles per metre of axis {j} (deg)"
+        elif cand.cause == "backlash" and cand.source == "motion":
+            x = d.moves[:, j - 1]
+            effect, xlabel = -value * x, f"direction of the last move of axis {j}"
+        elif cand.cause == "backlash":
+            x = m.torques(d.q, p.values, cov)[:, j - 1]
+            effect, xlabel = value * np.sign(x), f"force of gravity along axis {j} (N)"
+        else:
+            effect, x, xlabel = value * q, q * 1000.0, f"axis {j} position (mm)"
+        order = np.argsort(x)
+        return {"x": np.asarray(x, float).tolist(), "partial": ((s + effect) * 1000.0).tolist(),
+                "curve_x": np.asarray(x, float)[order].tolist(), "curve_y": (effect[order] * 1000.0).tolist(),
+                "xlabel": xlabel, "ylabel": f"axis {j} position error: residual + fitted effect (mm)"}
     if cand.cause == "joint_periodic":
         sn, cs = (p[n].value for n in cand.parameter_names())
         effect = sn * np.sin(cand.harmonic * q) + cs * np.cos(cand.harmonic * q)

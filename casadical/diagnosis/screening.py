@@ -29,7 +29,7 @@ from ..data.measurements import Measurements
 from ..problem import CalibrationProblem
 from ..result import CalibrationResult
 from ..terms.joint_coupling import JointCoupling
-from ..terms.periodic import JointPeriodic
+from ..terms.periodic import JointPeriodic, phase
 from ..terms.warmup import Warmup, decay
 from .candidates import Candidate, compose_spec, tell_apart
 from .statistics import NestedTest, nested_test, set_aside_share
@@ -186,7 +186,8 @@ class Screen:
         """Column (N, 3), scaled, of the ``k``-th parameter of candidate ``c`` at the poses of ``d`` (``J``: the
         model's free columns there, ``JA``: the directions of the joints' angles)."""
         if c.cause == "joint_periodic":
-            col = periodic_columns(JA[:, :, c.joint - 1], d.q[:, c.joint - 1], c.harmonic)[:, :, k]
+            col = periodic_columns(JA[:, :, c.joint - 1], phase(self.model.robot, c.joint, d.q[:, c.joint - 1]),
+                                   c.harmonic)[:, :, k]
         elif c.cause == "joint_coupling":
             col = JA[:, :, c.joint - 1] * d.q[:, c.source_joint - 1, None]
         elif c.cause == "warmup":

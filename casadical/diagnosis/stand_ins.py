@@ -70,6 +70,8 @@ def stands_in(current: CalibrationResult, lin: Linearized, accepted: list[Candid
               scr: StructureScreen, alpha: float) -> tuple[Found, str] | None:
     """The structure ``cand`` only approximates in ``current`` (``lin``: linearised at it on the calibration poses)
     and why (see the module), or None."""
+    if cand.cause in AXIS_SHAPES and cand.session is None:
+        return _axis_stand_in(current, lin, accepted, cand, scr, alpha)
     if cand.cause not in OWN_VARIABLE or cand.session is not None or (
             cand.joint is None and cand.cause != "mount_compliance"):
         return None
@@ -110,6 +112,40 @@ def stands_in(current: CalibrationResult, lin: Linearized, accepted: list[Candid
                 return Found(*pair, X, alone.log10_p, alone.text(), 0.0), (
                     f"on one session it cannot be told from the instrument's own error ({alone.text()}): beside it "
                     f"it explains nothing more ({test.text()})")
+    return None
+
+
+#: a linear axis' causes that move the carriage (across the axis, or turning it): no pair of the structure screen is
+#: their shape in general (the directions across the axis turn with the joints before it); their own terms are
+#: flexible already (a bow and an S, a slope and a bow), so a structure is another's only where it explains more
+AXIS_SHAPES = ("straightness", "carriage_angle")
+
+
+def _axis_stand_in(current: CalibrationResult, lin: Linearized, accepted: list[Candidate], cand: Candidate,
+                   scr: StructureScreen, alpha: float) -> tuple[Found, str] | None:
+    """A linear axis' straightness or carriage angle that only approximates structure of another shape: the
+    strongest structure in what it takes (the cause switched off) explains more than the cause does (a flexible
+    term of it is significant beside the cause's), and beside that term the cause explains nothing more (a
+    carriage's yaw standing for a column's position error along it: the tool's reach forward turns the yaw
+    into a vertical move)."""
+    cols = [lin.names.index(n) for n in own_parameters(cand, accepted) if n in lin.names]
+    if not cols:
+        return None
+    keep = [k for k in range(lin.J.shape[2]) if k not in cols]
+    values = np.array([current.parameters[lin.names[k]].value / lin.scale[k] for k in cols])
+    r0 = lin.r - lin.J[:, :, cols] @ values
+    sw = np.sqrt(np.repeat(lin.weights, 3))
+    share = np.repeat(set_aside_share(lin.weights), 3)
+    ask = _Questions(r0.ravel() * sw, sw, lin.J[:, :, keep], lin.J[:, :, cols], math.log10(alpha),
+                     share if np.any(share < 1) else None)
+    found = scr.strongest(ask.rest, r0, lin.weights)
+    if found is None:
+        return None
+    if not ask.significant(ask.beside(ask.mine, found.X)):
+        return None         # the structure is no more than the cause takes: the cause's own (its term is flexible)
+    test = ask.beside(found.X, ask.mine)
+    if not ask.significant(test):
+        return found, f"beside a flexible term of that structure it explains nothing more ({test.text()})"
     return None
 
 
@@ -166,7 +202,8 @@ def drop_stand_ins(run: DiagnosisRun) -> None:
         rest = [a for a in run.accepted if a != cand]
         run.drop_finding(cand)
         run.unexplained.excluded_causes.add(cand)
-        where = describe_pair(found.covariate, found.effect, found.joint)
+        where = describe_pair(found.covariate, found.effect, found.joint, found.joint is not None
+                              and run.robot.joints[found.joint - 1].prismatic)
         run.notes.append(f"{cand.label()} was dropped at the end: it is only the closest catalogue approximation of "
                          f"structure it does not explain ({where}; p = {10 ** found.log10_p:.2g}): {why}; the "
                          "structure screen reports that structure and its size")

@@ -73,13 +73,17 @@ class Structure:
     time_name: str = "time_s"                    # the name its time covariate has in a terms file
     val_left: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))   # the validation residuals with it
                                                                                 # and those before it (m)
+    #: its joint is a linear axis: its ``angle`` effect is the axis' position error along it (m; reported as
+    #: effect ``position``)
+    linear: bool = False
 
     def words(self) -> str:
         """Where it lives, in words an engineer reads."""
-        return describe_pair(self.covariate, self.effect, self.joint)
+        return describe_pair(self.covariate, self.effect, self.joint, self.linear)
 
     def to_dict(self) -> dict:
-        return {"covariate": self.covariate, "effect": self.effect, "p_value": 10 ** self.log10_p,
+        effect = "position" if self.linear and self.effect == "angle" else self.effect
+        return {"covariate": self.covariate, "effect": effect, "p_value": 10 ** self.log10_p,
                 "size_mm": self.size_mm, "potential_gain_mm": self.potential_gain_mm}
 
     def term(self, name: str) -> dict:
@@ -110,7 +114,9 @@ class Structure:
                     per_dir[d].append(series(var, rng))
         f = ["(" + " + ".join(parts) + ")" if parts else "0" for parts in per_dir]
         table: dict = {"name": name}
-        if self.effect == "angle":
+        if self.effect == "angle" and self.linear:      # a linear axis' position error (m): an offset effect
+            table.update(joint=self.joint, offset=f[0])
+        elif self.effect == "angle":
             table.update(joint=self.joint, angle=f[0])
         elif self.effect == "tilt" and self.joint is not None:
             table.update(joint=self.joint, frame=["0", "0", "0", f[0], f[1], "0"])
@@ -127,8 +133,8 @@ class Structure:
             table.update(point=[f"{f[0]} * px / distance", f"{f[0]} * py / distance", f"{f[0]} * pz / distance"])
         else:
             table.update(point=f[:3])
-        metres = self.effect in ("point_base", "point_measurement") and self.covariate not in ("azimuth",
-                                                                                                "elevation")
+        metres = (self.effect in ("point_base", "point_measurement") and self.covariate not in (
+            "azimuth", "elevation")) or (self.effect == "angle" and self.linear)
         top = max(float(np.abs(self.coefficients).max(initial=0.0)), 1e-6)
         table["parameters"] = {f"c{i + 1}": {"scale": top, "lower": -20 * top, "upper": 20 * top,
                                              "unit": "m" if metres else "rad", "start": float(v)}
@@ -136,9 +142,16 @@ class Structure:
         return table
 
 
-def describe_pair(covariate: str, effect: str, joint: int | None) -> str:
-    """A pair of covariate and effect in words an engineer reads."""
+def describe_pair(covariate: str, effect: str, joint: int | None, linear: bool = False) -> str:
+    """A pair of covariate and effect in words an engineer reads (``linear``: the joint is a linear axis, its
+    ``angle`` effect a position error along it, in mm)."""
     cov = _covariate_words(covariate)
+    if effect == "angle" and linear:
+        own = covariate == f"q{joint}"
+        return (f"axis {joint}'s position error (along it, mm) varies with "
+                + ("its own position (not as any catalogue cause of that axis)" if own else cov))
+    if effect == "tilt" and linear and covariate == f"q{joint}":
+        return f"axis {joint}'s carriage tilts as it travels (not as the catalogue's carriage angles)"
     if effect == "angle":
         own = covariate == f"q{joint}"
         return (f"joint {joint}'s angle error varies with "
@@ -158,7 +171,7 @@ def describe_pair(covariate: str, effect: str, joint: int | None) -> str:
 
 def _covariate_words(cov: str) -> str:
     if cov.startswith("q"):
-        return f"joint {cov[1:]}'s reading"
+        return f"joint {cov[1:]}'s reading"     # a linear axis' reading is its position (mm in the files)
     if cov.startswith("tau"):
         return f"joint {cov[3:]}'s gravity torque"
     if cov == "moment":
@@ -462,7 +475,8 @@ def screen(res: CalibrationResult, cal: Measurements, val: Measurements, cal_tor
                                float(np.mean(np.linalg.norm(change, axis=1)) * 1000),
                                float((before.mean() - after.mean()) * 1000), s.held_out_share, back,
                                x1[-s.X.shape[2]:], scr.refs[s.covariate],
-                               "time_s" if cal.get("time_s") is not None else "row", lin_v.r - change))
+                               "time_s" if cal.get("time_s") is not None else "row", lin_v.r - change,
+                               s.joint is not None and res.model.robot.joints[s.joint - 1].prismatic))
     return found
 
 

@@ -341,12 +341,13 @@ def _drop(cv: dict, kind: str) -> float | None:
 
 def _resolution(r: dict) -> str:
     lo, hi = r.get("band", ["?", "?"])
+    covered = (f"the {r['range_mm']:.0f} mm the axis covers" if r.get("range_mm") is not None else
+               f"the {r.get('range_deg', math.nan):.0f} deg the joint covers")
     if r.get("resolved"):
-        return (f"resolved over the {r.get('range_deg', math.nan):.0f} deg the joint covers: no neighbouring "
+        return (f"resolved over {covered}: no neighbouring "
                 f"harmonic fits as well (margin {r.get('neighbour_margin', math.nan):.3g}); "
                 f"{100 * r.get('outside_geometry', math.nan):.0f} % of it lies outside what the geometry fits")
-    return (f"not resolved: harmonics {lo}..{hi} fit about as well over the {r.get('range_deg', math.nan):.0f} "
-            "deg the joint covers")
+    return f"not resolved: harmonics {lo}..{hi} fit about as well over {covered}"
 
 
 def _halves_table(page: Page, halves: list[dict]) -> None:
@@ -357,6 +358,10 @@ def _halves_table(page: Page, halves: list[dict]) -> None:
             a, b = h["amplitude_arcsec"]
             pa, pb = h["phase_deg"]
             size, phase = f"{a:.1f} / {b:.1f} arcsec", f"{pa:.0f} / {pb:.0f} deg"
+        elif "amplitude_mm" in h:       # a linear axis' periodic error
+            a, b = h["amplitude_mm"]
+            pa, pb = h["phase_deg"]
+            size, phase = f"{sig(a, 3)} / {sig(b, 3)} mm", f"{pa:.0f} / {pb:.0f} deg"
         else:
             a, b = h["values"]
             size, phase = f"{sig(a, 3)} / {sig(b, 3)} {h.get('unit', '')}", ""
