@@ -543,11 +543,12 @@ def _accuracy(page: Page, report: DiagnosisReport, poses, joints) -> None:
     m = accuracy_map(report.final, poses.q if poses is not None else None, joints)
     ja, jb = m["joints"]
     page.heading("Where the model is accurate", anchor="accuracy")
-    others = ", ".join(f"q{k + 1} {v:.0f}" for k, v in enumerate(m["others_deg"]) if k + 1 not in (ja, jb))
+    others = ", ".join(f"q{k + 1} {v:.0f} {u}" for k, (v, u) in enumerate(zip(m["others"], m["units"]))
+                       if k + 1 not in (ja, jb))
     where = "the calibration poses' median" if poses is not None else "the middle of their ranges"
     caption = (f"Predicted uncertainty of the final model's tool point (rms 3-D error of the prediction, mm: the "
                f"parameters' covariance plus the GP compensator's predictive std) over joints {ja} and {jb}; the "
-               f"other joints at {where} ({others} deg)." + (" Dots: the calibration poses." if poses is not None
+               f"other joints at {where} ({others})." + (" Dots: the calibration poses." if poses is not None
                                                             else ""))
     ref = page.figure(partial(_accuracy_plot, m, poses.lines if poses is not None else None), "fig-accuracy",
                       caption)
@@ -563,7 +564,8 @@ def _accuracy_plot(m: dict, lines=None):
     ja, jb = m["joints"]
     # the grid refined 4 times (bilinear), its cells coloured in bands at round values (as filled contours)
     s = np.asarray(m["std_mm"], float)
-    xg, yg = np.asarray(m["x_deg"], float), np.asarray(m["y_deg"], float)
+    xg, yg = np.asarray(m["x"], float), np.asarray(m["y"], float)
+    ua, ub = m["units"][ja - 1], m["units"][jb - 1]
     xf, yf = (np.linspace(g[0], g[-1], 4 * (len(g) - 1) + 1) for g in (xg, yg))
     xc, yc = (xf[:-1] + xf[1:]) / 2, (yf[:-1] + yf[1:]) / 2
     fine = np.array([np.interp(xc, xg, row) for row in s])
@@ -572,14 +574,14 @@ def _accuracy_plot(m: dict, lines=None):
     levels = bands(lo, hi, 12)
     ax.cells(xf, yf, fine, VIRIDIS, levels[0], levels[-1], levels=levels)
     ax.colorbar = (VIRIDIS, float(levels[0]), float(levels[-1]), "predicted uncertainty (mm)", levels)
-    if m["measured_deg"] is not None:
-        q = np.asarray(m["measured_deg"], float)
+    if m["measured"] is not None:
+        q = np.asarray(m["measured"], float)
         titles = None
         if lines is not None and len(lines) == len(q):
-            titles = [f"line {n}: q{ja} {a:.1f} deg, q{jb} {b:.1f} deg" for n, a, b in zip(lines, q[:, 0], q[:, 1])]
+            titles = [f"line {n}: q{ja} {a:.1f} {ua}, q{jb} {b:.1f} {ub}" for n, a, b in zip(lines, q[:, 0], q[:, 1])]
         ax.points(q[:, 0], q[:, 1], "#fff", 1.5, edge="#000", label="calibration poses", titles=titles,
                   legend_r=2.5)
         legend_above(ax)
-    ax.xlabel, ax.ylabel = f"q{ja} (deg)", f"q{jb} (deg)"
+    ax.xlabel, ax.ylabel = f"q{ja} ({ua})", f"q{jb} ({ub})"
     ticks(ax)
     return fig

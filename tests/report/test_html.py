@@ -838,6 +838,6 @@ def test_diagnosis_report_maps_where_the_model_is_accurate(browser, tmp_path):
     from casadical.calibration import load_calibration
 
     m = accuracy_map(load_calibration(tmp_path / "f.json"), cal.q, (2, 3))
-    inside = (m["x_deg"] >= 40) & (m["x_deg"] <= 80)
+    inside = (m["x"] >= 40) & (m["x"] <= 80)
     print("inside / outside", m["std_mm"][:, inside].mean() / m["std_mm"][:, ~inside].mean())
     assert m["std_mm"][:, inside].mean() < 0.6 * m["std_mm"][:, ~inside].mean()
