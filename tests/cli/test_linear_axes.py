@@ -109,7 +109,10 @@ def test_candidates_plan_poses(arm, capsys):
     assert cand.q_deg[:, axis - 1].max() > 100.0        # millimetres
     ok(capsys, "plan-poses", d / "robot.toml", d / "cand.csv", "-m", "20", "--model", "kinematic",
        "--out", d / "sel.csv", "--json", d / "plan.json")
-    assert len(Measurements.read_csv(d / "sel.csv", robot=robot)) == 20
+    sel = Measurements.read_csv(d / "sel.csv", robot=robot)
+    assert len(sel) == 20
+    # the design uses the axis' travel: its selected positions spread to the ends, wider than the candidates'
+    assert np.std(sel.q_deg[:, axis - 1]) > 1.2 * np.std(cand.q_deg[:, axis - 1])
 
 
 def test_bad_readings_are_one_line(arm, capsys):
