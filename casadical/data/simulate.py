@@ -71,6 +71,18 @@ class Effects:
     tool_rpy : sequence of 3 floats
         Full pose: the probe's mounting rotation on the flange, fixed-axis
         roll-pitch-yaw ``Rz(yaw) Ry(pitch) Rx(roll)`` (rad).
+    straightness : list of (joint, direction, (c2, c3))
+        A linear axis' straightness across it (``x`` or ``y``): the
+        coefficients of its Legendre polynomials P2, P3 of the position (m;
+        :mod:`casadical.terms.straightness`).
+    carriage_angle : list of (joint, angle, (c1, c2))
+        A linear axis' carriage turning as it travels (``roll``, ``pitch``,
+        ``yaw``): the coefficients of P1, P2 of the position (rad;
+        :mod:`casadical.terms.carriage_angle`).
+
+    On a linear axis ``periodic`` is ``(joint, cycles per metre, amplitude m,
+    phase rad)``, ``backlash`` and ``backlash_motion`` are half plays in m
+    and ``encoder_scale`` a relative scale of the travel.
     """
 
     length_sigma: float = 0.5e-3
@@ -90,6 +102,8 @@ class Effects:
     base_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
     orientation_noise: float | None = None
     tool_rpy: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    straightness: list[tuple[int, str, tuple[float, float]]] = field(default_factory=list)
+    carriage_angle: list[tuple[int, str, tuple[float, float]]] = field(default_factory=list)
 
 
 @dataclass
@@ -163,6 +177,10 @@ def true_model(robot: Robot, effects: Effects, rng: np.random.Generator,
                                t_ref=(lo + hi) / 2 if t_ref is None else t_ref))
     if any(effects.drift):
         terms.append(make_term("drift"))
+    if effects.straightness:
+        terms.append(make_term("straightness", pairs=[(j, k) for j, k, _ in effects.straightness]))
+    if effects.carriage_angle:
+        terms.append(make_term("carriage_angle", pairs=[(j, k) for j, k, _ in effects.carriage_angle]))
     if effects.orientation_noise is not None:   # the probe's mounting: tool_* hold the whole rotation (R0 = I)
         terms.append(make_term("tool_orientation"))
     model = Model(robot, terms)
@@ -194,6 +212,11 @@ def true_model(robot: Robot, effects: Effects, rng: np.random.Generator,
     for k, v in zip("xyz", effects.drift):
         if any(effects.drift):
             values[idx(f"drift_{k}")] = v
+    for name, table in (("straightness", effects.straightness), ("carriage_angle", effects.carriage_angle)):
+        term = model.term(name)
+        for j, key, coefs in table:
+            for k, c in zip(term.DEGREES, coefs):
+                values[idx(term.parameter_name(j, key, k))] = c
     if effects.orientation_noise is not None:
         for k, v in zip(("roll", "pitch", "yaw"), effects.tool_rpy):
             values[idx(f"tool_{k}")] = v
@@ -367,7 +390,8 @@ def load_protocol(spec: str | Path) -> Protocol:
 #: keys of a protocol's ``[truth]`` table
 TRUTH_KEYS = {"length_sigma_mm", "angle_sigma_deg", "noise_mm", "stiffness", "periodic_deg", "encoder_scale",
               "backlash_deg", "backlash_motion_deg", "thermal_alpha", "thermal_links", "cubic", "base_xyz_m",
-              "base_rpy_deg"}
+              "base_rpy_deg", "periodic_mm", "backlash_mm", "backlash_motion_mm", "straightness_mm",
+              "carriage_angle_mrad"}
 #: keys of a protocol's ``[workspace]`` table
 WORKSPACE_KEYS = {"floor_z_m", "box_min_m", "box_max_m"}
 
@@ -434,42 +458,55 @@ def effects_from_table(t: dict, robot: Robot, file: str, table: str = "truth") -
     for j, k in stiffness.items():
         if k <= 0:
             raise InputError(f"stiffness must be positive, got {k}", file=file, column=f"{table}.stiffness.{j}")
-    # a protocol's joint errors are a revolute joint's, in degrees: none on a linear axis (whose errors the catalogue
-    # has, in mm: a protocol cannot state them yet)
-    for key in ("stiffness", "backlash_deg", "backlash_motion_deg", "encoder_scale", "cubic"):
+    # a revolute joint's errors in degrees, a linear axis' in mm (and the encoder scale of either, relative)
+    linear = {j for j in range(1, n + 1) if robot.joints[j - 1].prismatic}
+    for key, want in (("stiffness", False), ("backlash_deg", False), ("backlash_motion_deg", False),
+                      ("cubic", False), ("backlash_mm", True), ("backlash_motion_mm", True)):
         for j in v.per_joint(t, key, table, n):
-            if robot.joints[j - 1].prismatic:
-                raise InputError(f"joint {j} is prismatic (a linear axis): {key} is an error of a revolute joint's "
-                                 "angle (a protocol cannot state a linear axis' errors yet)", file=file,
-                                 column=f"{table}.{key}.{j}")
-    backlash = v.per_joint(t, "backlash_deg", table, n)
-    backlash_motion = v.per_joint(t, "backlash_motion_deg", table, n)
+            if (j in linear) != want:
+                raise InputError(f"joint {j} is {'revolute' if want else 'prismatic (a linear axis)'}: {key} is "
+                                 f"an error of a {'linear axis' if want else 'revolute joint'}"
+                                 + ("" if want else " (a linear axis' play: backlash_mm, backlash_motion_mm)"),
+                                 file=file, column=f"{table}.{key}.{j}")
+    backlash = {j: math.radians(b) for j, b in v.per_joint(t, "backlash_deg", table, n).items()}
+    backlash.update({j: b / 1000 for j, b in v.per_joint(t, "backlash_mm", table, n).items()})
+    backlash_motion = {j: math.radians(b) for j, b in v.per_joint(t, "backlash_motion_deg", table, n).items()}
+    backlash_motion.update({j: b / 1000 for j, b in v.per_joint(t, "backlash_motion_mm", table, n).items()})
     periodic = []
-    if not isinstance(t.get("periodic_deg", []), list):
-        raise InputError(f"must be a list of [joint, harmonic, amplitude_deg, phase_deg], got {t['periodic_deg']!r}",
-                         file=file, column=f"{table}.periodic_deg")
-    for i, item in enumerate(t.get("periodic_deg", [])):
-        where = f"{table}.periodic_deg[{i + 1}]"
-        if not isinstance(item, list) or len(item) != 4 or not all(finite_number(x) for x in item):
-            raise InputError(f"must be [joint, harmonic, amplitude_deg, phase_deg], got {item!r}",
-                             file=file, column=where)
-        j, h, amp, ph = item
-        if j != int(j) or not 1 <= j <= n or h != int(h) or h < 1:
-            raise InputError(f"joint must be 1 to {n} and harmonic a whole number >= 1, got {item!r}",
-                             file=file, column=where)
-        if robot.joints[int(j) - 1].prismatic:
-            raise InputError(f"joint {int(j)} is prismatic (a linear axis): periodic_deg is a revolute joint's "
-                             "gear error (a protocol cannot state a linear axis' errors yet)", file=file,
-                             column=where)
-        periodic.append((int(j), int(h), math.radians(amp), math.radians(ph)))
+    for key, item_form, on_axis in (("periodic_deg", "[joint, harmonic, amplitude_deg, phase_deg]", False),
+                                    ("periodic_mm", "[joint, cycles_per_m, amplitude_mm, phase_deg]", True)):
+        for i, (j, h, amp, ph) in enumerate(_items(t, key, table, file, item_form, n, 4)):
+            where = f"{table}.{key}[{i + 1}]"
+            if h != int(h) or h < 1:
+                raise InputError(f"the harmonic must be a whole number >= 1, got {h!r}", file=file, column=where)
+            if (j in linear) != on_axis:
+                raise InputError(f"joint {j} is {'revolute' if on_axis else 'prismatic (a linear axis)'}: {key} is a "
+                                 f"{'linear axis' if on_axis else 'revolute joint'}'s periodic error"
+                                 + ("" if on_axis else " (a linear axis': periodic_mm, cycles per metre)"),
+                                 file=file, column=where)
+            periodic.append((j, int(h), amp / 1000 if on_axis else math.radians(amp), math.radians(ph)))
+    axis_errors = {}
+    for key, kinds, unit, form in (("straightness_mm", ("x", "y"), 1e-3, "[joint, direction, p2_mm, p3_mm]"),
+                                   ("carriage_angle_mrad", ("roll", "pitch", "yaw"), 1e-3,
+                                    "[joint, angle, p1_mrad, p2_mrad]")):
+        axis_errors[key] = []
+        for i, (j, kind, a, b) in enumerate(_items(t, key, table, file, form, n, 4, word=1)):
+            where = f"{table}.{key}[{i + 1}]"
+            if kind not in kinds:
+                raise InputError(f"must name one of {', '.join(kinds)}, got {kind!r}", file=file, column=where)
+            if j not in linear:
+                raise InputError(f"joint {j} is revolute: {key} is a linear axis' error", file=file, column=where)
+            axis_errors[key].append((j, kind, (a * unit, b * unit)))
     return Effects(
         length_sigma=v.nonnegative(t, "length_sigma_mm", table, 0.5) / 1000,
         angle_sigma=math.radians(v.nonnegative(t, "angle_sigma_deg", table, 0.05)),
         stiffness=stiffness,
         periodic=periodic,
         encoder_scale=v.per_joint(t, "encoder_scale", table, n),
-        backlash={j: math.radians(b) for j, b in backlash.items()},
-        backlash_motion={j: math.radians(b) for j, b in backlash_motion.items()},
+        backlash=backlash,
+        backlash_motion=backlash_motion,
+        straightness=axis_errors["straightness_mm"],
+        carriage_angle=axis_errors["carriage_angle_mrad"],
         thermal_alpha=v.number(t, "thermal_alpha", table, default=0.0),
         thermal_links=v.per_joint(t, "thermal_links", table, n),
         cubic=v.per_joint(t, "cubic", table, n),
@@ -477,6 +514,26 @@ def effects_from_table(t: dict, robot: Robot, file: str, table: str = "truth") -
         base_xyz=tuple(float(x) for x in v.vector(t, "base_xyz_m", table, 3, default=np.zeros(3))),
         base_rpy=tuple(math.radians(x) for x in v.vector(t, "base_rpy_deg", table, 3, default=np.zeros(3))),
     )
+
+
+def _items(t: dict, key: str, table: str, file: str, form: str, n_joints: int, length: int, word: int | None = None
+           ) -> list[tuple]:
+    """The entries of a list of lists ``key`` (``form`` in the messages): a joint 1..n_joints first, numbers after
+    it (a word at index ``word``)."""
+    items = t.get(key, [])
+    if not isinstance(items, list):
+        raise InputError(f"must be a list of {form}, got {items!r}", file=file, column=f"{table}.{key}")
+    out = []
+    for i, item in enumerate(items):
+        where = f"{table}.{key}[{i + 1}]"
+        ok = isinstance(item, list) and len(item) == length and all(
+            isinstance(x, str) if k == word else finite_number(x) for k, x in enumerate(item))
+        if not ok:
+            raise InputError(f"must be {form}, got {item!r}", file=file, column=where)
+        if item[0] != int(item[0]) or not 1 <= item[0] <= n_joints:
+            raise InputError(f"the joint must be 1 to {n_joints}, got {item[0]!r}", file=file, column=where)
+        out.append((int(item[0]), *item[1:]))
+    return out
 
 
 def workspace_from_table(ws: dict, file: str, table: str = "workspace") -> dict:

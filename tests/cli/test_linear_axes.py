@@ -6,12 +6,14 @@ of the linear axis in a ``qK_mm`` column."""
 import json
 import math
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
 
 from casadical.data import Measurements
 from casadical.loading import load_robot
+from casadical.robot import PROBLEMS
 from tests.helpers.arms import ARM4_TRACK, ARM_COLUMN, to_toml
 from tests.helpers.cli import cli, one_error
 from tests.truth import Arm, Effects, Session, TrueRobot, measure, sample
@@ -161,17 +163,6 @@ def test_export_writes_the_axis_as_a_prismatic_joint(arm, capsys):
     assert robot.prismatic[axis - 1] and sum(robot.prismatic) == 1
 
 
-def test_a_protocol_with_a_joint_error_on_the_axis_is_one_line(tmp_path, capsys):
-    from casadical.robot import PROBLEMS
-
-    text = (PROBLEMS / "protocols" / "track6.toml").read_text()
-    text = text.replace('"../robots/track6.toml"', repr(str(PROBLEMS / "robots" / "track6.toml")).replace("'", '"'))
-    (tmp_path / "p.toml").write_text(text.replace("stiffness = {3 = 1.73e6, 4 = 1.203e6}", "stiffness = {1 = 1e6}"))
-    code, _, err = cli(capsys, "simulate", tmp_path / "p.toml", "--out-dir", tmp_path / "sim")
-    assert code != 0
-    one_error(err, "p.toml", "'truth.stiffness.1'", "prismatic")
-
-
 def test_the_accuracy_map_spans_the_axis_travel_in_mm(arm, capsys):
     """The accuracy map over a linear axis: its grid spans the axis' limits in mm, its labels say mm."""
     from casadical.result import load_calibration
@@ -193,3 +184,47 @@ def test_the_accuracy_map_spans_the_axis_travel_in_mm(arm, capsys):
     measured = m["measured"][:, 0 if axis < other else 1]
     np.testing.assert_allclose(measured, cal.q[:, axis - 1] * 1000)
     assert np.all(m["std_mm"] > 0)
+
+
+PROBLEMS_ROBOTS = PROBLEMS / "robots"
+
+
+def _track_protocol(tmp_path, truth: str) -> Path:
+    """problems/protocols/track6.toml with more lines in its ``[truth]`` table."""
+    text = (PROBLEMS / "protocols" / "track6.toml").read_text()
+    text = text.replace('"../robots/track6.toml"', repr(str(PROBLEMS / "robots" / "track6.toml")).replace("'", '"'))
+    text = text.replace("calibration = 120", "calibration = 300").replace("validation = 60", "validation = 200")
+    (tmp_path / "p.toml").write_text(text.replace("[workspace]", truth + "\n\n[workspace]"))
+    return tmp_path / "p.toml"
+
+
+def test_a_protocol_states_the_axis_errors_and_the_diagnosis_names_them(tmp_path, capsys):
+    """A study protocol hides a track's straightness and its carriage's roll (in mm and mrad); the diagnosis of
+    the simulated data names the two where they are, and nothing else on the track."""
+    p = _track_protocol(tmp_path, 'straightness_mm = [[1, "x", 0.25, 0.0]]\n'
+                                  'carriage_angle_mrad = [[1, "roll", 0.3, 0.0]]')
+    ok(capsys, "simulate", p, "--out-dir", tmp_path / "sim")
+    ok(capsys, "diagnose", PROBLEMS_ROBOTS / "track6.toml", tmp_path / "sim" / "calibration.csv", "--validate",
+       tmp_path / "sim" / "validation.csv", "--json", tmp_path / "r.json", "--no-blackbox", "--quiet")
+    found = {(f["cause"], f.get("joint"), f.get("direction"), f.get("angle"))
+             for f in json.loads((tmp_path / "r.json").read_text())["findings"]}
+    assert ("straightness", 1, "x", None) in found and ("carriage_angle", 1, None, "roll") in found, found
+    assert not [f for f in found if f[1] == 1 and f[0] not in ("straightness", "carriage_angle")], found
+
+
+@pytest.mark.parametrize("line, column, words", [
+    ("stiffness = {1 = 1e6}", "'truth.stiffness.1'", "prismatic"),
+    ("backlash_mm = {2 = 0.01}", "'truth.backlash_mm.2'", "revolute"),
+    ('periodic_mm = [[2, 5, 0.01, 0.0]]', "'truth.periodic_mm[1]'", "revolute"),
+    ('periodic_deg = [[1, 5, 0.01, 0.0]]', "'truth.periodic_deg[1]'", "periodic_mm"),
+    ('straightness_mm = [[1, "z", 0.1, 0.0]]', "'truth.straightness_mm[1]'", "x, y"),
+    ('carriage_angle_mrad = [[3, "roll", 0.1, 0.0]]', "'truth.carriage_angle_mrad[1]'", "revolute"),
+    ('carriage_angle_mrad = [[1, "roll", 0.1]]', "'truth.carriage_angle_mrad[1]'", "p2_mrad"),
+])
+def test_a_protocol_error_of_the_wrong_kind_of_joint_is_one_line(tmp_path, capsys, line, column, words):
+    p = _track_protocol(tmp_path, line)
+    if line.startswith("stiffness"):
+        p.write_text(p.read_text().replace("stiffness = {3 = 1.73e6, 4 = 1.203e6}\n", ""))
+    code, _, err = cli(capsys, "simulate", p, "--out-dir", tmp_path / "sim")
+    assert code != 0
+    one_error(err, "p.toml", column, words)
