@@ -90,6 +90,19 @@ def subsample(problem: CalibrationProblem, n: int) -> CalibrationProblem:
                    rot=None if problem.rot is None else problem.rot[s])
 
 
+def _subsample_fit(problem: CalibrationProblem, x: np.ndarray, solver: str, opts: dict, estimate_scale: bool):
+    """The robust loop on a subsample (:data:`SUBSAMPLE_POSES`), a start for the solves on every pose.
+
+    Whether the subsample's fit can be trusted does not matter: it is a start, and the solves after it are on
+    every pose to the solver's tolerance (a poor start costs iterations, never the answer). The subsample's
+    problem (and the Jacobians it keeps, :data:`casadical.problem.MEMO_NUMBERS`) goes with this call."""
+    try:
+        res, _ = solve_robust(subsample(problem, SUBSAMPLE_POSES), x, solver, opts, estimate_scale)
+    except SolverError:     # then the full procedure, from the same start
+        return None
+    return res if np.all(np.isfinite(res.x)) else None
+
+
 def solve_robust(problem: CalibrationProblem, x: np.ndarray, solver: str, opts: dict, estimate_scale: bool,
                  warm: bool = False):
     """Solve; with ``estimate_scale``, re-estimate the robust loss's noise scale until it settles.
@@ -98,14 +111,10 @@ def solve_robust(problem: CalibrationProblem, x: np.ndarray, solver: str, opts: 
     noise scale, estimated again from every pose there) starts the solves on every pose, warm. ``warm``: ``x``
     is already such a start."""
     res, name, solve_time, setup_time = None, "", 0.0, 0.0
-    if problem.n_poses >= LARGE_POSES:
-        if not warm:
-            # where the subsample's fit is not trusted does not matter: it is a start, and the solves below are
-            # on every pose to the solver's tolerance (a poor start costs iterations, never the answer)
-            sub = subsample(problem, SUBSAMPLE_POSES)
-            first, _ = solve_robust(sub, x, solver, opts, estimate_scale)
-            if np.all(np.isfinite(first.x)):
-                x, warm = first.x, True
+    if problem.n_poses >= LARGE_POSES and not warm:
+        first = _subsample_fit(problem, x, solver, opts, estimate_scale)
+        if first is not None:
+            x, warm = first.x, True
             solve_time, setup_time = first.solve_time_s, first.setup_time_s
     for _ in range(ROBUST_LOOPS if estimate_scale else 1):
         if estimate_scale and problem.full_pose:   # each kind's own robust scale: they weigh the two parts
