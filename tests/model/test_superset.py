@@ -246,7 +246,7 @@ def test_a_first_run_says_it_compiles_and_a_second_compiles_nothing(tmp_path):
         runs.append((said, sorted(p.name.split("-")[0] for p in (tmp_path / "cache").iterdir()),
                      json.loads(out.read_text())["parameters"]))
     (said0, cache0, p0), (said1, cache1, p1) = runs
-    assert said0 == ["compiling the model of three-axis test arm for these data once (about 2 s; kept in the cache "
+    assert said0 == ["compiling the model of three-axis test arm for these data once (about 1 s; kept in the cache "
                      "for later runs)"]
     assert said1 == [] and cache1 == cache0 == ["superset_fk", "superset_jac"]
     assert p0 == p1
