@@ -68,6 +68,10 @@ FLAGS = ("-O1", "-fPIC", "-shared")
 #: full-pose Jacobian of the superset with the torques, 12,688 instructions: 0.35 s of gcc's CPU against 1.94 s
 #: at -O1, evaluated in 15.7 against 11.4 us a pose; benchmarks/speed/bench_first_run.py)
 QUICK_FLAGS = ("-O0", "-fPIC", "-shared")
+#: a Function below this many instructions is compiled with FLAGS at once even when asked to be quick: its
+#: -O1 compile takes about 0.1 s (the superset's fk and probe, 531-1,413 instructions: 0.08-0.14 s), beside a
+#: large Function's quick compile
+QUICK_MIN_INSTRUCTIONS = 3000
 DEFAULT_MAX_MB = 256.0
 _SUFFIX = ".so"
 _PART = ".part"
@@ -327,21 +331,26 @@ _AT_EXIT = [False]
 
 def _compile_quick(items: list[tuple[ca.Function, str]], cc: str) -> list[ca.Function]:
     """Compile with :data:`QUICK_FLAGS` now (side by side; nothing stored), then start each Function's
-    compile with :data:`FLAGS` in the background, in the same private folder."""
+    compile with :data:`FLAGS` in the background, in the same private folder. A Function below
+    :data:`QUICK_MIN_INSTRUCTIONS` is compiled with :data:`FLAGS` at once (stored), beside the others."""
     import casadi as ca
 
     folders, jobs = [], []
+    quick = [fun.n_instructions() >= QUICK_MIN_INSTRUCTIONS for fun, _ in items]
     try:
-        for fun, _ in items:
+        for (fun, _), q in zip(items, quick):
             folder = tempfile.mkdtemp(prefix="casadical-jit-")
             folders.append(folder)
             c_file = _generate(fun, folder)
-            jobs.append((_start(cc, QUICK_FLAGS, c_file, os.path.join(folder, fun.name() + "-quick" + _SUFFIX)),
-                         c_file))
+            jobs.append((_start(cc, QUICK_FLAGS if q else FLAGS, c_file,
+                                os.path.join(folder, fun.name() + ("-quick" if q else "") + _SUFFIX)), c_file))
         checkpoint("compile")     # where a test has the process signal itself while the compilers run
         _wait([p for (p, _), _ in jobs], cc)
         out = []
-        for (fun, _), ((_, library), _) in zip(items, jobs):
+        for (fun, key), q, ((_, library), _) in zip(items, quick, jobs):
+            if not q:
+                data = Path(library).read_bytes()
+                _store(cache_dir(), f"{fun.name()}-{key}-{_digest(data)}{_SUFFIX}", data)
             try:
                 out.append(ca.external(fun.name(), library))
             except RuntimeError as e:
@@ -352,7 +361,10 @@ def _compile_quick(items: list[tuple[ca.Function, str]], cc: str) -> list[ca.Fun
         for folder in folders:
             shutil.rmtree(folder, ignore_errors=True)
         raise
-    for (fun, key), folder, (_, c_file) in zip(items, folders, jobs):
+    for (fun, key), q, folder, (_, c_file) in zip(items, quick, folders, jobs):
+        if not q:
+            shutil.rmtree(folder, ignore_errors=True)
+            continue
         library = os.path.join(folder, fun.name() + _SUFFIX)
         try:
             process, _ = _start(cc, FLAGS, c_file, library)

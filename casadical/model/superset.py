@@ -395,8 +395,9 @@ class Superset:
     def _announce(self, funs: list[ca.Function]) -> None:
         """Say that the compiler starts (it takes seconds) to whoever listens (:func:`jitcache.announcing`)."""
         # about 0.1 ms of compiling an instruction at -O0 on one core (the quick compile a run waits for; -O1:
-        # 0.5 ms, in the background); side by side, the largest counts
-        seconds = max(1, round(1e-4 * max(f.n_instructions() for f in funs)))
+        # 0.5 ms, in the background, and at once for a small function); side by side, the longest counts
+        seconds = max(1, round(max((1e-4 if f.n_instructions() >= jitcache.QUICK_MIN_INSTRUCTIONS else 5e-4)
+                                   * f.n_instructions() for f in funs)))
         jitcache.announce(f"compiling the model of {self.robot.name} for these data once (about {seconds} s; kept in "
                           "the cache for later runs)")
 
