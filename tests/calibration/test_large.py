@@ -1,9 +1,10 @@
-"""A large calibration's reduced procedure (casadical.calibration.solve: the noise-scale loop started on a
-subsample, later solves started warm, Levenberg-Marquardt stopped in standard-error units) gives the full
-procedure's answer: on data of the independent truth (tests/truth) with compliances and bad shots hidden in them,
-several seeds, both solvers, positions and full pose, every parameter within a small share of its standard
-error, the same free set and noise scale, the same mean and max error to 1 %, with fewer linearisations of
-every pose. The threshold is lowered so that a few thousand poses take the large path."""
+"""A large calibration's reduced procedure (casadical.calibration.solve: the noise-scale loop's first solve
+started from the same solve on a subsample, every later solve started warm, Levenberg-Marquardt stopped in
+standard-error units) gives the full procedure's answer: on data of the independent truth (tests/truth) with
+compliances and bad shots hidden in them, several seeds, both solvers, positions and full pose, an exact model
+and a misfit (the compliance left out), every parameter within a hundredth of its standard error, the same free
+set and noise scales, the same mean and max error to 1 %, with fewer linearisations of every pose. The threshold
+is lowered so that a few thousand poses take the large path."""
 
 import numpy as np
 import pytest
@@ -18,7 +19,7 @@ from tests.truth import Arm, Effects, Session, TrueRobot, measure, sample
 
 N_POSES = 2_400
 #: the reduced answer must be this close to the full one, in each parameter's standard error
-SHARE = 0.05
+SHARE = 0.01
 
 
 def shots(tmp_path, seed: int, full_pose: bool) -> Measurements:
@@ -30,7 +31,7 @@ def shots(tmp_path, seed: int, full_pose: bool) -> Measurements:
     return Measurements.read_csv(s.write_csv(tmp_path / f"cal{seed}.csv"), n_joints=5)
 
 
-def run(monkeypatch, robot, data, solver: str, large: bool):
+def run(monkeypatch, robot, data, solver: str, large: bool, spec: str = "kinematic+compliance"):
     """The calibration and the number of linearisations of every pose."""
     monkeypatch.setattr(solve, "LARGE_POSES", len(data) if large else 10 ** 9)
     monkeypatch.setattr(solve, "SUBSAMPLE_POSES", len(data) // 6)
@@ -42,7 +43,7 @@ def run(monkeypatch, robot, data, solver: str, large: bool):
         return linearize(self, values)
 
     monkeypatch.setattr(CalibrationProblem, "linearize", counted)
-    res = calibrate(robot, data, "kinematic+compliance", solver, warn=False)
+    res = calibrate(robot, data, spec, solver, warn=False)
     monkeypatch.undo()
     return res, count[0]
 
@@ -55,29 +56,32 @@ def same_answer(full, reduced, n_full: int, n_reduced: int) -> None:
     assert np.all(std > 0)
     off = np.abs(q.values[free] - p.values[free]) / std
     assert off.max() < SHARE, (p.names[int(np.flatnonzero(free)[np.argmax(off)])], off.max())
-    # the noise scales settle to 5 % by the loop's own rule in either procedure (both are estimated again at a
-    # solution and kept once within 5 % of the last): the standard errors follow them (full pose: the
-    # orientation's weight sigma / sigma_rot too)
-    np.testing.assert_allclose(q.stds[free], std, rtol=0.03)
-    assert abs(reduced.loss.sigma / full.loss.sigma - 1) < 0.05
+    # the same noise scales (estimated at the same solutions), so the same standard errors
+    np.testing.assert_allclose(q.stds[free], std, rtol=1e-3)
+    assert abs(reduced.loss.sigma / full.loss.sigma - 1) < 1e-3
     if full.full_pose:
-        assert abs(reduced.loss.sigma_rot / full.loss.sigma_rot - 1) < 0.05
+        assert abs(reduced.loss.sigma_rot / full.loss.sigma_rot - 1) < 1e-3
     for a, b in ((reduced.calibration.mean_mm, full.calibration.mean_mm),
                  (reduced.calibration.max_mm, full.calibration.max_mm)):
         assert abs(a / b - 1) < 0.01
     assert n_reduced < n_full, (n_reduced, n_full)
 
 
-@pytest.mark.parametrize("solver,seed,full_pose", [("ipopt", 0, False), ("ipopt", 1, False), ("lm", 2, False),
-                                                   ("lm", 3, False), ("ipopt", 4, True)])
-def test_reduced_procedure_gives_the_full_answer(tmp_path, monkeypatch, solver, seed, full_pose):
+@pytest.mark.parametrize("solver,seed,full_pose,spec", [
+    ("ipopt", 0, False, "kinematic+compliance"), ("ipopt", 1, False, "kinematic+compliance"),
+    ("lm", 2, False, "kinematic+compliance"), ("lm", 3, False, "kinematic+compliance"),
+    ("ipopt", 4, True, "kinematic+compliance"), ("ipopt", 5, False, "kinematic")])
+def test_reduced_procedure_gives_the_full_answer(tmp_path, monkeypatch, solver, seed, full_pose, spec):
     robot = robot_from_dict(ARM5)
     data = shots(tmp_path, seed, full_pose)
-    full, n_full = run(monkeypatch, robot, data, solver, large=False)
-    reduced, n_reduced = run(monkeypatch, robot, data, solver, large=True)
+    full, n_full = run(monkeypatch, robot, data, solver, large=False, spec=spec)
+    reduced, n_reduced = run(monkeypatch, robot, data, solver, large=True, spec=spec)
     assert reduced.full_pose == full.full_pose == full_pose
     same_answer(full, reduced, n_full, n_reduced)
     q = reduced.parameters
+    if spec == "kinematic":     # the misfit: the compliances hidden in the data leave far more than the 20 um noise
+        assert reduced.calibration.rms_mm > 0.2
+        return
     for j in (2, 3, 4):    # the hidden compliances are found either way (each well above its standard error)
         assert q[f"c{j}"].value > 5 * q[f"c{j}"].std
 
