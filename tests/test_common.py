@@ -24,6 +24,7 @@ from __future__ import annotations
 import json
 import math
 import warnings
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -39,6 +40,14 @@ from casadical.model import Model
 from casadical.terms import REGISTRY, make_term
 
 ROBOT = load_robot("ys100")
+#: the YS100 on a 4 m track (joint 1 a linear axis): the robot of the terms of a linear axis (:data:`ON_TRACK`)
+TRACK = load_robot(str(Path(__file__).resolve().parents[1] / "problems" / "robots" / "track6.toml"))
+#: terms of a linear axis only, checked on :data:`TRACK` and its data
+ON_TRACK = ("straightness", "carriage_angle")
+
+
+def robot_of(name: str):
+    return TRACK if name in ON_TRACK else ROBOT
 
 
 def term_names() -> list[str]:
@@ -100,7 +109,8 @@ def terms_for(check: str) -> list:
             for n in term_names()]
 
 
-def build(name: str, robot=ROBOT):
+def build(name: str, robot=None):
+    robot = robot_of(name) if robot is None else robot
     return BUILD.get(name, lambda robot, rng: make_term(name))(robot, np.random.default_rng(0))
 
 
@@ -119,14 +129,22 @@ def campaign():
         d.columns["temperature_c"] = rng.uniform(18, 28, len(d))
         d.columns["payload_kg"] = rng.uniform(0, 5, len(d))
     a.path, b.path = "A.csv", "B.csv"
-    return {"one": a, "two": combine([a, b]), "full": full}
+    track, _ = simulate(TRACK, 40, Effects(stiffness={3: 1.5e6}), seed=5)
+    return {"one": a, "two": combine([a, b]), "full": full, "track": track}
+
+
+def data_of(name: str, model: Model, campaign: dict):
+    """The campaign's data a check of the term ``name`` runs on."""
+    if name in ON_TRACK:
+        return campaign["track"]
+    return campaign["two"] if name == "sessions" else campaign["full"] if model.orientation else campaign["one"]
 
 
 def model_of(name: str) -> tuple[Model, list[str]]:
     """The YS100's model holding the term (and the geometry), and the names of the term's parameters."""
-    term = build(name)
-    model = Model(ROBOT, [term] if name == "geometric" else [make_term("geometric"), term])
-    return model, [p.name for p in term.parameters(ROBOT)]
+    term, robot = build(name), robot_of(name)
+    model = Model(robot, [term] if name == "geometric" else [make_term("geometric"), term])
+    return model, [p.name for p in term.parameters(robot)]
 
 
 def away_from_nominal(model: Model, rng) -> np.ndarray:
@@ -154,8 +172,8 @@ def test_every_registered_term_is_checked():
 @pytest.mark.parametrize("name", terms_for("sizes"))
 def test_term_output_sizes(name, campaign):
     model, own = model_of(name)
-    data = campaign["two"] if name == "sessions" else campaign["full"] if model.orientation else campaign["one"]
-    n, P, C = ROBOT.n, len(model.parameters), len(model.covariate_names)
+    data = data_of(name, model, campaign)
+    n, P, C = model.robot.n, len(model.parameters), len(model.covariate_names)
     assert set(own) <= set(model.parameters.names)
     cov_all = model.covariates(data)
     assert cov_all.shape == (len(data), C) and np.all(np.isfinite(cov_all))
@@ -191,7 +209,7 @@ def test_term_derivatives_are_finite_differences(name, campaign):
     term's parameters against central differences, each step moving the point by about 1 um."""
     model, own = model_of(name)
     assert own, f"{name} has no parameters: name the reason in SKIP"
-    data = campaign["two"] if name == "sessions" else campaign["full"] if model.orientation else campaign["one"]
+    data = data_of(name, model, campaign)
     rng = np.random.default_rng(7)
     q, cov = data.q[::8], model.covariates(data)[::8]
     R = data.rotations[::8] if model.orientation else None
@@ -216,8 +234,8 @@ def test_term_derivatives_are_finite_differences(name, campaign):
 @pytest.mark.parametrize("name", terms_for("bounds"))
 def test_term_parameters_are_bounded_and_start_inside(name):
     term = build(name)
-    term.bind(ROBOT)
-    params = term.parameters(ROBOT)
+    term.bind(robot_of(name))
+    params = term.parameters(robot_of(name))
     assert params, f"{name} has no parameters: name the reason in SKIP"
     for p in params:
         why = next((r for (t, prefix), r in UNBOUNDED.items() if t == name and p.name.startswith(prefix)), None)
@@ -237,11 +255,10 @@ def test_term_calibration_json_round_trip(name, campaign, tmp_path):
     same positions, to 1e-12 m, at poses it was not fitted on."""
     term = build(name)
     spec = CALIBRATE.get(name, "kinematic" if name == "geometric" else f"kinematic+{term.spec()}")
-    data = campaign["two"] if name == "sessions" else campaign["full"] if model_of(name)[0].orientation else \
-        campaign["one"]
+    data = data_of(name, model_of(name)[0], campaign)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        res = calibrate(ROBOT, data, spec, "lm", warn=False, solver_options={"max_iter": 15})
+        res = calibrate(robot_of(name), data, spec, "lm", warn=False, solver_options={"max_iter": 15})
     assert res.model.term(name) is not None, f"{spec}: the calibrated model lacks {name}"
     res.save(tmp_path / "cal.json")
     back = load_calibration(tmp_path / "cal.json")

@@ -133,11 +133,10 @@ def main() -> int:
     ap.add_argument("--json", help="save the rows")
     args = ap.parse_args()
     import casadi
-    import matplotlib
     import numpy as np
 
-    print(f"Python {sys.version.split()[0]}, numpy {np.__version__}, CasADi {casadi.__version__}, matplotlib "
-          f"{matplotlib.__version__}, {os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}")
+    print(f"Python {sys.version.split()[0]}, numpy {np.__version__}, CasADi {casadi.__version__}, "
+          f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}")
     rows: list[dict] = []
     reference: dict = {}
     with tempfile.TemporaryDirectory() as tmp:

@@ -51,7 +51,8 @@ STAGES: tuple[Callable[[CalibrationRun], None], ...] = (
 @limited_threads()
 def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str | Model = "kinematic+compliance",
               solver: str = "ipopt", *, solver_options: dict | None = None, fix: tuple[str, ...] = (),
-              start: dict[str, float] | None = None, check_identifiability: bool = True,
+              start: dict[str, float] | None = None, frames_from: CalibrationResult | None = None,
+              check_identifiability: bool = True,
               warn: bool = True, robust: str | RobustLoss = "huber", position_only: bool = False,
               allow_outside_limits: bool = False, angles_are_degrees: bool = False,
               positions_are_mm: bool = False, allow_mismatch: bool = False,
@@ -89,6 +90,15 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     start : dict, optional
         Start values (SI) by parameter name; default nominal (or the
         calibration's values).
+    frames_from : CalibrationResult, optional
+        A fit of the same poses (the same sessions) to start the solve
+        from: its base pose (each session's), probe mounting and values,
+        ``start``'s values for the parameters it does not have. A model near
+        that fit (the diagnosis fits each model from its parent so) then
+        starts at its solution, not at a closed-form alignment of the start
+        values, and needs a few iterations, not a dozen. The noise scale is
+        still first estimated at ``start``'s values, so the result is the one
+        without it (to the solver's tolerance).
     check_identifiability : bool
         Fix parameters these poses cannot identify (recommended).
     robust : {"huber", "none"} or RobustLoss
@@ -129,6 +139,7 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         The data do not fit the robot, or an unknown parameter name.
     """
     options = Options(solver=solver, solver_options=solver_options or {}, fix=fix, start=start or {},
+                      frames_from=frames_from,
                       check_identifiability=check_identifiability, warn=warn, robust=robust,
                       position_only=position_only, allow_outside_limits=allow_outside_limits,
                       angles_are_degrees=angles_are_degrees, positions_are_mm=positions_are_mm,

@@ -116,9 +116,9 @@ def _new_scale(problem: CalibrationProblem, x: np.ndarray):
 
 
 def solve_robust(problem: CalibrationProblem, x: np.ndarray, solver: str, opts: dict, estimate_scale: bool,
-                 warm: bool = False):
-    """Solve; with ``estimate_scale``, re-estimate the robust loss's noise scale until it settles (changes by
-    less than 5 % from one solution to the next).
+                 scale_at: np.ndarray | None = None, warm: bool = False):
+    """Solve from ``x``; with ``estimate_scale``, re-estimate the robust loss's noise scale until it settles
+    (changes by less than 5 % from one solution to the next; first at ``scale_at``, default ``x``).
 
     A large problem (:data:`LARGE_POSES`) takes the same steps, each solve on every pose started warm: the
     first from the solution of the same solve on a subsample, each later one from the last solution. Only the
@@ -129,10 +129,11 @@ def solve_robust(problem: CalibrationProblem, x: np.ndarray, solver: str, opts: 
     then stopped one solve later (a change of 5.2 % against the full procedure's 4.9 %) and the parameters
     moved by up to 1.6 standard errors. ``warm``: ``x`` is already near the solution."""
     res, name, solve_time, setup_time = None, "", 0.0, 0.0
+    at = x if scale_at is None else scale_at
     large = problem.n_poses >= LARGE_POSES
     for k in range(ROBUST_LOOPS if estimate_scale else 1):
         if estimate_scale:
-            new, change = _new_scale(problem, x)
+            new, change = _new_scale(problem, at)
             if res is not None and change < 0.05:
                 break
             problem.loss = new
@@ -145,7 +146,7 @@ def solve_robust(problem: CalibrationProblem, x: np.ndarray, solver: str, opts: 
         warm = warm or large   # the next solve starts from this one's solution
         solve_time += res.solve_time_s
         setup_time += res.setup_time_s
-        x = res.x
+        x = at = res.x
     res.solve_time_s, res.setup_time_s = solve_time, setup_time
     return res, name
 
@@ -223,7 +224,7 @@ def solve_parameters(run: CalibrationRun) -> None:
     estimate = (not (math.isfinite(loss.sigma) and math.isfinite(loss.sigma_rot)) if run.full_pose
                 else loss.robust and not math.isfinite(loss.sigma))
     res, name = solve_robust(problem, problem.x_from_values(params.values), opts.solver, opts.solver_options,
-                             estimate)
+                             estimate, None if run.scale_at is None else problem.x_from_values(run.scale_at))
     if run.ident is not None and np.isfinite(res.cost):
         # a combination of other parameters in the nominal model that the fitted terms tell apart (the tilt
         # of joint 1 against gravity once a compliance deflects the arm): identified when these poses

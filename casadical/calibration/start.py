@@ -14,9 +14,10 @@ import numpy as np
 
 from ..data.checks import check_poses
 from ..data.measurements import Measurements, session_index
-from ..errors import IdentifiabilityError
+from ..errors import IdentifiabilityError, InputError
+from ..model.kinematics import matrix_to_rpy
 from ..model.parameters import Parameters
-from ..model.symbolic import Model, pose_to_base0
+from ..model.symbolic import Model, base0_to_pose, pose_to_base0
 from ..stats.alignment import align
 from .state import CalibrationRun
 
@@ -92,3 +93,34 @@ def start_pose(run: CalibrationRun) -> None:
             run.tool0 = mean_mounting(model.probe_rotation(data.q, params.values, run.cov, run.base0),
                                       run.measured_rot)
         run.rot = run.measured_rot @ run.tool0.T
+    if opts.frames_from is not None:
+        _start_from(run, opts.frames_from)
+
+
+def _start_from(run: CalibrationRun, fit) -> None:
+    """``calibrate(frames_from=fit)``: the solve starts at ``fit``'s solution, its base pose (each session's)
+    and probe mounting expressed in this run's references (the closed forms above), its values of the other
+    parameters, and the start values of those it does not have; the noise scale is still estimated first at
+    the start values, as without it (``scale_at``)."""
+    model, params = run.model, run.params
+    frames, theirs = model.term("sessions"), fit.model.term("sessions")
+    names = frames.names if frames is not None else []
+    if names != (theirs.names if theirs is not None else []):
+        raise InputError(f"frames_from: a fit of sessions {theirs.names if theirs is not None else []}, these data "
+                         f"have {names}; start from a fit of the same poses")
+    run.scale_at = params.values.copy()
+    for p in params:
+        if p.group != "base" and not p.fixed and not p.name.startswith("tool_") and p.name in fit.parameters:
+            p.value = fit.parameters[p.name].value
+    for k, s in enumerate(names or [None]):
+        ref = run.base0 if k == 0 else frames.references[s]
+        M = np.linalg.inv(base0_to_pose(ref)) @ fit.base_matrix(s)
+        at = "" if k == 0 else f"@{s}"
+        for key, v in zip(("x", "y", "z", "roll", "pitch", "yaw"), [*M[:3, 3], *matrix_to_rpy(M[:3, :3])]):
+            if f"base_{key}{at}" in params and not params[f"base_{key}{at}"].fixed:
+                params[f"base_{key}{at}"].value = float(v)
+    if run.full_pose and fit.tool0 is not None and all(f"tool_{k}" in params for k in ("roll", "pitch", "yaw")):
+        D = fit.tool_rotation() @ run.tool0.T
+        for key, v in zip(("roll", "pitch", "yaw"), matrix_to_rpy(D)):
+            if not params[f"tool_{key}"].fixed:
+                params[f"tool_{key}"].value = float(v)

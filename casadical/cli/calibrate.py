@@ -120,13 +120,12 @@ def run(args) -> int:
     print(f"\ncalibration -> {args.out}", file=out)
     if args.html:
         from ..html import calibration_html
-        from ..runtime.threads import evaluation_threads
         before, label = None, "nominal model, base pose fitted"
         if isinstance(robot, CalibrationResult):    # the calibration taken further: the error it starts from
             before = calibrate(robot, data, "base", "lm", warn=False, robust=args.robust,
                                position_only=args.position_only)
             label = f"{args.robot} with its base pose re-estimated"
-        write_text(args.html, calibration_html(result, data, before, label, processes=evaluation_threads(),
-                                               validation=val, progress=status.line), args.force)
+        write_text(args.html, calibration_html(result, data, before, label, validation=val, progress=status.line),
+                   args.force)
         print(f"html report -> {'standard output' if args.html == STDOUT else args.html}", file=out)
     return 0

@@ -154,11 +154,9 @@ def run(args) -> int:
         write_json(args.json, doc, args.force)
         print(f"report -> {'standard output' if args.json == STDOUT else args.json}", file=out)
     if args.html:
-        from ..html import diagnosis_html  # matplotlib: imported only for the HTML report
-        from ..runtime.threads import evaluation_threads
+        from ..html import diagnosis_html
 
-        write_text(args.html, diagnosis_html(report, processes=evaluation_threads(), progress=say, poses=cal,
-                                             map_joints=map_joints), args.force)
+        write_text(args.html, diagnosis_html(report, progress=say, poses=cal, map_joints=map_joints), args.force)
         print(f"html report -> {'standard output' if args.html == STDOUT else args.html}", file=out)
     if args.out:
         report.final.save(args.out, overwrite=args.force)

@@ -434,12 +434,13 @@ def effects_from_table(t: dict, robot: Robot, file: str, table: str = "truth") -
     for j, k in stiffness.items():
         if k <= 0:
             raise InputError(f"stiffness must be positive, got {k}", file=file, column=f"{table}.stiffness.{j}")
-    # the catalogue's joint errors are a revolute joint's (casadical.terms.base): none on a linear axis
+    # a protocol's joint errors are a revolute joint's, in degrees: none on a linear axis (whose errors the catalogue
+    # has, in mm: a protocol cannot state them yet)
     for key in ("stiffness", "backlash_deg", "backlash_motion_deg", "encoder_scale", "cubic"):
         for j in v.per_joint(t, key, table, n):
             if robot.joints[j - 1].prismatic:
                 raise InputError(f"joint {j} is prismatic (a linear axis): {key} is an error of a revolute joint's "
-                                 "angle (a linear axis' own errors are not in the catalogue yet)", file=file,
+                                 "angle (a protocol cannot state a linear axis' errors yet)", file=file,
                                  column=f"{table}.{key}.{j}")
     backlash = v.per_joint(t, "backlash_deg", table, n)
     backlash_motion = v.per_joint(t, "backlash_motion_deg", table, n)
@@ -457,8 +458,8 @@ def effects_from_table(t: dict, robot: Robot, file: str, table: str = "truth") -
             raise InputError(f"joint must be 1 to {n} and harmonic a whole number >= 1, got {item!r}",
                              file=file, column=where)
         if robot.joints[int(j) - 1].prismatic:
-            raise InputError(f"joint {int(j)} is prismatic (a linear axis): a periodic gear error is a revolute "
-                             "joint's (a linear axis' own errors are not in the catalogue yet)", file=file,
+            raise InputError(f"joint {int(j)} is prismatic (a linear axis): periodic_deg is a revolute joint's "
+                             "gear error (a protocol cannot state a linear axis' errors yet)", file=file,
                              column=where)
         periodic.append((int(j), int(h), math.radians(amp), math.radians(ph)))
     return Effects(

@@ -4,11 +4,14 @@ from __future__ import annotations
 
 from dataclasses import dataclass, replace
 
+from ..terms.carriage_angle import DEGREES as ANGLE_DEGREES
+from ..terms.straightness import DEGREES as STRAIGHTNESS_DEGREES
+
 #: causes in a few words, for reports (``unexplained`` of no joint: the GP compensator; of a joint: ``unexplained j1``)
 SHORT = {"geometric": "kinematic", "joint_compliance": "compliance", "nonlinear_stiffness": "progressive stiffness",
          "joint_periodic": "periodic", "encoder_scale": "encoder scale", "backlash": "backlash",
          "thermal_expansion": "thermal", "drift": "drift", "warmup": "warm-up", "joint_coupling": "coupling",
-         "mount_compliance": "mount compliance"}
+         "mount_compliance": "mount compliance", "straightness": "straightness", "carriage_angle": "carriage"}
 
 
 #: the tiers of :attr:`Candidate.tier`, in the order a round tries them
@@ -40,6 +43,12 @@ class Candidate:
     source_joint : int or None
         For a joint coupling: the joint whose reading ``joint``'s angle error
         follows (``joint_coupling[j:k]``, parameter ``cpl<j>_<k>``).
+    direction : str or None
+        For a linear axis' straightness: ``x`` or ``y``, across the axis in
+        its frame (``straightness[j:x]``).
+    angle : str or None
+        For a linear axis' carriage angle: ``roll``, ``pitch`` or ``yaw``
+        (``carriage_angle[j:pitch]``).
     """
 
     cause: str
@@ -50,6 +59,8 @@ class Candidate:
     time_constant: float | None = None
     user: tuple[str, ...] = ()
     source_joint: int | None = None
+    direction: str | None = None
+    angle: str | None = None
 
     def shared(self) -> "Candidate":
         """The same cause with one value for every session."""
@@ -96,6 +107,10 @@ class Candidate:
                          else f"{'link' if link else 'joint'} {self.joint}")
         if self.source_joint is not None:
             parts[-1] += f"<-j{self.source_joint}" if short else f" from joint {self.source_joint}'s reading"
+        if self.direction is not None:
+            parts.append(self.direction if short else f"direction {self.direction}")
+        if self.angle is not None:
+            parts.append(self.angle)
         if self.harmonic is not None:
             parts.append(f"h{self.harmonic}" if short else f"harmonic {self.harmonic}")
         if self.source == "motion":
@@ -122,6 +137,10 @@ class Candidate:
             d["user"] = True
         if self.source_joint is not None:
             d["source_joint"] = self.source_joint
+        if self.direction is not None:
+            d["direction"] = self.direction
+        if self.angle is not None:
+            d["angle"] = self.angle
         return d
 
     def parameter_names(self) -> list[str]:
@@ -142,6 +161,8 @@ class Candidate:
             "warmup": ["warmup_x", "warmup_y", "warmup_z"],
             "joint_coupling": [f"cpl{j}_{self.source_joint}"],
             "mount_compliance": ["cmount"],
+            "straightness": [f"straight{j}{self.direction}_p{k}" for k in STRAIGHTNESS_DEGREES],
+            "carriage_angle": [f"{self.angle}{j}_p{k}" for k in ANGLE_DEGREES],
         }[self.cause]
 
 
@@ -188,6 +209,10 @@ def _terms(candidates: list[Candidate]) -> list[str]:
         parts.append(f"joint_coupling[{','.join(f'{j}:{k}' for j, k in cpl)}]")
     if any(c.cause == "mount_compliance" for c in candidates):
         parts.append("mount_compliance")
+    for cause, key in (("straightness", "direction"), ("carriage_angle", "angle")):
+        axis = sorted({(c.joint, getattr(c, key)) for c in candidates if c.cause == cause})
+        if axis:
+            parts.append(f"{cause}[{','.join(f'{j}:{k}' for j, k in axis)}]")
     return parts
 
 
@@ -229,6 +254,13 @@ TELL_APART = {
         "deflection its own torque",
     frozenset({"mount_compliance", "thermal_expansion"}):
         "repeat poses at another temperature with the arm stretched and folded",
+    frozenset({"straightness", "carriage_angle"}):
+        "measure at each position of axis {j} with the arm stretched and folded: the carriage's angle moves the "
+        "point in proportion to the arm's reach, a straightness error by the same amount at any reach",
+    frozenset({"carriage_angle"}):
+        "measure at each position of axis {j} with the arm reaching along each of the carriage's axes",
+    frozenset({"straightness"}):
+        "measure at each position of axis {j} with the tool at several heights and reaches",
     frozenset({"warmup"}):
         "measure for longer, or repeat the first poses at the end: the time constant shows in how fast the "
         "first poses' offset dies away",
@@ -240,7 +272,9 @@ _VARIES = {"encoder_scale": "move joint {j} over a wider range", "joint_periodic
            "backlash": "load joint {j} with torques of both signs", "joint_compliance": "load joint {j} over a wider "
            "range of torques", "nonlinear_stiffness": "load joint {j} over a wider range of torques",
            "mount_compliance": "swing the arm's weight about the base (joint 1 turning, the arm stretched and folded)",
-           "joint_coupling": "move joint {j} and its source joint independently over wider ranges"}
+           "joint_coupling": "move joint {j} and its source joint independently over wider ranges",
+           "straightness": "move axis {j} over more of its travel", "carriage_angle": "move axis {j} over more of its "
+           "travel"}
 
 
 def tell_apart(a: Candidate, b: Candidate) -> str:

@@ -25,6 +25,15 @@ own poses (a gear error of one session is diluted in the others'). A drift
 and a warm-up belong to their session by nature: with several sessions only
 their own are tried.
 
+A linear axis (a prismatic joint: a track, a column) has its own kinds
+instead of a revolute joint's compliance, progressive stiffness and
+coupling (ISO 230-1): its scale per metre, a periodic error per metre from
+:data:`MIN_CYCLES` cycles over the travel the data cover, play by the
+motion (and by the load where gravity pushes along it), its straightness
+across it in x and y and its carriage's roll, pitch and yaw; the robot's
+only (a property of the axis, as a coupling is of the wrist) but for the
+per-joint kinds a session may have on its own.
+
 A kind the data cannot test is never skipped in silence: :class:`NotTried`
 says why and what would allow it (the links' masses or a payload column
 for a compliance, the poses' times for a drift or a warm-up, a temperature
@@ -41,8 +50,11 @@ import numpy as np
 from ..data.measurements import Measurements
 from ..robot import Robot
 from ..stats.physics import sign_changes
+from ..terms.carriage_angle import ANGLES as CARRIAGE_ANGLES
 from ..terms.definitions import known
 from ..terms.mount_compliance import max_mount_moment, mount_moments
+from ..terms.periodic import phase
+from ..terms.straightness import DIRECTIONS as STRAIGHTNESS_DIRECTIONS
 from .candidates import Candidate
 from .design import ONE_AT_A_TIME, moving_joint
 from .periodogram import Periodogram, joint_errors, periodogram
@@ -55,6 +67,10 @@ PER_JOINT = ("joint_compliance", "nonlinear_stiffness", "encoder_scale", "backla
 WARMUP_STEPS = 10
 #: a joint covering less than this (degrees) cannot tell its low harmonics from the geometry
 SHORT_RANGE_DEG = 90.0
+#: a linear axis' periodic error (a screw's or a rack's pitch) completes at least this many cycles over the travel
+#: the data cover: fewer is a bow or a slope of the position error, which a scale or the geometry also takes (a
+#: first harmonic over a 1.03 m column took the place of an error quadratic in the position)
+MIN_CYCLES = 2
 #: gravity torques below this (N m) at every pose: the joint is not loaded
 NO_TORQUE = 1e-9
 #: the horizontal moment of the weights must change by this share of its largest possible value over the poses
@@ -102,14 +118,19 @@ def not_tried(robot: Robot, cal: Measurements, torques: np.ndarray, settings: Di
     """
     out = []
     revolute = [j for j, jt in enumerate(robot.joints, start=1) if not jt.prismatic]
-    if len(revolute) < robot.n:
-        out.append(NotTried("joint_compliance, joint_periodic, encoder_scale, backlash, joint_coupling",
-                            "a prismatic joint (a linear axis): these are errors of a revolute joint's angle, and "
-                            "a linear axis' own errors (scale per metre, pitch, straightness, the carriage's roll, "
-                            "pitch and yaw) are not in the catalogue yet (the geometry calibrates where the axis "
-                            "lies and points)",
-                            "no data can: the catalogue has no error of a linear axis yet",
-                            [j for j in range(1, robot.n + 1) if j not in revolute]))
+    linear = [j for j in range(1, robot.n + 1) if j not in revolute]
+    if linear:
+        out.append(NotTried("joint_compliance, nonlinear_stiffness, joint_coupling",
+                            "a prismatic joint (a linear axis): these are errors of a revolute joint's angle (a "
+                            "linear axis' are screened: its scale, periodic error and backlash along it, its "
+                            "straightness, its carriage's roll, pitch and yaw; the column's or the track's give "
+                            "under the arm's moment is the mount compliance)",
+                            "no data can: a linear axis has no such error", linear))
+        still_axes = [j for j in linear if np.ptp(cal.q[:, j - 1]) <= 0]
+        if still_axes:
+            out.append(NotTried("encoder_scale, joint_periodic, straightness, carriage_angle",
+                                "the linear axis does not move in the data", "poses over the axis' travel",
+                                still_axes))
     payload = cal.get("payload_kg")
     masses = any(j.mass > 0 for j in robot.joints) or robot.payload_mass > 0 or (
         payload is not None and np.any(payload > 0))
@@ -121,11 +142,16 @@ def not_tried(robot: Robot, cal: Measurements, torques: np.ndarray, settings: Di
                             "known payload"))
     else:
         idle = [j for j in revolute if np.max(np.abs(torques[:, j - 1]), initial=0.0) < NO_TORQUE]
+        level = [j for j in linear if np.max(np.abs(torques[:, j - 1]), initial=0.0) < NO_TORQUE]
+        if level:
+            out.append(NotTried("backlash by the load", "gravity does not push the linear axis along it (a level "
+                                "track)", "nothing these poses could change; play by the direction of motion is "
+                                "tried", level))
         if idle:
             out.append(NotTried("joint_compliance, nonlinear_stiffness, backlash by the load",
                                 "gravity does not load them at any pose (an axis along gravity, or no mass beyond it)",
                                 "nothing these poses could change: gravity never loads such a joint", idle))
-        one_sign = [j for j in revolute if j not in idle
+        one_sign = [j for j in range(1, robot.n + 1) if j not in idle + level
                     and not sign_changes(np.sign(torques[:, j - 1]), "")[0]]
         if one_sign:
             out.append(NotTried("backlash by the load", "the gravity torque keeps one sign over the poses (play "
@@ -144,7 +170,7 @@ def not_tried(robot: Robot, cal: Measurements, torques: np.ndarray, settings: Di
         out.append(NotTried("joint_coupling", "the poses move one joint at a time: a joint's error that follows "
                             "another joint's reading would show at one configuration of the arm only",
                             "poses that move the joints together (random poses, or casadical plan-poses)"))
-    one_way = [j for j in revolute if not sign_changes(cal.moves[:, j - 1], "")[0]]
+    one_way = [j for j in range(1, robot.n + 1) if not sign_changes(cal.moves[:, j - 1], "")[0]]
     if one_way:
         out.append(NotTried("backlash by the motion", "the joint moves in one direction only between the rows",
                             "poses approached from both directions, in measurement order", one_way))
@@ -172,6 +198,14 @@ def not_tried(robot: Robot, cal: Measurements, torques: np.ndarray, settings: Di
                             f"harmonics below about {360 / top:.0f} cycles per turn complete less than a period and "
                             "cannot be told from the geometry or an encoder scale",
                             "measure the joints over a wider range (half a turn or more)", sorted(short)))
+    low = {j: lowest_harmonic(cal, j) for j in linear if np.ptp(cal.q[:, j - 1]) > 0}
+    low = {j: h for j, h in low.items() if h > 1}
+    if low:
+        out.append(NotTried("joint_periodic (low harmonics of a linear axis)",
+                            "over the " + ", ".join(f"{np.ptp(cal.q[:, j - 1]) * 1000:.0f}" for j in low)
+                            + f" mm these axes cover, harmonics below {', '.join(map(str, low.values()))} cycles per "
+                            f"metre complete fewer than {MIN_CYCLES} cycles: a bow or a slope of the position, not a "
+                            "pitch error", "measure over more of the axis' travel", sorted(low)))
     h = max_harmonic(cal, settings)
     if h < settings.max_harmonic:
         out.append(NotTried("joint_periodic (high harmonics)",
@@ -179,6 +213,12 @@ def not_tried(robot: Robot, cal: Measurements, torques: np.ndarray, settings: Di
                             f"{3 * settings.max_harmonic} or more poses (to scan up to --max-harmonic "
                             f"{settings.max_harmonic})"))
     return out
+
+
+def lowest_harmonic(data: Measurements, j: int) -> int:
+    """The lowest harmonic (cycles per metre) screened on linear axis ``j``: :data:`MIN_CYCLES` over the travel
+    ``data`` cover."""
+    return max(1, math.ceil(MIN_CYCLES / max(float(np.ptp(data.q[:, j - 1])), 1e-9) - 1e-9))
 
 
 def one_at_a_time(data: Measurements) -> bool:
@@ -267,7 +307,7 @@ class Catalogue:
             out = []
             for j in range(1, self.robot.n + 1):
                 s, w = joint_errors(resid[at], JA[at][:, :, j - 1])
-                out.append(periodogram(q[at, j - 1], s, w, j, h))
+                out.append(periodogram(phase(self.robot, j, q[at, j - 1]), s, w, j, h))
             return out
 
         self.periodograms = grams(np.ones(len(self.cal), bool))
@@ -285,12 +325,18 @@ class Catalogue:
         """
         have = set(accepted)
         out: list[Candidate] = []
-        # a revolute joint's errors only: a linear axis' own (scale per metre, pitch, straightness, roll, pitch
-        # and yaw of its carriage) are not in the catalogue yet, and these make no sense on it
         revolute = [j for j, jt in enumerate(self.robot.joints, start=1) if not jt.prismatic]
         for j in revolute:
             out += [Candidate("joint_compliance", j), Candidate("encoder_scale", j),
                     Candidate("backlash", j, source="torque"), Candidate("backlash", j, source="motion")]
+        # a linear axis' own errors (ISO 230-1): its scale (per metre), its play by the load (a column's weight) and
+        # by the motion, its straightness across it and its carriage's roll, pitch and yaw as it travels
+        for j in (j for j in range(1, self.robot.n + 1) if j not in revolute and np.ptp(self.cal.q[:, j - 1]) > 0):
+            out += [Candidate("encoder_scale", j), Candidate("backlash", j, source="motion")]
+            if np.max(np.abs(torques()[:, j - 1]), initial=0.0) >= NO_TORQUE:    # a column: its weight loads it
+                out.append(Candidate("backlash", j, source="torque"))
+            out += [Candidate("straightness", j, direction=d) for d in STRAIGHTNESS_DIRECTIONS]
+            out += [Candidate("carriage_angle", j, angle=a) for a in CARRIAGE_ANGLES]
         several = len(self.sessions) > 1
         moving = [j for j in revolute if np.ptp(self.cal.q[:, j - 1]) > 0]
         # a coupling's source joint comes before it: a drive train passes through the joints before its joint;
@@ -327,12 +373,16 @@ class Catalogue:
         scopes = [(None, self.periodograms)] + list(self._own.items())
         for s, grams in scopes:
             for j, pg in enumerate(grams, start=1):
-                if j not in revolute:
+                if j not in revolute and np.ptp(self.cal.q[:, j - 1]) <= 0:
                     continue
-                ranked = [int(h) for h in pg.harmonics[np.argsort(-pg.power)] if (j, int(h), s) not in excluded][:2]
+                # a linear axis' from MIN_CYCLES cycles over its travel (lowest_harmonic), a joint's from the first
+                low = 1 if j in revolute else lowest_harmonic(self.cal, j)
+                ranked = [int(h) for h in pg.harmonics[np.argsort(-pg.power)] if (j, int(h), s) not in excluded
+                          and h >= low][:2]
                 # the first harmonic always: over a small range it mimics an encoder scale error,
                 # and the ambiguity can only be reported if both are screened
-                hs = set(ranked) | ({1} if (j, 1, s) not in excluded and len(pg.harmonics) else set())
+                hs = set(ranked) | ({low} if (j, low, s) not in excluded and low <= pg.harmonics.max(initial=0)
+                                    else set())
                 out += [Candidate("joint_periodic", j, h, session=s) for h in sorted(hs)]
         # a joint's play by the load and by the motion are both screened while the other is in the model: where
         # the last move follows the joint's reading (random poses in row order) the load's sign stands for the

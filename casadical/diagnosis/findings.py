@@ -15,6 +15,7 @@ from .evidence import Evidence, Support
 from .plots import joint_view, residual_plot
 from .report import Finding
 from .validation import cv_record, cv_text
+from .words import travel_curve
 
 
 class UnexplainedLog:
@@ -28,6 +29,7 @@ class UnexplainedLog:
 
     def __init__(self) -> None:
         self.by_joint: dict[int, Finding] = {}
+        self.linear: set[int] = set()                      # the robot's linear axes (their causes in mm)
         self.excluded: set[tuple] = set()                  # periodic (joint, harmonic, session or None)
         self.excluded_causes: set[Candidate] = set()       # other candidates
         self.strongest: dict[int, Candidate] = {}          # per joint, for the transfer study
@@ -35,17 +37,29 @@ class UnexplainedLog:
     def add(self, evidence: Evidence) -> None:
         cand, values, checks = evidence.candidate, evidence.values, evidence.support.checks
         j = cand.joint
-        if cand.cause == "joint_periodic":
+        linear = j in self.linear      # a linear axis' periodic error and play are in metres
+        if cand.cause in ("straightness", "carriage_angle"):
+            self.excluded_causes.add(cand)
+            v = np.array([values[n] for n in cand.parameter_names() if n in values])
+            size = float(np.abs(v).sum()) * 1000.0
+            item = {"what": (f"a {cand.direction} straightness of the axis ({size:.3g} mm at most)"
+                             if cand.cause == "straightness" else
+                             f"a {cand.angle} of its carriage ({size:.3g} mrad at most)")}
+        elif cand.cause == "joint_periodic":
             band = checks["resolution"].band if "resolution" in checks else (cand.harmonic, cand.harmonic)
             self.excluded.update((j, h, cand.session) for h in range(band[0], band[1] + 1))
             s_, c_ = (values[n] for n in cand.parameter_names())
             size = math.degrees(math.hypot(s_, c_)) * 3600
             item = {"harmonic": cand.harmonic, "band": list(band), "amplitude_arcsec": size,
                     "what": f"harmonic {cand.harmonic} ({size:.1f} arcsec)"}
+            if linear:
+                item["what"] = f"{cand.harmonic} cycles per metre ({math.hypot(s_, c_) * 1000:.3g} mm)"
         elif cand.cause == "encoder_scale":
             self.excluded_causes.add(cand)
             v = values[cand.parameter_names()[0]]
             item = {"trend_ppm": v * 1e6, "what": f"a trend along the joint's reading ({v * 1e6:.0f} ppm)"}
+            if linear:
+                item["what"] = f"a trend along the axis' position ({v * 1e3:.3g} mm per m)"
         elif cand.cause == "backlash":
             self.excluded_causes.add(cand)
             v = math.degrees(values[cand.parameter_names()[0]]) * 3600
@@ -57,6 +71,10 @@ class UnexplainedLog:
             else:
                 what = f"a step of {-v:.1f} arcsec against the sign of the joint's load"
             item = {"half_play_arcsec": v, "what": what}
+            if linear:
+                item = {"half_play_mm": v / ARCSEC_PER_MM,
+                        "what": f"a step with the sign of the axis' {'motion' if motion else 'load'} "
+                                f"({v / ARCSEC_PER_MM:.3g} mm)"}
         elif cand.cause == "joint_coupling":
             self.excluded_causes.add(cand)
             v = values[cand.parameter_names()[0]]
@@ -117,6 +135,34 @@ def describe(findings: list[Finding], support: dict[Candidate, Support], before:
         f.plot = residual_plot(cand, before.get(cand, final), final, cal, view)
 
 
+#: a linear axis' parameters in metres read as radians by the arcsec conversions: times this is millimetres
+ARCSEC_PER_MM = math.degrees(1.0) * 3600 / 1000.0
+
+
+def linear_axis_words(cand: Candidate, params: list) -> str:
+    """The size of a linear axis' cause in words (mm, mm per m, mrad), from its parameters."""
+    v = np.array([p.value for p in params])
+    sd = np.array([p.std for p in params])
+    j = cand.joint
+    if cand.cause == "encoder_scale":
+        return f"scale error {v[0] * 1e3:.4g} mm per m of travel of axis {j} (std {sd[0] * 1e3:.2g})"
+    if cand.cause == "joint_periodic":
+        return (f"amplitude {math.hypot(*v) * 1e3:.3g} mm, phase {math.degrees(math.atan2(v[1], v[0])):.1f} deg, "
+                f"{cand.harmonic} cycles per metre of axis {j}")
+    if cand.cause == "backlash":
+        return (f"half play {v[0] * 1e3:.3g} mm along axis {j} (std {sd[0] * 1e3:.2g}), sign from the "
+                f"{'force of gravity along it' if cand.source != 'motion' else 'last move'}")
+    if cand.cause in ("straightness", "carriage_angle"):
+        curve = travel_curve(v, [p.name for p in params])
+        if cand.cause == "straightness":
+            return (f"the carriage of axis {j} off its straight line in {cand.direction} by up to "
+                    f"{np.ptp(curve) * 1e3:.3g} mm over its travel (a bow and an S: "
+                    + ", ".join(f"{c * 1e3:+.3g}" for c in v) + " mm)")
+        return (f"the carriage of axis {j} turns in {cand.angle} by up to {np.ptp(curve) * 1e3:.3g} mrad over its "
+                "travel (a slope and a bow: " + ", ".join(f"{c * 1e3:+.3g}" for c in v) + " mrad)")
+    return ""
+
+
 def param_values(res: CalibrationResult, names: list[str]) -> dict:
     out = {}
     for name in names:
@@ -130,6 +176,9 @@ def what(cand: Candidate, res: CalibrationResult, cal: Measurements) -> str:
     """The cause's size in words, from the model's values (a cause of one session: its own, ``c2@A``)."""
     P = res.parameters
     names = cand.parameter_names()
+    linear = cand.joint is not None and res.model.robot.joints[cand.joint - 1].prismatic
+    if linear or cand.cause in ("straightness", "carriage_angle"):
+        return linear_axis_words(cand, [P[n] for n in names])
     if cand.cause == "joint_compliance":
         p = P[names[0]]
         k = 1.0 / p.value if p.value > 0 else math.inf

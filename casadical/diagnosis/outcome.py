@@ -16,7 +16,8 @@ from .state import DiagnosisRun
 def assemble_report(run: DiagnosisRun) -> None:
     final = run.final
     plots = {"val_errors_nominal_mm": (run.val_errors(run.nominal) * 1000).tolist(),
-             "val_errors_final_mm": (run.final_errors * 1000).tolist()}
+             "val_errors_final_mm": (run.final_errors * 1000).tolist(),
+             "val_lines": run.val.lines.tolist()}   # the figures' hover titles: each pose's CSV line
     structure = run.set_aside
     run.report = DiagnosisReport(
         run.robot.name, run.steps, run.findings, run.final_spec, run.final_val, final, run.periodograms, plots,

@@ -33,6 +33,7 @@ from scipy import special
 
 from ..data.measurements import Measurements
 from ..model.parameters import Parameter
+from ..terms.periodic import phase
 from .screening import LinearFit, Screen, periodic_columns
 
 #: the data must prefer a harmonic to each neighbour by this log-likelihood-ratio (x2): 2 ln 100
@@ -65,6 +66,15 @@ class Resolution:
     neighbour_margin: float
     band: tuple[int, int]
     range_deg: float
+    #: a linear axis' travel in the data (mm; its ``range_deg`` is 360 per metre); None: a revolute joint
+    range_mm: float | None = None
+
+    @property
+    def covered(self) -> str:
+        """``the 118 deg the joint covers``, ``the 3800 mm the axis covers``."""
+        if self.range_mm is not None:
+            return f"the {self.range_mm:.0f} mm the axis covers"
+        return f"the {self.range_deg:.0f} deg the joint covers"
 
     @property
     def resolved(self) -> bool:
@@ -73,19 +83,20 @@ class Resolution:
     def to_dict(self) -> dict:
         return {"outside_geometry": round(self.outside_geometry, 4),
                 "neighbour_margin": round(self.neighbour_margin, 3),
-                "band": list(self.band), "range_deg": round(self.range_deg, 2), "resolved": self.resolved}
+                "band": list(self.band), "range_deg": round(self.range_deg, 2), "resolved": self.resolved,
+                **({"range_mm": round(self.range_mm, 1)} if self.range_mm is not None else {})}
 
     def text(self) -> str:
         lo, hi = self.band
         if self.resolved:
-            return (f"resolved over the {self.range_deg:.0f} deg the joint covers (preferred to its neighbours by "
+            return (f"resolved over {self.covered} (preferred to its neighbours by "
                     f"a likelihood ratio of {math.exp(min(self.neighbour_margin, 1400) / 2):.3g})")
         why = []
         if self.outside_geometry < OUTSIDE_GEOMETRY:
             why.append(f"only {100 * self.outside_geometry:.0f}% of it lies outside what the geometry "
                        "already fits")
         if self.neighbour_margin < NEIGHBOUR_MARGIN:
-            why.append(f"harmonics {lo}..{hi} fit about as well over the {self.range_deg:.0f} deg the joint covers")
+            why.append(f"harmonics {lo}..{hi} fit about as well over {self.covered}")
         return "not resolved: " + "; ".join(why)
 
 
@@ -96,7 +107,7 @@ def resolution(screen: Screen, joint: int, harmonic: int, session: str | None = 
     sw, Q, r_perp = screen.projection()
     sigma2 = float(r_perp @ r_perp) / max(len(r_perp) - Q.shape[1], 1)
     direction = screen.angle_dir[joint] * at[:, None]
-    q = screen.cal.q[:, joint - 1]
+    q = phase(screen.model.robot, joint, screen.cal.q[:, joint - 1])     # 2 pi per metre on a linear axis
 
     def drop(h: int) -> float:
         C = periodic_columns(direction, q, h).reshape(-1, 2) * sw[:, None]
@@ -118,7 +129,9 @@ def resolution(screen: Screen, joint: int, harmonic: int, session: str | None = 
         lo -= 1
     while hi - harmonic < MAX_BAND and margin(hi + 1) < NEIGHBOUR_MARGIN:
         hi += 1
-    return Resolution(outside, min(margin(h) for h in neighbours), (lo, hi), float(np.degrees(np.ptp(q[at > 0]))))
+    linear = screen.model.robot.joints[joint - 1].prismatic
+    return Resolution(outside, min(margin(h) for h in neighbours), (lo, hi), float(np.degrees(np.ptp(q[at > 0]))),
+                      float(np.ptp(screen.cal.q[at > 0, joint - 1]) * 1000) if linear else None)
 
 
 @dataclass
@@ -145,8 +158,14 @@ class Halves:
     chi2: float
     agree: bool
     unit: str = ""     # a one-parameter term: its value on each half, in this unit
+    #: a linear axis' periodic error: its amplitudes in mm (``amplitude_arcsec`` holds them), with their phases
+    linear: bool = False
 
     def to_dict(self) -> dict:
+        if self.linear:
+            return {"split": self.split, "amplitude_mm": [round(a, 5) for a in self.amplitude_arcsec],
+                    "phase_deg": [round(a, 2) for a in self.phase_deg], "chi2": round(self.chi2, 3),
+                    "agree": self.agree}
         if self.unit:
             return {"split": self.split, "values": list(self.amplitude_arcsec), "unit": self.unit,
                     "chi2": round(self.chi2, 3), "agree": self.agree}
@@ -158,7 +177,8 @@ class Halves:
         what = "lower / upper half of the joint's range" if self.split == "joint" else "first / second half in time"
         a, b = self.amplitude_arcsec
         pa, pb = self.phase_deg
-        values = (f"{a:.4g} / {b:.4g} {self.unit}" if self.unit else
+        values = (f"{a:.3g} / {b:.3g} mm, phase {pa:.0f} / {pb:.0f} deg" if self.linear else
+                  f"{a:.4g} / {b:.4g} {self.unit}" if self.unit else
                   f"{a:.1f} / {b:.1f} arcsec, phase {pa:.0f} / {pb:.0f} deg")
         return f"{what}: {values} ({'agree' if self.agree else 'disagree'}, chi2 = {self.chi2:.1f})"
 
@@ -196,11 +216,12 @@ def halves(fit: LinearFit, params: list[Parameter], data: Measurements, joint: i
             cov.append(C[np.ix_(cols, cols)] * np.outer(s, s))
         diff = est[0] - est[1]
         chi2 = float(diff @ np.linalg.solve(cov[0] + cov[1], diff))
+        linear = len(names) == 2 and params[0].unit == "m"     # a linear axis' periodic error (m)
         if len(names) == 2:
-            amp = tuple(math.degrees(math.hypot(*e)) * 3600 for e in est)
+            amp = tuple(math.hypot(*e) * (1000.0 if linear else math.degrees(1.0) * 3600) for e in est)
             ph = tuple(math.degrees(math.atan2(e[1], e[0])) for e in est)
             unit = ""
         else:
             amp, ph, unit = tuple(float(params[0].to_display(e[0])) for e in est), (0.0, 0.0), params[0].display_unit
-        out.append(Halves(split, amp, ph, chi2, chi2 < crit, unit))
+        out.append(Halves(split, amp, ph, chi2, chi2 < crit, unit, linear))
     return out

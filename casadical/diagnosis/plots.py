@@ -9,6 +9,7 @@ import numpy as np
 from ..data.measurements import Measurements
 from ..result import CalibrationResult
 from ..terms.mount_compliance import mount_moments
+from ..terms.periodic import phase
 from .candidates import Candidate
 from .periodogram import joint_errors
 
@@ -23,8 +24,12 @@ def residual_plot(cand: Candidate, before: CalibrationResult, after: Calibration
 
     ``view``: a function giving :func:`joint_view` of ``after`` on ``d`` (shared by the figures of one model).
     """
-    if cand.cause in ("thermal_expansion", "drift", "warmup", "mount_compliance"):
-        if cand.cause == "thermal_expansion":
+    if cand.cause in ("thermal_expansion", "drift", "warmup", "mount_compliance", "straightness", "carriage_angle"):
+        if cand.cause in ("straightness", "carriage_angle"):
+            x, xlabel = d.q[:, cand.joint - 1] * 1000.0, f"axis {cand.joint} position (mm)"
+            ys = [np.linalg.norm(r.residuals(d), axis=1) * 1000 for r in (before, after)]
+            ylabel = "position error (mm)"
+        elif cand.cause == "thermal_expansion":
             x, xlabel = d.get("temperature_c"), "temperature (deg C)"
             ys = [np.linalg.norm(r.residuals(d), axis=1) * 1000 for r in (before, after)]
             ylabel = "position error (mm)"
@@ -41,17 +46,36 @@ def residual_plot(cand: Candidate, before: CalibrationResult, after: Calibration
             ys = [r.residuals(d) @ u * 1000 for r in (before, after)]
             ylabel = f"residual along the {'drift' if cand.cause == 'drift' else 'warm-up offset'} (mm)"
         return {"x": np.asarray(x, float).tolist(), "before": ys[0].tolist(), "after": ys[1].tolist(),
-                "xlabel": xlabel, "ylabel": ylabel}
+                "xlabel": xlabel, "ylabel": ylabel, **_hover(after, d)}
     if cand.joint is None:      # a cause of one's own that acts on no joint: the errors before and after
         ys = [np.linalg.norm(r.residuals(d), axis=1) * 1000 for r in (before, after)]
         return {"x": np.asarray(d.rows, float).tolist(), "before": ys[0].tolist(), "after": ys[1].tolist(),
-                "xlabel": "row (measurement order)", "ylabel": "position error (mm)"}
+                "xlabel": "row (measurement order)", "ylabel": "position error (mm)", **_hover(after, d)}
     j, m, p = cand.joint, after.model, after.parameters
     cov = m.covariates(d)
     resid, directions = view() if view else joint_view(after, d)
     s, _ = joint_errors(resid, directions[:, :, j - 1])
     q = d.q[:, j - 1]
     value = p[cand.parameter_names()[0]].value
+    if m.robot.joints[j - 1].prismatic:      # a linear axis: its error along it (mm) against its position (mm)
+        if cand.cause == "joint_periodic":
+            sn, cs = (p[n].value for n in cand.parameter_names())
+            arg = phase(m.robot, j, cand.harmonic * q)
+            effect = sn * np.sin(arg) + cs * np.cos(arg)
+            x = np.degrees(arg) % 360.0
+            xlabel = f"phase of {cand.harmonic} cycles per metre of axis {j} (deg)"
+        elif cand.cause == "backlash" and cand.source == "motion":
+            x = d.moves[:, j - 1]
+            effect, xlabel = -value * x, f"direction of the last move of axis {j}"
+        elif cand.cause == "backlash":
+            x = m.torques(d.q, p.values, cov)[:, j - 1]
+            effect, xlabel = value * np.sign(x), f"force of gravity along axis {j} (N)"
+        else:
+            effect, x, xlabel = value * q, q * 1000.0, f"axis {j} position (mm)"
+        order = np.argsort(x)
+        return {"x": np.asarray(x, float).tolist(), "partial": ((s + effect) * 1000.0).tolist(),
+                "curve_x": np.asarray(x, float)[order].tolist(), "curve_y": (effect[order] * 1000.0).tolist(),
+                "xlabel": xlabel, "ylabel": f"axis {j} position error: residual + fitted effect (mm)"}
     if cand.cause == "joint_periodic":
         sn, cs = (p[n].value for n in cand.parameter_names())
         effect = sn * np.sin(cand.harmonic * q) + cs * np.cos(cand.harmonic * q)
@@ -74,7 +98,13 @@ def residual_plot(cand: Candidate, before: CalibrationResult, after: Calibration
     order = np.argsort(x)
     return {"x": np.asarray(x, float).tolist(), "partial": ((s + effect) * ARCSEC).tolist(),
             "curve_x": np.asarray(x, float)[order].tolist(), "curve_y": (effect[order] * ARCSEC).tolist(),
-            "xlabel": xlabel, "ylabel": f"joint {j} angle error: residual + fitted effect (arcsec)"}
+            "xlabel": xlabel, "ylabel": f"joint {j} angle error: residual + fitted effect (arcsec)",
+            "lines": d.lines.tolist(), "error_mm": (np.linalg.norm(resid, axis=1) * 1000).tolist()}
+
+
+def _hover(res: CalibrationResult, d: Measurements) -> dict:
+    """What a figure's hover titles give of each pose: its CSV line and the position error of ``res`` (mm)."""
+    return {"lines": d.lines.tolist(), "error_mm": (np.linalg.norm(res.residuals(d), axis=1) * 1000).tolist()}
 
 
 def joint_view(res: CalibrationResult, d: Measurements) -> tuple[np.ndarray, np.ndarray]:

@@ -28,6 +28,7 @@ def check_data(run: DiagnosisRun) -> None:
     run.schemes = run.fold_schemes()
     run.sessions = cal.session_names
     run.catalogue = Catalogue(run.robot, cal, run.s)
+    run.unexplained.linear = {j for j, jt in enumerate(run.robot.joints, start=1) if jt.prismatic}
     if run.full_pose:
         run.notes.append("full pose: every fit is on the measured positions and orientations, weighted by their "
                          "noise scales from the data (as calibrate); the screening of candidate causes, its tests "

@@ -29,11 +29,11 @@ from ..data.measurements import Measurements
 from ..problem import CalibrationProblem
 from ..result import CalibrationResult
 from ..terms.joint_coupling import JointCoupling
-from ..terms.periodic import JointPeriodic
+from ..terms.periodic import JointPeriodic, phase
 from ..terms.warmup import Warmup, decay
 from .candidates import Candidate, compose_spec, tell_apart
 from .statistics import NestedTest, nested_test, set_aside_share
-from .validation import Linearized, solve_identified, switch_off
+from .validation import Linearized, fold_grams, solve_identified, switch_off
 
 #: causes whose columns are computed here rather than by the model: a periodic error (the direction of its
 #: joint's angle times a sine of its harmonic), a joint coupling (that direction times the source joint's
@@ -131,6 +131,7 @@ class Screen:
                                                                  for s in dict.fromkeys(sessions.tolist())}}
         self._val: dict = {}                   # the validation poses' residuals and columns, made on first use
         self._basis: dict = {}                 # projection(), made on first use
+        self._grams: dict = {}                 # fold_grams() of the current model's columns, by folds
         self._set_extra(cands)
 
     def with_candidates(self, cands: list[Candidate]) -> "Screen":
@@ -185,7 +186,8 @@ class Screen:
         """Column (N, 3), scaled, of the ``k``-th parameter of candidate ``c`` at the poses of ``d`` (``J``: the
         model's free columns there, ``JA``: the directions of the joints' angles)."""
         if c.cause == "joint_periodic":
-            col = periodic_columns(JA[:, :, c.joint - 1], d.q[:, c.joint - 1], c.harmonic)[:, :, k]
+            col = periodic_columns(JA[:, :, c.joint - 1], phase(self.model.robot, c.joint, d.q[:, c.joint - 1]),
+                                   c.harmonic)[:, :, k]
         elif c.cause == "joint_coupling":
             col = JA[:, :, c.joint - 1] * d.q[:, c.source_joint - 1, None]
         elif c.cause == "warmup":
@@ -263,8 +265,46 @@ class Screen:
         names = [self.names[k] for k in cols]
         values = {n: self.params[n].value + self.scale[k] * dk for n, k, dk in zip(names, cols, d)}
         lin = Linearized(J, r1, self.w, names, self.scale[cols], switch_off(names, values, self.scale[cols]),
-                         np.array([(values[n] - self.params[n].nominal) / self.scale[k] for n, k in zip(names, cols)]))
+                         np.array([(values[n] - self.params[n].nominal) / self.scale[k] for n, k in zip(names, cols)]),
+                         lambda folds: self.fold_grams(cols, folds))
         return LinearFit(lin, values, float(np.sum(self.w[:, None] * r1 ** 2)), len(cols), d, cols)
+
+    def fold_grams(self, cols: list[int], folds: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+        """:func:`.validation.fold_grams` of the weighted columns ``cols`` (the current model's, then a
+        candidate's): the current model's block is made once per linearisation and folds, shared by every
+        candidate; a candidate adds its own rows and columns, each fold's part summed as one product (a fold's
+        indicator times the columns' products, pose by pose): the cost of a candidate's columns, not of the
+        model's."""
+        p0 = len(self.cur)
+        if list(cols[:p0]) != list(self.cur):
+            return fold_grams(self.J[:, :, cols] * np.sqrt(self.w)[:, None, None], folds)
+        key = tuple(map(id, folds))
+        if key not in self._grams:
+            sw = np.sqrt(self.w)[:, None, None]
+            S = np.zeros((len(folds), len(self.w)))
+            for k, F in enumerate(folds):
+                S[k, F] = 1.0
+            Jb = self.J[:, :, self.cur] * sw
+            self._grams[key] = (S, Jb, *fold_grams(Jb, folds))
+        S, Jb, A, AT = self._grams[key]
+        extra = list(cols[p0:])
+        if not extra:
+            return A, AT
+        Jc = self.J[:, :, extra] * np.sqrt(self.w)[:, None, None]
+        n, pb, pc = Jb.shape[0], p0, len(extra)
+
+        def per_fold(X, Y):      # each fold's sum over its poses of X_i^T Y_i: (n_folds, a, b)
+            XY = np.einsum("nia,nib->nab", X, Y).reshape(n, -1)
+            return (S @ XY).reshape(len(folds), X.shape[2], Y.shape[2]), XY.sum(axis=0).reshape(X.shape[2], Y.shape[2])
+        Fbc, Abc = per_fold(Jb, Jc)
+        Fcc, Acc = per_fold(Jc, Jc)
+        A1 = np.block([[A, Abc], [Abc.T, Acc]])
+        AT1 = np.empty((len(folds), pb + pc, pb + pc))
+        AT1[:, :pb, :pb] = AT
+        AT1[:, :pb, pb:] = Abc - Fbc
+        AT1[:, pb:, :pb] = np.swapaxes(AT1[:, :pb, pb:], 1, 2)
+        AT1[:, pb:, pb:] = Acc - Fcc
+        return A1, AT1
 
     def validation_errors(self, fit: LinearFit) -> np.ndarray:
         """Position errors (m) on the validation poses of a one-step fit (a judge, never used to decide)."""

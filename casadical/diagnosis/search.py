@@ -96,7 +96,7 @@ def search_causes(run: DiagnosisRun) -> None:
         step = next(s for s in reversed(run.steps) if s.accepted)
         # the one-step fit decided; the full fit (noise scale re-estimated) must confirm the significance
         run.say(f"  {cand.label()}: the full fit")
-        new_fit = run.fit(compose_spec(run.accepted + [cand], run.geometric), start=chosen.start)
+        new_fit = run.fit(compose_spec(run.accepted + [cand], run.geometric), start=chosen.start, parent=run.current)
         verdict = judge_full_fit(run, cand, new_fit, chosen.level)
         if verdict.reasons:
             reject(run, cand, step, new_fit, verdict)

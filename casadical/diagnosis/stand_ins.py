@@ -70,6 +70,8 @@ def stands_in(current: CalibrationResult, lin: Linearized, accepted: list[Candid
               scr: StructureScreen, alpha: float) -> tuple[Found, str] | None:
     """The structure ``cand`` only approximates in ``current`` (``lin``: linearised at it on the calibration poses)
     and why (see the module), or None."""
+    if cand.cause in AXIS_SHAPES and cand.session is None:
+        return _axis_stand_in(current, lin, accepted, cand, scr, alpha)
     if cand.cause not in OWN_VARIABLE or cand.session is not None or (
             cand.joint is None and cand.cause != "mount_compliance"):
         return None
@@ -113,6 +115,40 @@ def stands_in(current: CalibrationResult, lin: Linearized, accepted: list[Candid
     return None
 
 
+#: a linear axis' causes that move the carriage (across the axis, or turning it): no pair of the structure screen is
+#: their shape in general (the directions across the axis turn with the joints before it); their own terms are
+#: flexible already (a bow and an S, a slope and a bow), so a structure is another's only where it explains more
+AXIS_SHAPES = ("straightness", "carriage_angle")
+
+
+def _axis_stand_in(current: CalibrationResult, lin: Linearized, accepted: list[Candidate], cand: Candidate,
+                   scr: StructureScreen, alpha: float) -> tuple[Found, str] | None:
+    """A linear axis' straightness or carriage angle that only approximates structure of another shape: the
+    strongest structure in what it takes (the cause switched off) explains more than the cause does (a flexible
+    term of it is significant beside the cause's), and beside that term the cause explains nothing more (a
+    carriage's yaw standing for a column's position error along it: the tool's reach forward turns the yaw
+    into a vertical move)."""
+    cols = [lin.names.index(n) for n in own_parameters(cand, accepted) if n in lin.names]
+    if not cols:
+        return None
+    keep = [k for k in range(lin.J.shape[2]) if k not in cols]
+    values = np.array([current.parameters[lin.names[k]].value / lin.scale[k] for k in cols])
+    r0 = lin.r - lin.J[:, :, cols] @ values
+    sw = np.sqrt(np.repeat(lin.weights, 3))
+    share = np.repeat(set_aside_share(lin.weights), 3)
+    ask = _Questions(r0.ravel() * sw, sw, lin.J[:, :, keep], lin.J[:, :, cols], math.log10(alpha),
+                     share if np.any(share < 1) else None)
+    found = scr.strongest(ask.rest, r0, lin.weights)
+    if found is None:
+        return None
+    if not ask.significant(ask.beside(ask.mine, found.X)):
+        return None         # the structure is no more than the cause takes: the cause's own (its term is flexible)
+    test = ask.beside(found.X, ask.mine)
+    if not ask.significant(test):
+        return found, f"beside a flexible term of that structure it explains nothing more ({test.text()})"
+    return None
+
+
 @dataclass
 class _Questions:
     """F-tests on the residual ``rw`` (weighted, the cause switched off) of columns beside the model's other
@@ -133,13 +169,22 @@ class _Questions:
         """The test of ``extra`` beside the rest of the model and ``more`` ((N, 3, k) each)."""
         base = self.rest if more is None else np.concatenate([self.rest, more], axis=2)
         A0 = weighted(base, self.sw)
-        A1 = np.hstack([A0, weighted(extra, self.sw)])
-        res = [self.rw - A @ np.linalg.lstsq(A, self.rw, rcond=None)[0] for A in (A0, A1)]
+        (r0, k0), (r1, k1) = (_fit(A, self.rw) for A in (A0, np.hstack([A0, weighted(extra, self.sw)])))
+        res = [r0, r1]
         ssr = [float(r @ r) for r in res]
-        k = int(np.linalg.matrix_rank(A1)) - int(np.linalg.matrix_rank(A0))
+        k = k1 - k0
         # a robust fit's set-aside poses count in the noise scale by their influence, as in the search's tests
         noise = None if self.share is None else float((res[1] ** 2) @ self.share)
         return nested_test(ssr[0], A0.shape[1], ssr[1], A0.shape[1] + max(k, 1), len(self.rw), noise)
+
+
+def _fit(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, int]:
+    """The least-squares residual of ``b`` on the columns ``A`` and their rank, from one singular value
+    decomposition (``lstsq``'s and ``matrix_rank``'s default cut-off: machine epsilon times the larger
+    dimension times the largest singular value)."""
+    U, sv, _ = np.linalg.svd(A, full_matrices=False)
+    Uk = U[:, sv > np.finfo(float).eps * max(A.shape) * sv[0]] if sv.size else U[:, :0]
+    return b - Uk @ (Uk.T @ b), Uk.shape[1]
 
 
 def drop_stand_ins(run: DiagnosisRun) -> None:
@@ -157,7 +202,8 @@ def drop_stand_ins(run: DiagnosisRun) -> None:
         rest = [a for a in run.accepted if a != cand]
         run.drop_finding(cand)
         run.unexplained.excluded_causes.add(cand)
-        where = describe_pair(found.covariate, found.effect, found.joint)
+        where = describe_pair(found.covariate, found.effect, found.joint, found.joint is not None
+                              and run.robot.joints[found.joint - 1].prismatic)
         run.notes.append(f"{cand.label()} was dropped at the end: it is only the closest catalogue approximation of "
                          f"structure it does not explain ({where}; p = {10 ** found.log10_p:.2g}): {why}; the "
                          "structure screen reports that structure and its size")

@@ -128,17 +128,20 @@ class DiagnosisRun:
         """Index of the step whose model ``res`` is (None for a fit no step holds: a final-check refit)."""
         return next((k for fit, k in self.fits_of_steps if fit is res), None)
 
-    def fit(self, spec: str, start: CalibrationResult | dict | None = None, loss: RobustLoss | None = None
-            ) -> CalibrationResult:
-        """Calibrate ``spec`` on the calibration poses (LM), from ``start``'s values (a result or a dict)."""
+    def fit(self, spec: str, start: CalibrationResult | dict | None = None, loss: RobustLoss | None = None,
+            parent: CalibrationResult | None = None) -> CalibrationResult:
+        """Calibrate ``spec`` on the calibration poses (LM), from ``start``'s values (a result, or a dict of
+        ``parent``'s parameters as one step moved them), warm: from the base pose and probe mounting of the fit
+        the values are of (``calibrate(frames_from=...)``), so the solve starts at its solution."""
         model = model_for(self.robot, spec + ("+tool_orientation" if self.full_pose else ""), self.cal,
                           session_tools=self.s.session_tools)
-        st = None
+        st = frames = None
         if start is not None:
+            frames = start if isinstance(start, CalibrationResult) else parent
             values = start if isinstance(start, dict) else {p.name: p.value for p in start.parameters}
             st = {n: v for n, v in values.items() if n in model.parameters and not n.startswith("base_")}
-        return calibrate(self.robot, self.cal, model, "lm", start=st, warn=False, robust=loss or self.s.robust,
-                         position_only=self.s.position_only)
+        return calibrate(self.robot, self.cal, model, "lm", start=st, frames_from=frames, warn=False,
+                         robust=loss or self.s.robust, position_only=self.s.position_only)
 
     def val_errors(self, res: CalibrationResult) -> np.ndarray:
         """Position errors (m) of a fit on the validation poses, predicted once per fit."""

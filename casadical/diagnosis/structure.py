@@ -73,13 +73,17 @@ class Structure:
     time_name: str = "time_s"                    # the name its time covariate has in a terms file
     val_left: np.ndarray = field(default_factory=lambda: np.zeros((0, 3)))   # the validation residuals with it
                                                                                 # and those before it (m)
+    #: its joint is a linear axis: its ``angle`` effect is the axis' position error along it (m; reported as
+    #: effect ``position``)
+    linear: bool = False
 
     def words(self) -> str:
         """Where it lives, in words an engineer reads."""
-        return describe_pair(self.covariate, self.effect, self.joint)
+        return describe_pair(self.covariate, self.effect, self.joint, self.linear)
 
     def to_dict(self) -> dict:
-        return {"covariate": self.covariate, "effect": self.effect, "p_value": 10 ** self.log10_p,
+        effect = "position" if self.linear and self.effect == "angle" else self.effect
+        return {"covariate": self.covariate, "effect": effect, "p_value": 10 ** self.log10_p,
                 "size_mm": self.size_mm, "potential_gain_mm": self.potential_gain_mm}
 
     def term(self, name: str) -> dict:
@@ -110,7 +114,9 @@ class Structure:
                     per_dir[d].append(series(var, rng))
         f = ["(" + " + ".join(parts) + ")" if parts else "0" for parts in per_dir]
         table: dict = {"name": name}
-        if self.effect == "angle":
+        if self.effect == "angle" and self.linear:      # a linear axis' position error (m): an offset effect
+            table.update(joint=self.joint, offset=f[0])
+        elif self.effect == "angle":
             table.update(joint=self.joint, angle=f[0])
         elif self.effect == "tilt" and self.joint is not None:
             table.update(joint=self.joint, frame=["0", "0", "0", f[0], f[1], "0"])
@@ -127,8 +133,8 @@ class Structure:
             table.update(point=[f"{f[0]} * px / distance", f"{f[0]} * py / distance", f"{f[0]} * pz / distance"])
         else:
             table.update(point=f[:3])
-        metres = self.effect in ("point_base", "point_measurement") and self.covariate not in ("azimuth",
-                                                                                                "elevation")
+        metres = (self.effect in ("point_base", "point_measurement") and self.covariate not in (
+            "azimuth", "elevation")) or (self.effect == "angle" and self.linear)
         top = max(float(np.abs(self.coefficients).max(initial=0.0)), 1e-6)
         table["parameters"] = {f"c{i + 1}": {"scale": top, "lower": -20 * top, "upper": 20 * top,
                                              "unit": "m" if metres else "rad", "start": float(v)}
@@ -136,9 +142,16 @@ class Structure:
         return table
 
 
-def describe_pair(covariate: str, effect: str, joint: int | None) -> str:
-    """A pair of covariate and effect in words an engineer reads."""
+def describe_pair(covariate: str, effect: str, joint: int | None, linear: bool = False) -> str:
+    """A pair of covariate and effect in words an engineer reads (``linear``: the joint is a linear axis, its
+    ``angle`` effect a position error along it, in mm)."""
     cov = _covariate_words(covariate)
+    if effect == "angle" and linear:
+        own = covariate == f"q{joint}"
+        return (f"axis {joint}'s position error (along it, mm) varies with "
+                + ("its own position (not as any catalogue cause of that axis)" if own else cov))
+    if effect == "tilt" and linear and covariate == f"q{joint}":
+        return f"axis {joint}'s carriage tilts as it travels (not as the catalogue's carriage angles)"
     if effect == "angle":
         own = covariate == f"q{joint}"
         return (f"joint {joint}'s angle error varies with "
@@ -158,7 +171,7 @@ def describe_pair(covariate: str, effect: str, joint: int | None) -> str:
 
 def _covariate_words(cov: str) -> str:
     if cov.startswith("q"):
-        return f"joint {cov[1:]}'s reading"
+        return f"joint {cov[1:]}'s reading"     # a linear axis' reading is its position (mm in the files)
     if cov.startswith("tau"):
         return f"joint {cov[3:]}'s gravity torque"
     if cov == "moment":
@@ -320,24 +333,32 @@ def weighted(X: np.ndarray, sw: np.ndarray) -> np.ndarray:
     return X.reshape(-1, X.shape[2]) * sw[:, None]
 
 
-def _held_out_share(J: np.ndarray, X: np.ndarray, r: np.ndarray, w: np.ndarray, folds: list[np.ndarray]
-                    ) -> tuple[float, int, int]:
-    """Left-out poses predicted better with the term than without: (share, wins, counted)."""
-    wins = counted = 0
-    for test in folds:
-        train = np.setdiff1d(np.arange(len(r)), test)
-        sw = np.sqrt(np.repeat(w[train], 3))
-        rt = r[train].ravel() * sw
-        A0 = weighted(J[train], sw)
-        A1 = np.hstack([A0, weighted(X[train], sw)])
-        x0 = np.linalg.lstsq(A0, rt, rcond=None)[0]
-        x1 = np.linalg.lstsq(A1, rt, rcond=None)[0]
-        e0 = np.linalg.norm(r[test] - J[test] @ x0, axis=1)
-        e1 = np.linalg.norm(r[test] - np.concatenate([J[test], X[test]], axis=2) @ x1, axis=1)
-        keep = w[test] >= 0.5
-        wins += int(np.sum((e1 < e0) & keep))
-        counted += int(np.sum(keep))
-    return (wins / counted if counted else 0.0), wins, counted
+class _Folds:
+    """The random folds of the held-out check beside fixed columns ``J`` (N, 3, p) at weights ``w``: each fold's
+    fit without a term and its left-out errors are the same for every term tried, so they are made once."""
+
+    def __init__(self, J: np.ndarray, r: np.ndarray, w: np.ndarray, folds: list[np.ndarray]):
+        self.J, self.r, self.w = J, r, w
+        self.parts = []
+        for test in folds:
+            train = np.setdiff1d(np.arange(len(r)), test)
+            sw = np.sqrt(np.repeat(w[train], 3))
+            rt = r[train].ravel() * sw
+            A0 = weighted(J[train], sw)
+            x0 = np.linalg.lstsq(A0, rt, rcond=None)[0]
+            self.parts.append((test, train, sw, rt, A0, np.linalg.norm(r[test] - J[test] @ x0, axis=1)))
+
+    def held_out_share(self, X: np.ndarray) -> tuple[float, int, int]:
+        """Left-out poses predicted better with the term ``X`` than without: (share, wins, counted)."""
+        wins = counted = 0
+        for test, train, sw, rt, A0, e0 in self.parts:
+            A1 = np.hstack([A0, weighted(X[train], sw)])
+            x1 = np.linalg.lstsq(A1, rt, rcond=None)[0]
+            e1 = np.linalg.norm(self.r[test] - np.concatenate([self.J[test], X[test]], axis=2) @ x1, axis=1)
+            keep = self.w[test] >= 0.5
+            wins += int(np.sum((e1 < e0) & keep))
+            counted += int(np.sum(keep))
+        return (wins / counted if counted else 0.0), wins, counted
 
 
 def _sign_log10_p(wins: int, n: int) -> float:
@@ -394,18 +415,24 @@ class StructureScreen:
             X = self.columns(*pair)
             Xw = weighted(X, sw)
             Xw = Xw - Q @ (Q.T @ Xw)
-            k = int(np.linalg.matrix_rank(Xw, tol=1e-10 * max(np.abs(Xw).max(), 1e-300)))
+            # one singular value decomposition gives the rank (matrix_rank's tolerance) and the least-squares
+            # residual (lstsq's default cut-off: machine epsilon times the larger dimension)
+            U, sv, _ = np.linalg.svd(Xw, full_matrices=False)
+            k = int(np.sum(sv > 1e-10 * max(np.abs(Xw).max(), 1e-300)))
             if k == 0:
                 continue
-            coef, *_ = np.linalg.lstsq(Xw, r0, rcond=None)
-            ssr1 = float(np.sum((r0 - Xw @ coef) ** 2))
+            Uk = U[:, sv > np.finfo(float).eps * max(Xw.shape) * sv[0]]
+            ssr1 = float(np.sum((r0 - Uk @ (Uk.T @ r0)) ** 2))
             test = nested_test(ssr0, base.shape[2], ssr1, base.shape[2] + k, len(rw))
-            scored.append((test.log10_p, pair, X, test))
+            scored.append((test.log10_p, pair, test))     # not its columns: 140 pairs of 20,000 poses are 0.8 GB
         scored.sort(key=lambda t: t[0])
-        for log10_p, (cov, effect, joint), X, test in scored:
+        folds = None
+        for log10_p, (cov, effect, joint), test in scored:
             if log10_p >= self.level or test.delta_bic >= 0:
                 return None
-            share, wins, counted = _held_out_share(base, X, r, w, self.folds)
+            folds = folds or _Folds(base, r, w, self.folds)
+            X = self.columns(cov, effect, joint)
+            share, wins, counted = folds.held_out_share(X)
             if share > 0.5 and _sign_log10_p(wins, counted) < self.level:
                 return Found(cov, effect, joint, X, log10_p, test.text(), share)
         return None
@@ -448,7 +475,8 @@ def screen(res: CalibrationResult, cal: Measurements, val: Measurements, cal_tor
                                float(np.mean(np.linalg.norm(change, axis=1)) * 1000),
                                float((before.mean() - after.mean()) * 1000), s.held_out_share, back,
                                x1[-s.X.shape[2]:], scr.refs[s.covariate],
-                               "time_s" if cal.get("time_s") is not None else "row", lin_v.r - change))
+                               "time_s" if cal.get("time_s") is not None else "row", lin_v.r - change,
+                               s.joint is not None and res.model.robot.joints[s.joint - 1].prismatic))
     return found
 
 

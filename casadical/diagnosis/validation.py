@@ -25,6 +25,7 @@ schemes costs a few small linear solves, not a calibration per fold.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Callable
 
 import numpy as np
 
@@ -182,8 +183,22 @@ def switch_off(names: list[str], values, scale: np.ndarray) -> np.ndarray:
                      else np.nan for n, s in zip(names, scale)])
 
 
+def fold_grams(Jw: np.ndarray, folds: list[np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """The normal matrix of weighted columns ``Jw`` (N, 3, p) on all poses, and on the training poses of each
+    fold (all poses but the fold's: the matrix minus the fold's part, (n_folds, p, p))."""
+    p = Jw.shape[2]
+    J2 = Jw.reshape(-1, p)
+    A = J2.T @ J2
+    AT = np.empty((len(folds), p, p))
+    for k, F in enumerate(folds):
+        JF = Jw[F].reshape(-1, p)
+        AT[k] = A - JF.T @ JF
+    return A, AT
+
+
 def linear_cv(J: np.ndarray, r: np.ndarray, weights: np.ndarray, all_schemes: list[Scheme],
-              off: np.ndarray | None = None, prior: tuple[np.ndarray, np.ndarray] | None = None) -> CVResult:
+              off: np.ndarray | None = None, prior: tuple[np.ndarray, np.ndarray] | None = None,
+              grams: tuple[np.ndarray, np.ndarray] | None = None) -> CVResult:
     """Held-out errors by one Gauss-Newton step per fold from the fit on all poses.
 
     Parameters
@@ -204,6 +219,9 @@ def linear_cv(J: np.ndarray, r: np.ndarray, weights: np.ndarray, all_schemes: li
         one (ridge towards the prior's mean): what a fold's training poses
         cannot tell stays at what was known before them (a weak design,
         :mod:`casadical.diagnosis.design`), not at a guess of few poses.
+    grams : (ndarray, ndarray), optional
+        :func:`fold_grams` of the weighted columns, made already (a round's candidates share the current
+        model's block: :meth:`.screening.Screen.fold_grams`).
 
     Directions the training poses of a fold cannot determine stay at the
     fit on all poses (:func:`solve_identified`). Parameters that only the
@@ -225,14 +243,14 @@ def linear_cv(J: np.ndarray, r: np.ndarray, weights: np.ndarray, all_schemes: li
     rw = r * np.sqrt(weights)[:, None]
     # per-pose contributions summed per fold: A_T = A - A_F, g_T = g - g_F (as matrix products: BLAS)
     J2, r2 = Jw.reshape(-1, p), rw.reshape(-1)
-    A, g = J2.T @ J2, J2.T @ r2
     folds = [F for s in all_schemes for F in s.folds]
-    AT, gT = np.empty((len(folds), p, p)), np.empty((len(folds), p))
+    A, AT = fold_grams(Jw, folds) if grams is None else (grams[0], grams[1].copy())
+    g = J2.T @ r2
+    gT = np.empty((len(folds), p))
     owns, offs = [], []
     cause = np.zeros(p, bool) if off is None else np.isfinite(off)
     for k, F in enumerate(folds):
-        JF, rF = Jw[F].reshape(-1, p), rw[F].reshape(-1)
-        AT[k], gT[k] = A - JF.T @ JF, g - JF.T @ rF
+        gT[k] = g - Jw[F].reshape(-1, p).T @ rw[F].reshape(-1)
         # what only the left-out poses inform: exactly out of the training system (the subtraction leaves
         # rounding, which the normalisation of solve_identified would blow up)
         share = np.diag(AT[k]) / np.maximum(np.diag(A), 1e-300)
@@ -290,6 +308,9 @@ class Linearized:
     scale: np.ndarray
     off: np.ndarray | None = None
     x0: np.ndarray | None = None
+    #: the fold matrices of the weighted columns made by someone who shares them (:func:`fold_grams`; called
+    #: with the folds), or None: made here
+    grams: Callable[[list[np.ndarray]], tuple[np.ndarray, np.ndarray]] | None = None
 
     @classmethod
     def of(cls, res, data) -> "Linearized":
@@ -309,7 +330,8 @@ class Linearized:
         pr = None
         if prior and self.x0 is not None:
             pr = (np.array([prior.get(n, 0.0) for n in self.names]), self.x0)
-        return linear_cv(self.J, self.r, self.weights, all_schemes, self.off, pr)
+        grams = None if self.grams is None else self.grams([F for s in all_schemes for F in s.folds])
+        return linear_cv(self.J, self.r, self.weights, all_schemes, self.off, pr, grams)
 
     def refit(self, rows: np.ndarray, rel: float = 1e-3) -> tuple[np.ndarray, np.ndarray]:
         """One Gauss-Newton step on ``rows`` only: the change of the scaled parameters and its covariance.

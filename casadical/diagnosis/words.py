@@ -108,6 +108,10 @@ def where(f: "Finding") -> str:
         text = "measurement frame"
     elif c.cause == "mount_compliance":
         text = "the base's mount"
+    elif c.cause == "straightness":
+        text = f"axis {c.joint}, across it in {c.direction}"
+    elif c.cause == "carriage_angle":
+        text = f"axis {c.joint}'s carriage, {c.angle}"
     elif c.cause == "joint_coupling":
         text = f"joint {c.joint}, from joint {c.source_joint}'s reading"
     else:
@@ -119,7 +123,8 @@ def where(f: "Finding") -> str:
 
 def _structure_where(structure: dict, joint: int | None) -> str:
     """Where structure the screen found lives, short: ``joint 4's angle, with q3``."""
-    effect = {"angle": f"joint {joint}'s angle", "tilt": f"joint {joint}'s axis" if joint else "the base's tilt",
+    effect = {"angle": f"joint {joint}'s angle", "position": f"axis {joint}'s position",
+              "tilt": f"joint {joint}'s axis" if joint else "the base's tilt",
               "point_base": "point, base frame",
               "point_measurement": "point, measurement frame"}.get(structure["effect"], structure["effect"])
     return f"{effect}, with {structure['covariate']}"
@@ -150,6 +155,9 @@ def size(f: "Finding", final: "CalibrationResult") -> str:
     P = [final.parameters[n] for n in names]
     v = np.array([p.value for p in P])
     s = np.array([p.std for p in P])
+    if c.cause in ("straightness", "carriage_angle") or (c.joint is not None and c.cause in (
+            "encoder_scale", "joint_periodic", "backlash") and final.model.robot.joints[c.joint - 1].prismatic):
+        return linear_size(c, v, s, P)
     if c.cause == "joint_compliance":
         if v[0] <= 0:
             return f"{names[0]} = {g3(v[0])} rad/(N m), not positive"
@@ -176,6 +184,29 @@ def size(f: "Finding", final: "CalibrationResult") -> str:
         std = math.sqrt(((v * s) ** 2).sum()) / speed if speed > 0 else math.nan
         return f"{g3(speed * 1e6)} um/s{relative(std, speed)}"
     return ""
+
+
+def travel_curve(values, names: list[str]) -> np.ndarray:
+    """A linear axis' straightness or carriage angle over its travel (201 points), from its Legendre coefficients
+    (parameters ``..._p<degree>``)."""
+    coef = np.zeros(4)
+    for v, n in zip(values, names):
+        coef[int(n.rsplit("_p", 1)[1])] += v
+    return np.polynomial.legendre.legval(np.linspace(-1.0, 1.0, 201), coef)
+
+
+def linear_size(c, v: np.ndarray, s: np.ndarray, P: list) -> str:
+    """A linear axis' cause's size: mm per m, mm, the largest change over the travel (mm, mrad)."""
+    if c.cause == "encoder_scale":
+        return f"{v[0] * 1e3:.3g} mm per m{relative(s[0], v[0])}"
+    if c.cause == "joint_periodic":
+        amp = math.hypot(*v)
+        std = math.sqrt(((v * s) ** 2).sum()) / amp if amp > 0 else math.nan
+        return f"{c.harmonic} cycles/m, {amp * 1e3:.3g} mm{relative(std, amp)}"
+    if c.cause == "backlash":
+        return f"half play {v[0] * 1e3:.3g} mm{relative(s[0], v[0])}"
+    curve = travel_curve(v, [p.name for p in P])
+    return f"{np.ptp(curve) * 1e3:.3g} {'mm' if c.cause == 'straightness' else 'mrad'} over the travel"
 
 
 def gain(f: "Finding") -> str:
@@ -249,15 +280,16 @@ def _other_scope(f: "Finding") -> list[dict]:
     c = f.candidate
     return [a for a in f.ambiguous_with if a.get("cause") == c.cause and a.get("joint") == c.joint
             and a.get("harmonic") == c.harmonic and a.get("source") == c.source
-            and a.get("source_joint") == c.source_joint and a.get("session") != c.session]
+            and a.get("source_joint") == c.source_joint and a.get("direction") == c.direction
+            and a.get("angle") == c.angle and a.get("session") != c.session]
 
 
 def _short(a: dict) -> str:
     """A candidate of an ambiguity (its dict) in a few words."""
     from .candidates import Candidate
 
-    return Candidate(**{k: a[k] for k in ("cause", "joint", "harmonic", "source", "session", "source_joint")
-                        if k in a}).label(short=True)
+    return Candidate(**{k: a[k] for k in ("cause", "joint", "harmonic", "source", "session", "source_joint",
+                                          "direction", "angle") if k in a}).label(short=True)
 
 
 def _name(path: str) -> str:

@@ -10,7 +10,7 @@ import numpy as np
 from ..calibration import calibrate
 from ..data.measurements import Measurements
 from ..result import CalibrationResult, ErrorStats
-from .figures import AFTER, BEFORE, ecdf, figure, legend_above, styled, ticks
+from .figures import AFTER, BEFORE, ecdf, figure, legend_above, ticks
 from .page import Page, Raw, esc, gain, model_label, num
 from .parameters import correlation_figure, parameter_table_html, strongest_pairs
 
@@ -34,7 +34,7 @@ def calibration_html(result: CalibrationResult, data: Measurements, before: Cali
     before_label : str
         What ``before`` is, in words.
     processes : int
-        Draw the figures in this many processes (:func:`casadical.html.figures.render`).
+        Ignored (kept so that existing calls work): the figures are written in this process, in milliseconds.
     validation : Measurements, optional
         Held-out poses: the errors of both models on them get a section of
         their own (without them, the errors ``result.validation`` holds, if any).
@@ -44,7 +44,8 @@ def calibration_html(result: CalibrationResult, data: Measurements, before: Cali
     Returns
     -------
     str
-        One HTML document (inline CSS and SVG, no script, no network).
+        One HTML document (inline CSS and SVG, no script, no network); every pose's mark in a figure has a
+        hover title with its CSV line and its error in mm.
     """
     if before is None:
         before = calibrate(result.model.robot, data, "nominal", "lm", warn=False,
@@ -150,7 +151,7 @@ def calibration_html(result: CalibrationResult, data: Measurements, before: Cali
     if result.notes:
         page.heading("Notes", anchor="notes")
         page.items([esc(n) for n in result.notes])
-    return page.html(processes, progress)
+    return page.html(progress)
 
 
 def _short(spec: str) -> str:
@@ -237,49 +238,58 @@ def _identifiability(page: Page, result: CalibrationResult) -> None:
                wrap_columns=(1,))
 
 
-@styled
 def _distribution(e0, e1, before_label: str):
     fig, ax = figure(8.6, 3.1, 1, 2)
-    bins = np.histogram_bin_edges(np.concatenate([e0, e1]), bins=30)
+    edges = np.histogram_bin_edges(np.concatenate([e0, e1]), bins=30)
     a, b = ax[0]
-    a.hist(e0, bins=bins, color=BEFORE, alpha=0.55, label=before_label)
-    a.hist(e1, bins=bins, color=AFTER, alpha=0.65, label="calibrated")
-    a.set(xlabel="position error (mm)", ylabel="poses")
+    for e, colour, alpha, label in ((e0, BEFORE, 0.55, before_label), (e1, AFTER, 0.65, "calibrated")):
+        counts = np.histogram(e, edges)[0]
+        a.bars(edges[:-1], np.diff(edges), counts, colour, alpha, label=label,
+               titles=[f"{label}: {n} poses from {lo:.4f} to {hi:.4f} mm"
+                       for n, lo, hi in zip(counts, edges[:-1], edges[1:])])
+    a.xlabel, a.ylabel = "position error (mm)", "poses"
+    a.grid_x = False
     ecdf(b, e0, e1, before_label, "calibrated")
     ticks(a)
+    ticks(b)
     legend_above(a)
     return fig
 
 
-@styled
 def _per_pose(data: Measurements, r0, r1, before_label: str):
     fig, ax = figure(8.6, 5.6, 3, 1, sharex=True)
     x = data.lines
+    n0, n1 = np.linalg.norm(r0, axis=1), np.linalg.norm(r1, axis=1)
     for k, name in enumerate(AXES):
-        a = ax[k, 0]
-        a.plot(x, r0[:, k], ".", color=BEFORE, ms=3, alpha=0.6, label=before_label)
-        a.plot(x, r1[:, k], ".", color=AFTER, ms=3, alpha=0.8, label="calibrated")
-        a.axhline(0, color="#555", lw=0.8)
-        a.set_ylabel(f"{name} residual (mm)")
+        a = ax[k][0]
+        for r, n, colour, alpha, label in ((r0, n0, BEFORE, 0.6, before_label), (r1, n1, AFTER, 0.8, "calibrated")):
+            a.points(x, r[:, k], colour, 1.5, alpha, label=label, legend_r=3.0,
+                     titles=[f"line {ln}: {name} {v:+.4f} mm, error {e:.4f} mm ({label})"
+                             for ln, v, e in zip(x, r[:, k], n)])
+        a.hline(0)
+        a.ylabel = f"{name} residual (mm)"
         ticks(a, n=5)
-    ax[-1, 0].set_xlabel(f"line in {data.path.rsplit('/', 1)[-1]}")
-    legend_above(ax[0, 0], markerscale=3)
+    ax[-1][0].xlabel = f"line in {data.path.rsplit('/', 1)[-1]}"
+    legend_above(ax[0][0])
     return fig
 
 
-@styled
 def _per_joint(data: Measurements, r1):
     n = data.n_joints
     fig, ax = figure(min(1.75 * n + 0.8, 12), 5.2, 3, n, sharey="row")
     q = data.q_deg
+    err = np.linalg.norm(r1, axis=1)
     for j in range(n):
+        unit = "mm" if data.prismatic[j] else "deg"
         for k, name in enumerate(AXES):
-            a = ax[k, j]
-            a.plot(q[:, j], r1[:, k], ".", color=AFTER, ms=2.5, alpha=0.7)
-            a.axhline(0, color="#555", lw=0.8)
+            a = ax[k][j]
+            a.points(q[:, j], r1[:, k], AFTER, 1.25, 0.7,
+                     titles=[f"line {ln}: q{j + 1} {v:.1f} {unit}, {name} {r:+.4f} mm, error {e:.4f} mm"
+                             for ln, v, r, e in zip(data.lines, q[:, j], r1[:, k], err)])
+            a.hline(0)
             ticks(a, x=False, n=4)
             ticks(a, y=False, n=3, least=3)
             if j == 0:
-                a.set_ylabel(f"{name} residual (mm)")
-        ax[-1, j].set_xlabel(f"q{j + 1} ({'mm' if data.prismatic[j] else 'deg'})")
+                a.ylabel = f"{name} residual (mm)"
+        ax[-1][j].xlabel = f"q{j + 1} ({unit})"
     return fig

@@ -8,9 +8,10 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from .figures import AFTER, BEFORE, CURVE, SERIES, ecdf, figure, legend_above, styled, ticks
+from .figures import AFTER, BEFORE, CURVE, SERIES, ecdf, figure, legend_above, ticks
 from .page import Page, Raw, esc, gain, model_label, num, sig
 from .parameters import parameter_table_html
+from .svg import VIRIDIS, bands
 
 if TYPE_CHECKING:
     from ..diagnosis.report import DiagnosisReport, Finding, Step
@@ -33,6 +34,8 @@ def diagnosis_html(report: DiagnosisReport, processes: int = 1, progress=None, p
                    map_joints: tuple[int, int] | None = None) -> str:
     """A self-contained HTML report of a diagnosis (inline CSS and SVG, no script, no network).
 
+    Every pose's mark in a figure has a hover title: its CSV line and its error in mm.
+
     The answer first: the findings with what to do about each and the final
     model's errors fill the first screen; the evidence (each finding's
     checks and figure, the steps, the structure kept out, the transfer, the
@@ -43,7 +46,7 @@ def diagnosis_html(report: DiagnosisReport, processes: int = 1, progress=None, p
     report : DiagnosisReport
         What :func:`casadical.diagnosis.diagnose` returned.
     processes : int
-        Draw the figures in this many processes (:func:`casadical.html.figures.render`).
+        Ignored (kept so that existing calls work): the figures are written in this process, in milliseconds.
     progress : callable, optional
         Receives a line of text before and after the figures are drawn.
     poses : Measurements, optional
@@ -110,7 +113,7 @@ def diagnosis_html(report: DiagnosisReport, processes: int = 1, progress=None, p
     page.heading("Notes and settings", anchor="notes")
     page.items([esc(n) for n in report.notes])
     page.pairs([(k, esc(str(v))) for k, v in report.settings.items()])
-    return page.html(processes, progress)
+    return page.html(progress)
 
 
 def _final_label(report: DiagnosisReport) -> str:
@@ -239,40 +242,46 @@ def _steps(page: Page, report: DiagnosisReport) -> None:
     e0 = np.asarray(report.plots.get("val_errors_nominal_mm", []), float)
     e1 = np.asarray(report.plots.get("val_errors_final_mm", []), float)
     if len(e0) and len(e1):
-        ref = page.figure(partial(_per_pose, e0, e1), "fig-poses",
+        ref = page.figure(partial(_per_pose, e0, e1, report.plots.get("val_lines")), "fig-poses",
                           "Position error of each validation pose, nominal model (base fitted) and final model: "
                           "distribution (top) and per pose (bottom).")
         page.para(f"Every validation pose before and after: {ref}; the median goes from {np.median(e0):.4f} mm "
                   f"to {np.median(e1):.4f} mm, the worst from {e0.max():.4f} mm to {e1.max():.4f} mm.")
 
 
-@styled
 def _along_steps(steps: list[Step]):
     fig, ax = figure(8.6, 3.6)
-    ax = ax[0, 0]
+    ax = ax[0][0]
     x = np.arange(len(steps))
-    ax.plot(x, [s.validation.mean_mm for s in steps], "o-", color=AFTER, lw=2.2, label="validation mean")
+    labels = [step_label(s) for s in steps]
+    y = [s.validation.mean_mm for s in steps]
+    ax.line(x, y, AFTER, 2.2, marker="o", ms=4, label="validation mean",
+            titles=[f"{k + 1}. {lab}: validation mean {v:.4f} mm" for k, (lab, v) in enumerate(zip(labels, y))])
     for kind, colour in zip(KINDS, (SERIES[2], SERIES[3], SERIES[1])):
         y = [(s.cv_mm or {}).get(kind) for s in steps]
-        ax.plot(x, [math.nan if v is None else v for v in y], "s--", color=colour, lw=1.1, ms=3,
-                label=f"held-out, {kind} folds")
-    ax.set_xticks(x, [step_label(s) for s in steps], rotation=40, ha="right", rotation_mode="anchor")
-    ax.set_ylabel("mean position error (mm)")
+        ax.line(x, [math.nan if v is None else v for v in y], colour, 1.1, dash="4,2", marker="s", ms=3,
+                label=f"held-out, {kind} folds",
+                titles=[f"{lab}: held-out mean, {kind} folds, " + ("\u2013" if v is None else f"{v:.4f} mm")
+                        for lab, v in zip(labels, y)])
+    ax.categories, ax.rotate = labels, 40.0
+    ax.ylabel = "mean position error (mm)"
     ticks(ax, x=False)
     legend_above(ax)
     return fig
 
 
-@styled
-def _per_pose(e0: np.ndarray, e1: np.ndarray):
+def _per_pose(e0: np.ndarray, e1: np.ndarray, lines=None):
     fig, ax = figure(8.6, 5.6, 2, 1)
-    ecdf(ax[0, 0], e0, e1, "nominal model (base fitted)", "final model")
-    legend_above(ax[0, 0])
-    a = ax[1, 0]
+    ecdf(ax[0][0], e0, e1, "nominal model (base fitted)", "final model")
+    legend_above(ax[0][0])
+    a = ax[1][0]
     idx = np.arange(len(e0))
-    a.plot(idx, e0, ".", color=BEFORE, ms=2.5, alpha=0.6, label="nominal")
-    a.plot(idx, e1, ".", color=AFTER, ms=2.5, alpha=0.8, label="final")
-    a.set(xlabel="validation pose (file order)", ylabel="position error (mm)")
+    titles = None
+    if lines is not None and len(lines) == len(e0):
+        titles = [f"line {n}: nominal {x:.4f} mm, final {y:.4f} mm" for n, x, y in zip(lines, e0, e1)]
+    a.points(idx, e0, BEFORE, 1.3, 0.6, label="nominal", titles=titles)
+    a.points(idx, e1, AFTER, 1.3, 0.8, label="final", titles=titles)
+    a.xlabel, a.ylabel = "validation pose (file order)", "position error (mm)"
     ticks(a)
     return fig
 
@@ -332,12 +341,13 @@ def _drop(cv: dict, kind: str) -> float | None:
 
 def _resolution(r: dict) -> str:
     lo, hi = r.get("band", ["?", "?"])
+    covered = (f"the {r['range_mm']:.0f} mm the axis covers" if r.get("range_mm") is not None else
+               f"the {r.get('range_deg', math.nan):.0f} deg the joint covers")
     if r.get("resolved"):
-        return (f"resolved over the {r.get('range_deg', math.nan):.0f} deg the joint covers: no neighbouring "
+        return (f"resolved over {covered}: no neighbouring "
                 f"harmonic fits as well (margin {r.get('neighbour_margin', math.nan):.3g}); "
                 f"{100 * r.get('outside_geometry', math.nan):.0f} % of it lies outside what the geometry fits")
-    return (f"not resolved: harmonics {lo}..{hi} fit about as well over the {r.get('range_deg', math.nan):.0f} "
-            "deg the joint covers")
+    return f"not resolved: harmonics {lo}..{hi} fit about as well over {covered}"
 
 
 def _halves_table(page: Page, halves: list[dict]) -> None:
@@ -348,6 +358,10 @@ def _halves_table(page: Page, halves: list[dict]) -> None:
             a, b = h["amplitude_arcsec"]
             pa, pb = h["phase_deg"]
             size, phase = f"{a:.1f} / {b:.1f} arcsec", f"{pa:.0f} / {pb:.0f} deg"
+        elif "amplitude_mm" in h:       # a linear axis' periodic error
+            a, b = h["amplitude_mm"]
+            pa, pb = h["phase_deg"]
+            size, phase = f"{sig(a, 3)} / {sig(b, 3)} mm", f"{pa:.0f} / {pb:.0f} deg"
         else:
             a, b = h["values"]
             size, phase = f"{sig(a, 3)} / {sig(b, 3)} {h.get('unit', '')}", ""
@@ -372,21 +386,31 @@ def _finding_caption(f: Finding) -> str:
     return f"{f.label()}: calibration residual before and after the finding, against its variable."
 
 
-@styled
 def _finding_plot(f: Finding):
     pl = f.plot
     fig, ax = figure(6.8, 3.2)
-    ax = ax[0, 0]
+    ax = ax[0][0]
     x = np.asarray(pl["x"], float)
+    lines, err = pl.get("lines"), pl.get("error_mm")
+    has = lines is not None and err is not None and len(lines) == len(x)
     if "partial" in pl:
-        ax.plot(x, pl["partial"], ".", color=AFTER, ms=3, alpha=0.55, label="residual + fitted effect")
-        ax.plot(pl["curve_x"], pl["curve_y"], "-", color=CURVE, lw=2, label="fitted effect")
+        y = np.asarray(pl["partial"], float)
+        titles = None
+        if has:
+            titles = [f"line {n}: error {e:.4f} mm; {v:.1f} arcsec at {u:.4g}" for n, e, v, u in zip(lines, err, y, x)]
+        ax.points(x, y, AFTER, 1.5, 0.55, label="residual + fitted effect", titles=titles, legend_r=3.0)
+        ax.line(pl["curve_x"], pl["curve_y"], CURVE, 2.0, label="fitted effect")
     else:
-        ax.plot(x, pl["before"], ".", color=BEFORE, ms=3, alpha=0.6, label="before")
-        ax.plot(x, pl["after"], ".", color=AFTER, ms=3, alpha=0.7, label="after")
-    ax.set(xlabel=pl["xlabel"], ylabel=_wrap(pl["ylabel"]))
+        b, a = np.asarray(pl["before"], float), np.asarray(pl["after"], float)
+        titles = None
+        if has:
+            titles = [f"line {n}: error {e:.4f} mm; before {u:.4f}, after {v:.4f}"
+                      for n, e, u, v in zip(lines, err, b, a)]
+        ax.points(x, b, BEFORE, 1.5, 0.6, label="before", titles=titles, legend_r=3.0)
+        ax.points(x, a, AFTER, 1.5, 0.7, label="after", titles=titles, legend_r=3.0)
+    ax.xlabel, ax.ylabel = pl["xlabel"], _wrap(pl["ylabel"])
     ticks(ax)
-    legend_above(ax, markerscale=2.5)
+    legend_above(ax)
     return fig
 
 
@@ -465,26 +489,25 @@ def _transfer(page: Page, report: DiagnosisReport) -> None:
                    text_columns=(0, 1, 2, 3))
 
 
-@styled
 def _transfer_plot(t: dict):
     fig, ax = figure(5.6, 3.0)
-    ax = ax[0, 0]
+    ax = ax[0][0]
     x = np.arange(2)
     w = 0.36
+    ways = ["base pose re-estimated", "geometry refitted"]
     for k, (who, colour) in enumerate((("kinematic", BEFORE), ("final", AFTER))):
         vals = [t[who]["base_mm"], t[who]["refit_mm"]]
-        bars = ax.bar(x + (k - 0.5) * w, vals, w, color=colour, label=f"{who} model")
-        ax.bar_label(bars, fmt="%.3f", padding=2, fontsize=8)
-    ax.set_xticks(x, ["base pose re-estimated", "geometry refitted"])
-    ax.set_ylabel("mean position error (mm)")
-    ax.margins(y=0.15)
-    ax.grid(axis="x", visible=False)
+        ax.bars(x + (k - 1) * w, [w, w], vals, colour, label=f"{who} model", values=[f"{v:.3f}" for v in vals],
+                titles=[f"{who} model, {way}: {v:.4f} mm" for way, v in zip(ways, vals)])
+    ax.categories = ways
+    ax.ylabel = "mean position error (mm)"
+    ax.ymargin = 0.15
+    ax.grid_x = False
     ticks(ax, x=False)
     legend_above(ax)
     return fig
 
 
-@styled
 def _periodograms(report: DiagnosisReport):
     pgs = report.periodograms
     ncols = 2 if len(pgs) > 3 else 1
@@ -496,22 +519,21 @@ def _periodograms(report: DiagnosisReport):
         if f.in_model and c.cause == "joint_periodic":
             in_model.setdefault(c.joint, []).append(c.harmonic)
     for k, pg in enumerate(pgs):
-        a = ax[k // ncols, k % ncols]
+        a = ax[k // ncols][k % ncols]
         for h in in_model.get(pg.joint, []):
-            a.axvline(h, color="#888", lw=0.9, ls=":")
-        a.plot(pg.harmonics, pg.power, color=AFTER, lw=1.2)
-        a.text(0.99, 0.92, f"joint {pg.joint}", transform=a.transAxes, ha="right", va="top", fontsize=9,
-               bbox={"facecolor": "white", "edgecolor": "none", "pad": 1})
+            a.vline(h)
+        a.line(pg.harmonics, pg.power, AFTER, 1.2)
+        a.corner = f"joint {pg.joint}"
         ticks(a, n=5)
         if k % ncols == 0:
-            a.set_ylabel("share")
+            a.ylabel = "share"
     for k in range(len(pgs), nrows * ncols):
-        ax[k // ncols, k % ncols].set_visible(False)
+        ax[k // ncols][k % ncols].visible = False
     for a in ax[-1]:
-        a.set_xlabel("harmonic (cycles per turn)")
+        a.xlabel = "harmonic (cycles per turn)"
     if len(pgs) % ncols:
-        ax[-2, -1].xaxis.set_tick_params(labelbottom=True)
-        ax[-2, -1].set_xlabel("harmonic (cycles per turn)")
+        ax[-2][-1].show_xticklabels = True
+        ax[-2][-1].xlabel = "harmonic (cycles per turn)"
     return fig
 
 
@@ -521,33 +543,45 @@ def _accuracy(page: Page, report: DiagnosisReport, poses, joints) -> None:
     m = accuracy_map(report.final, poses.q if poses is not None else None, joints)
     ja, jb = m["joints"]
     page.heading("Where the model is accurate", anchor="accuracy")
-    others = ", ".join(f"q{k + 1} {v:.0f}" for k, v in enumerate(m["others_deg"]) if k + 1 not in (ja, jb))
+    others = ", ".join(f"q{k + 1} {v:.0f} {u}" for k, (v, u) in enumerate(zip(m["others"], m["units"]))
+                       if k + 1 not in (ja, jb))
     where = "the calibration poses' median" if poses is not None else "the middle of their ranges"
     caption = (f"Predicted uncertainty of the final model's tool point (rms 3-D error of the prediction, mm: the "
                f"parameters' covariance plus the GP compensator's predictive std) over joints {ja} and {jb}; the "
-               f"other joints at {where} ({others} deg)." + (" Dots: the calibration poses." if poses is not None
+               f"other joints at {where} ({others})." + (" Dots: the calibration poses." if poses is not None
                                                             else ""))
-    ref = page.figure(partial(_accuracy_plot, m), "fig-accuracy", caption)
+    ref = page.figure(partial(_accuracy_plot, m, poses.lines if poses is not None else None), "fig-accuracy",
+                      caption)
     lo, hi = float(np.min(m["std_mm"])), float(np.max(m["std_mm"]))
     page.para(f"{ref}: from {lo:.4f} mm to {hi:.4f} mm over the two joints' ranges. Where it is low a program can "
               "trust the model; where it is high, measure next (<code>plan-poses REPORT.json</code> picks the "
               "poses; <code>predict FINAL.json POSES.csv --std</code> gives it at any pose).")
 
 
-@styled
-def _accuracy_plot(m: dict):
+def _accuracy_plot(m: dict, lines=None):
     fig, axes = figure(6.4, 4.2)
-    ax = axes[0, 0]
+    ax = axes[0][0]
     ja, jb = m["joints"]
-    # filled contours: vector paths (a mesh's colour bar is an embedded bitmap), a small SVG
-    levels = ax.contourf(m["x_deg"], m["y_deg"], m["std_mm"], levels=12, cmap="viridis")
-    fig.colorbar(levels, ax=ax, label="predicted uncertainty (mm)")
-    if m["measured_deg"] is not None:
-        ax.scatter(m["measured_deg"][:, 0], m["measured_deg"][:, 1], s=9, c="white", edgecolors="black",
-                   linewidths=0.5, label="calibration poses")
+    # the grid refined 4 times (bilinear), its cells coloured in bands at round values (as filled contours)
+    s = np.asarray(m["std_mm"], float)
+    xg, yg = np.asarray(m["x"], float), np.asarray(m["y"], float)
+    ua, ub = m["units"][ja - 1], m["units"][jb - 1]
+    xf, yf = (np.linspace(g[0], g[-1], 4 * (len(g) - 1) + 1) for g in (xg, yg))
+    xc, yc = (xf[:-1] + xf[1:]) / 2, (yf[:-1] + yf[1:]) / 2
+    fine = np.array([np.interp(xc, xg, row) for row in s])
+    fine = np.array([np.interp(yc, yg, col) for col in fine.T]).T
+    lo, hi = float(np.min(s)), float(np.max(s))
+    levels = bands(lo, hi, 12)
+    ax.cells(xf, yf, fine, VIRIDIS, levels[0], levels[-1], levels=levels)
+    ax.colorbar = (VIRIDIS, float(levels[0]), float(levels[-1]), "predicted uncertainty (mm)", levels)
+    if m["measured"] is not None:
+        q = np.asarray(m["measured"], float)
+        titles = None
+        if lines is not None and len(lines) == len(q):
+            titles = [f"line {n}: q{ja} {a:.1f} {ua}, q{jb} {b:.1f} {ub}" for n, a, b in zip(lines, q[:, 0], q[:, 1])]
+        ax.points(q[:, 0], q[:, 1], "#fff", 1.5, edge="#000", label="calibration poses", titles=titles,
+                  legend_r=2.5)
         legend_above(ax)
-    ax.set_xlabel(f"q{ja} (deg)")
-    ax.set_ylabel(f"q{jb} (deg)")
-    ax.grid(False)
+    ax.xlabel, ax.ylabel = f"q{ja} ({ua})", f"q{jb} ({ub})"
     ticks(ax)
     return fig

@@ -1,6 +1,7 @@
 """One self-contained HTML page: sections, tables, numbered figures, footnotes.
 
-No script, no network: the CSS is inline and every figure is inline SVG, so
+No script, no network: the CSS is inline and every figure is inline SVG
+(written by :mod:`.svg`, a hover title on each pose's mark), so
 the file opens anywhere, is mailed as one attachment and prints. Every
 table sits in a scroll container, so a wide table scrolls on its own and
 the page never does; figures scale down to the page width.
@@ -15,9 +16,8 @@ import time
 from dataclasses import dataclass, field
 from typing import Callable
 
-from matplotlib.figure import Figure
-
 from .figures import render
+from .svg import Figure
 
 CSS = """
 :root{--ink:#1d1d1f;--muted:#666;--line:#d6d6d6;--faint:#f4f5f7;--good:#1a7f37;--bad:#b42318}
@@ -158,8 +158,8 @@ class Page:
     def figure(self, fig: Figure | Callable[[], Figure], anchor: str, caption: str) -> Raw:
         """Add a numbered figure; returns a link to it for the text (``figure N``).
 
-        ``fig``: a figure, or a function that makes it: then it is drawn only
-        by :meth:`html`, possibly in another process.
+        ``fig``: a figure, or a function that makes it: then it is made only
+        by :meth:`html`.
         """
         self._figures.append((len(self.parts), fig, anchor, caption))
         self.parts.append("")   # the figure, drawn by html()
@@ -175,15 +175,13 @@ class Page:
             self.footnotes.append(text)
         return self.footnotes.index(text) + 1
 
-    def html(self, processes: int = 1, progress: Callable[[str], None] | None = None) -> str:
-        """The document; ``processes`` > 1 draws the figures in that many processes (:func:`.figures.render`);
-        ``progress`` receives a line before and after the figures are drawn."""
+    def html(self, progress: Callable[[str], None] | None = None) -> str:
+        """The document; ``progress`` receives a line before and after the figures are drawn."""
         say = progress or (lambda _: None)
         if self._figures:
-            say(f"html report: drawing {len(self._figures)} figures"
-                + (f" in {processes} processes" if processes > 1 and len(self._figures) > 1 else ""))
+            say(f"html report: drawing {len(self._figures)} figures")
         t0 = time.perf_counter()
-        svgs = render([(fig, anchor, caption) for _, fig, anchor, caption in self._figures], processes)
+        svgs = render([(fig, anchor, caption) for _, fig, anchor, caption in self._figures])
         if self._figures:
             say(f"html report: figures drawn in {time.perf_counter() - t0:.1f} s")
         for n, ((i, _, anchor, caption), svg) in enumerate(zip(self._figures, svgs), start=1):

@@ -7,8 +7,9 @@ import math
 import numpy as np
 
 from ..result import CalibrationResult
-from .figures import figure, styled
+from .figures import figure
 from .page import Page, esc, sig
+from .svg import RDBU
 
 
 def base_reference(page: Page, result: CalibrationResult) -> None:
@@ -105,25 +106,18 @@ def strongest_pairs(result: CalibrationResult, n: int = 12, floor: float = 0.5) 
             if abs(c[i[k], j[k]]) >= floor]
 
 
-@styled
 def correlation_figure(result: CalibrationResult):
-    """Heat map of the correlation matrix of the free parameters."""
+    """Heat map of the correlation matrix of the free parameters (hover a cell: the pair and its correlation)."""
     unc = result.uncertainty
     n = len(unc.names)
     size = min(max(3.6, 0.16 * n + 1.8), 9.5)
     fig, ax = figure(size + 0.9, size)
-    ax = ax[0, 0]
-    # cells as vector rectangles (imshow would embed a bitmap)
-    im = ax.pcolormesh(unc.correlation, cmap="RdBu_r", vmin=-1, vmax=1)
-    ax.set_aspect("equal")
-    ax.invert_yaxis()
-    ax.grid(False)
-    fs = 8 if n <= 30 else 6.5
-    ax.set_xticks(np.arange(n) + 0.5, unc.names, rotation=90, fontsize=fs)
-    ax.set_yticks(np.arange(n) + 0.5, unc.names, fontsize=fs)
-    ax.tick_params(length=0)
-    for s in ax.spines.values():
-        s.set_visible(False)
-    bar = fig.colorbar(im, ax=ax, shrink=0.8, label="correlation")
-    bar.solids.set_rasterized(False)
+    ax = ax[0][0]
+    c = np.asarray(unc.correlation, float)
+    edges = np.arange(n + 1, dtype=float)
+    ax.cells(edges, edges, c, RDBU, -1.0, 1.0,
+             titles=[[f"{unc.names[i]} and {unc.names[j]}: {c[i, j]:+.3f}" for j in range(n)] for i in range(n)])
+    ax.row_names, ax.rotate, ax.square = list(unc.names), 90.0, True
+    ax.tick_size = 8 if n <= 30 else 6.5
+    ax.colorbar = (RDBU, -1.0, 1.0, "correlation")
     return fig

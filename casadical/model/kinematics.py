@@ -76,6 +76,10 @@ class Geometry:
     #: a change of the robot base right after the estimated base pose, [dx, dy, dz, rx, ry, rz] as ``links``
     #: (a user term's ``base`` effect); empty: none
     mount: list = field(default_factory=list)
+    #: a linear axis' carriage off its ideal travel, by 1-based joint: [dx, dy, dz, rx, ry, rz] applied as
+    #: Tx Ty Tz Rz Ry Rx right after the joint's travel (``Rz(theta) Tz(d + q)``), in that frame: z along the
+    #: travel (the straightness and the carriage's angles, casadical.terms.straightness, .carriage_angle)
+    carriage: dict = field(default_factory=dict)
 
     @classmethod
     def nominal(cls, robot: Robot) -> "Geometry":
@@ -144,7 +148,9 @@ def forward(robot: Robot, angles: list, geom: Geometry) -> Frames:
     it term by term, three times faster to make (a model builds two chains).
     """
     n = robot.n
-    F = _chain_function(robot.convention, n, bool(geom.links), robot.prismatic if any(robot.prismatic) else ())
+    carriage = tuple(sorted(geom.carriage))
+    F = _chain_function(robot.convention, n, bool(geom.links), robot.prismatic if any(robot.prismatic) else (),
+                        carriage)
 
     def column(values) -> ca.SX:
         return ca.vertcat(*[v if isinstance(v, ca.SX) else ca.SX(v) for v in values]) if len(values) else ca.SX(0, 1)
@@ -152,6 +158,8 @@ def forward(robot: Robot, angles: list, geom: Geometry) -> Frames:
     args = [column(angles), *(column(getattr(geom, k)) for k in _CHAIN_GEOMETRY), column(geom.tool)]
     if geom.links:      # the link frames' changes, 6 numbers a joint (0 where none)
         args.append(column([v for i in range(1, n + 1) for v in geom.links.get(i, [0.0] * 6)]))
+    if carriage:        # the carriages' changes, 6 numbers a joint that has one
+        args.append(column([v for i in carriage for v in geom.carriage[i]]))
     out = F.call(args)[0]
     axes, origins, links = [], [], []
     for i in range(n):
@@ -172,9 +180,11 @@ def small_pose(dx, dy, dz, rx, ry, rz) -> Pose:
 
 
 @functools.lru_cache(maxsize=None)
-def _chain_function(convention: str, n: int, links: bool = False, prismatic: tuple = ()) -> ca.Function:
+def _chain_function(convention: str, n: int, links: bool = False, prismatic: tuple = (), carriage: tuple = ()
+                    ) -> ca.Function:
     """The chain of :func:`forward` as a Function of (angles, alpha, a, beta, b, d, theta, tool) (and, with
-    ``links``, of each link frame's change, 6 numbers a joint, after the tool).
+    ``links``, of each link frame's change, 6 numbers a joint, after the tool; with ``carriage``, the 1-based
+    joints whose carriage is off its travel, 6 numbers each, last).
 
     ``prismatic``: per joint, a linear axis (empty: none); its "angle" is its reading (m), added to ``d``, and
     its ``theta`` is the constant turn about z.
@@ -186,6 +196,8 @@ def _chain_function(convention: str, n: int, links: bool = False, prismatic: tup
     geo = {k: ca.SX.sym(k, n) for k in _CHAIN_GEOMETRY}
     tool = ca.SX.sym("tool", 3)
     change = ca.SX.sym("links", 6 * n) if links else None
+    off = ca.SX.sym("carriage", 6 * len(carriage)) if carriage else None
+    slide = {j: small_pose(*(off[6 * k + i] for i in range(6))) for k, j in enumerate(carriage)}
     pose: Pose = (ca.SX.eye(3), ca.SX.zeros(3, 1))
     out = []
     for i in range(n):
@@ -198,17 +210,24 @@ def _chain_function(convention: str, n: int, links: bool = False, prismatic: tup
             pre = compose(pose, rotx(alpha), trans(a), roty(beta), trans(0, b))
             axis, origin = pre[0][:, 2], pre[1]
             pose = compose(pre, rotz(th), trans(0, 0, d))
+            if i + 1 in slide:
+                pose = compose(pose, slide[i + 1])
         else:
             axis, origin = pose[0][:, 2], pose[1]
-            pose = compose(pose, rotz(th), trans(0, 0, d), trans(a), rotx(alpha), roty(beta), trans(0, b))
+            pose = compose(pose, rotz(th), trans(0, 0, d))
+            if i + 1 in slide:
+                pose = compose(pose, slide[i + 1])
+            pose = compose(pose, trans(a), rotx(alpha), roty(beta), trans(0, b))
         if links:
             pose = compose(pose, small_pose(*(change[6 * i + k] for k in range(6))))
         out += [axis, origin, ca.vec(pose[0]), pose[1]]
     end = compose(pose, trans(tool[0], tool[1], tool[2]))
     out += [ca.vec(end[0]), end[1]]
     kinds = "_" + "".join("P" if p else "R" for p in prismatic) if prismatic else ""
-    return ca.Function(f"chain_{convention}_{n}" + ("_links" if links else "") + kinds,
-                       [angles, *geo.values(), tool] + ([change] if links else []), [ca.vertcat(*out)])
+    slides = "_carriage" + "_".join(map(str, carriage)) if carriage else ""
+    return ca.Function(f"chain_{convention}_{n}" + ("_links" if links else "") + kinds + slides,
+                       [angles, *geo.values(), tool] + ([change] if links else []) + ([off] if carriage else []),
+                       [ca.vertcat(*out)])
 
 
 def gravity_torques(robot: Robot, frames: Frames, payload_mass) -> list:

@@ -40,7 +40,7 @@ from ._batch import Batch, batch, mapped
 
 #: the superset's terms besides the geometry, the sessions and the chain offsets (all joints, all links)
 TERMS = ("joint_compliance", "nonlinear_stiffness", "encoder_scale", "backlash", "backlash_motion",
-         "thermal_expansion", "drift", "tool_orientation", "mount_compliance")
+         "thermal_expansion", "drift", "tool_orientation", "mount_compliance", "straightness", "carriage_angle")
 #: terms that deflect a joint by its gravity torque: a model without them has the superset without them, whose
 #: Jacobian skips the torques and their derivatives (a kinematic model's: 3x cheaper)
 TORQUE = ("joint_compliance", "nonlinear_stiffness", "backlash", "mount_compliance")
@@ -121,12 +121,17 @@ def superset_terms(robot, frames=None, torques: bool = True) -> list[ErrorTerm]:
         terms.append(make_term("sessions", names=frames.names, tools=frames.tools))
     if torques:
         terms += [make_term("joint_compliance", joints=revolute), make_term("nonlinear_stiffness", joints=revolute)]
-    terms += [make_term("encoder_scale", joints=revolute)]
+    # a linear axis' errors: its scale, play and periodic error along it (its reading's offset, as a revolute
+    # joint's angle's), its straightness and its carriage's angles (the carriage's change after its travel)
+    linear = [j for j in every if robot.joints[j - 1].prismatic]
+    terms += [make_term("encoder_scale", joints=every)]
     if torques:
-        terms += [make_term("backlash", joints=revolute)]
+        terms += [make_term("backlash", joints=every)]
         if max_mount_moment(robot) > 0:     # the base's tilt under the moment of the weights (it needs the masses)
             terms.append(make_term("mount_compliance"))
-    terms += [make_term("backlash_motion", joints=revolute), make_term("thermal_expansion", t_ref=0.0),
+    if linear:
+        terms += [make_term("straightness", joints=linear), make_term("carriage_angle", joints=linear)]
+    terms += [make_term("backlash_motion", joints=every), make_term("thermal_expansion", t_ref=0.0),
               make_term("thermal_expansion", joints=every, t_ref=0.0), make_term("drift"),
               make_term("tool_orientation"), ChainOffsets(n), PointOffset()]
     return terms
@@ -162,6 +167,7 @@ class Mapping:
                  compensators: list | None = None):
         own = model.covariate_names
         self.torques = torques           # the superset with the terms that read the gravity torques
+        self.prismatic = model.robot.prismatic
         self.n_params = len(params)
         self.n_covariates = len(covariates)
         self.nominal = np.array([p.nominal for p in params])
@@ -264,7 +270,8 @@ class Mapping:
         if c.kind == "q":
             f = q[:, c.source - 1]
         else:
-            x = c.harmonic * q[:, c.index - self.n_params]
+            j = c.index - self.n_params
+            x = c.harmonic * q[:, j] * (2 * np.pi if self.prismatic[j] else 1.0)   # per metre on a linear axis
             f = np.sin(x) if c.kind == "s" else np.cos(x)
         return f if self.at[i] < 0 else f * cov[:, self.at[i]]
 

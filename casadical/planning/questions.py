@@ -47,7 +47,7 @@ from ..terms.definitions import add_known, definitions_from_list
 
 #: causes whose parameters a named finding has (not the geometry, not the GP compensator)
 _NAMED = ("joint_compliance", "nonlinear_stiffness", "joint_periodic", "encoder_scale", "backlash",
-          "thermal_expansion", "drift", "joint_coupling", "mount_compliance")
+          "thermal_expansion", "drift", "joint_coupling", "mount_compliance", "straightness", "carriage_angle")
 
 
 @dataclass
@@ -93,7 +93,8 @@ class Question:
 
 
 #: a report's candidate fields -> Candidate's (the fields this casadical knows; others are left out)
-_FIELDS = {f: f for f in ("cause", "joint", "harmonic", "source", "session", "source_joint")} | {
+_FIELDS = {f: f for f in ("cause", "joint", "harmonic", "source", "session", "source_joint", "direction",
+                          "angle")} | {
     "time_constant_s": "time_constant"}
 
 

@@ -14,7 +14,7 @@ that a library turned into another exception or swallowed
 The command line turns SIGTERM into the same path as Ctrl-C
 (:func:`handle_signals`): a :class:`Terminated` (a ``KeyboardInterrupt``)
 is raised in the main thread, every ``finally`` and ``with`` on the way
-cleans up (staged outputs, forked figure workers, a Dask cluster), and the
+cleans up (staged outputs, a Dask cluster), and the
 command exits 143 (130 for Ctrl-C) with one line. The process of the
 command line (:func:`command_process`) answers a signal at every moment
 with one line and that exit code: before the work (while Python imports) it

@@ -172,9 +172,7 @@ def evaluation_threads() -> int:
 
     ``CASADICAL_EVAL_THREADS`` if set (a whole number >= 1), else the cores
     this process may use, at most :data:`EVAL_MAX`. The results do not
-    depend on it: every pose is evaluated alone, by the same code. The
-    commands also draw the figures of an HTML report in this many processes
-    (:func:`casadical.html.figures.render`).
+    depend on it: every pose is evaluated alone, by the same code.
     """
     text = os.environ.get(EVAL_ENV, "").strip()
     if not text:

@@ -161,8 +161,10 @@ def accuracy_map(result: CalibrationResult, measured_q: np.ndarray | None = None
     Returns
     -------
     dict
-        ``joints``, ``x_deg``, ``y_deg`` (grid axes), ``std_mm`` (n x n, rows along y), ``measured_deg``
-        (the measured poses' two readings, or None).
+        ``joints``, ``x``, ``y`` (grid axes), ``std_mm`` (n x n, rows along y), ``measured`` (the measured
+        poses' two readings, or None), ``others`` (every joint's reading where the map holds it), all in the
+        files' units (deg; mm for a linear axis: a track's or a column's map spans its travel), and ``units``
+        (each joint's).
     """
     robot = result.model.robot
     if robot.n < 2:
@@ -190,9 +192,11 @@ def accuracy_map(result: CalibrationResult, measured_q: np.ndarray | None = None
     q = np.tile(centre, (A.size, 1))
     q[:, ja - 1], q[:, jb - 1] = A.ravel(), B.ravel()
     std = _total(result, q).reshape(A.shape) * 1000
-    return {"joints": (ja, jb), "x_deg": np.degrees(xa), "y_deg": np.degrees(xb), "std_mm": std,
-            "measured_deg": None if measured_q is None else np.degrees(measured_q[:, [ja - 1, jb - 1]]),
-            "others_deg": np.degrees(centre)}
+    unit = lambda v, j: v * 1000.0 if robot.prismatic[j - 1] else np.degrees(v)    # noqa: E731
+    return {"joints": (ja, jb), "x": unit(xa, ja), "y": unit(xb, jb), "std_mm": std,
+            "measured": None if measured_q is None else np.column_stack([unit(measured_q[:, ja - 1], ja),
+                                                                         unit(measured_q[:, jb - 1], jb)]),
+            "others": robot.to_file_units(centre), "units": tuple(robot.units)}
 
 
 def _total(result: CalibrationResult, q: np.ndarray) -> np.ndarray:

@@ -312,6 +312,9 @@ _MEANING = {
     "encoder_scale": ("the encoder scale of {joints} is", "measure poses over more of {their} range"),
     "backlash": ("the backlash of {joints} is", "measure poses whose gravity torque changes sign on {them}"),
     "backlash_motion": ("the backlash of {joints} is", "measure poses approached from both directions"),
+    "straightness": ("the straightness of linear axis {joints} is", "measure poses over more of {their} travel"),
+    "carriage_angle": ("the carriage's angles of linear axis {joints} are", "measure poses over more of {their} "
+                       "travel, the arm reaching out along the carriage's axes"),
 }
 
 

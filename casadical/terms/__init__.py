@@ -7,6 +7,7 @@ such as ``"kinematic+compliance[2,3]+periodic[2:1]"`` (see
 
 from . import (  # noqa: F401
     backlash,
+    carriage_angle,
     compliance,
     drift,
     encoder_scale,
@@ -18,6 +19,7 @@ from . import (  # noqa: F401
     periodic,
     rbf_compensator,
     sessions,
+    straightness,
     thermal,
     tool_orientation,
     warmup,

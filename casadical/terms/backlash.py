@@ -11,6 +11,9 @@ from ..model.parameters import Parameter
 from ..robot import Robot
 from .base import Context, ErrorTerm, register
 
+#: largest half play admitted on a linear axis (m)
+MAX_PLAY_LINEAR = 1e-3
+
 
 @register
 class Backlash(ErrorTerm):
@@ -23,6 +26,10 @@ class Backlash(ErrorTerm):
     ``b`` short of its reading, ``-b sign(move_j)``. Either way a negative
     ``b`` (the joint standing against its load, or leading its motor) is
     not play.
+
+    On a linear axis (a prismatic joint; ISO 230-1's reversal error) ``b_j`` is in metres along the axis, at
+    most 1 mm: by the motion the carriage trails its drive, by the load (the force of gravity along the axis: a
+    column) it rests on the side the weight pushes it.
 
     Parameters
     ----------
@@ -38,7 +45,6 @@ class Backlash(ErrorTerm):
 
     name = "backlash"
     cause = "backlash"
-    revolute_only = True
 
     #: settings of a calibration file that lacks them: files older than the lag convention
     LEGACY = {"lag": False}
@@ -69,8 +75,10 @@ class Backlash(ErrorTerm):
         return "backlash" if self.source == "torque" else "backlash_m"
 
     def parameters(self, robot: Robot) -> list[Parameter]:
-        return [Parameter(f"{self.prefix}{j}", 0.0, "rad", 1e-4, self.name, j,
-                          lower=0.0, upper=math.radians(1.0)) for j in self.joints]
+        return [Parameter(f"{self.prefix}{j}", 0.0, "m", 1e-5, self.name, j, lower=0.0, upper=MAX_PLAY_LINEAR)
+                if robot.joints[j - 1].prismatic else
+                Parameter(f"{self.prefix}{j}", 0.0, "rad", 1e-4, self.name, j, lower=0.0, upper=math.radians(1.0))
+                for j in self.joints]
 
     def joint_offsets(self, ctx: Context) -> dict:
         if self.source == "torque":
@@ -87,7 +95,6 @@ class BacklashMotion(Backlash):
     name = "backlash_motion"
     aliases = ()
     cause = "backlash"
-    revolute_only = True
 
     def __init__(self, joints=None, lag: bool = True):
         super().__init__(joints, source="motion", lag=lag)

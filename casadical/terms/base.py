@@ -100,9 +100,9 @@ class ErrorTerm:
     #: describes the measurement session, not the robot (like the base pose): a calibration taken
     #: to other data starts such a term from zero
     session: ClassVar[bool] = False
-    #: an error of a revolute joint's angle (compliance, gear error, encoder scale, backlash, coupling): by
-    #: default on the revolute joints only, and refused on a prismatic joint (a linear axis' own errors are not
-    #: in the catalogue)
+    #: an error of a revolute joint's angle (compliance, progressive stiffness, coupling): by default on the
+    #: revolute joints only, and refused on a prismatic joint (a linear axis' own errors: encoder scale, periodic
+    #: error and backlash along it, straightness, the carriage's angles)
     revolute_only: ClassVar[bool] = False
 
     def __init__(self, joints: list[int] | None = None):
@@ -210,8 +210,8 @@ def check_revolute(term: str, joints, robot: Robot) -> None:
     linear = [j for j in joints if robot.joints[j - 1].prismatic]
     if linear:
         raise ModelError(f"term {term}: joint {linear[0]} of {robot.name} is prismatic (a linear axis); {term} is "
-                         "an error of a revolute joint's angle, and a linear axis' own errors (scale per metre, pitch, "
-                         "straightness, the carriage's roll, pitch and yaw) are not in the catalogue yet")
+                         "an error of a revolute joint's angle (a linear axis' own errors: encoder_scale per metre, "
+                         "joint_periodic per metre, backlash, straightness, carriage_angle, mount_compliance)")
 
 
 def covariate_names(terms: list[ErrorTerm]) -> list[str]:
@@ -232,3 +232,28 @@ def max_gravity_torque(robot: Robot, j: int) -> float:
     """Upper bound of the gravity torque at joint ``j`` (N m): every mass after it, payload included, at full reach."""
     load = sum(jt.mass for jt in robot.joints[j - 1:]) + robot.payload_mass
     return GRAVITY * load * reach(robot, j)
+
+
+def check_linear(term: str, joints, robot: Robot) -> None:
+    """Refuse a linear axis' error on a revolute joint (one line)."""
+    turning = [j for j in joints if not robot.joints[j - 1].prismatic]
+    if turning:
+        raise ModelError(f"term {term}: joint {turning[0]} of {robot.name} is revolute; {term} is an error of a "
+                         "linear axis (a prismatic joint: a track, a column, a gantry)")
+
+
+def travel(robot: Robot, j: int, q):
+    """The reading ``q`` (m) of linear axis ``j`` scaled by its limits to [-1, 1] (numpy or CasADi)."""
+    lo, hi = robot.joints[j - 1].min, robot.joints[j - 1].max
+    return (2 * q - (lo + hi)) / (hi - lo)
+
+
+def legendre(k: int, u):
+    """The Legendre polynomial of degree ``k`` (1 to 3) of ``u`` (numpy or CasADi)."""
+    if k == 1:
+        return u
+    if k == 2:
+        return (3 * u * u - 1) / 2
+    if k == 3:
+        return (5 * u * u * u - 3 * u) / 2
+    raise ModelError(f"Legendre polynomials of degree 1 to 3 only, not {k}")

@@ -9,11 +9,15 @@ from .base import Context, ErrorTerm, register
 
 @register
 class EncoderScale(ErrorTerm):
-    """Joint ``j`` turns by ``(1 + s_j) q_j`` instead of ``q_j``."""
+    """Joint ``j`` turns by ``(1 + s_j) q_j`` instead of ``q_j``.
+
+    On a linear axis (a prismatic joint) the carriage travels ``(1 + s_j) q_j``: the scale error of ISO 230-1,
+    ``s_j`` metres per metre of travel (reports say mm per m); its zero is the reading's zero, whose offset the
+    geometry's ``d`` takes.
+    """
 
     name = "encoder_scale"
     cause = "encoder_scale"
-    revolute_only = True
 
     def parameters(self, robot: Robot) -> list[Parameter]:
         return [Parameter(f"escale{j}", 0.0, "1", 1e-4, self.name, j, lower=-0.01, upper=0.01)

@@ -11,10 +11,23 @@ from ..model.parameters import Parameter
 from ..robot import Robot
 from .base import Context, ErrorTerm, register
 
+#: largest amplitude admitted of a linear axis' periodic error (m, each of its two parts)
+MAX_PITCH_ERROR = 1e-3
+
+
+def phase(robot: Robot, j: int, q):
+    """What joint ``j``'s harmonics are multiples of: its reading (rad), or ``2 pi`` times a linear axis' reading
+    (m): cycles per metre (numpy or CasADi)."""
+    return 2 * math.pi * q if robot.joints[j - 1].prismatic else q
+
 
 @register
 class JointPeriodic(ErrorTerm):
     """Harmonic ``h`` of joint ``j``: ``s sin(h q_j) + c cos(h q_j)``.
+
+    On a linear axis (a prismatic joint) harmonic ``h`` is ``h`` cycles per metre of travel (a screw's or a
+    rack's pitch error: a 10 mm pitch is harmonic 100): ``s sin(2 pi h q_j) + c cos(2 pi h q_j)``, ``s`` and
+    ``c`` in metres along the axis (at most 1 mm each), as a revolute joint's are per turn in rad.
 
     Written linearly in ``s`` and ``c`` (amplitude ``hypot(s, c)``, phase
     ``atan2(c, s)``) so the fit has no local minima in the phase.
@@ -27,7 +40,6 @@ class JointPeriodic(ErrorTerm):
 
     name = "joint_periodic"
     aliases = ("periodic",)
-    revolute_only = True
     cause = "joint_periodic"
 
     def __init__(self, harmonics: list[tuple[int, int]]):
@@ -47,15 +59,20 @@ class JointPeriodic(ErrorTerm):
     def parameters(self, robot: Robot) -> list[Parameter]:
         ps = []
         for j, h in self.harmonics:
+            linear = robot.joints[j - 1].prismatic if 1 <= j <= robot.n else False
             for kind in ("s", "c"):
-                ps.append(Parameter(f"gear{j}_{kind}{h}", 0.0, "rad", 1e-4, self.name, j,
-                                    lower=-math.radians(1.0), upper=math.radians(1.0)))
+                if linear:
+                    ps.append(Parameter(f"gear{j}_{kind}{h}", 0.0, "m", 1e-5, self.name, j,
+                                        lower=-MAX_PITCH_ERROR, upper=MAX_PITCH_ERROR))
+                else:
+                    ps.append(Parameter(f"gear{j}_{kind}{h}", 0.0, "rad", 1e-4, self.name, j,
+                                        lower=-math.radians(1.0), upper=math.radians(1.0)))
         return ps
 
     def joint_offsets(self, ctx: Context) -> dict:
         out: dict = {}
         for j, h in self.harmonics:
-            qj = ctx.q[j - 1]
+            qj = phase(ctx.robot, j, ctx.q[j - 1])
             term = ctx.p[f"gear{j}_s{h}"] * ca.sin(h * qj) + ctx.p[f"gear{j}_c{h}"] * ca.cos(h * qj)
             out[j] = out.get(j, 0) + term
         return out

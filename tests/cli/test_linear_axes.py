@@ -167,3 +167,26 @@ def test_a_protocol_with_a_joint_error_on_the_axis_is_one_line(tmp_path, capsys)
     code, _, err = cli(capsys, "simulate", tmp_path / "p.toml", "--out-dir", tmp_path / "sim")
     assert code != 0
     one_error(err, "p.toml", "'truth.stiffness.1'", "prismatic")
+
+
+def test_the_accuracy_map_spans_the_axis_travel_in_mm(arm, capsys):
+    """The accuracy map over a linear axis: its grid spans the axis' limits in mm, its labels say mm."""
+    from casadical.result import load_calibration
+    from casadical.stats.predictive import accuracy_map
+
+    name, axis, d = arm
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ok(capsys, "calibrate", d / "robot.toml", d / "cal.csv", "--model", "kinematic", "--out", d / "map.json")
+    res = load_calibration(d / "map.json")
+    robot = res.model.robot
+    other = next(j for j in range(1, robot.n + 1) if j != axis)
+    cal = Measurements.read_csv(d / "cal.csv", robot=robot)
+    m = accuracy_map(res, cal.q, (min(axis, other), max(axis, other)), n=9)
+    grid = m["x"] if axis < other else m["y"]
+    lo, hi = (v * 1000 for v in robot.limits[axis - 1])
+    assert grid[0] == pytest.approx(lo) and grid[-1] == pytest.approx(hi)
+    assert m["units"][axis - 1] == "mm" and m["units"][other - 1] == "deg"
+    measured = m["measured"][:, 0 if axis < other else 1]
+    np.testing.assert_allclose(measured, cal.q[:, axis - 1] * 1000)
+    assert np.all(m["std_mm"] > 0)

@@ -194,6 +194,45 @@ ARM_COLUMN = {
     "payload": {"mass_kg": 10},
 }
 
+#: the four-axis arm on a track in standard DH: the base frame's z runs along the track (DH moves joint 1 along
+#: z0), gravity along its -y; alpha1 -90 turns z1 up, the turret (joint 2) turns about it; shoulder and elbow
+#: parallel (beta on link 3)
+ARM4_TRACK_DH = {
+    "name": "four-axis arm on a track (DH)", "convention": "dh",
+    "gravity": {"direction": [0.0, -1.0, 0.0]},
+    "joint": [
+        {"type": "prismatic", "alpha_deg": -90, "a_m": 0.0, "d_m": 0.0, "theta_deg": 0.0, "min_mm": 0.0,
+         "max_mm": 4000.0, "mass_kg": 120, "com_m": [0, 0, 0]},
+        {"alpha_deg": 90, "a_m": 0.2, "d_m": 0.5, "min_deg": -170, "max_deg": 170, "mass_kg": 40,
+         "com_m": [-0.1, 0, 0]},
+        {"alpha_deg": 0, "a_m": 0.9, "beta_deg": 0.0, "d_m": 0.0, "min_deg": -80, "max_deg": 80, "mass_kg": 25,
+         "com_m": [-0.45, 0, 0]},
+        {"alpha_deg": 0, "a_m": 0.8, "d_m": 0.0, "min_deg": -150, "max_deg": 150, "mass_kg": 15,
+         "com_m": [-0.35, 0, 0]},
+    ],
+    "tool": {"a_m": 0.15, "b_m": 0.03, "d_m": 0.05},
+    "payload": {"mass_kg": 30},
+}
+
+#: the arm on a lifting column in modified DH: the waist turns (joint 1), the column lifts the arm along the
+#: same vertical line (joint 2, prismatic, 1.2 m: parallel to the waist, so beta on its row, or the geometry cannot
+#: tilt the column against the waist about y), shoulder and elbow (joints 3 and 4, parallel: beta on link 4)
+ARM_COLUMN_MDH = {
+    "name": "arm on a lifting column (MDH)", "convention": "mdh",
+    "joint": [
+        {"alpha_deg": 0, "a_m": 0.0, "d_m": 0.3, "min_deg": -170, "max_deg": 170, "mass_kg": 40,
+         "com_m": [0, 0, -0.1]},
+        {"type": "prismatic", "alpha_deg": 0, "a_m": 0.0, "beta_deg": 0.0, "d_m": 0.2, "theta_deg": 0.0,
+         "min_mm": 0.0, "max_mm": 1200.0, "mass_kg": 30, "com_m": [0, 0, 0]},
+        {"alpha_deg": 90, "a_m": 0.2, "d_m": 0.0, "min_deg": -80, "max_deg": 80, "mass_kg": 15,
+         "com_m": [0.35, 0, 0]},
+        {"alpha_deg": 0, "a_m": 0.7, "beta_deg": 0.0, "d_m": 0.0, "min_deg": -120, "max_deg": 120, "mass_kg": 5,
+         "com_m": [0.25, 0, 0]},
+    ],
+    "tool": {"a_m": 0.5, "b_m": 0.02, "d_m": 0.05},
+    "payload": {"mass_kg": 10},
+}
+
 
 def to_toml(doc: dict) -> str:
     """The robot dict as TOML text (the subset these robots use: scalars, tables, [[joint]])."""

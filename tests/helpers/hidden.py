@@ -20,7 +20,18 @@ from pathlib import Path
 
 import numpy as np
 
-from tests.helpers.arms import ARM4, ARM4_BETA, ARM5, ARM5_COUPLED, ARM7, ARM7_DH
+from tests.helpers.arms import (
+    ARM4,
+    ARM4_BETA,
+    ARM4_TRACK,
+    ARM4_TRACK_DH,
+    ARM5,
+    ARM5_COUPLED,
+    ARM7,
+    ARM7_DH,
+    ARM_COLUMN,
+    ARM_COLUMN_MDH,
+)
 from tests.truth import Arm, Effects, Session, TrueRobot, measure, sample
 
 ROBOTS_DIR = Path(__file__).resolve().parents[2] / "problems" / "robots"
@@ -40,6 +51,21 @@ ROBOTS = {
     "arm7-dh": ARM7_DH,           # 7 axes, DH, beta on 4
 }
 
+#: arms with a linear axis (the linear-axis matrix, :data:`LINEAR_EFFECTS`): on a track (joint 1) and on a lifting
+#: column (joint 2, above the waist), each in MDH and DH
+LINEAR_ROBOTS = {
+    "track": ARM4_TRACK,            # 4-axis arm on a 4 m track, MDH
+    "track-dh": ARM4_TRACK_DH,      # the same in DH (the base's z along the track)
+    "column": ARM_COLUMN,           # waist, 1.2 m column, shoulder, elbow, DH
+    "column-mdh": ARM_COLUMN_MDH,   # the same in MDH
+}
+#: the errors of a linear axis (ISO 230-1) the diagnosis must name where they are (:func:`linear_case`); ``axis
+#: and arm``: a straightness, the axis' scale and an arm joint's compliance at once; ``straight slope``: a
+#: straightness that is only a slope (the axis pointing elsewhere: the geometry's, nothing to name)
+LINEAR_EFFECTS = ("none", "axis scale", "axis pitch error", "axis motion backlash", "straightness x",
+                  "straightness y", "carriage roll", "carriage pitch", "carriage yaw", "mount compliance",
+                  "axis and arm", "straight slope")
+
 EFFECTS = ("none", "compliance", "progressive stiffness", "gear error", "encoder scale", "torque backlash",
            "motion backlash", "thermal expansion", "thermal expansion of a link", "drift", "two sessions", "several",
            "full pose", "bad shots")
@@ -55,6 +81,8 @@ CATALOGUED = ("joint coupling", "mount compliance")
 
 def robot_doc(name: str) -> dict:
     """A test arm's dict, or a built-in robot's TOML (read as text: the truth reads no casadical code)."""
+    if name in LINEAR_ROBOTS:
+        return LINEAR_ROBOTS[name]
     return ROBOTS[name] if name in ROBOTS else tomllib.loads((ROBOTS_DIR / f"{name}.toml").read_text())
 
 
@@ -154,6 +182,65 @@ def case(robot: str, effect: str, seed: int) -> Case:
     if effect == "bad shots":
         return Case(robot, effect, seed, Effects(stiffness={2: k2}), {("joint_compliance", 2, None, robot_scope)},
                     bad=3)
+    return outside(robot, effect, seed, arm)
+
+
+def linear_axis(arm: Arm) -> int:
+    """The (first) linear axis of ``arm``, 1-based."""
+    return next(j for j, k in enumerate(arm.links, start=1) if k.prismatic)
+
+
+def smooth(arm: Arm, j: int, slope: float = 0.0, bow: float = 0.0, s: float = 0.0):
+    """A smooth function of linear axis ``j``'s position p (m): ``slope u + bow (3 u^2 - 1) / 2 + s (5 u^3 - 3 u)
+    / 2``, u the position scaled by the axis' limits to [-1, 1] (a slope, a bow and an S over its travel)."""
+    lo, hi = arm.limits[j - 1]
+
+    def f(p):
+        u = 2 * (np.asarray(p, float) - lo) / (hi - lo) - 1
+        return slope * u + bow * (3 * u ** 2 - 1) / 2 + s * (5 * u ** 3 - 3 * u) / 2
+    return f
+
+
+def linear_case(robot: str, effect: str, seed: int) -> Case:
+    """An error of the linear axis of ``robot`` (a track's joint 1, a column's joint 2; ISO 230-1), each moving
+    the point by 0.1-0.3 mm over the travel (the noise: 32 um): a scale of 0.25 mm over the travel (per metre
+    of it: 0.06 mm/m on the 4 m track, 0.2 on the 1.2 m column); a periodic error of 4 cycles per metre, 0.05 mm;
+    a half play by the motion of 0.05 mm; a straightness across the axis (x or y in its frame) bowing 0.1 mm and
+    an S of 0.05 mm; a carriage's roll, pitch or yaw of a slope of 0.1 mrad and a bow of 0.08 mrad; the mount (a
+    column's or a track's give under the moment of the weights) tilting 0.3 mrad at the largest moment, its
+    lever the arm's reach and the column's extension. A robot's cause is named (cause, joint, and a
+    straightness' direction or a carriage's angle) and nothing else."""
+    arm = Arm.from_dict(robot_doc(robot))
+    j = linear_axis(arm)
+    travel = float(np.ptp(arm.limits[j - 1]))
+    if effect == "none":
+        return Case(robot, effect, seed, Effects(), set())
+    if effect == "axis scale":
+        return Case(robot, effect, seed, Effects(encoder_scale={j: 0.25e-3 / travel}),
+                    {("encoder_scale", j, None, "robot")})
+    if effect == "axis pitch error":
+        return Case(robot, effect, seed, Effects(periodic=[(j, 4, 0.05e-3, 0.7)]), {("joint_periodic", j, 4, "robot")})
+    if effect == "axis motion backlash":
+        return Case(robot, effect, seed, Effects(backlash_motion={j: 0.05e-3}), {("backlash_motion", j, None, "robot")})
+    if effect.startswith("straightness "):
+        d = effect.split()[1]
+        return Case(robot, effect, seed, Effects(straightness={(j, d): smooth(arm, j, bow=0.1e-3, s=0.05e-3)}),
+                    {(f"straightness {d}", j, None, "robot")})
+    if effect == "axis and arm":
+        t = TrueRobot(arm)
+        tau = np.abs(t.state(sample(t, 200, np.random.default_rng(0), floor_z=None)).drive_torque).max(axis=0)
+        k = j + 2       # the shoulder after the axis
+        eff = Effects(stiffness={k: tau[k - 1] / 0.4e-3}, encoder_scale={j: 0.25e-3 / travel},
+                      straightness={(j, "y"): smooth(arm, j, bow=0.1e-3, s=0.05e-3)})
+        return Case(robot, effect, seed, eff, {("joint_compliance", k, None, "robot"),
+                                               ("encoder_scale", j, None, "robot"),
+                                               ("straightness y", j, None, "robot")})
+    if effect == "straight slope":
+        return Case(robot, effect, seed, Effects(straightness={(j, "x"): smooth(arm, j, slope=0.2e-3)}), set())
+    if effect.startswith("carriage "):
+        a = effect.split()[1]
+        return Case(robot, effect, seed, Effects(carriage_angle={(j, a): smooth(arm, j, slope=0.1e-3, bow=0.08e-3)}),
+                    {(f"carriage_angle {a}", j, None, "robot")})
     return outside(robot, effect, seed, arm)
 
 
@@ -276,11 +363,17 @@ def true_spec(c: Case) -> str:
 
 # --- claims ------------------------------------------------------------------------------------------------
 
-def cause_of(cause: str, source: str | None, source_joint: int | None = None) -> str:
+def cause_of(cause: str, source: str | None, source_joint: int | None = None, direction: str | None = None,
+             angle: str | None = None) -> str:
     """A claim's cause: ``backlash_motion`` for a backlash by the last move; ``joint_coupling from 3`` for a
-    coupling to joint 3's reading (the source joint is part of the claim)."""
+    coupling to joint 3's reading (the source joint is part of the claim); ``straightness x`` and
+    ``carriage_angle pitch`` for a linear axis' (the direction and the angle are part of the claim)."""
     if cause == "joint_coupling":
         return f"joint_coupling from {source_joint}"
+    if cause == "straightness":
+        return f"straightness {direction}"
+    if cause == "carriage_angle":
+        return f"carriage_angle {angle}"
     return "backlash_motion" if cause == "backlash" and source == "motion" else cause
 
 
@@ -293,7 +386,7 @@ def claim(f) -> Claim:
     """(cause, joint, harmonic, scope); the scope of a cause of one named session is ``session B``."""
     cand = f.candidate
     scope = f.scope or cand.scope or "robot"
-    return (cause_of(cand.cause, cand.source, cand.source_joint), cand.joint, cand.harmonic,
+    return (cause_of(cand.cause, cand.source, cand.source_joint, cand.direction, cand.angle), cand.joint, cand.harmonic,
             f"{scope} {cand.session}" if cand.session else scope)
 
 
@@ -303,7 +396,8 @@ def named(report) -> set:
 
 
 def _declares(f, true: Claim) -> bool:
-    return any(cause_of(a.get("cause"), a.get("source"), a.get("source_joint")) == true[0] and a.get("joint") == true[1]
+    return any(cause_of(a.get("cause"), a.get("source"), a.get("source_joint"), a.get("direction"), a.get("angle"))
+               == true[0] and a.get("joint") == true[1]
                and (true[2] is None or a.get("harmonic") == true[2]) for a in f.ambiguous_with)
 
 

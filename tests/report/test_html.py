@@ -14,6 +14,7 @@ import math
 import os
 import re
 import shutil
+from html import unescape
 from html.parser import HTMLParser
 
 import numpy as np
@@ -267,93 +268,92 @@ def test_calibration_report_figures_and_page(calibration_page):
 
 
 @pytest.fixture(scope="module")
-def diagnosis_page(tmp_path_factory):
+def diagnosis_run(tmp_path_factory):
+    """A diagnosis of a compliant joint, and its calibration poses."""
     tmp = tmp_path_factory.mktemp("diag")
     effects = Effects(stiffness={2: 4e5})
     robot, cal, truth, _ = simulated(ARM5, 3, 60, tmp / "cal.csv", effects)
     _, val, _, _ = simulated(ARM5, 4, 100, tmp / "val.csv", effects, truth=truth)
     _, other, _, _ = simulated(ARM5, 5, 100, tmp / "other.csv", effects, truth=truth)
-    report = diagnose(robot, cal, val, DiagnosisSettings(seed=3, max_harmonic=20), other=other)
+    return diagnose(robot, cal, val, DiagnosisSettings(seed=3, max_harmonic=20), other=other), cal
+
+
+@pytest.fixture(scope="module")
+def diagnosis_page(diagnosis_run):
+    report, _ = diagnosis_run
     html = diagnosis_html(report)
     return report, html, Page(html)
 
 
-def test_figures_drawn_in_processes_are_the_same_page(diagnosis_page, calibration_page):
-    """Figures drawn by forked processes give the same bytes as drawn in this one, whatever the count."""
+def test_figures_are_the_same_from_run_to_run(diagnosis_page, calibration_page):
+    """The SVG is written from the data alone: the same report gives the same page, byte for byte."""
     report, html, _ = diagnosis_page
-    assert diagnosis_html(report, processes=2) == html
-    assert diagnosis_html(report, processes=5) == html
+    assert diagnosis_html(report) == html
     result, data, html, _, _, val = calibration_page
-    assert calibration_html(result, data, processes=3, validation=val) == html
+    assert calibration_html(result, data, validation=val) == html
 
 
-def _lines(prefix: str, n: int, fails=lambda k: False) -> list:
-    """Jobs of ``n`` small figures for render(); ``fails(k)``: figure k raises instead of drawing."""
-    from casadical.html.figures import figure, styled
-
-    @styled
-    def line(k):
-        if fails(k):
-            raise RuntimeError("this process cannot draw")
-        fig, ax = figure(3, 2)
-        ax[0, 0].plot([0, 1], [0, k])
-        return fig
-
-    return [(lambda k=k: line(k), f"{prefix}{k}", f"{prefix} figure {k}") for k in range(n)]
+def _titles(html: str, figure: str) -> list[str]:
+    """The hover titles of the marks in one figure."""
+    svg = re.search(rf'<figure id="{figure}">(.*?)</figure>', html, re.S).group(1)
+    return [unescape(t) for t in re.findall(r"<title>(.*?)</title>", svg)]
 
 
-def test_a_figure_a_child_cannot_draw_is_drawn_here():
-    """A child process that fails leaves its share to this process: nothing is missing or out of order."""
-    import os
+def test_calibration_figures_hover_each_pose_with_its_line_and_error(calibration_page):
+    """Hovering a pose's point shows its CSV line and its error, as the model gives them at that line."""
+    result, data, html, _, bad_lines, _ = calibration_page
+    r1 = result.residuals(data) * 1000
+    seen = 0
+    for t in _titles(html, "fig-axes"):
+        m = re.fullmatch(r"line (\d+): ([xyz]) ([+-]\d+\.\d+) mm, error (\d+\.\d+) mm \((.+)\)", t)
+        assert m, t
+        if m.group(5) != "calibrated":
+            continue
+        i = int(np.flatnonzero(data.lines == int(m.group(1)))[0])
+        k = "xyz".index(m.group(2))
+        assert float(m.group(3)) == pytest.approx(r1[i, k], abs=1e-4)
+        assert float(m.group(4)) == pytest.approx(np.linalg.norm(r1[i]), abs=1e-4)
+        seen += 1
+    assert seen == 3 * len(data)
+    # the bad measurements (3 mm off): the largest errors hovered in the per-joint figure are on their lines
+    errors = {}
+    for t in _titles(html, "fig-joints"):
+        m = re.fullmatch(r"line (\d+): q\d+ -?\d+\.\d (deg|mm), [xyz] [+-]\d+\.\d+ mm, error (\d+\.\d+) mm", t)
+        assert m, t
+        errors[int(m.group(1))] = float(m.group(3))
+    assert sorted(errors) == sorted(data.lines.tolist())
+    worst = sorted(errors, key=errors.get)[-len(bad_lines):]
+    assert sorted(worst) == sorted(bad_lines.tolist())
+    # the correlation map: a title per cell, each pair with its correlation
+    unc = result.uncertainty
+    cells = _titles(html, "fig-correlation")
+    assert len(cells) == len(unc.names) ** 2
+    a, b, c = re.fullmatch(r"(\S+) and (\S+): ([+-]\d\.\d+)", cells[1]).groups()
+    assert (a, b) == (unc.names[0], unc.names[1]) and float(c) == pytest.approx(unc.correlation[0, 1], abs=1e-3)
 
-    from casadical.html.figures import render
 
-    parent = os.getpid()
-    jobs = _lines("f", 5, fails=lambda k: os.getpid() != parent and k % 2)
-    assert render(jobs, processes=2) == render(jobs)
-
-
-def test_figures_where_no_child_process_can_be_made(monkeypatch):
-    """No semaphores or shared memory (some containers): this process draws every figure."""
-    import concurrent.futures
-
-    from casadical.html.figures import render
-
-    def no_pool(*args, **kwargs):
-        raise OSError(38, "Function not implemented")
-
-    jobs = _lines("f", 4)
-    expect = render(jobs)
-    monkeypatch.setattr(concurrent.futures, "ProcessPoolExecutor", no_pool)
-    assert render(jobs, processes=3) == expect
-
-
-def test_two_reports_drawn_at_once_keep_their_own_figures():
-    """Two threads drawing in processes at the same time: each page gets its own figures, in order."""
-    import threading
-
-    from casadical.html.figures import render
-
-    jobs = {name: _lines(name, 6) for name in ("a", "b")}
-    out, errors = {}, []
-
-    def draw(name):
-        try:
-            for _ in range(3):
-                out.setdefault(name, []).append(render(jobs[name], processes=3))
-        except Exception as e:  # noqa: BLE001
-            errors.append(e)
-
-    threads = [threading.Thread(target=draw, args=(name,), daemon=True) for name in jobs]
-    for t in threads:
-        t.start()
-    for t in threads:
-        t.join(timeout=120)
-    assert not any(t.is_alive() for t in threads), "a drawing process hangs"
-    assert not errors
-    for name, pages in out.items():
-        for svgs in pages:
-            assert [f'aria-label="{name} figure {k}"' in svg for k, svg in enumerate(svgs)] == [True] * 6
+def test_diagnosis_figures_hover_each_pose_with_its_line_and_error(diagnosis_page, diagnosis_run):
+    """Every validation pose's mark: its line in the validation file, its error before and after; each
+    finding's figure: the calibration pose's line and its error in the final model."""
+    report, html, _ = diagnosis_page
+    _, cal = diagnosis_run
+    e0, e1 = report.plots["val_errors_nominal_mm"], report.plots["val_errors_final_mm"]
+    titles = _titles(html, "fig-poses")
+    assert len(titles) == 2 * len(e1)
+    for k, t in enumerate(titles[len(e1):]):
+        m = re.fullmatch(r"line (\d+): nominal (\d+\.\d+) mm, final (\d+\.\d+) mm", t)
+        assert m, t
+        assert int(m.group(1)) == k + 2        # the validation file's data rows, in order
+        assert (float(m.group(2)), float(m.group(3))) == pytest.approx((e0[k], e1[k]), abs=1e-4)
+    error = dict(zip(cal.lines.tolist(), np.linalg.norm(report.final.residuals(cal), axis=1) * 1000))
+    f = next(f for f in report.findings if f.cause == "joint_compliance")
+    k = [g for g in report.findings if g.in_model].index(f) + 1
+    titles = _titles(html, f"fig-finding-{k}")
+    assert len(titles) == len(cal)
+    for t in titles:
+        line, e = re.match(r"line (\d+): error (\d+\.\d+) mm", t).groups()
+        assert float(e) == pytest.approx(error[int(line)], abs=1e-4)
+    assert sorted(int(re.match(r"line (\d+)", t).group(1)) for t in titles) == sorted(error)
 
 
 def test_diagnosis_report_steps_with_short_labels_and_full_specs(diagnosis_page):
@@ -495,8 +495,20 @@ CHECKS = """() => {
       if (b.width === 0) continue;
       worst = Math.max(worst, r.left - b.left, b.right - r.right, r.top - b.top, b.bottom - r.bottom);
     }
+    // text laid out without overlapping other text (rotated labels: their boxes are not their glyphs)
+    const boxes = [...s.querySelectorAll('text')].filter(t => !t.getAttribute('transform'))
+                  .map(t => t.getBoundingClientRect()).filter(b => b.width > 0);
+    let overlaps = 0;
+    for (let i = 0; i < boxes.length; i++)
+      for (let j = i + 1; j < boxes.length; j++) {
+        const a = boxes[i], b = boxes[j];
+        if (Math.min(a.right, b.right) - Math.max(a.left, b.left) > 0.5 &&
+            Math.min(a.bottom, b.bottom) - Math.max(a.top, b.top) > 0.5) overlaps++;
+      }
     out.svgs.push({id: s.closest('figure') ? s.closest('figure').id : '', w: r.width, h: r.height,
-                   texts: s.querySelectorAll('text').length, worst});
+                   texts: s.querySelectorAll('text').length, worst, overlaps,
+                   marks: s.querySelectorAll('circle, rect, path').length,
+                   titles: s.querySelectorAll('title').length});
   }
   for (const a of document.querySelectorAll('a[href^="#"]')) {
     const el = document.getElementById(a.getAttribute('href').slice(1));
@@ -541,13 +553,19 @@ def look(browser, html: str, path) -> dict:
     return seen
 
 
+def assert_figures_readable(seen: dict) -> None:
+    for s in seen["svgs"]:
+        assert s["w"] > 50 and s["h"] > 50 and s["texts"] > 0, s
+        assert s["worst"] <= 1.0, f"text outside figure {s['id']} by {s['worst']:.1f} px"
+        assert s["overlaps"] == 0, f"text over text in figure {s['id']}"
+        assert s["marks"] > 5, s
+
+
 def assert_readable(seen: dict) -> None:
     assert seen["problems"] == []
     assert seen["overflow"] <= 0, "the page scrolls sideways at 1280 px"
     assert seen["tables"] and all(t["fits"] or t["scrolls"] for t in seen["tables"])
-    for s in seen["svgs"]:
-        assert s["w"] > 50 and s["h"] > 50 and s["texts"] > 0, s
-        assert s["worst"] <= 1.0, f"text outside figure {s['id']} by {s['worst']:.1f} px"
+    assert_figures_readable(seen)
     assert seen["links"] and all(a["ok"] for a in seen["links"]), [a for a in seen["links"] if not a["ok"]]
     assert seen["pdf"].startswith(b"%PDF") and len(seen["pdf"]) > 10_000
 
@@ -557,6 +575,8 @@ def test_calibration_report_in_a_browser(browser, calibration_page, tmp_path):
     seen = look(browser, html, tmp_path / "calibration.html")
     assert_readable(seen)
     assert len(seen["svgs"]) == len(page.figures)
+    # every figure of the calibration report answers a hover: poses, histogram bars, correlations
+    assert all(s["titles"] > 0 for s in seen["svgs"]), seen["svgs"]
 
 
 def test_diagnosis_report_in_a_browser(browser, diagnosis_page, tmp_path):
@@ -564,7 +584,56 @@ def test_diagnosis_report_in_a_browser(browser, diagnosis_page, tmp_path):
     seen = look(browser, html, tmp_path / "diagnosis.html")
     assert_readable(seen)
     assert len(seen["svgs"]) == len(page.figures)
+    titles = {s["id"]: s["titles"] for s in seen["svgs"]}
+    assert titles["fig-poses"] == 2 * len(report.plots["val_errors_final_mm"]) and titles["fig-steps"] > 0
+    assert all(n > 0 for k, n in titles.items() if k.startswith("fig-finding-")), titles
     assert any(a["text"].startswith("figure") for a in seen["links"])
+
+
+def test_awkward_figures_stay_readable_in_a_browser(browser, tmp_path):
+    """The layout is computed from estimated text widths: on awkward data (legends that wrap, large negative
+    numbers, tiny ones, a two-line axis label, long rotated categories, a grid of panels) every text stays
+    inside its figure and off every other text, in a real browser."""
+    from casadical.html.page import Page as Document
+    from casadical.html.svg import SERIES, figure
+
+    rng = np.random.default_rng(5)
+
+    def scatter():
+        fig, ax = figure(5.0, 3.0)
+        a = ax[0][0]
+        for k in range(6):
+            x, y = rng.normal(-123456, 5000, 40), rng.normal(0, 1e-4, 40)
+            a.points(x, y, SERIES[k], label=f"a rather long legend entry, number {k}",
+                     titles=[f"line {n}: {v:.4f} mm" for n, v in enumerate(y, 2)])
+        a.xlabel, a.ylabel, a.legend = "a long label of the horizontal axis (N m)", "first line\nsecond line (mm)", True
+        return fig
+
+    def steps():
+        fig, ax = figure(6.0, 3.2)
+        a = ax[0][0]
+        labels = [f"+ periodic j{k} h{10 * k + 7} and a long tail" for k in range(12)]
+        a.line(range(12), rng.uniform(0.1, 0.5, 12), SERIES[0], marker="o", label="validation mean")
+        a.categories, a.rotate, a.ylabel, a.legend = labels, 40.0, "mean position error (mm)", True
+        return fig
+
+    def grid():
+        fig, ax = figure(9.0, 4.5, 3, 5, sharey="row")
+        for r, row in enumerate(ax):
+            for c, a in enumerate(row):
+                a.points(rng.uniform(-180, 180, 30), rng.normal(0, 10.0 ** (r - 1), 30), SERIES[c])
+                a.hline(0)
+                a.ylabel = "z residual (mm)" if c == 0 else ""
+                a.xlabel = f"q{c + 1} (deg)" if r == 2 else ""
+        return fig
+
+    doc = Document("awkward figures")
+    for k, make in enumerate((scatter, steps, grid)):
+        doc.figure(make, f"fig-{k}", f"awkward figure {k}")
+    seen = look(browser, doc.html(), tmp_path / "awkward.html")
+    assert seen["problems"] == [] and len(seen["svgs"]) == 3
+    assert_figures_readable(seen)
+    assert seen["svgs"][0]["titles"] == 240
 
 
 # --- the README job: a report that ends in a decision -------------------------------------------------------
@@ -769,6 +838,6 @@ def test_diagnosis_report_maps_where_the_model_is_accurate(browser, tmp_path):
     from casadical.calibration import load_calibration
 
     m = accuracy_map(load_calibration(tmp_path / "f.json"), cal.q, (2, 3))
-    inside = (m["x_deg"] >= 40) & (m["x_deg"] <= 80)
+    inside = (m["x"] >= 40) & (m["x"] <= 80)
     print("inside / outside", m["std_mm"][:, inside].mean() / m["std_mm"][:, ~inside].mean())
     assert m["std_mm"][:, inside].mean() < 0.6 * m["std_mm"][:, ~inside].mean()

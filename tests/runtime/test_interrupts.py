@@ -2,7 +2,7 @@
 (casadical/runtime/interrupts.py, casadical/runtime/files.py; issues 21 and 10).
 
 Signals are sent to real ``casadical`` processes at a moment where the work
-runs (IPOPT iterating, figure workers drawing, gcc compiling); robots that matter are arms
+runs (IPOPT iterating, the report's figures drawn, gcc compiling); robots that matter are arms
 that are not built in (tests/helpers/arms.py).
 """
 
@@ -39,7 +39,7 @@ def arms(tmp_path_factory):
 
 
 def _start(args, tmp_path, **env):
-    """A ``casadical`` process in ``tmp_path``; its own processes (figure workers, a Dask cluster) carry a tag in
+    """A ``casadical`` process in ``tmp_path``; its own child processes (a Dask cluster) carry a tag in
     their environment (:func:`_tagged`)."""
     return subprocess.Popen([sys.executable, "-m", "casadical", *map(str, args)], cwd=tmp_path,
                             env={**os.environ, "PYTHONPATH": str(ROOT), "CASADICAL_JIT": "0",
@@ -113,22 +113,22 @@ def _one_line(err: str, code: int, *parts: str) -> None:
 CODES = {"SIGINT": 130, "SIGTERM": 143}
 
 
-@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="forked figure workers and /proc: Linux only")
+@pytest.mark.skipif(not sys.platform.startswith("linux"), reason="/proc: Linux only")
 @pytest.mark.parametrize("point, sig", [
     ("start", "SIGTERM"), ("start", "SIGINT"),     # while Python imports the commands
     ("work", "SIGINT"),                            # the command begins
     ("solver", "SIGTERM"),                         # a Levenberg-Marquardt iteration of the first fit
     ("output", "SIGINT"),                          # the first output is complete, the others not yet
-    ("figures", "SIGTERM"), ("figures", "SIGINT:group"),  # forked workers draw the report's figures
+    ("figures", "SIGTERM"), ("figures", "SIGINT:group"),  # the report's figures are drawn
     ("commit", "SIGTERM"),                         # the first output is in place, the others not yet
     ("exit", "SIGINT"), ("exit", "SIGTERM"),       # every output in place, the interpreter ends
 ])
 def test_a_signal_at_any_moment_is_one_line_and_all_outputs_or_none(arms, tmp_path, point, sig):
     """Issue 28: ``diagnose --json --html --out`` signalled at each moment of its run (the process signals
     itself there: CASADICAL_SIGNAL_AT): exit 130/143 with one line, never a traceback, never swallowed; the
-    three outputs appear together or not at all (SIGINT:group: a terminal's Ctrl-C, to the figure workers too),
+    three outputs appear together or not at all (SIGINT:group: a terminal's Ctrl-C, to the whole process group),
     the report an earlier run wrote (--force) stays as it was
-    until the new one is complete, and no figure worker outlives the command. A signal after the outputs
+    until the new one is complete, and no child process outlives the command. A signal after the outputs
     are in place says so. (Before: SIGTERM the moment r.json appeared exited -15 with every output; SIGINT
     then exited 0 with a traceback from threading._shutdown, or -2 without a word.)"""
     robot, data = arms("arm5", 300, 1)

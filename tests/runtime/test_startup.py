@@ -90,3 +90,19 @@ def test_calibrate_that_sets_poses_aside_imports_no_scipy_stats(files, tmp_path)
                       "--quiet"], tmp_path)
     assert json.loads((tmp_path / "cal.json").read_text())
     assert "casadical.stats.outliers" in mods and "scipy.stats" not in mods
+
+
+def test_html_reports_import_no_plotting_library(files, tmp_path):
+    """The figures of both HTML reports are written as SVG by casadical.html.svg (issue 37): ``calibrate --html``
+    and ``diagnose --html`` import casadical.html and never matplotlib (0.42 s to import, before)."""
+    (tmp_path / "arm.toml").write_text((files / "arm.toml").read_text())
+    robot = robot_from_dict(ARM4)
+    for name, seed, n in (("cal.csv", 5, 60), ("val.csv", 6, 40)):
+        simulate(robot, n, Effects(stiffness={2: 4e5}), seed=seed, floor_z=None)[0].write_csv(tmp_path / name)
+    for args in (["calibrate", "arm.toml", "cal.csv", "--model", "kinematic", "--html", "c.html", "--out", "c.json"],
+                 ["diagnose", "arm.toml", "cal.csv", "--validate", "val.csv", "--html", "d.html", "--out", "d.json",
+                  "--no-blackbox", "--max-rounds", "1", "--quiet"]):
+        mods = _imported(args + ["--force"], tmp_path)
+        assert "casadical.html.svg" in mods and (tmp_path / args[args.index("--html") + 1]).read_text().count(
+            "<svg") >= 3
+        assert "matplotlib" not in mods, args[0]

@@ -27,7 +27,9 @@ docs/formats.md section 1), not from casadical's terms:
 - **Joint compliance**: ``e_j += tau_j / k_j``: the joint gives way in the
   direction of its torque. **Progressive stiffness**: ``e_j += k3_j
   tau_j^3`` beyond it (k3 < 0: stiffens with load).
-- **Periodic gear error**: ``e_j += A sin(h q_j + phi)`` of the reading.
+- **Periodic gear error**: ``e_j += A sin(h q_j + phi)`` of the reading. On a
+  linear axis (a prismatic joint) ``h`` is cycles per metre of travel (a
+  screw's or a rack's pitch): ``e_j += A sin(2 pi h q_j + phi)``, A in m.
 - **Encoder scale**: the drive turns by ``(1 + s) q_j``: ``e_j += s q_j``.
 - **Backlash, torque side**: half play b >= 0 taken up in the direction of
   the torque: ``e_j += b sign(tau_j)``. **Motion side** (lag): the output
@@ -39,6 +41,16 @@ docs/formats.md section 1), not from casadical's terms:
 - **Thermal expansion**: every length (links' a, b, d, the tool, the loop)
   times ``1 + alpha (T - t_ref)``; per link: that row's a, b and d times ``1
   + alpha_j (T - t_ref)``. Centres of mass do not move.
+
+- **A linear axis' carriage** (ISO 230-1): the carriage of prismatic joint j
+  at position ``p`` (its travel, the reading plus its errors) stands off the
+  straight line by ``straightness[(j, "x")](p)`` and ``[(j, "y")](p)`` (m)
+  across the axis, and turns by ``carriage_angle[(j, "roll")](p)`` about the
+  travel and by ``"pitch"`` and ``"yaw"`` about the axes across it (rad); all
+  in the axis' frame right after its travel, ``Rz(theta) Tz(d + p)`` (z
+  along the travel, x the link's x): the link transform becomes ``...
+  Rz(theta) Tz(d + p) Tx(ex) Ty(ey) Rx(pitch) Ry(yaw) Rz(roll) ...`` (the
+  rest of the row after it: dh ``Tx(a) Rx(alpha) Ry(beta) Ty(b)``).
 
 Effects outside casadical's diagnosis catalogue (what the hidden-effect
 matrix hides so that the diagnosis must say "unexplained", or what the
@@ -111,6 +123,10 @@ class Effects:
     axis_tilt: dict[int, tuple[float, float]] = field(default_factory=dict)
     #: rad/(N m): the base tilts by C M (one C) or (Cx M_x, Cy M_y, 0) (a pair)
     mount_compliance: float | tuple[float, float] = 0.0
+    #: m by (joint, "x" | "y"): a linear axis' carriage off its straight line, a function of its position (m)
+    straightness: dict[tuple[int, str], Callable] = field(default_factory=dict)
+    #: rad by (joint, "roll" | "pitch" | "yaw"): its carriage's turn, a function of its position (m)
+    carriage_angle: dict[tuple[int, str], Callable] = field(default_factory=dict)
 
 
 @dataclass
@@ -259,15 +275,16 @@ class TrueRobot:
             if i + 1 in self.effects.axis_tilt:       # the bearing wobbles: the link tips about its x axis
                 ta, tb = self.effects.axis_tilt[i + 1]
                 turn = tf.chain(turn, tf.rot("x", ta * np.sin(chain[:, i]) + tb * np.cos(chain[:, i])))
+            slide = self.carriage(i + 1, chain[:, i]) if linear else []
             if arm.convention == "mdh":
                 T = tf.chain(T, tf.rot("x", alpha), tf.trans(a), tf.rot("y", beta), tf.trans(0.0, b))
                 axes.append(T[:, :3, 2])
                 origins.append(T[:, :3, 3])
-                T = tf.chain(T, turn, tf.trans(0.0, 0.0, d))
+                T = tf.chain(T, turn, tf.trans(0.0, 0.0, d), *slide)
             else:
                 axes.append(T[:, :3, 2])
                 origins.append(T[:, :3, 3])
-                T = tf.chain(T, turn, tf.trans(0.0, 0.0, d), tf.trans(a),
+                T = tf.chain(T, turn, tf.trans(0.0, 0.0, d), *slide, tf.trans(a),
                              tf.rot("x", alpha), tf.rot("y", beta), tf.trans(0.0, b))
             links.append(T)
         links = np.stack(links, axis=1)
@@ -290,6 +307,21 @@ class TrueRobot:
             mount += np.cross(c, mass[:, None] * arm.gravity)
         return State(np.zeros((N, n)), chain, links, axes, origins, T, torque, torque, mount)
 
+    def carriage(self, j: int, p: np.ndarray) -> list:
+        """The transforms of linear axis ``j``'s carriage off its travel at positions ``p`` (m): straightness,
+        then pitch, yaw and roll (none where the truth has none)."""
+        e = self.effects
+        ex, ey = (e.straightness.get((j, k)) for k in ("x", "y"))
+        zero = np.zeros_like(p)
+        out = []
+        if ex is not None or ey is not None:
+            out.append(tf.trans(ex(p) if ex else zero, ey(p) if ey else zero, zero))
+        for name, axis in (("pitch", "x"), ("yaw", "y"), ("roll", "z")):
+            f = e.carriage_angle.get((j, name))
+            if f is not None:
+                out.append(tf.rot(axis, f(p)))
+        return out
+
     # --- the drives ---------------------------------------------------------------------
 
     def reading_errors(self, q: np.ndarray, moves: np.ndarray) -> np.ndarray:
@@ -297,8 +329,9 @@ class TrueRobot:
         motion side of backlash, any other function of the reading (rad, (N, n))."""
         e = np.zeros_like(q)
         eff = self.effects
-        for j, h, A, phi in eff.periodic:
-            e[:, j - 1] += A * np.sin(h * q[:, j - 1] + phi)
+        for j, h, A, phi in eff.periodic:      # cycles per turn; per metre on a linear axis
+            per = 2 * np.pi if self.arm.links[j - 1].prismatic else 1.0
+            e[:, j - 1] += A * np.sin(h * per * q[:, j - 1] + phi)
         for j, s in eff.encoder_scale.items():
             e[:, j - 1] += s * q[:, j - 1]
         for j, b in eff.backlash_motion.items():
