@@ -320,6 +320,7 @@ class Superset:
         self._checked: set[str] = set()          # looked up in the disk cache
         self._failed = False                      # the compiler failed: the VM from then on
         self._quick: set[str] = set()             # compiled quickly, the optimised code on its way (jitcache)
+        self._quick_now = False                   # the compile under way is the quick one
         self._lock = threading.RLock()            # one evaluation at a time (the batches' buffers)
         self._batches: OrderedDict = OrderedDict()
 
@@ -380,7 +381,8 @@ class Superset:
                     # a first run does not wait for the optimised code: compiled quickly now, optimised in the
                     # background, taken below once ready (jitcache's module docstring)
                     funs = [self.function(w) for w in names]
-                    done = jitcache.load_all(funs, before=self._announce, quick=True)
+                    self._quick_now = jitcache.spare_core()
+                    done = jitcache.load_all(funs, before=self._announce, quick=self._quick_now)
                 except jitcache.CompileError as e:
                     # a broken compiler must not stop a calibration: the VM gives the same numbers
                     warnings.warn(f"JIT compilation failed, using CasADi's virtual machine ({str(e)[-200:]})",
@@ -401,10 +403,11 @@ class Superset:
 
     def _announce(self, funs: list[ca.Function]) -> None:
         """Say that the compiler starts (it takes seconds) to whoever listens (:func:`jitcache.announcing`)."""
-        # about 0.1 ms of compiling an instruction at -O0 on one core (the quick compile a run waits for; -O1:
-        # 0.5 ms, in the background, and at once for a small function); side by side, the longest counts
-        seconds = max(1, round(max((1e-4 if f.n_instructions() >= jitcache.QUICK_MIN_INSTRUCTIONS else 5e-4)
-                                   * f.n_instructions() for f in funs)))
+        # about 0.1 ms of compiling an instruction at -O0 on one core (the quick compile a run waits for when a
+        # core is free; -O1: 0.5 ms, in the background then, else and for a small function at once); side by
+        # side, the longest counts
+        seconds = max(1, round(max((1e-4 if self._quick_now and f.n_instructions() >= jitcache.QUICK_MIN_INSTRUCTIONS
+                                    else 5e-4) * f.n_instructions() for f in funs)))
         jitcache.announce(f"compiling the model of {self.robot.name} for these data once (about {seconds} s; kept in "
                           "the cache for later runs)")
 

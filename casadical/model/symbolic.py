@@ -432,8 +432,8 @@ class Model:
             if jit:
                 try:
                     vm = fun
-                    # compiled now: quickly, optimised in the background (jitcache's module docstring)
-                    fun = jitcache.load_all([vm], compile=jit is True, quick=True)[0] or vm
+                    # compiled now: quickly, optimised in the background where a core is free (jitcache)
+                    fun = jitcache.load_all([vm], compile=jit is True, quick=jitcache.spare_core())[0] or vm
                     if jitcache.pending(vm):
                         self._quick[key] = vm
                 except jitcache.CompileError as e:
