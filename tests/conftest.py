@@ -13,6 +13,16 @@ os.environ["CASADICAL_CACHE"] = tempfile.mkdtemp(prefix="casadical-test-cache-")
 atexit.register(shutil.rmtree, os.environ["CASADICAL_CACHE"], ignore_errors=True)
 
 
+@pytest.fixture(autouse=True)
+def _background_compiles_end_with_the_test():
+    """A test that compiled quickly (casadical.model.jitcache) ends as a process would: the optimised compiles
+    it started in the background are waited for and kept in the cache they were started for."""
+    yield
+    from casadical.model import jitcache
+
+    jitcache.finish(kill=False)
+
+
 @pytest.fixture
 def write(tmp_path):
     """Write a text file (dedented) into tmp_path and return its path."""

@@ -39,6 +39,12 @@ Usage::
     python benchmarks/speed/bench_scale.py                        # 2k, 20k, 200k: ~15-30 min on 2 cores
     python benchmarks/speed/bench_scale.py --sizes 2000 20000 --repeats 3
     python benchmarks/speed/bench_scale.py --no-before --no-scipy --json out.json
+    python benchmarks/speed/bench_scale.py --sizes 200000 --no-before --no-scipy --base /work/base --repeats-large 3
+
+With ``--base`` each of casadical's methods runs from that tree too, right after this tree's, and a last table
+puts the two side by side: CPU and peak memory (median and range), linearisations of every pose, and this
+tree's answer against the base's (the largest parameter difference in the base's standard errors, the mean and
+max error). Each tree has its own compiled-function cache in the run's folder, filled by an untimed run.
 
 BLAS runs single-threaded (``OPENBLAS_NUM_THREADS=1`` unless set). The
 compiled model functions come from the disk cache (one untimed run per
@@ -112,13 +118,23 @@ def child(method: str, npz: str, N: int, spec: str, free_json: str, out: str) ->
             import casadical.calibration.solve as C
         except ImportError:     # before calibrate() became a pipeline (fe55b8a): PYTHONPATH at that tree
             import casadical.calibration as C
+        from casadical.problem import CalibrationProblem
         from casadical.solvers.ipopt import Ipopt
+
+        linearize = CalibrationProblem.linearize
+        lins = [0]
+
+        def counting(self, values):     # linearisations of every pose (not of a subsample)
+            lins[0] += self.n_poses == N
+            return linearize(self, values)
+
+        CalibrationProblem.linearize = counting
 
         solves, solve = [], C._solve
 
-        def recorded(problem, x0, solver, opts):   # every solve of the noise-scale loop
-            res, name = solve(problem, x0, solver, opts)
-            solves.append(res.iterations)
+        def recorded(problem, x0, solver, opts, *warm):   # every solve of the noise-scale loop
+            res, name = solve(problem, x0, solver, opts, *warm)
+            solves.append(f"{res.iterations}" + ("" if problem.n_poses == N else f"@{problem.n_poses:,}"))
             return res, name
 
         C._solve = recorded
@@ -135,12 +151,14 @@ def child(method: str, npz: str, N: int, spec: str, free_json: str, out: str) ->
         options = {"options": SUM_TOLERANCES} if method == "before" else None
         t0, c0 = time.perf_counter(), time.process_time()
         res = calibrate(robot, data, spec, solver, solver_options=options, warn=False)
-        doc = {"time_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0,
+        doc = {"time_s": time.perf_counter() - t0, "cpu_s": time.process_time() - c0, "linearisations": lins[0],
                "iterations": "/".join(f"{it}" + (f" ({nf})" if ipopt_evals else "")
                                       for it, nf in zip(solves, ipopt_evals or [None] * len(solves))),
                "status": res.solver.status, "rms_mm": res.calibration.rms_mm,
                "names": res.parameters.names, "values": res.parameters.values.tolist(),
                "scales": res.parameters.scales.tolist(), "base0": res.base0.tolist(),
+               "stds": res.parameters.stds.tolist(), "mean_mm": res.calibration.mean_mm,
+               "max_mm": res.calibration.max_mm,
                "free": [p.name for p in res.parameters if not p.fixed]}
     doc["peak_mb"] = _peak_mb()
     Path(out).write_text(json.dumps(doc))
@@ -203,14 +221,42 @@ def _scipy(robot, data, spec: str, free_doc: dict) -> dict:
 
 
 def run(method: str, npz: Path, N: int, spec: str, tmp: Path, base: str | None = None) -> dict:
-    """One child process; with ``base``, the casadical of that tree (PYTHONPATH) instead of this one."""
+    """One child process; with ``base``, the casadical of that tree (PYTHONPATH) instead of this one. Each tree
+    has its own compiled-function cache (``CASADICAL_CACHE`` in the run's folder), run from that folder."""
     out = tmp / f"{method}.json"
     cmd = [sys.executable, __file__, "--child", method, str(npz), str(N), spec, str(tmp / "free.json"), str(out)]
-    env = dict(os.environ, PYTHONPATH=base) if base else None
-    r = subprocess.run(cmd, capture_output=True, text=True, check=False, env=env)
+    tree = base or str(HERE.parents[1])
+    env = dict(os.environ, PYTHONPATH=tree, CASADICAL_CACHE=str(tmp / ("cache-base" if base else "cache-this")))
+    r = subprocess.run(cmd, capture_output=True, text=True, check=False, env=env, cwd=tmp)
     if r.returncode:
         raise SystemExit(f"failed: {' '.join(cmd)}\n{r.stderr}")
     return json.loads(out.read_text())
+
+
+def side_by_side(rows: list[dict], base: str) -> None:
+    """This tree against the base tree, method by method: CPU and peak memory (median and range of the runs,
+    run in turn), and how far this tree's answer is from the base's (parameters in the base's standard
+    errors, mean and max error)."""
+    print(f"\nThis tree against {base} (CPU of the call; peak memory of the process; median (range)):\n")
+    print("| poses | model | method | CPU, this | CPU, base | ratio | peak MB, this | peak MB, base | "
+          "linearisations, this / base | max \\|dp\\| / std | mean, max vs base |")
+    print("|---:|---|---|---:|---:|---:|---:|---:|---:|---:|---:|")
+
+    def rng(xs, f):
+        return f"{f(statistics.median(xs))} ({f(min(xs))}-{f(max(xs))})" if len(xs) > 1 else f(xs[0])
+
+    for b in (r for r in rows if r["key"].endswith("@base")):
+        t = next(r for r in rows if r["key"] == b["key"][:-5] and r["poses"] == b["poses"] and r["model"] == b["model"])
+        dp, dmean = "-", "-"
+        if b.get("stds"):
+            std = np.array(b["stds"], float)
+            ok = np.isfinite(std) & (std > 0)
+            dp = f"{float(np.max(np.abs(np.array(t['values'])[ok] - np.array(b['values'])[ok]) / std[ok])):.1e}"
+            dmean = f"{t['mean_mm'] / b['mean_mm'] - 1:+.1e}, {t['max_mm'] / b['max_mm'] - 1:+.1e}"
+        print(f"| {t['poses']:,} | {t['model']} | {METHODS[t['key']]} | {rng(t['cpus_s'], fmt)} | "
+              f"{rng(b['cpus_s'], fmt)} | {t['cpu_s'] / b['cpu_s']:.2f} | {rng(t['peak_mbs'], lambda x: f'{x:.0f}')} | "
+              f"{rng(b['peak_mbs'], lambda x: f'{x:.0f}')} | {t['linearisations']} / {b['linearisations']} | "
+              f"{dp} | {dmean} |")
 
 
 def fmt(s: float) -> str:
@@ -265,11 +311,11 @@ def main() -> int:
         np.savez(npz, q=data.q, xyz=data.xyz)
         for spec in args.models:   # untimed: compiles the model's functions into the disk cache if needed
             for tree in [None] + ([args.base] if args.base else []):
-                run("ipopt", npz, sizes[0], spec, tmp, tree)
-                run("lm", npz, sizes[0], spec, tmp, tree)
+                run("ipopt", npz, min(sizes[0], 2_000), spec, tmp, tree)
+                run("lm", npz, min(sizes[0], 2_000), spec, tmp, tree)
         print("| poses | model | method | time (median) | CPU | per 1k poses | x smallest | iterations | "
-              "peak MB | beyond load-only | RMS (mm) | max \\|dp\\| vs IPOPT | load |")
-        print("|---:|---|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|")
+              "linearisations | peak MB | beyond load-only | RMS (mm) | max \\|dp\\| vs IPOPT | load |")
+        print("|---:|---|---|---:|---:|---:|---:|---|---:|---:|---:|---:|---:|---:|")
         for spec in args.models:
             for N in sizes:
                 load_mb = run("load", npz, N, spec, tmp)["peak_mb"]
@@ -291,6 +337,9 @@ def main() -> int:
                            "time_s": statistics.median(d["time_s"] for d in ds),
                            "cpu_s": statistics.median(d["cpu_s"] for d in ds), "times_s": [d["time_s"] for d in ds],
                            "iterations": last["iterations"], "status": last["status"], "peak_mb": last["peak_mb"],
+                           "peak_mbs": [d["peak_mb"] for d in ds], "cpus_s": [d["cpu_s"] for d in ds],
+                           "linearisations": last.get("linearisations", "-"), "values": last["values"],
+                           "stds": last.get("stds"), "mean_mm": last.get("mean_mm"), "max_mm": last.get("max_mm"),
                            "load_only_mb": load_mb, "rms_mm": last["rms_mm"], "dp_max": float(dp.max()),
                            "dp_name": ref["names"][int(np.argmax(dp))] if dp.max() > 0 else "",
                            "load": [d["load"] for d in ds]}
@@ -300,13 +349,16 @@ def main() -> int:
                     rows.append(row)
                     print(f"| {N:,} | {spec} | {row['method']} | {fmt(row['time_s'])} | {fmt(row['cpu_s'])} | "
                           f"{1000 * row['time_s'] / N * 1000:.1f} ms | {row['per_pose_ratio']:.2f} | "
-                          f"{row['iterations']} | {row['peak_mb']:.0f} | {row['peak_mb'] - load_mb:.0f} | "
+                          f"{row['iterations']} | {row['linearisations']} | {row['peak_mb']:.0f} | "
+                          f"{row['peak_mb'] - load_mb:.0f} | "
                           f"{row['rms_mm']:.4f} | {row['dp_max']:.1e}"
                           + (f" ({row['dp_name']})" if row["dp_max"] >= 1e-6 else "") + " | "
                           f"{'-'.join(f'{x:.1f}' for x in sorted({min(row['load']), max(row['load'])}))} |",
                           flush=True)
                 (tmp / "free.json").unlink(missing_ok=True)
     print(f"\nload average {os.getloadavg()[0]:.2f} at the end")
+    if args.base:
+        side_by_side(rows, args.base)
     if len(sizes) > 1:
         print(f"\nTime per pose at {sizes[-1]:,} poses over that at {sizes[0]:,}, wall (CPU) (target: at most "
               f"{LINEAR_RATIO}):")

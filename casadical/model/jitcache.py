@@ -15,6 +15,17 @@ could change:
 Every later run loads the library (well under 1 ms) instead of compiling
 it (0.2-3 s per Function).
 
+A first run need not wait for the optimised code (:func:`load_all` with
+``quick``, what the model's superset asks for when a core is free,
+:func:`spare_core`): the Functions are compiled
+without optimisation (``-O0``: a fifth of ``-O1``'s compile time, 1.4x its
+evaluation time, the same bits), used at once, and compiled again with
+:data:`FLAGS` in the background, one compiler process each; the run takes
+the optimised code when it is ready (:func:`upgraded`) and only that goes
+into the cache. No compiler outlives the process: at its end the run waits
+for those still running (:func:`finish`; killed instead when the process
+ends on an error or a signal), so the next run finds them in the cache.
+
 The folder is ``$CASADICAL_CACHE`` if set, else ``$XDG_CACHE_HOME/casadical``
 or ``~/.cache/casadical``. An entry is one file,
 ``NAME-KEY-DIGEST.so``, where DIGEST is the hash of the library's own bytes:
@@ -37,6 +48,7 @@ import shutil
 import signal
 import subprocess
 import tempfile
+import threading
 import time
 from dataclasses import dataclass
 from functools import cache
@@ -53,6 +65,14 @@ if TYPE_CHECKING:      # casadi is imported where a function is compiled: the ot
 #: flags of every compilation: -O1 compiles the large Jacobian and Gauss-Newton Functions in about
 #: 60% of -O2's time and evaluates them as fast (benchmarks/speed/bench_calibrate_cli.py)
 FLAGS = ("-O1", "-fPIC", "-shared")
+#: flags of the quick compile a first run uses while the optimised one runs in the background (the UR10's
+#: full-pose Jacobian of the superset with the torques, 12,688 instructions: 0.35 s of gcc's CPU against 1.94 s
+#: at -O1, evaluated in 15.7 against 11.4 us a pose; benchmarks/speed/bench_first_run.py)
+QUICK_FLAGS = ("-O0", "-fPIC", "-shared")
+#: a Function below this many instructions is compiled with FLAGS at once even when asked to be quick: its
+#: -O1 compile takes about 0.1 s (the superset's fk and probe, 531-1,413 instructions: 0.08-0.14 s), beside a
+#: large Function's quick compile
+QUICK_MIN_INSTRUCTIONS = 3000
 DEFAULT_MAX_MB = 256.0
 _SUFFIX = ".so"
 _PART = ".part"
@@ -156,6 +176,19 @@ def entry_key(fun: ca.Function, cc: str) -> str:
     return h.hexdigest()[:32]
 
 
+def spare_core() -> bool:
+    """A core is free for a background compile: two cores or more, and the load average of the last minute at
+    most the number of cores less one. On a loaded machine the background compile only adds the quick one's
+    CPU (README job, load 4 on 2 cores: 9.5 s of CPU against 7.5 s, the wall the same), so the optimised code
+    is compiled at once there, as before."""
+    n = os.cpu_count() or 1
+    try:
+        load = os.getloadavg()[0]
+    except OSError:
+        return False
+    return n >= 2 and load <= n - 1
+
+
 def load(fun: ca.Function, compile: bool = True) -> ca.Function | None:
     """``fun`` as compiled code: from the cache, else compiled now and stored.
 
@@ -176,9 +209,13 @@ def load(fun: ca.Function, compile: bool = True) -> ca.Function | None:
     return load_all([fun], compile)[0]
 
 
-def load_all(funs: list[ca.Function], compile: bool = True, before=None) -> list[ca.Function | None]:
+def load_all(funs: list[ca.Function], compile: bool = True, before=None, quick: bool = False
+             ) -> list[ca.Function | None]:
     """:func:`load` of several Functions; those missing from the cache are compiled side by side (one compiler
-    process each), and ``before(missing)`` is called with them first (to say that it takes a while)."""
+    process each), and ``before(missing)`` is called with them first (to say that it takes a while).
+
+    ``quick``: a missing Function is compiled with :data:`QUICK_FLAGS` (not kept) and again with
+    :data:`FLAGS` in the background (kept in the cache once done; :func:`upgraded` gives it)."""
     cc = compiler()
     if cc is None:
         if compile:
@@ -200,7 +237,8 @@ def load_all(funs: list[ca.Function], compile: bool = True, before=None) -> list
     if missing:
         if before is not None:
             before([f for _, f, _ in missing])
-        for (k, _, _), done in zip(missing, _compile([(f, key) for _, f, key in missing], cc)):
+        compiled = (_compile_quick if quick else _compile)([(f, key) for _, f, key in missing], cc)
+        for (k, _, _), done in zip(missing, compiled):
             out[k] = done
     return out
 
@@ -285,6 +323,185 @@ def _compile(items: list[tuple[ca.Function, str]], cc: str) -> list[ca.Function]
             except RuntimeError as e:
                 raise CompileError(f"cannot load the compiled {fun.name()}: {e}") from e
         return out
+
+
+@dataclass
+class _Background:
+    """An optimised compile running in the background: its Function, cache key, process and folder."""
+
+    fun: "ca.Function"
+    key: str
+    process: subprocess.Popen
+    library: str
+    folder: str
+    owner: int          # the process that started it (a forked child has no say over it)
+    cache: Path         # the cache folder when it started (its entry goes there)
+
+
+_PENDING: dict[int, _Background] = {}       # by id() of the Function (held by the entry)
+_PENDING_LOCK = threading.Lock()
+_AT_EXIT = [False]
+
+
+def _compile_quick(items: list[tuple[ca.Function, str]], cc: str) -> list[ca.Function]:
+    """Compile with :data:`QUICK_FLAGS` now (side by side; nothing stored), then start each Function's
+    compile with :data:`FLAGS` in the background, in the same private folder. A Function below
+    :data:`QUICK_MIN_INSTRUCTIONS` is compiled with :data:`FLAGS` at once (stored), beside the others."""
+    import casadi as ca
+
+    folders, jobs = [], []
+    quick = [fun.n_instructions() >= QUICK_MIN_INSTRUCTIONS for fun, _ in items]
+    try:
+        for (fun, _), q in zip(items, quick):
+            folder = tempfile.mkdtemp(prefix="casadical-jit-")
+            folders.append(folder)
+            c_file = _generate(fun, folder)
+            jobs.append((_start(cc, QUICK_FLAGS if q else FLAGS, c_file,
+                                os.path.join(folder, fun.name() + ("-quick" if q else "") + _SUFFIX)), c_file))
+        checkpoint("compile")     # where a test has the process signal itself while the compilers run
+        _wait([p for (p, _), _ in jobs], cc)
+        out = []
+        for (fun, key), q, ((_, library), _) in zip(items, quick, jobs):
+            if not q:
+                data = Path(library).read_bytes()
+                _store(cache_dir(), f"{fun.name()}-{key}-{_digest(data)}{_SUFFIX}", data)
+            try:
+                out.append(ca.external(fun.name(), library))
+            except RuntimeError as e:
+                raise CompileError(f"cannot load the compiled {fun.name()}: {e}") from e
+    except BaseException:
+        for (p, _), _ in jobs:
+            _kill(p)
+        for folder in folders:
+            shutil.rmtree(folder, ignore_errors=True)
+        raise
+    for (fun, key), q, folder, (_, c_file) in zip(items, quick, folders, jobs):
+        if not q:
+            shutil.rmtree(folder, ignore_errors=True)
+            continue
+        library = os.path.join(folder, fun.name() + _SUFFIX)
+        try:
+            process, _ = _start(cc, FLAGS, c_file, library)
+        except CompileError:        # the quick code serves this run; the next compiles again
+            shutil.rmtree(folder, ignore_errors=True)
+            continue
+        with _PENDING_LOCK:
+            _PENDING[id(fun)] = _Background(fun, key, process, library, folder, os.getpid(), cache_dir())
+            if not _AT_EXIT[0]:
+                import atexit
+
+                atexit.register(finish)
+                _AT_EXIT[0] = True
+    return out
+
+
+def _generate(fun: ca.Function, folder: str) -> str:
+    """``fun``'s C source in ``folder``; its path."""
+    import casadi as ca
+
+    gen = ca.CodeGenerator(f"{fun.name()}.c", {"with_header": False})
+    gen.add(fun)
+    return gen.generate(folder + os.sep)
+
+
+def _start(cc: str, flags: tuple[str, ...], c_file: str, library: str) -> tuple[subprocess.Popen, str]:
+    """A compiler process (a child Python waits for: Ctrl-C stops it and raises KeyboardInterrupt in the
+    waiting call; CasADi's own JIT runs the compiler through system(), which ignores the interrupt)."""
+    try:
+        p = subprocess.Popen([cc, *flags, c_file, "-o", library], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+                             text=True)
+    except OSError as e:
+        raise CompileError(f"cannot run {cc}: {e}") from e
+    return p, library
+
+
+def _wait(processes: list[subprocess.Popen], cc: str) -> None:
+    for p in processes:
+        _, err = p.communicate()
+        if p.returncode == -signal.SIGINT:
+            raise KeyboardInterrupt  # the compiler alone got the Ctrl-C
+        if p.returncode:
+            raise CompileError(f"{cc} failed: {(err or '').strip()[-200:]}")
+
+
+def _kill(p: subprocess.Popen) -> None:
+    if p.poll() is None:
+        p.kill()
+        p.wait()
+
+
+def pending(fun: ca.Function) -> bool:
+    """An optimised compile of ``fun`` runs in the background (started by this process)."""
+    with _PENDING_LOCK:
+        job = _PENDING.get(id(fun))
+        return job is not None and job.owner == os.getpid()
+
+
+def upgraded(fun: ca.Function, wait: bool = False) -> ca.Function | None:
+    """``fun``'s optimised code once its background compile is done (stored in the cache, loaded), else None
+    (still running, failed, or none started); ``wait``: wait for it."""
+    with _PENDING_LOCK:
+        job = _PENDING.get(id(fun))
+        if job is None or job.owner != os.getpid():
+            return None
+        if job.process.poll() is None and not wait:
+            return None
+        del _PENDING[id(fun)]
+    return _collect(job)
+
+
+def _collect(job: _Background) -> ca.Function | None:
+    """A finished (or, waited for) background compile: stored and loaded; None if the compiler failed."""
+    import casadi as ca
+
+    try:
+        job.process.communicate()
+        if job.process.returncode:
+            return None
+        data = Path(job.library).read_bytes()
+        _store(job.cache, f"{job.fun.name()}-{job.key}-{_digest(data)}{_SUFFIX}", data)
+        try:
+            return ca.external(job.fun.name(), job.library)   # loaded before the folder goes
+        except RuntimeError:
+            return None
+    except OSError:
+        return None
+    finally:
+        _kill(job.process)
+        shutil.rmtree(job.folder, ignore_errors=True)
+
+
+def finish(kill: bool | None = None) -> int:
+    """End this process's background compiles: wait for each and keep it in the cache, or (``kill``; by
+    default when the command line ends on an error or a signal) stop them. Runs at the process's exit.
+
+    Returns
+    -------
+    int
+        Number of compiles kept in the cache.
+    """
+    if kill is None:
+        from ..runtime import interrupts
+
+        kill = bool(interrupts._exit_code or interrupts.late_exit_code())
+    with _PENDING_LOCK:
+        jobs = [j for j in _PENDING.values() if j.owner == os.getpid()]
+        for j in jobs:
+            del _PENDING[id(j.fun)]
+    kept = 0
+    try:
+        for j in jobs:
+            if kill:
+                _kill(j.process)
+                shutil.rmtree(j.folder, ignore_errors=True)
+            elif _collect(j) is not None:
+                kept += 1
+    except BaseException:      # a Ctrl-C while waiting: no compiler outlives the process
+        for j in jobs:
+            _kill(j.process)
+            shutil.rmtree(j.folder, ignore_errors=True)
+        raise
+    return kept
 
 
 def _store(folder: Path, filename: str, data: bytes) -> None:

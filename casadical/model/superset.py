@@ -319,6 +319,8 @@ class Superset:
         self._compiled: dict[str, ca.Function] = {}
         self._checked: set[str] = set()          # looked up in the disk cache
         self._failed = False                      # the compiler failed: the VM from then on
+        self._quick: set[str] = set()             # compiled quickly, the optimised code on its way (jitcache)
+        self._quick_now = False                   # the compile under way is the quick one
         self._lock = threading.RLock()            # one evaluation at a time (the batches' buffers)
         self._batches: OrderedDict = OrderedDict()
 
@@ -376,7 +378,11 @@ class Superset:
                 group = (which,) if which == "probe" else (kind + "fk", kind + "jac")
                 names = [w for w in group if w not in self._compiled]
                 try:
-                    done = jitcache.load_all([self.function(w) for w in names], before=self._announce)
+                    # a first run does not wait for the optimised code: compiled quickly now, optimised in the
+                    # background, taken below once ready (jitcache's module docstring)
+                    funs = [self.function(w) for w in names]
+                    self._quick_now = jitcache.spare_core()
+                    done = jitcache.load_all(funs, before=self._announce, quick=self._quick_now)
                 except jitcache.CompileError as e:
                     # a broken compiler must not stop a calibration: the VM gives the same numbers
                     warnings.warn(f"JIT compilation failed, using CasADi's virtual machine ({str(e)[-200:]})",
@@ -385,13 +391,23 @@ class Superset:
                 else:
                     self._compiled.update(zip(names, done))
                     self._checked.update(names)
+                    self._quick.update(w for w, f in zip(names, funs) if jitcache.pending(f))
                     hit = self._compiled[which]
+            if which in self._quick:
+                better = jitcache.upgraded(self.function(which))
+                if better is not None or not jitcache.pending(self.function(which)):
+                    self._quick.discard(which)
+                if better is not None:
+                    hit = self._compiled[which] = better
             return (hit, which) if hit is not None else (self.function(which), which)
 
     def _announce(self, funs: list[ca.Function]) -> None:
         """Say that the compiler starts (it takes seconds) to whoever listens (:func:`jitcache.announcing`)."""
-        # about 0.5 ms of compiling an instruction at -O1 on one core; side by side, the largest counts
-        seconds = max(1, round(5e-4 * max(f.n_instructions() for f in funs)))
+        # about 0.1 ms of compiling an instruction at -O0 on one core (the quick compile a run waits for when a
+        # core is free; -O1: 0.5 ms, in the background then, else and for a small function at once); side by
+        # side, the longest counts
+        seconds = max(1, round(max((1e-4 if self._quick_now and f.n_instructions() >= jitcache.QUICK_MIN_INSTRUCTIONS
+                                    else 5e-4) * f.n_instructions() for f in funs)))
         jitcache.announce(f"compiling the model of {self.robot.name} for these data once (about {seconds} s; kept in "
                           "the cache for later runs)")
 
@@ -406,7 +422,8 @@ class Superset:
             inputs = list(inputs) + [np.tile(np.eye(3).ravel(), (N, 1))]
         compiled = fun.class_name() == "External"
         bcast = [3] if per_pose else [1, 3]
-        key = (used, N, compiled or evaluation_threads(), per_pose)
+        # compiled: which code (the quick compile gives way to the optimised one, jitcache)
+        key = (used, N, id(fun) if compiled else evaluation_threads(), per_pose)
         with self._lock:
             b = self._batches.get(key)
             if b is None:

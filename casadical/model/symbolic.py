@@ -191,6 +191,7 @@ class Model:
         self._base0: np.ndarray | None = None
         self._maps: dict = {}
         self._compiled: dict = {}
+        self._quick: dict = {}      # (which, jit) -> the VM Function whose optimised code compiles in the background
         self._graphs: dict = {}
         self._fk: ca.Function | None = None
         self._fk_jac: ca.Function | None = None
@@ -414,15 +415,27 @@ class Model:
         stored there; ``"cached"`` for compiled code if the cache has it,
         else the virtual machine.
         """
-        fun = self._compiled.get((which, jit))
+        key = (which, jit)
+        fun = self._compiled.get(key)
         if fun is None and jit == "cached":
-            fun = self._compiled.get((which, True))
+            key = (which, True)
+            fun = self._compiled.get(key)
+        if fun is not None and key in self._quick:     # compiled quickly: the optimised code once it is ready
+            better = jitcache.upgraded(self._quick[key])
+            if better is not None or not jitcache.pending(self._quick[key]):
+                del self._quick[key]
+            if better is not None:
+                fun = self._compiled[key] = better
         if fun is None:
             ins, outs, _, _ = self._graph(which)
             fun = ca.Function(which, ins, outs)
             if jit:
                 try:
-                    fun = jitcache.load(fun, compile=jit is True) or fun
+                    vm = fun
+                    # compiled now: quickly, optimised in the background where a core is free (jitcache)
+                    fun = jitcache.load_all([vm], compile=jit is True, quick=jitcache.spare_core())[0] or vm
+                    if jitcache.pending(vm):
+                        self._quick[key] = vm
                 except jitcache.CompileError as e:
                     # a broken compiler must not stop a calibration: the VM gives the same numbers
                     warnings.warn(f"JIT compilation failed, using CasADi's virtual machine ({str(e)[-200:]})",
@@ -445,8 +458,10 @@ class Model:
         jit = self._use_jit(N)
         if jit is True and which in _EVALUATED_ONCE and N < JIT_ONCE_MIN_POSES:
             jit = "cached"
-        compiled = self.per_pose_function(which, jit).class_name() == "External"
-        key = (which, N, jit, compiled or evaluation_threads())
+        fun = self.per_pose_function(which, jit)
+        compiled = fun.class_name() == "External"
+        # compiled: which code (the quick compile gives way to the optimised one, jitcache)
+        key = (which, N, jit, id(fun) if compiled else evaluation_threads())
         b = self._maps.get(key)
         if b is None:
             if len(self._maps) > 32:  # many distinct batch sizes: keep memory bounded

@@ -187,6 +187,7 @@ def test_calibration_is_the_same_with_compiled_cached_code(cache, arm, spec, eff
                 np.testing.assert_allclose(r.parameters.values / scale, ref / scale, rtol=0, atol=1e-7)
             # and the hidden errors are found: the fitted model predicts the truth to well under the noise
             assert runs[2].calibration.rms_mm < 0.05
+    jitcache.finish()       # the optimised code compiled in the background, kept as at a process's end
     names = [n.split("-")[0] for n in entries(cache)]
     assert "superset_jac" in names and all(n.startswith("superset_") for n in names), names
 
@@ -239,3 +240,72 @@ def test_ipopt_exact_hessian_on_a_compiled_model(cache):
     assert got.solver.success
     scale = ref.parameters.scales
     np.testing.assert_allclose(got.parameters.values / scale, ref.parameters.values / scale, rtol=0, atol=1e-7)
+
+
+def test_a_quick_compile_now_and_the_optimised_code_in_the_background(cache, monkeypatch):
+    """``quick``: the code a run waits for is compiled without optimisation (nothing kept), the optimised code
+    compiles in the background and goes into the cache once collected; both give the VM's bits. Killed
+    (a process ending on an error or a signal), it leaves nothing. A small Function is optimised at once."""
+    small, vm0 = fk_of("kinematic+encoder_scale")
+    assert vm0.n_instructions() < jitcache.QUICK_MIN_INSTRUCTIONS
+    at_once = jitcache.load_all([vm0], quick=True)[0]
+    assert at_once.class_name() == "External" and not jitcache.pending(vm0)
+    (first,) = entries(cache)
+    cache_entries = [first]
+    assert np.array_equal(evaluate(at_once, small), evaluate(vm0, small))
+    monkeypatch.setattr(jitcache, "QUICK_MIN_INSTRUCTIONS", 0)      # the test arm's Functions are small
+    model, vm = fk_of("kinematic+compliance")
+    quick = jitcache.load_all([vm], quick=True)[0]
+    assert quick.class_name() == "External" and jitcache.pending(vm)
+    assert entries(cache) == cache_entries                       # the quick code is never kept
+    for seed in (0, 1):
+        assert np.array_equal(evaluate(quick, model, seed), evaluate(vm, model, seed))
+    best = jitcache.upgraded(vm, wait=True)
+    assert best is not None and not jitcache.pending(vm)
+    (entry,) = set(entries(cache)) - {first}
+    assert entry.startswith("fk-")
+    for seed in (0, 1):
+        assert np.array_equal(evaluate(best, model, seed), evaluate(vm, model, seed))
+    assert jitcache.load(vm, compile=False) is not None          # a later run loads it
+    # a second Function, its optimised compile killed: no entry, no compiler left, no folder
+    model2, vm2 = fk_of("kinematic+compliance+encoder_scale")
+    jitcache.load_all([vm2], quick=True)
+    job = jitcache._PENDING[id(vm2)]
+    assert jitcache.finish(kill=True) == 0
+    assert job.process.poll() is not None and not os.path.exists(job.folder)
+    assert entries(cache) == sorted([first, entry]) and jitcache.upgraded(vm2) is None
+
+
+def test_a_calibration_without_a_compiler_is_the_compiled_ones(cache, tmp_path):
+    """The compiler hidden (PATH without gcc or cc): the calibration runs on CasADi's VM, warns nothing,
+    writes no cache, and gives the parameters of the compiled run."""
+    robot = robot_from_dict(ARM5)
+    data, _ = simulate(robot, 400, Effects(stiffness={2: 3e5}), seed=7, floor_z=None)
+    data.write_csv(tmp_path / "d.csv")
+    code = ("import json, sys\n"
+            "from casadical import calibrate\n"
+            "from casadical.data import Measurements\n"
+            "from casadical.model import jitcache\n"
+            "from casadical.robot import robot_from_dict\n"
+            "assert jitcache.compiler() is None\n"
+            f"res = calibrate(robot_from_dict({ARM5!r}), Measurements.read_csv(sys.argv[1], n_joints=5), "
+            "'kinematic+compliance', 'lm', warn=False)\n"
+            "print(json.dumps(res.parameters.values.tolist()))\n")
+    bin_dir = tmp_path / "bin"
+    bin_dir.mkdir()
+    hidden = tmp_path / "hidden-cache"
+    env = {"PATH": str(bin_dir), "CASADICAL_CACHE": str(hidden), "HOME": str(tmp_path), "CASADICAL_JIT": "1",
+           "PYTHONPATH": os.pathsep.join(sys.path)}
+    r = subprocess.run([sys.executable, "-c", code, str(tmp_path / "d.csv")], env=env, capture_output=True,
+                       text=True)
+    assert r.returncode == 0 and r.stderr == "", r.stderr
+    assert not hidden.exists()
+    from casadical.data import Measurements
+
+    ref = calibrate(robot, Measurements.read_csv(tmp_path / "d.csv", n_joints=5), Model(robot, "kinematic+compliance",
+                    jit=True), "lm", warn=False)
+    jitcache.finish()
+    assert any(n.startswith("superset_jac") for n in entries(cache))   # the reference was compiled
+    scale = ref.parameters.scales
+    np.testing.assert_allclose(np.array(json.loads(r.stdout)) / scale, ref.parameters.values / scale, rtol=0,
+                               atol=1e-9)
