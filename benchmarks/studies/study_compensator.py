@@ -76,6 +76,7 @@ def run(name: str, robot, cal: Measurements, val: Measurements, seed: int) -> di
     out = {"set": name, "seed": seed, "n_cal": len(cal), "n_val": len(val), "final_model": rep.final_model,
            "final_mm": rep.final_validation.mean_mm, "final_max_mm": rep.final_validation.max_mm,
            "compensator": comp is not None, "shrink": comp.holds_up.get("shrink") if comp is not None else None,
+           "student_t_nu": comp.holds_up.get("student_t_nu") if comp is not None else None,
            "compensator_reason": step.reason if step is not None and not step.accepted else "",
            "interval_coverage": getattr(rep, "interval_coverage", None), "time_s": took,
            "worst_notes": [n for n in rep.notes if n.startswith("judge only") or "worst" in n[:80]],
@@ -142,7 +143,7 @@ def main() -> None:
             print(f"{name} {seed} | {r['kinematic_mm']:.4f} / {r['kinematic_max_mm']:.4f} | {r['hybrid_mm']:.4f} / "
                   f"{r['hybrid_max_mm']:.4f} | {r['final_mm']:.4f} / {r['final_max_mm']:.4f} | "
                   f"{r['final_mm'] / r['kinematic_mm']:.2f}, {r['final_max_mm'] / r['kinematic_max_mm']:.2f} | "
-                  f"{'kept' if r['compensator'] else 'no'} ({r['shrink']}) | "
+                  f"{'kept' if r['compensator'] else 'no'} ({r['shrink']}, nu {r.get('student_t_nu')}) | "
                   f"{'-' if r['interval_coverage'] is None else format(r['interval_coverage'], '.1%')}"
                   f" | {r['time_s']:.0f} s", flush=True)
             print(f"      {r['final_model']}")

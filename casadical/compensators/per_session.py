@@ -34,7 +34,7 @@ from ..result import CalibrationResult, learning_mask, rebuilt
 from ..runtime.threads import limited_threads
 from ..terms import SessionLocal, make_term
 from ..terms.gp_compensator import fitted_processes
-from .gp import CHI3_95, MAX_STD_RATIO, ResidualGP
+from .gp import CHI3_95, MAX_STD_RATIO, ROBUST_NU, ResidualGP
 
 #: a session's process learns from at most this many of its poses (drawn at random): its cost grows with the cube
 #: of the poses, in the fit and in every held-out fold, and its size in the model with their number
@@ -53,7 +53,8 @@ def gp_compensator_data(result: CalibrationResult, data: Measurements) -> tuple[
 
 
 def fit_gp_compensator(result: CalibrationResult, data: Measurements, max_std_ratio: float = MAX_STD_RATIO,
-                       seed: int = 0, progress: Callable[[str], None] | None = None
+                       seed: int = 0, progress: Callable[[str], None] | None = None,
+                       robust_nu: float | None = ROBUST_NU
                        ) -> tuple[dict[str | None, ResidualGP], dict[str | None, np.ndarray]]:
     """A Gaussian process of the residual per session (key None for data of one session), and the poses of
     ``data`` each learnt from; ``progress`` receives a line per session."""
@@ -67,7 +68,8 @@ def fit_gp_compensator(result: CalibrationResult, data: Measurements, max_std_ra
         if progress is not None:
             progress(f"  hyperparameters of the processes{f' of session {s}' if s else ''}: {len(idx)} poses, "
                      "x, y and z")
-        gps[s or None] = ResidualGP.fit(X[idx], Y[idx], max_std_ratio=max_std_ratio, seed=seed)
+        gps[s or None] = ResidualGP.fit(X[idx], Y[idx], max_std_ratio=max_std_ratio, seed=seed,
+                                       robust_nu=robust_nu)
         rows[s or None] = idx
     return gps, rows
 
