@@ -163,8 +163,8 @@ def compensator_step(current: CalibrationResult, spec: str, cal: Measurements, v
         + (f" (leaving out the poses both miss by more than {band:.4f} mm: "
            + ", ".join(f"{k} {n}" for k, n in missed.items() if n) + ")" if any(missed.values()) else "")
         + f"; its correction is its posterior mean times (1 - r^2)^{shrink:g}, r its std over its prior's, with "
-          f"{likelihood} (both chosen on the folds); at least half of it applies at {known} of the {total} validation poses "
-          "here; it belongs to the session it was learnt in",
+          f"{likelihood} (both chosen on the folds); at least half of it applies at {known} of the {total} "
+          "validation poses here; it belongs to the session it was learnt in",
         where="GP compensator (gp_compensator): a Gaussian process of the residual",
         holds_up={"cv_mm": cv_mm, "worst_mm": {k: list(v) for k, v in worst.items()}, "support": 1.0,
                   "shrink": shrink, "student_t_nu": nu, "interval_k": k, "missed_by_both": missed,
