@@ -123,15 +123,18 @@ class GPCompensatorFolds:
             out[at] += np.linalg.norm(Y - pred * shrink_weight(ratio, shrink)[:, None], axis=1)
         return out / self.n_schemes[kind]
 
-    def interval_k(self, shrink: float, level: float = 0.95) -> float:
+    def interval_k(self, shrink: float, level: float = 0.95, params_var: np.ndarray | None = None) -> float:
         """The factor of a 95 % interval of a measured point, calibrated on the random folds: the ``level``
         quantile of each held-out pose's error over ``sqrt(std^2 / 3 + sigma^2)`` (``std`` what the fold's
-        process leaves, :meth:`ResidualGP.predictive_std`; ``sigma`` its white noise), never below
-        :data:`CHI3_95`."""
+        process leaves, :meth:`ResidualGP.predictive_std`, and the parameters' part ``params_var`` (m^2, one per
+        pose of ``keep``; :func:`casadical.stats.predictive.prediction_std`), as the interval adds them;
+        ``sigma`` its white noise), never below :data:`CHI3_95`."""
         z = [np.zeros(0)]
-        for _, Y, pred, ratio, var, prior, noise in self.folds.get("random", []):
+        for at, Y, pred, ratio, var, prior, noise in self.folds.get("random", []):
             w = shrink_weight(ratio, shrink)[:, None]
             s2 = np.sum(var + (1 - w) ** 2 * (prior - var), axis=1)
+            if params_var is not None:
+                s2 = s2 + params_var[at]
             z.append(np.linalg.norm(Y - pred * w, axis=1) / np.sqrt(s2 / 3 + noise ** 2))
         z = np.concatenate(z)
         return max(CHI3_95, float(np.quantile(z, min(level, 1.0)))) if len(z) else CHI3_95

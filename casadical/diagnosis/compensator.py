@@ -39,7 +39,9 @@ from ..compensators.per_session import (
     with_gp_compensator,
 )
 from ..data.measurements import Measurements
+from ..errors import InputError
 from ..result import CalibrationResult
+from ..stats.predictive import prediction_std
 from .candidates import Candidate, compose_spec
 from .never_worse import WORST_SHARE, noise_band
 from .report import Finding, Step
@@ -143,7 +145,10 @@ def compensator_step(current: CalibrationResult, spec: str, cal: Measurements, v
         return current, spec
     # the 95 % interval of a measured point, calibrated on the random folds; the poses the robust loss set aside
     # count as outside it
-    k = folds.interval_k(shrink, 0.95 / max(float(keep.mean()), 0.95))
+    # the folds' residuals are the named causes' fit on every pose, smaller than held-out ones by sqrt((m - p) / m)
+    unc = current.uncertainty
+    dof = (np.sqrt((unc.dof + len(unc.names)) / unc.dof) if unc is not None and unc.dof > 0 else 1.0)
+    k = folds.interval_k(shrink, 0.95 / max(float(keep.mean()), 0.95), _params_var(current, cal, keep)) * dof
     for g in gps.values():
         g.max_std_ratio, g.shrink, g.interval_k = 1.0, shrink, k
     progress(f"  chosen on the folds: {likelihood}, its posterior mean times (1 - r^2)^{shrink:g}, r its std over "
@@ -173,6 +178,15 @@ def compensator_step(current: CalibrationResult, spec: str, cal: Measurements, v
     progress(f"GP compensator kept: validation mean {v0.mean_mm:.4f} -> {v1.mean_mm:.4f} mm "
              f"(applied at {known} of {total} validation poses)")
     return final, name
+
+
+def _params_var(current: CalibrationResult, cal: Measurements, keep: np.ndarray) -> np.ndarray | None:
+    """The parameters' part of the prediction's variance (m^2) at the poses of ``keep``, as the 95 % interval adds
+    it (None without a covariance)."""
+    try:
+        return prediction_std(current, cal)[0][keep] ** 2
+    except InputError:
+        return None
 
 
 def _per_session(data: Measurements, keep: np.ndarray) -> dict[str, int]:
