@@ -108,7 +108,7 @@ def covariance_scale(result: CalibrationResult) -> float:
     """What the parameters' std at a pose is multiplied by: the robust noise scale over the covariance's own
     ``sigma`` where that is larger (else 1; see the module). The covariance's ``sigma^2 = sum w_i |r_i|^2 /
     (m - p)`` counts each pose the robust loss sets aside by ``w |r|^2 = c sigma |r|``, growing with its miss:
-    4 bad shots of 5 mm among 80 poses made it 69 um where the noise is 20 um (the hidden-effect matrix's bad
+    3 bad shots of 5 mm among 80 poses made it 69 um where the robust scale is 23 um (the hidden-effect matrix's bad
     shots on arm4-beta: every held-out pose inside the 95 % interval; at the robust scale 97.5 %)."""
     unc = result.uncertainty
     if unc is None or not result.loss.robust or not unc.sigma > 0:
