@@ -86,6 +86,8 @@ SIGNAL0, LENGTH0, NOISE0 = 1.0, 1.0, 0.5
 #: after its hyperparameters are fitted again with them
 ROBUST_NU = 4.0
 ROBUST_ROUNDS = 5
+ROBUST_REFITS = 2
+ROBUST_ITERATIONS = 60
 
 
 def squared_differences(X: np.ndarray) -> np.ndarray:
@@ -195,6 +197,8 @@ class ResidualGP:
         Each training pose's robust weight (:func:`robust_weights`; its noise
         variance ``sigma_n^2 / w``); None: 1 at every pose (a Gaussian
         likelihood).
+    nu : float, optional
+        The Student-t likelihood's degrees of freedom (None: a Gaussian).
     """
 
     X: np.ndarray
@@ -208,6 +212,7 @@ class ResidualGP:
     shrink: float = 0.0
     interval_k: float = CHI3_95
     pose_weights: np.ndarray | None = None
+    nu: float | None = None
 
     def __post_init__(self) -> None:
         from scipy.linalg import cho_factor, cho_solve  # here: a command whose model has no process needs none
@@ -263,7 +268,7 @@ class ResidualGP:
         mean, std = Y.mean(axis=0), Y.std(axis=0)
         std = np.where(std > 0, std, 1.0)
 
-        def hyperparameters(start, scale):
+        def hyperparameters(start, scale, iterations=FIT_ITERATIONS):
             thetas = []
             for a in range(3):
                 y = Y[rows, a]
@@ -275,27 +280,28 @@ class ResidualGP:
                     return -lml, -grad
 
                 thetas.append(minimize(objective, start[a], method="L-BFGS-B", jac=True, bounds=bounds,
-                                       options={"maxiter": FIT_ITERATIONS}).x)
+                                       options={"maxiter": iterations}).x)
             return thetas
 
         thetas = hyperparameters([theta0] * 3, None)
         w = None
         if robust_nu is not None:
             Z = (Y - mean) / std
-            for refit in (True, True, False):
+            for refit in [True] * ROBUST_REFITS + [False]:
                 g = cls(X, Y, np.array([np.exp(t[1:-1]) for t in thetas]), np.array([math.exp(t[0]) for t in thetas]),
                         np.array([math.exp(t[-1]) for t in thetas]), mean, std, max_std_ratio)
                 w = robust_weights(Z, [g.kernel(X, X, a) for a in range(3)], g.noise_var, robust_nu, w=w)
                 if refit:
-                    thetas = hyperparameters([theta0] * 3, 1.0 / w[rows])
+                    thetas = hyperparameters([theta0] * 3, 1.0 / w[rows], ROBUST_ITERATIONS)
         return cls(X, Y, np.array([np.exp(t[1:-1]) for t in thetas]), np.array([math.exp(t[0]) for t in thetas]),
-                   np.array([math.exp(t[-1]) for t in thetas]), mean, std, max_std_ratio, pose_weights=w)
+                   np.array([math.exp(t[-1]) for t in thetas]), mean, std, max_std_ratio, pose_weights=w,
+                   nu=robust_nu)
 
     def refit(self, rows: np.ndarray) -> "ResidualGP":
         """The same hyperparameters, conditioned on the training poses ``rows`` only (for held-out folds)."""
         return ResidualGP(self.X[rows], self.Y[rows], self.length_scales, self.signal_var, self.noise_var,
                           self.y_mean, self.y_std, self.max_std_ratio, self.shrink, self.interval_k,
-                          None if self.pose_weights is None else self.pose_weights[rows])
+                          None if self.pose_weights is None else self.pose_weights[rows], self.nu)
 
     # --- prediction -----------------------------------------------------------------
 
@@ -343,8 +349,10 @@ class ResidualGP:
 
     def noise_std(self) -> float:
         """The white-noise part of the residual, per axis (m): what the joint readings do not predict (the mean of
-        the three components' variances)."""
-        return float(np.sqrt(np.mean(self.noise_var * self.y_std ** 2)))
+        the three components' variances; of a Student-t likelihood its variance, ``sigma_n^2 nu / (nu - 2)``: a
+        new pose's weight is not known)."""
+        t = self.nu / (self.nu - 2.0) if self.nu is not None and self.nu > 2 else 1.0
+        return float(np.sqrt(np.mean(self.noise_var * self.y_std ** 2) * t))
 
     def std_ratio_of(self, X: np.ndarray, a: int) -> np.ndarray:
         """Predictive std of component ``a`` over its prior std at poses ``X``."""
@@ -402,7 +410,8 @@ class ResidualGP:
                 "max_std_ratio": self.max_std_ratio, "shrink": self.shrink, "interval_k": self.interval_k,
                 "q_rad": self.X.tolist(),
                 "residual_m": self.Y.tolist(),
-                **({} if self.pose_weights is None else {"pose_weights": self.pose_weights.tolist()})}
+                **({} if self.pose_weights is None else {"pose_weights": self.pose_weights.tolist()}),
+                **({} if self.nu is None else {"student_t_nu": self.nu})}
 
     @classmethod
     def from_dict(cls, d: dict) -> "ResidualGP":
@@ -422,6 +431,7 @@ class ResidualGP:
             shrink = float(d.get("shrink", 0.0))
             k = float(d.get("interval_k", CHI3_95))
             pw = None if d.get("pose_weights") is None else np.asarray(d["pose_weights"], float)
+            nu = None if d.get("student_t_nu") is None else float(d["student_t_nu"])
         except (KeyError, TypeError, ValueError) as e:
             raise InputError(f"not a Gaussian process written by casadical ({e})") from e
         n = ls.shape[1] if ls.ndim == 2 else -1
@@ -436,4 +446,6 @@ class ResidualGP:
                              "max_std_ratio in (0, 1], a finite shrink >= 0 and a finite interval_k > 0")
         if pw is not None and (pw.shape != (len(X),) or not np.all(np.isfinite(pw)) or not np.all(pw > 0)):
             raise InputError("a Gaussian process's pose_weights are one positive finite number per pose of q_rad")
-        return cls(X, Y, ls, sv, nv, mean, std, ratio, shrink, k, pw)
+        if nu is not None and not (math.isfinite(nu) and nu > 0):
+            raise InputError("a Gaussian process's student_t_nu is a finite number > 0")
+        return cls(X, Y, ls, sv, nv, mean, std, ratio, shrink, k, pw, nu)

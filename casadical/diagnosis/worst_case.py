@@ -57,7 +57,8 @@ def _reconditioned(gps: dict, fit, cal) -> dict:
         Y = r[at] @ fit.base_matrix(s)[:3, :3]
         std = Y.std(axis=0)
         out[s] = ResidualGP(g.X, Y, g.length_scales, g.signal_var, g.noise_var, Y.mean(axis=0),
-                            np.where(std > 0, std, 1.0), g.max_std_ratio, g.shrink, g.interval_k, g.pose_weights)
+                            np.where(std > 0, std, 1.0), g.max_std_ratio, g.shrink, g.interval_k, g.pose_weights,
+                            g.nu)
     return out
 
 
