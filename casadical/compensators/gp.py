@@ -82,8 +82,10 @@ SIGNAL_BOUNDS, NOISE_BOUNDS = (1e-4, 1e2), (1e-4, 1.0)
 SIGNAL0, LENGTH0, NOISE0 = 1.0, 1.0, 0.5
 #: the GP compensator's likelihood: a Student-t of this many degrees of freedom (per pose, its three components
 #: together), heavy-tailed so that the few poses both models miss by far do not pull its correction (None: a
-#: Gaussian, scikit-learn's); its weights by :data:`ROBUST_ROUNDS` rounds of expectation-maximisation, before and
-#: after its hyperparameters are fitted again with them
+#: Gaussian, scikit-learn's); its weights by :data:`ROBUST_ROUNDS` rounds of expectation-maximisation, after the
+#: Gaussian fit and after each of :data:`ROBUST_REFITS` fits of its hyperparameters with them, from scikit-learn's
+#: start, in at most :data:`ROBUST_ITERATIONS` iterations (to convergence: at 20, a difference of 1e-10 in the
+#: residuals, CasADi's JIT or not, changed the README job's choice of likelihood)
 ROBUST_NU = 4.0
 ROBUST_ROUNDS = 5
 ROBUST_REFITS = 2
@@ -245,8 +247,8 @@ class ResidualGP:
 
         With ``robust_nu`` the likelihood is a Student-t of that many degrees of freedom instead of a Gaussian
         (the GP compensator's: :data:`ROBUST_NU`): the Gaussian fit, then each pose's weight
-        (:func:`robust_weights`, on every pose), the hyperparameters fitted again with them (from the Gaussian
-        fit's), and the weights again.
+        (:func:`robust_weights`, on every pose), the hyperparameters fitted again with them and the weights
+        again, :data:`ROBUST_REFITS` times (:data:`ROBUST_NU`'s comment).
 
         Parameters
         ----------
