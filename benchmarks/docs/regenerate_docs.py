@@ -102,6 +102,7 @@ JOBS: dict[str, Job] = {
     "next-poses": Job((_py("studies/study_next_poses.py"),), 1.8),
     "hidden-effects": Job((_py("studies/study_hidden_effects.py"),), 10),
     "open-world": Job((_py("studies/study_open_world.py"),), 2),
+    "compensator": Job((_py("studies/study_compensator.py"),), 2),
 }
 
 
@@ -169,6 +170,7 @@ BLOCKS: dict[str, Block] = {
     "hidden-effects-failing": Block("hidden-effects", (r"^### Claims that are not exact",)),
     "open-world-outside": Block("open-world", (r"^### Effects outside the catalogue",)),
     "open-world-noise": Block("open-world", (r"^### Noise alone",)),
+    "compensator-study": Block("compensator", (r"^### The GP compensator's study",)),
     # docs/guide.md
     "guide-aic": Block("guide", (r"^AIC and BIC",)),
     "guide-urdf": Block("guide", (r"^URDF read by yourdfpy",)),

@@ -80,6 +80,16 @@ JITTER = 1e-10
 #: bounds of the signal and the noise variance (of the standardised residual), as the kernel's start values
 SIGNAL_BOUNDS, NOISE_BOUNDS = (1e-4, 1e2), (1e-4, 1.0)
 SIGNAL0, LENGTH0, NOISE0 = 1.0, 1.0, 0.5
+#: the GP compensator's likelihood: a Student-t of this many degrees of freedom (per pose, its three components
+#: together), heavy-tailed so that the few poses both models miss by far do not pull its correction (None: a
+#: Gaussian, scikit-learn's); its weights by :data:`ROBUST_ROUNDS` rounds of expectation-maximisation, after the
+#: Gaussian fit and after each of :data:`ROBUST_REFITS` fits of its hyperparameters with them, from scikit-learn's
+#: start, in at most :data:`ROBUST_ITERATIONS` iterations (to convergence: at 20, a difference of 1e-10 in the
+#: residuals, CasADi's JIT or not, changed the README job's choice of likelihood)
+ROBUST_NU = 4.0
+ROBUST_ROUNDS = 5
+ROBUST_REFITS = 2
+ROBUST_ITERATIONS = 60
 
 
 def squared_differences(X: np.ndarray) -> np.ndarray:
@@ -87,16 +97,19 @@ def squared_differences(X: np.ndarray) -> np.ndarray:
     return (X[:, None, :] - X[None, :, :]) ** 2
 
 
-def log_likelihood(theta: np.ndarray, D: np.ndarray, y: np.ndarray) -> tuple[float, np.ndarray]:
+def log_likelihood(theta: np.ndarray, D: np.ndarray, y: np.ndarray, scale: np.ndarray | None = None
+                   ) -> tuple[float, np.ndarray]:
     """Log marginal likelihood of the standardised residual ``y`` and its gradient, at the log hyperparameters
     ``theta = log(s^2, l_1 .. l_n, sigma_n^2)`` (scikit-learn's ``theta`` of ``ConstantKernel * RBF +
-    WhiteKernel``, with its ``alpha``); ``D``: :func:`squared_differences` of the poses."""
+    WhiteKernel``, with its ``alpha``); ``D``: :func:`squared_differences` of the poses; ``scale``: each pose's
+    noise variance over ``sigma_n^2`` (1 / its robust weight, :func:`robust_weights`; None: 1 at every pose)."""
     from scipy.linalg import cho_factor, cho_solve, lapack  # here: a command whose model has no process needs none
     s2, ls, nv = math.exp(theta[0]), np.exp(theta[1:-1]), math.exp(theta[-1])
     n = len(y)
     E = np.exp(-0.5 * (D @ (1.0 / ls ** 2)))
     K = s2 * E
-    K[np.diag_indices(n)] += nv + JITTER
+    d = np.ones(n) if scale is None else scale
+    K[np.diag_indices(n)] += nv * d + JITTER
     try:
         L = cho_factor(K, lower=True, check_finite=False)
     except np.linalg.LinAlgError:
@@ -112,8 +125,47 @@ def log_likelihood(theta: np.ndarray, D: np.ndarray, y: np.ndarray) -> tuple[flo
     grad = np.empty_like(theta)
     grad[0] = 0.5 * M.sum()
     grad[1:-1] = 0.5 * np.tensordot(M, D, axes=([0, 1], [0, 1])) / ls ** 2
-    grad[-1] = 0.5 * nv * np.trace(W)
+    grad[-1] = 0.5 * nv * float(np.diag(W) @ d)
     return lml, grad
+
+
+def robust_weights(Y: np.ndarray, K_signal: list, noise_var: np.ndarray, nu: float,
+                   rounds: int = ROBUST_ROUNDS, w: np.ndarray | None = None) -> np.ndarray:
+    """Each pose's weight under a Student-t likelihood of ``nu`` degrees of freedom (a Gaussian scale mixture):
+    the expectation-maximisation of its noise scale, ``rounds`` times.
+
+    The three components of a pose share one weight (a pose a tracker shot or a transient spoils is spoilt in
+    every axis): ``w = (nu + 3) / (nu + q)``, ``q`` the expected squared residual of the pose's three
+    standardised components, ``E[(y - f)^2] / sigma_n^2``, under the process conditioned with the current
+    weights (its noise variance at the pose ``sigma_n^2 / w``): ``(d alpha)^2 + d - d^2 [K^-1]_ii``, ``d`` that
+    noise variance. A pose within the noise keeps about 1; one the process misses by far gets about
+    ``(nu + 3) / q`` and pulls the correction by that share.
+
+    Parameters
+    ----------
+    Y : ndarray, shape (N, 3)
+        The standardised residuals.
+    K_signal : list of 3 ndarrays (N, N)
+        The smooth part of each component's kernel at the poses.
+    noise_var : ndarray, shape (3,)
+        ``sigma_n^2`` of each component (standardised units).
+    """
+    from scipy.linalg import cho_factor, cho_solve, lapack
+
+    n = len(Y)
+    w = np.ones(n) if w is None else np.asarray(w, float).copy()
+    for _ in range(rounds):
+        q = np.zeros(n)
+        for a in range(3):
+            d = noise_var[a] / w
+            K = K_signal[a].copy()
+            K[np.diag_indices(n)] += d + JITTER
+            L = cho_factor(K, lower=True, check_finite=False)
+            alpha = cho_solve(L, Y[:, a], check_finite=False)
+            inv, _ = lapack.dpotri(L[0], lower=1)
+            q += ((d * alpha) ** 2 + d - d ** 2 * np.diag(inv)) / noise_var[a]
+        w = (nu + 3.0) / (nu + q)
+    return w
 
 
 @dataclass
@@ -143,6 +195,12 @@ class ResidualGP:
         The factor of the 95 % interval of a measured point at the poses of
         its session (:func:`casadical.stats.predictive.prediction_interval`):
         :data:`CHI3_95`, or as the diagnosis calibrates it on its folds.
+    pose_weights : ndarray, shape (N,), optional
+        Each training pose's robust weight (:func:`robust_weights`; its noise
+        variance ``sigma_n^2 / w``); None: 1 at every pose (a Gaussian
+        likelihood).
+    nu : float, optional
+        The Student-t likelihood's degrees of freedom (None: a Gaussian).
     """
 
     X: np.ndarray
@@ -155,6 +213,8 @@ class ResidualGP:
     max_std_ratio: float = MAX_STD_RATIO
     shrink: float = 0.0
     interval_k: float = CHI3_95
+    pose_weights: np.ndarray | None = None
+    nu: float | None = None
 
     def __post_init__(self) -> None:
         from scipy.linalg import cho_factor, cho_solve  # here: a command whose model has no process needs none
@@ -163,10 +223,13 @@ class ResidualGP:
         self.length_scales = np.atleast_2d(np.asarray(self.length_scales, float))
         self.signal_var, self.noise_var = (np.asarray(v, float).reshape(3) for v in (self.signal_var, self.noise_var))
         self.y_mean, self.y_std = np.asarray(self.y_mean, float), np.asarray(self.y_std, float)
+        if self.pose_weights is not None:
+            self.pose_weights = np.asarray(self.pose_weights, float).reshape(len(self.X))
+        w = np.ones(len(self.X)) if self.pose_weights is None else self.pose_weights
         Z = (self.Y - self.y_mean) / self.y_std
         self._chol, alpha = [], []
         for a in range(3):
-            K = self.kernel(self.X, self.X, a) + (self.noise_var[a] + JITTER) * np.eye(len(self.X))
+            K = self.kernel(self.X, self.X, a) + np.diag(self.noise_var[a] / w + JITTER)
             self._chol.append(cho_factor(K, lower=True))
             alpha.append(cho_solve(self._chol[a], Z[:, a]))
         self.alpha = np.column_stack(alpha)
@@ -176,10 +239,16 @@ class ResidualGP:
 
     @classmethod
     @limited_threads()
-    def fit(cls, X: np.ndarray, Y: np.ndarray, max_std_ratio: float = MAX_STD_RATIO, seed: int = 0) -> "ResidualGP":
+    def fit(cls, X: np.ndarray, Y: np.ndarray, max_std_ratio: float = MAX_STD_RATIO, seed: int = 0,
+            robust_nu: float | None = None) -> "ResidualGP":
         """Hyperparameters by maximum marginal likelihood (scikit-learn's objective: :func:`log_likelihood`), one
         length scale per joint and component, on at most :data:`FIT_POSES` poses; the process conditioned on all
         of them.
+
+        With ``robust_nu`` the likelihood is a Student-t of that many degrees of freedom instead of a Gaussian
+        (the GP compensator's: :data:`ROBUST_NU`): the Gaussian fit, then each pose's weight
+        (:func:`robust_weights`, on every pose), the hyperparameters fitted again with them and the weights
+        again, :data:`ROBUST_REFITS` times (:data:`ROBUST_NU`'s comment).
 
         Parameters
         ----------
@@ -198,28 +267,43 @@ class ResidualGP:
         n = X.shape[1]
         bounds = np.log([SIGNAL_BOUNDS] + [LENGTH_BOUNDS] * n + [NOISE_BOUNDS])
         theta0 = np.log([SIGNAL0] + [LENGTH0] * n + [NOISE0])
-        ls, sv, nv = [], [], []
-        for a in range(3):
-            y = Y[rows, a]
-            sd = y.std()
-            y = (y - y.mean()) / (sd if sd > 0 else 1.0)        # scikit-learn's normalize_y
-
-            def objective(theta):
-                lml, grad = log_likelihood(theta, D, y)
-                return -lml, -grad
-
-            theta = minimize(objective, theta0, method="L-BFGS-B", jac=True, bounds=bounds,
-                             options={"maxiter": FIT_ITERATIONS}).x
-            sv.append(math.exp(theta[0]))
-            ls.append(np.exp(theta[1:-1]))
-            nv.append(math.exp(theta[-1]))
         mean, std = Y.mean(axis=0), Y.std(axis=0)
-        return cls(X, Y, np.array(ls), np.array(sv), np.array(nv), mean, np.where(std > 0, std, 1.0), max_std_ratio)
+        std = np.where(std > 0, std, 1.0)
+
+        def hyperparameters(start, scale, iterations=FIT_ITERATIONS):
+            thetas = []
+            for a in range(3):
+                y = Y[rows, a]
+                sd = y.std()
+                y = (y - y.mean()) / (sd if sd > 0 else 1.0)        # scikit-learn's normalize_y
+
+                def objective(theta):
+                    lml, grad = log_likelihood(theta, D, y, scale)
+                    return -lml, -grad
+
+                thetas.append(minimize(objective, start[a], method="L-BFGS-B", jac=True, bounds=bounds,
+                                       options={"maxiter": iterations}).x)
+            return thetas
+
+        thetas = hyperparameters([theta0] * 3, None)
+        w = None
+        if robust_nu is not None:
+            Z = (Y - mean) / std
+            for refit in [True] * ROBUST_REFITS + [False]:
+                g = cls(X, Y, np.array([np.exp(t[1:-1]) for t in thetas]), np.array([math.exp(t[0]) for t in thetas]),
+                        np.array([math.exp(t[-1]) for t in thetas]), mean, std, max_std_ratio)
+                w = robust_weights(Z, [g.kernel(X, X, a) for a in range(3)], g.noise_var, robust_nu, w=w)
+                if refit:
+                    thetas = hyperparameters([theta0] * 3, 1.0 / w[rows], ROBUST_ITERATIONS)
+        return cls(X, Y, np.array([np.exp(t[1:-1]) for t in thetas]), np.array([math.exp(t[0]) for t in thetas]),
+                   np.array([math.exp(t[-1]) for t in thetas]), mean, std, max_std_ratio, pose_weights=w,
+                   nu=robust_nu)
 
     def refit(self, rows: np.ndarray) -> "ResidualGP":
         """The same hyperparameters, conditioned on the training poses ``rows`` only (for held-out folds)."""
         return ResidualGP(self.X[rows], self.Y[rows], self.length_scales, self.signal_var, self.noise_var,
-                          self.y_mean, self.y_std, self.max_std_ratio, self.shrink, self.interval_k)
+                          self.y_mean, self.y_std, self.max_std_ratio, self.shrink, self.interval_k,
+                          None if self.pose_weights is None else self.pose_weights[rows], self.nu)
 
     # --- prediction -----------------------------------------------------------------
 
@@ -267,8 +351,10 @@ class ResidualGP:
 
     def noise_std(self) -> float:
         """The white-noise part of the residual, per axis (m): what the joint readings do not predict (the mean of
-        the three components' variances)."""
-        return float(np.sqrt(np.mean(self.noise_var * self.y_std ** 2)))
+        the three components' variances; of a Student-t likelihood its variance, ``sigma_n^2 nu / (nu - 2)``: a
+        new pose's weight is not known)."""
+        t = self.nu / (self.nu - 2.0) if self.nu is not None and self.nu > 2 else 1.0
+        return float(np.sqrt(np.mean(self.noise_var * self.y_std ** 2) * t))
 
     def std_ratio_of(self, X: np.ndarray, a: int) -> np.ndarray:
         """Predictive std of component ``a`` over its prior std at poses ``X``."""
@@ -325,7 +411,9 @@ class ResidualGP:
                 "y_mean_m": self.y_mean.tolist(), "y_std_m": self.y_std.tolist(),
                 "max_std_ratio": self.max_std_ratio, "shrink": self.shrink, "interval_k": self.interval_k,
                 "q_rad": self.X.tolist(),
-                "residual_m": self.Y.tolist()}
+                "residual_m": self.Y.tolist(),
+                **({} if self.pose_weights is None else {"pose_weights": self.pose_weights.tolist()}),
+                **({} if self.nu is None else {"student_t_nu": self.nu})}
 
     @classmethod
     def from_dict(cls, d: dict) -> "ResidualGP":
@@ -344,6 +432,8 @@ class ResidualGP:
             ratio = float(d.get("max_std_ratio", MAX_STD_RATIO))
             shrink = float(d.get("shrink", 0.0))
             k = float(d.get("interval_k", CHI3_95))
+            pw = None if d.get("pose_weights") is None else np.asarray(d["pose_weights"], float)
+            nu = None if d.get("student_t_nu") is None else float(d["student_t_nu"])
         except (KeyError, TypeError, ValueError) as e:
             raise InputError(f"not a Gaussian process written by casadical ({e})") from e
         n = ls.shape[1] if ls.ndim == 2 else -1
@@ -356,4 +446,8 @@ class ResidualGP:
                 and math.isfinite(ratio) and 0 <= shrink < math.inf and 0 < k < math.inf):
             raise InputError("a Gaussian process needs positive length scales, variances and y_std_m, "
                              "max_std_ratio in (0, 1], a finite shrink >= 0 and a finite interval_k > 0")
-        return cls(X, Y, ls, sv, nv, mean, std, ratio, shrink, k)
+        if pw is not None and (pw.shape != (len(X),) or not np.all(np.isfinite(pw)) or not np.all(pw > 0)):
+            raise InputError("a Gaussian process's pose_weights are one positive finite number per pose of q_rad")
+        if nu is not None and not (math.isfinite(nu) and nu > 0):
+            raise InputError("a Gaussian process's student_t_nu is a finite number > 0")
+        return cls(X, Y, ls, sv, nv, mean, std, ratio, shrink, k, pw, nu)

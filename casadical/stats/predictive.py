@@ -6,7 +6,10 @@ Two parts, independent and added in variance:
   covariance ``C`` from the fit, carried to the tool point by the model's
   Jacobian at the pose, ``Sigma = J C J^T`` (linearised; a Monte Carlo of
   ``C`` agrees within a few per cent where the model is nearly linear in its
-  parameters, as calibration models are);
+  parameters, as calibration models are); of a robust fit at the robust
+  noise scale where the covariance's own ``sigma`` is larger
+  (:func:`covariance_scale`: poses the loss sets aside count in that
+  ``sigma`` by their miss);
 - the **GP compensator** (one per session,
   :mod:`casadical.compensators.per_session`): its Gaussian processes'
   predictive std where they know the residual, their prior std where they
@@ -79,7 +82,7 @@ def prediction_std(result: CalibrationResult, data: Measurements) -> tuple[np.nd
     idx = [model.parameters.index(n) for n in unc.names]
     G = J[:, :, idx]                                   # (N, 3, k)
     var = np.einsum("nik,kl,nil->n", G, unc.covariance, G)
-    params = np.sqrt(np.clip(var, 0.0, None))
+    params = np.sqrt(np.clip(var, 0.0, None)) * covariance_scale(result)
     compensator = None
     for gp, rows in fitted_processes(model.terms, data):
         if compensator is None:
@@ -89,17 +92,36 @@ def prediction_std(result: CalibrationResult, data: Measurements) -> tuple[np.nd
     return params, compensator
 
 
-def noise_sigma(result: CalibrationResult, data: Measurements) -> np.ndarray:
-    """The noise per axis (m) at each pose of ``data`` that a measured point adds to the prediction: the GP
-    compensator's white noise at the poses of its session, the calibration's noise scale elsewhere (see the
-    module)."""
+def _calibration_noise(result: CalibrationResult) -> float:
+    """The calibration's noise scale per axis (m): its robust loss's ``sigma`` times ``sqrt(m / (m - p))``, or the
+    residual's scale of a plain least-squares fit (nan when unknown)."""
     unc = result.uncertainty
     if result.loss.robust:
         sigma = result.loss.sigma
         if unc is not None and unc.dof > 0:     # a fit's residuals are smaller than the noise by its parameters
             sigma *= np.sqrt((unc.dof + len(unc.names)) / unc.dof)
-    else:
-        sigma = unc.sigma if unc is not None else float("nan")
+        return float(sigma)
+    return unc.sigma if unc is not None else float("nan")
+
+
+def covariance_scale(result: CalibrationResult) -> float:
+    """What the parameters' std at a pose is multiplied by: the robust noise scale over the covariance's own
+    ``sigma`` where that is larger (else 1; see the module). The covariance's ``sigma^2 = sum w_i |r_i|^2 /
+    (m - p)`` counts each pose the robust loss sets aside by ``w |r|^2 = c sigma |r|``, growing with its miss:
+    3 bad shots of 5 mm among 80 poses made it 69 um where the robust scale is 23 um (the hidden-effect matrix's bad
+    shots on arm4-beta: every held-out pose inside the 95 % interval; at the robust scale 97.5 %)."""
+    unc = result.uncertainty
+    if unc is None or not result.loss.robust or not unc.sigma > 0:
+        return 1.0
+    noise = _calibration_noise(result)
+    return float(min(1.0, noise / unc.sigma)) if np.isfinite(noise) and noise > 0 else 1.0
+
+
+def noise_sigma(result: CalibrationResult, data: Measurements) -> np.ndarray:
+    """The noise per axis (m) at each pose of ``data`` that a measured point adds to the prediction: the GP
+    compensator's white noise at the poses of its session, the calibration's noise scale elsewhere (see the
+    module)."""
+    sigma = _calibration_noise(result)
     out = np.full(len(data), sigma if np.isfinite(sigma) else 0.0)
     for gp, rows in fitted_processes(result.model.terms, data):
         out[rows] = gp.noise_std()

@@ -185,3 +185,30 @@ def test_the_worst_case_judge_compares_like_with_like():
     pred[5] = Y[5] + [1.5e-3, 0, 0]                  # a rise at a pose within the noise: it vetoes
     reasons = judge(folds, 1.0, 0.05, band=1.0)[0]
     assert reasons and "worst" in reasons[0]
+
+
+@pytest.mark.parametrize("seed", SEEDS)
+def test_a_student_t_likelihood_is_not_pulled_by_the_poses_it_misses(seed):
+    """A smooth residual and a few poses missed by far (a bad shot in every axis, 10-30x the noise): with the
+    Student-t likelihood those poses get small weights, the others about 1, and the correction at new poses stays
+    near the smooth residual where the Gaussian's is pulled; the file keeps the weights."""
+    rng = np.random.default_rng(seed)
+    X = rng.uniform(-2, 2, (200, 5))
+
+    def smooth(X):
+        return np.column_stack([np.sin(X[:, 0] + X[:, 1]), np.cos(X[:, 1] * X[:, 2]), X[:, 3] * X[:, 4] / 4]) * 1e-4
+
+    Y = smooth(X) + rng.normal(0, 1e-5, (200, 3))
+    bad = rng.choice(200, 5, replace=False)
+    Y[bad] += rng.choice([-1, 1], (5, 3)) * rng.uniform(1e-4, 3e-4, (5, 3))
+    Xt = rng.uniform(-2, 2, (300, 5))
+    err = {nu: np.linalg.norm(ResidualGP.fit(X, Y, seed=seed, robust_nu=nu).predict(Xt) - smooth(Xt), axis=1).mean()
+           for nu in (None, 4.0)}
+    t = ResidualGP.fit(X, Y, seed=seed, robust_nu=4.0)
+    good = np.setdiff1d(np.arange(200), bad)
+    assert t.pose_weights[bad].max() < 0.2 and np.median(t.pose_weights[good]) > 0.7, t.pose_weights[bad]
+    assert err[4.0] < 0.8 * err[None], err
+    again = ResidualGP.from_dict(json.loads(json.dumps(t.to_dict())))
+    assert np.array_equal(again.pose_weights, t.pose_weights)
+    assert np.allclose(again.predict(Xt), t.predict(Xt), rtol=1e-10, atol=1e-16)
+    assert np.allclose(t.refit(good).pose_weights, t.pose_weights[good])
