@@ -26,15 +26,9 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.append(str(ROOT))  # the tests' helpers as ``tests.helpers``, after any casadical on PYTHONPATH
 
+from study_hidden_effects import fmt  # noqa: E402  (this folder: the claims in the same words)
+
 from tests.helpers import hidden  # noqa: E402
-
-
-def fmt(claims) -> str:
-    def one(c):
-        cause, joint, harmonic, scope = c
-        text = cause + (f" j{joint}" if joint is not None else "") + (f" h{harmonic}" if harmonic is not None else "")
-        return text + (f" ({scope})" if scope != "robot" else "")
-    return ", ".join(one(c) for c in sorted(claims, key=str)) or "-"
 
 
 def diagnosed(c):
