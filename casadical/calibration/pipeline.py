@@ -51,7 +51,7 @@ STAGES: tuple[Callable[[CalibrationRun], None], ...] = (
 @limited_threads()
 def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str | Model = "kinematic+compliance",
               solver: str = "ipopt", *, solver_options: dict | None = None, fix: tuple[str, ...] = (),
-              start: dict[str, float] | None = None, frames_from: CalibrationResult | None = None,
+              start: dict[str, float] | None = None, start_from: CalibrationResult | None = None,
               check_identifiability: bool = True,
               warn: bool = True, robust: str | RobustLoss = "huber", position_only: bool = False,
               allow_outside_limits: bool = False, angles_are_degrees: bool = False,
@@ -90,7 +90,7 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
     start : dict, optional
         Start values (SI) by parameter name; default nominal (or the
         calibration's values).
-    frames_from : CalibrationResult, optional
+    start_from : CalibrationResult, optional
         A fit of the same poses (the same sessions) to start the solve
         from: its base pose (each session's), probe mounting and values,
         ``start``'s values for the parameters it does not have. A model near
@@ -139,7 +139,7 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         The data do not fit the robot, or an unknown parameter name.
     """
     options = Options(solver=solver, solver_options=solver_options or {}, fix=fix, start=start or {},
-                      frames_from=frames_from,
+                      start_from=start_from,
                       check_identifiability=check_identifiability, warn=warn, robust=robust,
                       position_only=position_only, allow_outside_limits=allow_outside_limits,
                       angles_are_degrees=angles_are_degrees, positions_are_mm=positions_are_mm,

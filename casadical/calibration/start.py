@@ -93,12 +93,12 @@ def start_pose(run: CalibrationRun) -> None:
             run.tool0 = mean_mounting(model.probe_rotation(data.q, params.values, run.cov, run.base0),
                                       run.measured_rot)
         run.rot = run.measured_rot @ run.tool0.T
-    if opts.frames_from is not None:
-        _start_from(run, opts.frames_from)
+    if opts.start_from is not None:
+        _start_from(run, opts.start_from)
 
 
 def _start_from(run: CalibrationRun, fit) -> None:
-    """``calibrate(frames_from=fit)``: the solve starts at ``fit``'s solution, its base pose (each session's)
+    """``calibrate(start_from=fit)``: the solve starts at ``fit``'s solution, its base pose (each session's)
     and probe mounting expressed in this run's references (the closed forms above), its values of the other
     parameters, and the start values of those it does not have; the noise scale is still estimated first at
     the start values, as without it (``scale_at``)."""
@@ -106,7 +106,7 @@ def _start_from(run: CalibrationRun, fit) -> None:
     frames, theirs = model.term("sessions"), fit.model.term("sessions")
     names = frames.names if frames is not None else []
     if names != (theirs.names if theirs is not None else []):
-        raise InputError(f"frames_from: a fit of sessions {theirs.names if theirs is not None else []}, these data "
+        raise InputError(f"start_from: a fit of sessions {theirs.names if theirs is not None else []}, these data "
                          f"have {names}; start from a fit of the same poses")
     run.scale_at = params.values.copy()
     for p in params:

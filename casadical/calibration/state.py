@@ -54,7 +54,7 @@ class Options:
     solver_options: dict = field(default_factory=dict)
     fix: tuple[str, ...] = ()
     start: dict[str, float] = field(default_factory=dict)
-    frames_from: CalibrationResult | None = None
+    start_from: CalibrationResult | None = None
     check_identifiability: bool = True
     warn: bool = True
     robust: str | RobustLoss = "huber"
@@ -105,7 +105,7 @@ class CalibrationRun:
     tool0: np.ndarray | None = None      # full pose: the probe's reference mounting R0
     rot: np.ndarray | None = None        # full pose: the measured rotations with R0 taken out
     cov: np.ndarray | None = None        # the model's covariates of the poses
-    scale_at: np.ndarray | None = None   # frames_from: the values the noise scale is first estimated at
+    scale_at: np.ndarray | None = None   # start_from: the values the noise scale is first estimated at
 
     # analyse_identifiability
     ident: Identifiability | None = None

@@ -132,15 +132,15 @@ class DiagnosisRun:
             parent: CalibrationResult | None = None) -> CalibrationResult:
         """Calibrate ``spec`` on the calibration poses (LM), from ``start``'s values (a result, or a dict of
         ``parent``'s parameters as one step moved them), warm: from the base pose and probe mounting of the fit
-        the values are of (``calibrate(frames_from=...)``), so the solve starts at its solution."""
+        the values are of (``calibrate(start_from=...)``), so the solve starts at its solution."""
         model = model_for(self.robot, spec + ("+tool_orientation" if self.full_pose else ""), self.cal,
                           session_tools=self.s.session_tools)
-        st = frames = None
+        st = origin = None
         if start is not None:
-            frames = start if isinstance(start, CalibrationResult) else parent
+            origin = start if isinstance(start, CalibrationResult) else parent
             values = start if isinstance(start, dict) else {p.name: p.value for p in start.parameters}
             st = {n: v for n, v in values.items() if n in model.parameters and not n.startswith("base_")}
-        return calibrate(self.robot, self.cal, model, "lm", start=st, frames_from=frames, warn=False,
+        return calibrate(self.robot, self.cal, model, "lm", start=st, start_from=origin, warn=False,
                          robust=loss or self.s.robust, position_only=self.s.position_only)
 
     def val_errors(self, res: CalibrationResult) -> np.ndarray:

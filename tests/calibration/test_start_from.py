@@ -1,4 +1,4 @@
-"""``calibrate(frames_from=fit)``: a fit started at another fit's solution (its base pose, probe mounting and
+"""``calibrate(start_from=fit)``: a fit started at another fit's solution (its base pose, probe mounting and
 values) gives the fit started in closed form, in fewer iterations: the diagnosis fits every model from its
 parent so."""
 
@@ -30,11 +30,11 @@ def _data(arm, seed, full_pose):
 
 
 def _compare(robot, data, parent, spec):
-    """The model ``spec`` fitted from ``parent``'s values, cold (closed forms) and warm (frames_from)."""
+    """The model ``spec`` fitted from ``parent``'s values, cold (closed forms) and warm (start_from)."""
     start = {p.name: p.value for p in parent.parameters if not p.name.startswith("base_")}
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return [calibrate(robot, data, spec, "lm", start=start, frames_from=frames, warn=False)
+        return [calibrate(robot, data, spec, "lm", start=start, start_from=frames, warn=False)
                 for frames in (None, parent)]
 
 
@@ -73,9 +73,9 @@ def test_warm_fit_of_two_sessions(seed):
 
 
 def _start(robot, data, spec, parent):
-    """The run of ``calibrate(frames_from=parent)`` as the solve starts (the stages before solve_parameters)."""
+    """The run of ``calibrate(start_from=parent)`` as the solve starts (the stages before solve_parameters)."""
     start = {p.name: p.value for p in parent.parameters if not p.name.startswith("base_")}
-    run = CalibrationRun(robot, data, spec, Options(solver="lm", start=start, frames_from=parent, warn=False))
+    run = CalibrationRun(robot, data, spec, Options(solver="lm", start=start, start_from=parent, warn=False))
     for stage in pipeline.STAGES[:pipeline.STAGES.index(pipeline.solve_parameters)]:
         stage(run)
     return run
@@ -109,5 +109,5 @@ def test_a_fit_of_other_sessions_is_refused():
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         parent = calibrate(robot, one, "kinematic", "lm", warn=False)
-        with pytest.raises(InputError, match="frames_from: a fit of sessions"):
-            calibrate(robot, cal, "kinematic", "lm", frames_from=parent, warn=False)
+        with pytest.raises(InputError, match="start_from: a fit of sessions"):
+            calibrate(robot, cal, "kinematic", "lm", start_from=parent, warn=False)
