@@ -475,7 +475,7 @@ def effects_from_table(t: dict, robot: Robot, file: str, table: str = "truth") -
     periodic = []
     for key, item_form, on_axis in (("periodic_deg", "[joint, harmonic, amplitude_deg, phase_deg]", False),
                                     ("periodic_mm", "[joint, cycles_per_m, amplitude_mm, phase_deg]", True)):
-        for i, (j, h, amp, ph) in enumerate(_items(t, key, table, file, item_form, n, 4)):
+        for i, (j, h, amp, ph) in enumerate(_items(t, key, table, file, item_form, n)):
             where = f"{table}.{key}[{i + 1}]"
             if h != int(h) or h < 1:
                 raise InputError(f"the harmonic must be a whole number >= 1, got {h!r}", file=file, column=where)
@@ -486,17 +486,16 @@ def effects_from_table(t: dict, robot: Robot, file: str, table: str = "truth") -
                                  file=file, column=where)
             periodic.append((j, int(h), amp / 1000 if on_axis else math.radians(amp), math.radians(ph)))
     axis_errors = {}
-    for key, kinds, unit, form in (("straightness_mm", ("x", "y"), 1e-3, "[joint, direction, p2_mm, p3_mm]"),
-                                   ("carriage_angle_mrad", ("roll", "pitch", "yaw"), 1e-3,
-                                    "[joint, angle, p1_mrad, p2_mrad]")):
+    for key, kinds, form in (("straightness_mm", ("x", "y"), "[joint, direction, p2_mm, p3_mm]"),
+                             ("carriage_angle_mrad", ("roll", "pitch", "yaw"), "[joint, angle, p1_mrad, p2_mrad]")):
         axis_errors[key] = []
-        for i, (j, kind, a, b) in enumerate(_items(t, key, table, file, form, n, 4, word=1)):
+        for i, (j, kind, a, b) in enumerate(_items(t, key, table, file, form, n, word=1)):
             where = f"{table}.{key}[{i + 1}]"
             if kind not in kinds:
                 raise InputError(f"must name one of {', '.join(kinds)}, got {kind!r}", file=file, column=where)
             if j not in linear:
                 raise InputError(f"joint {j} is revolute: {key} is a linear axis' error", file=file, column=where)
-            axis_errors[key].append((j, kind, (a * unit, b * unit)))
+            axis_errors[key].append((j, kind, (a / 1000, b / 1000)))     # mm and mrad to m and rad
     return Effects(
         length_sigma=v.nonnegative(t, "length_sigma_mm", table, 0.5) / 1000,
         angle_sigma=math.radians(v.nonnegative(t, "angle_sigma_deg", table, 0.05)),
@@ -516,17 +515,16 @@ def effects_from_table(t: dict, robot: Robot, file: str, table: str = "truth") -
     )
 
 
-def _items(t: dict, key: str, table: str, file: str, form: str, n_joints: int, length: int, word: int | None = None
-           ) -> list[tuple]:
-    """The entries of a list of lists ``key`` (``form`` in the messages): a joint 1..n_joints first, numbers after
-    it (a word at index ``word``)."""
+def _items(t: dict, key: str, table: str, file: str, form: str, n_joints: int, word: int | None = None) -> list[tuple]:
+    """The entries of a list of four-item lists ``key`` (``form`` in the messages): a joint 1..n_joints first,
+    numbers after it (a word at index ``word``)."""
     items = t.get(key, [])
     if not isinstance(items, list):
         raise InputError(f"must be a list of {form}, got {items!r}", file=file, column=f"{table}.{key}")
     out = []
     for i, item in enumerate(items):
         where = f"{table}.{key}[{i + 1}]"
-        ok = isinstance(item, list) and len(item) == length and all(
+        ok = isinstance(item, list) and len(item) == 4 and all(
             isinstance(x, str) if k == word else finite_number(x) for k, x in enumerate(item))
         if not ok:
             raise InputError(f"must be {form}, got {item!r}", file=file, column=where)
