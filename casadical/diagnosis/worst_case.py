@@ -7,8 +7,9 @@ like with like (the poses both miss by more than the noise, beyond each one's ro
 :func:`~.never_worse.noise_band`, are left out: a bad measurement or a transient no model of the robot predicts,
 which :func:`~.never_worse.validation_note` names). The note names the corrections whose dropping restores it at
 the least cost in the validation mean, among: the GP compensator alone; the named causes, dropped one at a time
-(backward, each time the one whose dropping lowers the worst error most, at most :data:`MAX_DROPS`), the model
-refitted without them, with the GP compensator kept (its process, hyperparameters and shrinkage the same,
+(backward, each time the one whose dropping lowers the worst error most, at most :data:`MAX_DROPS`; of the
+causes still kept only the :data:`SCREENED` a linearised screen ranks first are refitted in full, :func:`_screened`),
+the model refitted without them, with the GP compensator kept (its process, hyperparameters and shrinkage the same,
 conditioned on the refitted model's residuals) and without it; at last the kinematic model itself. (A correction
 can raise the worst error without extrapolating beyond its data: on UR10 series A, seeds 0 and 2, the worst
 validation poses have joint 2 at -169 deg, inside the calibration poses' -176 .. 5 deg, where few of them are,
@@ -29,10 +30,14 @@ from ..data.measurements import session_index
 from ..terms import SessionLocal
 from .candidates import compose_spec
 from .never_worse import WORST_SHARE, noise_band
+from .redundancy import own_parameters
 from .state import DiagnosisRun
+from .validation import Linearized
 
 #: the named causes dropped one at a time at most this many times before the kinematic model is the answer
 MAX_DROPS = 4
+#: in each round only this many named causes are refitted without in full (:func:`_screened`)
+SCREENED = 4
 
 
 def _processes(result) -> dict:
@@ -45,21 +50,61 @@ def _processes(result) -> dict:
     return out
 
 
+def _learnt_at(g, cal, s) -> np.ndarray:
+    """The calibration poses (rows) the process ``g`` of session ``s`` learnt from, in its order."""
+    rows = session_index(cal)[s or ""] if s is not None or cal.sessions is None else np.arange(len(cal))
+    where = {q.tobytes(): i for i, q in zip(rows, np.ascontiguousarray(cal.q[rows]))}
+    return np.array([where[q.tobytes()] for q in np.ascontiguousarray(g.X)])
+
+
+def _conditioned(g, Y: np.ndarray):
+    """The process ``g`` (hyperparameters, shrinkage, weights, interval factor) conditioned on residuals ``Y``."""
+    std = Y.std(axis=0)
+    return ResidualGP(g.X, Y, g.length_scales, g.signal_var, g.noise_var, Y.mean(axis=0), np.where(std > 0, std, 1.0),
+                      g.max_std_ratio, g.shrink, g.interval_k, g.pose_weights, g.nu)
+
+
 def _reconditioned(gps: dict, fit, cal) -> dict:
-    """The same processes (hyperparameters, shrinkage, weights, interval factor) conditioned on ``fit``'s residuals
-    at the poses each learnt from."""
+    """The same processes conditioned on ``fit``'s residuals at the poses each learnt from."""
     r = fit.residuals(cal)
-    out = {}
-    for s, g in gps.items():
-        rows = session_index(cal)[s or ""] if s is not None or cal.sessions is None else np.arange(len(cal))
-        where = {q.tobytes(): i for i, q in zip(rows, np.ascontiguousarray(cal.q[rows]))}
-        at = np.array([where[q.tobytes()] for q in np.ascontiguousarray(g.X)])
-        Y = r[at] @ fit.base_matrix(s)[:3, :3]
-        std = Y.std(axis=0)
-        out[s] = ResidualGP(g.X, Y, g.length_scales, g.signal_var, g.noise_var, Y.mean(axis=0),
-                            np.where(std > 0, std, 1.0), g.max_std_ratio, g.shrink, g.interval_k, g.pose_weights,
-                            g.nu)
-    return out
+    return {s: _conditioned(g, r[_learnt_at(g, cal, s)] @ fit.base_matrix(s)[:3, :3]) for s, g in gps.items()}
+
+
+def _screened(run: DiagnosisRun, fit, gps: dict, kept: list, like: np.ndarray) -> list:
+    """The :data:`SCREENED` causes of ``kept`` worth refitting without in full: for each, ``fit`` without it refitted
+    by one Gauss-Newton step on the calibration poses (linearised at ``fit``: its parameters switched off, the
+    others' step from the normal equations with its rows and columns taken out), the GP compensator's processes
+    ``gps`` conditioned on the residuals that leaves (their hyperparameters the same, as the full search keeps
+    them), and both taken to the validation poses (linearised there too); those whose worst error over ``like``
+    is lowest. A screen, not a decision: the ones it keeps are refitted in full."""
+    if len(kept) <= SCREENED:
+        return list(kept)
+    lc, lv = Linearized.of(fit, run.cal), Linearized.of(fit, run.val)
+    p = lc.J.shape[2]
+    Jw = (lc.J * np.sqrt(lc.weights)[:, None, None]).reshape(-1, p)
+    A, g = Jw.T @ Jw, Jw.T @ (lc.r * np.sqrt(lc.weights)[:, None]).reshape(-1)
+    x = np.array([fit.parameters[n].value for n in lc.names]) / lc.scale
+    procs = []    # per process: its learnt rows, base rotation, validation rows, weights and kernels there
+    for s, gp in gps.items():
+        rows = session_index(run.val).get(s or "", np.zeros(0, int)) if s is not None else np.arange(len(run.val))
+        q = run.val.q[rows]
+        procs.append((gp, _learnt_at(gp, run.cal, s), fit.base_matrix(s)[:3, :3], rows, gp.weight(q),
+                      [gp.kernel(q, gp.X, a) for a in range(3)]))
+
+    def worst_without(a) -> float:
+        cols = [lc.names.index(n) for n in own_parameters(a, kept) if n in lc.names]
+        if not cols:
+            return np.inf
+        rest = np.setdiff1d(np.arange(p), cols)
+        d = -np.linalg.lstsq(A[np.ix_(rest, rest)], g[rest] - A[np.ix_(rest, cols)] @ x[cols], rcond=None)[0]
+        rc = lc.r + lc.J[:, :, rest] @ d - lc.J[:, :, cols] @ x[cols]
+        rv = lv.r + lv.J[:, :, rest] @ d - lv.J[:, :, cols] @ x[cols]
+        for gp, learnt, R, rows, w, K in procs:
+            new = _conditioned(gp, rc[learnt] @ R)
+            Z = np.column_stack([K[k] @ new.alpha[:, k] for k in range(3)]) * new.y_std + new.y_mean
+            rv[rows] -= (Z * w[:, None]) @ R.T
+        return float(np.linalg.norm(rv[like], axis=1).max())
+    return sorted(kept, key=worst_without)[:SCREENED]
 
 
 def _errors(run: DiagnosisRun, fit, gps: dict | None) -> np.ndarray:
@@ -91,12 +136,12 @@ def keep_worst_case(run: DiagnosisRun) -> None:
     options = []
     if gps:
         options.append(([], list(run.accepted), run.parametric, None, run.val_errors(run.parametric) * 1000))
-    kept, dropped = list(run.accepted), []
+    kept, dropped, at = list(run.accepted), [], run.parametric
     for _ in range(min(MAX_DROPS, len(run.accepted))):
         if any(e[like].max() <= limit for *_, e in options):
             break
         tried = []
-        for a in kept:
+        for a in _screened(run, at, gps, kept, like):
             rest = [b for b in kept if b is not a]
             fit = run.fit(compose_spec(rest, run.geometric), start=run.parametric)
             new = _reconditioned(gps, fit, run.cal) if gps else None
@@ -105,7 +150,7 @@ def keep_worst_case(run: DiagnosisRun) -> None:
                 tried.append((dropped + [a], rest, fit, None, run.val_errors(fit) * 1000))
         options += tried
         best = min((t for t in tried if t[3] is not None or not gps), key=lambda t: t[4][like].max())
-        dropped, kept = best[0], best[1]
+        dropped, kept, at = best[0], best[1], best[2]
     options.append((list(run.accepted), [], run.kinematic, None, e_kin))
     restoring = [o for o in options if o[4][like].max() <= limit]
     what_dropped, earlier, fit, new, e = min(restoring, key=lambda o: o[4].mean())
