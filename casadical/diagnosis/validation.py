@@ -246,11 +246,12 @@ def linear_cv(J: np.ndarray, r: np.ndarray, weights: np.ndarray, all_schemes: li
     folds = [F for s in all_schemes for F in s.folds]
     A, AT = fold_grams(Jw, folds) if grams is None else (grams[0], grams[1].copy())
     g = J2.T @ r2
-    gT = np.empty((len(folds), p))
+    g_pose = np.einsum("nip,ni->np", Jw, rw)     # each pose's part of g: a fold's is a sum of rows, no gather of J
     owns, offs = [], []
     cause = np.zeros(p, bool) if off is None else np.isfinite(off)
+    gT = np.empty((len(folds), p))
     for k, F in enumerate(folds):
-        gT[k] = g - Jw[F].reshape(-1, p).T @ rw[F].reshape(-1)
+        gT[k] = g - g_pose[F].sum(axis=0)
         # what only the left-out poses inform: exactly out of the training system (the subtraction leaves
         # rounding, which the normalisation of solve_identified would blow up)
         share = np.diag(AT[k]) / np.maximum(np.diag(A), 1e-300)
