@@ -179,7 +179,7 @@ def main() -> None:
             if r["compensator_reason"]:
                 print(f"      compensator rejected: {r['compensator_reason']}")
             for n in r["worst_notes"]:
-                print(f"      note: {n[:600]}")
+                print(f"      note: {n[:1200]}")
     if args.json:
         Path(args.json).write_text(json.dumps(results, indent=1))
     mot = [r for r in results if r["set"] == "motoman"]

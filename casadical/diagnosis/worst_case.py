@@ -10,7 +10,9 @@ the least cost in the validation mean, among: the GP compensator alone; the name
 (backward, each time the one whose dropping lowers the worst error most, at most :data:`MAX_DROPS`; of the
 causes still kept only the :data:`SCREENED` a linearised screen ranks first are refitted in full, :func:`_screened`),
 the model refitted without them, with the GP compensator kept (its process, hyperparameters and shrinkage the same,
-conditioned on the refitted model's residuals) and without it; at last the kinematic model itself. (A correction
+conditioned on the refitted model's residuals) and without it; at last the kinematic model itself. It names the
+worst pose and, where it can be said, why the corrections dropped raise the error there (:func:`unchecked_terms`: a
+periodic term no calibration pose checks near that pose's reading of its joint). (A correction
 can raise the worst error without extrapolating beyond its data: on UR10 series A, seeds 0 and 2, the worst
 validation poses have joint 2 at -169 deg, inside the calibration poses' -176 .. 5 deg, where few of them are,
 and the periodic terms of joints 1-3 add up there; the GP compensator lowers it, so dropping it first, as the
@@ -121,6 +123,42 @@ def _errors(run: DiagnosisRun, fit, gps: dict | None) -> np.ndarray:
     return np.linalg.norm(r, axis=1) * 1000
 
 
+def unchecked_terms(run: DiagnosisRun, i: int, dropped: list) -> str:
+    """Why dropping ``dropped`` lowers the worst error at validation pose ``i``, where it can be said: the periodic
+    terms among them whose joint's reading there lies in a gap of the calibration poses' readings (of its session,
+    for a session's own term) wider than half the term's period, or beyond them by more than a quarter of it. A
+    harmonic's value there follows from its amplitude and phase, fitted elsewhere on the joint's range; no
+    calibration pose checks it over that gap, where a gear's error need not repeat (UR10 series A, seed 0: joint 2
+    at -168.9 deg, in a gap from -175.2 to -141.9 deg, harmonic 32's period 11.25 deg). "" when none is."""
+    cal, val = run.cal, run.val
+    prismatic = run.kinematic.model.robot.prismatic
+    said = []
+    for a in dropped:
+        if a.cause != "joint_periodic" or a.joint is None or a.harmonic is None:
+            continue
+        j = a.joint - 1
+        rows = session_index(cal)[a.session] if a.session is not None else np.arange(len(cal))
+        qc, qv = cal.q[rows, j], val.q[i, j]
+        period = (1.0 if prismatic[j] else 2 * np.pi) / a.harmonic
+        unit, f = ("mm", 1000.0) if prismatic[j] else ("deg", 180 / np.pi)
+        below, above = qc[qc <= qv], qc[qc >= qv]
+        if len(below) and len(above):
+            if above.min() - below.max() <= period / 2:
+                continue
+            where = (f"in a gap of the calibration poses' readings from {below.max() * f:.1f} to "
+                     f"{above.min() * f:.1f} {unit}, wider than half the period of {a.label()} ({period * f:.2f} "
+                     f"{unit})")
+        else:
+            near = below.max() if len(below) else above.min()
+            if abs(qv - near) <= period / 4:
+                continue
+            where = (f"{abs(qv - near) * f:.1f} {unit} beyond every calibration pose's reading, more than a quarter "
+                     f"of the period of {a.label()} ({period * f:.2f} {unit})")
+        said.append(f"joint {a.joint} reads {qv * f:.1f} {unit} there, {where}: no calibration pose checks that term "
+                    "over it")
+    return "; ".join(said)
+
+
 def keep_worst_case(run: DiagnosisRun) -> None:
     e_kin, e_final = run.val_errors(run.kinematic) * 1000, run.val_errors(run.final) * 1000
     # beyond each model's own half-weight radius, as validation_note's "miss both models"
@@ -160,7 +198,10 @@ def keep_worst_case(run: DiagnosisRun) -> None:
         what = ["every correction (the kinematic model)"]
     n_out = int((~like).sum())
     mean0, mean1 = e_final.mean(), e.mean()
-    text = (f"worst case: the final model misses a validation pose by {e_final[like].max():.4f} mm, more than "
+    i = int(np.flatnonzero(like)[np.argmax(e_final[like])])
+    why = unchecked_terms(run, i, what_dropped)
+    text = (f"worst case: the final model misses a validation pose ({run.val.file(i)}:{run.val.line(i)}) by "
+            f"{e_final[like].max():.4f} mm, more than "
             f"{WORST_SHARE:.0%} above the kinematic model's worst {e_kin[like].max():.4f} mm"
             + (f" (leaving out {n_out} pose{'s' * (n_out > 1)} both miss by more than the noise, beyond "
                f"{b_kin:.4f} and {b_final:.4f} mm)"
@@ -168,6 +209,7 @@ def keep_worst_case(run: DiagnosisRun) -> None:
             + "; without " + ", ".join(what)
             + (" (the GP compensator kept, conditioned on the model refitted without them)" if new else "")
             + f" it is {e[like].max():.4f} mm, at a cost in the validation mean of {mean0:.4f} -> {mean1:.4f} mm"
+            + (f"; why: {why}" if why else "")
             + ("; --worst-case made that the final model" if run.s.worst_case else
                "; diagnose --worst-case makes that the final model"))
     run.notes.append(text)

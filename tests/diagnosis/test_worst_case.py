@@ -2,9 +2,12 @@
 calibration's, the report says which corrections to drop to restore it and what that costs in the mean; with
 ``worst_case`` that model is the final one."""
 
+import math
+import re
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from casadical import load_robot
 from casadical.data import Measurements
@@ -40,6 +43,10 @@ def test_worst_case_names_what_to_drop_and_drops_it_when_asked():
         assert "the GP compensator kept" in note
     else:
         assert not any(f.cause == "unexplained" and "shrink" in f.holds_up for f in safe.findings)
+    # why: joint 2 at -169 deg, in a gap of the calibration poses' readings wider than half harmonic 32's period
+    assert re.search(r"why: joint 2 reads -16\d\.\d deg there, in a gap of the calibration poses' readings from "
+                     r"-1\d\d\.\d to -1\d\d\.\d deg, wider than half the period of joint_periodic joint 2 harmonic 32",
+                     note), note
     assert safe.to_dict()["settings"]["worst_case"] is True
     assert "--worst-case made that the final model" in next(n for n in safe.notes if n.startswith("worst case:"))
 
@@ -60,3 +67,48 @@ def test_the_screened_search_names_what_the_whole_search_names(monkeypatch):
         rep = diagnose(robot, cal, val, DiagnosisSettings(seed=2))
         notes.append(next(n for n in rep.notes if n.startswith("worst case:")))
     assert notes[0] == notes[1], notes
+
+
+def _gear_with_a_worn_stretch(c: float, w: float):
+    """A gear error of 9 cycles per turn (0.02 deg) whose sign turns over ``w`` rad of the reading about ``c``: a
+    worn or re-cut section, in no catalogue (its harmonic holds everywhere else)."""
+    return lambda q: math.radians(0.02) * np.sin(9 * q + 0.7) * np.where(np.abs(q - c) < w / 2, -1.0, 1.0)
+
+
+@pytest.mark.parametrize("arm, seed", [("arm7-dh", 0), ("arm7-dh", 1), ("arm5", 2)])
+def test_the_worst_case_note_says_why_a_term_no_calibration_pose_checks(tmp_path, arm, seed):
+    """Hidden: joint 3's gear error turns its sign over 40 deg of its reading (40 .. 80 deg), where no calibration
+    pose lies (100 poses elsewhere); 40 of 200 validation poses lie there. The diagnosis names joint 3's ninth
+    harmonic from the calibration poses; it doubles the error in the stretch, above the kinematic model's worst. The
+    worst-case note must name the pose, drop the harmonic, and say why: the pose's reading of joint 3 in a gap of the
+    calibration poses' readings that holds the stretch, wider than half the harmonic's period (40 deg)."""
+    from casadical.robot import robot_from_dict
+    from tests.helpers.arms import ARM5, ARM7_DH
+    from tests.helpers.hidden import BASE_RPY, BASE_XYZ
+    from tests.truth import Arm, Effects, Session, TrueRobot, measure, sample
+
+    doc = {"arm7-dh": ARM7_DH, "arm5": ARM5}[arm]
+    c, w = math.radians(60), math.radians(40)
+    rng = np.random.default_rng(seed)
+    true = TrueRobot.draw(Arm.from_dict(doc), Effects(reading_error={3: _gear_with_a_worn_stretch(c, w)}), rng)
+    q = sample(true, 3000, rng, floor_z=None)
+    worn = np.abs(q[:, 2] - c) < w / 2
+    data = []
+    for name, rows in (("cal", q[~worn][:100]), ("val", np.vstack([q[~worn][100:260], q[worn][:40]]))):
+        shots = measure(true, rows, rng, session=Session("A", base_xyz=BASE_XYZ, base_rpy=BASE_RPY))
+        data.append(Measurements.read_csv(shots.write_csv(tmp_path / f"{name}.csv"), n_joints=true.arm.n))
+    cal, val = data
+    rep = diagnose(robot_from_dict(doc, arm), cal, val, DiagnosisSettings(seed=seed))
+    assert "joint_periodic[3:9]" in rep.final_model, rep.final_model
+    note = next(n for n in rep.notes if n.startswith("worst case:"))
+    line = int(re.search(r"val\.csv:(\d+)\)", note).group(1))
+    assert line - 2 >= 160, note            # a pose of the worn stretch (the file's last 40 rows; header line 1)
+    dropped = note.split("why:")[0].split("; without ")[1]
+    assert dropped.startswith(("joint_periodic joint 3 harmonic 9", "every correction (the kinematic model)")), note
+    m = re.search(r"why: joint 3 reads ([\d.]+) deg there, in a gap of the calibration poses' readings from ([\d.]+) "
+                  r"to ([\d.]+) deg, wider than half the period of joint_periodic joint 3 harmonic 9 \(40\.00 deg\)",
+                  note)
+    assert m, note
+    at, lo, hi = map(float, m.groups())
+    assert lo <= 40.0 <= 80.0 <= hi and lo < at < hi, note
+    assert abs(at - math.degrees(val.q[line - 2, 2])) < 0.06
