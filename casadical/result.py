@@ -519,6 +519,8 @@ class CalibrationResult:
                                   "names": self.uncertainty.names,
                                   # full precision: predict --std needs the covariance of correlated parameters
                                   "correlation": np.round(self.uncertainty.correlation, 12).tolist()}
+            if self.uncertainty.interval_k is not None:
+                doc["uncertainty"]["interval_k"] = self.uncertainty.interval_k
         doc["statistics"] = self.statistics.to_dict() if self.statistics is not None else None
         if self.validation is not None:
             doc["validation"] = self.validation.to_dict()
@@ -690,8 +692,10 @@ def _uncertainty_of(doc: dict, params) -> Uncertainty | None:
         std = np.array([params[n].std for n in names], dtype=float)
         if corr.shape != (len(names), len(names)) or not np.all(np.isfinite(corr)):
             return None
+        k = unc.get("interval_k")
+        k = float(k) if k is not None and np.isfinite(float(k)) and float(k) > 0 else None
         return Uncertainty(names, corr * np.outer(np.nan_to_num(std), np.nan_to_num(std)),
-                           float(unc["sigma_mm"]) / 1000, int(unc["dof"]))
+                           float(unc["sigma_mm"]) / 1000, int(unc["dof"]), k)
     except (KeyError, TypeError, ValueError):
         return None
 

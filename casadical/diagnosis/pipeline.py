@@ -41,6 +41,7 @@ from ..runtime.threads import limited_threads
 from .compensator import add_compensator
 from .describe import describe_findings
 from .geometry import fit_geometry
+from .intervals import calibrate_intervals
 from .judge import judge_final_model
 from .never_worse import keep_never_worse
 from .nominal import fit_nominal
@@ -70,6 +71,7 @@ STAGES: tuple[Callable[[DiagnosisRun], None], ...] = (
     screen_structure,   # what the named causes leave: structure no catalogue cause explains, and where it lives
     add_compensator,    # the GP compensator of what no named cause explains (one per session), judged like a step
     keep_worst_case,    # a worst validation error above the kinematic model's: what to drop (--worst-case: dropped)
+    calibrate_intervals,  # the 95 % interval's factor of the named causes, calibrated on the folds
     describe_findings,  # each finding's values, evidence, figure and scope; the structure that cannot be named
     judge_final_model,  # the validation poses on the final model; the residual, sag and set-aside poses
     transfer_findings,  # with another series: does each finding hold up there?

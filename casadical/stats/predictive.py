@@ -138,10 +138,22 @@ def compensator_weight(result: CalibrationResult, data: Measurements) -> np.ndar
     return out
 
 
+def fold_interval_k(errors: np.ndarray, std: np.ndarray, sigma: np.ndarray, level: float = 0.95) -> float:
+    """The factor of the 95 % interval of a measured point calibrated on held-out errors: the ``level`` quantile
+    of each pose's held-out error (m) over the ``sqrt(std^2 / 3 + sigma^2)`` the interval takes (``std`` the
+    prediction's uncertainty, ``sigma`` the noise per axis, m), never below :data:`CHI3_95` (what a model that
+    holds every effect gives: the quantile's scatter on few poses must not narrow it)."""
+    z = np.asarray(errors) / np.sqrt(np.asarray(std) ** 2 / 3 + np.asarray(sigma) ** 2)
+    z = z[np.isfinite(z)]
+    return max(CHI3_95, float(np.quantile(z, level))) if len(z) else CHI3_95
+
+
 def interval_factor(result: CalibrationResult, data: Measurements) -> np.ndarray:
-    """The factor of the 95 % interval at each pose of ``data``: :data:`CHI3_95`, or at the poses of a GP
-    compensator's session the factor the diagnosis calibrated on its folds."""
-    out = np.full(len(data), CHI3_95)
+    """The factor of the 95 % interval at each pose of ``data``: at the poses of a GP compensator's session the
+    factor the diagnosis calibrated on its folds; elsewhere the named causes' own, calibrated on the folds too
+    (``uncertainty.interval_k``, :func:`fold_interval_k`), or :data:`CHI3_95` where none was."""
+    unc = result.uncertainty
+    out = np.full(len(data), unc.interval_k if unc is not None and unc.interval_k is not None else CHI3_95)
     for gp, rows in fitted_processes(result.model.terms, data):
         out[rows] = gp.interval_k
     return out
