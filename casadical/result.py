@@ -636,7 +636,7 @@ def load_calibration(path: str | Path) -> CalibrationResult:
         rob = doc.get("robust") or {}
         loss = RobustLoss("huber", float(rob.get("c", 3.0)), float(rob["sigma_mm"]) / 1000) \
             if rob.get("loss", "none") != "none" else RobustLoss()
-        coverage = Coverage.from_dict(doc["coverage"]) if doc.get("coverage") else None
+        coverage = Coverage.from_dict(doc["coverage"], model.robot.units) if doc.get("coverage") else None
         extra = _statistics_of(doc)
         ori = doc.get("orientation")
         tool0, angles, full_pose = None, None, False

@@ -58,8 +58,9 @@ def assemble_result(run: CalibrationRun) -> None:
     data, norms, unc = run.data, run.norms, run.uncertainty
     by_session = {s: ErrorStats.of(norms[idx]) for s, idx in session_index(data).items()} \
         if len(data.session_names) > 1 else {}
+    coverage = Coverage.of(data.q_deg, units=run.model.robot.units)
     result = CalibrationResult(run.model, run.params, run.base0, run.solution, run.solver_name, run.ident, unc,
-                               ErrorStats.of(norms), run.notes, run.problem.loss, run.down, Coverage.of(data.q_deg),
+                               ErrorStats.of(norms), run.notes, run.problem.loss, run.down, coverage,
                                by_session=by_session, statistics=FitStatistics.of(unc),
                                tool0=run.tool0 if run.model.orientation else None)
     if result.has_orientation and data.has_orientation:

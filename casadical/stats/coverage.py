@@ -39,27 +39,35 @@ class Coverage:
     q_max_deg: np.ndarray
     poses_deg: np.ndarray
     spacing_deg: float
+    #: each joint's unit in the messages (``deg``; ``mm`` for a linear axis, whose readings the fields hold in mm
+    #: whatever their ``_deg``); None: every joint ``deg``. Not in the file: its robot says it.
+    units: tuple[str, ...] | None = None
+
+    def unit(self, j: int) -> str:
+        """Joint ``j``'s unit (0-based)."""
+        return "deg" if self.units is None else self.units[j]
 
     @classmethod
-    def of(cls, q_deg: np.ndarray, seed: int = 0) -> "Coverage":
+    def of(cls, q_deg: np.ndarray, seed: int = 0, units=None) -> "Coverage":
         q = np.atleast_2d(np.asarray(q_deg, float))
         sample = q if len(q) <= MAX_SAMPLE else q[np.random.default_rng(seed).choice(len(q), MAX_SAMPLE,
                                                                                      replace=False)]
         spacing = float(np.median(_nearest(sample, sample, exclude_self=True))) if len(sample) > 1 else 0.0
-        return cls(q.min(axis=0), q.max(axis=0), sample, spacing)
+        return cls(q.min(axis=0), q.max(axis=0), sample, spacing, None if units is None else tuple(units))
 
     def to_dict(self) -> dict:
         return {"q_min_deg": self.q_min_deg.tolist(), "q_max_deg": self.q_max_deg.tolist(),
                 "spacing_deg": self.spacing_deg, "poses_deg": np.round(self.poses_deg, 6).tolist()}
 
     @classmethod
-    def from_dict(cls, d: dict) -> "Coverage":
+    def from_dict(cls, d: dict, units=None) -> "Coverage":
         poses = np.asarray(d["poses_deg"], float)
         lo, hi = np.asarray(d["q_min_deg"], float), np.asarray(d["q_max_deg"], float)
         if poses.ndim != 2 or poses.shape[1] != len(lo) or len(hi) != len(lo) or not (
                 np.isfinite(poses).all() and np.isfinite(lo).all() and np.isfinite(hi).all()):
             raise ValueError("coverage: inconsistent or non-finite joint ranges and poses")
-        return cls(lo, hi, poses, float(d["spacing_deg"]))
+        return cls(lo, hi, poses, float(d["spacing_deg"]),
+                   None if units is None or len(units) != len(lo) else tuple(units))
 
     def outside(self, q_deg: np.ndarray, far_factor: float = 4.0) -> tuple[np.ndarray, np.ndarray]:
         """Which poses extrapolate.
@@ -98,14 +106,15 @@ class Coverage:
             out.append(f"{file}: {len(rows)} pose(s) (lines {listing(lines[rows].tolist())}) have joint readings "
                        "outside "
                        f"the ranges the calibration saw (joints {', '.join(map(str, joints))}: "
-                       + "; ".join(f"q{j} {self.q_min_deg[j - 1]:.1f}..{self.q_max_deg[j - 1]:.1f} deg"
+                       + "; ".join(f"q{j} {self.q_min_deg[j - 1]:.1f}..{self.q_max_deg[j - 1]:.1f} {self.unit(j - 1)}"
                                    for j in joints)
                        + "): the model extrapolates there")
         only_far = far & ~beyond.any(axis=1)
         if only_far.any():
             rows = np.flatnonzero(only_far)
             out.append(f"{file}: {len(rows)} pose(s) (lines {listing(lines[rows].tolist())}) lie far from every "
-                       f"calibration pose (more than {self.far_limit_deg():.0f} deg in joint space): "
+                       f"calibration pose (more than {self.far_limit_deg():.0f} in joint space: deg"
+                       + (", mm of a linear axis" if "mm" in (self.units or ()) else "") + "): "
                        "the model interpolates over a gap there")
         return out
 

@@ -228,3 +228,24 @@ def test_a_protocol_error_of_the_wrong_kind_of_joint_is_one_line(tmp_path, capsy
     code, _, err = cli(capsys, "simulate", p, "--out-dir", tmp_path / "sim")
     assert code != 0
     one_error(err, "p.toml", column, words)
+
+
+def test_extrapolation_warnings_give_the_axis_in_mm(arm, tmp_path):
+    """Calibrated on the lower half of the axis' travel, the poses of the upper half extrapolate: the warning
+    gives the axis' range in mm (it said deg), from the fit and from its file read back."""
+    import re
+
+    from casadical import calibrate
+    from casadical.calibration import load_calibration
+
+    name, axis, d = arm
+    robot = load_robot(d / "robot.toml")
+    cal = Measurements.read_csv(d / "cal.csv", robot=robot)
+    val = Measurements.read_csv(d / "val.csv", robot=robot)
+    travel = cal.q[:, axis - 1]
+    res = calibrate(robot, cal.subset(np.flatnonzero(travel < np.median(travel))), "kinematic", "lm", warn=False)
+    res.save(tmp_path / "c.json")
+    for r in (res, load_calibration(tmp_path / "c.json")):
+        text = next(t for t in r.coverage.describe(val.q_deg, val.lines, "val.csv") if "outside the ranges" in t)
+        assert re.search(rf"q{axis} -?[\d.]+\.\.-?[\d.]+ mm", text), text
+        assert all(u == "deg" for j, u in enumerate(r.coverage.units) if j != axis - 1)
