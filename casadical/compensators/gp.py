@@ -240,7 +240,7 @@ class ResidualGP:
     @classmethod
     @limited_threads()
     def fit(cls, X: np.ndarray, Y: np.ndarray, max_std_ratio: float = MAX_STD_RATIO, seed: int = 0,
-            robust_nu: float | None = None) -> "ResidualGP":
+            robust_nu: float | None = None, gaussian: "ResidualGP | None" = None) -> "ResidualGP":
         """Hyperparameters by maximum marginal likelihood (scikit-learn's objective: :func:`log_likelihood`), one
         length scale per joint and component, on at most :data:`FIT_POSES` poses; the process conditioned on all
         of them.
@@ -256,6 +256,10 @@ class ResidualGP:
             Joint readings (rad).
         Y : ndarray, shape (N, 3)
             Residuals (m).
+        gaussian : ResidualGP, optional
+            With ``robust_nu``: the Gaussian fit of the same ``X``, ``Y``, ``max_std_ratio`` and ``seed``, already
+            made (the GP compensator fits both likelihoods): its hyperparameters are the Student-t's first ones,
+            the same to the bit, not fitted again.
         """
         from scipy.optimize import minimize
 
@@ -285,14 +289,21 @@ class ResidualGP:
                                        options={"maxiter": iterations}).x)
             return thetas
 
-        thetas = hyperparameters([theta0] * 3, None)
         w = None
+        if robust_nu is not None and gaussian is not None:
+            g = gaussian        # its hyperparameters are exp(theta) of the fit below, as the loop's first g
+        else:
+            thetas = hyperparameters([theta0] * 3, None)
+            g = None
         if robust_nu is not None:
             Z = (Y - mean) / std
             for refit in [True] * ROBUST_REFITS + [False]:
-                g = cls(X, Y, np.array([np.exp(t[1:-1]) for t in thetas]), np.array([math.exp(t[0]) for t in thetas]),
-                        np.array([math.exp(t[-1]) for t in thetas]), mean, std, max_std_ratio)
+                if g is None:
+                    g = cls(X, Y, np.array([np.exp(t[1:-1]) for t in thetas]),
+                            np.array([math.exp(t[0]) for t in thetas]), np.array([math.exp(t[-1]) for t in thetas]),
+                            mean, std, max_std_ratio)
                 w = robust_weights(Z, [g.kernel(X, X, a) for a in range(3)], g.noise_var, robust_nu, w=w)
+                g = None
                 if refit:
                     thetas = hyperparameters([theta0] * 3, 1.0 / w[rows], ROBUST_ITERATIONS)
         return cls(X, Y, np.array([np.exp(t[1:-1]) for t in thetas]), np.array([math.exp(t[0]) for t in thetas]),

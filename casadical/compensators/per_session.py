@@ -57,10 +57,12 @@ def gp_compensator_data(result: CalibrationResult, data: Measurements) -> tuple[
 
 def fit_gp_compensator(result: CalibrationResult, data: Measurements, max_std_ratio: float = MAX_STD_RATIO,
                        seed: int = 0, progress: Callable[[str], None] | None = None,
-                       robust_nu: float | None = ROBUST_NU
+                       robust_nu: float | None = ROBUST_NU, gaussian: dict[str | None, ResidualGP] | None = None
                        ) -> tuple[dict[str | None, ResidualGP], dict[str | None, np.ndarray]]:
     """A Gaussian process of the residual per session (key None for data of one session), and the poses of
-    ``data`` each learnt from; ``progress`` receives a line per session."""
+    ``data`` each learnt from; ``progress`` receives a line per session. ``gaussian``: with ``robust_nu``, the
+    processes this function fitted with a Gaussian likelihood on the same ``result``, ``data`` and ``seed``
+    (:meth:`ResidualGP.fit`'s ``gaussian``)."""
     X, Y, keep = gp_compensator_data(result, data)
     gps: dict[str | None, ResidualGP] = {}
     rows: dict[str | None, np.ndarray] = {}
@@ -72,7 +74,7 @@ def fit_gp_compensator(result: CalibrationResult, data: Measurements, max_std_ra
             progress(f"  hyperparameters of the processes{f' of session {s}' if s else ''}: {len(idx)} poses, "
                      "x, y and z")
         gps[s or None] = ResidualGP.fit(X[idx], Y[idx], max_std_ratio=max_std_ratio, seed=seed,
-                                       robust_nu=robust_nu)
+                                       robust_nu=robust_nu, gaussian=(gaussian or {}).get(s or None))
         rows[s or None] = idx
     return gps, rows
 

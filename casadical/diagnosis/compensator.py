@@ -120,7 +120,8 @@ def compensator_step(current: CalibrationResult, spec: str, cal: Measurements, v
     fitted, judged = {}, {}
     for nu in LIKELIHOODS:
         progress(f"  its likelihood: {'a Gaussian' if nu is None else f'a Student-t of {nu:g} degrees of freedom'}")
-        gps, learnt = fit_gp_compensator(current, cal, seed=settings.seed, progress=progress, robust_nu=nu)
+        gps, learnt = fit_gp_compensator(current, cal, seed=settings.seed, progress=progress, robust_nu=nu,
+                                         gaussian=fitted[None][0] if None in fitted else None)
         folds = gp_compensator_held_out(gps, learnt, cal, Y, keep, all_schemes, progress=progress)
         fitted[nu] = gps, folds
         for p in SHRINKS:

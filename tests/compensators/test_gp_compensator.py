@@ -202,9 +202,14 @@ def test_a_student_t_likelihood_is_not_pulled_by_the_poses_it_misses(seed):
     bad = rng.choice(200, 5, replace=False)
     Y[bad] += rng.choice([-1, 1], (5, 3)) * rng.uniform(1e-4, 3e-4, (5, 3))
     Xt = rng.uniform(-2, 2, (300, 5))
+    gaussian = ResidualGP.fit(X, Y, seed=seed)
     err = {nu: np.linalg.norm(ResidualGP.fit(X, Y, seed=seed, robust_nu=nu).predict(Xt) - smooth(Xt), axis=1).mean()
            for nu in (None, 4.0)}
     t = ResidualGP.fit(X, Y, seed=seed, robust_nu=4.0)
+    # started from the Gaussian fit already made (the GP compensator fits both): the same to the bit
+    warm = ResidualGP.fit(X, Y, seed=seed, robust_nu=4.0, gaussian=gaussian)
+    for a in ("length_scales", "signal_var", "noise_var", "pose_weights"):
+        assert np.array_equal(getattr(warm, a), getattr(t, a)), a
     good = np.setdiff1d(np.arange(200), bad)
     assert t.pose_weights[bad].max() < 0.2 and np.median(t.pose_weights[good]) > 0.7, t.pose_weights[bad]
     assert err[4.0] < 0.8 * err[None], err
