@@ -45,14 +45,15 @@ LENGTH_UNITS: dict[str, float] = {"mm": 1.0, "m": 1000.0}
 DEVIATION_SIGNS: dict[str, float] = {"measured-target": 1.0, "target-measured": -1.0}
 OTHERS = ("keep", "drop")
 
-_KEYS = ("separator", "decimal", "encoding", "skip_lines", "joints", "joint_unit", "position",
+_KEYS = ("separator", "decimal", "encoding", "skip_lines", "joints", "joint_unit", "linear_axes", "linear_unit",
+         "position",
          "position_unit", "target", "target_unit", "deviation", "deviation_unit", "deviation_sign",
          "time", "keep", "keep_if_present", "others")
 _LIST_KEYS = ("joints", "position", "target", "deviation")
 _TIME_KEYS = ("column", "format")
 _NAME = re.compile(r"[A-Za-z_][A-Za-z0-9_]*")
 #: Output names only the joint and position mapping may produce.
-RESERVED = re.compile(r"q\d+_deg|[xyz]_mm")
+RESERVED = re.compile(r"q\d+_(deg|mm)|[xyz]_mm")
 PRESET_DIR = "presets"
 
 
@@ -71,8 +72,13 @@ class ColumnMap:
     Attributes
     ----------
     joints : tuple of str
-        Source columns of the joint readings, base to tip (-> ``q1_deg ..``).
+        Source columns of the joint readings, base to tip (-> ``q1_deg ..``; ``qK_mm`` for a linear axis).
     joint_unit : {"deg", "rad"}
+        Of the revolute joints.
+    linear_axes : tuple of int
+        The joints (1-based) that are linear axes (a track, a lifting column): their readings are positions.
+    linear_unit : {"mm", "m"}, optional
+        Of the linear axes' readings (required with them).
     position : tuple of 3 str, optional
         Source columns of the measured point (-> ``x_mm, y_mm, z_mm``).
     position_unit : {"mm", "m"}, optional
@@ -107,6 +113,8 @@ class ColumnMap:
     joints: tuple[str, ...]
     joint_unit: str
     position: tuple[str, ...] | None = None
+    linear_axes: tuple[int, ...] = ()
+    linear_unit: str | None = None
     position_unit: str | None = None
     target: tuple[str, ...] | None = None
     target_unit: str | None = None
@@ -234,6 +242,18 @@ def column_map_from_dict(doc: dict[str, Any], file: str = "<dict>",
     if joints is None:
         raise r.error("missing required key: the joint columns, base to tip", "joints")
     joint_unit = r.word("joint_unit", tuple(JOINT_UNITS), required=True)
+    linear = doc.get("linear_axes", [])
+    if isinstance(linear, int) and not isinstance(linear, bool):
+        linear = [linear]
+    if not isinstance(linear, list) or any(isinstance(k, bool) or not isinstance(k, int) or not 1 <= k <= len(joints)
+                                           for k in linear) or len(set(linear)) != len(linear):
+        raise r.error(f"must be a list of different joint numbers 1..{len(joints)} (the joints that are linear "
+                      f"axes, as in the robot file), got {linear!r}", "linear_axes")
+    linear_unit = None
+    if linear:
+        linear_unit = r.word("linear_unit", tuple(LENGTH_UNITS), required=True)
+    elif "linear_unit" in doc:
+        raise r.error("linear_unit without linear_axes", "linear_unit")
 
     position = r.names("position", 3)
     target, deviation = r.names("target", 3), r.names("deviation", 3)
@@ -297,7 +317,8 @@ def column_map_from_dict(doc: dict[str, Any], file: str = "<dict>",
             seen[dst] = f"{key}.{src}"
     others = r.word("others", OTHERS, default="keep")
     return ColumnMap(
-        joints=joints, joint_unit=joint_unit, position=position,
+        joints=joints, joint_unit=joint_unit, linear_axes=tuple(sorted(linear)), linear_unit=linear_unit,
+        position=position,
         position_unit=units.get("position"), target=target, target_unit=units.get("target"),
         deviation=deviation, deviation_unit=units.get("deviation"), deviation_sign=sign,
         separator=SEPARATORS[separator], decimal=decimal, encoding=encoding, skip_lines=skip,

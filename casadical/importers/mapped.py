@@ -283,6 +283,11 @@ def _time_order(columns: dict[str, np.ndarray], lines: list[int], file: str,
     return ordered
 
 
+def joint_columns(cmap: ColumnMap) -> list[str]:
+    """The output columns of the joint readings: ``qK_deg``, ``qK_mm`` for a linear axis."""
+    return [f"q{i}_{'mm' if i in cmap.linear_axes else 'deg'}" for i in range(1, len(cmap.joints) + 1)]
+
+
 def _check_joint_unit(readings: list[tuple[int, np.ndarray]], unit: str, t: _Table) -> None:
     """Warn when the joint readings look like the other unit (the import goes on)."""
     top, j = max((float(np.max(np.abs(v))), j) for j, v in readings)
@@ -405,13 +410,18 @@ def read_mapped(path: str | os.PathLike[str], column_map: ColumnMap,
 
     columns: dict[str, np.ndarray] = {}
     mapped: list[Mapped] = []
-    factor = JOINT_UNITS[cmap.joint_unit]
     readings = [(j, _numbers(t, j, cmap.decimal)) for j in joint_idx]
-    _check_joint_unit(readings, cmap.joint_unit, t)
-    for i, (j, values) in enumerate(readings, 1):
+    revolute = [r for i, r in enumerate(readings, 1) if i not in cmap.linear_axes]
+    if revolute:
+        _check_joint_unit(revolute, cmap.joint_unit, t)
+    names = joint_columns(cmap)
+    for i, ((j, values), name) in enumerate(zip(readings, names), 1):
+        linear = i in cmap.linear_axes
+        factor = LENGTH_UNITS[cmap.linear_unit] if linear else JOINT_UNITS[cmap.joint_unit]
         # multiply only when needed so that unconverted columns stay bit-exact
-        columns[f"q{i}_deg"] = values * factor if factor != 1.0 else values
-        mapped.append(Mapped("joints", t.header[j], f"q{i}_deg",
+        columns[name] = values * factor if factor != 1.0 else values
+        mapped.append(Mapped("joints", t.header[j], name,
+                             (f"{cmap.linear_unit} -> mm" if cmap.linear_unit != "mm" else "mm") if linear else
                              "rad -> deg" if factor != 1.0 else "deg"))
     columns.update(_positions(t, cmap, position_idx, mapped))
     _check_position_unit(columns, cmap, t)
@@ -444,7 +454,7 @@ def read_mapped(path: str | os.PathLike[str], column_map: ColumnMap,
 
     if "time_s" in columns and time_idx is not None:
         columns = _time_order(columns, t.lines, file, sort_by_time)
-    first = [f"q{i}_deg" for i in range(1, len(joint_idx) + 1)] + list(XYZ) + list(NUMERIC_OPTIONAL)
+    first = joint_columns(cmap) + list(XYZ) + list(NUMERIC_OPTIONAL)
     ordered = {k: columns[k] for k in first if k in columns}
     ordered.update((k, v) for k, v in columns.items() if k not in ordered)
     return Imported(ordered, mapped, dropped, file)

@@ -268,6 +268,11 @@ def test_radians_declared_as_degrees_are_flagged(tmp_path):
     (["joints=a", "joint_unit=rad", "keep.t=temp c"], "keep.t"),
     (["joints=a", "joint_unit=rad", "keep.t=c", "keep_if_present.u=c"], "keep_if_present.u"),
     (["joints=a", "joint_unit=rad", "time.column=t"], "time.format"),
+    (["joints=a,b", "joint_unit=rad", "linear_axes=3", "linear_unit=m"], "linear_axes"),
+    (["joints=a,b", "joint_unit=rad", "linear_axes=1,1", "linear_unit=m"], "linear_axes"),
+    (["joints=a,b", "joint_unit=rad", "linear_axes=1"], "linear_unit"),
+    (["joints=a,b", "joint_unit=rad", "linear_axes=1", "linear_unit=in"], "linear_unit"),
+    (["joints=a,b", "joint_unit=rad", "linear_unit=mm"], "linear_unit"),
 ])
 def test_invalid_mapping_names_the_key(pairs, key):
     with pytest.raises(ColumnMapError) as e:
@@ -354,3 +359,34 @@ def test_ur10_preset_and_the_guides_mapping_give_the_bundled_csv(tmp_path, capsy
     mine, bundled = _csv_columns(out2), _csv_columns(DATASET / "series_b.csv")
     assert list(mine)[:10] == list(bundled)[:10]
     assert all(mine[c] == bundled[c] for c in mine)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_linear_axis_is_imported_as_a_position_in_mm(tmp_path, seed):
+    """A four-axis arm on a 4 m track (not built in; the independent truth measures it): the tracker file gives the
+    track's position in m, the arm's joints in rad and the point in m. With linear_axes = [1] and linear_unit = "m"
+    the import writes q1_mm (the track in mm) beside q2_deg ..; read with the robot file the readings are the
+    truth's, and a kinematic calibration of the imported file predicts other poses at the noise level."""
+    from tests.helpers.arms import ARM4_TRACK
+    from tests.truth import Arm, Effects, Session, TrueRobot, measure, sample
+
+    rng = np.random.default_rng(seed)
+    true = TrueRobot.draw(Arm.from_dict(ARM4_TRACK), Effects(), rng)
+    session = Session(base_xyz=(1.5, -0.5, 0.3), base_rpy=(0.0, 0.0, 0.6))
+    q = sample(true, 80, rng)
+    shots = measure(true, q, rng, session=session, noise=NOISE)
+    lines = ["Track;J2;J3;J4;J5;X;Y;Z"] + [";".join(_comma(v) for v in (*q[k], *shots.xyz[k])) for k in range(len(q))]
+    src = _write_tracker(tmp_path / "track.csv", lines)
+    out = tmp_path / "poses.csv"
+    cmap = load_column_map(["separator=;", "decimal=,", "joints=Track,J2,J3,J4,J5", "joint_unit=rad",
+                            "linear_axes=1", "linear_unit=m", "position=X,Y,Z", "position_unit=m"])
+    imported = import_file(src, out, cmap)
+    assert [m.output for m in imported.mapped][:5] == ["q1_mm", "q2_deg", "q3_deg", "q4_deg", "q5_deg"]
+    assert imported.mapped[0].note == "m -> mm"
+    robot = robot_from_dict(ARM4_TRACK)
+    data = Measurements.read_csv(out, robot=robot, require_positions=True)
+    np.testing.assert_allclose(data.q, q, rtol=1e-13, atol=1e-13)
+    val = Measurements.read_csv(measure(true, sample(true, 60, rng), rng, session=session, noise=NOISE)
+                                .write_csv(tmp_path / "val.csv"), robot=robot, require_positions=True)
+    rms = calibrate(robot, data, "kinematic", "lm", warn=False).stats(val).rms_mm
+    assert rms < 1.5 * NOISE * 1000 * np.sqrt(3), rms
