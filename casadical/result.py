@@ -692,10 +692,9 @@ def _uncertainty_of(doc: dict, params) -> Uncertainty | None:
         std = np.array([params[n].std for n in names], dtype=float)
         if corr.shape != (len(names), len(names)) or not np.all(np.isfinite(corr)):
             return None
-        k = unc.get("interval_k")
-        k = float(k) if k is not None and np.isfinite(float(k)) and float(k) > 0 else None
+        k = unc.get("interval_k")     # checked by validate_calibration_document
         return Uncertainty(names, corr * np.outer(np.nan_to_num(std), np.nan_to_num(std)),
-                           float(unc["sigma_mm"]) / 1000, int(unc["dof"]), k)
+                           float(unc["sigma_mm"]) / 1000, int(unc["dof"]), None if k is None else float(k))
     except (KeyError, TypeError, ValueError):
         return None
 

@@ -81,6 +81,7 @@ def validate_calibration_document(doc: Any, path: str) -> None:
     _check_fit_statistics(doc.get("statistics"), err)
     _check_validation(doc.get("validation"), err)
     _check_robust(doc.get("robust"), err)
+    _check_interval_factor(doc.get("uncertainty"), err)
     _check_coverage(doc.get("coverage"), err)
     _check_sessions(doc.get("sessions"), err)
     _check_orientation(doc.get("orientation"), any(t.name == "tool_orientation" for t in terms), err)
@@ -304,6 +305,14 @@ def _check_test(e: dict, at: str, name: str, err) -> None:
                                and all(x is None or finite_number(x) for x in ci)):
         raise err(f"{at}.ci95", f"confidence interval of {name} must be null or [low, high] (numbers or null), "
                                 f"got {ci!r}")
+
+
+def _check_interval_factor(unc: Any, err) -> None:
+    """``uncertainty.interval_k`` (a diagnosis's final model): the 95 % interval's factor, a finite number > 0."""
+    if isinstance(unc, dict) and "interval_k" in unc and not (finite_number(unc["interval_k"])
+                                                              and unc["interval_k"] > 0):
+        raise err("uncertainty.interval_k", "must be a finite number > 0 (the factor of the 95 % interval "
+                  f"of a measured point, 2.796 or more), got {unc['interval_k']!r}")
 
 
 def _check_robust(robust: Any, err) -> None:

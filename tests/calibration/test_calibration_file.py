@@ -94,6 +94,9 @@ def _set(path, value):
     (_set(["validation"], {"file": "v.csv", "n_poses": 9, "mean_mm": -1, "max_mm": 2, "std_mm": 0.5,
                            "rms_mm": 1.1}), "validation.mean_mm"),
     (_set(["validation"], [1]), "validation"),
+    (_set(["uncertainty", "interval_k"], "wide"), "uncertainty.interval_k"),
+    (_set(["uncertainty", "interval_k"], -2.8), "uncertainty.interval_k"),
+    (_set(["uncertainty", "interval_k"], float("inf")), "uncertainty.interval_k"),
 ])
 def test_malformed_calibration_json(ys, tmp_path, capsys, mutate, column):
     doc = json.loads((ys / "cal.json").read_text())
