@@ -21,6 +21,7 @@ KEY = {
     "05_plan_poses.py": "selected 40 of 2000 candidate poses by d-optimal",
     "06_simulate.py": "within 2 std of the truth",
     "07_unexplained.py": "with gear32.toml, named causes: gear32 joint 3",
+    "08_trust.py": "worst case restored: held-out mean / worst",
 }
 
 
