@@ -9,7 +9,7 @@ the robust loss set aside are left out (a bad shot is outside any interval; coun
 higher quantile of the rest, as the GP compensator's factor does, asked the 98.7 % quantile of 77 poses with 3 bad
 shots among 80, the second largest: 3.49, and 99 % of the held-out poses inside). Where the named causes hold every
 effect the quantile scatters about chi_3's and the floor keeps it; where they miss some (a gear error 80 poses
-cannot pin down, arm5-coupled: 2.80 -> 3.16) it widens the interval by what the folds show: the hidden-effect
+cannot pin down, arm5-coupled: 2.80 -> 3.10) it widens the interval by what the folds show: the hidden-effect
 matrix's default set held 88-98.5 % of its validation poses (12 of 14 within 90-98 %) with chi_3's factor, 91.5-98.5 %
 (13 of 14) with this one (docs/diagnosis.md, "95 % intervals of a measured point").
 """

@@ -46,8 +46,7 @@ DEVIATION_SIGNS: dict[str, float] = {"measured-target": 1.0, "target-measured": 
 OTHERS = ("keep", "drop")
 
 _KEYS = ("separator", "decimal", "encoding", "skip_lines", "joints", "joint_unit", "linear_axes", "linear_unit",
-         "position",
-         "position_unit", "target", "target_unit", "deviation", "deviation_unit", "deviation_sign",
+         "position", "position_unit", "target", "target_unit", "deviation", "deviation_unit", "deviation_sign",
          "time", "keep", "keep_if_present", "others")
 _LIST_KEYS = ("joints", "position", "target", "deviation")
 _TIME_KEYS = ("column", "format")
@@ -112,9 +111,9 @@ class ColumnMap:
 
     joints: tuple[str, ...]
     joint_unit: str
-    position: tuple[str, ...] | None = None
     linear_axes: tuple[int, ...] = ()
     linear_unit: str | None = None
+    position: tuple[str, ...] | None = None
     position_unit: str | None = None
     target: tuple[str, ...] | None = None
     target_unit: str | None = None
@@ -318,8 +317,7 @@ def column_map_from_dict(doc: dict[str, Any], file: str = "<dict>",
     others = r.word("others", OTHERS, default="keep")
     return ColumnMap(
         joints=joints, joint_unit=joint_unit, linear_axes=tuple(sorted(linear)), linear_unit=linear_unit,
-        position=position,
-        position_unit=units.get("position"), target=target, target_unit=units.get("target"),
+        position=position, position_unit=units.get("position"), target=target, target_unit=units.get("target"),
         deviation=deviation, deviation_unit=units.get("deviation"), deviation_sign=sign,
         separator=SEPARATORS[separator], decimal=decimal, encoding=encoding, skip_lines=skip,
         time=time, keep=keep, keep_if_present=keep_if_present, others=others, source=file,
