@@ -239,10 +239,25 @@ class Mapping:
 
     # -- inputs and outputs ------------------------------------------------------------
 
-    def inputs(self, q: np.ndarray, values: np.ndarray, cov: np.ndarray, offsets: bool = True
-               ) -> tuple[np.ndarray, np.ndarray]:
+    def predictions(self, q: np.ndarray, cov: np.ndarray) -> list:
+        """Each compensator's prediction (N, 3) at the poses where :meth:`inputs` adds it (its gate not 0; zeros
+        elsewhere), for :meth:`inputs`' ``predictions``: asked at every pose of its session (of the data), the
+        poses its gate was made at, where the process kept its answer (``ResidualGP._posterior``), not block by
+        block nor only where its gate is not 0 (each a kernel of its own)."""
+        out = []
+        for gate, at, gp in self.compensators:
+            pred = np.zeros((len(q), 3))
+            rows = np.arange(len(q)) if at < 0 else np.flatnonzero(cov[:, at])
+            if len(rows) and np.any(cov[rows, gate]):
+                pred[rows] = gp.predict(q[rows])
+            out.append(pred)
+        return out
+
+    def inputs(self, q: np.ndarray, values: np.ndarray, cov: np.ndarray, offsets: bool = True,
+               predictions: list | None = None) -> tuple[np.ndarray, np.ndarray]:
         """The superset's parameters (a vector, or one per pose) and covariates for the model's; without
-        ``offsets``, the compensators' point offsets stay at zero (the probe's rotation: they do not turn it)."""
+        ``offsets``, the compensators' point offsets stay at zero (the probe's rotation: they do not turn it);
+        ``predictions``: the compensators' at these poses (:meth:`predictions`), else made here."""
         N = len(q)
         C = np.zeros((N, self.n_covariates))
         C[:, self.cov_to] = cov[:, self.cov_from]
@@ -250,11 +265,12 @@ class Mapping:
             C[:, k] -= refs[0][1] if refs[0][0] is None else sum(cov[:, at] * ref for at, ref in refs)
         for i in self.periodic:
             C[:, self.first_chain + self.index[i] - self.n_params] += values[i] * self._feature(q, cov, i)
-        for gate, at, gp in self.compensators if offsets else ():   # as the term: [its session] * gate * prediction
-            g = cov[:, gate] if at < 0 else cov[:, at] * cov[:, gate]
+        for k, (gate, at, gp) in enumerate(self.compensators if offsets else ()):   # as the term: [its session] *
+            g = cov[:, gate] if at < 0 else cov[:, at] * cov[:, gate]                # gate * prediction
             on = np.flatnonzero(g)
             if len(on):
-                C[on, self.first_point:self.first_point + 3] += g[on, None] * gp.predict(q[on])
+                pred = gp.predict(q[on]) if predictions is None else predictions[k][on]
+                C[on, self.first_point:self.first_point + 3] += g[on, None] * pred
         p = self.nominal.copy()
         p[self.index[self.shared]] = values[self.shared]
         if not self.per_pose:
@@ -486,10 +502,12 @@ def outputs(model, which: str, q, p, cov, b0, Rm=None, compile: bool = True, req
     if model.orientation and which in ("fk", "jac"):   # a full-pose model: its data kind's functions
         which, Rm = "pose_" + which, np.tile(np.eye(3).ravel(), (N, 1))
     parts = []
+    preds = m.predictions(q, cov) if m.compensators and which != "probe" else None
     for a in range(0, N, BLOCK):
         s = slice(a, min(a + BLOCK, N))
         qs, cs = q[s], cov[s]
-        P, C = m.inputs(qs, p, cs, offsets=which != "probe")
+        P, C = m.inputs(qs, p, cs, offsets=which != "probe",
+                        predictions=None if preds is None else [x[s] for x in preds])
 
         def take(out, qs=qs, cs=cs):
             if len(out) == 1:

@@ -111,13 +111,18 @@ def test_the_superset_gives_every_models_own_numbers(arm, seed):
 
 @pytest.mark.parametrize("arm", [ARM4, ARM7], ids=["arm4-mdh", "arm7-mdh-beta"])
 @pytest.mark.parametrize("orientation", [False, True])
-def test_session_compensators_map_onto_the_superset(arm, orientation):
+@pytest.mark.parametrize("block", [None, 50])
+def test_session_compensators_map_onto_the_superset(arm, orientation, block, monkeypatch):
     """A GP compensator's Gaussian process (frozen: evaluated in numpy, an offset of the tool point before
     the base pose) gives the model's own graph's positions, orientation residuals and Jacobians, where its
-    gate and its session say it applies and nowhere else."""
+    gate and its session say it applies and nowhere else; also where the poses are evaluated in blocks (``block``:
+    the processes' predictions are made at every pose of their session once, then taken block by block)."""
     from casadical.compensators.gp import ResidualGP
+    from casadical.model import superset
     from casadical.terms import SessionLocal
 
+    if block is not None:
+        monkeypatch.setattr(superset, "BLOCK", block)
     robot = robot_from_dict(arm)
     rng = np.random.default_rng(5)
     model0 = two_session_model(robot, "kinematic+joint_compliance+joint_periodic[2:17]", orientation, 5)
