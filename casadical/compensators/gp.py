@@ -111,26 +111,33 @@ def log_likelihood(theta: np.ndarray, D: np.ndarray, y: np.ndarray, scale: np.nd
     from scipy.linalg import cho_factor, cho_solve, lapack  # here: a command whose model has no process needs none
     s2, ls, nv = math.exp(theta[0]), np.exp(theta[1:-1]), math.exp(theta[-1])
     n = len(y)
-    E = np.exp(-0.5 * (D @ (1.0 / ls ** 2)))
-    K = s2 * E
+    # the arithmetic of s^2 exp(-1/2 D l^-2), K^-1's symmetric whole and W = alpha alpha^T - K^-1 in place, each
+    # factor worked on where it lies (the same bits with 4 arrays of N x N, not 9: 10 % of the call at N = 200)
+    SE = D @ (1.0 / ls ** 2)
+    SE *= -0.5
+    np.exp(SE, out=SE)
+    SE *= s2                                             # s^2 E: the kernel without its noise
+    K = SE.copy()
     d = np.ones(n) if scale is None else scale
     K[np.diag_indices(n)] += nv * d + JITTER
     try:
-        L = cho_factor(K, lower=True, check_finite=False)
+        L = cho_factor(K, lower=True, overwrite_a=True, check_finite=False)
     except np.linalg.LinAlgError:
         return -np.inf, np.zeros_like(theta)
     alpha = cho_solve(L, y, check_finite=False)
     lml = -0.5 * float(y @ alpha) - float(np.log(np.diag(L[0])).sum()) - 0.5 * n * math.log(2 * math.pi)
-    inv, info = lapack.dpotri(L[0], lower=1)          # K^-1 from its factor (a third of cho_solve's cost)
+    inv, info = lapack.dpotri(L[0], lower=1, overwrite_c=1)   # K^-1 from its factor (a third of cho_solve's cost)
     if info != 0:
         return -np.inf, np.zeros_like(theta)
-    inv = np.tril(inv) + np.tril(inv, -1).T
-    W = np.outer(alpha, alpha) - inv
-    M = W * (s2 * E)                                     # tr(W dK/dlog s^2) = sum(M); dK/dlog l_j = M's D_j / l_j^2
+    inv = np.tril(inv)
+    inv += np.tril(inv, -1).T
+    W = np.outer(alpha, alpha)
+    W -= inv
     grad = np.empty_like(theta)
-    grad[0] = 0.5 * M.sum()
-    grad[1:-1] = 0.5 * np.tensordot(M, D, axes=([0, 1], [0, 1])) / ls ** 2
     grad[-1] = 0.5 * nv * float(np.diag(W) @ d)
+    W *= SE                                              # M: tr(W dK/dlog s^2) = sum(M); dK/dlog l_j = M's D_j / l_j^2
+    grad[0] = 0.5 * W.sum()
+    grad[1:-1] = 0.5 * np.tensordot(W, D, axes=([0, 1], [0, 1])) / ls ** 2
     return lml, grad
 
 
