@@ -186,8 +186,9 @@ class Screen:
         """Column (N, 3), scaled, of the ``k``-th parameter of candidate ``c`` at the poses of ``d`` (``J``: the
         model's free columns there, ``JA``: the directions of the joints' angles)."""
         if c.cause == "joint_periodic":
-            col = periodic_columns(JA[:, :, c.joint - 1], phase(self.model.robot, c.joint, d.q[:, c.joint - 1]),
-                                   c.harmonic)[:, :, k]
+            # its k-th column alone (periodic_columns' sin, then cos: the same numbers, not both made for each)
+            x = c.harmonic * phase(self.model.robot, c.joint, d.q[:, c.joint - 1])
+            col = JA[:, :, c.joint - 1] * (np.sin(x) if k == 0 else np.cos(x))[:, None]
         elif c.cause == "joint_coupling":
             col = JA[:, :, c.joint - 1] * d.q[:, c.source_joint - 1, None]
         elif c.cause == "warmup":
