@@ -294,3 +294,30 @@ def test_the_quick_compile_only_where_a_core_is_free(tmp_path, monkeypatch, spar
     for fun in (first, later):
         got = batch(lambda n, f=fun: f.map(f"m{n}", "serial", n, [3], []), len(q), [3], True)(*ins)
         assert all(np.array_equal(a, b) for a, b in zip(got, ref))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_periodic_columns_factors_are_each_columns_own(seed):
+    """The factors of the periodic columns, made side by side (:meth:`Mapping.features`): each a coupling's source
+    reading, or the sine or cosine of a harmonic times its joint's reading (per metre on a linear axis: 2 pi per
+    metre), times its session's indicator for a column of one session; as one column alone makes it."""
+    from tests.helpers.arms import ARM4_TRACK
+
+    robot = robot_from_dict(ARM4_TRACK)
+    model = two_session_model(robot, "kinematic+joint_periodic[1:3,2:17,4:1]+joint_coupling[3:2]+joint_periodic[1:5]@B"
+                              "+joint_coupling[4:2]@A", False, seed)
+    m = model._mapping
+    rng = np.random.default_rng(seed)
+    q, _, cov, _ = data(model, 70, rng)
+    F = m.features(q, cov)
+    assert F.shape == (70, len(m.periodic)) and len(m.periodic) == 2 * 4 + 2
+    for k, i in enumerate(m.periodic):
+        c = m.columns[i]
+        if c.kind == "q":
+            f = q[:, c.source - 1]
+        else:
+            j = c.index - m.n_params
+            x = c.harmonic * q[:, j] * (2 * np.pi if robot.prismatic[j] else 1.0)
+            f = np.sin(x) if c.kind == "s" else np.cos(x)
+        f = f if m.at[i] < 0 else f * cov[:, m.at[i]]
+        assert np.allclose(F[:, k], f, rtol=1e-15, atol=0), (c, np.abs(F[:, k] - f).max())
