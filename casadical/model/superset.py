@@ -21,6 +21,7 @@ the same bits as the compiled code, so a failed compilation falls back to it wit
 
 from __future__ import annotations
 
+import hashlib
 import threading
 import warnings
 from collections import OrderedDict
@@ -55,6 +56,11 @@ MAX_SUPERSETS = 8
 #: poses evaluated at a time: the buffers of a batch stay small (a serial map holds one call's work memory per
 #: pose) and one batch size serves any number of poses
 BLOCK = 4096
+#: the periodic columns' factors (Mapping.features) of this many sets of poses are kept, by the poses' bytes: a
+#: fit evaluates its model at the same poses at every iteration, and the models of a diagnosis share columns
+MAX_FEATURES = 8
+_FEATURES: OrderedDict = OrderedDict()
+_features_lock = threading.Lock()
 
 
 class ChainOffsets(ErrorTerm):
@@ -201,6 +207,9 @@ class Mapping:
         self._sines = np.flatnonzero(self._trig)[self._sine]
         self._cosines = np.flatnonzero(self._trig)[~self._sine]
         self._of_session = np.flatnonzero(self.at[self.periodic] >= 0)
+        #: what the factors are made of, column by column: a key of the ones kept (models of one superset share it)
+        self._signature = (tuple(self._reading), tuple(self._trig), tuple(self._harmonic), tuple(self._factor),
+                           tuple(self._sine), tuple(self._of_session), tuple(self.at[self.periodic]))
         #: the parameters are per pose (a term of one session other than a periodic error)
         self.per_pose = bool(len(self.local))
         self.index = np.array([c.index for c in columns], dtype=int)
@@ -299,7 +308,18 @@ class Mapping:
         """The factor of each periodic column (N, len(periodic)): a coupling's source reading; the sine or cosine
         of a harmonic times its joint's reading (per metre on a linear axis: times 2 pi); times its session's
         indicator for a column of one session. All columns at once, each number by the arithmetic a column alone
-        had (the same bits; a call per column cost more than its sine: 34,000 calls in the two-session job)."""
+        had (the same bits; a call per column cost more than its sine: 34,000 calls in the two-session job), and
+        kept (:data:`MAX_FEATURES`): read them, never write to them."""
+        if not len(self.periodic):
+            return np.zeros((len(q), 0))
+        ats = self.at[self.periodic[self._of_session]]
+        q = np.ascontiguousarray(q)
+        key = (self._signature, q.shape, hashlib.blake2b(q.tobytes(), digest_size=16).digest(),
+               hashlib.blake2b(np.ascontiguousarray(cov[:, ats]).tobytes(), digest_size=16).digest())
+        with _features_lock:
+            F = _FEATURES.get(key)
+        if F is not None:
+            return F
         F = q[:, self._reading]
         if len(self._harmonic):
             x = F[:, self._trig] * self._harmonic
@@ -307,7 +327,12 @@ class Mapping:
             F[:, self._sines] = np.sin(x[:, self._sine])
             F[:, self._cosines] = np.cos(x[:, ~self._sine])
         if len(self._of_session):
-            F[:, self._of_session] *= cov[:, self.at[self.periodic[self._of_session]]]
+            F[:, self._of_session] *= cov[:, ats]
+        F.flags.writeable = False
+        with _features_lock:
+            _FEATURES[key] = F
+            while len(_FEATURES) > MAX_FEATURES:
+                _FEATURES.popitem(last=False)
         return F
 
     def jacobian(self, D: np.ndarray, q: np.ndarray, cov: np.ndarray, columns: np.ndarray | None = None,

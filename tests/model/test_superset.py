@@ -308,9 +308,15 @@ def test_the_periodic_columns_factors_are_each_columns_own(seed):
                               "+joint_coupling[4:2]@A", False, seed)
     m = model._mapping
     rng = np.random.default_rng(seed)
-    q, _, cov, _ = data(model, 70, rng)
-    F = m.features(q, cov)
-    assert F.shape == (70, len(m.periodic)) and len(m.periodic) == 2 * 4 + 2
+    sets = [data(model, 70, rng) for _ in range(3)]
+    sets.append((sets[0][0], None, 1.0 - sets[0][2], None))     # the same poses, the sessions swapped
+    for q, _, cov, _ in [sets[int(rng.integers(len(sets)))] for _ in range(12)]:     # asked again (kept factors)
+        F = m.features(q.copy(), cov.copy())
+        assert F.shape == (70, len(m.periodic)) and len(m.periodic) == 2 * 4 + 2
+        check_factors(m, robot, q, cov, F)
+
+
+def check_factors(m, robot, q, cov, F):
     for k, i in enumerate(m.periodic):
         c = m.columns[i]
         if c.kind == "q":
