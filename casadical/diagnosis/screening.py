@@ -186,8 +186,9 @@ class Screen:
         """Column (N, 3), scaled, of the ``k``-th parameter of candidate ``c`` at the poses of ``d`` (``J``: the
         model's free columns there, ``JA``: the directions of the joints' angles)."""
         if c.cause == "joint_periodic":
-            col = periodic_columns(JA[:, :, c.joint - 1], phase(self.model.robot, c.joint, d.q[:, c.joint - 1]),
-                                   c.harmonic)[:, :, k]
+            # its k-th column alone (periodic_columns' sin, then cos: the same numbers, not both made for each)
+            x = c.harmonic * phase(self.model.robot, c.joint, d.q[:, c.joint - 1])
+            col = JA[:, :, c.joint - 1] * (np.sin(x) if k == 0 else np.cos(x))[:, None]
         elif c.cause == "joint_coupling":
             col = JA[:, :, c.joint - 1] * d.q[:, c.source_joint - 1, None]
         elif c.cause == "warmup":
@@ -313,13 +314,15 @@ class Screen:
             big, p = self.model, self.model_params
             xyz, J, JA = big.predict_angle_jacobian(self.val.q, p.values, big.covariates(self.val),
                                                     self.current.base0)
-            val.update(r=xyz - self.val.xyz, J=J[:, :, self.free] * p.scales[self.free], JA=JA, columns={})
-        r, J, JA, columns = val["r"], val["J"], val["JA"], val["columns"]
+            # column by column in memory (p, N, 3): a column is read whole, not every p-th number (6x faster)
+            JT = np.ascontiguousarray((J[:, :, self.free] * p.scales[self.free]).transpose(2, 0, 1))
+            val.update(r=xyz - self.val.xyz, JT=JT, J=JT.transpose(1, 2, 0), JA=JA, columns={})
+        r, JT, J, JA, columns = val["r"], val["JT"], val["J"], val["JA"], val["columns"]
         n_model = len(self._model_cols[1])
         out = r.copy()   # r + J step, a column at a time (stacking the columns of 10,000 poses costs 6x more)
         for k, d in zip(fit.cols, fit.step):
             if k < n_model:
-                col = J[:, :, k]
+                col = JT[k]
             else:        # each candidate's column made once (a periodic one is a sin or cos of every pose)
                 key = self.extra[k - n_model]
                 col = columns.get(key)

@@ -37,7 +37,7 @@ search.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -161,21 +161,33 @@ class _Questions:
     level: float
     #: per equation, how much a pose's term counts in the tests' noise scale (:func:`.statistics.set_aside_share`)
     share: np.ndarray | None = None
+    #: the fits made, by the column blocks beside the rest (their ids; the blocks held, so no id is reused)
+    fits: dict = field(default_factory=dict)
 
     def significant(self, test: NestedTest) -> bool:
         return test.log10_p < self.level and test.delta_bic < 0
 
+    def fit(self, blocks: tuple) -> tuple[np.ndarray, int]:
+        """:func:`_fit` of ``rw`` on the rest and the column ``blocks`` beside it, in that order; made once: the
+        questions ask the same fits again (the rest alone before each of the instrument's pairs, the rest and that
+        pair's term for both of its tests)."""
+        key = tuple(id(b) for b in blocks)
+        if key not in self.fits:
+            A = weighted(np.concatenate([self.rest, *blocks], axis=2) if blocks else self.rest, self.sw)
+            self.fits[key] = blocks, _fit(A, self.rw)
+        return self.fits[key][1]
+
     def beside(self, more: np.ndarray | None, extra: np.ndarray) -> NestedTest:
         """The test of ``extra`` beside the rest of the model and ``more`` ((N, 3, k) each)."""
-        base = self.rest if more is None else np.concatenate([self.rest, more], axis=2)
-        A0 = weighted(base, self.sw)
-        (r0, k0), (r1, k1) = (_fit(A, self.rw) for A in (A0, np.hstack([A0, weighted(extra, self.sw)])))
+        base = () if more is None else (more,)
+        (r0, k0), (r1, k1) = self.fit(base), self.fit((*base, extra))
+        n0 = self.rest.shape[2] + sum(b.shape[2] for b in base)
         res = [r0, r1]
         ssr = [float(r @ r) for r in res]
         k = k1 - k0
         # a robust fit's set-aside poses count in the noise scale by their influence, as in the search's tests
         noise = None if self.share is None else float((res[1] ** 2) @ self.share)
-        return nested_test(ssr[0], A0.shape[1], ssr[1], A0.shape[1] + max(k, 1), len(self.rw), noise)
+        return nested_test(ssr[0], n0, ssr[1], n0 + max(k, 1), len(self.rw), noise)
 
 
 def _fit(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, int]:

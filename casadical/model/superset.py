@@ -21,6 +21,7 @@ the same bits as the compiled code, so a failed compilation falls back to it wit
 
 from __future__ import annotations
 
+import hashlib
 import threading
 import warnings
 from collections import OrderedDict
@@ -55,6 +56,11 @@ MAX_SUPERSETS = 8
 #: poses evaluated at a time: the buffers of a batch stay small (a serial map holds one call's work memory per
 #: pose) and one batch size serves any number of poses
 BLOCK = 4096
+#: the periodic columns' factors (Mapping.features) of this many sets of poses are kept, by the poses' bytes: a
+#: fit evaluates its model at the same poses at every iteration, and the models of a diagnosis share columns
+MAX_FEATURES = 8
+_FEATURES: OrderedDict = OrderedDict()
+_features_lock = threading.Lock()
 
 
 class ChainOffsets(ErrorTerm):
@@ -188,6 +194,22 @@ class Mapping:
         self.shared = np.flatnonzero(~periodic & (self.at < 0))
         self.local = np.flatnonzero(~periodic & (self.at >= 0))
         self.periodic = np.flatnonzero(periodic)
+        # the periodic columns side by side (features()): each one's reading (a coupling's source joint, a
+        # harmonic's own), and of the harmonics their number, their factor (2 pi per metre on a linear axis) and
+        # which is a sine
+        per = [columns[i] for i in self.periodic]
+        self._reading = np.array([c.source - 1 if c.kind == "q" else c.index - self.n_params for c in per], dtype=int)
+        self._trig = np.array([c.kind != "q" for c in per], dtype=bool)
+        trig = [c for c in per if c.kind != "q"]
+        self._harmonic = np.array([float(c.harmonic) for c in trig])
+        self._factor = np.array([2 * np.pi if self.prismatic[c.index - self.n_params] else 1.0 for c in trig])
+        self._sine = np.array([c.kind == "s" for c in trig], dtype=bool)
+        self._sines = np.flatnonzero(self._trig)[self._sine]
+        self._cosines = np.flatnonzero(self._trig)[~self._sine]
+        self._of_session = np.flatnonzero(self.at[self.periodic] >= 0)
+        #: what the factors are made of, column by column: a key of the ones kept (models of one superset share it)
+        self._signature = (tuple(self._reading), tuple(self._trig), tuple(self._harmonic), tuple(self._factor),
+                           tuple(self._sine), tuple(self._of_session), tuple(self.at[self.periodic]))
         #: the parameters are per pose (a term of one session other than a periodic error)
         self.per_pose = bool(len(self.local))
         self.index = np.array([c.index for c in columns], dtype=int)
@@ -239,22 +261,40 @@ class Mapping:
 
     # -- inputs and outputs ------------------------------------------------------------
 
-    def inputs(self, q: np.ndarray, values: np.ndarray, cov: np.ndarray, offsets: bool = True
-               ) -> tuple[np.ndarray, np.ndarray]:
+    def predictions(self, q: np.ndarray, cov: np.ndarray) -> list:
+        """Each compensator's prediction (N, 3) at the poses where :meth:`inputs` adds it (its gate not 0; zeros
+        elsewhere), for :meth:`inputs`' ``predictions``: asked at every pose of its session (of the data), the
+        poses its gate was made at, where the process kept its answer (``ResidualGP._posterior``), not block by
+        block nor only where its gate is not 0 (each a kernel of its own)."""
+        out = []
+        for gate, at, gp in self.compensators:
+            pred = np.zeros((len(q), 3))
+            rows = np.arange(len(q)) if at < 0 else np.flatnonzero(cov[:, at])
+            if len(rows) and np.any(cov[rows, gate]):
+                pred[rows] = gp.predict(q[rows])
+            out.append(pred)
+        return out
+
+    def inputs(self, q: np.ndarray, values: np.ndarray, cov: np.ndarray, offsets: bool = True,
+               predictions: list | None = None, features: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """The superset's parameters (a vector, or one per pose) and covariates for the model's; without
-        ``offsets``, the compensators' point offsets stay at zero (the probe's rotation: they do not turn it)."""
+        ``offsets``, the compensators' point offsets stay at zero (the probe's rotation: they do not turn it);
+        ``predictions``: the compensators' at these poses (:meth:`predictions`), ``features`` the periodic
+        columns' (:meth:`features`), else made here."""
         N = len(q)
         C = np.zeros((N, self.n_covariates))
         C[:, self.cov_to] = cov[:, self.cov_from]
         for k, refs in self.shifts:     # covariates against the model's references (a drift's: its session's)
             C[:, k] -= refs[0][1] if refs[0][0] is None else sum(cov[:, at] * ref for at, ref in refs)
-        for i in self.periodic:
-            C[:, self.first_chain + self.index[i] - self.n_params] += values[i] * self._feature(q, cov, i)
-        for gate, at, gp in self.compensators if offsets else ():   # as the term: [its session] * gate * prediction
-            g = cov[:, gate] if at < 0 else cov[:, at] * cov[:, gate]
+        F = self.features(q, cov) if features is None else features
+        for k, i in enumerate(self.periodic):
+            C[:, self.first_chain + self.index[i] - self.n_params] += values[i] * F[:, k]
+        for k, (gate, at, gp) in enumerate(self.compensators if offsets else ()):   # as the term: [its session] *
+            g = cov[:, gate] if at < 0 else cov[:, at] * cov[:, gate]                # gate * prediction
             on = np.flatnonzero(g)
             if len(on):
-                C[on, self.first_point:self.first_point + 3] += g[on, None] * gp.predict(q[on])
+                pred = gp.predict(q[on]) if predictions is None else predictions[k][on]
+                C[on, self.first_point:self.first_point + 3] += g[on, None] * pred
         p = self.nominal.copy()
         p[self.index[self.shared]] = values[self.shared]
         if not self.per_pose:
@@ -264,21 +304,42 @@ class Mapping:
             P[:, self.index[i]] += cov[:, self.at[i]] * values[i]
         return P, C
 
-    def _feature(self, q: np.ndarray, cov: np.ndarray, i: int) -> np.ndarray:
-        """The factor of a periodic column: sin or cos of the harmonic of its joint's reading (at its session)."""
-        c = self.columns[i]
-        if c.kind == "q":
-            f = q[:, c.source - 1]
-        else:
-            j = c.index - self.n_params
-            x = c.harmonic * q[:, j] * (2 * np.pi if self.prismatic[j] else 1.0)   # per metre on a linear axis
-            f = np.sin(x) if c.kind == "s" else np.cos(x)
-        return f if self.at[i] < 0 else f * cov[:, self.at[i]]
+    def features(self, q: np.ndarray, cov: np.ndarray) -> np.ndarray:
+        """The factor of each periodic column (N, len(periodic)): a coupling's source reading; the sine or cosine
+        of a harmonic times its joint's reading (per metre on a linear axis: times 2 pi); times its session's
+        indicator for a column of one session. All columns at once, each number by the arithmetic a column alone
+        had (the same bits; a call per column cost more than its sine: 34,000 calls in the two-session job), and
+        kept (:data:`MAX_FEATURES`): read them, never write to them."""
+        if not len(self.periodic):
+            return np.zeros((len(q), 0))
+        ats = self.at[self.periodic[self._of_session]]
+        q = np.ascontiguousarray(q)
+        key = (self._signature, q.shape, hashlib.blake2b(q.tobytes(), digest_size=16).digest(),
+               hashlib.blake2b(np.ascontiguousarray(cov[:, ats]).tobytes(), digest_size=16).digest())
+        with _features_lock:
+            F = _FEATURES.get(key)
+        if F is not None:
+            return F
+        F = q[:, self._reading]
+        if len(self._harmonic):
+            x = F[:, self._trig] * self._harmonic
+            x *= self._factor
+            F[:, self._sines] = np.sin(x[:, self._sine])
+            F[:, self._cosines] = np.cos(x[:, ~self._sine])
+        if len(self._of_session):
+            F[:, self._of_session] *= cov[:, ats]
+        F.flags.writeable = False
+        with _features_lock:
+            _FEATURES[key] = F
+            while len(_FEATURES) > MAX_FEATURES:
+                _FEATURES.popitem(last=False)
+        return F
 
-    def jacobian(self, D: np.ndarray, q: np.ndarray, cov: np.ndarray, columns: np.ndarray | None = None
-                 ) -> np.ndarray:
+    def jacobian(self, D: np.ndarray, q: np.ndarray, cov: np.ndarray, columns: np.ndarray | None = None,
+                 features: np.ndarray | None = None) -> np.ndarray:
         """The model's Jacobian (N, m, P) from the superset's D (N, P_S + n, m); with ``columns`` (indices of the
-        model's parameters) only theirs (N, m, len(columns)): a solver's free columns, without a copy of the rest."""
+        model's parameters) only theirs (N, m, len(columns)): a solver's free columns, without a copy of the rest;
+        ``features``: :meth:`features` at these poses, made already."""
         cols = np.arange(len(self.index)) if columns is None else np.asarray(columns, dtype=int)
         sel = self.index[cols]
         if len(sel) and np.all(np.diff(sel) == 1):     # a run of the superset's columns (the usual): one copy,
@@ -286,9 +347,11 @@ class Mapping:
         else:
             J = np.ascontiguousarray(D[:, sel, :].transpose(0, 2, 1))
         at = {int(i): k for k, i in enumerate(cols)}
-        for i in self.periodic:
-            if i in at:
-                J[:, :, at[i]] *= self._feature(q, cov, i)[:, None]
+        if any(int(i) in at for i in self.periodic):
+            F = self.features(q, cov) if features is None else features
+            for k, i in enumerate(self.periodic):
+                if i in at:
+                    J[:, :, at[i]] *= F[:, k, None]
         for i in self.local:
             if i in at:
                 J[:, :, at[i]] *= cov[:, self.at[i], None]
@@ -486,15 +549,18 @@ def outputs(model, which: str, q, p, cov, b0, Rm=None, compile: bool = True, req
     if model.orientation and which in ("fk", "jac"):   # a full-pose model: its data kind's functions
         which, Rm = "pose_" + which, np.tile(np.eye(3).ravel(), (N, 1))
     parts = []
+    preds = m.predictions(q, cov) if m.compensators and which != "probe" else None
     for a in range(0, N, BLOCK):
         s = slice(a, min(a + BLOCK, N))
         qs, cs = q[s], cov[s]
-        P, C = m.inputs(qs, p, cs, offsets=which != "probe")
+        F = m.features(qs, cs) if len(m.periodic) else None      # the periodic columns': inputs' and jacobian's
+        P, C = m.inputs(qs, p, cs, offsets=which != "probe",
+                        predictions=None if preds is None else [x[s] for x in preds], features=F)
 
-        def take(out, qs=qs, cs=cs):
+        def take(out, qs=qs, cs=cs, F=F):
             if len(out) == 1:
                 return (out[0].copy(),)
-            return (out[0].copy(), m.jacobian(out[1], qs, cs, columns),
+            return (out[0].copy(), m.jacobian(out[1], qs, cs, columns, F),
                     m.angle_jacobian(out[1]).copy() if angles else None)
         parts.append(sup.evaluate(which, len(qs), [qs, P, C, b0] + ([Rm[s]] if Rm is not None else []), m.per_pose,
                                   take, compile))

@@ -4,6 +4,7 @@ import math
 from dataclasses import replace
 
 import numpy as np
+import pytest
 
 from casadical import calibrate, load_robot
 from casadical.cli import main
@@ -59,3 +60,17 @@ def test_coverage_travels_with_the_calibration(tmp_path):
     back = load_calibration(tmp_path / "c.json")
     assert np.allclose(back.coverage.q_min_deg, cal.q_deg.min(axis=0))
     assert np.allclose(back.coverage.poses_deg, cal.q_deg, atol=1e-6)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_spacing_is_the_median_nearest_neighbour_whenever_asked(seed):
+    """The spacing (kept by the poses' bytes: a diagnosis' fits are of the same poses) is the median distance to
+    the nearest other pose, computed here pose by pose, for every set asked, again and in turn (more sets than
+    are kept, some of the same shape)."""
+    rng = np.random.default_rng(seed)
+    sets = [rng.uniform(-180, 180, (int(rng.integers(2, 80)), 6)) for _ in range(6)]
+    sets.append(rng.uniform(-180, 180, sets[0].shape))
+    for _ in range(25):
+        q = sets[int(rng.integers(len(sets)))]
+        d = np.sqrt(((q[:, None, :] - q[None, :, :]) ** 2).sum(axis=2)) + np.diag(np.full(len(q), np.inf))
+        assert math.isclose(Coverage.of(q.copy()).spacing_deg, float(np.median(d.min(axis=1))), rel_tol=1e-9)

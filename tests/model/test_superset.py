@@ -111,13 +111,18 @@ def test_the_superset_gives_every_models_own_numbers(arm, seed):
 
 @pytest.mark.parametrize("arm", [ARM4, ARM7], ids=["arm4-mdh", "arm7-mdh-beta"])
 @pytest.mark.parametrize("orientation", [False, True])
-def test_session_compensators_map_onto_the_superset(arm, orientation):
+@pytest.mark.parametrize("block", [None, 50])
+def test_session_compensators_map_onto_the_superset(arm, orientation, block, monkeypatch):
     """A GP compensator's Gaussian process (frozen: evaluated in numpy, an offset of the tool point before
     the base pose) gives the model's own graph's positions, orientation residuals and Jacobians, where its
-    gate and its session say it applies and nowhere else."""
+    gate and its session say it applies and nowhere else; also where the poses are evaluated in blocks (``block``:
+    the processes' predictions are made at every pose of their session once, then taken block by block)."""
     from casadical.compensators.gp import ResidualGP
+    from casadical.model import superset
     from casadical.terms import SessionLocal
 
+    if block is not None:
+        monkeypatch.setattr(superset, "BLOCK", block)
     robot = robot_from_dict(arm)
     rng = np.random.default_rng(5)
     model0 = two_session_model(robot, "kinematic+joint_compliance+joint_periodic[2:17]", orientation, 5)
@@ -289,3 +294,36 @@ def test_the_quick_compile_only_where_a_core_is_free(tmp_path, monkeypatch, spar
     for fun in (first, later):
         got = batch(lambda n, f=fun: f.map(f"m{n}", "serial", n, [3], []), len(q), [3], True)(*ins)
         assert all(np.array_equal(a, b) for a, b in zip(got, ref))
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_periodic_columns_factors_are_each_columns_own(seed):
+    """The factors of the periodic columns, made side by side (:meth:`Mapping.features`): each a coupling's source
+    reading, or the sine or cosine of a harmonic times its joint's reading (per metre on a linear axis: 2 pi per
+    metre), times its session's indicator for a column of one session; as one column alone makes it."""
+    from tests.helpers.arms import ARM4_TRACK
+
+    robot = robot_from_dict(ARM4_TRACK)
+    model = two_session_model(robot, "kinematic+joint_periodic[1:3,2:17,4:1]+joint_coupling[3:2]+joint_periodic[1:5]@B"
+                              "+joint_coupling[4:2]@A", False, seed)
+    m = model._mapping
+    rng = np.random.default_rng(seed)
+    sets = [data(model, 70, rng) for _ in range(3)]
+    sets.append((sets[0][0], None, 1.0 - sets[0][2], None))     # the same poses, the sessions swapped
+    for q, _, cov, _ in [sets[int(rng.integers(len(sets)))] for _ in range(12)]:     # asked again (kept factors)
+        F = m.features(q.copy(), cov.copy())
+        assert F.shape == (70, len(m.periodic)) and len(m.periodic) == 2 * 4 + 2
+        check_factors(m, robot, q, cov, F)
+
+
+def check_factors(m, robot, q, cov, F):
+    for k, i in enumerate(m.periodic):
+        c = m.columns[i]
+        if c.kind == "q":
+            f = q[:, c.source - 1]
+        else:
+            j = c.index - m.n_params
+            x = c.harmonic * q[:, j] * (2 * np.pi if robot.prismatic[j] else 1.0)
+            f = np.sin(x) if c.kind == "s" else np.cos(x)
+        f = f if m.at[i] < 0 else f * cov[:, m.at[i]]
+        assert np.allclose(F[:, k], f, rtol=1e-15, atol=0), (c, np.abs(F[:, k] - f).max())
