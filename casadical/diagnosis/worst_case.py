@@ -119,7 +119,8 @@ def _errors(run: DiagnosisRun, fit, gps: dict | None) -> np.ndarray:
         rows = session_index(run.val).get(s or "", np.zeros(0, int)) if s is not None else np.arange(len(run.val))
         if len(rows):
             q = run.val.q[rows]
-            r[rows] -= (g.predict(q) * g.weight(q)[:, None]) @ fit.base_matrix(s)[:3, :3].T
+            w = g.weight(q)     # first: its uncertainty keeps the posterior's answer, which predict then takes
+            r[rows] -= (g.predict(q) * w[:, None]) @ fit.base_matrix(s)[:3, :3].T
     return np.linalg.norm(r, axis=1) * 1000
 
 
