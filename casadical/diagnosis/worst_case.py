@@ -12,7 +12,8 @@ causes still kept only the :data:`SCREENED` a linearised screen ranks first are 
 the model refitted without them, with the GP compensator kept (its process, hyperparameters and shrinkage the same,
 conditioned on the refitted model's residuals) and without it; at last the kinematic model itself. It names the
 worst pose and, where it can be said, why the corrections dropped raise the error there (:func:`unchecked_terms`: a
-periodic term no calibration pose checks near that pose's reading of its joint). (A correction
+term no calibration pose checks there: a periodic term in a gap of its joint's readings, a compliance or an encoder
+scale beyond the range of its torque or reading). (A correction
 can raise the worst error without extrapolating beyond its data: on UR10 series A, seeds 0 and 2, the worst
 validation poses have joint 2 at -169 deg, inside the calibration poses' -176 .. 5 deg, where few of them are,
 and the periodic terms of joints 1-3 add up there; the GP compensator lowers it, so dropping it first, as the
@@ -125,23 +126,48 @@ def _errors(run: DiagnosisRun, fit, gps: dict | None) -> np.ndarray:
 
 
 def unchecked_terms(run: DiagnosisRun, i: int, dropped: list) -> str:
-    """Why dropping ``dropped`` lowers the worst error at validation pose ``i``, where it can be said: the periodic
-    terms among them whose joint's reading there lies in a gap of the calibration poses' readings (of its session,
-    for a session's own term) wider than half the term's period, or beyond them by more than a quarter of it. A
-    harmonic's value there follows from its amplitude and phase, fitted elsewhere on the joint's range; no
-    calibration pose checks it over that gap, where a gear's error need not repeat (UR10 series A, seed 0: joint 2
-    at -168.9 deg, in a gap from -175.2 to -141.9 deg, harmonic 32's period 11.25 deg). "" when none is."""
+    """Why dropping ``dropped`` lowers the worst error at validation pose ``i``, where it can be said: a term among
+    them that no calibration pose checks there.
+
+    - A periodic term whose joint reads there inside a gap of the calibration poses' readings (of its session, for
+      a session's own term) wider than half the term's period, or beyond them by more than a quarter of it: a
+      harmonic's value there follows from its amplitude and phase, fitted elsewhere on the joint's range, where a
+      gear's error need not repeat (UR10 series A, seed 0: joint 2 at -168.9 deg, in a gap from -175.2 to -141.9
+      deg, harmonic 32's period 11.25 deg).
+    - A term linear in its covariate (a compliance and its progressive part in the joint's gravity torque, an
+      encoder scale in its reading) whose covariate there lies beyond the calibration poses' range by more than a
+      tenth of it: the term extrapolates, where a drive's stiffness need not stay linear.
+
+    "" when none is."""
     cal, val = run.cal, run.val
     prismatic = run.kinematic.model.robot.prismatic
+    torques = None
     said = []
     for a in dropped:
-        if a.cause != "joint_periodic" or a.joint is None or a.harmonic is None:
+        if a.joint is None or a.cause not in ("joint_periodic", "joint_compliance", "nonlinear_stiffness",
+                                              "encoder_scale"):
             continue
         j = a.joint - 1
         rows = session_index(cal)[a.session] if a.session is not None else np.arange(len(cal))
-        qc, qv = cal.q[rows, j], val.q[i, j]
-        period = (1.0 if prismatic[j] else 2 * np.pi) / a.harmonic
         unit, f = ("mm", 1000.0) if prismatic[j] else ("deg", 180 / np.pi)
+        if a.cause in ("joint_compliance", "nonlinear_stiffness"):
+            if torques is None:
+                m, v = run.final.model, run.final.parameters.values
+                torques = (m.torques(cal.q, v, m.covariates(cal)), m.torques(val.q[i:i + 1], v,
+                                                                          m.covariates(val.subset([i]))))
+            qc, qv, unit, f, what = torques[0][rows, j], torques[1][0, j], "N m", 1.0, "gravity torque"
+        else:
+            qc, qv, what = cal.q[rows, j], val.q[i, j], "reading"
+        lo, hi = qc.min(), qc.max()
+        if a.cause != "joint_periodic":
+            beyond = max(lo - qv, qv - hi)
+            if not beyond > 0.1 * (hi - lo):
+                continue
+            said.append(f"joint {a.joint}'s {what} there, {qv * f:.1f} {unit}, lies beyond the calibration poses' "
+                        f"({lo * f:.1f} .. {hi * f:.1f} {unit}): {a.label()} extrapolates there, where no "
+                        "calibration pose checks it")
+            continue
+        period = (1.0 if prismatic[j] else 2 * np.pi) / a.harmonic
         below, above = qc[qc <= qv], qc[qc >= qv]
         if len(below) and len(above):
             if above.min() - below.max() <= period / 2:

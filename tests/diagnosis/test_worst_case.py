@@ -112,3 +112,42 @@ def test_the_worst_case_note_says_why_a_term_no_calibration_pose_checks(tmp_path
     at, lo, hi = map(float, m.groups())
     assert lo <= 40.0 <= 80.0 <= hi and lo < at < hi, note
     assert abs(at - math.degrees(val.q[line - 2, 2])) < 0.06
+
+
+@pytest.mark.parametrize("arm, seed", [("arm7-dh", 0), ("arm5", 1), ("arm5", 2)])
+def test_the_worst_case_note_says_why_a_compliance_extrapolates(tmp_path, arm, seed):
+    """Hidden: joint 2's drive stiffens under load (a cubic part that takes back 80 % of the linear compliance's
+    deflection at the largest gravity torque, in no model the data can see: the 100 calibration poses load joint 2
+    to at most 35 % of that torque); 40 of 200 validation poses load it beyond 85 %. The diagnosis names the
+    compliance of joint 2, which extrapolates linearly to the loaded poses and misses them by more than the
+    kinematic model does. The worst-case note must name a loaded pose, drop the compliance and say why: the
+    joint's gravity torque there beyond the calibration poses' range."""
+    from casadical.robot import robot_from_dict
+    from tests.helpers.arms import ARM5, ARM7_DH
+    from tests.helpers.hidden import BASE_RPY, BASE_XYZ
+    from tests.truth import Arm, Effects, Session, TrueRobot, measure, sample
+
+    doc = {"arm7-dh": ARM7_DH, "arm5": ARM5}[arm]
+    rng = np.random.default_rng(seed)
+    shape = Arm.from_dict(doc)
+    q = sample(TrueRobot(shape), 4000, rng, floor_z=None)
+    top = np.abs(TrueRobot(shape).state(q).drive_torque[:, 1]).max()
+    k = top / 1.0e-3
+    true = TrueRobot.draw(shape, Effects(stiffness={2: k}, cubic={2: -0.8 / (k * top ** 2)}), rng)
+    tau = true.state(q).drive_torque[:, 1]
+    light, loaded = np.abs(tau) < 0.35 * top, np.abs(tau) > 0.85 * top
+    data = []
+    for name, rows in (("cal", q[light][:100]), ("val", np.vstack([q[light][100:260], q[loaded][:40]]))):
+        shots = measure(true, rows, rng, session=Session("A", base_xyz=BASE_XYZ, base_rpy=BASE_RPY))
+        data.append(Measurements.read_csv(shots.write_csv(tmp_path / f"{name}.csv"), n_joints=true.arm.n))
+    rep = diagnose(robot_from_dict(doc, arm), data[0], data[1], DiagnosisSettings(seed=seed))
+    assert "joint_compliance[2]" in rep.final_model, rep.final_model
+    note = next(n for n in rep.notes if n.startswith("worst case:"))
+    assert int(re.search(r"val\.csv:(\d+)\)", note).group(1)) - 2 >= 160, note     # a loaded pose
+    dropped = note.split("why:")[0].split("; without ")[1]
+    assert dropped.startswith(("joint_compliance joint 2", "every correction (the kinematic model)")), note
+    m = re.search(r"why: joint 2's gravity torque there, (-?[\d.]+) N m, lies beyond the calibration poses' "
+                  r"\((-?[\d.]+) \.\. (-?[\d.]+) N m\): joint_compliance joint 2 extrapolates there", note)
+    assert m, note
+    at, lo, hi = map(float, m.groups())
+    assert max(abs(lo), abs(hi)) < 0.37 * top and abs(at) > 0.8 * top, (at, lo, hi, top)
