@@ -301,26 +301,22 @@ class ResidualGP:
                                        options={"maxiter": iterations}).x)
             return thetas
 
-        w = None
-        if robust_nu is not None and gaussian is not None:
-            g = gaussian        # its hyperparameters are exp(theta) of the fit below, as the loop's first g
-        else:
-            thetas = hyperparameters([theta0] * 3, None)
-            g = None
-        if robust_nu is not None:
-            Z = (Y - mean) / std
-            for refit in [True] * ROBUST_REFITS + [False]:
-                if g is None:
-                    g = cls(X, Y, np.array([np.exp(t[1:-1]) for t in thetas]),
-                            np.array([math.exp(t[0]) for t in thetas]), np.array([math.exp(t[-1]) for t in thetas]),
-                            mean, std, max_std_ratio)
-                w = robust_weights(Z, [g.kernel(X, X, a) for a in range(3)], g.noise_var, robust_nu, w=w)
-                g = None
-                if refit:
-                    thetas = hyperparameters([theta0] * 3, 1.0 / w[rows], ROBUST_ITERATIONS)
-        return cls(X, Y, np.array([np.exp(t[1:-1]) for t in thetas]), np.array([math.exp(t[0]) for t in thetas]),
-                   np.array([math.exp(t[-1]) for t in thetas]), mean, std, max_std_ratio, pose_weights=w,
-                   nu=robust_nu)
+        def process(thetas, **kw):
+            return cls(X, Y, np.array([np.exp(t[1:-1]) for t in thetas]), np.array([math.exp(t[0]) for t in thetas]),
+                       np.array([math.exp(t[-1]) for t in thetas]), mean, std, max_std_ratio, **kw)
+
+        if robust_nu is None:
+            return process(hyperparameters([theta0] * 3, None))
+        # the Gaussian fit's hyperparameters first (the one already made, the same bits), then the weights and the
+        # hyperparameters in turn
+        g = gaussian if gaussian is not None else process(hyperparameters([theta0] * 3, None))
+        w, Z = None, (Y - mean) / std
+        for refit in [True] * ROBUST_REFITS + [False]:
+            w = robust_weights(Z, [g.kernel(X, X, a) for a in range(3)], g.noise_var, robust_nu, w=w)
+            if refit:
+                thetas = hyperparameters([theta0] * 3, 1.0 / w[rows], ROBUST_ITERATIONS)
+                g = process(thetas)
+        return process(thetas, pose_weights=w, nu=robust_nu)
 
     def refit(self, rows: np.ndarray) -> "ResidualGP":
         """The same hyperparameters, conditioned on the training poses ``rows`` only (for held-out folds)."""
