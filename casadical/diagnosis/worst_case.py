@@ -53,9 +53,15 @@ def _processes(result) -> dict:
     return out
 
 
+def _rows(data, s: str | None) -> np.ndarray:
+    """The rows of ``data`` in session ``s`` (None: every row, a cause or process of the data's one session or of
+    the robot)."""
+    return np.arange(len(data)) if s is None else session_index(data).get(s, np.zeros(0, int))
+
+
 def _learnt_at(g, cal, s) -> np.ndarray:
     """The calibration poses (rows) the process ``g`` of session ``s`` learnt from, in its order."""
-    rows = session_index(cal)[s or ""] if s is not None or cal.sessions is None else np.arange(len(cal))
+    rows = _rows(cal, s)
     where = {q.tobytes(): i for i, q in zip(rows, np.ascontiguousarray(cal.q[rows]))}
     return np.array([where[q.tobytes()] for q in np.ascontiguousarray(g.X)])
 
@@ -89,7 +95,7 @@ def _screened(run: DiagnosisRun, fit, gps: dict, kept: list, like: np.ndarray) -
     x = np.array([fit.parameters[n].value for n in lc.names]) / lc.scale
     procs = []    # per process: its learnt rows, base rotation, validation rows, weights and kernels there
     for s, gp in gps.items():
-        rows = session_index(run.val).get(s or "", np.zeros(0, int)) if s is not None else np.arange(len(run.val))
+        rows = _rows(run.val, s)
         q = run.val.q[rows]
         procs.append((gp, _learnt_at(gp, run.cal, s), fit.base_matrix(s)[:3, :3], rows, gp.weight(q),
                       [gp.kernel(q, gp.X, a) for a in range(3)]))
@@ -117,7 +123,7 @@ def _errors(run: DiagnosisRun, fit, gps: dict | None) -> np.ndarray:
         return run.val_errors(fit) * 1000
     r = fit.residuals(run.val)
     for s, g in gps.items():
-        rows = session_index(run.val).get(s or "", np.zeros(0, int)) if s is not None else np.arange(len(run.val))
+        rows = _rows(run.val, s)
         if len(rows):
             q = run.val.q[rows]
             w = g.weight(q)     # first: its uncertainty keeps the posterior's answer, which predict then takes
@@ -148,7 +154,7 @@ def unchecked_terms(run: DiagnosisRun, i: int, dropped: list) -> str:
                                               "encoder_scale"):
             continue
         j = a.joint - 1
-        rows = session_index(cal)[a.session] if a.session is not None else np.arange(len(cal))
+        rows = _rows(cal, a.session)
         unit, f = ("mm", 1000.0) if prismatic[j] else ("deg", 180 / np.pi)
         if a.cause in ("joint_compliance", "nonlinear_stiffness"):
             if torques is None:
