@@ -166,8 +166,7 @@ def size(f: "Finding", final: "CalibrationResult") -> str:
         how = "stiffens" if v[1] < 0 else "softens"
         return f"cubic term {g3(v[1])} rad/(N m)^3{relative(s[1], v[1])}: {how} with load"
     if c.cause == "joint_periodic":
-        amp = math.hypot(*v)
-        std = math.sqrt(((v * s) ** 2).sum()) / amp if amp > 0 else math.nan
+        amp, std = amplitude(v, s)
         return f"{c.harmonic} cycles/turn, {math.degrees(amp) * 3600:.1f} arcsec{relative(std, amp)}"
     if c.cause == "encoder_scale":
         return f"{v[0] * 1e6:.0f} ppm{relative(s[0], v[0])}"
@@ -186,6 +185,13 @@ def size(f: "Finding", final: "CalibrationResult") -> str:
     return ""
 
 
+def amplitude(v: np.ndarray, s: np.ndarray) -> tuple[float, float]:
+    """A periodic term's amplitude from its sine and cosine parts ``v``, and its std from theirs ``s`` (along the
+    amplitude, linearised)."""
+    amp = math.hypot(*v)
+    return amp, (math.sqrt(((v * s) ** 2).sum()) / amp if amp > 0 else math.nan)
+
+
 def travel_curve(values, names: list[str]) -> np.ndarray:
     """A linear axis' straightness or carriage angle over its travel (201 points), from its Legendre coefficients
     (parameters ``..._p<degree>``)."""
@@ -200,8 +206,7 @@ def linear_size(c, v: np.ndarray, s: np.ndarray, P: list) -> str:
     if c.cause == "encoder_scale":
         return f"{v[0] * 1e3:.3g} mm per m{relative(s[0], v[0])}"
     if c.cause == "joint_periodic":
-        amp = math.hypot(*v)
-        std = math.sqrt(((v * s) ** 2).sum()) / amp if amp > 0 else math.nan
+        amp, std = amplitude(v, s)
         return f"{c.harmonic} cycles/m, {amp * 1e3:.3g} mm{relative(std, amp)}"
     if c.cause == "backlash":
         return f"half play {v[0] * 1e3:.3g} mm{relative(s[0], v[0])}"
