@@ -32,16 +32,14 @@ from ..data.measurements import Measurements, session_index
 from ..model.symbolic import Model
 from ..result import CalibrationResult, learning_mask, rebuilt
 from ..runtime.threads import limited_threads
+from ..stats.predictive import fold_interval_k
 from ..terms import SessionLocal, make_term
 from ..terms.gp_compensator import fitted_processes
-from .gp import CHI3_95, MAX_STD_RATIO, ROBUST_NU, ResidualGP
+from .gp import MAX_STD_RATIO, ROBUST_NU, ResidualGP
 
 #: a session's process learns from at most this many of its poses (drawn at random): its cost grows with the cube
 #: of the poses, in the fit and in every held-out fold, and its size in the model with their number
 MAX_POSES = 600
-#: the 95 % interval factor calibrated on the folds is never below chi_3(95 %): without the floor UR10 series B
-#: (README split) held 89.5 % of its validation poses
-K_FLOOR = CHI3_95
 
 
 def gp_compensator_data(result: CalibrationResult, data: Measurements) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -134,15 +132,14 @@ class GPCompensatorFolds:
         process leaves, :meth:`ResidualGP.predictive_std`, and the parameters' part ``params_var`` (m^2, one per
         pose of ``keep``; :func:`casadical.stats.predictive.prediction_std`), as the interval adds them;
         ``sigma`` its white noise), never below :data:`CHI3_95`."""
-        z = [np.zeros(0)]
+        e, s2, sigma = [np.zeros(0)], [np.zeros(0)], [np.zeros(0)]
         for at, Y, pred, ratio, var, prior, noise in self.folds.get("random", []):
             w = shrink_weight(ratio, shrink)[:, None]
-            s2 = np.sum(var + (1 - w) ** 2 * (prior - var), axis=1)
-            if params_var is not None:
-                s2 = s2 + params_var[at]
-            z.append(np.linalg.norm(Y - pred * w, axis=1) / np.sqrt(s2 / 3 + noise ** 2))
-        z = np.concatenate(z)
-        return max(K_FLOOR, float(np.quantile(z, min(level, 1.0)))) if len(z) else CHI3_95
+            v = np.sum(var + (1 - w) ** 2 * (prior - var), axis=1)
+            s2.append(v if params_var is None else v + params_var[at])
+            e.append(np.linalg.norm(Y - pred * w, axis=1))
+            sigma.append(noise)
+        return fold_interval_k(np.concatenate(e), np.concatenate(s2), np.concatenate(sigma), min(level, 1.0))
 
     def means_mm(self, shrink: float) -> dict[str, tuple[float, float]]:
         """Held-out mean (mm) without and with the compensator, by kind."""

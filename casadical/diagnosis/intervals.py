@@ -12,6 +12,7 @@ effect the quantile scatters about chi_3's and the floor keeps it; where they mi
 cannot pin down, arm5-coupled: 2.80 -> 3.10) it widens the interval by what the folds show: the hidden-effect
 matrix's default set held 88-98.5 % of its validation poses (12 of 14 within 90-98 %) with chi_3's factor, 91.5-98.5 %
 (13 of 14) with this one (docs/diagnosis.md, "95 % intervals of a measured point").
+
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ def calibrate_intervals(run: DiagnosisRun) -> None:
         return
     held_out = Linearized.of(fit, run.cal).cv(random, run.prior).kind_errors("random")
     keep = learning_mask(fit, run.cal)
-    k = fold_interval_k(held_out[keep], prediction_std(fit, run.cal)[0][keep], noise_sigma(fit, run.cal)[keep])
+    k = fold_interval_k(held_out[keep], prediction_std(fit, run.cal)[0][keep] ** 2, noise_sigma(fit, run.cal)[keep])
     for res in {id(r): r for r in (run.parametric, run.final)}.values():
         if res.uncertainty is not None:
             res.uncertainty = dataclasses.replace(res.uncertainty, interval_k=k)

@@ -18,10 +18,10 @@ def test_fold_interval_k_is_the_quantile_of_the_scaled_held_out_errors_never_bel
     std, sigma = rng.uniform(1e-6, 5e-6, 500), np.full(500, 20e-6)
     scale = np.sqrt(std ** 2 / 3 + sigma ** 2)
     wide = np.linalg.norm(rng.normal(0.0, 1.0, (500, 3)), axis=1) * 1.3 * scale     # errors 1.3x what it assumes
-    k = fold_interval_k(wide, std, sigma)
+    k = fold_interval_k(wide, std ** 2, sigma)
     assert k == pytest.approx(np.quantile(wide / scale, 0.95))
     assert 1.15 * CHI3_95 < k < 1.45 * CHI3_95
-    assert fold_interval_k(wide / 2, std, sigma) == CHI3_95       # narrower than chi_3's: the floor
+    assert fold_interval_k(wide / 2, std ** 2, sigma) == CHI3_95       # narrower than chi_3's: the floor
 
 
 @pytest.mark.parametrize("effect", ["axis tilt", "quadratic reading error"])
@@ -51,3 +51,4 @@ def test_intervals_widen_by_what_the_folds_show_the_named_causes_miss(tmp_path, 
     again = load_calibration(path)
     assert again.uncertainty.interval_k == pytest.approx(k)
     assert np.allclose(prediction_interval(again, val), radius, rtol=1e-6)
+
