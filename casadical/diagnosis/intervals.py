@@ -13,6 +13,10 @@ cannot pin down, arm5-coupled: 2.80 -> 3.10) it widens the interval by what the 
 matrix's default set held 88-98.5 % of its validation poses (12 of 14 within 90-98 %) with chi_3's factor, 91.5-98.5 %
 (13 of 14) with this one (docs/diagnosis.md, "95 % intervals of a measured point").
 
+Not on a weak design (:mod:`.design`): its folds leave a joint's parameters to a handful of poses, and their errors
+measure the design, not the model fitted on every pose. A seven-axis DH arm calibrated on 24 poses moving one joint
+at a time asked 29.5: a median radius of 1.21 mm held every validation pose where the model missed them by 0.08 mm
+on average.
 """
 
 from __future__ import annotations
@@ -28,7 +32,7 @@ from .validation import Linearized
 def calibrate_intervals(run: DiagnosisRun) -> None:
     fit = run.parametric
     random = [s for s in run.schemes if s.kind == "random"]
-    if fit.uncertainty is None or not random:
+    if fit.uncertainty is None or not random or (run.design is not None and run.design.weak):
         return
     held_out = Linearized.of(fit, run.cal).cv(random, run.prior).kind_errors("random")
     keep = learning_mask(fit, run.cal)
