@@ -54,13 +54,13 @@ outside the diagnosis and of files without ``shrink``).
 
 from __future__ import annotations
 
-import hashlib
 import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import InputError
+from ..runtime.kept import Kept, array_key
 from ..runtime.threads import limited_threads
 
 #: a pose is one where the process knows when its predictive std is below this share of its prior std (UR10
@@ -90,11 +90,6 @@ ROBUST_NU = 4.0
 ROBUST_ROUNDS = 5
 ROBUST_REFITS = 2
 ROBUST_ITERATIONS = 60
-
-
-def _key(X: np.ndarray) -> tuple:
-    """Poses ``X`` (contiguous) as the key of :meth:`ResidualGP._posterior`'s kept answers: shape, bytes' digest."""
-    return X.shape, hashlib.blake2b(X.tobytes(), digest_size=16).digest()
 
 
 def squared_differences(X: np.ndarray) -> np.ndarray:
@@ -245,7 +240,7 @@ class ResidualGP:
             self._chol.append(cho_factor(K, lower=True))
             alpha.append(cho_solve(self._chol[a], Z[:, a]))
         self.alpha = np.column_stack(alpha)
-        self._answers: dict = {}                  # _posterior's last answers
+        self._answers = Kept(4)                   # _posterior's last answers
 
     # --- fitting ------------------------------------------------------------------
 
@@ -348,7 +343,7 @@ class ResidualGP:
         """The residual the processes expect at poses ``X`` (m, (N, 3)); from :meth:`_posterior`'s kept answers
         where the poses were asked for their uncertainty first (the kernel both need is made once)."""
         X = np.ascontiguousarray(X, float)
-        got = self._answers.get(_key(X))
+        got = self._answers.get(array_key(X))
         Z = got[1] if got is not None else np.column_stack([self.kernel(X, self.X, a) @ self.alpha[:, a]
                                                             for a in range(3)])
         return Z * self.y_std + self.y_mean
@@ -365,7 +360,7 @@ class ResidualGP:
         """
         from scipy.linalg import solve_triangular  # here: a command whose model has no process needs none
 
-        key = _key(X)
+        key = array_key(X)
         got = self._answers.get(key)
         if got is not None:
             return got
@@ -377,9 +372,7 @@ class ResidualGP:
             v = solve_triangular(self._chol[a][0], K.T, lower=True, check_finite=False)
             del K
             vv[:, a] = np.einsum("ij,ij->j", v, v)
-        if len(self._answers) >= 4:
-            self._answers.pop(next(iter(self._answers)))
-        self._answers[key] = vv, mean
+        self._answers.put(key, (vv, mean))
         return vv, mean
 
     def std_ratio(self, X: np.ndarray) -> np.ndarray:

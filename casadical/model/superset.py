@@ -21,7 +21,6 @@ the same bits as the compiled code, so a failed compilation falls back to it wit
 
 from __future__ import annotations
 
-import hashlib
 import threading
 import warnings
 from collections import OrderedDict
@@ -31,6 +30,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import CasadicalWarning
+from ..runtime.kept import Kept, array_key
 from ..runtime.threads import evaluation_threads
 from ..terms import ErrorTerm, SessionLocal, covariate_names, make_term
 from ..terms.joint_coupling import JointCoupling
@@ -59,8 +59,7 @@ BLOCK = 4096
 #: the periodic columns' factors (Mapping.features) of this many sets of poses are kept, by the poses' bytes: a
 #: fit evaluates its model at the same poses at every iteration, and the models of a diagnosis share columns
 MAX_FEATURES = 8
-_FEATURES: OrderedDict = OrderedDict()
-_features_lock = threading.Lock()
+_FEATURES = Kept(MAX_FEATURES)
 
 
 class ChainOffsets(ErrorTerm):
@@ -314,10 +313,8 @@ class Mapping:
             return np.zeros((len(q), 0))
         ats = self.at[self.periodic[self._of_session]]
         q = np.ascontiguousarray(q)
-        key = (self._signature, q.shape, hashlib.blake2b(q.tobytes(), digest_size=16).digest(),
-               hashlib.blake2b(np.ascontiguousarray(cov[:, ats]).tobytes(), digest_size=16).digest())
-        with _features_lock:
-            F = _FEATURES.get(key)
+        key = (self._signature, *array_key(q, cov[:, ats]))
+        F = _FEATURES.get(key)
         if F is not None:
             return F
         F = q[:, self._reading]
@@ -329,10 +326,7 @@ class Mapping:
         if len(self._of_session):
             F[:, self._of_session] *= cov[:, ats]
         F.flags.writeable = False
-        with _features_lock:
-            _FEATURES[key] = F
-            while len(_FEATURES) > MAX_FEATURES:
-                _FEATURES.popitem(last=False)
+        _FEATURES.put(key, F)
         return F
 
     def jacobian(self, D: np.ndarray, q: np.ndarray, cov: np.ndarray, columns: np.ndarray | None = None,

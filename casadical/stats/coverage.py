@@ -9,14 +9,13 @@ that lie beyond those ranges or far from every calibration pose, so that
 
 from __future__ import annotations
 
-import hashlib
-import threading
 import warnings
 from dataclasses import dataclass
 
 import numpy as np
 
 from ..errors import ExtrapolationWarning, listing
+from ..runtime.kept import Kept, array_key
 
 #: calibration poses kept for the distance check (a subsample of larger sets)
 MAX_SAMPLE = 2000
@@ -122,24 +121,18 @@ class Coverage:
 
 #: the last few spacings, by the sample's bytes: every fit of a diagnosis is of the same calibration poses (the
 #: 2,000-pose job: 13 fits, 35 ms each)
-_SPACINGS: dict = {}
-_lock = threading.Lock()
+_SPACINGS = Kept(4)
 
 
 def _spacing(sample: np.ndarray) -> float:
     """Median distance from a pose of ``sample`` to its nearest other pose (0 for one pose)."""
     if len(sample) <= 1:
         return 0.0
-    sample = np.ascontiguousarray(sample)
-    key = sample.shape, hashlib.blake2b(sample.tobytes(), digest_size=16).digest()
-    with _lock:
-        got = _SPACINGS.get(key)
+    key = array_key(sample)
+    got = _SPACINGS.get(key)
     if got is None:
         got = float(np.median(_nearest(sample, sample, exclude_self=True)))
-        with _lock:
-            while len(_SPACINGS) >= 4:
-                _SPACINGS.pop(next(iter(_SPACINGS)))
-            _SPACINGS[key] = got
+        _SPACINGS.put(key, got)
     return got
 
 
