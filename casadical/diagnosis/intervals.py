@@ -26,7 +26,6 @@ import dataclasses
 from ..result import learning_mask
 from ..stats.predictive import fold_interval_k, noise_sigma, prediction_std
 from .state import DiagnosisRun
-from .validation import Linearized
 
 
 def calibrate_intervals(run: DiagnosisRun) -> None:
@@ -34,7 +33,8 @@ def calibrate_intervals(run: DiagnosisRun) -> None:
     random = [s for s in run.schemes if s.kind == "random"]
     if fit.uncertainty is None or not random or (run.design is not None and run.design.weak):
         return
-    held_out = Linearized.of(fit, run.cal).cv(random, run.prior).kind_errors("random")
+    # every fold is solved alone, so the random folds' errors are the same bits among all the schemes' folds
+    held_out = run.held_out(fit).kind_errors("random")
     keep = learning_mask(fit, run.cal)
     k = fold_interval_k(held_out[keep], prediction_std(fit, run.cal)[0][keep] ** 2, noise_sigma(fit, run.cal)[keep])
     for res in {id(r): r for r in (run.parametric, run.final)}.values():

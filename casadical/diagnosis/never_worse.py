@@ -31,7 +31,7 @@ from ..result import CalibrationResult
 from .candidates import Candidate, compose_spec
 from .report import Finding, Step
 from .state import DiagnosisRun
-from .validation import CVResult, Linearized, cv_record, cv_text, kinds
+from .validation import CVResult, cv_record, cv_text, kinds
 
 #: the worst held-out (or validation) error may rise by this share at most without a word
 WORST_SHARE = 0.05
@@ -91,7 +91,7 @@ def noise_band(*fits: CalibrationResult) -> float:
 
 
 def held(run: DiagnosisRun, res: CalibrationResult, mask: np.ndarray) -> Held:
-    return Held.of(Linearized.of(res, run.cal).cv(run.schemes, run.prior), mask)
+    return Held.of(run.held_out(res), mask)
 
 
 def keep_never_worse(run: DiagnosisRun) -> None:

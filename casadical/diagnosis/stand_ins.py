@@ -205,7 +205,7 @@ def drop_stand_ins(run: DiagnosisRun) -> None:
     run.say("final check: does every named cause explain the structure it stands for?")
     while run.accepted:
         scr = StructureScreen(run.current, run.cal, run.torques(run.current), run.s.alpha, run.s.seed)
-        lin = Linearized.of(run.current, run.cal)      # once a round: every cause is asked at the same fit
+        lin = run.linearized(run.current)      # once a round: every cause is asked at the same fit
         hit = next(((c, h) for c in run.accepted
                     if (h := stands_in(run.current, lin, run.accepted, c, scr, run.s.alpha)) is not None), None)
         if hit is None:

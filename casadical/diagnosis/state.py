@@ -33,7 +33,7 @@ from .periodogram import Periodogram
 from .report import Finding, Step
 from .settings import DiagnosisSettings
 from .statistics import NestedTest, nested_test, set_aside_share
-from .validation import Linearized, by_kind, joint_levers, schemes
+from .validation import CVResult, Linearized, by_kind, joint_levers, schemes
 
 if TYPE_CHECKING:
     from ..stats.outliers import SetAsideStructure
@@ -41,6 +41,13 @@ if TYPE_CHECKING:
     from .noise import NoiseFloor
     from .report import DiagnosisReport
     from .transfer import TransferStudy
+
+
+#: fits whose linearisation on the calibration poses a run keeps (:meth:`DiagnosisRun.linearized`): the search's
+#: judge asks the current fit and the new one, which the next round's judge asks again; the final checks ask the
+#: final fit and the kinematic one. Each is 3 x 8 bytes per pose and free parameter (40 MB at 20,000 poses: the
+#: 20,000-pose diagnosis of bench_diagnosis_scale.py peaked at 676 MB keeping 2, 692 MB keeping 3, 644 MB none)
+KEPT_FITS = 2
 
 
 @dataclass
@@ -118,6 +125,10 @@ class DiagnosisRun:
     # caches: a fit's validation errors; the gravity torques of the calibration poses under the current fit
     _val_errors: dict[int, tuple] = field(default_factory=dict, repr=False)
     _torques: tuple | None = field(default=None, repr=False)
+    # a fit's linearisation on the calibration poses and its held-out errors (with the schemes and prior they
+    # are of), by the fit: the search's judge, the stand-in check, the never-worse check, the structure screen and
+    # the intervals ask them of the same fits
+    _linearized: dict[int, list] = field(default_factory=dict, repr=False)
 
     def fold_schemes(self, moving: np.ndarray | None = None) -> list:
         """The cross-validation schemes of the calibration poses (``moving``: of a design of one joint at a time,
@@ -196,9 +207,28 @@ class DiagnosisRun:
             self._torques = (res, m.torques(self.cal.q, res.parameters.values, m.covariates(self.cal)))
         return self._torques[1]
 
+    def linearized(self, res: CalibrationResult) -> Linearized:
+        """``res`` linearised at its solution on the calibration poses (:meth:`.validation.Linearized.of`), made
+        once per fit (the last :data:`KEPT_FITS` kept)."""
+        hit = self._linearized.get(id(res))
+        if hit is None or hit[0] is not res:
+            if len(self._linearized) >= KEPT_FITS:
+                self._linearized.pop(next(iter(self._linearized)))
+            hit = self._linearized[id(res)] = [res, Linearized.of(res, self.cal), None]
+        return hit[1]
+
+    def held_out(self, res: CalibrationResult) -> CVResult:
+        """The held-out errors of ``res`` on every fold of the diagnosis' schemes (:meth:`.validation.Linearized.cv`
+        with its prior), computed once per fit."""
+        lin = self.linearized(res)
+        hit = self._linearized[id(res)]
+        if hit[2] is None or hit[2][0] is not self.schemes or hit[2][1] is not self.prior:
+            hit[2] = (self.schemes, self.prior, lin.cv(self.schemes, self.prior))
+        return hit[2][2]
+
     def cv(self, res: CalibrationResult, mask: np.ndarray) -> dict:
         """Held-out means (mm) by kind of fold of a fit, linearised at it, over the poses of ``mask``."""
-        return by_kind(Linearized.of(res, self.cal).cv(self.schemes, self.prior), mask)
+        return by_kind(self.held_out(res), mask)
 
     def candidates(self, current: CalibrationResult, accepted: list[Candidate]) -> list[Candidate]:
         """Every candidate not yet in the model (:class:`.catalogue.Catalogue`)."""

@@ -88,7 +88,7 @@ def _screened(run: DiagnosisRun, fit, gps: dict, kept: list, like: np.ndarray) -
     is lowest. A screen, not a decision: the ones it keeps are refitted in full."""
     if len(kept) <= SCREENED:
         return list(kept)
-    lc, lv = Linearized.of(fit, run.cal), Linearized.of(fit, run.val)
+    lc, lv = run.linearized(fit), Linearized.of(fit, run.val)
     p = lc.J.shape[2]
     Jw = (lc.J * np.sqrt(lc.weights)[:, None, None]).reshape(-1, p)
     A, g = Jw.T @ Jw, Jw.T @ (lc.r * np.sqrt(lc.weights)[:, None]).reshape(-1)
