@@ -33,11 +33,10 @@ def own_parameters(cand: Candidate, accepted: list[Candidate]) -> list[str]:
     return [n for n in cand.parameter_names() if n not in others]
 
 
-def without_tests(current: CalibrationResult, accepted: list[Candidate], data, n_eq: int,
-                  lin: Linearized | None = None) -> list[tuple[Candidate, NestedTest]]:
-    """For each accepted cause: the F-test of the final model against the model without it (linearised; ``lin``:
-    ``current`` linearised on ``data``, made already)."""
-    lin = Linearized.of(current, data) if lin is None else lin
+def without_tests(current: CalibrationResult, lin: Linearized, accepted: list[Candidate], n_eq: int
+                  ) -> list[tuple[Candidate, NestedTest]]:
+    """For each accepted cause: the F-test of the final model against the model without it (linearised: ``lin``,
+    ``current`` linearised on the calibration poses)."""
     N, _, p = lin.J.shape
     sw = np.repeat(np.sqrt(lin.weights), 3)
     X = lin.J.reshape(-1, p) * sw[:, None]
@@ -66,7 +65,7 @@ def drop_redundant(run: DiagnosisRun) -> None:
     while run.accepted:
         current, accepted = run.current, run.accepted
         level = math.log10(run.s.alpha / max(run.n_tests(run.candidates(current, accepted)), 1))
-        tests = without_tests(current, accepted, run.cal, run.n_eq, run.linearized(current))
+        tests = without_tests(current, run.linearized(current), accepted, run.n_eq)
         failing = [(c, t) for c, t in tests if not (t.log10_p < level and t.delta_bic < 0)]
         if not failing:
             break

@@ -438,11 +438,10 @@ class StructureScreen:
         return None
 
 
-def screen(res: CalibrationResult, cal: Measurements, val: Measurements, cal_torques: np.ndarray,
-           val_torques: np.ndarray, alpha: float, seed: int = 0, lin: Linearized | None = None) -> list[Structure]:
-    """The structures ``res`` leaves on ``cal`` (see the module), strongest first (``lin``: ``res`` linearised on
-    ``cal``, made already)."""
-    lin = Linearized.of(res, cal) if lin is None else lin
+def screen(res: CalibrationResult, lin: Linearized, cal: Measurements, val: Measurements, cal_torques: np.ndarray,
+           val_torques: np.ndarray, alpha: float, seed: int = 0) -> list[Structure]:
+    """The structures ``res`` leaves on ``cal`` (see the module; ``lin``: ``res`` linearised on ``cal``), strongest
+    first."""
     scr = StructureScreen(res, cal, cal_torques, alpha, seed)
     r, w = lin.r, lin.weights
     sw = np.sqrt(np.repeat(w, 3))
@@ -490,8 +489,8 @@ def screen_structure(run: DiagnosisRun) -> None:
     run.say("structure screen: what the named causes leave, against every joint's reading and torque, time, "
             "and the instrument's view")
     val_torques = res.model.torques(run.val.q, res.parameters.values, res.model.covariates(run.val))
-    found = screen(res, run.cal, run.val, run.torques(res), val_torques, run.s.alpha, run.s.seed,
-                   run.linearized(res))
+    found = screen(res, run.linearized(res), run.cal, run.val, run.torques(res), val_torques, run.s.alpha,
+                   run.s.seed)
     if not found:
         run.say("  nothing the named causes leave is structure")
     for s in found:
