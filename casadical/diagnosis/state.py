@@ -25,6 +25,7 @@ from ..data.measurements import Measurements
 from ..problem import RobustLoss
 from ..result import AngleStats, CalibrationResult, ErrorStats
 from ..robot import Robot
+from ..runtime.kept import Kept
 from .candidates import Candidate
 from .catalogue import Catalogue
 from .evidence import Support
@@ -126,9 +127,10 @@ class DiagnosisRun:
     _val_errors: dict[int, tuple] = field(default_factory=dict, repr=False)
     _torques: tuple | None = field(default=None, repr=False)
     # a fit's linearisation on the calibration poses and its held-out errors (with the schemes and prior they
-    # are of), by the fit: the search's judge, the stand-in check, the never-worse check, the structure screen and
-    # the intervals ask them of the same fits
-    _linearized: dict[int, list] = field(default_factory=dict, repr=False)
+    # are of), by the fit (each answer holds its fit, so no id is reused while it is kept): the search's judge, the
+    # stand-in check, the never-worse check, the structure screen and the intervals ask them of the same fits
+    _linearized: Kept = field(default_factory=lambda: Kept(KEPT_FITS), repr=False)
+    _held_out: Kept = field(default_factory=lambda: Kept(KEPT_FITS), repr=False)
 
     def fold_schemes(self, moving: np.ndarray | None = None) -> list:
         """The cross-validation schemes of the calibration poses (``moving``: of a design of one joint at a time,
@@ -211,20 +213,20 @@ class DiagnosisRun:
         """``res`` linearised at its solution on the calibration poses (:meth:`.validation.Linearized.of`), made
         once per fit (the last :data:`KEPT_FITS` kept)."""
         hit = self._linearized.get(id(res))
-        if hit is None or hit[0] is not res:
-            if len(self._linearized) >= KEPT_FITS:
-                self._linearized.pop(next(iter(self._linearized)))
-            hit = self._linearized[id(res)] = [res, Linearized.of(res, self.cal), None]
+        if hit is None:
+            hit = (res, Linearized.of(res, self.cal))
+            self._linearized.put(id(res), hit)
         return hit[1]
 
     def held_out(self, res: CalibrationResult) -> CVResult:
         """The held-out errors of ``res`` on every fold of the diagnosis' schemes (:meth:`.validation.Linearized.cv`
         with its prior), computed once per fit."""
-        lin = self.linearized(res)
-        hit = self._linearized[id(res)]
-        if hit[2] is None or hit[2][0] is not self.schemes or hit[2][1] is not self.prior:
-            hit[2] = (self.schemes, self.prior, lin.cv(self.schemes, self.prior))
-        return hit[2][2]
+        key = (id(res), id(self.schemes), id(self.prior))
+        hit = self._held_out.get(key)
+        if hit is None:
+            hit = (res, self.schemes, self.prior, self.linearized(res).cv(self.schemes, self.prior))
+            self._held_out.put(key, hit)
+        return hit[3]
 
     def cv(self, res: CalibrationResult, mask: np.ndarray) -> dict:
         """Held-out means (mm) by kind of fold of a fit, linearised at it, over the poses of ``mask``."""
