@@ -159,8 +159,7 @@ def unchecked_terms(run: DiagnosisRun, i: int, dropped: list) -> str:
         if a.cause in ("joint_compliance", "nonlinear_stiffness"):
             if torques is None:
                 m, v = run.final.model, run.final.parameters.values
-                torques = (m.torques(cal.q, v, m.covariates(cal)), m.torques(val.q[i:i + 1], v,
-                                                                          m.covariates(val.subset([i]))))
+                torques = (run.torques(run.final), m.torques(val.q[i:i + 1], v, m.covariates(val.subset([i]))))
             qc, qv, unit, f, what = torques[0][rows, j], torques[1][0, j], "N m", 1.0, "gravity torque"
         else:
             qc, qv, what = cal.q[rows, j], val.q[i, j], "reading"
