@@ -288,12 +288,12 @@ class Mapping:
         F = self.features(q, cov) if features is None else features
         for k, i in enumerate(self.periodic):
             C[:, self.first_chain + self.index[i] - self.n_params] += values[i] * F[:, k]
-        for k, (gate, at, gp) in enumerate(self.compensators if offsets else ()):   # as the term: [its session] *
-            g = cov[:, gate] if at < 0 else cov[:, at] * cov[:, gate]                # gate * prediction
-            on = np.flatnonzero(g)
-            if len(on):
-                pred = gp.predict(q[on]) if predictions is None else predictions[k][on]
-                C[on, self.first_point:self.first_point + 3] += g[on, None] * pred
+        if offsets and self.compensators:
+            preds = self.predictions(q, cov) if predictions is None else predictions
+            for (gate, at, _), pred in zip(self.compensators, preds):   # as the term: [its session] * gate * prediction
+                g = cov[:, gate] if at < 0 else cov[:, at] * cov[:, gate]
+                on = np.flatnonzero(g)
+                C[on, self.first_point:self.first_point + 3] += g[on, None] * pred[on]
         p = self.nominal.copy()
         p[self.index[self.shared]] = values[self.shared]
         if not self.per_pose:
@@ -547,7 +547,7 @@ def outputs(model, which: str, q, p, cov, b0, Rm=None, compile: bool = True, req
     for a in range(0, N, BLOCK):
         s = slice(a, min(a + BLOCK, N))
         qs, cs = q[s], cov[s]
-        F = m.features(qs, cs) if len(m.periodic) else None      # the periodic columns': inputs' and jacobian's
+        F = m.features(qs, cs)      # the periodic columns': inputs' and jacobian's
         P, C = m.inputs(qs, p, cs, offsets=which != "probe",
                         predictions=None if preds is None else [x[s] for x in preds], features=F)
 
