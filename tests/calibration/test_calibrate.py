@@ -282,26 +282,35 @@ def test_ipopt_line_search_trials_evaluate_the_loss_alone(monkeypatch, position_
 
 def test_ipopt_tolerances_are_per_pose(monkeypatch):
     """Each of the README's 300 poses measured 20 times over: the same loss per pose, twenty times the sum.
-    IPOPT's tests are per pose, so it takes the same iterations to the same optimum, without the backtracking
-    a tolerance on the sum causes as the rounding of a larger sum hides the last decreases (issue 21; with
-    the tolerances on the sum: 16 iterations and 161 objective evaluations for 300 poses, 27 and 457 for
-    these 6,000)."""
-    solves = _record_ipopt(monkeypatch)
+    IPOPT's tests are per pose (issue 21): every tolerance it is given on the summed objective is N times its
+    per-pose value, so the 6,000 poses are the 300's problem scaled by 20 and IPOPT ends both at the same
+    optimum, converged. (Not asserted: iteration and evaluation counts, which are the CPU's arithmetic near the
+    optimum, where the objective's rounding decides a line search; issue 47.)"""
+    from casadical.solvers.ipopt import Ipopt
+
+    given = []
+    options = Ipopt._options
+    monkeypatch.setattr(Ipopt, "_options", lambda self, N: given.append((N, options(self, N))) or given[-1][1])
     robot = load_robot("ur10")
     data = Measurements.read_csv(UR10_B, n_joints=6, require_positions=True)
     idx = np.sort(np.random.default_rng(0).permutation(len(data))[:300])
-    runs = {}
-    for k in (1, 20):
-        solves.clear()
-        runs[k] = (calibrate(robot, data.subset(np.repeat(idx, k)), "kinematic", "ipopt", warn=False,
-                             position_only=True), list(solves))
-    (one, one_solves), (many, many_solves) = runs[1], runs[20]
-    assert len(one_solves) == len(many_solves) and many.solver.success
-    for (_, it1, _), (_, it20, _) in zip(one_solves, many_solves):
-        assert it20 <= it1 + 1
-    assert sum(nf for _, _, nf in many_solves) <= 2 * sum(it for _, it, _ in many_solves)   # no line search stalls
-    dv = np.abs(many.parameters.values - one.parameters.values) / one.parameters.scales
-    assert dv.max() < 1e-6
+    runs = {k: calibrate(robot, data.subset(np.repeat(idx, k)), "kinematic", "ipopt", warn=False,
+                         position_only=True) for k in (1, 20)}
+    one, many = runs[1], runs[20]
+    assert one.solver.success and many.solver.success
+    # the tests on the gradient of the summed objective scale with the poses; complementarity stays on the sum
+    by_n = {N: o["ipopt"] for N, o in given}
+    assert set(by_n) == {300, 6000}
+    for key in ("tol", "acceptable_tol", "barrier_tol_factor"):
+        assert by_n[6000][key] == pytest.approx(20 * by_n[300][key], rel=1e-12)
+    for key in ("compl_inf_tol", "acceptable_compl_inf_tol", "obj_scaling_factor"):
+        assert by_n[6000][key] == by_n[300][key]
+    # the same optimum: every parameter within a thousandth of its standard error (of the 300 poses: the larger),
+    # the loss 20 times the 300 poses'
+    free = one.parameters.free
+    dv = np.abs(many.parameters.values - one.parameters.values)[free] / one.parameters.stds[free]
+    assert dv.max() < 1e-3
+    assert many.solver.cost == pytest.approx(20 * one.solver.cost, rel=1e-8)
 
 
 def test_ipopt_ending_on_tiny_steps_is_converged():
