@@ -50,19 +50,16 @@ import numpy as np
 from ..data.measurements import Measurements
 from ..robot import Robot
 from ..stats.physics import sign_changes
-from ..terms.carriage_angle import ANGLES as CARRIAGE_ANGLES
+from ..terms import ordered
 from ..terms.definitions import known
 from ..terms.mount_compliance import max_mount_moment, mount_moments
 from ..terms.periodic import phase
-from ..terms.straightness import DIRECTIONS as STRAIGHTNESS_DIRECTIONS
 from .candidates import Candidate
 from .design import ONE_AT_A_TIME, moving_joint
 from .periodogram import Periodogram, joint_errors, periodogram
 from .plots import joint_view
 from .settings import DiagnosisSettings
 
-#: kinds of one joint each session can have on its own (thermal expansion changes the geometry: the robot's)
-PER_JOINT = ("joint_compliance", "nonlinear_stiffness", "encoder_scale", "backlash")
 #: time constants of the warm-ups screened: this many, from two pose spacings to a third of the session
 WARMUP_STEPS = 10
 #: a joint covering less than this (degrees) cannot tell its low harmonics from the geometry
@@ -85,19 +82,25 @@ class NotTried:
     Attributes
     ----------
     cause : str
-        A cause name (``joint_compliance``, ``drift``, ...; several
-        joined by ``, `` when one reason stops them all).
+        A cause's words (``joint_compliance``, ``backlash by the load``; several joined by ``, `` when one reason
+        stops them all).
     joints : list of int
         The joints it concerns ([]: all, or none in particular).
     why : str
     allow : str
         What would let the diagnosis try it.
+    condition : str
+        What the data lack (a key of :data:`CONDITIONS`).
+    causes : list of str
+        The names of the causes it stops.
     """
 
     cause: str
     why: str
     allow: str
     joints: list[int] = field(default_factory=list)
+    condition: str = ""
+    causes: list[str] = field(default_factory=list)
 
     def text(self) -> str:
         on = f" of joint{'s' if len(self.joints) > 1 else ''} {', '.join(map(str, self.joints))}" \
@@ -111,107 +114,160 @@ class NotTried:
         return d
 
 
+@dataclass
+class _Data:
+    """What the conditions of :func:`not_tried` read of the calibration poses."""
+
+    robot: Robot
+    cal: Measurements
+    torques: np.ndarray
+    settings: DiagnosisSettings
+
+    def __post_init__(self):
+        self.revolute = [j for j, jt in enumerate(self.robot.joints, start=1) if not jt.prismatic]
+        self.linear = [j for j in range(1, self.robot.n + 1) if j not in self.revolute]
+        payload = self.cal.get("payload_kg")
+        self.masses = any(j.mass > 0 for j in self.robot.joints) or self.robot.payload_mass > 0 or (
+            payload is not None and np.any(payload > 0))
+        self.idle = [j for j in self.revolute if np.max(np.abs(self.torques[:, j - 1]), initial=0.0) < NO_TORQUE]
+        self.level = [j for j in self.linear if np.max(np.abs(self.torques[:, j - 1]), initial=0.0) < NO_TORQUE]
+
+
+def _linear_axis(d: _Data):
+    return d.linear and (d.linear, "a prismatic joint (a linear axis): these are errors of a revolute joint's angle "
+                         "(a linear axis' are screened: its scale, periodic error and backlash along it, its "
+                         "straightness, its carriage's roll, pitch and yaw; the column's or the track's give under "
+                         "the arm's moment is the mount compliance)", "no data can: a linear axis has no such error")
+
+
+def _still_axis(d: _Data):
+    still = [j for j in d.linear if np.ptp(d.cal.q[:, j - 1]) <= 0]
+    return still and (still, "the linear axis does not move in the data", "poses over the axis' travel")
+
+
+def _masses(d: _Data):
+    return not d.masses and ([], "the robot file gives no link masses and no payload, and the poses no payload_kg: "
+                             "the gravity torques are unknown", "give the links' mass_kg and com_m in the robot "
+                             "file, or a payload_kg column of a known payload")
+
+
+def _level(d: _Data):
+    return d.masses and d.level and (d.level, "gravity does not push the linear axis along it (a level track)",
+                                     "nothing these poses could change; play by the direction of motion is tried")
+
+
+def _idle(d: _Data):
+    return d.masses and d.idle and (d.idle, "gravity does not load them at any pose (an axis along gravity, or no "
+                                    "mass beyond it)", "nothing these poses could change: gravity never loads such "
+                                    "a joint")
+
+
+def _one_sign(d: _Data):
+    one_sign = [j for j in range(1, d.robot.n + 1) if j not in d.idle + d.level
+                and not sign_changes(np.sign(d.torques[:, j - 1]), "")[0]]
+    return d.masses and one_sign and (one_sign, "the gravity torque keeps one sign over the poses (play would be a "
+                                      "constant joint offset)", "poses on both sides of the balance, at least 5 each")
+
+
+def _mount_masses(d: _Data):
+    return max_mount_moment(d.robot) <= 0 and ([], "the robot file gives no link masses and no payload: the moment "
+                                               "of the weights about the base is unknown", "give the links' mass_kg "
+                                               "and com_m (or a payload) in the robot file")
+
+
+def _mount_moment(d: _Data):
+    return max_mount_moment(d.robot) > 0 and not moment_changes(d.robot, d.cal) and (
+        [], "the moment of the weights about the base hardly changes over the poses (a constant tilt is the base "
+        "pose's)", "poses that swing the arm's weight about the base: joint 1 turning with the arm stretched, the arm "
+        "stretched and folded, or payloads")
+
+
+def _one_at_a_time(d: _Data):
+    return d.robot.n > 1 and one_at_a_time(d.cal) and (
+        [], "the poses move one joint at a time: a joint's error that follows another joint's reading would show at "
+        "one configuration of the arm only", "poses that move the joints together (random poses, or casadical "
+        "plan-poses)")
+
+
+def _one_way(d: _Data):
+    one_way = [j for j in range(1, d.robot.n + 1) if not sign_changes(d.cal.moves[:, j - 1], "")[0]]
+    return one_way and (one_way, "the joint moves in one direction only between the rows", "poses approached from "
+                        "both directions, in measurement order")
+
+
+def _time(d: _Data):
+    return d.cal.get("time_s") is None and ([], "the poses have no times (time_s)", "a time_s column, or "
+                                            "--row-spacing-s SECONDS if the rows are in time order at a regular "
+                                            "spacing")
+
+
+def _temperature(d: _Data):
+    return d.cal.get("temperature_c") is None and ([], "the poses have no temperature (temperature_c)",
+                                                   "a temperature_c column, measured while the temperature changes")
+
+
+def _temperature_range(d: _Data):
+    temp = d.cal.get("temperature_c")
+    return temp is not None and np.ptp(temp) <= 0.1 and (
+        [], f"the temperature varies by {np.ptp(temp):.2g} K only", "measure while the temperature changes by a few "
+        "kelvin")
+
+
+def _still(d: _Data):
+    still = [j for j in d.revolute if np.ptp(d.cal.q[:, j - 1]) <= 0]
+    return still and (still, "the joint does not move in the data", "poses over the joint's range")
+
+
+def _short_range(d: _Data):
+    short = {j: math.degrees(np.ptp(d.cal.q[:, j - 1])) for j in d.revolute if np.ptp(d.cal.q[:, j - 1]) > 0}
+    short = {j: r for j, r in short.items() if r < SHORT_RANGE_DEG}
+    return short and (sorted(short), f"over the {', '.join(f'{r:.0f}' for r in short.values())} deg these joints "
+                      f"cover, harmonics below about {360 / max(short.values()):.0f} cycles per turn complete less "
+                      "than a period and cannot be told from the geometry or an encoder scale",
+                      "measure the joints over a wider range (half a turn or more)")
+
+
+def _low_linear(d: _Data):
+    low = {j: lowest_harmonic(d.cal, j) for j in d.linear if np.ptp(d.cal.q[:, j - 1]) > 0}
+    low = {j: h for j, h in low.items() if h > 1}
+    return low and (sorted(low), "over the " + ", ".join(f"{np.ptp(d.cal.q[:, j - 1]) * 1000:.0f}" for j in low)
+                    + f" mm these axes cover, harmonics below {', '.join(map(str, low.values()))} cycles per metre "
+                    f"complete fewer than {MIN_CYCLES} cycles: a bow or a slope of the position, not a pitch error",
+                    "measure over more of the axis' travel")
+
+
+def _high_harmonics(d: _Data):
+    h = max_harmonic(d.cal, d.settings)
+    return h < d.settings.max_harmonic and (
+        [], f"harmonics above {h} are not scanned: {len(d.cal)} calibration poses (three per harmonic)",
+        f"{3 * d.settings.max_harmonic} or more poses (to scan up to --max-harmonic {d.settings.max_harmonic})")
+
+
+#: what data may lack, in the order :func:`not_tried` says it: each a function of the poses giving (joints, why,
+#: allow) where the data lack it (else something false); a cause says which it needs and its words for each
+#: (:attr:`~casadical.terms.cause.Cause.needs`)
+CONDITIONS = {"linear_axis": _linear_axis, "still_axis": _still_axis, "masses": _masses, "level": _level,
+              "idle": _idle, "one_sign": _one_sign, "mount_masses": _mount_masses, "mount_moment": _mount_moment,
+              "one_at_a_time": _one_at_a_time, "one_way": _one_way, "time": _time, "temperature": _temperature,
+              "temperature_range": _temperature_range, "still": _still, "short_range": _short_range,
+              "low_linear": _low_linear, "high_harmonics": _high_harmonics}
+
+
 def not_tried(robot: Robot, cal: Measurements, torques: np.ndarray, settings: DiagnosisSettings) -> list[NotTried]:
-    """Every kind of cause ``cal`` cannot test on ``robot``, with why and what would allow it.
+    """Every kind of cause ``cal`` cannot test on ``robot``, with why and what would allow it: for each condition
+    the data lack (:data:`CONDITIONS`), the causes that need it, in their order.
 
     ``torques``: the gravity torques of the poses (N m) under a first fit.
     """
+    d = _Data(robot, cal, torques, settings)
     out = []
-    revolute = [j for j, jt in enumerate(robot.joints, start=1) if not jt.prismatic]
-    linear = [j for j in range(1, robot.n + 1) if j not in revolute]
-    if linear:
-        out.append(NotTried("joint_compliance, nonlinear_stiffness, joint_coupling",
-                            "a prismatic joint (a linear axis): these are errors of a revolute joint's angle (a "
-                            "linear axis' are screened: its scale, periodic error and backlash along it, its "
-                            "straightness, its carriage's roll, pitch and yaw; the column's or the track's give "
-                            "under the arm's moment is the mount compliance)",
-                            "no data can: a linear axis has no such error", linear))
-        still_axes = [j for j in linear if np.ptp(cal.q[:, j - 1]) <= 0]
-        if still_axes:
-            out.append(NotTried("encoder_scale, joint_periodic, straightness, carriage_angle",
-                                "the linear axis does not move in the data", "poses over the axis' travel",
-                                still_axes))
-    payload = cal.get("payload_kg")
-    masses = any(j.mass > 0 for j in robot.joints) or robot.payload_mass > 0 or (
-        payload is not None and np.any(payload > 0))
-    if not masses:
-        out.append(NotTried("joint_compliance, nonlinear_stiffness, backlash by the load",
-                            "the robot file gives no link masses and no payload, and the poses no payload_kg: the "
-                            "gravity torques are unknown",
-                            "give the links' mass_kg and com_m in the robot file, or a payload_kg column of a "
-                            "known payload"))
-    else:
-        idle = [j for j in revolute if np.max(np.abs(torques[:, j - 1]), initial=0.0) < NO_TORQUE]
-        level = [j for j in linear if np.max(np.abs(torques[:, j - 1]), initial=0.0) < NO_TORQUE]
-        if level:
-            out.append(NotTried("backlash by the load", "gravity does not push the linear axis along it (a level "
-                                "track)", "nothing these poses could change; play by the direction of motion is "
-                                "tried", level))
-        if idle:
-            out.append(NotTried("joint_compliance, nonlinear_stiffness, backlash by the load",
-                                "gravity does not load them at any pose (an axis along gravity, or no mass beyond it)",
-                                "nothing these poses could change: gravity never loads such a joint", idle))
-        one_sign = [j for j in range(1, robot.n + 1) if j not in idle + level
-                    and not sign_changes(np.sign(torques[:, j - 1]), "")[0]]
-        if one_sign:
-            out.append(NotTried("backlash by the load", "the gravity torque keeps one sign over the poses (play "
-                                "would be a constant joint offset)", "poses on both sides of the balance, at least "
-                                "5 each", one_sign))
-    if max_mount_moment(robot) <= 0:
-        out.append(NotTried("mount_compliance", "the robot file gives no link masses and no payload: the moment of "
-                            "the weights about the base is unknown",
-                            "give the links' mass_kg and com_m (or a payload) in the robot file"))
-    elif not moment_changes(robot, cal):
-        out.append(NotTried("mount_compliance", "the moment of the weights about the base hardly changes over the "
-                            "poses (a constant tilt is the base pose's)",
-                            "poses that swing the arm's weight about the base: joint 1 turning with the arm "
-                            "stretched, the arm stretched and folded, or payloads"))
-    if robot.n > 1 and one_at_a_time(cal):
-        out.append(NotTried("joint_coupling", "the poses move one joint at a time: a joint's error that follows "
-                            "another joint's reading would show at one configuration of the arm only",
-                            "poses that move the joints together (random poses, or casadical plan-poses)"))
-    one_way = [j for j in range(1, robot.n + 1) if not sign_changes(cal.moves[:, j - 1], "")[0]]
-    if one_way:
-        out.append(NotTried("backlash by the motion", "the joint moves in one direction only between the rows",
-                            "poses approached from both directions, in measurement order", one_way))
-    if cal.get("time_s") is None:
-        out.append(NotTried("drift, warmup", "the poses have no times (time_s)",
-                            "a time_s column, or --row-spacing-s SECONDS if the rows are in time order at a regular "
-                            "spacing"))
-    temp = cal.get("temperature_c")
-    if temp is None:
-        out.append(NotTried("thermal_expansion", "the poses have no temperature (temperature_c)",
-                            "a temperature_c column, measured while the temperature changes"))
-    elif np.ptp(temp) <= 0.1:
-        out.append(NotTried("thermal_expansion", f"the temperature varies by {np.ptp(temp):.2g} K only",
-                            "measure while the temperature changes by a few kelvin"))
-    still = [j for j in revolute if np.ptp(cal.q[:, j - 1]) <= 0]
-    if still:
-        out.append(NotTried("joint_periodic, encoder_scale, joint_coupling", "the joint does not move in the data",
-                            "poses over the joint's range", still))
-    short = {j: math.degrees(np.ptp(cal.q[:, j - 1])) for j in revolute if j not in still}
-    short = {j: r for j, r in short.items() if r < SHORT_RANGE_DEG}
-    if short:
-        top = max(short.values())
-        out.append(NotTried("joint_periodic (low harmonics)",
-                            f"over the {', '.join(f'{r:.0f}' for r in short.values())} deg these joints cover, "
-                            f"harmonics below about {360 / top:.0f} cycles per turn complete less than a period and "
-                            "cannot be told from the geometry or an encoder scale",
-                            "measure the joints over a wider range (half a turn or more)", sorted(short)))
-    low = {j: lowest_harmonic(cal, j) for j in linear if np.ptp(cal.q[:, j - 1]) > 0}
-    low = {j: h for j, h in low.items() if h > 1}
-    if low:
-        out.append(NotTried("joint_periodic (low harmonics of a linear axis)",
-                            "over the " + ", ".join(f"{np.ptp(cal.q[:, j - 1]) * 1000:.0f}" for j in low)
-                            + f" mm these axes cover, harmonics below {', '.join(map(str, low.values()))} cycles per "
-                            f"metre complete fewer than {MIN_CYCLES} cycles: a bow or a slope of the position, not a "
-                            "pitch error", "measure over more of the axis' travel", sorted(low)))
-    h = max_harmonic(cal, settings)
-    if h < settings.max_harmonic:
-        out.append(NotTried("joint_periodic (high harmonics)",
-                            f"harmonics above {h} are not scanned: {len(cal)} calibration poses (three per harmonic)",
-                            f"{3 * settings.max_harmonic} or more poses (to scan up to --max-harmonic "
-                            f"{settings.max_harmonic})"))
+    for key, lacks in CONDITIONS.items():
+        stopped = [c for c in ordered("order") if key in c.needs]
+        found = stopped and lacks(d)
+        if found:
+            joints, why, allow = found
+            out.append(NotTried(", ".join(c.needs[key] for c in stopped), why, allow, list(joints), key,
+                                [c.name for c in stopped]))
     return out
 
 
@@ -288,7 +344,7 @@ class Catalogue:
     def n_tests(self, cands: list[Candidate]) -> int:
         """Tests behind a round's candidates: each periodic candidate stands for the harmonics scanned in its
         scope (the robot's, or one session's)."""
-        per = sum(1 for c in cands if c.cause == "joint_periodic")
+        per = sum(1 for c in cands if c.kind.scanned)
         scanned = self.robot.n * self.max_harmonic()
         if len(self.sessions) > 1:
             scanned += sum(self.robot.n * self.max_harmonic(self.cal.subset(self.cal.sessions == s))
@@ -316,80 +372,80 @@ class Catalogue:
 
     def candidates(self, current, accepted: list[Candidate], excluded: set, excluded_causes: set,
                    torques) -> list[Candidate]:
-        """Every candidate not yet in the model.
+        """Every candidate not yet in the model: each cause's (:meth:`~casadical.terms.cause.Cause.candidates`,
+        asked with this catalogue as what the data allow), and of the causes each session may have on its own
+        (:attr:`~casadical.terms.cause.Cause.per_session`) each session's too.
 
         ``excluded``: periodic ``(joint, harmonic, session)`` not to screen
         again; ``excluded_causes``: other candidates not to screen again;
         ``torques``: a function giving the gravity torques of the
         calibration poses under ``current``.
         """
-        have = set(accepted)
-        out: list[Candidate] = []
-        revolute = [j for j, jt in enumerate(self.robot.joints, start=1) if not jt.prismatic]
-        for j in revolute:
-            out += [Candidate("joint_compliance", j), Candidate("encoder_scale", j),
-                    Candidate("backlash", j, source="torque"), Candidate("backlash", j, source="motion")]
-        # a linear axis' own errors (ISO 230-1): its scale (per metre), its play by the load (a column's weight) and
-        # by the motion, its straightness across it and its carriage's roll, pitch and yaw as it travels
-        for j in (j for j in range(1, self.robot.n + 1) if j not in revolute and np.ptp(self.cal.q[:, j - 1]) > 0):
-            out += [Candidate("encoder_scale", j), Candidate("backlash", j, source="motion")]
-            if np.max(np.abs(torques()[:, j - 1]), initial=0.0) >= NO_TORQUE:    # a column: its weight loads it
-                out.append(Candidate("backlash", j, source="torque"))
-            out += [Candidate("straightness", j, direction=d) for d in STRAIGHTNESS_DIRECTIONS]
-            out += [Candidate("carriage_angle", j, angle=a) for a in CARRIAGE_ANGLES]
-        several = len(self.sessions) > 1
-        moving = [j for j in revolute if np.ptp(self.cal.q[:, j - 1]) > 0]
-        # a coupling's source joint comes before it: a drive train passes through the joints before its joint;
-        # none on poses that move one joint at a time (not_tried says why)
         if self.couples is None:
             self.couples = not one_at_a_time(self.cal)
-        out += [Candidate("joint_coupling", j, source_joint=k) for j in moving for k in moving if k < j
-                and self.couples]
         if self.mount is None:
-            self.mount = [s for s in [None] + (self.sessions if several else [])
+            self.mount = [s for s in [None] + (self.sessions if len(self.sessions) > 1 else [])
                           if moment_changes(self.robot, self.cal if s is None else
                                             self.cal.subset(self.cal.sessions == s))]
-        out += [Candidate("mount_compliance", session=s) for s in self.mount]
-        temp = self.cal.get("temperature_c")
-        if temp is not None and np.ptp(temp) > 0.1:
-            out.append(Candidate("thermal_expansion"))
-            out += [Candidate("thermal_expansion", j) for j, jt in enumerate(self.robot.joints, start=1)
-                    if abs(jt.a) + abs(jt.d) + abs(jt.b or 0.0) > 0]
-        if several:      # each session's own, of every kind of one joint
-            out += [replace(c, session=s) for c in out if c.cause in PER_JOINT for s in self.sessions]
-        # a progressive spring where the joint's compliance is named (the robot's or the session's)
-        out += [Candidate("nonlinear_stiffness", a.joint, session=a.session) for a in accepted
-                if a.cause == "joint_compliance"]
-        # a drift and a warm-up need the poses' times (never the row numbers); of one session by nature
-        if self.cal.get("time_s") is not None:
-            scopes = self.sessions if several else [None]
-            out += [Candidate("drift", session=s) for s in scopes]
-            if not any(a.cause == "warmup" and a.session is None for a in accepted):
-                out += [Candidate("warmup", session=s, time_constant=T) for s in scopes
-                        if not any(a.cause == "warmup" and a.session == s for a in accepted)
-                        for T in self.warmups.get(s, [])]
-        out += self.user_candidates()
         self.update_periodograms(current)
-        scopes = [(None, self.periodograms)] + list(self._own.items())
-        for s, grams in scopes:
-            for j, pg in enumerate(grams, start=1):
-                if j not in revolute and np.ptp(self.cal.q[:, j - 1]) <= 0:
-                    continue
-                # a linear axis' from MIN_CYCLES cycles over its travel (lowest_harmonic), a joint's from the first
-                low = 1 if j in revolute else lowest_harmonic(self.cal, j)
-                ranked = [int(h) for h in pg.harmonics[np.argsort(-pg.power)] if (j, int(h), s) not in excluded
-                          and h >= low][:2]
-                # the first harmonic always: over a small range it mimics an encoder scale error,
-                # and the ambiguity can only be reported if both are screened
-                hs = set(ranked) | ({low} if (j, low, s) not in excluded and low <= pg.harmonics.max(initial=0)
-                                    else set())
-                out += [Candidate("joint_periodic", j, h, session=s) for h in sorted(hs)]
-        # a joint's play by the load and by the motion are both screened while the other is in the model: where
-        # the last move follows the joint's reading (random poses in row order) the load's sign stands for the
-        # motion's and a compliance together, and neither of these can come in beside it; the final check
-        # (:func:`.redundancy.drop_redundant`) drops the stand-in once both are in
+        self.accepted, self.excluded, self.torques = accepted, excluded, torques
+        out: list[Candidate] = []
+        for cause in ordered("order"):
+            own = cause.candidates(self)
+            out += own
+            if len(self.sessions) > 1 and cause.per_session:
+                out += [replace(c, session=s) for c in own for s in self.sessions]
+        out += self.user_candidates()
+        have = set(accepted)
         return [c for c in dict.fromkeys(out) if c not in have and c not in excluded_causes
-                and not (c.cause == "backlash" and not self.sign_changes(torques, c))]
+                and c.kind.screenable(c, self)]
+
+    # -- what a cause's candidates are made of (casadical.terms.cause.Cause.candidates) -----------------------
+
+    make = Candidate
+
+    @property
+    def revolute(self) -> list[int]:
+        return [j for j, jt in enumerate(self.robot.joints, start=1) if not jt.prismatic]
+
+    @property
+    def moving(self) -> list[int]:
+        """The revolute joints the poses move."""
+        return [j for j in self.revolute if np.ptp(self.cal.q[:, j - 1]) > 0]
+
+    @property
+    def moving_axes(self) -> list[int]:
+        """The linear axes the poses move."""
+        return [j for j in range(1, self.robot.n + 1) if self.robot.joints[j - 1].prismatic
+                and np.ptp(self.cal.q[:, j - 1]) > 0]
+
+    def loaded(self, j: int) -> bool:
+        """Gravity loads joint ``j`` at some pose."""
+        return np.max(np.abs(self.torques()[:, j - 1]), initial=0.0) >= NO_TORQUE
+
+    @property
+    def temperature_varies(self) -> bool:
+        temp = self.cal.get("temperature_c")
+        return temp is not None and np.ptp(temp) > 0.1
+
+    @property
+    def timed(self) -> bool:
+        """The poses have times (never the row numbers)."""
+        return self.cal.get("time_s") is not None
+
+    @property
+    def scopes(self) -> list:
+        """The scopes a cause of its session by nature is tried in: each session's, or the only one's (None)."""
+        return self.sessions if len(self.sessions) > 1 else [None]
+
+    def periodogram_scopes(self) -> list:
+        """(scope, the periodograms of its poses' joint angle errors): the robot's (None), then each session's."""
+        return [(None, self.periodograms)] + list(self._own.items())
+
+    def lowest_harmonic(self, j: int) -> int:
+        """The lowest harmonic screened on joint ``j``: the first, on a linear axis :data:`MIN_CYCLES` over its
+        travel."""
+        return 1 if not self.robot.joints[j - 1].prismatic else lowest_harmonic(self.cal, j)
 
     def user_candidates(self) -> list[Candidate]:
         """The causes of the user's own (a terms file's, known during the command): each the robot's (scope
@@ -406,10 +462,10 @@ class Catalogue:
                 out += [replace(cand, session=s) for s in self.sessions]
         return out
 
-    def sign_changes(self, torques, cand: Candidate) -> bool:
-        """Backlash needs its sign source to change sign in the data: otherwise it is a joint offset."""
+    def sign_changes(self, cand: Candidate) -> bool:
+        """``cand``'s sign source (its joint's last move, or gravity torque) changes sign in its scope's poses."""
         j = cand.joint
-        signs = self.cal.moves[:, j - 1] if cand.source == "motion" else np.sign(torques()[:, j - 1])
+        signs = self.cal.moves[:, j - 1] if cand.source == "motion" else np.sign(self.torques()[:, j - 1])
         if cand.session is not None:
             signs = signs[self.cal.sessions == cand.session]
         return sign_changes(signs, "")[0]

@@ -42,6 +42,7 @@ from ..data.measurements import Measurements
 from ..errors import InputError
 from ..result import CalibrationResult
 from ..stats.predictive import prediction_std
+from ..terms import UNEXPLAINED
 from .candidates import Candidate, compose_spec
 from .never_worse import WORST_SHARE, noise_band
 from .report import Finding, Step
@@ -111,7 +112,7 @@ def compensator_step(current: CalibrationResult, spec: str, cal: Measurements, v
     few = [s for s, n in _per_session(cal, keep).items() if n < MIN_POSES]
     if few:
         reason = f"too few poses for a GP compensator ({', '.join(s or 'the data' for s in few)})"
-        steps.append(Step(name, current.calibration, v0, False, Candidate("unexplained"), reason=reason,
+        steps.append(Step(name, current.calibration, v0, False, Candidate(UNEXPLAINED.name), reason=reason,
                           **link))
         progress(f"GP compensator not tried: {reason}")
         return current, spec
@@ -146,7 +147,7 @@ def compensator_step(current: CalibrationResult, spec: str, cal: Measurements, v
     if reasons:
         reason = "; ".join(reasons) + (f" (at shrinkage strength {shrink:g}, {likelihood}; none of "
                                        f"{', '.join(map(str, SHRINKS))} passes with either likelihood)")
-        steps.append(Step(name, current.calibration, v0, False, Candidate("unexplained"), cv_mm=cv_mm,
+        steps.append(Step(name, current.calibration, v0, False, Candidate(UNEXPLAINED.name), cv_mm=cv_mm,
                           reason=reason, **link))
         progress(f"GP compensator rejected: {reason}")
         return current, spec
@@ -164,10 +165,10 @@ def compensator_step(current: CalibrationResult, spec: str, cal: Measurements, v
     final = with_gp_compensator(current, gps, cal, "gp_compensator: the GP compensator (one per session)")
     v1 = final.stats(val)
     known, total = gp_compensator_coverage(final, val)
-    steps.append(Step(name, final.calibration, v1, True, Candidate("unexplained"), cv_mm=cv_mm, **link))
+    steps.append(Step(name, final.calibration, v1, True, Candidate(UNEXPLAINED.name), cv_mm=cv_mm, **link))
     scales = {s or "": np.degrees(g.length_scales).round(1).tolist() for s, g in gps.items()}
     findings.append(Finding(
-        Candidate("unexplained"), v0.mean_mm - v1.mean_mm,
+        Candidate(UNEXPLAINED.name), v0.mean_mm - v1.mean_mm,
         "a Gaussian process of the joint readings removes structure no named cause explains: held-out mean "
         + ", ".join(f"{k} {means[k][0]:.4f} -> {means[k][1]:.4f} mm" for k in KINDS if k in means)
         + f" (random: p = {p:.2g}); worst held-out error "

@@ -20,4 +20,4 @@ def describe_findings(run: DiagnosisRun) -> None:
     run.findings += list(run.unexplained.by_joint.values())
     for f in run.findings:   # of the robot (one value serves every session) or of one session
         f.scope = f.scope or f.candidate.scope or ("robot" if len(run.sessions) > 1 and f.in_model
-                                                   and f.cause != "unexplained" else None)
+                                                   and not f.candidate.kind.unexplained else None)

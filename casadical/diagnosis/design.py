@@ -28,6 +28,7 @@ import numpy as np
 
 from ..data.measurements import Measurements
 from ..result import CalibrationResult
+from ..terms.geometric import Geometric
 
 #: fewer measured coordinates than this per free parameter of the kinematic model make a weak design
 WEAK_EQUATIONS = 5.0
@@ -135,4 +136,4 @@ def priors(kinematic: CalibrationResult) -> dict[str, float]:
     if not math.isfinite(sigma):
         sigma = kinematic.calibration.rms_mm / 1000 / math.sqrt(3)
     return {p.name: sigma ** 2 for p in kinematic.parameters
-            if p.term == "geometric" and p.group != "base" and not p.fixed}
+            if p.term == Geometric.name and p.group != "base" and not p.fixed}

@@ -11,11 +11,8 @@ from __future__ import annotations
 
 from ..errors import listing
 from ..stats.outliers import SetAsideStructure
+from ..terms import CAUSES
 from .catalogue import NotTried
-
-#: the kinds of structure each kind of cause not tried could explain
-EXPLAINS = {"order": ("drift", "warmup"), "load": ("joint_compliance",), "direction": ("joint_compliance",),
-            "region": ("joint_compliance",)}
 
 
 def set_aside_note(structure: SetAsideStructure, not_tried: list[NotTried], path: str,
@@ -35,7 +32,7 @@ def set_aside_note(structure: SetAsideStructure, not_tried: list[NotTried], path
     hints = []
     for t in structure.significant:
         for n in not_tried:
-            if any(c in n.cause for c in EXPLAINS.get(t.kind, ())) and (
+            if any(t.kind in CAUSES[c].explains_set_aside for c in n.causes) and (
                     t.joint is None or not n.joints or t.joint in n.joints):
                 hint = f"{n.cause.replace('_', ' ')} could explain it but was not tried ({n.why}): {n.allow}"
                 if hint not in hints:
@@ -44,19 +41,19 @@ def set_aside_note(structure: SetAsideStructure, not_tried: list[NotTried], path
                    "; no cause the diagnosis tried explains it: it stays in the residual")
 
 
-#: causes of a joint's angle error that a compliance of the same joint can look like
-LOAD_LOOKALIKES = ("encoder_scale", "joint_periodic", "backlash")
-
-
 def untried_alternatives(findings: list, not_tried: list[NotTried]) -> None:
     """A named cause of a joint whose compliance could not be tried (no masses) may be that compliance: each
-    such finding is declared ambiguous with it, with what would allow the diagnosis to tell."""
+    such finding is declared ambiguous with it, with what would allow the diagnosis to tell (a cause says what it
+    can look like, :attr:`~casadical.terms.cause.Cause.looks_like`)."""
     for f in findings:
         c = f.candidate
-        if c.cause not in LOAD_LOOKALIKES or c.joint is None:
+        if c.joint is None:
             continue
         for n in not_tried:
-            if "joint_compliance" in n.cause and (not n.joints or c.joint in n.joints) and "masses" in n.why:
-                f.ambiguous_with.append({"cause": "joint_compliance", "joint": c.joint,
-                                         "label": f"joint_compliance joint {c.joint} (not tried)",
-                                         "tell_apart": f"{n.why}: {n.allow}"})
+            if n.condition != "masses" or (n.joints and c.joint not in n.joints):
+                continue
+            for untried in (CAUSES[name] for name in n.causes):
+                if c.cause in untried.looks_like:
+                    f.ambiguous_with.append({"cause": untried.name, "joint": c.joint,
+                                             "label": f"{untried.name} joint {c.joint} (not tried)",
+                                             "tell_apart": f"{n.why}: {n.allow}"})

@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import math
 
+from ..terms import GEOMETRIC
 from .candidates import Candidate
 from .design import assess, priors
 from .report import Finding, Step
@@ -37,14 +38,14 @@ def fit_geometry(run: DiagnosisRun) -> None:
     reason = "; ".join([f"not significant ({test.text()})"] * (test.log10_p >= math.log10(run.s.alpha))
                        + [f"BIC does not improve ({test.delta_bic:+.1f})"] * (test.delta_bic >= 0)
                        + ([cv_failure(worse, cv0, cv1)] if worse else []))
-    run.steps.append(Step("kinematic", kin.calibration, kv, ok, Candidate("geometric"), test,
+    run.steps.append(Step("kinematic", kin.calibration, kv, ok, Candidate(GEOMETRIC.name), test,
                           cv_record(cv0, cv1), reason, run.val_angles(kin), parent=0,
                           parent_mm=run.steps[0].validation.mean_mm))
     run.record(kin, 1)
     run.say(f"  validation mean {kv.mean_mm:.4f} mm ({test.text()})")
     if ok:
         gain = run.steps[0].validation.mean_mm - kv.mean_mm
-        run.findings.append(Finding(Candidate("geometric"), gain,
+        run.findings.append(Finding(Candidate(GEOMETRIC.name), gain,
                                     f"{test.text()} on the calibration poses; held-out mean "
                                     + cv_text(cv0, cv1) + "; link, base and tool parameters"))
         run.current, run.geometric = kin, True

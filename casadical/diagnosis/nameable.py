@@ -31,19 +31,13 @@ from .candidates import Candidate
 from .periodic import NEIGHBOUR_MARGIN, halves, resolution
 from .screening import LinearFit, Screen
 
-#: functions of one joint's reading: each must be the same over the lower and the upper half of its range.
-#: (Compliance, progressive stiffness and backlash follow the load, not the reading; on real data their
-#: half-range estimates are biased by the structure still unmodelled in each half, so the test is not
-#: applied to them.)
-JOINT_CAUSES = ("joint_periodic", "encoder_scale", "joint_coupling")
-
 
 def unjudged(cand: Candidate) -> set[str]:
     """The kinds of fold that cannot judge ``cand``: the session folds a cause of one session (no other session
     has it), the time folds a warm-up (no later pose shows the start); :func:`.validation.linear_cv` switches
     such a cause off where it leaves out the poses that determine it, and its acceptance does not ask those
     folds."""
-    return ({"session"} if cand.session is not None else set()) | ({"time"} if cand.cause == "warmup" else set())
+    return ({"session"} if cand.session is not None else set()) | set(cand.kind.unjudged_folds)
 
 
 @dataclass
@@ -79,7 +73,7 @@ class VersusDrift:
 def versus_drift(screen: Screen, cand: Candidate) -> VersusDrift:
     """A warm-up against a drift of the same scope (a translation growing in time), both beyond the current
     model; infinite margin when the model holds that drift already."""
-    if any(a.cause == "drift" and a.session == cand.session for a in screen.accepted):
+    if any(a.cause == cand.kind.rival and a.session == cand.session for a in screen.accepted):
         return VersusDrift(np.inf)
     t = screen.cal.get("time_s")
     at = np.ones(len(t)) if cand.session is None else (screen.cal.sessions == cand.session).astype(float)
@@ -142,7 +136,7 @@ def versus_harmonics(screen: Screen, cand: Candidate) -> VersusHarmonics:
     mine = drop(screen.J[:, :, screen.columns(cand)])
     best, h = -np.inf, None
     for c, cols in screen.cols_of.items():
-        if c.cause == "joint_periodic" and c.joint == cand.joint and c.session == cand.session:
+        if c.harmonic is not None and c.joint == cand.joint and c.session == cand.session:
             d = drop(screen.J[:, :, cols])
             if d > best:
                 best, h = d, c.harmonic
@@ -150,36 +144,42 @@ def versus_harmonics(screen: Screen, cand: Candidate) -> VersusHarmonics:
 
 
 def cause_checks(scr: Screen, fit: LinearFit, cand: Candidate, cal: Measurements, alpha: float) -> dict:
-    """The checks of :mod:`this module <.nameable>` for a candidate fitted by one step: ``{"reasons": [...]}``
-    (empty when it passes) with ``halves``, ``resolution`` or ``versus_drift`` as they apply; ``{}`` for a
-    kind without checks."""
-    if cand.cause not in JOINT_CAUSES + ("drift", "warmup", "nonlinear_stiffness"):
+    """The checks of :mod:`this module <.nameable>` its cause asks of a candidate fitted by one step
+    (:attr:`~casadical.terms.cause.Cause.checks`): ``{"reasons": [...]}`` (empty when it passes) with ``halves``,
+    ``resolution``, ``versus_drift`` or ``versus_harmonics`` as they apply; ``{}`` for a cause without checks.
+
+    A function of a joint's reading (``reading_halves``: the cause's :meth:`~casadical.terms.cause.Cause.reading`)
+    is the same over either half of that joint's range: compliance, progressive stiffness and backlash follow the
+    load, not the reading; on real data their half-range estimates are biased by the structure still unmodelled in
+    each half, so the test is not applied to them."""
+    asked = cand.kind.checks
+    if not asked:
         return {}
     out: dict = {"reasons": []}
-    if cand.cause == "nonlinear_stiffness":
+    if "versus_harmonics" in asked:
         vh = out["versus_harmonics"] = versus_harmonics(scr, cand)
         if not vh.resolved:
             out["reasons"].append(vh.text())
         return out
-    if cand.cause == "warmup":
+    if "versus_drift" in asked:
         vd = out["versus_drift"] = versus_drift(scr, cand)
         if not vd.resolved:
             out["reasons"].append(vd.text())
         return out
     params = [scr.params[n] for n in cand.parameter_names() if n in fit.lin.names]
-    if cand.cause == "drift":
+    if "time_halves" in asked:
         hv = out["halves"] = halves(fit, params, cal, None, alpha, cand.session)
         if not hv[0].agree:
             out["reasons"].append("the first and second half in time disagree: " + hv[0].text())
         return out
     # a coupling is a straight line in its source joint's reading: the same slope over either half of that range
-    reading = cand.source_joint if cand.cause == "joint_coupling" else cand.joint
+    reading = cand.kind.reading(cand)
     hv = out["halves"] = halves(fit, params, cal, reading, alpha, cand.session)
-    if cand.cause == "joint_periodic":
+    if "resolution" in asked:
         rs = out["resolution"] = resolution(scr, cand.joint, cand.harmonic, cand.session)
         if not rs.resolved:
             out["reasons"].append(rs.text())
     if not hv[0].agree:
-        whose = f"joint {reading}'s" if cand.cause == "joint_coupling" else "the joint's"
+        whose = f"joint {reading}'s" if reading != cand.joint else "the joint's"
         out["reasons"].append(f"the halves of {whose} range disagree: " + hv[0].text())
     return out

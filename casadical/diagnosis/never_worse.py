@@ -28,6 +28,7 @@ import numpy as np
 
 from ..errors import listing
 from ..result import CalibrationResult
+from ..terms import GEOMETRIC
 from .candidates import Candidate, compose_spec
 from .report import Finding, Step
 from .state import DiagnosisRun
@@ -144,7 +145,7 @@ def _final_model(run: DiagnosisRun, current: CalibrationResult, accepted: list[C
         if geo and not geometric:
             _add_geometry_finding(run, fit, current)
         elif geometric and not geo:         # back to a model the geometry was tried again on
-            run.findings = [f for f in run.findings if f.cause != "geometric"]
+            run.findings = [f for f in run.findings if not f.candidate.kind.geometry]
         what = ("the kinematic model itself" if fit is kin else
                 "the model with the geometry" if geo and not geometric else "the last model of the search that is not")
         run.notes.append("never worse than a kinematic calibration: the model with every cause did worse than the "
@@ -175,7 +176,7 @@ def _geometry_again(run: DiagnosisRun, current: CalibrationResult, fit: Calibrat
                                                                       for k in worse)] * bool(worse))
     parent = run.step_of(current)
     pv, v = run.val_stats(current), run.val_stats(fit)
-    run.steps.append(Step(compose_spec(accepted, True), fit.calibration, v, ok, Candidate("geometric"), test,
+    run.steps.append(Step(compose_spec(accepted, True), fit.calibration, v, ok, Candidate(GEOMETRIC.name), test,
                          cv_record(h0.mean, h1.mean), reason, run.val_angles(fit), parent=parent, parent_mm=pv.mean_mm))
     if ok:
         run.record(fit, len(run.steps) - 1, accepted)
@@ -191,10 +192,10 @@ def _geometry_again(run: DiagnosisRun, current: CalibrationResult, fit: Calibrat
 
 def _add_geometry_finding(run: DiagnosisRun, fit: CalibrationResult, without: CalibrationResult,
                           evidence: str = "") -> None:
-    if any(f.cause == "geometric" for f in run.findings):
+    if any(f.candidate.kind.geometry for f in run.findings):
         return
     gain = run.val_stats(without).mean_mm - run.val_stats(fit).mean_mm
-    run.findings.insert(0, Finding(Candidate("geometric"), gain, evidence or
+    run.findings.insert(0, Finding(Candidate(GEOMETRIC.name), gain, evidence or
                                   "never worse than a kinematic calibration of the same poses on their folds; "
                                   "link, base and tool parameters"))
 

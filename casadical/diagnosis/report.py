@@ -72,11 +72,7 @@ class Step:
         c = self.candidate
         if c is None:
             return self.model          # the nominal model
-        if c.cause == "geometric":
-            return "kinematic"
-        if c.cause == "unexplained":
-            return "+ GP compensator"
-        return "+ " + c.label(short=True)
+        return c.kind.step_label(c) or "+ " + c.label(short=True)
 
     def to_dict(self) -> dict:
         d = {"model": self.model, "validation": self.validation.to_dict(n_poses=False),
@@ -176,9 +172,7 @@ class Finding:
         return d
 
     def label(self) -> str:
-        if self.cause == "unexplained":
-            return "unexplained structure" + (f" ({self.where})" if self.where else "")
-        return self.candidate.label()
+        return self.candidate.kind.long_label(self) or self.candidate.label()
 
 
 @dataclass
@@ -296,7 +290,7 @@ class DiagnosisReport:
             for line, row in zip(grid[1:], decided):      # each finding, and what to do under it
                 lines.append(line)
                 lines += wrap(row["action"], " " * 9, " " * 5 + "do: ")
-        if not [f for f in self.findings if f.cause != "geometric"]:
+        if all(f.candidate.kind.geometry for f in self.findings):
             lines.append("  no cause beyond the geometry")
         lines += [""] + self._final_lines()
         if verbose:

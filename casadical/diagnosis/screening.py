@@ -28,18 +28,9 @@ from ..calibration.for_data import model_for
 from ..data.measurements import Measurements
 from ..problem import CalibrationProblem
 from ..result import CalibrationResult
-from ..terms.joint_coupling import JointCoupling
-from ..terms.periodic import JointPeriodic, phase
-from ..terms.warmup import Warmup, decay
 from .candidates import Candidate, compose_spec, tell_apart
 from .statistics import NestedTest, nested_test, set_aside_share
 from .validation import Linearized, fold_grams, solve_identified, switch_off
-
-#: causes whose columns are computed here rather than by the model: a periodic error (the direction of its
-#: joint's angle times a sine of its harmonic), a joint coupling (that direction times the source joint's
-#: reading: n (n - 1) pairs, one column each, need no term in the screen's model) and a warm-up (a translation
-#: times its decay)
-ANALYTIC = ("joint_periodic", "joint_coupling", "warmup")
 
 
 @dataclass
@@ -100,7 +91,7 @@ class Screen:
                  geometric: bool, cal: Measurements, val: Measurements, session_tools: bool = False):
         robot = current.model.robot
         self.current, self.cal, self.val, self.accepted = current, cal, val, list(accepted)
-        self.physical = {c.shared() for c in cands if c.cause not in ANALYTIC}
+        self.physical = {c.shared() for c in cands if not c.kind.analytic}
         # drift and thermal terms referenced to the calibration poses, as in the fits (current's model)
         self.model = big = model_for(robot, compose_spec(accepted + sorted(self.physical, key=str), geometric), cal,
                                      session_tools=session_tools)
@@ -137,7 +128,7 @@ class Screen:
     def with_candidates(self, cands: list[Candidate]) -> "Screen":
         """The same linearisation screening ``cands`` (other periodic harmonics, warm-up time constants or
         sessions' own causes; no new cause of the model's)."""
-        extra = {c.shared() for c in cands if c.cause not in ANALYTIC} - self.physical
+        extra = {c.shared() for c in cands if not c.kind.analytic} - self.physical
         if extra:
             raise ValueError(f"not in this screen's model: {sorted(map(str, extra))}")
         new = copy.copy(self)
@@ -157,7 +148,7 @@ class Screen:
             own = c.parameter_names()
             if own[0] in names[:n_model] or c in self.cols_of:
                 continue        # in the model already (or given twice)
-            if c.cause in ANALYTIC:
+            if c.kind.analytic:
                 ps = self._analytic_parameters(c)
             elif c.session is not None and all(n in names[:n_model] for n in c.shared().parameter_names()):
                 ps = [replace(self.params[n], name=local) for n, local in zip(c.shared().parameter_names(), own)]
@@ -176,25 +167,17 @@ class Screen:
         self.cur = [k for k, n in enumerate(self.names[:n_model]) if n in cur and not cur[n].fixed]
 
     def _analytic_parameters(self, c: Candidate) -> list:
-        robot = self.model.robot
-        term = (JointPeriodic([(c.joint, c.harmonic)]) if c.cause == "joint_periodic" else
-                JointCoupling(pairs=[(c.joint, c.source_joint)]) if c.cause == "joint_coupling" else Warmup())
-        ps = term.parameters(robot)
+        ps = c.kind.analytic_term(c).parameters(self.model.robot)
         return [replace(p, name=n) for p, n in zip(ps, c.parameter_names())]
 
     def _column(self, c: Candidate, k: int, d: Measurements, J: np.ndarray, JA: np.ndarray) -> np.ndarray:
         """Column (N, 3), scaled, of the ``k``-th parameter of candidate ``c`` at the poses of ``d`` (``J``: the
-        model's free columns there, ``JA``: the directions of the joints' angles)."""
-        if c.cause == "joint_periodic":
-            # its k-th column alone (periodic_columns' sin, then cos: the same numbers, not both made for each)
-            x = c.harmonic * phase(self.model.robot, c.joint, d.q[:, c.joint - 1])
-            col = JA[:, :, c.joint - 1] * (np.sin(x) if k == 0 else np.cos(x))[:, None]
-        elif c.cause == "joint_coupling":
-            col = JA[:, :, c.joint - 1] * d.q[:, c.source_joint - 1, None]
-        elif c.cause == "warmup":
-            col = np.zeros((len(d), 3))
-            col[:, k] = decay(d.get("time_s"), self.t0[c.session], c.time_constant)
-        if c.cause in ANALYTIC:
+        model's free columns there, ``JA``: the directions of the joints' angles): an analytic cause's computed
+        (:meth:`~casadical.terms.cause.Cause.analytic_column`: a periodic error, the direction of its joint's angle
+        times a sine of its harmonic; a joint coupling, that direction times the source joint's reading: n (n - 1)
+        pairs, one column each, need no term in the screen's model; a warm-up, a translation times its decay)."""
+        if c.kind.analytic:
+            col = c.kind.analytic_column(c, k, d, JA, self.t0, self.model.robot)
             col = col * self.params[c.parameter_names()[k]].scale
         else:       # a session's own: its cause's column (scaled alike)
             col = J[:, :, self._model_cols[1].index(c.shared().parameter_names()[k])]
@@ -347,9 +330,8 @@ def ambiguous(best: Scored, scored: list[Scored], level: float) -> list[dict]:
     cand = best.candidate
     for sc in scored:
         other = sc.candidate
-        if other == cand or sc.log10_p >= level or (other.cause == cand.cause and other.joint == cand.joint
-                                                    and other.cause != "joint_periodic"
-                                                    and other.session == cand.session):
+        if other == cand or sc.log10_p >= level or (other.kind is cand.kind and other.joint == cand.joint
+                                                    and other.harmonic is None and other.session == cand.session):
             continue
         drop = float(sc.fitted @ sc.fitted)
         cos = float(sc.fitted @ best.fitted) / math.sqrt(max(drop * best_drop, 1e-300))
@@ -374,7 +356,7 @@ def ambiguous(best: Scored, scored: list[Scored], level: float) -> list[dict]:
 
 def _reading_rivals(a: Candidate, b: Candidate) -> bool:
     """An encoder scale and a periodic error of one joint (and scope): both functions of the joint's reading."""
-    return ({a.cause, b.cause} == {"encoder_scale", "joint_periodic"} and a.joint == b.joint
+    return (a.kind is not b.kind and a.kind.of_own_reading and b.kind.of_own_reading and a.joint == b.joint
             and a.session == b.session)
 
 

@@ -28,7 +28,7 @@ from ..stats.physics import value_violations, violations
 from .candidates import TIERS, Candidate, compose_spec, shortlist
 from .catalogue import not_tried
 from .evidence import Evidence, Support
-from .nameable import JOINT_CAUSES, cause_checks, unjudged
+from .nameable import cause_checks, unjudged
 from .report import Finding, Step
 from .screening import Scored, Screen, ambiguous
 from .state import DiagnosisRun
@@ -235,7 +235,8 @@ def try_tiers(run: DiagnosisRun, scr: Screen, scored: list[Scored], level: float
             support = Support(test, cv0, cv1, checks)
             if reasons:
                 run.say(f"    rejected: {step.reason}")
-                if significant and (cand.cause in JOINT_CAUSES + ("nonlinear_stiffness",)
+                # structure of a joint's reading or of its load that a check of its cause refused: kept as evidence
+                if significant and ({"reading_halves", "versus_harmonics"} & set(cand.kind.checks)
                                     or (broken and cand.joint is not None)):
                     pending.append(Evidence(cand, fit.values, support, cur_val.mean_mm - vstats.mean_mm,
                                             "; ".join(reasons)))

@@ -49,34 +49,23 @@ from .statistics import NestedTest, nested_test, set_aside_share
 from .structure import INSTRUMENT, Found, StructureScreen, describe_pair, weighted
 from .validation import Linearized
 
-#: a cause's own variable: its joint's reading or its gravity torque; a joint coupling's, its source joint's
-#: reading (``q<k>``, effect: joint j's angle); a mount compliance's, the moment of the weights (effect: the
-#: base's tilt, no joint)
-OWN_VARIABLE = {"joint_compliance": "tau", "nonlinear_stiffness": "tau", "backlash": "tau",
-                "encoder_scale": "q", "joint_periodic": "q", "joint_coupling": "q", "mount_compliance": "moment"}
-#: causes that are the first-order part of any structure of their own variable
-FIRST_ORDER = ("joint_compliance", "nonlinear_stiffness", "encoder_scale")
 
-
-def own_shape(cand: Candidate) -> tuple[str, str, int | None]:
-    """The (covariate, effect, joint) of the structure screen that is ``cand``'s own shape."""
-    if cand.cause == "mount_compliance":
-        return "moment", "tilt", None
-    k = cand.source_joint if cand.cause == "joint_coupling" else cand.joint
-    return f"{OWN_VARIABLE[cand.cause]}{k}", "angle", cand.joint
+def own_shape(cand: Candidate) -> tuple[str, str, int | None] | None:
+    """The (covariate, effect, joint) of the structure screen that is ``cand``'s own shape: its cause's own
+    variable (:meth:`~casadical.terms.cause.Cause.own_shape`: its joint's reading or its gravity torque; a joint
+    coupling's, its source joint's reading, effect joint j's angle; a mount compliance's, the moment of the
+    weights, effect the base's tilt, no joint)."""
+    return cand.kind.own_shape(cand)
 
 
 def stands_in(current: CalibrationResult, lin: Linearized, accepted: list[Candidate], cand: Candidate,
               scr: StructureScreen, alpha: float) -> tuple[Found, str] | None:
     """The structure ``cand`` only approximates in ``current`` (``lin``: linearised at it on the calibration poses)
     and why (see the module), or None."""
-    if cand.cause in AXIS_SHAPES and cand.session is None:
+    if cand.kind.axis_shape and cand.session is None:
         return _axis_stand_in(current, lin, accepted, cand, scr, alpha)
-    if cand.cause not in OWN_VARIABLE or cand.session is not None or (
-            cand.joint is None and cand.cause != "mount_compliance"):
-        return None
     own = own_shape(cand)
-    if own not in scr.tried:
+    if own is None or cand.session is not None or own not in scr.tried:
         return None
     cols = [lin.names.index(n) for n in own_parameters(cand, accepted) if n in lin.names]
     if not cols:
@@ -96,7 +85,7 @@ def stands_in(current: CalibrationResult, lin: Linearized, accepted: list[Candid
             test = ask.beside(found.X, ask.mine)
             if not ask.significant(test):
                 return found, f"beside a flexible term of that structure it explains nothing more ({test.text()})"
-    elif found is not None and cand.cause not in FIRST_ORDER:
+    elif found is not None and not cand.kind.first_order:
         # 2. structure of its own variable: does the cause follow it?
         left = ask.beside(ask.mine, flexible)
         adds = ask.beside(flexible, ask.mine)
@@ -113,12 +102,6 @@ def stands_in(current: CalibrationResult, lin: Linearized, accepted: list[Candid
                     f"on one session it cannot be told from the instrument's own error ({alone.text()}): beside it "
                     f"it explains nothing more ({test.text()})")
     return None
-
-
-#: a linear axis' causes that move the carriage (across the axis, or turning it): no pair of the structure screen is
-#: their shape in general (the directions across the axis turn with the joints before it); their own terms are
-#: flexible already (a bow and an S, a slope and a bow), so a structure is another's only where it explains more
-AXIS_SHAPES = ("straightness", "carriage_angle")
 
 
 def _axis_stand_in(current: CalibrationResult, lin: Linearized, accepted: list[Candidate], cand: Candidate,

@@ -38,6 +38,7 @@ from numpy.polynomial import legendre
 from ..data import Measurements
 from ..model.kinematics import Geometry, chain_angles, forward, mount_moment
 from ..result import CalibrationResult
+from ..terms import UNEXPLAINED
 from ..terms.mount_compliance import max_mount_moment
 from .candidates import Candidate
 from .report import Finding
@@ -496,7 +497,7 @@ def screen_structure(run: DiagnosisRun) -> None:
     for s in found:
         run.say(f"  {s.words()} (p = {10 ** s.log10_p:.2g}; {s.size_mm:.4f} mm on the validation poses)")
         finding = Finding(
-            Candidate("unexplained", s.joint), 0.0,
+            Candidate(UNEXPLAINED.name, s.joint), 0.0,
             f"structure no cause of the catalogue explains: {s.words()}; {s.test_text} on the calibration poses "
             f"(a flexible term of degree {DEGREE} in the covariate, the model's parameters refitted beside it); it "
             f"predicts {s.held_out_share:.0%} of the left-out calibration poses better; judged on the validation "

@@ -137,7 +137,7 @@ def findings_study(run: DiagnosisRun, final: CalibrationResult, parametric: Cali
     judged against the model refitted without it, structure kept out against the model refitted with it.
     """
     s = run.s
-    named = [k for k, f in enumerate(run.findings) if f.in_model and f.cause not in ("geometric", "unexplained")]
+    named = [k for k, f in enumerate(run.findings) if f.in_model and f.candidate.kind.named]
     n_refit = s.transfer_refit_poses or min(len(run.cal), len(other) // 2)
     if not s.transfer_base_poses < len(other) or not n_refit < len(other):
         raise InputError(f"has {len(other)} poses: too few to re-estimate the base on "
@@ -146,19 +146,19 @@ def findings_study(run: DiagnosisRun, final: CalibrationResult, parametric: Cali
 
     def without(k: int) -> CalibrationResult | None:
         f = run.findings[k]
-        if f.cause == "unexplained" and not f.in_model and f.candidate.joint in run.unexplained.strongest:
+        if f.candidate.kind.unexplained and not f.in_model and f.candidate.joint in run.unexplained.strongest:
             # structure left out: what would it have done there?
             return run.fit(compose_spec(accepted + [run.unexplained.strongest[f.candidate.joint]], geometric),
                           start=parametric)
         if k not in named:
             return None
         c = f.candidate
-        rest = [a for a in accepted if a != c and not (c.cause == "joint_compliance" and a.joint == c.joint
-                                                         and a.cause == "nonlinear_stiffness")]
+        # without the cause, and without those that need it (a progressive spring its joint's compliance)
+        rest = [a for a in accepted if a != c and not (c.cause in a.kind.requires and a.joint == c.joint)]
         return run.fit(compose_spec(rest, geometric), start=parametric)
 
     # structure kept out that no single cause stood for (the structure screen's, joint None) has no model to try
-    todo = [k for k, f in enumerate(run.findings) if k in named or (f.cause == "unexplained" and not f.in_model
+    todo = [k for k, f in enumerate(run.findings) if k in named or (f.candidate.kind.unexplained and not f.in_model
                                                                     and f.candidate.joint in run.unexplained.strongest)]
     labels = [f"{f.label()}: the model without it" if f.in_model else
               f"the structure kept out of joint {f.candidate.joint}: the model with it" for f in run.findings]
@@ -172,6 +172,6 @@ def findings_study(run: DiagnosisRun, final: CalibrationResult, parametric: Cali
         if k in out.gains:
             with_it, without_it = ((out.final, out.gains[k]) if f.in_model else (out.gains[k], named_only))
             f.transfer = finding_gain(with_it, without_it)
-        elif f.cause == "unexplained" and f.in_model:
+        elif f.candidate.kind.unexplained and f.in_model:
             f.transfer = finding_gain(out.final, named_only)
     return out

@@ -10,11 +10,12 @@ the final model; they never compute anything the diagnosis did not decide.
 
 from __future__ import annotations
 
-import math
 import re
 from typing import TYPE_CHECKING
 
 import numpy as np
+
+from .._format import g3, gain_words, relative  # noqa: F401 (the reports' short forms, where they were)
 
 if TYPE_CHECKING:
     from ..result import CalibrationResult
@@ -57,161 +58,33 @@ def wrap_spec(spec: str, indent: str = "", first: str = "", width: int = WIDTH) 
     return wrap(spec, indent, first, width)
 
 
-def gain_words(drop_mm: float | None, digits: int = 4, unit: str = " mm") -> str:
-    """A drop of an error in words, never a signed number: ``0.0292 mm better``, ``0.0030 mm worse``."""
-    if drop_mm is None or not math.isfinite(drop_mm):
-        return "-"
-    if round(drop_mm, digits) == 0:
-        return "no change"
-    return f"{abs(drop_mm):.{digits}f}{unit} {'better' if drop_mm > 0 else 'worse'}"
-
-
-def g3(x: float) -> str:
-    """Three significant digits, a power of ten written short: ``5.38e4``, ``0.0123``."""
-    return re.sub(r"e([+-])0*(\d)", lambda m: "e" + ("-" if m.group(1) == "-" else "") + m.group(2), f"{x:.3g}")
-
-
-def relative(std: float, value: float) -> str:
-    """`` +- 6.2 %``: a standard error relative to its value ('' when unknown)."""
-    if not (math.isfinite(std) and math.isfinite(value)) or value == 0:
-        return ""
-    r = 100 * abs(std / value)
-    return f" +- {r:.1f} %" if r < 10 else f" +- {r:.0f} %" if r < 1000 else " +- > 999 %"
-
-
 def label(f: "Finding") -> str:
     """A finding in a few words: ``geometry``, ``compliance j2``, ``periodic j2 h17``, ``drift @B``,
     ``coupling j6<-j5``, ``mount compliance``, ``GP compensator``, ``unexplained j1``."""
-    c = f.candidate
-    if c.cause == "geometric":
-        return "geometry"
-    if c.cause == "unexplained":
-        return "GP compensator" if f.in_model else f"unexplained j{c.joint}" if c.joint else "unexplained"
-    return c.label(short=True)
+    return f.candidate.kind.finding_label(f) or f.candidate.label(short=True)
 
 
 def where(f: "Finding") -> str:
-    """Where a finding lives: ``joint 2``, ``link 3``, ``measurement frame, session B``, ..."""
-    c = f.candidate
-    if c.cause == "geometric":
-        return "links, base and tool"
-    if c.cause == "unexplained":
-        if f.in_model:
-            sessions = [s for s in (f.holds_up or {}).get("length_scales_deg", {}) if s]
-            return "what the causes leave" + (f", sessions {', '.join(sessions)}" if len(sessions) > 1 else "")
-        if f.structure:
-            return _structure_where(f.structure, c.joint)
-        return f"joint {c.joint}" if c.joint else ""
-    if c.cause == "thermal_expansion":
-        text = "every link" if c.joint is None else f"link {c.joint}"
-    elif c.cause == "drift":
-        text = "measurement frame"
-    elif c.cause == "mount_compliance":
-        text = "the base's mount"
-    elif c.cause == "straightness":
-        text = f"axis {c.joint}, across it in {c.direction}"
-    elif c.cause == "carriage_angle":
-        text = f"axis {c.joint}'s carriage, {c.angle}"
-    elif c.cause == "joint_coupling":
-        text = f"joint {c.joint}, from joint {c.source_joint}'s reading"
-    else:
-        text = f"joint {c.joint}"
-    if c.cause == "backlash":
-        text += ", by the last move" if c.source == "motion" else ", by the load"
-    return text + (f", session {c.session}" if c.session is not None else "")
-
-
-def _structure_where(structure: dict, joint: int | None) -> str:
-    """Where structure the screen found lives, short: ``joint 4's angle, with q3``."""
-    effect = {"angle": f"joint {joint}'s angle", "position": f"axis {joint}'s position",
-              "tilt": f"joint {joint}'s axis" if joint else "the base's tilt",
-              "point_base": "point, base frame",
-              "point_measurement": "point, measurement frame"}.get(structure["effect"], structure["effect"])
-    return f"{effect}, with {structure['covariate']}"
+    """Where a finding lives: ``joint 2``, ``link 3``, ``measurement frame, session B``, ... (its cause says,
+    :meth:`~casadical.terms.cause.Cause.where`)."""
+    return f.candidate.kind.where(f.candidate, f)
 
 
 def size(f: "Finding", final: "CalibrationResult") -> str:
-    """The finding's size in the final model, with its relative standard error."""
+    """The finding's size in the final model, with its relative standard error (its cause's words,
+    :meth:`~casadical.terms.cause.Cause.size`, from the final values of its parameters)."""
     c = f.candidate
-    if c.cause == "geometric":
-        n = sum(1 for p in final.parameters if p.term == "geometric" and not p.fixed and not p.name.startswith(
-            "base_"))
-        return f"{n} link and tool parameters"
-    if c.cause == "unexplained":
-        hu = f.holds_up or {}
-        if f.in_model:
-            k, n = hu.get("validation_known", [None, None])
-            return f"applies at {k} of {n} validation poses" if n else "a Gaussian process per session"
-        if f.structure:
-            return f"{f.structure['size_mm']:.4f} mm on validation"
-        items = hu.get("structures", [])
-        if not items:
-            return ""
-        big = max(items, key=lambda x: x.get("amplitude_arcsec", 0.0))
-        return big.get("what", "") + (f" and {len(items) - 1} more" if len(items) > 1 else "")
+    own = c.kind.finding_size(f, final)
+    if own is not None:
+        return own
     names = c.parameter_names()
     if any(n not in final.parameters.names for n in names):
         return ""
     P = [final.parameters[n] for n in names]
     v = np.array([p.value for p in P])
     s = np.array([p.std for p in P])
-    if c.cause in ("straightness", "carriage_angle") or (c.joint is not None and c.cause in (
-            "encoder_scale", "joint_periodic", "backlash") and final.model.robot.joints[c.joint - 1].prismatic):
-        return linear_size(c, v, s, P)
-    if c.cause == "joint_compliance":
-        if v[0] <= 0:
-            return f"{names[0]} = {g3(v[0])} rad/(N m), not positive"
-        return f"k{c.joint} = {g3(1 / v[0])} N m/rad{relative(s[0], v[0])}"
-    if c.cause == "nonlinear_stiffness":
-        how = "stiffens" if v[1] < 0 else "softens"
-        return f"cubic term {g3(v[1])} rad/(N m)^3{relative(s[1], v[1])}: {how} with load"
-    if c.cause == "joint_periodic":
-        amp, std = amplitude(v, s)
-        return f"{c.harmonic} cycles/turn, {math.degrees(amp) * 3600:.1f} arcsec{relative(std, amp)}"
-    if c.cause == "encoder_scale":
-        return f"{v[0] * 1e6:.0f} ppm{relative(s[0], v[0])}"
-    if c.cause == "backlash":
-        return f"half play {math.degrees(v[0]) * 3600:.1f} arcsec{relative(s[0], v[0])}"
-    if c.cause == "thermal_expansion":
-        return f"{v[0] * 1e6:.2f} ppm/K{relative(s[0], v[0])}"
-    if c.cause == "joint_coupling":
-        return f"{v[0] * 1e3:.3g} mrad per rad of joint {c.source_joint}{relative(s[0], v[0])}"
-    if c.cause == "mount_compliance":
-        return f"tilt {v[0] * 1e6:.3g} mrad per kN m of moment{relative(s[0], v[0])}"
-    if c.cause == "drift":
-        speed = float(np.linalg.norm(v))
-        std = math.sqrt(((v * s) ** 2).sum()) / speed if speed > 0 else math.nan
-        return f"{g3(speed * 1e6)} um/s{relative(std, speed)}"
-    return ""
-
-
-def amplitude(v: np.ndarray, s: np.ndarray) -> tuple[float, float]:
-    """A periodic term's amplitude from its sine and cosine parts ``v``, and its std from theirs ``s`` (along the
-    amplitude, linearised)."""
-    amp = math.hypot(*v)
-    return amp, (math.sqrt(((v * s) ** 2).sum()) / amp if amp > 0 else math.nan)
-
-
-def travel_curve(values, names: list[str]) -> np.ndarray:
-    """A linear axis' straightness or carriage angle over its travel (201 points), from its Legendre coefficients
-    (parameters ``..._p<degree>``)."""
-    coef = np.zeros(4)
-    for v, n in zip(values, names):
-        coef[int(n.rsplit("_p", 1)[1])] += v
-    return np.polynomial.legendre.legval(np.linspace(-1.0, 1.0, 201), coef)
-
-
-def linear_size(c, v: np.ndarray, s: np.ndarray, P: list) -> str:
-    """A linear axis' cause's size: mm per m, mm, the largest change over the travel (mm, mrad)."""
-    if c.cause == "encoder_scale":
-        return f"{v[0] * 1e3:.3g} mm per m{relative(s[0], v[0])}"
-    if c.cause == "joint_periodic":
-        amp, std = amplitude(v, s)
-        return f"{c.harmonic} cycles/m, {amp * 1e3:.3g} mm{relative(std, amp)}"
-    if c.cause == "backlash":
-        return f"half play {v[0] * 1e3:.3g} mm{relative(s[0], v[0])}"
-    curve = travel_curve(v, [p.name for p in P])
-    return f"{np.ptp(curve) * 1e3:.3g} {'mm' if c.cause == 'straightness' else 'mrad'} over the travel"
+    linear = c.joint is not None and final.model.robot.joints[c.joint - 1].prismatic
+    return c.kind.size(c, v, s, P, linear)
 
 
 def gain(f: "Finding") -> str:
@@ -227,34 +100,17 @@ def scope(f: "Finding") -> str:
         return f"robot or session {f.candidate.session or other[0].get('session')}?"
     if f.scope:
         return f.scope
-    if f.cause == "geometric":
-        return "robot"
-    return "one session" if f.in_model else "-"
+    return f.candidate.kind.scope_word or ("one session" if f.in_model else "-")
 
 
 def action(f: "Finding", report: "DiagnosisReport") -> str:
-    """What to do about a finding, in one line."""
+    """What to do about a finding, in one line (the geometry's and what no cause explains: their cause says,
+    :meth:`~casadical.terms.cause.Cause.action`)."""
     c = f.candidate
     other = _name(report.transfer.get("file", "")) if report.transfer else ""
-    if c.cause == "geometric":
-        return ("use the calibrated geometry: export writes it as URDF and a DH table (compensate uses the full "
-                "model)")
-    if c.cause == "unexplained" and f.in_model:
-        return ("applies in this session where it knows; compensate and predict use it; a transfer to another "
-                "session drops it (scope session)")
-    if c.cause == "unexplained" and f.structure:
-        instrument = f.structure["covariate"] in ("azimuth", "elevation", "distance")
-        return (f"a cause no catalogue holds (a flexible term would give {gain_words(f.potential_gain_mm)} here): "
-                "state it as a term of your own (the finding's term in the JSON report is one to start from) and "
-                "diagnose again (docs/guide.md, 'When the report says unexplained'); plan-poses REPORT.json plans "
-                "the poses that tell its form"
-                + ("; a session with the instrument placed elsewhere tells the instrument's error from the robot's"
-                   if instrument else ""))
-    if c.cause == "unexplained":
-        j = c.joint
-        gain_here = gain_words(f.potential_gain_mm)
-        return (f"not in the model (it would give {gain_here} here): measure joint {j} over a wider range or in "
-                "another session to tell")
+    own = c.kind.action(f)
+    if own is not None:
+        return own
     scope = _other_scope(f)
     rivals = [a for a in f.ambiguous_with if a not in scope]
     amb = f"; ambiguous with {', '.join(_short(a) for a in rivals)} (see the evidence)" if rivals else ""

@@ -150,13 +150,13 @@ def unchecked_terms(run: DiagnosisRun, i: int, dropped: list) -> str:
     torques = None
     said = []
     for a in dropped:
-        if a.joint is None or a.cause not in ("joint_periodic", "joint_compliance", "nonlinear_stiffness",
-                                              "encoder_scale"):
+        by = a.kind.unchecked_by        # how a cause can go unchecked: its torque, reading or period
+        if a.joint is None or by is None:
             continue
         j = a.joint - 1
         rows = _rows(cal, a.session)
         unit, f = ("mm", 1000.0) if prismatic[j] else ("deg", 180 / np.pi)
-        if a.cause in ("joint_compliance", "nonlinear_stiffness"):
+        if by == "torque":
             if torques is None:
                 m, v = run.final.model, run.final.parameters.values
                 torques = (run.torques(run.final), m.torques(val.q[i:i + 1], v, m.covariates(val.subset([i]))))
@@ -164,7 +164,7 @@ def unchecked_terms(run: DiagnosisRun, i: int, dropped: list) -> str:
         else:
             qc, qv, what = cal.q[rows, j], val.q[i, j], "reading"
         lo, hi = qc.min(), qc.max()
-        if a.cause != "joint_periodic":
+        if by != "period":
             beyond = max(lo - qv, qv - hi)
             if not beyond > 0.1 * (hi - lo):
                 continue
@@ -249,7 +249,7 @@ def keep_worst_case(run: DiagnosisRun) -> None:
     if not run.s.worst_case:
         return
     if gps and new is None:
-        run.findings = [f for f in run.findings if not (f.cause == "unexplained" and "shrink" in f.holds_up)]
+        run.findings = [f for f in run.findings if not (f.candidate.kind.unexplained and "shrink" in f.holds_up)]
     elif not gps:
         new = None
     for a in what_dropped:

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..terms import UNEXPLAINED
 from .figures import AFTER, BEFORE, CURVE, SERIES, ecdf, figure, legend_above, ticks
 from .page import Page, Raw, esc, gain, model_label, num, sig
 from .parameters import parameter_table_html
@@ -18,6 +19,8 @@ if TYPE_CHECKING:
 
 #: casadical.diagnosis.validation.KINDS (not imported: the diagnosis package pulls in scipy)
 KINDS = ("random", "time", "joint")
+#: the anchor of the section on structure kept out of the model (its findings' cause)
+KEPT_OUT = UNEXPLAINED.name
 
 
 def short_label(cand) -> str:
@@ -66,7 +69,7 @@ def diagnosis_html(report: DiagnosisReport, processes: int = 1, progress=None, p
     nominal = report.steps[0].validation if report.steps else None
     if nominal is not None:
         text += f" and {gain(nominal.mean_mm - v.mean_mm)} than the nominal model ({nominal.mean_mm:.4f} mm)"
-    named = [f for f in report.findings if f.in_model and f.cause not in ("geometric", "unexplained")]
+    named = [f for f in report.findings if f.in_model and f.candidate.kind.named]
     kept_out = [f for f in report.findings if not f.in_model]
     page.para(text + f". {len(named)} cause(s) named beyond the geometry, {len(kept_out)} joint(s) with structure "
               f"kept out of the model; {len(report.steps)} models tried in {report.time_s:.1f} s.", "lead")
@@ -74,11 +77,11 @@ def diagnosis_html(report: DiagnosisReport, processes: int = 1, progress=None, p
     _decision(page, report)
     _errors(page, report)
     sections = [("evidence", "Evidence for each finding"), ("steps", "Steps"),
-                ("unexplained", "Structure kept out of the model"), ("transfer", "On another series"),
+                (KEPT_OUT, "Structure kept out of the model"), ("transfer", "On another series"),
                 ("periodograms", "What is left"), ("accuracy", "Where the model is accurate"),
                 ("not-tried", "Not tried on these data"), ("parameters", "Final parameters"),
                 ("notes", "Notes and settings")]
-    present = {"unexplained": bool(kept_out), "transfer": bool(report.transfer),
+    present = {KEPT_OUT: bool(kept_out), "transfer": bool(report.transfer),
                "periodograms": bool(report.periodograms), "evidence": bool(report.findings),
                "accuracy": report.final.uncertainty is not None and report.final.model.robot.n >= 2,
                "not-tried": bool(report.not_tried)}
@@ -117,9 +120,9 @@ def diagnosis_html(report: DiagnosisReport, processes: int = 1, progress=None, p
 
 
 def _final_label(report: DiagnosisReport) -> str:
-    named = sum(f.in_model and f.cause not in ("geometric", "unexplained") for f in report.findings)
-    bb = any(f.in_model and f.cause == "unexplained" for f in report.findings)
-    base = "kinematic" if any(f.cause == "geometric" for f in report.findings) else "nominal"
+    named = sum(f.in_model and f.candidate.kind.named for f in report.findings)
+    bb = any(f.in_model and f.candidate.kind.unexplained for f in report.findings)
+    base = "kinematic" if any(f.candidate.kind.geometry for f in report.findings) else "nominal"
     return base + (f" + {named} cause(s)" if named else "") + (" + GP compensator" if bb else "")
 
 
@@ -151,7 +154,7 @@ def _decision(page: Page, report: DiagnosisReport) -> None:
 def _evidence_anchors(report: DiagnosisReport) -> dict[int, str]:
     """Where each finding's evidence is on the page (by id of the finding)."""
     out = {id(f): f"finding-{k}" for k, f in enumerate([f for f in report.findings if f.in_model], 1)}
-    out.update({id(f): "unexplained" for f in report.findings if not f.in_model})
+    out.update({id(f): KEPT_OUT for f in report.findings if not f.in_model})
     return out
 
 
@@ -426,7 +429,7 @@ def _wrap(label: str, width: int = 34) -> str:
 
 
 def _kept_out(page: Page, report: DiagnosisReport, kept: list[Finding]) -> None:
-    page.heading("Structure kept out of the model", anchor="unexplained")
+    page.heading("Structure kept out of the model", anchor=KEPT_OUT)
     screened = [f for f in kept if f.structure]
     if screened:
         page.para("What the named causes leave, found by the structure screen against every joint's reading and "
@@ -516,7 +519,7 @@ def _periodograms(report: DiagnosisReport):
     in_model: dict[int, list[int]] = {}
     for f in report.findings:
         c = f.candidate
-        if f.in_model and c.cause == "joint_periodic":
+        if f.in_model and c.harmonic is not None:
             in_model.setdefault(c.joint, []).append(c.harmonic)
     for k, pg in enumerate(pgs):
         a = ax[k // ncols][k % ncols]

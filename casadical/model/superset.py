@@ -32,23 +32,14 @@ import numpy as np
 from ..errors import CasadicalWarning
 from ..runtime.kept import Kept, array_key
 from ..runtime.threads import evaluation_threads
-from ..terms import ErrorTerm, SessionLocal, covariate_names, make_term
+from ..terms import REGISTRY, ErrorTerm, SessionLocal, covariate_names, make_term
+from ..terms.drift import Drift
 from ..terms.joint_coupling import JointCoupling
-from ..terms.mount_compliance import max_mount_moment
 from ..terms.periodic import JointPeriodic
+from ..terms.thermal import ThermalExpansion
 from . import jitcache
 from ._batch import Batch, batch, mapped
 
-#: the superset's terms besides the geometry, the sessions and the chain offsets (all joints, all links)
-TERMS = ("joint_compliance", "nonlinear_stiffness", "encoder_scale", "backlash", "backlash_motion",
-         "thermal_expansion", "drift", "tool_orientation", "mount_compliance", "straightness", "carriage_angle")
-#: terms that deflect a joint by its gravity torque: a model without them has the superset without them, whose
-#: Jacobian skips the torques and their derivatives (a kinematic model's: 3x cheaper)
-TORQUE = ("joint_compliance", "nonlinear_stiffness", "backlash", "mount_compliance")
-#: causes a term of one session may have in the superset: linear in their parameters (a joint offset or a
-#: translation), so that the shared and the session's parameters add up per pose
-LOCAL = ("joint_compliance", "nonlinear_stiffness", "encoder_scale", "backlash", "backlash_motion", "drift",
-         "joint_periodic", "joint_coupling", "mount_compliance")
 #: the covariates of the tool point's offset in the robot's base frame (a compensator's prediction)
 POINT_OFFSET = ("point_offset_x", "point_offset_y", "point_offset_z")
 #: supersets kept per process (a robot and its sessions each; least recently used dropped first)
@@ -112,34 +103,21 @@ class PointOffset(ErrorTerm):
 
 def superset_terms(robot, frames=None, torques: bool = True) -> list[ErrorTerm]:
     """The terms of the superset of ``robot`` (with ``frames``, a sessions term: its sessions and tools;
-    without ``torques``, none that reads the gravity torques).
+    without ``torques``, none that reads the gravity torques): the geometry, the sessions, each term kind's own
+    in its :attr:`~casadical.terms.base.ErrorTerm.superset_order` (:meth:`~casadical.terms.base.ErrorTerm.superset`:
+    a revolute joint's errors on the revolute joints, a linear axis' on the linear axes), the chain offsets and
+    the point offset.
 
     Terms driven by a covariate against a reference (thermal expansion, drift) have the reference 0: a
     model's covariate comes minus its own reference, so no reference is a constant of the graph.
     """
-    n = robot.n
-    every = list(range(1, n + 1))
-    # a revolute joint's errors on the revolute joints only (refused on a linear axis, casadical.terms.base)
-    revolute = [j for j in every if not robot.joints[j - 1].prismatic]
     terms = [make_term("geometric")]
     if frames is not None:
         terms.append(make_term("sessions", names=frames.names, tools=frames.tools))
-    if torques:
-        terms += [make_term("joint_compliance", joints=revolute), make_term("nonlinear_stiffness", joints=revolute)]
-    # a linear axis' errors: its scale, play and periodic error along it (its reading's offset, as a revolute
-    # joint's angle's), its straightness and its carriage's angles (the carriage's change after its travel)
-    linear = [j for j in every if robot.joints[j - 1].prismatic]
-    terms += [make_term("encoder_scale", joints=every)]
-    if torques:
-        terms += [make_term("backlash", joints=every)]
-        if max_mount_moment(robot) > 0:     # the base's tilt under the moment of the weights (it needs the masses)
-            terms.append(make_term("mount_compliance"))
-    if linear:
-        terms += [make_term("straightness", joints=linear), make_term("carriage_angle", joints=linear)]
-    terms += [make_term("backlash_motion", joints=every), make_term("thermal_expansion", t_ref=0.0),
-              make_term("thermal_expansion", joints=every, t_ref=0.0), make_term("drift"),
-              make_term("tool_orientation"), ChainOffsets(n), PointOffset()]
-    return terms
+    kinds = sorted({cls for cls in REGISTRY.values() if cls.superset_order is not None},
+                   key=lambda cls: cls.superset_order)
+    terms += [t for cls in kinds for t in cls.superset(robot, torques)]
+    return terms + [ChainOffsets(robot.n), PointOffset()]
 
 
 def frames_key(frames) -> tuple | None:
@@ -217,9 +195,7 @@ class Mapping:
     def of(cls, model) -> "Mapping | None":
         """The mapping of ``model`` onto its superset, or None if the superset cannot express it."""
         robot = model.robot
-        torques = any((t.inner if isinstance(t, SessionLocal) else t).name in TORQUE
-                      and getattr(t.inner if isinstance(t, SessionLocal) else t, "source", "torque") == "torque"
-                      for t in model.terms)
+        torques = any((t.inner if isinstance(t, SessionLocal) else t).reads_torques for t in model.terms)
         sup = superset_terms(robot, model.term("sessions"), torques)
         params = [p for t in sup for p in t.parameters(robot)]
         index = {p.name: i for i, p in enumerate(params)}
@@ -232,9 +208,7 @@ class Mapping:
                     gate, = inner.own_covariates
                     compensators.append((t.rename(gate) if session else gate, session, inner.gp))
                 continue
-            name = "backlash_motion" if getattr(inner, "source", None) == "motion" else inner.name
-            if name not in TERMS + ("geometric", "sessions", "joint_periodic", "joint_coupling") or (
-                    session is not None and name not in LOCAL) or (name == "backlash_motion" and not inner.lag):
+            if not inner.superset_member() or (session is not None and not inner.session_local):
                 return None
             if isinstance(inner, JointPeriodic):
                 for j, h in inner.harmonics:
@@ -247,9 +221,9 @@ class Mapping:
                 if p.name not in index:
                     return None
                 columns.append(_Column(index[p.name], session))
-            if name == "drift":
+            if isinstance(inner, Drift):
                 drifts.append((session, inner.t_ref))
-            elif name == "thermal_expansion":
+            elif isinstance(inner, ThermalExpansion):
                 thermal.add(inner.t_ref)
         if len(thermal) > 1 or (len(drifts) > 1 and any(s is None for s, _ in drifts)):
             return None     # two references of one covariate: not a mask of the superset

@@ -34,6 +34,8 @@ from ..robot import Robot
 from ..runtime.threads import evaluation_threads
 from ..terms import REGISTRY, Context, ErrorTerm, SessionLocal, covariate_names, make_term
 from ..terms.definitions import known as known_user_terms
+from ..terms.geometric import Geometric
+from ..terms.sessions import SessionFrames
 from ..terms.user import UserTerm
 from . import jitcache
 from ._batch import BLOCK_MIN, batch, mapped  # noqa: F401 (names the tests use)
@@ -92,12 +94,8 @@ def parse_spec(spec: str) -> list[ErrorTerm]:
         kwargs: dict = {}
         if args is not None and args.strip():
             try:
-                if hasattr(REGISTRY[name], "arguments"):     # a term that reads its own (warmup[600])
+                if hasattr(REGISTRY[name], "arguments"):     # a term that reads its own (warmup[600], periodic[2:1])
                     kwargs = REGISTRY[name].arguments(args)
-                elif REGISTRY[name].name == "joint_periodic":
-                    kwargs["harmonics"] = [tuple(int(x) for x in a.split(":")) for a in args.split(",")]
-                    if any(len(h) != 2 for h in kwargs["harmonics"]):
-                        raise ValueError("expected joint:harmonic pairs, e.g. periodic[2:1,2:17]")
                 else:
                     kwargs["joints"] = [int(a) for a in args.split(",")]
             except ValueError as e:
@@ -109,7 +107,8 @@ def parse_spec(spec: str) -> list[ErrorTerm]:
 
 def spec_of(terms: list[ErrorTerm], geometric_free: bool) -> str:
     """The specification of a model of ``terms`` (the geometric term, if among them, is the first part)."""
-    return "+".join(["kinematic" if geometric_free else "nominal"] + [t.spec() for t in terms if t.name != "geometric"])
+    return "+".join(["kinematic" if geometric_free else "nominal"]
+                    + [t.spec() for t in terms if not isinstance(t, Geometric)])
 
 
 def assemble_terms(terms: list[ErrorTerm], robot: Robot) -> list[ErrorTerm]:
@@ -120,9 +119,9 @@ def assemble_terms(terms: list[ErrorTerm], robot: Robot) -> list[ErrorTerm]:
     ModelError
         A term is given twice, or does not fit the robot.
     """
-    geo = [t for t in terms if t.name == "geometric"]
-    frames = [t for t in terms if t.name == "sessions"]   # right after the geometry: the base and tool it selects
-    out = (geo[:1] or [make_term("geometric")]) + frames + [t for t in terms if t.name not in ("geometric", "sessions")]
+    geo = [t for t in terms if isinstance(t, Geometric)]
+    frames = [t for t in terms if isinstance(t, SessionFrames)]   # right after the geometry: the base and tool
+    out = (geo[:1] or [Geometric()]) + frames + [t for t in terms if not isinstance(t, (Geometric, SessionFrames))]
     seen = set()
     for t in out:
         if t.spec() in seen:
@@ -178,13 +177,13 @@ class Model:
         if isinstance(terms, str):
             terms = parse_spec(terms)
         self.robot = robot
-        self.geometric_free = any(t.name == "geometric" for t in terms)
+        self.geometric_free = any(isinstance(t, Geometric) for t in terms)
         self.terms: list[ErrorTerm] = assemble_terms(terms, robot)
         items = [p for t in self.terms for p in t.parameters(robot)]
         self.parameters = Parameters(items)
         if not self.geometric_free:
             for p in self.parameters:
-                if p.term == "geometric" and p.group != "base":
+                if p.term == Geometric.name and p.group != "base":
                     p.fixed, p.reason = True, "nominal model"
         self.covariate_names: list[str] = covariate_names(self.terms)
         self.jit = jit

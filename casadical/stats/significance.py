@@ -54,8 +54,6 @@ from ..model.parameters import Parameter, Parameters
 
 #: default confidence level of intervals and significance
 LEVEL = 0.95
-#: terms whose parameters are not tested in a note (the geometry: a deviation of 0 is no fault)
-UNNOTED_TERMS = ("geometric",)
 
 
 # --- Student's t distribution ------------------------------------------------------------
@@ -303,36 +301,12 @@ class FitStatistics:
 # --- notes and the text table ------------------------------------------------------------------
 
 
-#: what a term's parameters that are not significant mean, and what to do: (what of joint(s) {joints}, do)
-_MEANING = {
-    "joint_compliance": ("the stiffness of {joints} is", "measure poses that load {them}"),
-    "nonlinear_stiffness": ("the progressive part of the spring of {joints} is",
-                            "measure poses that load {them} more"),
-    "joint_periodic": ("the periodic error at {harmonics} is", "measure poses spread over {their} range"),
-    "encoder_scale": ("the encoder scale of {joints} is", "measure poses over more of {their} range"),
-    "backlash": ("the backlash of {joints} is", "measure poses whose gravity torque changes sign on {them}"),
-    "backlash_motion": ("the backlash of {joints} is", "measure poses approached from both directions"),
-    "straightness": ("the straightness of linear axis {joints} is", "measure poses over more of {their} travel"),
-    "carriage_angle": ("the carriage's angles of linear axis {joints} are", "measure poses over more of {their} "
-                       "travel, the arm reaching out along the carriage's axes"),
-}
-
-
-def _joints(js: list[int]) -> str:
-    js = sorted(set(js))
-    if len(js) == 1:
-        return f"joint {js[0]}"
-    return "joints " + ", ".join(map(str, js[:-1])) + f" and {js[-1]}"
-
-
-def _groups(params: list[Parameter]) -> dict:
-    """A term's parameters by what is dropped together: a joint, a joint's harmonic, or the whole term."""
+def _groups(term, params: list[Parameter]) -> dict:
+    """A term's parameters by what is dropped together: a joint, a joint's harmonic, or the whole term
+    (:meth:`~casadical.terms.base.ErrorTerm.group_key`)."""
     out: dict = {}
     for p in params:
-        key = p.joint
-        if p.term == "joint_periodic" and "_" in p.name:            # gear2_s17 (or gear2_s17@B) -> (2, 17)
-            key = (p.joint, int(p.name.split("@")[0].rsplit("_", 1)[1][1:]))
-        out.setdefault(key, []).append(p)
+        out.setdefault(term.group_key(p), []).append(p)
     return out
 
 
@@ -346,11 +320,11 @@ def significance_notes(model, params: Parameters, tests: dict[str, ParameterTest
     """
     notes = []
     for term in model.terms:
-        if term.name in UNNOTED_TERMS:
+        if not term.noted:
             continue
         own = [params[q.name] for q in term.parameters(model.robot) if q.name in tests]   # the term's own
         weak, strong, weak_keys = [], [], []
-        for key, group in _groups(own).items():
+        for key, group in _groups(term, own).items():
             significant = any(tests[p.name].significant for p in group)
             (strong if significant else weak).append(group)
             weak_keys += [] if significant else [key]
@@ -363,19 +337,8 @@ def significance_notes(model, params: Parameters, tests: dict[str, ParameterTest
             else listing(said, 6)
         verb = "is" if len(names) == 1 else "are"
         js = sorted({p.joint for p in names if p.joint is not None})
-        what, do = _MEANING.get(term.name, ("the effect of {joints} is", "measure poses that show it"))
-        if term.name == "joint_periodic":
-            one = len(weak_keys) == 1
-            what = what.format(harmonics=", ".join(f"{h} cycles per turn of joint {j}" for j, h in weak_keys))
-            do = do.format(their="its joint's" if len(js) == 1 else "their joints'")
-            drop = f"drop {'it' if one else 'them'} from the model"
-        elif js:
-            one = len(js) == 1
-            what = what.format(joints=_joints(js))
-            do = do.format(them="it" if one else "them", their="its" if one else "their")
-            drop = f"drop {'the joint' if one else 'those joints'} from the model"
-        else:
-            what, do, drop = f"the {term.name} effect is", "measure poses that show it", "drop the term"
+        words = term.weak_words(weak_keys, js)
+        what, do, drop = words or (f"the {term.name} effect is", "measure poses that show it", "drop the term")
         keep = _reduced_spec(model, term, [p for g in strong for p in g], weak_keys)
         notes.append(f"{term.name}: {said} {verb} not significant ({100 * level:g} % level): {what} not "
                      f"determined by these poses; {drop}{f' ({keep})' if keep else ''} or {do}")
@@ -394,13 +357,8 @@ def _reduced_spec(model, term, kept: list[Parameter], dropped: list) -> str:
     """The model specification without what of ``term`` has no significant parameter ('' if not expressible)."""
     if hasattr(term, "inner"):      # a term of one session: said without a specification
         return ""
-    if term.name == "joint_periodic":
-        left = [jh for jh in term.harmonics if jh not in dropped]
-        part = f"{term.name}[{','.join(f'{j}:{h}' for j, h in left)}]" if left else ""
-    elif term.joints is not None and term.spec().startswith(f"{term.name}["):
-        joints = sorted({p.joint for p in kept if p.joint is not None})
-        part = f"{term.name}[{','.join(map(str, joints))}]" if joints else ""
-    else:
+    part = term.without(kept, dropped)
+    if part is None:
         return ""
     return model.spec.replace(term.spec(), part).replace("++", "+").strip("+")
 

@@ -25,6 +25,9 @@ from . import (  # noqa: F401
     warmup,
 )
 from .base import REGISTRY, Context, ErrorTerm, ReferencedTerm, covariate_names, register
+from .cause import CAUSES, Cause, ordered, register_cause
+from .geometric import GEOMETRIC
+from .gp_compensator import UNEXPLAINED
 from .local import SessionLocal
 
 
@@ -38,5 +41,5 @@ def make_term(name: str, **kwargs) -> ErrorTerm:
     return cls(**kwargs)
 
 
-__all__ = ["REGISTRY", "Context", "ErrorTerm", "ReferencedTerm", "SessionLocal", "covariate_names", "make_term",
-           "register"]
+__all__ = ["CAUSES", "GEOMETRIC", "REGISTRY", "UNEXPLAINED", "Cause", "Context", "ErrorTerm", "ReferencedTerm",
+           "SessionLocal", "covariate_names", "make_term", "ordered", "register", "register_cause"]

@@ -5,12 +5,17 @@ from __future__ import annotations
 import math
 
 import casadi as ca
+import numpy as np
 
+from .._format import relative
 from ..errors import ModelError
 from ..model.parameters import Parameter
 from ..robot import Robot
 from .base import Context, ErrorTerm, register
+from .cause import Cause, register_cause
 
+#: a linear axis' half play in metres read as radians by the arcsec conversion: divided by this, millimetres
+ARCSEC_PER_MM = math.degrees(1.0) * 3600 / 1000.0
 #: largest half play admitted on a linear axis (m)
 MAX_PLAY_LINEAR = 1e-3
 
@@ -45,6 +50,21 @@ class Backlash(ErrorTerm):
 
     name = "backlash"
     cause = "backlash"
+    weak_meaning = ("the backlash of {joints} is", "measure poses whose gravity torque changes sign on {them}")
+    superset_order = 4
+    session_local = True
+
+    @classmethod
+    def superset(cls, robot: Robot, torques: bool) -> list[ErrorTerm]:
+        return [cls(joints=list(range(1, robot.n + 1)))] if torques else []
+
+    @property
+    def reads_torques(self) -> bool:  # type: ignore[override]
+        return self.source == "torque"
+
+    def superset_member(self) -> bool:
+        """By the motion: the superset's has the trailing convention (``lag``); files older than it have not."""
+        return self.source == "torque" or self.lag
 
     #: settings of a calibration file that lacks them: files older than the lag convention
     LEGACY = {"lag": False}
@@ -95,6 +115,99 @@ class BacklashMotion(Backlash):
     name = "backlash_motion"
     aliases = ()
     cause = "backlash"
+    weak_meaning = ("the backlash of {joints} is", "measure poses approached from both directions")
+    superset_order = 8
+
+    @classmethod
+    def superset(cls, robot: Robot, torques: bool) -> list[ErrorTerm]:
+        return [cls(joints=list(range(1, robot.n + 1)))]
 
     def __init__(self, joints=None, lag: bool = True):
         super().__init__(joints, source="motion", lag=lag)
+
+
+class Play(Cause):
+    """Half the play of a joint, on the side its load (``source`` torque) or its last move (motion) takes it."""
+
+    name = "backlash"
+    own_variable = "tau"
+    needs = {"masses": "backlash by the load", "level": "backlash by the load", "idle": "backlash by the load",
+             "one_sign": "backlash by the load", "one_way": "backlash by the motion"}
+    order = 50
+    per_session = True
+    varies_text = "load joint {j} with torques of both signs"
+    tell_apart = {
+        "backlash": "approach the same poses from both directions of joint {j}: play that follows the motion changes "
+                    "sign, play that follows gravity does not",
+    }
+
+    def candidates(self, data) -> list:
+        # a linear axis: by the motion, and by the load where gravity pushes along it (a column's weight)
+        return ([data.make(self.name, j, source=s) for j in data.revolute for s in ("torque", "motion")]
+                + [data.make(self.name, j, source=s) for j in data.moving_axes for s in ("torque", "motion")
+                   if s == "motion" or data.loaded(j)])
+
+    def screenable(self, cand, data) -> bool:
+        """Play needs its sign source to change sign in the data: otherwise it is a joint offset."""
+        return data.sign_changes(cand)
+
+    def place(self, cand) -> str:
+        return f"joint {cand.joint}" + (", by the last move" if cand.source == "motion" else ", by the load")
+
+    def size(self, cand, values, stds, params, linear) -> str:
+        if linear:
+            return f"half play {values[0] * 1e3:.3g} mm{relative(stds[0], values[0])}"
+        return f"half play {math.degrees(values[0]) * 3600:.1f} arcsec{relative(stds[0], values[0])}"
+
+    def unexplained_item(self, cand, values, linear) -> dict:
+        v = math.degrees(values[cand.parameter_names()[0]]) * 3600
+        motion = cand.source == "motion"
+        if v >= 0:
+            what = f"a step with the sign of the joint's {'motion' if motion else 'load'} ({v:.1f} arcsec)"
+        elif motion:
+            what = f"a lead of {-v:.1f} arcsec in the direction of the joint's last move (play would trail)"
+        else:
+            what = f"a step of {-v:.1f} arcsec against the sign of the joint's load"
+        if linear:      # the parameter is in metres: in arcsec times this, mm
+            mm = v / ARCSEC_PER_MM
+            return {"half_play_mm": mm, "what": f"a step with the sign of the axis' {'motion' if motion else 'load'} "
+                                                f"({mm:.3g} mm)"}
+        return {"half_play_arcsec": v, "what": what}
+
+    def words(self, cand, params, robot, data, linear) -> str:
+        p = params[0]
+        if linear:
+            return (f"half play {p.value * 1e3:.3g} mm along axis {cand.joint} (std {p.std * 1e3:.2g}), sign from the "
+                    f"{'force of gravity along it' if cand.source != 'motion' else 'last move'}")
+        return (f"half play {math.degrees(p.value) * 3600:.2f} arcsec, sign from the "
+                f"{'gravity torque' if cand.source != 'motion' else 'last move'}")
+
+    def figure(self, cand, data, model, params, linear) -> dict:
+        j = cand.joint
+        value = params[cand.parameter_names()[0]].value
+        if cand.source == "motion":
+            x = data.moves[:, j - 1]
+            # a linear axis' carriage trails its drive (the term's sign); the joint's figure as it always was
+            return {"x": x, "xlabel": f"direction of the last move of {'axis' if linear else 'joint'} {j}",
+                    "effect": -value * x if linear else value * x}
+        x = model.torques(data.q, params.values, model.covariates(data))[:, j - 1]
+        return {"x": x, "xlabel": f"force of gravity along axis {j} (N)" if linear else
+                f"gravity torque at joint {j} (N m)", "effect": value * np.sign(x)}
+
+    def parameter_names(self, cand) -> list[str]:
+        return [f"backlash{cand.joint}" if cand.source != "motion" else f"backlash_m{cand.joint}"]
+
+    def specs(self, cands) -> list[str]:
+        mine = self.mine(cands)
+        out = []
+        for kind, motion in (("backlash", False), ("backlash_motion", True)):
+            joints = sorted({c.joint for c in mine if (c.source == "motion") == motion})
+            if joints:
+                out.append(f"{kind}[{','.join(map(str, joints))}]")
+        return out
+
+    def varies(self, cand) -> str:
+        return "approach joint {j} from both directions" if cand.source == "motion" else self.varies_text
+
+
+BACKLASH = register_cause(Play())

@@ -104,6 +104,53 @@ class ErrorTerm:
     #: revolute joints only, and refused on a prismatic joint (a linear axis' own errors: encoder scale, periodic
     #: error and backlash along it, straightness, the carriage's angles)
     revolute_only: ClassVar[bool] = False
+    #: its place in the superset every candidate model is a mask of (casadical.model.superset); None: not in it
+    superset_order: ClassVar[int | None] = None
+    #: it deflects a joint by its gravity torque (or tilts the mount by the moment of the weights): a model
+    #: without such a term has the superset without them, whose Jacobian skips the torques (3x cheaper)
+    reads_torques: ClassVar[bool] = False
+    #: a term of one session may be this term's in the superset: linear in its parameters (a joint offset or a
+    #: translation), so that the shared and the session's parameters add up per pose
+    session_local: ClassVar[bool] = False
+
+    #: its parameters are tested in the notes on what is not significant (not the geometry's: a deviation of 0 is no
+    #: fault)
+    noted: ClassVar[bool] = True
+    #: what its parameters that are not significant mean, and what to do: ("the stiffness of {joints} is",
+    #: "measure poses that load {them}"); None: the general words
+    weak_meaning: ClassVar[tuple[str, str] | None] = None
+
+    def group_key(self, p: Parameter):
+        """What of the term a parameter ``p`` is dropped with when it is not significant: its joint."""
+        return p.joint
+
+    def weak_words(self, keys: list, joints: list[int]) -> tuple[str, str, str] | None:
+        """What the parameters of the groups ``keys`` (:meth:`group_key`) that are not significant leave
+        undetermined, what to measure, and what to drop (``joints``: theirs); None: the general words."""
+        if not joints:
+            return None
+        what, do = self.weak_meaning or ("the effect of {joints} is", "measure poses that show it")
+        one = len(joints) == 1
+        return (what.format(joints=_joints(joints)), do.format(them="it" if one else "them",
+                                                                their="its" if one else "their"),
+                f"drop {'the joint' if one else 'those joints'} from the model")
+
+    def without(self, kept: list[Parameter], dropped: list) -> str | None:
+        """This term's specification without the groups ``dropped`` ('' if nothing is left; None: it cannot say)."""
+        if self.joints is None or not self.spec().startswith(f"{self.name}["):
+            return None
+        joints = sorted({p.joint for p in kept if p.joint is not None})
+        return f"{self.name}[{','.join(map(str, joints))}]" if joints else ""
+
+    @classmethod
+    def superset(cls, robot: Robot, torques: bool) -> list["ErrorTerm"]:
+        """The terms of this kind the superset of ``robot`` holds (without ``torques``: none that reads the
+        gravity torques); none by default."""
+        return []
+
+    def superset_member(self) -> bool:
+        """This term (with its settings) is one the superset expresses."""
+        return self.superset_order is not None
 
     def __init__(self, joints: list[int] | None = None):
         self.joints = None if joints is None else sorted({int(j) for j in joints})
@@ -212,6 +259,24 @@ def check_revolute(term: str, joints, robot: Robot) -> None:
         raise ModelError(f"term {term}: joint {linear[0]} of {robot.name} is prismatic (a linear axis); {term} is "
                          "an error of a revolute joint's angle (a linear axis' own errors: encoder_scale per metre, "
                          "joint_periodic per metre, backlash, straightness, carriage_angle, mount_compliance)")
+
+
+def _joints(js: list[int]) -> str:
+    """``joint 2``, ``joints 2, 3 and 5``."""
+    js = sorted(set(js))
+    if len(js) == 1:
+        return f"joint {js[0]}"
+    return "joints " + ", ".join(map(str, js[:-1])) + f" and {js[-1]}"
+
+
+def revolute(robot: Robot) -> list[int]:
+    """The revolute joints of ``robot`` (1-based)."""
+    return [j for j in range(1, robot.n + 1) if not robot.joints[j - 1].prismatic]
+
+
+def linear_axes(robot: Robot) -> list[int]:
+    """The prismatic joints of ``robot``, its linear axes (1-based)."""
+    return [j for j in range(1, robot.n + 1) if robot.joints[j - 1].prismatic]
 
 
 def covariate_names(terms: list[ErrorTerm]) -> list[str]:

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+import numpy as np
+
 from ..model.parameters import Parameter
 from ..robot import Robot
-from .base import register
-from .straightness import AxisTerm
+from .base import linear_axes, register
+from .cause import Cause, register_cause
+from .straightness import AxisTerm, travel_curve
 
 #: the degrees of the Legendre polynomials of the position: a constant angle is the geometry's (the frame after
 #: the axis), a slope and a bow are not
@@ -39,6 +42,14 @@ class CarriageAngle(AxisTerm):
 
     name = "carriage_angle"
     cause = "carriage_angle"
+    weak_meaning = ("the carriage's angles of linear axis {joints} are", "measure poses over more of {their} travel, "
+                    "the arm reaching out along the carriage's axes")
+    superset_order = 7
+
+    @classmethod
+    def superset(cls, robot: Robot, torques: bool) -> list:
+        linear = linear_axes(robot)
+        return [cls(joints=linear)] if linear else []
     KEYS = ANGLES
     DEGREES = DEGREES
     WHAT = "angle"
@@ -52,3 +63,50 @@ class CarriageAngle(AxisTerm):
 
     def slot(self, key: str) -> int:
         return SLOTS[key]
+
+
+class CarriageTurn(Cause):
+    """A linear axis' carriage turning in roll, pitch or yaw as it travels (:class:`CarriageAngle`)."""
+
+    name = "carriage_angle"
+    axis_shape = True
+    needs = {"still_axis": "carriage_angle"}
+    short = "carriage"
+    order = 130
+    varies_text = "move axis {j} over more of its travel"
+    tell_apart = {
+        "carriage_angle": "measure at each position of axis {j} with the arm reaching along each of the carriage's "
+                          "axes",
+    }
+
+    def candidates(self, data) -> list:
+        return [data.make(self.name, j, angle=a) for j in data.moving_axes for a in ANGLES]
+
+    def place(self, cand) -> str:
+        return f"axis {cand.joint}'s carriage, {cand.angle}"
+
+    def size(self, cand, values, stds, params, linear) -> str:
+        return f"{np.ptp(travel_curve(values, [p.name for p in params])) * 1e3:.3g} mrad over the travel"
+
+    def unexplained_item(self, cand, values, linear) -> dict:
+        v = np.array([values[n] for n in cand.parameter_names() if n in values])
+        return {"what": f"a {cand.angle} of its carriage ({float(np.abs(v).sum()) * 1000.0:.3g} mrad at most)"}
+
+    def words(self, cand, params, robot, data, linear) -> str:
+        v = np.array([p.value for p in params])
+        curve = travel_curve(v, [p.name for p in params])
+        return (f"the carriage of axis {cand.joint} turns in {cand.angle} by up to {np.ptp(curve) * 1e3:.3g} mrad "
+                "over its travel (a slope and a bow: " + ", ".join(f"{c * 1e3:+.3g}" for c in v) + " mrad)")
+
+    def figure(self, cand, data, model, params, linear) -> dict:
+        return {"x": data.q[:, cand.joint - 1] * 1000.0, "xlabel": f"axis {cand.joint} position (mm)", "along": None}
+
+    def parameter_names(self, cand) -> list[str]:
+        return [f"{cand.angle}{cand.joint}_p{k}" for k in DEGREES]
+
+    def specs(self, cands) -> list[str]:
+        axis = sorted({(c.joint, c.angle) for c in self.mine(cands)})
+        return [f"carriage_angle[{','.join(f'{j}:{k}' for j, k in axis)}]"] if axis else []
+
+
+CARRIAGE_ANGLE = register_cause(CarriageTurn())

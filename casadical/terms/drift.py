@@ -2,11 +2,16 @@
 
 from __future__ import annotations
 
-import casadi as ca
+import math
 
+import casadi as ca
+import numpy as np
+
+from .._format import g3, relative
 from ..model.parameters import Parameter
 from ..robot import Robot
 from .base import ReferencedTerm, register
+from .cause import Cause, register_cause
 
 
 @register
@@ -29,6 +34,12 @@ class Drift(ReferencedTerm):
 
     name = "drift"
     cause = "drift"
+    superset_order = 11
+    session_local = True
+
+    @classmethod
+    def superset(cls, robot: Robot, torques: bool) -> list:
+        return [cls()]
     covariates = ("time_s",)
     session = True
 
@@ -40,3 +51,45 @@ class Drift(ReferencedTerm):
     def base_offset(self, ctx):
         dt = ctx.cov["time_s"] - self.t_ref
         return ca.vertcat(*[ctx.p[f"drift_{k}"] * dt for k in "xyz"])
+
+
+class FrameDrift(Cause):
+    """The measurement frame translating in time (:class:`Drift`): of its session by nature."""
+
+    name = "drift"
+    explains_set_aside = ("order",)
+    checks = ("time_halves",)
+    needs = {"time": "drift"}
+    tier = 3
+    order = 70
+    of_session = True
+
+    def candidates(self, data) -> list:
+        return [data.make(self.name, session=s) for s in data.scopes] if data.timed else []
+
+    def place(self, cand) -> str:
+        return "measurement frame"
+
+    def size(self, cand, values, stds, params, linear) -> str:
+        speed = float(np.linalg.norm(values))
+        std = math.sqrt(((values * stds) ** 2).sum()) / speed if speed > 0 else math.nan
+        return f"{g3(speed * 1e6)} um/s{relative(std, speed)}"
+
+    def words(self, cand, params, robot, data, linear) -> str:
+        v = np.array([p.value for p in params]) * 1e6
+        return (f"the measured points move {np.linalg.norm(v):.3g} um per s (x, y, z: "
+                + ", ".join(f"{c:+.3g}" for c in v) + ")")
+
+    def figure(self, cand, data, model, params, linear) -> dict:
+        t = data.get("time_s")
+        x, xlabel = (t, "time (s)") if t is not None else (data.rows, "row (measurement order)")
+        return {"x": x, "xlabel": xlabel, "along": "drift"}
+
+    def parameter_names(self, cand) -> list[str]:
+        return ["drift_x", "drift_y", "drift_z"]
+
+    def specs(self, cands) -> list[str]:
+        return ["drift"] if self.mine(cands) else []
+
+
+DRIFT = register_cause(FrameDrift())

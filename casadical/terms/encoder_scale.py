@@ -2,9 +2,13 @@
 
 from __future__ import annotations
 
+import numpy as np
+
+from .._format import relative
 from ..model.parameters import Parameter
 from ..robot import Robot
 from .base import Context, ErrorTerm, register
+from .cause import Cause, register_cause
 
 
 @register
@@ -18,6 +22,13 @@ class EncoderScale(ErrorTerm):
 
     name = "encoder_scale"
     cause = "encoder_scale"
+    weak_meaning = ("the encoder scale of {joints} is", "measure poses over more of {their} range")
+    superset_order = 3
+    session_local = True
+
+    @classmethod
+    def superset(cls, robot: Robot, torques: bool) -> list[ErrorTerm]:
+        return [cls(joints=list(range(1, robot.n + 1)))]
 
     def parameters(self, robot: Robot) -> list[Parameter]:
         return [Parameter(f"escale{j}", 0.0, "1", 1e-4, self.name, j, lower=-0.01, upper=0.01)
@@ -25,3 +36,61 @@ class EncoderScale(ErrorTerm):
 
     def joint_offsets(self, ctx: Context) -> dict:
         return {j: ctx.p[f"escale{j}"] * ctx.q[j - 1] for j in self.joints}
+
+
+class Scale(Cause):
+    """A joint angle error proportional to the reading (:class:`EncoderScale`)."""
+
+    name = "encoder_scale"
+    unchecked_by = "reading"
+    own_variable = "q"
+    first_order = True
+    of_own_reading = True
+    checks = ("reading_halves",)
+    needs = {"still_axis": "encoder_scale", "still": "encoder_scale"}
+    order = 40
+    per_session = True
+    varies_text = "move joint {j} over a wider range"
+    tell_apart = {
+        "joint_periodic": "measure joint {j} over a wider range (more than half a turn): a scale error grows with the "
+                          "angle while a first harmonic turns back",
+    }
+
+    def candidates(self, data) -> list:
+        return [data.make(self.name, j) for j in data.revolute + data.moving_axes]
+
+    def size(self, cand, values, stds, params, linear) -> str:
+        if linear:
+            return f"{values[0] * 1e3:.3g} mm per m{relative(stds[0], values[0])}"
+        return f"{values[0] * 1e6:.0f} ppm{relative(stds[0], values[0])}"
+
+    def unexplained_item(self, cand, values, linear) -> dict:
+        v = values[cand.parameter_names()[0]]
+        item = {"trend_ppm": v * 1e6, "what": f"a trend along the joint's reading ({v * 1e6:.0f} ppm)"}
+        if linear:
+            item["what"] = f"a trend along the axis' position ({v * 1e3:.3g} mm per m)"
+        return item
+
+    def words(self, cand, params, robot, data, linear) -> str:
+        if linear:
+            return (f"scale error {params[0].value * 1e3:.4g} mm per m of travel of axis {cand.joint} "
+                    f"(std {params[0].std * 1e3:.2g})")
+        return f"scale error {params[0].value * 1e6:.1f} ppm"
+
+    def figure(self, cand, data, model, params, linear) -> dict:
+        j = cand.joint
+        q = data.q[:, j - 1]
+        value = params[cand.parameter_names()[0]].value
+        if linear:
+            return {"x": q * 1000.0, "xlabel": f"axis {j} position (mm)", "effect": value * q}
+        return {"x": np.degrees(q), "xlabel": f"joint {j} reading (deg)", "effect": value * q}
+
+    def parameter_names(self, cand) -> list[str]:
+        return [f"escale{cand.joint}"]
+
+    def specs(self, cands) -> list[str]:
+        joints = sorted({c.joint for c in self.mine(cands)})
+        return [f"encoder_scale[{','.join(map(str, joints))}]"] if joints else []
+
+
+ENCODER_SCALE = register_cause(Scale())

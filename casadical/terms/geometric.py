@@ -8,6 +8,7 @@ from ..model.kinematics import Geometry
 from ..model.parameters import Parameter
 from ..robot import Robot
 from .base import Context, ErrorTerm, register
+from .cause import Cause, register_cause
 
 LENGTH_SCALE = 1e-3   # 1 mm
 ANGLE_SCALE = 1e-3    # 1 mrad
@@ -39,6 +40,11 @@ class Geometric(ErrorTerm):
     name = "geometric"
     aliases = ("kinematic",)
     cause = "geometric"
+    noted = False
+
+    def superset_member(self) -> bool:
+        """The superset expresses it (its geometry and sessions come first)."""
+        return True
 
     def __init__(self, joints=None, length_box: float = 0.05, angle_box: float = math.radians(5.0),
                  drive_errors: bool = True):
@@ -99,3 +105,32 @@ class Geometric(ErrorTerm):
             base=[p[f"base_{k}"] for k in ("x", "y", "z", "roll", "pitch", "yaw")],
             loop=[p[f"loop_{k}"] for k in ("crank", "coupler", "rocker")] if robot.loop else [],
         )
+
+
+class Kinematic(Cause):
+    """Kinematic parameter errors: the links, the base and the tool (:class:`Geometric`)."""
+
+    name = "geometric"
+    geometry = True
+    short = "kinematic"
+    scope_word = "robot"
+
+    def step_label(self, cand) -> str:
+        return "kinematic"
+
+    def finding_label(self, finding) -> str:
+        return "geometry"
+
+    def where(self, cand, finding) -> str:
+        return "links, base and tool"
+
+    def finding_size(self, finding, final) -> str:
+        n = sum(1 for p in final.parameters if p.term == self.name and not p.fixed and not p.name.startswith("base_"))
+        return f"{n} link and tool parameters"
+
+    def action(self, finding) -> str:
+        return ("use the calibrated geometry: export writes it as URDF and a DH table (compensate uses the full "
+                "model)")
+
+
+GEOMETRIC = register_cause(Kinematic())

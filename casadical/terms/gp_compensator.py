@@ -7,9 +7,11 @@ from collections.abc import Iterator
 import casadi as ca
 import numpy as np
 
+from .._format import gain_words
 from ..errors import ModelError
 from ..robot import Robot
 from .base import Context, ErrorTerm, register
+from .cause import Cause, register_cause
 from .local import SessionLocal
 
 
@@ -97,3 +99,72 @@ def fitted_processes(terms, data) -> Iterator[tuple]:
         else:
             yield inner.gp, (np.flatnonzero(data.sessions == t.session_name) if data.sessions is not None
                              else np.zeros(0, int))
+
+
+class Unexplained(Cause):
+    """Structure no named cause explains: taken by the GP compensator (no joint), or kept out of the model and
+    located (``unexplained`` of a joint, or where the structure screen found it)."""
+
+    name = "unexplained"
+    unexplained = True
+
+    def label(self, cand, short: bool) -> str | None:
+        return "GP compensator" if short and cand.joint is None else None
+
+    def step_label(self, cand) -> str:
+        return "+ GP compensator"
+
+    def long_label(self, finding) -> str:
+        return "unexplained structure" + (f" ({finding.where})" if finding.where else "")
+
+    def finding_label(self, finding) -> str:
+        j = finding.candidate.joint
+        return "GP compensator" if finding.in_model else f"unexplained j{j}" if j else "unexplained"
+
+    def where(self, cand, finding) -> str:
+        if finding.in_model:
+            sessions = [s for s in (finding.holds_up or {}).get("length_scales_deg", {}) if s]
+            return "what the causes leave" + (f", sessions {', '.join(sessions)}" if len(sessions) > 1 else "")
+        if finding.structure:
+            return structure_where(finding.structure, cand.joint)
+        return f"joint {cand.joint}" if cand.joint else ""
+
+    def finding_size(self, finding, final) -> str:
+        hu = finding.holds_up or {}
+        if finding.in_model:
+            k, n = hu.get("validation_known", [None, None])
+            return f"applies at {k} of {n} validation poses" if n else "a Gaussian process per session"
+        if finding.structure:
+            return f"{finding.structure['size_mm']:.4f} mm on validation"
+        items = hu.get("structures", [])
+        if not items:
+            return ""
+        big = max(items, key=lambda x: x.get("amplitude_arcsec", 0.0))
+        return big.get("what", "") + (f" and {len(items) - 1} more" if len(items) > 1 else "")
+
+    def action(self, finding) -> str:
+        if finding.in_model:
+            return ("applies in this session where it knows; compensate and predict use it; a transfer to another "
+                    "session drops it (scope session)")
+        if finding.structure:
+            instrument = finding.structure["covariate"] in ("azimuth", "elevation", "distance")
+            return (f"a cause no catalogue holds (a flexible term would give {gain_words(finding.potential_gain_mm)} "
+                    "here): state it as a term of your own (the finding's term in the JSON report is one to start "
+                    "from) and diagnose again (docs/guide.md, 'When the report says unexplained'); plan-poses "
+                    "REPORT.json plans the poses that tell its form"
+                    + ("; a session with the instrument placed elsewhere tells the instrument's error from the "
+                       "robot's" if instrument else ""))
+        return (f"not in the model (it would give {gain_words(finding.potential_gain_mm)} here): measure joint "
+                f"{finding.candidate.joint} over a wider range or in another session to tell")
+
+
+def structure_where(structure: dict, joint: int | None) -> str:
+    """Where structure the screen found lives, short: ``joint 4's angle, with q3``."""
+    effect = {"angle": f"joint {joint}'s angle", "position": f"axis {joint}'s position",
+              "tilt": f"joint {joint}'s axis" if joint else "the base's tilt",
+              "point_base": "point, base frame",
+              "point_measurement": "point, measurement frame"}.get(structure["effect"], structure["effect"])
+    return f"{effect}, with {structure['covariate']}"
+
+
+UNEXPLAINED = register_cause(Unexplained())

@@ -2,10 +2,14 @@
 
 from __future__ import annotations
 
+import numpy as np
+
+from .._format import relative
 from ..errors import ModelError
 from ..model.parameters import Parameter
 from ..robot import Robot
 from .base import Context, ErrorTerm, check_revolute, register
+from .cause import Cause, register_cause
 
 #: largest coupling factor admitted (rad/rad): beyond 1 % the robot file's coupling ratio is wrong, which is
 #: its ``coupling`` row's business, not a gear's error
@@ -37,6 +41,11 @@ class JointCoupling(ErrorTerm):
 
     name = "joint_coupling"
     cause = "joint_coupling"
+    session_local = True
+
+    def superset_member(self) -> bool:
+        """The superset expresses it (its chain offsets: the source joint's reading)."""
+        return True
     revolute_only = True
 
     def __init__(self, joints=None, pairs=()):
@@ -81,3 +90,69 @@ class JointCoupling(ErrorTerm):
         for j, k in self.pairs:
             out[j] = out.get(j, 0) + ctx.p[f"cpl{j}_{k}"] * ctx.q[k - 1]
         return out
+
+
+class Coupling(Cause):
+    """A joint's angle error proportional to another joint's reading (:class:`JointCoupling`)."""
+
+    name = "joint_coupling"
+    analytic = True
+    own_variable = "q"
+    checks = ("reading_halves",)
+    needs = {"linear_axis": "joint_coupling", "one_at_a_time": "joint_coupling", "still": "joint_coupling"}
+    short = "coupling"
+    tier = 5
+    order = 100
+    varies_text = "move joint {j} and its source joint independently over wider ranges"
+    tell_apart = {
+        "encoder_scale": "move joint {j} and the joint its error would follow independently (one still while the "
+                         "other turns): a scale grows with joint {j}'s own reading, a coupling with the other's",
+        "joint_coupling": "move each of the joints the error could follow while the others stand still",
+    }
+
+    def candidates(self, data) -> list:
+        """Every pair of moving joints with the source before the joint (a drive train passes through the joints
+        before its joint); none on poses that move one joint at a time (its ``one_at_a_time`` condition)."""
+        return [data.make(self.name, j, source_joint=k) for j in data.moving for k in data.moving
+                if k < j and data.couples]
+
+    def place(self, cand) -> str:
+        return f"joint {cand.joint}, from joint {cand.source_joint}'s reading"
+
+    def size(self, cand, values, stds, params, linear) -> str:
+        return f"{values[0] * 1e3:.3g} mrad per rad of joint {cand.source_joint}{relative(stds[0], values[0])}"
+
+    def unexplained_item(self, cand, values, linear) -> dict:
+        v = values[cand.parameter_names()[0]]
+        return {"coupling": v, "what": f"a part that follows joint {cand.source_joint}'s reading "
+                                       f"({v * 1e3:.3g} mrad per rad)"}
+
+    def words(self, cand, params, robot, data, linear) -> str:
+        p = params[0]
+        return (f"joint {cand.joint}'s angle error, {p.value * 1e3:.3g} mrad per rad of joint {cand.source_joint} "
+                f"(std {p.std * 1e3:.2g})")
+
+    def figure(self, cand, data, model, params, linear) -> dict:
+        k = cand.source_joint
+        value = params[cand.parameter_names()[0]].value
+        return {"x": np.degrees(data.q[:, k - 1]), "xlabel": f"joint {k} reading (deg)",
+                "effect": value * data.q[:, k - 1]}
+
+    def reading(self, cand) -> int | None:
+        return cand.source_joint
+
+    def analytic_term(self, cand):
+        return JointCoupling(pairs=[(cand.joint, cand.source_joint)])
+
+    def analytic_column(self, cand, k, data, JA, t0, robot):
+        return JA[:, :, cand.joint - 1] * data.q[:, cand.source_joint - 1, None]
+
+    def parameter_names(self, cand) -> list[str]:
+        return [f"cpl{cand.joint}_{cand.source_joint}"]
+
+    def specs(self, cands) -> list[str]:
+        cpl = sorted({(c.joint, c.source_joint) for c in self.mine(cands)})
+        return [f"joint_coupling[{','.join(f'{j}:{k}' for j, k in cpl)}]"] if cpl else []
+
+
+JOINT_COUPLING = register_cause(Coupling())

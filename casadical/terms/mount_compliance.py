@@ -5,11 +5,13 @@ from __future__ import annotations
 import casadi as ca
 import numpy as np
 
+from .._format import relative
 from ..errors import ModelError
 from ..model.kinematics import Geometry, chain_angles, forward, mount_moment
 from ..model.parameters import Parameter
 from ..robot import GRAVITY, Robot
 from .base import Context, ErrorTerm, reach, register
+from .cause import Cause, register_cause
 
 #: largest tilt admitted at the largest moment the robot can put on its mount (rad): half a degree is a mount
 #: coming loose, not a compliance
@@ -74,6 +76,14 @@ class MountCompliance(ErrorTerm):
     name = "mount_compliance"
     cause = "mount_compliance"
     covariates = ("payload_kg",)
+    superset_order = 5
+    reads_torques = True
+    session_local = True
+
+    @classmethod
+    def superset(cls, robot: Robot, torques: bool) -> list[ErrorTerm]:
+        """The base's tilt under the moment of the weights (it needs the masses)."""
+        return [cls()] if torques and max_mount_moment(robot) > 0 else []
 
     def __init__(self, joints=None, axes: str = ""):
         super().__init__(None)
@@ -120,3 +130,52 @@ class MountCompliance(ErrorTerm):
         if self.axes:
             return ca.vertcat(ctx.p["cmount_x"] * M[0], ctx.p["cmount_y"] * M[1], 0)
         return ctx.p["cmount"] * M
+
+
+class MountGive(Cause):
+    """The base tilting under the moment of the weights about the mount (:class:`MountCompliance`)."""
+
+    name = "mount_compliance"
+    own_variable = "moment"
+    needs = {"mount_masses": "mount_compliance", "mount_moment": "mount_compliance"}
+    short = "mount compliance"
+    tier = 2
+    order = 110
+    varies_text = "swing the arm's weight about the base (joint 1 turning, the arm stretched and folded)"
+    tell_apart = {
+        "joint_compliance": "turn joint 1 with the arm stretched: the base's tilt follows the moment about the mount, "
+                            "a joint's deflection its own torque",
+        "thermal_expansion": "repeat poses at another temperature with the arm stretched and folded",
+    }
+
+    def candidates(self, data) -> list:
+        """The robot's and each session's, where the moment of the weights changes over their poses."""
+        return [data.make(self.name, session=s) for s in data.mount]
+
+    def place(self, cand) -> str:
+        return "the base's mount"
+
+    def size(self, cand, values, stds, params, linear) -> str:
+        return f"tilt {values[0] * 1e6:.3g} mrad per kN m of moment{relative(stds[0], values[0])}"
+
+    def words(self, cand, params, robot, data, linear) -> str:
+        p = params[0]
+        M = np.linalg.norm(mount_moments(robot, data.q, data.get("payload_kg")), axis=1).max(initial=0.0)
+        return (f"the base tilts {p.value * M * 1e3:.3g} mrad at the largest moment of these poses ({M:.4g} N m; "
+                f"compliance {p.value:.3g} rad/(N m), std {p.std:.2g})")
+
+    def figure(self, cand, data, model, params, linear) -> dict:
+        return {"x": np.linalg.norm(mount_moments(model.robot, data.q, data.get("payload_kg"))[:, :2], axis=1),
+                "xlabel": "moment of the weights about the base, horizontal (N m)", "along": None}
+
+    def own_shape(self, cand) -> tuple[str, str, int | None]:
+        return "moment", "tilt", None
+
+    def parameter_names(self, cand) -> list[str]:
+        return ["cmount"]
+
+    def specs(self, cands) -> list[str]:
+        return ["mount_compliance"] if self.mine(cands) else []
+
+
+MOUNT_COMPLIANCE = register_cause(MountGive())

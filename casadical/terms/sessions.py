@@ -51,6 +51,10 @@ class SessionFrames(ErrorTerm):
 
     name = "sessions"
     cause = "geometric"
+
+    def superset_member(self) -> bool:
+        """The superset expresses it (its geometry and sessions come first)."""
+        return True
     session = True
 
     def __init__(self, joints=None, names: list[str] = (), tools: list[str] = (),

@@ -4,10 +4,13 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+import numpy as np
+
 from ..errors import ModelError
 from ..model.parameters import Parameter
 from ..robot import Robot
-from .base import Context, ErrorTerm, check_linear, legendre, register, travel
+from .base import Context, ErrorTerm, check_linear, legendre, linear_axes, register, travel
+from .cause import Cause, register_cause
 
 #: the degrees of the Legendre polynomials of the position: the constant and the linear part of a straightness
 #: are the geometry's (where the axis lies and where it points), so it starts at the bow
@@ -114,6 +117,13 @@ class Straightness(AxisTerm):
 
     name = "straightness"
     cause = "straightness"
+    weak_meaning = ("the straightness of linear axis {joints} is", "measure poses over more of {their} travel")
+    superset_order = 6
+
+    @classmethod
+    def superset(cls, robot: Robot, torques: bool) -> list[ErrorTerm]:
+        linear = linear_axes(robot)
+        return [cls(joints=linear)] if linear else []
     KEYS = DIRECTIONS
     DEGREES = DEGREES
     WHAT = "direction"
@@ -127,3 +137,62 @@ class Straightness(AxisTerm):
 
     def slot(self, key: str) -> int:
         return DIRECTIONS.index(key)
+
+
+def travel_curve(values, names: list[str]) -> np.ndarray:
+    """A linear axis' straightness or carriage angle over its travel (201 points), from its Legendre coefficients
+    (parameters ``..._p<degree>``)."""
+    coef = np.zeros(4)
+    for v, n in zip(values, names):
+        coef[int(n.rsplit("_p", 1)[1])] += v
+    return np.polynomial.legendre.legval(np.linspace(-1.0, 1.0, 201), coef)
+
+
+class AxisStraightness(Cause):
+    """A linear axis' carriage off its straight line, across the axis in x or y (:class:`Straightness`)."""
+
+    name = "straightness"
+    axis_shape = True
+    needs = {"still_axis": "straightness"}
+    order = 120
+    varies_text = "move axis {j} over more of its travel"
+    tell_apart = {
+        "carriage_angle": "measure at each position of axis {j} with the arm stretched and folded: the carriage's "
+                          "angle moves the point in proportion to the arm's reach, a straightness error by the same "
+                          "amount at any reach",
+        "straightness": "measure at each position of axis {j} with the tool at several heights and reaches",
+    }
+
+    def candidates(self, data) -> list:
+        return [data.make(self.name, j, direction=d) for j in data.moving_axes for d in DIRECTIONS]
+
+    def place(self, cand) -> str:
+        return f"axis {cand.joint}, across it in {cand.direction}"
+
+    def size(self, cand, values, stds, params, linear) -> str:
+        return f"{np.ptp(travel_curve(values, [p.name for p in params])) * 1e3:.3g} mm over the travel"
+
+    def unexplained_item(self, cand, values, linear) -> dict:
+        v = np.array([values[n] for n in cand.parameter_names() if n in values])
+        return {"what": f"a {cand.direction} straightness of the axis ({float(np.abs(v).sum()) * 1000.0:.3g} mm at "
+                        "most)"}
+
+    def words(self, cand, params, robot, data, linear) -> str:
+        v = np.array([p.value for p in params])
+        curve = travel_curve(v, [p.name for p in params])
+        return (f"the carriage of axis {cand.joint} off its straight line in {cand.direction} by up to "
+                f"{np.ptp(curve) * 1e3:.3g} mm over its travel (a bow and an S: "
+                + ", ".join(f"{c * 1e3:+.3g}" for c in v) + " mm)")
+
+    def figure(self, cand, data, model, params, linear) -> dict:
+        return {"x": data.q[:, cand.joint - 1] * 1000.0, "xlabel": f"axis {cand.joint} position (mm)", "along": None}
+
+    def parameter_names(self, cand) -> list[str]:
+        return [f"straight{cand.joint}{cand.direction}_p{k}" for k in DEGREES]
+
+    def specs(self, cands) -> list[str]:
+        axis = sorted({(c.joint, c.direction) for c in self.mine(cands)})
+        return [f"straightness[{','.join(f'{j}:{k}' for j, k in axis)}]"] if axis else []
+
+
+STRAIGHTNESS = register_cause(AxisStraightness())

@@ -4,11 +4,13 @@ from __future__ import annotations
 
 from dataclasses import replace
 
+from .._format import relative
 from ..errors import ModelError
 from ..model.kinematics import Geometry
 from ..model.parameters import Parameter
 from ..robot import Robot
 from .base import Context, ReferencedTerm, register
+from .cause import Cause, register_cause
 
 
 @register
@@ -33,6 +35,13 @@ class ThermalExpansion(ReferencedTerm):
     name = "thermal_expansion"
     aliases = ("thermal",)
     cause = "thermal_expansion"
+    superset_order = 9
+
+    @classmethod
+    def superset(cls, robot: Robot, torques: bool) -> list:
+        """Every link's one coefficient and each link's own, their reference 0 (a model's temperature comes
+        minus its own reference)."""
+        return [cls(t_ref=0.0), cls(joints=list(range(1, robot.n + 1)), t_ref=0.0)]
     covariates = ("temperature_c",)
 
     def __init__(self, joints=None, t_ref: float = 20.0):
@@ -65,3 +74,51 @@ class ThermalExpansion(ReferencedTerm):
         f = [1 + ctx.p[f"thermal_alpha{j}"] * dT if j in self.joints else 1 for j in range(1, ctx.robot.n + 1)]
         return replace(geom, a=[x * k for x, k in zip(geom.a, f)], b=[x * k for x, k in zip(geom.b, f)],
                        d=[x * k for x, k in zip(geom.d, f)])
+
+
+class Expansion(Cause):
+    """Link lengths that grow with the temperature: every link's one coefficient, or a link's own
+    (:class:`ThermalExpansion`)."""
+
+    name = "thermal_expansion"
+    needs = {"temperature": "thermal_expansion", "temperature_range": "thermal_expansion"}
+    short = "thermal"
+    order = 60
+    joint_word = "link"
+    tell_apart = {
+        "thermal_expansion": "measure while the arm warms up, with the links' temperatures if possible: links that "
+                             "grow differently need their own coefficients",
+        "drift": "measure in random pose order while the temperature changes: thermal growth scales with the arm's "
+                 "reach, drift of the measurement frame does not",
+    }
+
+    def candidates(self, data) -> list:
+        if not data.temperature_varies:
+            return []
+        return [data.make(self.name)] + [data.make(self.name, j) for j, jt in enumerate(data.robot.joints, start=1)
+                                         if abs(jt.a) + abs(jt.d) + abs(jt.b or 0.0) > 0]
+
+    def place(self, cand) -> str:
+        return "every link" if cand.joint is None else f"link {cand.joint}"
+
+    def size(self, cand, values, stds, params, linear) -> str:
+        return f"{values[0] * 1e6:.2f} ppm/K{relative(stds[0], values[0])}"
+
+    def words(self, cand, params, robot, data, linear) -> str:
+        where = "every length" if cand.joint is None else f"the lengths of link {cand.joint}"
+        return f"expansion {params[0].value * 1e6:.2f} ppm/K of {where}"
+
+    def figure(self, cand, data, model, params, linear) -> dict:
+        return {"x": data.get("temperature_c"), "xlabel": "temperature (deg C)", "along": None}
+
+    def parameter_names(self, cand) -> list[str]:
+        return ["thermal_alpha" if cand.joint is None else f"thermal_alpha{cand.joint}"]
+
+    def specs(self, cands) -> list[str]:
+        mine = self.mine(cands)
+        links = sorted({c.joint for c in mine if c.joint is not None})
+        return ((["thermal_expansion"] if any(c.joint is None for c in mine) else [])
+                + ([f"thermal_expansion[{','.join(map(str, links))}]"] if links else []))
+
+
+THERMAL_EXPANSION = register_cause(Expansion())

@@ -31,6 +31,11 @@ class ToolOrientation(ErrorTerm):
     name = "tool_orientation"
     aliases = ("orientation",)
     cause = "geometric"
+    superset_order = 12
+
+    @classmethod
+    def superset(cls, robot: Robot, torques: bool) -> list:
+        return [cls()]
 
     def __init__(self, joints=None):
         super().__init__(None)

@@ -28,6 +28,7 @@ from ..model.parameters import Parameter
 from ..robot import Robot
 from . import expression as ex
 from .base import Context, ErrorTerm
+from .cause import Cause
 from .definitions import TermDefinition
 
 #: the effects that change the geometry (the others act on the readings or the measured point)
@@ -208,3 +209,41 @@ def point_names(xyz) -> dict:
 def user_terms(terms) -> list[UserTerm]:
     """The user terms among ``terms`` (those of one session too)."""
     return [t for t in (getattr(t, "inner", t) for t in terms) if isinstance(t, UserTerm)]
+
+
+class UserCauses(Cause):
+    """The causes of the user's own (the terms of a terms file): a candidate of one carries its term's name as
+    its cause and its parameters' names (``user``); one object answers for them all."""
+
+    name = "user"
+    order = 90
+
+    def unexplained_item(self, cand, values, linear) -> dict:
+        fitted = ", ".join(f"{n} = {values[n]:.4g}" for n in cand.parameter_names() if n in values)
+        return {"what": f"a part the user term {cand.cause} describes ({fitted}, SI units)"}
+
+    def figure(self, cand, data, model, params, linear) -> dict | None:
+        """A term of no joint: the errors against the rows; of a joint: its angle (or axis) error against the
+        joint's gravity torque (or position), with the first parameter's value as its effect."""
+        if cand.joint is None:
+            return None
+        j = cand.joint
+        value = params[cand.parameter_names()[0]].value
+        if linear:
+            q = data.q[:, j - 1]
+            return {"x": q * 1000.0, "xlabel": f"axis {j} position (mm)", "effect": value * q}
+        x = model.torques(data.q, params.values, model.covariates(data))[:, j - 1]
+        return {"x": x, "xlabel": f"gravity torque at joint {j} (N m)", "effect": value * np.sign(x)}
+
+    def short_name(self, cand) -> str:
+        return cand.cause.replace("_", " ")
+
+    def parameter_names(self, cand) -> list[str]:
+        return list(cand.user)
+
+    def specs(self, cands) -> list[str]:
+        return sorted({c.cause for c in self.mine(cands)})     # by their names
+
+
+#: the causes of the user's own (not in :data:`~casadical.terms.cause.CAUSES`: their names are the user's)
+USER = UserCauses()

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import casadi as ca
 import numpy as np
@@ -11,6 +12,7 @@ from ..errors import ModelError
 from ..model.parameters import Parameter
 from ..robot import Robot
 from .base import ReferencedTerm, register
+from .cause import Cause, register_cause
 
 
 @register
@@ -82,3 +84,63 @@ class Warmup(ReferencedTerm):
 def decay(times: np.ndarray, t0: float, time_constant_s: float) -> np.ndarray:
     """``exp(-(t - t0) / T)`` (1 before ``t0``): the warm-up's shape at ``times``."""
     return np.exp(-np.maximum(np.asarray(times, float) - t0, 0.0) / time_constant_s)
+
+
+class WarmUp(Cause):
+    """An offset of the first poses dying away in time (:class:`Warmup`): of its session by nature; one cause
+    scanned over a grid of time constants."""
+
+    name = "warmup"
+    explains_set_aside = ("order",)
+    analytic = True
+    checks = ("versus_drift",)
+    rival = "drift"
+    unjudged_folds = frozenset({"time"})
+    needs = {"time": "warmup"}
+    short = "warm-up"
+    tier = 3
+    order = 80
+    of_session = True
+    tell_apart = {
+        "drift": "measure for longer, or repeat the first poses at the end: a warm-up settles, a drift goes on",
+        "warmup": "measure for longer, or repeat the first poses at the end: the time constant shows in how fast the "
+                  "first poses' offset dies away",
+    }
+
+    def family(self, cand):
+        return replace(cand, time_constant=None)
+
+    def candidates(self, data) -> list:
+        """Each session's (or the only one's) over its grid of time constants, until one is accepted."""
+        mine = [a for a in data.accepted if a.kind is self]
+        if not data.timed or any(a.session is None for a in mine):
+            return []
+        return [data.make(self.name, session=s, time_constant=T) for s in data.scopes
+                if not any(a.session == s for a in mine) for T in data.warmups.get(s, [])]
+
+    def words(self, cand, params, robot, data, linear) -> str:
+        v = np.array([p.value for p in params]) * 1000
+        return (f"the first poses stand {np.linalg.norm(v):.3g} mm off (x, y, z: " + ", ".join(f"{c:+.3g}" for c in v)
+                + f" mm), dying away with a time constant of {cand.time_constant:.3g} s")
+
+    def figure(self, cand, data, model, params, linear) -> dict:
+        t = data.get("time_s")
+        x, xlabel = (t, "time (s)") if t is not None else (data.rows, "row (measurement order)")
+        return {"x": x, "xlabel": xlabel, "along": "warm-up offset"}
+
+    def analytic_term(self, cand):
+        return Warmup()
+
+    def analytic_column(self, cand, k, data, JA, t0, robot):
+        col = np.zeros((len(data), 3))
+        col[:, k] = decay(data.get("time_s"), t0[cand.session], cand.time_constant)
+        return col
+
+    def parameter_names(self, cand) -> list[str]:
+        return ["warmup_x", "warmup_y", "warmup_z"]
+
+    def specs(self, cands) -> list[str]:
+        return [f"warmup[{c.time_constant:g}]" for c in self.mine(cands)][:1]
+
+
+WARMUP = register_cause(WarmUp())

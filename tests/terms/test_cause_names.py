@@ -1,0 +1,57 @@
+"""No cause's name is compared as a string outside its own module (issue 46): what a cause is lives in one object
+of its term's module (:mod:`casadical.terms.cause`); the rest of the package asks it."""
+
+import ast
+from pathlib import Path
+
+PACKAGE = Path(__file__).resolve().parents[2] / "casadical"
+
+
+def _cause_names() -> set[str]:
+    from casadical.terms import CAUSES
+
+    return set(CAUSES)
+
+
+def comparisons(tree: ast.AST, names: set[str]) -> list[tuple[int, str]]:
+    """(line, name) of every cause name written as a string in a comparison (``==``, ``!=``, ``in``), in a
+    collection of strings (a tuple, list or set of them: the causes written again), or as a dict's key."""
+    out = []
+
+    def strings(node):
+        if isinstance(node, ast.Constant) and isinstance(node.value, str) and node.value in names:
+            yield node
+        elif isinstance(node, (ast.Tuple, ast.List, ast.Set)):
+            for e in node.elts:
+                yield from strings(e)
+
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Compare):
+            for part in [node.left, *node.comparators]:
+                out += [(c.lineno, c.value) for c in strings(part)]
+        elif isinstance(node, (ast.Tuple, ast.List, ast.Set)):
+            found = list(strings(node))
+            if found and not isinstance(getattr(node, "parent", None), ast.Compare):
+                out += [(c.lineno, c.value) for c in found]
+        elif isinstance(node, ast.Dict):
+            out += [(k.lineno, k.value) for k in node.keys if k is not None and next(strings(k), None) is not None]
+    return sorted(set(out))
+
+
+def test_no_cause_name_compared_outside_the_terms():
+    names = _cause_names()
+    found = []
+    for path in sorted(PACKAGE.rglob("*.py")):
+        if path.relative_to(PACKAGE).parts[0] == "terms":
+            continue
+        for line, name in comparisons(ast.parse(path.read_text()), names):
+            found.append(f"{path.relative_to(PACKAGE.parent)}:{line}: {name!r}")
+    assert not found, f"{len(found)} cause names compared as strings outside casadical/terms:\n" + "\n".join(found)
+
+
+def test_the_count_sees_a_comparison():
+    """The test can fail: it finds each kind of comparison it looks for."""
+    code = ("a = c.cause == 'drift'\nb = c.cause in ('warmup', 'x')\nd = {'backlash': 1}\ne = ['encoder_scale']\n"
+            "f = make('drift')\n")
+    assert [n for _, n in comparisons(ast.parse(code), _cause_names())] == ["drift", "warmup", "backlash",
+                                                                            "encoder_scale"]
