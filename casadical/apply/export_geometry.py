@@ -30,9 +30,11 @@ from ..data.simulate import sample_poses
 from ..errors import CasadicalWarning, InputError
 from ..model.symbolic import Model
 from ..result import CalibrationResult, ErrorStats
+from ..terms.geometric import Geometric
+from ..terms.tool_orientation import ToolOrientation
 
 #: terms that belong to the geometry (what an export carries) or to a session (what it never does)
-GEOMETRIC = ("geometric", "tool_orientation")
+GEOMETRIC = (Geometric.name, ToolOrientation.name)
 #: poses drawn within the joint limits to refit on when a calibration holds none of its own (older files)
 DRAWN_POSES = 500
 
@@ -150,7 +152,7 @@ def geometric_equivalent(cal: CalibrationResult, payload_kg: float | None = None
     if cal.has_orientation:   # a full-pose calibration: the geometry reproduces the probe's orientation too
         target = target.with_orientations(full.probe_rotation(q, values, cov, cal.base0) @ cal.tool0)
     target.path = "the full model's tool points"
-    start = {p.name: p.value for p in cal.parameters if p.term == "geometric" and p.group != "base"
+    start = {p.name: p.value for p in cal.parameters if p.term == Geometric.name and p.group != "base"
              and "@" not in p.name}
     # the loss of a calibration of measured poses (robust, noise scales from the residuals): the geometry weighs
     # the model's departures as a kinematic calibration weighs the data's (the calibration's own, smaller noise

@@ -19,6 +19,8 @@ import numpy as np
 from ..model.parameters import Parameter
 from ..robot import Robot
 from ..terms import make_term
+from ..terms.compliance import JointCompliance
+from ..terms.geometric import Geometric
 
 if TYPE_CHECKING:
     from ..result import CalibrationResult
@@ -144,7 +146,7 @@ def parameter_table(source: "CalibrationResult | Robot", description: str | None
         robot, model = source, "nominal values of the robot file"
         params = make_term("geometric").parameters(robot)
         xyz, rpy, stiffness = robot.base_xyz, robot.base_rpy, {}
-    rows = [_row(p, calibrated) for p in params if p.term == "geometric" and p.group != "base"]
+    rows = [_row(p, calibrated) for p in params if p.term == Geometric.name and p.group != "base"]
     nominal = np.concatenate([robot.base_xyz * 1000, np.degrees(robot.base_rpy)])
     actual = np.concatenate([np.asarray(xyz) * 1000, np.degrees(rpy)])
     for k, axis in enumerate(("x", "y", "z", "roll", "pitch", "yaw")):
@@ -155,7 +157,7 @@ def parameter_table(source: "CalibrationResult | Robot", description: str | None
         else:
             rows.append(TableRow(None, f"base_pose_{axis}", unit, float(nominal[k]), float(nominal[k]), 0.0,
                                  math.nan, None, True, "nominal"))
-    rows += [_row(p, calibrated) for p in params if p.term == "joint_compliance"]
+    rows += [_row(p, calibrated) for p in params if p.term == JointCompliance.name]
     for j, (k, sk) in stiffness.items():
         rows.append(TableRow(j, f"k{j}", "N*m/rad", math.nan, k, math.nan, sk, True, False, f"derived: 1/c{j}"))
     base = base_words(source) if calibrated else \

@@ -15,6 +15,8 @@ from ..data.measurements import Measurements
 from ..errors import InputError
 from ..model.symbolic import Model
 from ..robot import Robot
+from ..terms.compliance import JointCompliance
+from ..terms.nonlinear_stiffness import NonlinearStiffness
 from .for_data import model_for
 from .further import take_further
 from .state import CalibrationRun
@@ -26,7 +28,8 @@ def check_loads(model: Model, robot: Robot, data: Measurements) -> None:
     Without it every compliance would be fixed as having "no effect at
     these poses", which hides the cause (a URDF without ``<inertial>``).
     """
-    torque_terms = [t.spec() for t in model.terms if t.name in ("joint_compliance", "nonlinear_stiffness")]
+    torque_terms = [t.spec() for t in model.terms
+                    if isinstance(getattr(t, "inner", t), (JointCompliance, NonlinearStiffness))]
     if not torque_terms:
         return
     payload = data.get("payload_kg")

@@ -13,6 +13,7 @@ from ..errors import CasadicalWarning
 from ..model.parameters import Parameters
 from ..model.symbolic import Model, spec_of
 from ..terms import ErrorTerm, SessionLocal
+from ..terms.geometric import Geometric
 from .for_data import set_references, with_sessions
 from .state import CalibrationRun
 
@@ -66,14 +67,14 @@ def take_further(run: CalibrationRun) -> None:
                  CasadicalWarning)
     if run.full_pose:   # the probe's mounting is estimated again, like the base pose
         named.add("tool_orientation")
-    geometric = prior.model.geometric_free or "geometric" in named
+    geometric = prior.model.geometric_free or Geometric.name in named
     session = [t for t in merged if t.session]     # named again: estimated for these poses, from zero
     set_references(session, data)
     merged = with_sessions(merged, data, opts.session_tools)
     session += [t for t in merged if t.name == "sessions"]
     # the same terms: the calibration's own model (its symbolic build and evaluators) serves again
     model = prior.model if spec_of(merged, geometric) == prior.model.spec and not session else \
-        Model(run.robot, [t for t in merged if t.name != "geometric" or geometric], jit=prior.model.jit)
+        Model(run.robot, [t for t in merged if not isinstance(t, Geometric) or geometric], jit=prior.model.jit)
     old = {p.name for p in prior.parameters}
     params = model.parameters.copy()
     new_params = {p.name for p in params if p.name not in old}

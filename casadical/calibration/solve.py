@@ -30,6 +30,7 @@ from ..problem import CalibrationProblem, pose_chunks
 from ..solvers import Ipopt, make_solver
 from ..solvers.ipopt import HANDOVER
 from ..stats.identifiability import Identifiability, triangular_factor
+from ..terms.geometric import Geometric
 from ..terms.tool_orientation import ToolOrientation
 from .state import CalibrationRun
 
@@ -163,7 +164,7 @@ def separated(problem: CalibrationProblem, values: np.ndarray, ident: Identifiab
     """
     model, params = problem.model, problem.params
     cands = [u.name for u in ident.unidentifiable if u.confounded_with]
-    if not cands or all(t.name in ("geometric", "tool_orientation") for t in model.terms):
+    if not cands or all(isinstance(t, (Geometric, ToolOrientation)) for t in model.terms):
         return []
     f = problem.free
     cols = np.concatenate([f, [params.index(n) for n in cands]])

@@ -11,6 +11,7 @@ from __future__ import annotations
 from ..errors import InputError
 from ..model.symbolic import Model, parse_spec
 from ..terms import make_term
+from ..terms.geometric import Geometric
 from ..terms.rbf_compensator import RBFCompensator
 from ..terms.tool_orientation import ToolOrientation
 from .state import CalibrationRun
@@ -40,7 +41,7 @@ def read_model_spec(run: CalibrationRun) -> None:
         # the probe's mounting rotation: what full-pose data add to any model
         terms = list(terms) + [make_term("tool_orientation")]
         if built is not None:
-            built = Model(run.robot, [t for t in terms if t.name != "geometric" or built.geometric_free],
+            built = Model(run.robot, [t for t in terms if not isinstance(t, Geometric) or built.geometric_free],
                           jit=built.jit)
     later = [t for t in terms if _to_fit_later(t)]
     run.want_rbf = any(isinstance(t, RBFCompensator) for t in later)

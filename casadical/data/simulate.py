@@ -22,6 +22,10 @@ from ..model.symbolic import Model, pose_to_base0
 from ..robot import PROBLEMS, Robot, _Validator
 from ..runtime.files import finite_number, named_toml, read_toml
 from ..terms import make_term
+from ..terms.carriage_angle import CarriageAngle
+from ..terms.drift import Drift
+from ..terms.geometric import Geometric
+from ..terms.straightness import Straightness
 from .measurements import Measurements
 
 
@@ -137,10 +141,10 @@ def another_session(truth: Truth, base_xyz=(0.0, 0.0, 0.0), base_rpy=(0.0, 0.0, 
     """The same robot measured in another session: the tracker elsewhere (``base_xyz`` m, ``base_rpy`` rad),
     the probe re-mounted (its point moved by ``tool_shift``, m, in the flange frame), and a drift of that
     session (m/s of ``time_s``, from ``t_ref``) instead of the truth's own."""
-    terms = [t for t in truth.model.terms if t.name != "drift"]
+    terms = [t for t in truth.model.terms if not isinstance(t, Drift)]
     if any(drift):
         terms.append(make_term("drift", t_ref=t_ref))
-    model = Model(truth.model.robot, [t for t in terms if t.name != "geometric"] + [make_term("geometric")])
+    model = Model(truth.model.robot, [t for t in terms if not isinstance(t, Geometric)] + [Geometric()])
     values = model.parameters.nominal.copy()
     for i, name in enumerate(truth.model.parameters.names):
         if name in model.parameters and not name.startswith("drift"):
@@ -186,7 +190,7 @@ def true_model(robot: Robot, effects: Effects, rng: np.random.Generator,
     model = Model(robot, terms)
     values = model.parameters.nominal.copy()
     for i, p in enumerate(model.parameters):
-        if p.term != "geometric" or p.group == "base":
+        if p.term != Geometric.name or p.group == "base":
             continue
         sigma = effects.length_sigma if p.unit == "m" else effects.angle_sigma
         values[i] += rng.normal(0.0, sigma)
@@ -212,7 +216,7 @@ def true_model(robot: Robot, effects: Effects, rng: np.random.Generator,
     for k, v in zip("xyz", effects.drift):
         if any(effects.drift):
             values[idx(f"drift_{k}")] = v
-    for name, table in (("straightness", effects.straightness), ("carriage_angle", effects.carriage_angle)):
+    for name, table in ((Straightness.name, effects.straightness), (CarriageAngle.name, effects.carriage_angle)):
         term = model.term(name)
         for j, key, coefs in table:
             for k, c in zip(term.DEGREES, coefs):

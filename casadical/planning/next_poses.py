@@ -27,16 +27,14 @@ from ..model.symbolic import Model, parse_spec
 from ..robot import Robot
 from ..runtime.threads import limited_threads
 from ..stats.identifiability import analyse
+from ..terms import UNEXPLAINED
 from .augment import Criterion, DsDesign, ds_design
 from .questions import Question
-
-#: terms of a final model that are not parameters to plan for: compensators, the probe's orientation
-_NOT_PLANNED = ("unexplained",)
 
 
 def parametric_spec(spec: str) -> str:
     """The final model's specification without its GP compensator and session frames (planned for apart)."""
-    keep = [t.spec() for t in parse_spec(spec) if t.cause not in _NOT_PLANNED
+    keep = [t.spec() for t in parse_spec(spec) if t.cause != UNEXPLAINED.name
             and t.name not in ("sessions", "tool_orientation")]
     return "+".join(keep)
 

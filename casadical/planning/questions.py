@@ -43,11 +43,8 @@ from dataclasses import dataclass, field, replace
 
 from ..diagnosis.candidates import Candidate
 from ..errors import InputError
+from ..terms import CAUSES
 from ..terms.definitions import add_known, definitions_from_list
-
-#: causes whose parameters a named finding has (not the geometry, not the GP compensator)
-_NAMED = ("joint_compliance", "nonlinear_stiffness", "joint_periodic", "encoder_scale", "backlash",
-          "thermal_expansion", "drift", "joint_coupling", "mount_compliance", "straightness", "carriage_angle")
 
 
 @dataclass
@@ -112,6 +109,13 @@ def _candidate(d: dict) -> Candidate:
     return c
 
 
+def _plannable(cause: str | None) -> bool:
+    """A named cause of the catalogue whose parameters the poses can be planned for (not the geometry, nor the GP
+    compensator, a warm-up or a cause of the user's own)."""
+    kind = CAUSES.get(cause)
+    return kind is not None and kind.named and kind.plannable
+
+
 def _scope(c: Candidate) -> str:
     return f"session {c.session}'s own" if c.session is not None else "the robot's"
 
@@ -150,8 +154,8 @@ def open_questions(report: dict, final_values: dict[str, float], path: str = "")
         out.append(Question(len(out) + 1, kind, text, extra, interest, tested, level, k))
 
     for k, f in enumerate(report.get("findings", [])):
-        cause = f.get("cause")
-        if cause in _NAMED and f.get("in_model", True):
+        kind = CAUSES.get(f.get("cause"))
+        if _plannable(f.get("cause")) and f.get("in_model", True):
             a = _candidate(f)
             for b in f.get("ambiguous_with", []):
                 other = _candidate(b)
@@ -167,7 +171,8 @@ def open_questions(report: dict, final_values: dict[str, float], path: str = "")
                 add(kind, f"{text} (finding {k + 1})", [other],
                     names + [n for n in other.parameter_names() if n not in names],
                     {n: final_values[n] for n in names if n in final_values}, level, k)
-        if cause == "unexplained" and not f.get("in_model", False) and f.get("term"):
+        unexplained = kind is not None and kind.unexplained
+        if unexplained and not f.get("in_model", False) and f.get("term"):
             # structure the structure screen found: its flexible term, a cause of one's own, is the question
             d = definitions_from_list([f["term"]], path, key=f"findings[{k}].term")[0]
             add_known([d])
@@ -176,7 +181,7 @@ def open_questions(report: dict, final_values: dict[str, float], path: str = "")
                 [Candidate(d.name, f.get("joint"), user=user)], list(user),
                 {f"{d.name}.{p.name}": p.start for p in d.parameters}, scan_level, k)
             continue
-        if cause == "unexplained" and not f.get("in_model", False):
+        if unexplained and not f.get("in_model", False):
             periodic_seen: set = set()
             for item in (f.get("holds_up") or {}).get("structures", []):
                 if "candidate" not in item:
@@ -186,7 +191,7 @@ def open_questions(report: dict, final_values: dict[str, float], path: str = "")
                 cand = _candidate(item["candidate"])
                 tested = {n: float(v) for n, v in (item.get("values") or {}).items()}
                 where = f" in session {cand.session}" if cand.session is not None else ""
-                if cand.cause == "joint_periodic":
+                if cand.harmonic is not None:
                     # the first is the strongest; the ones set aside after it are mostly its leakage into the
                     # neighbouring harmonics, which its band already asks about
                     if (cand.joint, cand.session) in periodic_seen:
@@ -196,9 +201,8 @@ def open_questions(report: dict, final_values: dict[str, float], path: str = "")
                     extra = [replace(cand, harmonic=h) for h in range(lo, hi + 1)]
                     text = (f"joint {cand.joint}{where}: which harmonic, {lo}..{hi}?" if hi > lo else
                             f"joint {cand.joint}{where}: harmonic {cand.harmonic}, or something else?")
-                elif cand.cause == "encoder_scale":
-                    extra = [cand, replace(cand, cause="joint_periodic", harmonic=1)]
-                    text = f"joint {cand.joint}{where}: a trend along the reading: encoder scale or a first harmonic?"
+                elif cand.kind.question(cand) is not None:
+                    extra, text = cand.kind.question(cand)
                 else:
                     extra = [cand]
                     text = f"joint {cand.joint}{where}: {cand.label(short=True)}, or something else?"
@@ -217,7 +221,7 @@ def open_questions(report: dict, final_values: dict[str, float], path: str = "")
     if params and not any("significant" in p for p in params):
         raise InputError("the report was written by an older casadical (its final parameters have no "
                          "significance): run diagnose again", file=path, column="final.parameters")
-    named = {n: k for k, f in enumerate(report.get("findings", [])) if f.get("cause") in _NAMED
+    named = {n: k for k, f in enumerate(report.get("findings", [])) if _plannable(f.get("cause"))
              and f.get("in_model", True) for n in _candidate(f).parameter_names()}
     for p in params:
         name = p["name"]

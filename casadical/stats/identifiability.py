@@ -16,6 +16,7 @@ from typing import Iterable
 import numpy as np
 
 from ..model.parameters import Parameters
+from ..terms.geometric import Geometric
 
 _GROUP_PRIORITY = {"base": 0, "tool": 1, "link": 3, "loop": 3}
 
@@ -76,7 +77,7 @@ class Identifiability:
 
 def _priority(params: Parameters, i: int) -> tuple[int, int]:
     p = params.items[i]
-    group = _GROUP_PRIORITY.get(p.group, 2) if p.term == "geometric" else 2
+    group = _GROUP_PRIORITY.get(p.group, 2) if p.term == Geometric.name else 2
     return group, i
 
 

@@ -46,20 +46,18 @@ import numpy as np
 
 from ..data.measurements import Measurements
 from ..problem import pose_chunks
+from ..terms import REGISTRY
+from ..terms.backlash import MIN_SIDE_POSES, MIN_SIDE_SHARE, sign_changes  # noqa: F401 (their home was here)
+from ..terms.compliance import JointCompliance
+from ..terms.geometric import Geometric
 
 #: a term's parameter whose column is this much a combination of the geometric columns (variance inflation
 #: factor, 1 / (1 - R^2)) cannot be told from the geometry: R^2 above 0.999. Below that a strong effect can
 #: still be well determined (an encoder scale over 40 deg of its joint: R^2 = 0.995 and a clear gain), which
 #: the significance test (with the geometry free) judges
 MAX_VIF = 1000.0
-#: each sign of a backlash's sign source must hold at this many poses, and at this share of them
-MIN_SIDE_POSES = 5
-MIN_SIDE_SHARE = 0.02
 #: significance level of the Wald test of a cause's parameters
 ALPHA = 0.001
-#: terms that are no cause: the geometry, the probe's mounting, the sessions' base poses (compensators, whose
-#: cause is 'unexplained', are none either)
-NOT_CAUSES = ("geometric", "tool_orientation", "sessions")
 
 
 @dataclass
@@ -101,26 +99,17 @@ class Cause:
 
 def term_causes(result) -> list[Cause]:
     """The causes of a fitted model: every term other than the geometry, the probe's mounting, the sessions'
-    frames and the compensators, split by joint (and harmonic); a term of one session says which."""
+    frames and the compensators (:attr:`~casadical.terms.base.ErrorTerm.is_cause`), split by joint (and harmonic:
+    :meth:`~casadical.terms.base.ErrorTerm.fitted_causes`); a term of one session says which."""
     out = []
     for t in result.model.terms:
-        if t.name in NOT_CAUSES or t.cause == "unexplained":
+        inner = getattr(t, "inner", t)          # a term of one session (SessionLocal)
+        if not inner.is_cause:
             continue
         names = [p.name for p in t.parameters(result.model.robot)]
-        inner = getattr(t, "inner", t)          # a term of one session (SessionLocal)
         where = f" in session {t.session_name}" if inner is not t else ""
-        if t.name == "joint_periodic":          # (sine, cosine) pairs, in the order of the harmonics
-            for (j, h), pair in zip(inner.harmonics, zip(names[0::2], names[1::2])):
-                out.append(Cause(t.name, j, list(pair), f"periodic error of joint {j}, harmonic {h}{where}"))
-        elif t.name == "drift":
-            out.append(Cause(t.name, None, names, f"drift{where}"))
-        else:
-            what = "backlash" if t.name.startswith("backlash") else t.name.replace("_", " ")
-            motion = " (direction of motion)" if getattr(inner, "source", None) == "motion" else ""
-            for n in names:
-                j = result.parameters[n].joint
-                out.append(Cause(t.name, j, [n], f"{what}{motion}"
-                                                 + (f" of joint {j}" if j is not None else "") + where))
+        out += [Cause(t.name, j, ns, label) for j, ns, label in
+                inner.fitted_causes(names, lambda n: result.parameters[n].joint, where)]
     return out
 
 
@@ -189,24 +178,9 @@ def value_violations(params, names: list[str], torques, moves: np.ndarray) -> li
 
     for n in names:
         p = params[n]
-        j = p.joint
-        if p.term == "nonlinear_stiffness":
-            c = params[f"c{j}"].value if f"c{j}" in params else 0.0
-            top = float(np.max(np.abs(tau()[:, j - 1]))) if len(tau()) else 0.0
-            if p.value < 0 and c + 3 * p.value * top ** 2 <= 0:
-                turn = math.sqrt(max(c, 0.0) / (-3 * p.value))
-                out.append(Violation("physics", (n,),
-                                     f"the fitted spring of joint {j} turns back above {turn:.3g} N m (its "
-                                     f"deflection c{j} tau + {n} tau^3 falls with load there) while the poses "
-                                     f"load it up to {top:.3g} N m: not a stiffness"))
-        elif p.term == "backlash":
-            if n.startswith("backlash_m"):
-                ok, text = sign_changes(moves[:, j - 1], f"the direction of joint {j}'s last move")
-            else:
-                ok, text = sign_changes(np.sign(tau()[:, j - 1]), f"the gravity torque of joint {j}")
-            if not ok:
-                out.append(Violation("physics", (n,), text + f": {n} acts as a constant offset of joint {j} "
-                                                             f"(theta{j}), not as backlash"))
+        kind = REGISTRY.get(p.term)         # a user term's parameters: no rule beyond their bounds
+        if kind is not None:
+            out += [Violation("physics", ns, text) for ns, text in kind.value_rules(p, params, tau, moves)]
     return out
 
 
@@ -222,28 +196,11 @@ def inside_bounds(params, names: list[str]) -> list[Violation]:
             continue
         bound = p.lower if side == "lower" else p.upper
         where = "at" if abs(p.value - bound) <= tol else ("below" if side == "lower" else "above")
-        meaning = _MEANING.get(_kind(n), {}).get(side, "")
+        kind = REGISTRY.get(p.term)
+        meaning = (kind.bound_meaning if kind is not None else {}).get(_kind(n), {}).get(side, "")
         out.append(Violation("bounds", (n,), f"{n} = {_show(p, p.value)} is {where} its {side} bound "
                                              f"{_show(p, bound)}{meaning}"))
     return out
-
-
-#: what a value at or beyond a bound means, by parameter name (without its joint) and side
-_MEANING = {
-    "c": {"lower": " (no positive compliance: the joint is stiffer than these poses and loads can tell, or the "
-                   "fit needs it to bend against its load)",
-          "upper": " (softer than the least stiffness admitted)"},
-    "backlash": {"lower": " (a play cannot be negative: the joint would stand against its load)"},
-    "backlash_m": {"lower": " (a play cannot be negative: the output would lead its motor, not trail it)"},
-    "escale": {"lower": " (a scale error beyond 1 % is not an encoder's)",
-               "upper": " (a scale error beyond 1 % is not an encoder's)"},
-    "cpl": {"lower": " (a coupling beyond 1 % is a wrong coupling ratio in the robot file, not a gear's error)",
-            "upper": " (a coupling beyond 1 % is a wrong coupling ratio in the robot file, not a gear's error)"},
-    **{k: {"lower": " (no positive compliance: the mount is stiffer than these poses can tell, or the fit needs "
-                    "the base to tilt away from its weights)",
-           "upper": " (a tilt of 0.01 rad at the largest moment: a mount coming loose, not a compliance)"}
-       for k in ("cmount", "cmount_x", "cmount_y")},
-}
 
 
 def _kind(name: str) -> str:
@@ -289,7 +246,7 @@ def separable_from_geometry(result, names: list[str], max_vif: float = MAX_VIF) 
     if ident is not None:
         for u in ident.unidentifiable:
             partners = [n for n in names if n in u.confounded_with]
-            if partners and result.parameters[u.name].term == "geometric":
+            if partners and result.parameters[u.name].term == Geometric.name:
                 out.append(Violation("geometry", tuple(partners),
                                      f"{u.name} was fixed as a combination of {', '.join(partners)}: together "
                                      "they are one geometric parameter here, not a cause"))
@@ -297,7 +254,7 @@ def separable_from_geometry(result, names: list[str], max_vif: float = MAX_VIF) 
     if unc is None or not names:
         return out
     P = result.parameters
-    geo = [k for k, n in enumerate(unc.names) if P[n].term == "geometric"]
+    geo = [k for k, n in enumerate(unc.names) if P[n].term == Geometric.name]
     A = np.linalg.pinv(unc.covariance / np.outer(unc.std, unc.std).clip(1e-300))   # information, normalised
     for n in names:
         if n not in unc.names or not geo:
@@ -313,16 +270,6 @@ def separable_from_geometry(result, names: list[str], max_vif: float = MAX_VIF) 
                                                   f"parameters (variance inflation {vif:.3g}): the geometry "
                                                   "reproduces it"))
     return out
-
-
-def sign_changes(signs: np.ndarray, what: str) -> tuple[bool, str]:
-    """Whether a sign source takes both signs at enough poses (:data:`MIN_SIDE_POSES`,
-    :data:`MIN_SIDE_SHARE`); and the counts in words."""
-    signs = np.asarray(signs)
-    pos, neg = int(np.sum(signs > 0)), int(np.sum(signs < 0))
-    need = max(MIN_SIDE_POSES, math.ceil(MIN_SIDE_SHARE * len(signs)))
-    text = f"{what} is positive at {pos} and negative at {neg} of {len(signs)} poses"
-    return min(pos, neg) >= need, text
 
 
 def _show(p, v: float) -> str:
@@ -387,7 +334,8 @@ def first_order_sag(result, data: Measurements) -> tuple[list[Sag], float]:
 def sag_note(result, data: Measurements) -> str | None:
     """A note when the first-order compliance leaves more than half the noise scale (per axis) at some pose of
     ``data`` (:func:`first_order_sag`); None otherwise, or without a compliance or a noise scale."""
-    if result.uncertainty is None or not any(t.name == "joint_compliance" for t in result.model.terms):
+    if result.uncertainty is None or not any(isinstance(getattr(t, "inner", t), JointCompliance)
+                                             for t in result.model.terms):
         return None
     sags, leaves = first_order_sag(result, data)
     sigma = result.uncertainty.sigma

@@ -20,6 +20,21 @@ ARCSEC_PER_MM = math.degrees(1.0) * 3600 / 1000.0
 MAX_PLAY_LINEAR = 1e-3
 
 
+#: each sign of a backlash's sign source must hold at this many poses, and at this share of them
+MIN_SIDE_POSES = 5
+MIN_SIDE_SHARE = 0.02
+
+
+def sign_changes(signs: np.ndarray, what: str) -> tuple[bool, str]:
+    """Whether a sign source takes both signs at enough poses (:data:`MIN_SIDE_POSES`,
+    :data:`MIN_SIDE_SHARE`); and the counts in words."""
+    signs = np.asarray(signs)
+    pos, neg = int(np.sum(signs > 0)), int(np.sum(signs < 0))
+    need = max(MIN_SIDE_POSES, math.ceil(MIN_SIDE_SHARE * len(signs)))
+    text = f"{what} is positive at {pos} and negative at {neg} of {len(signs)} poses"
+    return min(pos, neg) >= need, text
+
+
 @register
 class Backlash(ErrorTerm):
     """Joint ``j`` is off by the half play ``b_j >= 0``, on the side its load takes it.
@@ -50,6 +65,9 @@ class Backlash(ErrorTerm):
 
     name = "backlash"
     cause = "backlash"
+    bound_meaning = {"backlash": {"lower": " (a play cannot be negative: the joint would stand against its load)"},
+                     "backlash_m": {"lower": " (a play cannot be negative: the output would lead its motor, not trail "
+                                             "it)"}}
     weak_meaning = ("the backlash of {joints} is", "measure poses whose gravity torque changes sign on {them}")
     superset_order = 4
     session_local = True
@@ -75,6 +93,24 @@ class Backlash(ErrorTerm):
         super().__init__(joints)
         self.source = source
         self.lag = bool(lag)
+
+    @classmethod
+    def value_rules(cls, p, params, tau, moves) -> list:
+        """Play needs its sign source to change sign at the poses: otherwise it is a constant joint offset."""
+        if p.term != Backlash.name:     # the load's play (a motion's is checked when it is screened)
+            return []
+        j, n = p.joint, p.name
+        if n.startswith("backlash_m"):
+            ok, text = sign_changes(moves[:, j - 1], f"the direction of joint {j}'s last move")
+        else:
+            ok, text = sign_changes(np.sign(tau()[:, j - 1]), f"the gravity torque of joint {j}")
+        return [] if ok else [((n,), text + f": {n} acts as a constant offset of joint {j} (theta{j}), not as "
+                                            "backlash")]
+
+    def fitted_causes(self, names, joint_of, where) -> list:
+        motion = " (direction of motion)" if self.source == "motion" else ""
+        return [(joint_of(n), [n], f"backlash{motion}" + (f" of joint {joint_of(n)}" if joint_of(n) is not None
+                                                          else "") + where) for n in names]
 
     @property
     def covariates(self) -> tuple[str, ...]:  # type: ignore[override]

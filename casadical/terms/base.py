@@ -120,6 +120,28 @@ class ErrorTerm:
     #: "measure poses that load {them}"); None: the general words
     weak_meaning: ClassVar[tuple[str, str] | None] = None
 
+    #: what a parameter's value at or beyond a bound means, by its name without joint and session (``c``,
+    #: ``escale``) and side: words added to the message
+    bound_meaning: ClassVar[dict[str, dict[str, str]]] = {}
+    #: a cause of position error the physics rules judge (not the geometry, the probe's mounting, the sessions'
+    #: frames or a compensator)
+    is_cause: ClassVar[bool] = True
+
+    @classmethod
+    def value_rules(cls, p: Parameter, params, tau, moves) -> list[tuple[tuple[str, ...], str]]:
+        """The physics a parameter ``p`` of this term breaks by its value alone (beyond its bounds): (its names,
+        what is wrong) each. ``params``: every parameter by name (a progressive spring's linear part ``c<j>``);
+        ``tau()``: the poses' gravity torques (N, n); ``moves``: the sign of each joint's last move (N, n).
+        None by default."""
+        return []
+
+    def fitted_causes(self, names: list[str], joint_of, where: str) -> list[tuple[int | None, list[str], str]]:
+        """The term's parameters ``names`` split by cause as the physics rules judge them: (joint, names, words)
+        each; ``joint_of(name)``: a parameter's joint, ``where``: `` in session B`` for a session's own. By default
+        one per parameter."""
+        return [(joint_of(n), [n], f"{self.name.replace('_', ' ')}"
+                 + (f" of joint {joint_of(n)}" if joint_of(n) is not None else "") + where) for n in names]
+
     def group_key(self, p: Parameter):
         """What of the term a parameter ``p`` is dropped with when it is not significant: its joint."""
         return p.joint

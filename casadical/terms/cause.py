@@ -101,6 +101,15 @@ class Cause:
     #: :meth:`analytic_column` (a periodic error, a joint coupling, a warm-up)
     analytic: ClassVar[bool] = False
 
+    #: the poses that tell it from its rivals can be planned (a warm-up's are in time, not in the arm's
+    #: configuration)
+    plannable: ClassVar[bool] = True
+
+    def question(self, cand: Any) -> tuple[list, str] | None:
+        """What structure of this cause kept out of the model asks (casadical.planning.questions): the candidates
+        to plan for and the question in words; None: the candidate itself, "or something else?"."""
+        return None
+
     @property
     def named(self) -> bool:
         """A cause the diagnosis names (not the geometry, nor what no cause explains)."""

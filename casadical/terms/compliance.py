@@ -33,6 +33,9 @@ class JointCompliance(ErrorTerm):
     name = "joint_compliance"
     aliases = ("compliance",)
     cause = "joint_compliance"
+    bound_meaning = {"c": {"lower": " (no positive compliance: the joint is stiffer than these poses and loads can "
+                                    "tell, or the fit needs it to bend against its load)",
+                           "upper": " (softer than the least stiffness admitted)"}}
     weak_meaning = ("the stiffness of {joints} is", "measure poses that load {them}")
     revolute_only = True
     covariates = ("payload_kg",)

@@ -43,6 +43,9 @@ class Drift(ReferencedTerm):
     covariates = ("time_s",)
     session = True
 
+    def fitted_causes(self, names, joint_of, where) -> list:
+        return [(None, names, f"drift{where}")]
+
     def parameters(self, robot: Robot) -> list[Parameter]:
         # scale: 1 um per unit of time; bounds generous (1 mm/s)
         return [Parameter(f"drift_{k}", 0.0, "m/s", 1e-6, self.name, None, lower=-1e-3, upper=1e-3)

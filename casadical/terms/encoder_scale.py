@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from .._format import relative
@@ -22,6 +24,8 @@ class EncoderScale(ErrorTerm):
 
     name = "encoder_scale"
     cause = "encoder_scale"
+    bound_meaning = {"escale": {"lower": " (a scale error beyond 1 % is not an encoder's)",
+                                "upper": " (a scale error beyond 1 % is not an encoder's)"}}
     weak_meaning = ("the encoder scale of {joints} is", "measure poses over more of {their} range")
     superset_order = 3
     session_local = True
@@ -84,6 +88,11 @@ class Scale(Cause):
         if linear:
             return {"x": q * 1000.0, "xlabel": f"axis {j} position (mm)", "effect": value * q}
         return {"x": np.degrees(q), "xlabel": f"joint {j} reading (deg)", "effect": value * q}
+
+    def question(self, cand) -> tuple[list, str]:
+        where = f" in session {cand.session}" if cand.session is not None else ""
+        return ([cand, replace(cand, cause="joint_periodic", harmonic=1)],
+                f"joint {cand.joint}{where}: a trend along the reading: encoder scale or a first harmonic?")
 
     def parameter_names(self, cand) -> list[str]:
         return [f"escale{cand.joint}"]

@@ -40,6 +40,7 @@ class Geometric(ErrorTerm):
     name = "geometric"
     aliases = ("kinematic",)
     cause = "geometric"
+    is_cause = False
     noted = False
 
     def superset_member(self) -> bool:

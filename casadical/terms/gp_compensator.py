@@ -44,6 +44,7 @@ class GPCompensator(ErrorTerm):
     name = "gp_compensator"
     aliases = ("gp",)
     cause = "unexplained"
+    is_cause = False
     session = True
     #: covariates of its own (a term of one session renames them, so that each session's process has its own)
     own_covariates = ("gp_gate",)

@@ -41,6 +41,8 @@ class JointCoupling(ErrorTerm):
 
     name = "joint_coupling"
     cause = "joint_coupling"
+    bound_meaning = {"cpl": {side: " (a coupling beyond 1 % is a wrong coupling ratio in the robot file, not a gear's "
+                                   "error)" for side in ("lower", "upper")}}
     session_local = True
 
     def superset_member(self) -> bool:

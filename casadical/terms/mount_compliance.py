@@ -75,6 +75,11 @@ class MountCompliance(ErrorTerm):
 
     name = "mount_compliance"
     cause = "mount_compliance"
+    bound_meaning = {k: {"lower": " (no positive compliance: the mount is stiffer than these poses can tell, or the "
+                              "fit needs the base to tilt away from its weights)",
+                     "upper": " (a tilt of 0.01 rad at the largest moment: a mount coming loose, not a "
+                              "compliance)"}
+                     for k in ("cmount", "cmount_x", "cmount_y")}
     covariates = ("payload_kg",)
     superset_order = 5
     reads_torques = True

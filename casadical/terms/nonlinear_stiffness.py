@@ -2,6 +2,10 @@
 
 from __future__ import annotations
 
+import math
+
+import numpy as np
+
 from .._format import g3, relative
 from ..model.parameters import Parameter
 from ..robot import Robot
@@ -32,6 +36,19 @@ class NonlinearStiffness(ErrorTerm):
     @classmethod
     def superset(cls, robot: Robot, torques: bool) -> list[ErrorTerm]:
         return [cls(joints=revolute(robot))] if torques else []
+
+    @classmethod
+    def value_rules(cls, p, params, tau, moves) -> list:
+        """A spring that stiffens must not turn back (its deflection fall with load) within the poses' torques."""
+        j, n = p.joint, p.name
+        c = params[f"c{j}"].value if f"c{j}" in params else 0.0
+        top = float(np.max(np.abs(tau()[:, j - 1]))) if len(tau()) else 0.0
+        if p.value < 0 and c + 3 * p.value * top ** 2 <= 0:
+            turn = math.sqrt(max(c, 0.0) / (-3 * p.value))
+            return [((n,), f"the fitted spring of joint {j} turns back above {turn:.3g} N m (its deflection c{j} tau "
+                           f"+ {n} tau^3 falls with load there) while the poses load it up to {top:.3g} N m: not a "
+                           "stiffness")]
+        return []
 
     def parameters(self, robot: Robot) -> list[Parameter]:
         ps = []

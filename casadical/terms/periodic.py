@@ -63,6 +63,11 @@ class JointPeriodic(ErrorTerm):
         left = [jh for jh in self.harmonics if jh not in dropped]
         return f"{self.name}[{','.join(f'{j}:{h}' for j, h in left)}]" if left else ""
 
+    def fitted_causes(self, names, joint_of, where) -> list:
+        """(sine, cosine) pairs, in the order of the harmonics."""
+        return [(j, list(pair), f"periodic error of joint {j}, harmonic {h}{where}")
+                for (j, h), pair in zip(self.harmonics, zip(names[0::2], names[1::2]))]
+
     @classmethod
     def arguments(cls, args: str) -> dict:
         """``joint_periodic[2:1,2:17]``: (joint, harmonic) pairs."""

@@ -32,6 +32,7 @@ class RBFCompensator(ErrorTerm):
     name = "rbf_compensator"
     aliases = ("rbf",)
     cause = "unexplained"
+    is_cause = False
     covariates = ("payload_kg",)
 
     def __init__(self, joints=None, network=None):

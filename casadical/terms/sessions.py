@@ -51,6 +51,7 @@ class SessionFrames(ErrorTerm):
 
     name = "sessions"
     cause = "geometric"
+    is_cause = False
 
     def superset_member(self) -> bool:
         """The superset expresses it (its geometry and sessions come first)."""

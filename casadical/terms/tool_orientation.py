@@ -31,6 +31,7 @@ class ToolOrientation(ErrorTerm):
     name = "tool_orientation"
     aliases = ("orientation",)
     cause = "geometric"
+    is_cause = False
     superset_order = 12
 
     @classmethod

@@ -92,6 +92,7 @@ class WarmUp(Cause):
 
     name = "warmup"
     explains_set_aside = ("order",)
+    plannable = False
     analytic = True
     checks = ("versus_drift",)
     rival = "drift"
