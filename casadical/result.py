@@ -39,7 +39,7 @@ from .stats.significance import (
     t_critical,
 )
 from .stats.uncertainty import Uncertainty
-from .terms.definitions import add_known, known_terms
+from .terms.definitions import by_name
 
 
 @dataclass
@@ -484,7 +484,7 @@ class CalibrationResult:
                        "sigma_mm": self.loss.sigma * 1000 if self.loss.robust else None,
                        "downweighted": self.downweighted},
         }
-        users = list({t.definition.name: t.definition for t in self.model.user_terms}.values())
+        users = list(self.model.user_definitions)
         if users:   # the definitions of the user terms: predict, compensate, export need no terms file
             doc["user_terms"] = [d.to_dict() for d in users]
         if self.coverage is not None:
@@ -605,8 +605,11 @@ def _json_default(o):
     raise TypeError(type(o).__name__)
 
 
-def load_calibration(path: str | Path) -> CalibrationResult:
-    """Read a calibration JSON written by :meth:`CalibrationResult.save`."""
+def load_calibration(path: str | Path, terms=()) -> CalibrationResult:
+    """Read a calibration JSON written by :meth:`CalibrationResult.save`.
+
+    ``terms``: definitions of causes of one's own its model names that the file does not carry (a file written
+    with user terms carries theirs, which take precedence). Reading a calibration changes nothing global."""
     path = str(path)
     try:
         doc = json.loads(Path(path).read_text(encoding="utf-8-sig"))
@@ -614,14 +617,11 @@ def load_calibration(path: str | Path) -> CalibrationResult:
         raise CalibrationFileError("no such file", file=path) from None
     except (OSError, ValueError, RecursionError) as e:  # ValueError: not JSON, not UTF-8
         raise CalibrationFileError(f"not a calibration JSON: {e}", file=path) from e
-    users = user_definitions(doc, path)
-    with known_terms(users):
-        validate_calibration_document(doc, path)
-    add_known(users)    # for the rest of the command that reads the file (casadical.cli)
+    validate_calibration_document(doc, path, terms)
+    users = list({**by_name(terms), **by_name(user_definitions(doc, path))}.values())
     try:
         robot = robot_from_dict(doc["robot"], path)
-        with known_terms(users):
-            model = Model(robot, restored_terms(doc["model"], doc.get("terms", {}), robot.n))
+        model = Model(robot, restored_terms(doc["model"], doc.get("terms", {}), robot.n, users))
         params = model.parameters.copy()
         for entry in doc["parameters"]:
             if entry.get("derived"):

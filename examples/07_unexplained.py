@@ -18,7 +18,7 @@ from casadical import load_robot
 from casadical.data.simulate import Effects, simulate
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.model import Model
-from casadical.terms.definitions import known_terms, read_terms_file
+from casadical.terms.definitions import read_terms_file
 
 robot = load_robot("ys100")
 
@@ -47,25 +47,23 @@ terms = read_terms_file(folder / "gear32.toml")
 # A simulated robot (random link errors, 20 um noise) whose joint 3 really has that error: 0.01 deg.
 cal, truth = simulate(robot, 100, Effects(), seed=0)
 val, _ = simulate(robot, 300, truth=truth, seed=1)
-with known_terms(terms):
-    model = Model(robot, "gear32")
-    on = model.parameters.values.copy()
-    on[model.parameters.names.index("gear32.a")] = np.radians(0.01)
-    cal, val = (d.with_positions(d.xyz + model.predict(d.q, on) - model.predict(d.q)) for d in (cal, val))
+model = Model(robot, "gear32", user_terms=terms)
+on = model.parameters.values.copy()
+on[model.parameters.names.index("gear32.a")] = np.radians(0.01)
+cal, val = (d.with_positions(d.xyz + model.predict(d.q, on) - model.predict(d.q)) for d in (cal, val))
 print("hidden: joint 3's angle error 0.01 deg sin(2 q2): no catalogue cause describes it")
 
 # 1. The diagnosis without the term: nothing is named for it, and the structure screen locates it.
 report = diagnose(robot, cal, val, DiagnosisSettings(seed=0))
-named = [f.label() for f in report.findings if f.in_model and f.cause not in ("geometric", "unexplained")]
+named = [f.label() for f in report.findings if f.in_model and f.candidate.kind.named]
 print("named causes:", ", ".join(named) or "none")
 for f in report.findings:
     if f.structure:
         print(f"unexplained: {f.where} ({f.structure['size_mm']:.3f} mm on the validation poses)")
 
 # 2. With the term of your own: the diagnosis screens it beside the catalogue, by the same tests.
-with known_terms(terms):
-    report = diagnose(robot, cal, val, DiagnosisSettings(seed=0))
-named = [f.label() for f in report.findings if f.in_model and f.cause not in ("geometric", "unexplained")]
+report = diagnose(robot, cal, val, DiagnosisSettings(seed=0, terms=terms))
+named = [f.label() for f in report.findings if f.in_model and f.candidate.kind.named]
 print("with gear32.toml, named causes:", ", ".join(named) or "none")
 print(f"final model: validation mean {report.final_validation.mean_mm:.4f} mm "
       f"(kinematic {report.kinematic_validation.mean_mm:.4f} mm)")

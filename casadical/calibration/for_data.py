@@ -42,9 +42,10 @@ def with_sessions(terms: list[ErrorTerm], data: Measurements, tools: bool | list
 
 
 def model_for(robot: Robot, spec: str | list[ErrorTerm], data: Measurements, jit: bool | None = None,
-              session_tools: bool | list[str] = False) -> Model:
+              session_tools: bool | list[str] = False, user_terms=()) -> Model:
     """The model of ``spec`` for ``data``: terms driven by a covariate referenced to its mean there, and a base
-    pose per session (``session_tools``: a tool too) when ``data`` holds several sessions."""
-    terms = parse_spec(spec) if isinstance(spec, str) else spec
+    pose per session (``session_tools``: a tool too) when ``data`` holds several sessions; ``user_terms``: the
+    definitions of the causes of one's own ``spec`` may name."""
+    terms = parse_spec(spec, user_terms) if isinstance(spec, str) else spec
     set_references(terms, data)
     return Model(robot, with_sessions(terms, data, session_tools), jit=jit)

@@ -56,7 +56,8 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
               warn: bool = True, robust: str | RobustLoss = "huber", position_only: bool = False,
               allow_outside_limits: bool = False, angles_are_degrees: bool = False,
               positions_are_mm: bool = False, allow_mismatch: bool = False,
-              session_tools: bool | list[str] = False, keep_compensator: bool = False) -> CalibrationResult:
+              session_tools: bool | list[str] = False, keep_compensator: bool = False,
+              terms=()) -> CalibrationResult:
     """Identify the parameters of ``model`` from measured poses.
 
     Parameters
@@ -143,7 +144,8 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
                       check_identifiability=check_identifiability, warn=warn, robust=robust,
                       position_only=position_only, allow_outside_limits=allow_outside_limits,
                       angles_are_degrees=angles_are_degrees, positions_are_mm=positions_are_mm,
-                      allow_mismatch=allow_mismatch, session_tools=session_tools, keep_compensator=keep_compensator)
+                      allow_mismatch=allow_mismatch, session_tools=session_tools, keep_compensator=keep_compensator,
+                      terms=tuple(terms))
     prior = robot if isinstance(robot, CalibrationResult) else None
     run = CalibrationRun(prior.model.robot if prior is not None else robot, data, model, options, prior)
     for stage in STAGES:

@@ -32,7 +32,7 @@ def read_model_spec(run: CalibrationRun) -> None:
     else:
         items = [i.strip() for i in spec.split("+")]
         run.free_tool = "tool" in items   # base+tool: the tool offset is estimated too (a re-mounted probe)
-        terms, built = parse_spec("+".join(i for i in items if i != "tool") or "nominal"), None
+        terms, built = parse_spec("+".join(i for i in items if i != "tool") or "nominal", run.user_terms), None
     named_orientation = any(isinstance(t, ToolOrientation) for t in terms)
     if named_orientation and not run.full_pose and run.prior is None:
         raise InputError(f"model item tool_orientation needs measured orientations (rx_deg, ry_deg, rz_deg) "

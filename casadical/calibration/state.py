@@ -65,6 +65,7 @@ class Options:
     allow_mismatch: bool = False
     session_tools: bool | list[str] = False
     keep_compensator: bool = False
+    terms: tuple = ()       # definitions of the causes of one's own the model may name (a terms file's)
 
 
 @dataclass
@@ -82,6 +83,12 @@ class CalibrationRun:
     options: Options
     prior: CalibrationResult | None = None   # a calibration taken further (the robot is its robot)
     notes: list[str] = field(default_factory=list)
+
+    @property
+    def user_terms(self) -> tuple:
+        """The definitions a specification of this calibration may name: those given, and a calibration taken
+        further carries its own."""
+        return tuple(self.options.terms) + (self.prior.model.user_definitions if self.prior is not None else ())
 
     # prepare_data: the loss, and whether the fit is on the full pose
     loss: RobustLoss | None = None

@@ -15,7 +15,6 @@ in :mod:`casadical.cli.common`.
 from __future__ import annotations
 
 import argparse
-import contextlib
 import os
 import sys
 import traceback
@@ -120,16 +119,6 @@ def _interrupted(e: KeyboardInterrupt) -> int:
     return exit_code(e)
 
 
-def _known_terms(args):
-    """A command with ``--terms``: the user terms of its FILE (none without it) known to model specifications
-    during the command, with those a calibration JSON it reads carries (casadical.terms.definitions); other
-    commands import nothing for them."""
-    if not hasattr(args, "terms"):
-        return contextlib.nullcontext()
-    from ..terms.definitions import known_terms, read_terms_file
-    return known_terms(read_terms_file(args.terms) if args.terms is not None else [])
-
-
 def _main(argv: list[str] | None) -> int:
     ap = build_parser()
     try:
@@ -151,8 +140,7 @@ def _main(argv: list[str] | None) -> int:
             _check_cache_settings()
             # small dense problems: one BLAS thread unless CASADICAL_THREADS says otherwise; a first run says
             # when it compiles the robot's model (seconds, once per machine)
-            with limited_threads(), announcing(Status(getattr(args, "quiet", False)).line), \
-                    _known_terms(args):
+            with limited_threads(), announcing(Status(getattr(args, "quiet", False)).line):
                 return int(args.func(args) or 0)
     except CasadicalError as e:
         print(f"casadical: error: {e}", file=sys.stderr)

@@ -19,6 +19,7 @@ from .common import (
     int_at_least,
     robot_or_calibration,
     timed,
+    user_terms,
     warn_session_frame,
     write_text,
 )
@@ -111,7 +112,7 @@ def run(args) -> int:
         result = fit(robot, data, args.model, solver=args.solver, solver_options=opts,
                      fix=tuple(f.strip() for f in args.fix.split(",") if f.strip()), robust=args.robust,
                      session_tools=args.session_tool, position_only=args.position_only,
-                     keep_compensator=args.keep_compensator, **check_options(args))
+                     keep_compensator=args.keep_compensator, terms=user_terms(args), **check_options(args))
     if val is not None:     # the checks predict makes, then the held-out errors, before anything is written
         result.validate(val, name=f"fitted to {' '.join(args.data)}", **check_options(args))
     result.save(args.out, overwrite=args.force)

@@ -209,6 +209,16 @@ def add_terms(p: argparse.ArgumentParser) -> None:
                         "(kinematic+axis_wobble); see 'Terms file' in docs/formats.md")
 
 
+def user_terms(args) -> list:
+    """The causes of one's own of a command's ``--terms FILE`` (none without it), read and checked once."""
+    if getattr(args, "terms", None) is None:
+        return []
+    if not hasattr(args, "_user_terms"):
+        from ..terms.definitions import read_terms_file
+        args._user_terms = read_terms_file(args.terms)
+    return args._user_terms
+
+
 def add_quiet(p: argparse.ArgumentParser) -> None:
     p.add_argument("--quiet", "-q", action="store_true", help="no progress output on stderr")
 
@@ -306,7 +316,7 @@ def robot_or_calibration(spec: str, args):
                          "URDF robot; a calibration JSON already holds its robot (drop the option)")
     from ..result import load_calibration
 
-    return load_calibration(spec)
+    return load_calibration(spec, terms=user_terms(args))
 
 
 def check_options(args) -> dict:

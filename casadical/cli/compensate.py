@@ -15,6 +15,7 @@ from .common import (
     compensator_line,
     float_in,
     int_at_least,
+    user_terms,
     warn_session_frame,
 )
 
@@ -65,7 +66,7 @@ def run(args) -> int:
     from ..result import load_calibration
 
     check_outputs({"--out": args.out}, [args.cal, args.targets], args.force)
-    cal = load_calibration(args.cal)
+    cal = load_calibration(args.cal, terms=user_terms(args))
     targets = Measurements.read_csv(args.targets, robot=cal.model.robot)
     warn_session_frame(cal.sessions, targets, args.cal)
     if len(targets) < JIT_MIN_ROWS:

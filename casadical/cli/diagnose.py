@@ -22,6 +22,7 @@ from .common import (
     int_at_least,
     robot_from_args,
     timed,
+    user_terms,
     write_json,
     write_text,
 )
@@ -138,7 +139,7 @@ def run(args) -> int:
                                  transfer_base_poses=args.transfer_base_poses or DiagnosisSettings.transfer_base_poses,
                                  transfer_refit_poses=args.transfer_refit_poses, session_tools=args.session_tool,
                                  structure=not args.no_structure, noise_mm=args.noise_mm,
-                                 worst_case=args.worst_case)
+                                 worst_case=args.worst_case, terms=user_terms(args))
     status = Status(args.quiet)
     say = status.timed_line()
     report = diagnose(robot, cal, val, settings, progress=say if args.verbose else _brief(say), other=other,

@@ -19,6 +19,7 @@ from .common import (
     int_at_least,
     robot_from_args,
     robot_or_calibration,
+    user_terms,
     warn_session_frame,
     warn_session_terms,
     write_json,
@@ -67,16 +68,14 @@ def run_inspect(args) -> int:
     from ..data.simulate import sample_poses
     from ..model.symbolic import Model
     from ..stats.identifiability import analyse
-    from ..terms.definitions import known
-
     check_outputs({"--json": args.json}, [args.robot] + ([args.poses] if isinstance(args.poses, str) else []),
                   args.force)
     robot = robot_from_args(args.robot, args)
     spec = args.model
     if args.terms is not None:      # the terms file's terms are inspected, named in --model or not
         named = {item.split("@")[0].split("[")[0].strip() for item in spec.split("+")}
-        spec = "+".join([spec] + [name for name in known() if name not in named])
-    model = Model(robot, spec)
+        spec = "+".join([spec] + [d.name for d in user_terms(args) if d.name not in named])
+    model = Model(robot, spec, user_terms=user_terms(args))
     if isinstance(args.poses, str):
         from ..data import Measurements
         data = Measurements.read_csv(args.poses, robot=robot)

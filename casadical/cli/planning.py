@@ -25,6 +25,7 @@ from .common import (
     human_stream,
     int_at_least,
     robot_from_args,
+    user_terms,
     write_json,
 )
 
@@ -130,7 +131,7 @@ def cmd_plan_poses(args) -> int:
     check_poses(data, robot, **check_options(args))
     check_distinct_poses(data, args.m)
     # compiling the model (~1.5 s) pays only for large pools; the model decides whether it can
-    model = Model(robot, args.model, jit=None if N >= JIT_MIN_CANDIDATES else False)
+    model = Model(robot, args.model, jit=None if N >= JIT_MIN_CANDIDATES else False, user_terms=user_terms(args))
     status = Status(args.quiet)      # a phase says what it does once it has taken a second
     t0 = time.perf_counter()
     try:
@@ -247,11 +248,11 @@ def cmd_plan_report(args) -> int:
                 file=report_path)
         candidates.sessions = np.full(len(candidates), name, dtype=object)
     final = doc["final"]
-    spec = parametric_spec(final["model"])
-    params = Model(robot, spec, jit=False).parameters
+    spec = parametric_spec(final["model"], user_terms(args))
+    params = Model(robot, spec, jit=False, user_terms=user_terms(args)).parameters
     values = {p["name"]: params[p["name"]].from_display(float(p["value"])) for p in final.get("parameters", [])
               if p["name"] in params and p.get("value") is not None}
-    questions = open_questions(doc, values, report_path)
+    questions = open_questions(doc, values, report_path, terms=user_terms(args))
     if not questions:
         raise InputError("the report has no open question (no ambiguous cause, no unexplained structure, every "
                          "named parameter significant): nothing to plan for; plan-poses ROBOT plans a "

@@ -22,7 +22,7 @@ from ..model.symbolic import assemble_terms, parse_spec
 from ..robot import Robot, robot_from_dict
 from ..runtime.files import finite_number
 from ..terms import ErrorTerm, SessionLocal
-from ..terms.definitions import definitions_from_list
+from ..terms.definitions import by_name, definitions_from_list
 
 STATS_KEYS = ("n_poses", "mean_mm", "max_mm", "std_mm", "rms_mm")
 #: largest count of equations or parameters a file may give (beyond, no float holds it exactly)
@@ -33,7 +33,7 @@ FIT_KEYS = ("n_equations", "n_parameters", "dof", "sigma_mm", "log_likelihood", 
 SIGNED_SETTINGS = {"t_ref"}
 
 
-def validate_calibration_document(doc: Any, path: str) -> None:
+def validate_calibration_document(doc: Any, path: str, terms=()) -> None:
     """Check a parsed calibration JSON: every key :func:`load_calibration` reads, with its type.
 
     Parameters
@@ -42,6 +42,8 @@ def validate_calibration_document(doc: Any, path: str) -> None:
         The parsed JSON document.
     path : str
         The file, for messages.
+    terms : iterable of TermDefinition
+        Definitions of user terms its model may name that it does not carry (its own take precedence).
 
     Raises
     ------
@@ -67,10 +69,11 @@ def validate_calibration_document(doc: Any, path: str) -> None:
         raise err("robot" + (f".{e.column}" if e.column else ""), e.message) from e
     if not isinstance(doc["model"], str):
         raise err("model", f"must be a model specification string, got {_kind(doc['model'])}")
-    terms = _terms(robot, doc["model"], err)
+    users = {**by_name(terms), **by_name(user_definitions(doc, path))}
+    terms = _terms(robot, doc["model"], err, users)
     _check_settings(doc.get("terms", {}), terms, err, robot.n)
     try:
-        terms = assemble_terms(restored_terms(doc["model"], doc.get("terms", {}), robot.n), robot)
+        terms = assemble_terms(restored_terms(doc["model"], doc.get("terms", {}), robot.n, users), robot)
     except ModelError as e:
         raise err("terms", str(e)) from e
     _check_version(doc.get("casadical_version"), err)
@@ -100,20 +103,21 @@ def user_definitions(doc: Any, path: str) -> list:
         raise CalibrationFileError(str(e).removeprefix(f"{path}, "), file=path, column="user_terms") from e
 
 
-def _terms(robot: Robot, spec: str, err) -> list:
+def _terms(robot: Robot, spec: str, err, user_terms=()) -> list:
     """The model's terms as :class:`~casadical.model.symbolic.Model` builds them (geometric first), bound to the
-    robot."""
+    robot (``user_terms``: the definitions the file carries)."""
     try:
-        return assemble_terms(parse_spec(spec), robot)
+        return assemble_terms(parse_spec(spec, user_terms), robot)
     except ModelError as e:
         raise err("model", str(e)) from e
 
 
-def restored_terms(spec: str, settings: dict, n_joints: int) -> list[ErrorTerm]:
+def restored_terms(spec: str, settings: dict, n_joints: int, user_terms=()) -> list[ErrorTerm]:
     """The terms of a calibration's model specification with the settings it saved (by each term's
-    specification; older files: by its name, or :func:`legacy_spec`)."""
+    specification; older files: by its name, or :func:`legacy_spec`); ``user_terms``: the definitions the file
+    carries."""
     return [restore_term(t, settings.get(t.spec(), settings.get(t.name, settings.get(legacy_spec(t, n_joints), {}))))
-            for t in parse_spec(spec)]
+            for t in parse_spec(spec, user_terms)]
 
 
 def restore_term(term: ErrorTerm, settings: dict) -> ErrorTerm:

@@ -61,8 +61,9 @@ class Candidate:
 
     @property
     def kind(self) -> Cause:
-        """The cause this candidate is of (its :class:`~casadical.terms.cause.Cause`; a user term's: ``USER``)."""
-        return USER if self.user else CAUSES[self.cause]
+        """The cause this candidate is of (its :class:`~casadical.terms.cause.Cause`; a user term's, whose name is
+        never a catalogue cause's: ``USER``)."""
+        return CAUSES.get(self.cause, USER)
 
     @property
     def scope(self) -> str | None:

@@ -51,7 +51,6 @@ from ..data.measurements import Measurements
 from ..robot import Robot
 from ..stats.physics import sign_changes
 from ..terms import ordered
-from ..terms.definitions import known
 from ..terms.mount_compliance import max_mount_moment, mount_moments
 from ..terms.periodic import phase
 from .candidates import Candidate
@@ -448,11 +447,11 @@ class Catalogue:
         return 1 if not self.robot.joints[j - 1].prismatic else lowest_harmonic(self.cal, j)
 
     def user_candidates(self) -> list[Candidate]:
-        """The causes of the user's own (a terms file's, known during the command): each the robot's (scope
+        """The causes of the user's own (the terms of the settings, a terms file's): each the robot's (scope
         ``robot``) and, with several sessions, each session's own (scope ``robot`` or ``session``); none without
         a terms file."""
         out = []
-        for d in known().values():
+        for d in self.s.terms:
             cand = Candidate(d.name, d.joints[0] if d.one_joint else None,
                              user=tuple(f"{d.name}.{p}" for p in d.parameter_names))
             several = len(self.sessions) > 1

@@ -7,7 +7,6 @@ the transfer study); sets ``report``.
 from __future__ import annotations
 
 import time
-from dataclasses import asdict
 
 from .report import DiagnosisReport
 from .state import DiagnosisRun
@@ -22,7 +21,7 @@ def assemble_report(run: DiagnosisRun) -> None:
     run.report = DiagnosisReport(
         run.robot.name, run.steps, run.findings, run.final_spec, run.final_val, final, run.periodograms, plots,
         run.notes, time.perf_counter() - run.t0, next(st.validation for st in run.steps if st.model == "kinematic"),
-        run.study.to_dict() if run.study is not None else {}, asdict(run.s),
+        run.study.to_dict() if run.study is not None else {}, run.s.record(),
         final_sessions=final.session_stats(run.val) if len(run.sessions) > 1 else {},
         final_orientation=run.val_angles(final),
         set_aside={**(structure.to_dict() if structure.n_set_aside else {}),

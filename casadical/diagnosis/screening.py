@@ -88,13 +88,14 @@ class Screen:
     """
 
     def __init__(self, current: CalibrationResult, accepted: list[Candidate], cands: list[Candidate],
-                 geometric: bool, cal: Measurements, val: Measurements, session_tools: bool = False):
+                 geometric: bool, cal: Measurements, val: Measurements, session_tools: bool = False,
+                 user_terms=()):
         robot = current.model.robot
         self.current, self.cal, self.val, self.accepted = current, cal, val, list(accepted)
         self.physical = {c.shared() for c in cands if not c.kind.analytic}
         # drift and thermal terms referenced to the calibration poses, as in the fits (current's model)
         self.model = big = model_for(robot, compose_spec(accepted + sorted(self.physical, key=str), geometric), cal,
-                                     session_tools=session_tools)
+                                     session_tools=session_tools, user_terms=user_terms)
         frames = big.term("sessions")
         if frames is not None:      # each session's reference pose: the current fit's
             frames.references = dict(current.model.term("sessions").references)

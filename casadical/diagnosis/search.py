@@ -164,7 +164,8 @@ def screen_round(run: DiagnosisRun) -> Chosen | None:
         cands = run.candidates(current, run.accepted)
         # screening again (after setting structure aside) reuses the linearisation and the baseline
         if scr is None:
-            scr = Screen(current, run.accepted, cands, run.geometric, run.cal, run.val, run.s.session_tools)
+            scr = Screen(current, run.accepted, cands, run.geometric, run.cal, run.val, run.s.session_tools,
+                         run.s.terms)
             mask = run.mask(current)
             base = scr.fit()
             baseline = Baseline(mask, base, by_kind(base.lin.cv(run.schemes, run.prior), mask),

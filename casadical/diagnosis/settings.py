@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, fields
 
 from ..errors import InputError
 
@@ -62,6 +62,9 @@ class DiagnosisSettings:
         The instrument's noise per axis (mm, 1 sigma), as the user states it:
         the report gives the final model's leftover in units of it (None: from
         repeated poses where the data hold some, :mod:`casadical.diagnosis.noise`).
+    terms : tuple of TermDefinition
+        Causes of one's own (a terms file's, :func:`casadical.terms.definitions.read_terms_file`): screened
+        beside the catalogue's, by the same tests and rules.
     """
 
     alpha: float = 0.001
@@ -80,8 +83,14 @@ class DiagnosisSettings:
     structure: bool = True
     noise_mm: float | None = None
     worst_case: bool = False
+    terms: tuple = ()
+
+    def record(self) -> dict:
+        """The settings for a report (the user terms by their names: their definitions are the report's own)."""
+        return {f.name: getattr(self, f.name) for f in fields(self) if f.name != "terms"}
 
     def __post_init__(self) -> None:
+        self.terms = tuple(self.terms)
         if not 0 < self.alpha < 1 or not 0 < self.stability_alpha < 1:
             raise InputError(f"alpha and stability_alpha must be in (0, 1), got {self.alpha}, "
                              f"{self.stability_alpha}")

@@ -148,7 +148,7 @@ class DiagnosisRun:
         ``parent``'s parameters as one step moved them), warm: from the base pose and probe mounting of the fit
         the values are of (``calibrate(start_from=...)``), so the solve starts at its solution."""
         model = model_for(self.robot, spec + ("+tool_orientation" if self.full_pose else ""), self.cal,
-                          session_tools=self.s.session_tools)
+                          session_tools=self.s.session_tools, user_terms=self.s.terms)
         st = origin = None
         if start is not None:
             origin = start if isinstance(start, CalibrationResult) else parent

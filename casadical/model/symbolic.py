@@ -33,7 +33,7 @@ from ..errors import CasadicalWarning, DataFileError, ModelError
 from ..robot import Robot
 from ..runtime.threads import evaluation_threads
 from ..terms import REGISTRY, Context, ErrorTerm, SessionLocal, covariate_names, make_term
-from ..terms.definitions import known as known_user_terms
+from ..terms.definitions import by_name
 from ..terms.geometric import Geometric
 from ..terms.sessions import SessionFrames
 from ..terms.user import UserTerm
@@ -60,8 +60,11 @@ _EVALUATED_ONCE = frozenset({"tau", "tau_q_jac", "probe"})
 _SPEC_ITEM = re.compile(r"^\s*([a-z_][a-z0-9_]*)\s*(?:\[([^\]]*)\])?\s*(?:@\s*([A-Za-z0-9_.-]+))?\s*$")
 
 
-def parse_spec(spec: str) -> list[ErrorTerm]:
+def parse_spec(spec: str, user_terms=()) -> list[ErrorTerm]:
     """Terms of a model specification such as ``kinematic+compliance[2,3]+periodic[2:1]``.
+
+    ``user_terms``: the definitions of the causes of the user's own it may name (a terms file's,
+    :class:`~casadical.terms.definitions.TermDefinition` objects or a dict of them by name).
 
     ``nominal`` (or ``base``) means the nominal geometry with only the base
     pose estimated. ``kinematic`` (alias ``geometric``) frees every
@@ -80,7 +83,7 @@ def parse_spec(spec: str) -> list[ErrorTerm]:
             if session:
                 raise ModelError(f"{item!r}: the base pose of each session is always estimated; drop @{session}")
             continue
-        user = known_user_terms()
+        user = by_name(user_terms)
         if name in user and name not in REGISTRY:     # a cause of the user's own (casadical.terms.definitions)
             if args is not None:
                 raise ModelError(f"{item!r}: the user term {name} acts where its terms file says; drop [{args}]")
@@ -173,9 +176,9 @@ class Model:
     """
 
     def __init__(self, robot: Robot, terms: list[ErrorTerm] | str = "kinematic",
-                 jit: bool | None = None):
+                 jit: bool | None = None, user_terms=()):
         if isinstance(terms, str):
-            terms = parse_spec(terms)
+            terms = parse_spec(terms, user_terms)
         self.robot = robot
         self.geometric_free = any(isinstance(t, Geometric) for t in terms)
         self.terms: list[ErrorTerm] = assemble_terms(terms, robot)
@@ -706,6 +709,12 @@ class Model:
             raise DataFileError(f"user term {term.name!r}, key {key!r} ({term.definition.file}): the expression "
                                 f"{term.text(key)!r} is {values[i, k]} at this pose, "
                                 "not a finite number", file=data.file(i), row=data.line(i))
+
+    @property
+    def user_definitions(self) -> tuple:
+        """The definitions of the causes of the user's own in the model (what a specification derived from its own
+        needs to name them), one per term."""
+        return tuple({t.definition.name: t.definition for t in self.user_terms}.values())
 
     def term(self, name: str) -> ErrorTerm | None:
         """The model's term called ``name`` (or alias), if any."""

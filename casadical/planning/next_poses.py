@@ -32,9 +32,9 @@ from .augment import Criterion, DsDesign, ds_design
 from .questions import Question
 
 
-def parametric_spec(spec: str) -> str:
+def parametric_spec(spec: str, user_terms=()) -> str:
     """The final model's specification without its GP compensator and session frames (planned for apart)."""
-    keep = [t.spec() for t in parse_spec(spec) if t.cause != UNEXPLAINED.name
+    keep = [t.spec() for t in parse_spec(spec, user_terms) if t.cause != UNEXPLAINED.name
             and t.name not in ("sessions", "tool_orientation")]
     return "+".join(keep)
 
@@ -221,9 +221,10 @@ def build_problem(robot: Robot, base_spec: str, q: Question, final_values: dict[
     IdentifiabilityError
         The measured poses and the candidates together do not identify a parameter the question asks about.
     """
-    have = set(Model(robot, base_spec, jit=False).parameters.names)
+    have = set(Model(robot, base_spec, jit=False, user_terms=q.terms).parameters.names)
     extra = [c for c in q.extra if not set(c.parameter_names()) <= have]
-    model = Model(robot, "+".join([base_spec] + [compose_spec([c]).split("+", 1)[1] for c in extra]), jit=False)
+    model = Model(robot, "+".join([base_spec] + [compose_spec([c]).split("+", 1)[1] for c in extra]), jit=False,
+                  user_terms=q.terms)
     params = model.parameters
     values = np.array([final_values.get(p.name, p.value) for p in params])
     order = measured.session_names
@@ -295,7 +296,7 @@ def plan_next(robot: Robot, report: dict, questions: list[Question], final_value
     if not sigma_mm:
         raise InputError("the report has no final.sigma_mm (the final model's residual): run diagnose again")
     sigma = float(sigma_mm) / 1000
-    base = parametric_spec(final["model"])
+    base = parametric_spec(final["model"], questions[0].terms if questions else ())
     problems, kept, skipped = [], [], []
     for q in questions:
         say(f"question {q.number}: the Jacobian at {len(measured)} measured poses and "
@@ -312,7 +313,8 @@ def plan_next(robot: Robot, report: dict, questions: list[Question], final_value
     design = ds_design([p.criterion() for p in problems], m, relaxation=relaxation, seed=seed)
     # the whole model: every question's terms at once, D-optimal (every parameter of interest)
     say("the D-optimal augmentation of the whole model, for comparison")
-    whole_q = Question(0, "whole", "", list(dict.fromkeys(c for q in kept for c in q.extra)), [], {}, 0.05, -1)
+    whole_q = Question(0, "whole", "", list(dict.fromkeys(c for q in kept for c in q.extra)), [], {}, 0.05, -1,
+                       terms=kept[0].terms)
     wp = build_problem(robot, base, whole_q, final_values, measured, candidates, session_tools)
     dopt = ds_design([Criterion(wp.A, wp.M0, np.arange(wp.A.shape[2]))], m, seed=seed).indices
     rng = np.random.default_rng(seed)

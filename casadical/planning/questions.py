@@ -44,7 +44,7 @@ from dataclasses import dataclass, field, replace
 from ..diagnosis.candidates import Candidate
 from ..errors import InputError
 from ..terms import CAUSES
-from ..terms.definitions import add_known, definitions_from_list
+from ..terms.definitions import by_name, definitions_from_list
 
 
 @dataclass
@@ -71,6 +71,8 @@ class Question:
         Significance level of that test.
     finding : int
         Index of the finding in the report's ``findings``.
+    terms : tuple of TermDefinition
+        The causes of one's own its model may name (the terms file's and the report's flexible terms).
     """
 
     number: int
@@ -82,6 +84,7 @@ class Question:
     level: float
     finding: int
     notes: list[str] = field(default_factory=list)
+    terms: tuple = ()
 
     def to_dict(self) -> dict:
         return {"number": self.number, "kind": self.kind, "text": self.text,
@@ -95,13 +98,12 @@ _FIELDS = {f: f for f in ("cause", "joint", "harmonic", "source", "session", "so
     "time_constant_s": "time_constant"}
 
 
-def _candidate(d: dict) -> Candidate:
+def _candidate(d: dict, terms: dict) -> Candidate:
+    """The candidate of a report's entry ``d`` (``terms``: the user terms' definitions by name)."""
     known = Candidate.__dataclass_fields__
     c = Candidate(**{v: d[k] for k, v in _FIELDS.items() if d.get(k) is not None and v in known})
     if d.get("user"):       # a cause of the user's own: its parameters from its definition (--terms FILE)
-        from ..errors import InputError
-        from ..terms.definitions import known as known_terms
-        definition = known_terms().get(c.cause)
+        definition = terms.get(c.cause)
         if definition is None:
             raise InputError(f"the report names {c.cause!r}, a cause of your own: give its terms file with --terms "
                              "FILE")
@@ -120,7 +122,7 @@ def _scope(c: Candidate) -> str:
     return f"session {c.session}'s own" if c.session is not None else "the robot's"
 
 
-def open_questions(report: dict, final_values: dict[str, float], path: str = "") -> list[Question]:
+def open_questions(report: dict, final_values: dict[str, float], path: str = "", terms=()) -> list[Question]:
     """The open questions of a ``diagnose --json`` document, in report order.
 
     Parameters
@@ -131,6 +133,9 @@ def open_questions(report: dict, final_values: dict[str, float], path: str = "")
         The final model's parameter values in SI units (the report's are in display units).
     path : str
         The report file, for messages.
+    terms : iterable of TermDefinition
+        The causes of one's own the report names (its terms file's); the flexible terms of the structure the
+        report could not name it carries itself.
 
     Raises
     ------
@@ -145,6 +150,7 @@ def open_questions(report: dict, final_values: dict[str, float], path: str = "")
     scan_level = alpha / (n_joints * int(settings.get("max_harmonic", 60)))
     out: list[Question] = []
     seen: set = set()
+    defs = by_name(terms)
 
     def add(kind, text, extra, interest, tested, level, k):
         key = (tuple(sorted(interest)), tuple(sorted(tested)))
@@ -154,11 +160,10 @@ def open_questions(report: dict, final_values: dict[str, float], path: str = "")
         out.append(Question(len(out) + 1, kind, text, extra, interest, tested, level, k))
 
     for k, f in enumerate(report.get("findings", [])):
-        kind = CAUSES.get(f.get("cause"))
         if _plannable(f.get("cause")) and f.get("in_model", True):
-            a = _candidate(f)
+            a = _candidate(f, defs)
             for b in f.get("ambiguous_with", []):
-                other = _candidate(b)
+                other = _candidate(b, defs)
                 # the level the diagnosis told them apart at (its round's corrected level)
                 level = 10 ** b["test"]["log10_level"] if "test" in b else alpha
                 names = a.parameter_names()
@@ -171,11 +176,11 @@ def open_questions(report: dict, final_values: dict[str, float], path: str = "")
                 add(kind, f"{text} (finding {k + 1})", [other],
                     names + [n for n in other.parameter_names() if n not in names],
                     {n: final_values[n] for n in names if n in final_values}, level, k)
-        unexplained = kind is not None and kind.unexplained
+        unexplained = f.get("cause") in CAUSES and CAUSES[f["cause"]].unexplained
         if unexplained and not f.get("in_model", False) and f.get("term"):
             # structure the structure screen found: its flexible term, a cause of one's own, is the question
             d = definitions_from_list([f["term"]], path, key=f"findings[{k}].term")[0]
-            add_known([d])
+            defs[d.name] = d
             user = tuple(f"{d.name}.{p}" for p in d.parameter_names)
             add("unexplained", f"{f.get('where', d.name)}: which form, and how large? (finding {k + 1})",
                 [Candidate(d.name, f.get("joint"), user=user)], list(user),
@@ -188,7 +193,7 @@ def open_questions(report: dict, final_values: dict[str, float], path: str = "")
                     raise InputError("the report was written by an older casadical (its unexplained structure "
                                      "does not name its candidate): run diagnose again", file=path,
                                      column=f"findings[{k}].holds_up.structures")
-                cand = _candidate(item["candidate"])
+                cand = _candidate(item["candidate"], defs)
                 tested = {n: float(v) for n, v in (item.get("values") or {}).items()}
                 where = f" in session {cand.session}" if cand.session is not None else ""
                 if cand.harmonic is not None:
@@ -222,7 +227,7 @@ def open_questions(report: dict, final_values: dict[str, float], path: str = "")
         raise InputError("the report was written by an older casadical (its final parameters have no "
                          "significance): run diagnose again", file=path, column="final.parameters")
     named = {n: k for k, f in enumerate(report.get("findings", [])) if _plannable(f.get("cause"))
-             and f.get("in_model", True) for n in _candidate(f).parameter_names()}
+             and f.get("in_model", True) for n in _candidate(f, defs).parameter_names()}
     for p in params:
         name = p["name"]
         if p.get("significant") is False and name in named and name in final_values:
@@ -230,4 +235,6 @@ def open_questions(report: dict, final_values: dict[str, float], path: str = "")
             add("not significant", f"{name}: not significant (t = {t:.2f}); how large is it? "
                 f"(finding {named[name] + 1})" if t is not None else f"{name}: not significant",
                 [], [name], {name: final_values[name]}, 0.05, named[name])
+    for question in out:
+        question.terms = tuple(defs.values())
     return out

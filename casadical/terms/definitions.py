@@ -7,23 +7,21 @@ key and the token. The same check reads the definitions a calibration JSON
 carries (:func:`definitions_from_list`).
 
 A model specification names a user term like any term
-(``kinematic+axis_wobble``) while its definition is *known*:
-:func:`known_terms` makes definitions known for the duration of a ``with``
-block (a :class:`contextvars.ContextVar`, so the global
-:data:`~casadical.terms.base.REGISTRY` never changes and another call, or
-another thread, never sees them); :func:`known` is what
-:func:`casadical.model.parse_spec` consults.
+(``kinematic+axis_wobble``) where its definition is given: every function that
+reads a specification takes the definitions as an argument (``terms=`` of
+:func:`~casadical.calibration.calibrate`, :class:`~casadical.diagnosis.settings.DiagnosisSettings`,
+:func:`~casadical.result.load_calibration`, ``user_terms=`` of
+:func:`casadical.model.parse_spec` and :class:`~casadical.model.Model`); nothing
+is kept in module or context state, and the global
+:data:`~casadical.terms.base.REGISTRY` never changes.
 """
 
 from __future__ import annotations
 
-import contextlib
-import contextvars
 import math
 import re
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Iterator
 
 from ..errors import TermsFileError
 from . import expression as ex
@@ -266,31 +264,11 @@ def _parameters(table, err) -> tuple[ParameterDefinition, ...]:
     return tuple(out)
 
 
-# --- the terms a command knows ------------------------------------------------------------------
-
-_KNOWN: contextvars.ContextVar[dict | None] = contextvars.ContextVar("casadical_user_terms", default=None)
+# --- the terms a command is given ---------------------------------------------------------------------------
 
 
-def known() -> dict[str, TermDefinition]:
-    """The user terms known now, by name (none outside :func:`known_terms`)."""
-    return dict(_KNOWN.get() or {})
-
-
-@contextlib.contextmanager
-def known_terms(definitions) -> Iterator[dict[str, TermDefinition]]:
-    """Make ``definitions`` known to model specifications within the ``with`` block (and those known already)."""
-    outer = _KNOWN.get() or {}
-    mine = {**outer, **{d.name: d for d in definitions or ()}}
-    token = _KNOWN.set(mine)
-    try:
-        yield mine
-    finally:
-        _KNOWN.reset(token)
-
-
-def add_known(definitions) -> None:
-    """Make ``definitions`` known for the rest of the current :func:`known_terms` block (a command that reads a
-    calibration JSON knows the terms it carries); outside one, nothing."""
-    current = _KNOWN.get()
-    if current is not None:
-        current.update({d.name: d for d in definitions})
+def by_name(definitions) -> dict[str, TermDefinition]:
+    """``definitions`` (an iterable of :class:`TermDefinition`, or a dict of them by name) by name."""
+    if isinstance(definitions, dict):
+        return dict(definitions)
+    return {d.name: d for d in definitions or ()}

@@ -38,8 +38,8 @@ GEOMETRY_EFFECTS = ("frame", "tool", "base")
 class UserTerm(ErrorTerm):
     """The term of a :class:`~casadical.terms.definitions.TermDefinition`.
 
-    Not registered: a model specification finds it by name while its
-    definition is known (:func:`casadical.terms.definitions.known_terms`).
+    Not registered: a model specification finds it by name among the definitions it is given
+    (:func:`casadical.model.parse_spec`'s ``user_terms``).
     """
 
     gated = True

@@ -22,7 +22,7 @@ from casadical.cli import main
 from casadical.data import Measurements
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.diagnosis.noise import repeated_sigma
-from casadical.terms.definitions import definitions_from_list, known_terms, read_terms_file
+from casadical.terms.definitions import definitions_from_list, read_terms_file
 from tests.helpers import hidden
 from tests.helpers.arms import to_toml
 from tests.truth import Arm, Effects, TrueRobot, measure, sample
@@ -207,10 +207,10 @@ def test_with_a_term_of_ones_own_the_effect_is_named_and_the_noise_reached(effec
     path.write_text(textwrap.dedent(text + PARAMETERS))
     for seed in SEEDS:
         c = hidden.case("arm4", effect, seed)
-        with warnings.catch_warnings(), known_terms(read_terms_file(path)):
+        with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             rob, cal, val, true = hidden.make_data(c)
-            report = diagnose(rob, cal, val, DiagnosisSettings(seed=seed))
+            report = diagnose(rob, cal, val, DiagnosisSettings(seed=seed, terms=read_terms_file(path)))
         named = hidden.named(report)
         assert {(cause, j) for cause, j, _, _ in named} == {(name, joint)}, (effect, seed, named)
         floor = np.mean(np.linalg.norm(hidden.noise_free(c, true, val) - val.xyz, axis=1)) * 1000
@@ -229,8 +229,8 @@ def test_a_structures_term_is_a_cause_of_ones_own_that_takes_it(robot, effect):
         rob, cal, val, true = hidden.make_data(c)
         report = diagnose(rob, cal, val, DiagnosisSettings(seed=0, blackbox=False))
         table = json.loads(json.dumps(next(f for f in report.findings if f.structure).to_dict()["term"]))
-        with known_terms(definitions_from_list([table], "report.json")):
-            fit = calibrate(rob, cal, f"{report.final_model}+{table['name']}", "lm", warn=False)
+        fit = calibrate(rob, cal, f"{report.final_model}+{table['name']}", "lm", warn=False,
+                        terms=definitions_from_list([table], "report.json"))
     floor = np.mean(np.linalg.norm(hidden.noise_free(c, true, val) - val.xyz, axis=1)) * 1000
     assert fit.stats(val).mean_mm <= 1.3 * floor < report.final_validation.mean_mm, (fit.stats(val), floor)
 

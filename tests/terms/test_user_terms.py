@@ -19,7 +19,7 @@ from casadical.loading import load_robot
 from casadical.model import Model, parse_spec
 from casadical.terms import REGISTRY
 from casadical.terms import expression as ex
-from casadical.terms.definitions import known, known_terms, read_terms_file
+from casadical.terms.definitions import read_terms_file
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "problems" / "terms" / "axis_wobble.toml"
@@ -64,8 +64,7 @@ def one(tmp_path, body: str, params: str = PARAM, name: str = "t") -> list:
 
 
 def model(robot, defs, spec: str = "kinematic") -> Model:
-    with known_terms(defs):
-        return Model(robot, spec + "".join(f"+{d.name}" for d in defs), jit=False)
+    return Model(robot, spec + "".join(f"+{d.name}" for d in defs), jit=False, user_terms=defs)
 
 
 def poses(robot, n: int = 20, seed: int = 0) -> np.ndarray:
@@ -231,13 +230,14 @@ def test_the_robot_decides_joints_and_joint_types(tmp_path, ur10):
 
 # --- the model ---------------------------------------------------------------------------------
 
-def test_user_terms_are_known_for_the_block_only(tmp_path, ur10):
+def test_user_terms_are_given_never_kept(tmp_path, ur10):
+    """A specification names a user term where its definition is given (``user_terms``); nothing global changes,
+    and without it the name is unknown (issue 46: no module or context state)."""
     defs = terms(tmp_path, WOBBLE)
     before = dict(REGISTRY)
-    with known_terms(defs):
-        assert [t.name for t in parse_spec("kinematic+axis_wobble")] == ["geometric", "axis_wobble"]
-        assert set(known()) == {"axis_wobble"}
-    assert REGISTRY == before and known() == {}
+    assert [t.name for t in parse_spec("kinematic+axis_wobble", defs)] == ["geometric", "axis_wobble"]
+    assert [t.name for t in parse_spec("kinematic+axis_wobble", {d.name: d for d in defs})][1] == "axis_wobble"
+    assert REGISTRY == before
     with pytest.raises(ModelError, match="unknown model item 'axis_wobble'.*--terms FILE"):
         parse_spec("kinematic+axis_wobble")
 
@@ -316,10 +316,10 @@ def test_columns_the_data_lack_and_non_finite_values_are_one_line_naming_column_
 
 
 def test_a_term_of_one_session_acts_on_that_sessions_poses_alone(tmp_path, ur10):
+    from casadical.terms import make_term
+
     defs = terms(tmp_path, WOBBLE)
-    with known_terms(defs):
-        from casadical.terms import make_term
-        m = Model(ur10, parse_spec("kinematic+axis_wobble@B") + [make_term("sessions", names=["A", "B"])], jit=False)
+    m = Model(ur10, parse_spec("kinematic+axis_wobble@B", defs) + [make_term("sessions", names=["A", "B"])], jit=False)
     q = poses(ur10, 10)
     data = Measurements.from_arrays(q, session=np.array(["A"] * 5 + ["B"] * 5, dtype=object))
     cov = m.covariates(data)
@@ -374,7 +374,6 @@ def test_calibrate_with_a_user_term_finds_it_and_the_json_carries_it(wobbly, cap
     assert values["axis_wobble.es"] == pytest.approx(math.degrees(1e-3), rel=0.03)     # shown in degrees
     assert values["axis_wobble.ec"] == pytest.approx(math.degrees(-5e-4), rel=0.05)
     assert doc["validation"]["mean_mm"] < 0.03          # the noise: 10 um per axis
-    assert known() == {}                                # nothing left known after the command
 
 
 def test_a_calibration_json_with_user_terms_needs_no_terms_file(wobbly, capsys):
