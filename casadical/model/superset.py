@@ -101,12 +101,16 @@ class PointOffset(ErrorTerm):
         return ca.vertcat(*[ctx.cov[c] for c in POINT_OFFSET])
 
 
-def superset_terms(robot, frames=None, torques: bool = True) -> list[ErrorTerm]:
-    """The terms of the superset of ``robot`` (with ``frames``, a sessions term: its sessions and tools;
-    without ``torques``, none that reads the gravity torques): the geometry, the sessions, each term kind's own
-    in its :attr:`~casadical.terms.base.ErrorTerm.superset_order` (:meth:`~casadical.terms.base.ErrorTerm.superset`:
-    a revolute joint's errors on the revolute joints, a linear axis' on the linear axes), the chain offsets and
-    the point offset.
+#: the superset's optional groups of terms a model asks for unless it says (:attr:`ErrorTerm.superset_group`)
+TORQUES = frozenset({"torques"})
+
+
+def superset_terms(robot, frames=None, groups: frozenset = TORQUES) -> list[ErrorTerm]:
+    """The terms of the superset of ``robot`` (with ``frames``, a sessions term: its sessions and tools; of the
+    optional groups, ``groups``' only: without ``torques``, none that reads the gravity torques): the geometry,
+    the sessions, each term kind's own in its :attr:`~casadical.terms.base.ErrorTerm.superset_order`
+    (:meth:`~casadical.terms.base.ErrorTerm.superset`: a revolute joint's errors on the revolute joints, a linear
+    axis' on the linear axes), the chain offsets and the point offset.
 
     Terms driven by a covariate against a reference (thermal expansion, drift) have the reference 0: a
     model's covariate comes minus its own reference, so no reference is a constant of the graph.
@@ -114,9 +118,10 @@ def superset_terms(robot, frames=None, torques: bool = True) -> list[ErrorTerm]:
     terms = [make_term("geometric")]
     if frames is not None:
         terms.append(make_term("sessions", names=frames.names, tools=frames.tools))
-    kinds = sorted({cls for cls in REGISTRY.values() if cls.superset_order is not None},
+    kinds = sorted({cls for cls in REGISTRY.values() if cls.superset_order is not None
+                    and (cls.superset_group is None or cls.superset_group in groups)},
                    key=lambda cls: cls.superset_order)
-    terms += [t for cls in kinds for t in cls.superset(robot, torques)]
+    terms += [t for cls in kinds for t in cls.superset(robot)]
     return terms + [ChainOffsets(robot.n), PointOffset()]
 
 
@@ -146,10 +151,10 @@ class Mapping:
     """
 
     def __init__(self, model, params: list, covariates: list[str], columns: list[_Column],
-                 shifts: dict[str, list[tuple[str | None, float]]], torques: bool = True,
+                 shifts: dict[str, list[tuple[str | None, float]]], groups: frozenset = TORQUES,
                  compensators: list | None = None):
         own = model.covariate_names
-        self.torques = torques           # the superset with the terms that read the gravity torques
+        self.groups = groups             # the superset's optional groups of terms it has (the torques')
         self.prismatic = model.robot.prismatic
         self.n_params = len(params)
         self.n_covariates = len(covariates)
@@ -195,8 +200,9 @@ class Mapping:
     def of(cls, model) -> "Mapping | None":
         """The mapping of ``model`` onto its superset, or None if the superset cannot express it."""
         robot = model.robot
-        torques = any((t.inner if isinstance(t, SessionLocal) else t).reads_torques for t in model.terms)
-        sup = superset_terms(robot, model.term("sessions"), torques)
+        groups = frozenset(g for g in ((t.inner if isinstance(t, SessionLocal) else t).superset_group
+                                       for t in model.terms) if g is not None)
+        sup = superset_terms(robot, model.term("sessions"), groups)
         params = [p for t in sup for p in t.parameters(robot)]
         index = {p.name: i for i, p in enumerate(params)}
         columns: list[_Column] = []
@@ -230,7 +236,7 @@ class Mapping:
         shifts = {"time_s": drifts} if drifts else {}
         if thermal:
             shifts["temperature_c"] = [(None, thermal.pop())]
-        return cls(model, params, covariate_names(sup), columns, shifts, torques, compensators)
+        return cls(model, params, covariate_names(sup), columns, shifts, groups, compensators)
 
     # -- inputs and outputs ------------------------------------------------------------
 
@@ -342,8 +348,8 @@ class Superset:
         The robot and its sessions term (or None).
     """
 
-    def __init__(self, build, robot, frames=None, torques: bool = True):
-        self.graph = build(superset_terms(robot, frames, torques))
+    def __init__(self, build, robot, frames=None, groups: frozenset = TORQUES):
+        self.graph = build(superset_terms(robot, frames, groups))
         self.robot = robot
         self.n_params = len(self.graph.parameters)
         self._vm: dict[str, ca.Function] = {}
@@ -478,16 +484,16 @@ _registry = threading.Lock()
 
 
 
-def superset_for(build, robot, frames=None, torques: bool = True) -> Superset:
-    """The process's superset of ``robot`` and ``frames``' sessions, with or without the terms that read the
-    gravity torques (built on first use)."""
-    key = (id(robot), frames_key(frames), torques)
+def superset_for(build, robot, frames=None, groups: frozenset = TORQUES) -> Superset:
+    """The process's superset of ``robot`` and ``frames``' sessions, with its optional ``groups`` of terms (with or
+    without those that read the gravity torques; built on first use)."""
+    key = (id(robot), frames_key(frames), groups)
     with _registry:
         hit = _SUPERSETS.get(key)
         if hit is not None and hit.robot is robot:
             _SUPERSETS.move_to_end(key)
             return hit
-    sup = Superset(build, robot, frames, torques)
+    sup = Superset(build, robot, frames, groups)
     with _registry:
         _SUPERSETS[key] = sup
         while len(_SUPERSETS) > MAX_SUPERSETS:
@@ -511,7 +517,7 @@ def outputs(model, which: str, q, p, cov, b0, Rm=None, compile: bool = True, req
     m = model._mapping
     N = len(q)
     sup = superset_for(lambda terms: type(model)(model.robot, terms, jit=False), model.robot, model.term("sessions"),
-                       m.torques)
+                       m.groups)
     if not (required or compile or sup.available(which)):
         return None
     if model.orientation and which in ("fk", "jac"):   # a full-pose model: its data kind's functions

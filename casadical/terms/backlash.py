@@ -70,15 +70,12 @@ class Backlash(ErrorTerm):
                                              "it)"}}
     weak_meaning = ("the backlash of {joints} is", "measure poses whose gravity torque changes sign on {them}")
     superset_order = 4
+    superset_group = "torques"
     session_local = True
 
     @classmethod
-    def superset(cls, robot: Robot, torques: bool) -> list[ErrorTerm]:
-        return [cls(joints=list(range(1, robot.n + 1)))] if torques else []
-
-    @property
-    def reads_torques(self) -> bool:  # type: ignore[override]
-        return self.source == "torque"
+    def superset(cls, robot: Robot) -> list[ErrorTerm]:
+        return [cls(joints=list(range(1, robot.n + 1)))]
 
     def superset_member(self) -> bool:
         """By the motion: the superset's has the trailing convention (``lag``); files older than it have not."""
@@ -93,6 +90,8 @@ class Backlash(ErrorTerm):
         super().__init__(joints)
         self.source = source
         self.lag = bool(lag)
+        if source == "motion":      # by the last move: no torque read (the superset's torques group need not be)
+            self.superset_group = None
 
     @classmethod
     def value_rules(cls, p, params, tau, moves) -> list:
@@ -153,9 +152,10 @@ class BacklashMotion(Backlash):
     cause = "backlash"
     weak_meaning = ("the backlash of {joints} is", "measure poses approached from both directions")
     superset_order = 8
+    superset_group = None
 
     @classmethod
-    def superset(cls, robot: Robot, torques: bool) -> list[ErrorTerm]:
+    def superset(cls, robot: Robot) -> list[ErrorTerm]:
         return [cls(joints=list(range(1, robot.n + 1)))]
 
     def __init__(self, joints=None, lag: bool = True):

@@ -106,9 +106,11 @@ class ErrorTerm:
     revolute_only: ClassVar[bool] = False
     #: its place in the superset every candidate model is a mask of (casadical.model.superset); None: not in it
     superset_order: ClassVar[int | None] = None
-    #: it deflects a joint by its gravity torque (or tilts the mount by the moment of the weights): a model
-    #: without such a term has the superset without them, whose Jacobian skips the torques (3x cheaper)
-    reads_torques: ClassVar[bool] = False
+    #: the optional group of the superset it belongs to (None: always there): ``torques`` for the terms that
+    #: deflect a joint by its gravity torque or tilt the mount by the moment of the weights (a model without such
+    #: a term has the superset without them, whose Jacobian skips the torques: 3x cheaper); a model's superset
+    #: holds the groups of its terms
+    superset_group: ClassVar[str | None] = None
     #: a term of one session may be this term's in the superset: linear in its parameters (a joint offset or a
     #: translation), so that the shared and the session's parameters add up per pose
     session_local: ClassVar[bool] = False
@@ -165,9 +167,8 @@ class ErrorTerm:
         return f"{self.name}[{','.join(map(str, joints))}]" if joints else ""
 
     @classmethod
-    def superset(cls, robot: Robot, torques: bool) -> list["ErrorTerm"]:
-        """The terms of this kind the superset of ``robot`` holds (without ``torques``: none that reads the
-        gravity torques); none by default."""
+    def superset(cls, robot: Robot) -> list["ErrorTerm"]:
+        """The terms of this kind the superset of ``robot`` holds; none by default."""
         return []
 
     def superset_member(self) -> bool:

@@ -47,7 +47,7 @@ class CarriageAngle(AxisTerm):
     superset_order = 7
 
     @classmethod
-    def superset(cls, robot: Robot, torques: bool) -> list:
+    def superset(cls, robot: Robot) -> list:
         linear = linear_axes(robot)
         return [cls(joints=linear)] if linear else []
     KEYS = ANGLES

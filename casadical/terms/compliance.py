@@ -40,12 +40,12 @@ class JointCompliance(ErrorTerm):
     revolute_only = True
     covariates = ("payload_kg",)
     superset_order = 1
-    reads_torques = True
+    superset_group = "torques"
     session_local = True
 
     @classmethod
-    def superset(cls, robot: Robot, torques: bool) -> list[ErrorTerm]:
-        return [cls(joints=revolute(robot))] if torques else []
+    def superset(cls, robot: Robot) -> list[ErrorTerm]:
+        return [cls(joints=revolute(robot))]
 
     def __init__(self, joints=None, k_min: float = 1e3):
         super().__init__(joints)

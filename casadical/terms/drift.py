@@ -38,7 +38,7 @@ class Drift(ReferencedTerm):
     session_local = True
 
     @classmethod
-    def superset(cls, robot: Robot, torques: bool) -> list:
+    def superset(cls, robot: Robot) -> list:
         return [cls()]
     covariates = ("time_s",)
     session = True

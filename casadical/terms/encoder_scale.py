@@ -31,7 +31,7 @@ class EncoderScale(ErrorTerm):
     session_local = True
 
     @classmethod
-    def superset(cls, robot: Robot, torques: bool) -> list[ErrorTerm]:
+    def superset(cls, robot: Robot) -> list[ErrorTerm]:
         return [cls(joints=list(range(1, robot.n + 1)))]
 
     def parameters(self, robot: Robot) -> list[Parameter]:

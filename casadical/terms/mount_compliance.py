@@ -82,13 +82,13 @@ class MountCompliance(ErrorTerm):
                      for k in ("cmount", "cmount_x", "cmount_y")}
     covariates = ("payload_kg",)
     superset_order = 5
-    reads_torques = True
+    superset_group = "torques"
     session_local = True
 
     @classmethod
-    def superset(cls, robot: Robot, torques: bool) -> list[ErrorTerm]:
+    def superset(cls, robot: Robot) -> list[ErrorTerm]:
         """The base's tilt under the moment of the weights (it needs the masses)."""
-        return [cls()] if torques and max_mount_moment(robot) > 0 else []
+        return [cls()] if max_mount_moment(robot) > 0 else []
 
     def __init__(self, joints=None, axes: str = ""):
         super().__init__(None)

@@ -30,12 +30,12 @@ class NonlinearStiffness(ErrorTerm):
     weak_meaning = ("the progressive part of the spring of {joints} is", "measure poses that load {them} more")
     covariates = ("payload_kg",)
     superset_order = 2
-    reads_torques = True
+    superset_group = "torques"
     session_local = True
 
     @classmethod
-    def superset(cls, robot: Robot, torques: bool) -> list[ErrorTerm]:
-        return [cls(joints=revolute(robot))] if torques else []
+    def superset(cls, robot: Robot) -> list[ErrorTerm]:
+        return [cls(joints=revolute(robot))]
 
     @classmethod
     def value_rules(cls, p, params, tau, moves) -> list:

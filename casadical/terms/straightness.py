@@ -121,7 +121,7 @@ class Straightness(AxisTerm):
     superset_order = 6
 
     @classmethod
-    def superset(cls, robot: Robot, torques: bool) -> list[ErrorTerm]:
+    def superset(cls, robot: Robot) -> list[ErrorTerm]:
         linear = linear_axes(robot)
         return [cls(joints=linear)] if linear else []
     KEYS = DIRECTIONS

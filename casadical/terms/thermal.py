@@ -35,14 +35,14 @@ class ThermalExpansion(ReferencedTerm):
     name = "thermal_expansion"
     aliases = ("thermal",)
     cause = "thermal_expansion"
+    covariates = ("temperature_c",)
     superset_order = 9
 
     @classmethod
-    def superset(cls, robot: Robot, torques: bool) -> list:
+    def superset(cls, robot: Robot) -> list:
         """Every link's one coefficient and each link's own, their reference 0 (a model's temperature comes
         minus its own reference)."""
         return [cls(t_ref=0.0), cls(joints=list(range(1, robot.n + 1)), t_ref=0.0)]
-    covariates = ("temperature_c",)
 
     def __init__(self, joints=None, t_ref: float = 20.0):
         super().__init__(None, t_ref)

@@ -35,7 +35,7 @@ class ToolOrientation(ErrorTerm):
     superset_order = 12
 
     @classmethod
-    def superset(cls, robot: Robot, torques: bool) -> list:
+    def superset(cls, robot: Robot) -> list:
         return [cls()]
 
     def __init__(self, joints=None):
