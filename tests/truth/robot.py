@@ -83,6 +83,16 @@ new terms of casadical/terms must find):
   (``Session.mount_compliance``: the column's height differs). The
   torques are those of the untilted arm (the tilt changes gravity's
   direction in the arm by theta, 1e-4: second order).
+- **Bearing compliance** (a joint bearing's tilting stiffness): joint j's
+  axis tips under the moment of the weights it carries (links j..n and the
+  payload, at their centres of the deflected arm) about the origin of its
+  axis, ``M_j = sum_{k >= j} (c_k - o_j) x (m_k g)``. In the axis' own frame
+  (the frame whose z is joint j's axis, before the joint turns: mdh after
+  ``Rx Tx Ry Ty``, dh the frame before the row) the two components across
+  the axis turn the joint about its origin by the rotation vector ``(cx
+  M_x, cy M_y, 0)`` (rad/(N m) each, >= 0): the link transform becomes
+  ``... R(cx M_x, cy M_y, 0) Rz(c_j + theta_j) ...``, and every link after
+  it turns with it (``Effects.bearing_compliance[j] = (cx, cy)``).
 """
 
 from __future__ import annotations
@@ -123,6 +133,9 @@ class Effects:
     axis_tilt: dict[int, tuple[float, float]] = field(default_factory=dict)
     #: rad/(N m): the base tilts by C M (one C) or (Cx M_x, Cy M_y, 0) (a pair)
     mount_compliance: float | tuple[float, float] = 0.0
+    #: (cx, cy) rad/(N m) by joint: its axis tips by (cx M_x, cy M_y, 0) in its own frame, M the moment of the
+    #: weights it carries about its origin
+    bearing_compliance: dict[int, tuple[float, float]] = field(default_factory=dict)
     #: m by (joint, "x" | "y"): a linear axis' carriage off its straight line, a function of its position (m)
     straightness: dict[tuple[int, str], Callable] = field(default_factory=dict)
     #: rad by (joint, "roll" | "pitch" | "yaw"): its carriage's turn, a function of its position (m)
@@ -164,6 +177,8 @@ class State:
     drive_torque: np.ndarray   # (N, n) what each drive carries
     moment: np.ndarray | None = None   # (N, 3) moment of every weight about the base frame's origin (N m)
     tilt: np.ndarray | None = None     # (N, 3) rotation vector of the base on its mount (rad), None: none
+    axis_frames: np.ndarray | None = None   # (N, n, 3, 3) each joint's axis frame (z its axis, before it turns)
+    bearing: np.ndarray | None = None  # (N, n, 3) each joint's tilt on its bearing, axis frame (rad)
 
 
 def last_moves(q: np.ndarray) -> np.ndarray:
@@ -260,11 +275,13 @@ class TrueRobot:
 
     # --- frames and torques ----------------------------------------------------------------
 
-    def frames(self, chain: np.ndarray, geo: dict, payload: np.ndarray) -> State:
+    def frames(self, chain: np.ndarray, geo: dict, payload: np.ndarray, bearing: np.ndarray | None = None) -> State:
+        """The frames and torques at chain angles ``chain``; ``bearing`` (N, n, 3): each joint's tilt on its
+        bearing (a rotation vector in its axis frame, before it turns)."""
         N, n = chain.shape
         arm = self.arm
         T = tf.eye(N)
-        links, axes, origins = [], [], []
+        links, axes, origins, frames_of_axes = [], [], [], []
         for i in range(n):
             alpha, a, beta, b, d, theta = (geo[k][:, i] for k in ("alpha", "a", "beta", "b", "d", "theta"))
             linear = arm.links[i].prismatic
@@ -276,14 +293,20 @@ class TrueRobot:
                 ta, tb = self.effects.axis_tilt[i + 1]
                 turn = tf.chain(turn, tf.rot("x", ta * np.sin(chain[:, i]) + tb * np.cos(chain[:, i])))
             slide = self.carriage(i + 1, chain[:, i]) if linear else []
+            if bearing is not None and np.any(bearing[:, i]):     # the axis tips on its bearing, then turns
+                tip = np.tile(np.eye(4), (N, 1, 1))
+                tip[:, :3, :3] = tf.rotation_vector_to_matrix(bearing[:, i])
+                turn = tf.chain(tip, turn)
             if arm.convention == "mdh":
                 T = tf.chain(T, tf.rot("x", alpha), tf.trans(a), tf.rot("y", beta), tf.trans(0.0, b))
                 axes.append(T[:, :3, 2])
                 origins.append(T[:, :3, 3])
+                frames_of_axes.append(T[:, :3, :3])
                 T = tf.chain(T, turn, tf.trans(0.0, 0.0, d), *slide)
             else:
                 axes.append(T[:, :3, 2])
                 origins.append(T[:, :3, 3])
+                frames_of_axes.append(T[:, :3, :3])
                 T = tf.chain(T, turn, tf.trans(0.0, 0.0, d), *slide, tf.trans(a),
                              tf.rot("x", alpha), tf.rot("y", beta), tf.trans(0.0, b))
             links.append(T)
@@ -305,7 +328,16 @@ class TrueRobot:
         mount = np.zeros((N, 3))
         for c, mass in zip(centres, masses):
             mount += np.cross(c, mass[:, None] * arm.gravity)
-        return State(np.zeros((N, n)), chain, links, axes, origins, T, torque, torque, mount)
+        frames_of_axes = np.stack(frames_of_axes, axis=1)
+        tips = np.zeros((N, n, 3))
+        for j, (cx, cy) in self.effects.bearing_compliance.items():
+            moment = np.zeros((N, 3))
+            for c, mass in zip(centres[j - 1:], masses[j - 1:]):
+                moment += np.cross(c - origins[:, j - 1], mass[:, None] * arm.gravity)
+            local = np.einsum("nki,nk->ni", frames_of_axes[:, j - 1], moment)     # in the axis' frame
+            tips[:, j - 1] = np.column_stack([cx * local[:, 0], cy * local[:, 1], np.zeros(N)])
+        return State(np.zeros((N, n)), chain, links, axes, origins, T, torque, torque, mount,
+                     axis_frames=frames_of_axes, bearing=tips)
 
     def carriage(self, j: int, p: np.ndarray) -> list:
         """The transforms of linear axis ``j``'s carriage off its travel at positions ``p`` (m): straightness,
@@ -375,16 +407,18 @@ class TrueRobot:
         geo = self.geometry_at(None if temperature is None else np.broadcast_to(temperature, (N,)), N)
         base = q + self.reading_errors(q, moves)
         m = base
+        tips = None     # the bearings' tilts: of the arm in equilibrium, found with the drives' deflections
         for _ in range(iterations):
-            s = self.frames(self.chain_angles(m, geo), geo, payload)
+            s = self.frames(self.chain_angles(m, geo), geo, payload, tips)
             J = self.chain_jacobian(m, geo)
             tau_drive = np.einsum("nij,ni->nj", J, s.torque)
             new = base + self.load_errors(tau_drive)
-            done = np.max(np.abs(new - m)) < 1e-15
+            done = np.max(np.abs(new - m)) < 1e-15 and (tips is None or np.max(np.abs(s.bearing - tips)) < 1e-15)
             m = new
+            tips = s.bearing if self.effects.bearing_compliance else None
             if done:
                 break
-        s = self.frames(self.chain_angles(m, geo), geo, payload)
+        s = self.frames(self.chain_angles(m, geo), geo, payload, tips)
         s = replace(s, drive=m, drive_torque=np.einsum("nij,ni->nj", self.chain_jacobian(m, geo), s.torque))
         return tilted(s, self.effects.mount_compliance if mount is None else mount)
 
