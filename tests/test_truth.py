@@ -336,6 +336,48 @@ def test_mount_compliance_tilts_the_base_towards_the_weights():
     assert np.allclose(move, np.cross(C * M, p), atol=1e-8)      # second order: |theta|^2 |p| < 3e-9 m
 
 
+def test_bearing_compliance_tips_a_joints_axis_towards_the_weights_it_carries():
+    """Joint 2's axis (vertical, the arm in a level plane, gravity -z) tips about its origin by (cx M_x, cy M_y, 0)
+    in its own frame, M the moment of link 2 and the payload about it, at the tipped arm's centres: a fixed point
+    written out here."""
+    L1, L2, m2, mp = 0.8, 0.6, 10.0, 5.0
+    doc = {"name": "level", "convention": "dh", "payload": {"mass_kg": mp},
+           "joint": [{"alpha_deg": 0, "a_m": L1, "d_m": 0.0, "mass_kg": 20.0, "com_m": [-L1 / 2, 0, 0]},
+                     {"alpha_deg": 0, "a_m": L2, "d_m": 0.0, "mass_kg": m2, "com_m": [-L2 / 2, 0, 0]}]}
+    cx, cy = 2e-4, 1e-4
+    r = nominal(doc, Effects(bearing_compliance={2: (cx, cy)}))
+    # q2 = 0: link 2 along joint 2's frame x; tipped by t about y: r = L (cos t, 0, -sin t), M_y = g L cos t (...)
+    t = 0.0
+    for _ in range(100):
+        t = cy * G * L2 * (m2 / 2 + mp) * cos(t)
+    s = r.state(np.zeros((1, 2)))
+    assert s.bearing[0, 1] == pytest.approx([0.0, t, 0.0], abs=1e-15)
+    assert np.allclose(r.tool_point(s), [[L1 + L2 * cos(t), 0.0, -L2 * sin(t)]], atol=1e-14)
+    # q2 = 90 deg: link 2 along the frame's y; M_x < 0 turns it down about x
+    u = 0.0
+    for _ in range(100):
+        u = -cx * G * L2 * (m2 / 2 + mp) * cos(u)
+    s = r.state(np.radians([[0.0, 90.0]]))
+    assert s.bearing[0, 1] == pytest.approx([u, 0.0, 0.0], abs=1e-15)
+    assert np.allclose(r.tool_point(s), [[L1, L2 * cos(u), L2 * sin(u)]], atol=1e-14)
+    # joint 1 carries no weight across its axis then? it does (the whole arm), but it has no bearing compliance
+    assert not s.bearing[0, 0].any()
+    # a 3-D arm: a compliance of zero changes nothing; one tips everything after the joint, first order
+    robot, q = _arm7_poses()
+    plain = robot.with_effects(Effects())
+    zero = robot.with_effects(Effects(bearing_compliance={3: (0.0, 0.0)}))
+    assert np.array_equal(zero.tool_point(zero.state(q)), plain.tool_point(plain.state(q)))
+    tipped = robot.with_effects(Effects(bearing_compliance={3: (1e-6, 2e-6)}))
+    st, s0 = tipped.state(q), plain.state(q)
+    w = np.einsum("nij,nj->ni", s0.axis_frames[:, 2], st.bearing[:, 2])    # the tilt in the base frame
+    p0 = plain.tool_point(s0)
+    move = tipped.tool_point(st) - p0
+    arm = p0 - s0.origins[:, 2]
+    second_order = np.linalg.norm(w, axis=1).max() ** 2 * np.linalg.norm(arm, axis=1).max()     # |w|^2 |r|
+    assert np.abs(move).max() > 1e3 * second_order
+    assert np.allclose(move, np.cross(w, arm), atol=second_order)
+
+
 def test_instrument_angle_and_distance_errors():
     """The tracker turns a point about its vertical axis by A sin(az + phi) and reads (1 + s) times its
     distance: a point at azimuth az moves A sin(az + phi) r_xy across, s r along."""

@@ -413,9 +413,10 @@ class TrueRobot:
             J = self.chain_jacobian(m, geo)
             tau_drive = np.einsum("nij,ni->nj", J, s.torque)
             new = base + self.load_errors(tau_drive)
-            done = np.max(np.abs(new - m)) < 1e-15 and (tips is None or np.max(np.abs(s.bearing - tips)) < 1e-15)
-            m = new
-            tips = s.bearing if self.effects.bearing_compliance else None
+            new_tips = s.bearing if self.effects.bearing_compliance else None
+            done = np.max(np.abs(new - m)) < 1e-15 and (new_tips is None or (
+                tips is not None and np.max(np.abs(new_tips - tips)) < 1e-15))
+            m, tips = new, new_tips
             if done:
                 break
         s = self.frames(self.chain_angles(m, geo), geo, payload, tips)
