@@ -267,6 +267,9 @@ def not_tried(robot: Robot, cal: Measurements, torques: np.ndarray, settings: Di
             joints, why, allow = found
             out.append(NotTried(", ".join(c.needs[key] for c in stopped), why, allow, list(joints), key,
                                 [c.name for c in stopped]))
+    for cause in ordered("order"):      # what of a cause alone these poses cannot test
+        out += [NotTried(cause.name, why, allow, list(joints), cause.name, [cause.name])
+                for joints, why, allow in cause.untested(d)]
     return out
 
 
@@ -329,6 +332,7 @@ class Catalogue:
         self._of = None                                     # the fit they were computed for
         self.mount: list | None = None                      # scopes whose moment changes (None: the robot's)
         self.couples: bool | None = None                    # couplings are tried (the poses move joints together)
+        self._memo: dict = {}                               # what a cause computes once (memo)
         t = cal.get("time_s")
         if t is None:
             self.warmups: dict[str | None, list[float]] = {}
@@ -402,6 +406,12 @@ class Catalogue:
     # -- what a cause's candidates are made of (casadical.terms.cause.Cause.candidates) -----------------------
 
     make = Candidate
+
+    def memo(self, key, make):
+        """What a cause computes once of the calibration poses (``make()``), kept by ``key`` for the rounds."""
+        if key not in self._memo:
+            self._memo[key] = make()
+        return self._memo[key]
 
     @property
     def revolute(self) -> list[int]:

@@ -147,6 +147,12 @@ class Cause:
         candidate. None by default (a cause the search never screens: the geometry)."""
         return []
 
+    def untested(self, data: Any) -> list[tuple[list[int], str, str]]:
+        """What of this cause the calibration poses cannot test beyond the shared conditions of :attr:`needs`:
+        (joints, why, what would allow it) each; ``data`` as :meth:`candidates`' (its robot, poses, torques).
+        None by default."""
+        return []
+
     def screenable(self, cand: Any, data: Any) -> bool:
         """Whether ``cand`` can be screened on these poses beyond what :meth:`candidates` knew (a play's sign must
         change in its scope); yes by default."""
