@@ -7,6 +7,7 @@ such as ``"kinematic+compliance[2,3]+periodic[2:1]"`` (see
 
 from . import (  # noqa: F401
     backlash,
+    bearing_compliance,
     carriage_angle,
     compliance,
     drift,
