@@ -210,15 +210,17 @@ class BearingGive(Cause):
         return out
 
     def untested(self, data) -> list:
-        """A component whose axis is an earlier joint's (at every pose): that joint's compliance takes its tilt."""
-        out = []
+        """The components whose axis is an earlier joint's (at every pose): that joint's compliance takes their tilt
+        (one entry for every such joint)."""
+        found = {}
         for j in (j for j in data.revolute if j > 1 and max_gravity_torque(data.robot, j) > 0):
             for k, earlier in parallel_to_earlier(data.robot, data.cal.q, j).items():
                 if earlier is not None:
-                    out.append(([j], f"the tilt of its bearing about its {k} is about joint {earlier}'s axis, whose "
-                                     "compliance takes it", "nothing these poses could change: the two follow "
-                                                             "nearly the same moment"))
-        return out
+                    found.setdefault(k, []).append((j, earlier))
+        return [([j for j, _ in pairs], f"the tilt of each bearing about its {k} is about the axis of the joint "
+                 f"before ({', '.join(f'joint {e} for {j}' for j, e in pairs)}), whose compliance takes it",
+                 "nothing these poses could change: the two follow nearly the same moment") for k, pairs in
+                found.items()]
 
     def parameter_names(self, cand) -> list[str]:
         return [f"cbear{cand.joint}_{cand.direction}"]
