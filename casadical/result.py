@@ -3,7 +3,7 @@
 :class:`CalibrationResult` is what :func:`casadical.calibration.calibrate`
 returns (statsmodels style: the model and its results kept apart);
 :func:`load_calibration` reads the JSON :meth:`CalibrationResult.save`
-writes (INTERFACE.md section 4).
+writes (docs/formats.md section 4).
 """
 
 from __future__ import annotations
@@ -449,7 +449,7 @@ class CalibrationResult:
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
-        """The calibration JSON of INTERFACE.md section 4 (plus what rebuilds the model)."""
+        """The calibration JSON of docs/formats.md section 4 (plus what rebuilds the model)."""
         params = []
         tests = self.significance()
         for p in self.parameters:

@@ -1,4 +1,4 @@
-"""Measurement files: the CSV contract of INTERFACE.md section 2.
+"""Measurement files: the CSV contract of docs/formats.md section 2.
 
 One row per pose, in measurement order: ``q1_deg..qN_deg`` (``qK_mm`` for a prismatic joint K), optionally
 ``x_mm, y_mm, z_mm`` (a file without them is a list of poses to predict or

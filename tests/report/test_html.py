@@ -709,7 +709,7 @@ def test_readme_summary_findings_first_and_short(readme_job):
     assert re.fullmatch(r"k2 = \d\.\d\de4 N m/rad \+- \d+\.\d %", comp["summary"]["size"])
     assert "-> " in lines[-1] and f"final model -> {d / 'final.json'}" in r.stdout
     assert not _signed_gain(r.stdout)
-    # the JSON keeps its keys (INTERFACE.md section 4) and adds the summary
+    # the JSON keeps its keys (docs/formats.md section 4) and adds the summary
     assert {"steps", "findings", "final"} <= set(doc)
     assert all({"cause", "gain_mm", "evidence", "summary"} <= set(f) for f in doc["findings"])
 
