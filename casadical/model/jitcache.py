@@ -87,13 +87,21 @@ _LISTENERS: list = []
 
 @contextlib.contextmanager
 def announcing(say):
-    """Within the block, ``say(text)`` hears of a compilation that takes seconds before it starts (the command
-    line's progress line: a first run must not look as if it hangs)."""
-    _LISTENERS.append(say)
+    """Within the block, ``say(text)`` hears of the first compilation that takes seconds before it starts (the
+    command line's progress line: a first run must not look as if it hangs). Once per block: a run compiles
+    the parts of the model it needs as it needs them (a diagnosis: those with and without the gravity
+    torques, of positions and of full poses), and the notice said at the first covers them all."""
+    said = []
+
+    def once(text: str) -> None:
+        if not said:
+            said.append(text)
+            say(text)
+    _LISTENERS.append(once)
     try:
         yield
     finally:
-        _LISTENERS.remove(say)
+        _LISTENERS.remove(once)
 
 
 def announce(text: str) -> None:
