@@ -441,7 +441,7 @@ class CalibrationResult:
         if self.loss.robust:
             lines.append(f"robust loss: pseudo-Huber, noise scale {self.loss.sigma * 1000:.4f} mm per axis, "
                          f"linear beyond {self.loss.c:g} sigma; "
-                         + (f"{len(self.downweighted)} pose(s) down-weighted below half weight (file lines "
+                         + (f"{len(self.downweighted)} pose(s) down-weighted below half weight (rows "
                             + listing([d["line"] for d in self.downweighted], 12) + ")"
                             if self.downweighted else "no pose down-weighted below half weight"))
         for n in self.notes:

@@ -278,7 +278,7 @@ def _per_pose(e0: np.ndarray, e1: np.ndarray, lines=None):
     idx = np.arange(len(e0))
     titles = None
     if lines is not None and len(lines) == len(e0):
-        titles = [f"line {n}: nominal {x:.4f} mm, final {y:.4f} mm" for n, x, y in zip(lines, e0, e1)]
+        titles = [f"row {n}: nominal {x:.4f} mm, final {y:.4f} mm" for n, x, y in zip(lines, e0, e1)]
     a.points(idx, e0, BEFORE, 1.3, 0.6, label="nominal", titles=titles)
     a.points(idx, e1, AFTER, 1.3, 0.8, label="final", titles=titles)
     a.xlabel, a.ylabel = "validation pose (file order)", "position error (mm)"
@@ -397,14 +397,14 @@ def _finding_plot(f: Finding):
         y = np.asarray(pl["partial"], float)
         titles = None
         if has:
-            titles = [f"line {n}: error {e:.4f} mm; {v:.1f} arcsec at {u:.4g}" for n, e, v, u in zip(lines, err, y, x)]
+            titles = [f"row {n}: error {e:.4f} mm; {v:.1f} arcsec at {u:.4g}" for n, e, v, u in zip(lines, err, y, x)]
         ax.points(x, y, AFTER, 1.5, 0.55, label="residual + fitted effect", titles=titles, legend_r=3.0)
         ax.line(pl["curve_x"], pl["curve_y"], CURVE, 2.0, label="fitted effect")
     else:
         b, a = np.asarray(pl["before"], float), np.asarray(pl["after"], float)
         titles = None
         if has:
-            titles = [f"line {n}: error {e:.4f} mm; before {u:.4f}, after {v:.4f}"
+            titles = [f"row {n}: error {e:.4f} mm; before {u:.4f}, after {v:.4f}"
                       for n, e, u, v in zip(lines, err, b, a)]
         ax.points(x, b, BEFORE, 1.5, 0.6, label="before", titles=titles, legend_r=3.0)
         ax.points(x, a, AFTER, 1.5, 0.7, label="after", titles=titles, legend_r=3.0)
@@ -578,7 +578,7 @@ def _accuracy_plot(m: dict, lines=None):
         q = np.asarray(m["measured"], float)
         titles = None
         if lines is not None and len(lines) == len(q):
-            titles = [f"line {n}: q{ja} {a:.1f} {ua}, q{jb} {b:.1f} {ub}" for n, a, b in zip(lines, q[:, 0], q[:, 1])]
+            titles = [f"row {n}: q{ja} {a:.1f} {ua}, q{jb} {b:.1f} {ub}" for n, a, b in zip(lines, q[:, 0], q[:, 1])]
         ax.points(q[:, 0], q[:, 1], "#fff", 1.5, edge="#000", label="calibration poses", titles=titles,
                   legend_r=2.5)
         legend_above(ax)

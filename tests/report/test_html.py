@@ -147,10 +147,10 @@ def calibration_page(request, tmp_path_factory):
 
 def test_calibration_report_lists_the_bad_measurements_by_file_line(calibration_page):
     result, data, html, page, bad_lines, _ = calibration_page
-    listed = [int(r["file line"]) for r in page.table("outliers")]
+    listed = [int(r["file row"]) for r in page.table("outliers")]
     assert sorted(listed) == sorted(bad_lines.tolist())
     for r in page.table("outliers"):
-        i = int(np.flatnonzero(data.lines == int(r["file line"]))[0])
+        i = int(np.flatnonzero(data.lines == int(r["file row"]))[0])
         residual = np.linalg.norm(result.residuals(data)[i]) * 1000
         assert float(r["residual mm"]) == pytest.approx(residual, abs=1e-3)
 
@@ -305,7 +305,7 @@ def test_calibration_figures_hover_each_pose_with_its_line_and_error(calibration
     r1 = result.residuals(data) * 1000
     seen = 0
     for t in _titles(html, "fig-axes"):
-        m = re.fullmatch(r"line (\d+): ([xyz]) ([+-]\d+\.\d+) mm, error (\d+\.\d+) mm \((.+)\)", t)
+        m = re.fullmatch(r"row (\d+): ([xyz]) ([+-]\d+\.\d+) mm, error (\d+\.\d+) mm \((.+)\)", t)
         assert m, t
         if m.group(5) != "calibrated":
             continue
@@ -318,7 +318,7 @@ def test_calibration_figures_hover_each_pose_with_its_line_and_error(calibration
     # the bad measurements (3 mm off): the largest errors hovered in the per-joint figure are on their lines
     errors = {}
     for t in _titles(html, "fig-joints"):
-        m = re.fullmatch(r"line (\d+): q\d+ -?\d+\.\d (deg|mm), [xyz] [+-]\d+\.\d+ mm, error (\d+\.\d+) mm", t)
+        m = re.fullmatch(r"row (\d+): q\d+ -?\d+\.\d (deg|mm), [xyz] [+-]\d+\.\d+ mm, error (\d+\.\d+) mm", t)
         assert m, t
         errors[int(m.group(1))] = float(m.group(3))
     assert sorted(errors) == sorted(data.lines.tolist())
@@ -341,7 +341,7 @@ def test_diagnosis_figures_hover_each_pose_with_its_line_and_error(diagnosis_pag
     titles = _titles(html, "fig-poses")
     assert len(titles) == 2 * len(e1)
     for k, t in enumerate(titles[len(e1):]):
-        m = re.fullmatch(r"line (\d+): nominal (\d+\.\d+) mm, final (\d+\.\d+) mm", t)
+        m = re.fullmatch(r"row (\d+): nominal (\d+\.\d+) mm, final (\d+\.\d+) mm", t)
         assert m, t
         assert int(m.group(1)) == k + 2        # the validation file's data rows, in order
         assert (float(m.group(2)), float(m.group(3))) == pytest.approx((e0[k], e1[k]), abs=1e-4)
@@ -351,9 +351,9 @@ def test_diagnosis_figures_hover_each_pose_with_its_line_and_error(diagnosis_pag
     titles = _titles(html, f"fig-finding-{k}")
     assert len(titles) == len(cal)
     for t in titles:
-        line, e = re.match(r"line (\d+): error (\d+\.\d+) mm", t).groups()
+        line, e = re.match(r"row (\d+): error (\d+\.\d+) mm", t).groups()
         assert float(e) == pytest.approx(error[int(line)], abs=1e-4)
-    assert sorted(int(re.match(r"line (\d+)", t).group(1)) for t in titles) == sorted(error)
+    assert sorted(int(re.match(r"row (\d+)", t).group(1)) for t in titles) == sorted(error)
 
 
 def test_diagnosis_report_steps_with_short_labels_and_full_specs(diagnosis_page):
@@ -451,7 +451,7 @@ def test_cli_calibrate_html(tmp_path, capsys):
     args = ["calibrate", str(tmp_path / "arm4.toml"), data.path, "--out", out, "--html", html, "--validate", val.path]
     assert main(args) == 0
     page = Page(open(html, encoding="utf-8").read())
-    assert [int(r["file line"]) for r in page.table("outliers")] == bad_lines.tolist()
+    assert [int(r["file row"]) for r in page.table("outliers")] == bad_lines.tolist()
     # --validate: the held-out errors in the report, as in the JSON
     doc = json.loads(open(out, encoding="utf-8").read())
     after = page.table("validation")[-1]
