@@ -446,6 +446,21 @@ def test_inspect_shows_each_terms_expressions_and_what_the_poses_identify(wobbly
     assert doc["identifiability"]["poses"] == 120
 
 
+def test_inspect_says_a_term_parameters_unit_as_the_file_states_it(tmp_path, capsys):
+    """A parameter of unit rad (start 2 mrad): inspect gives it in rad as the file states it, with its bounds, and
+    says the table shows it in deg and how (issue 47: shown only as deg); the table's value is the start in
+    degrees."""
+    path = tmp_path / "w.toml"
+    path.write_text(EXAMPLE.read_text().replace('unit = "rad"', 'unit = "rad"\nstart = 0.002', 1))
+    assert main(["inspect", "ur10", "--model", "kinematic", "--terms", str(path), "--poses", "50"]) == 0
+    out = capsys.readouterr().out
+    es = next(x for x in out.splitlines() if x.startswith("  axis_wobble.es: "))
+    assert es.endswith("in the terms file: unit rad (the table below shows it in deg: 57.3 deg per rad), bounds "
+                       "-0.005 .. 0.005 rad, start 0.002 rad"), es
+    row = next(x for x in out.splitlines() if x.startswith("axis_wobble.es "))
+    assert float(row.split()[2]) == pytest.approx(math.degrees(0.002), rel=1e-5) and row.split()[5] == "deg"
+
+
 # --- the diagnosis ------------------------------------------------------------------------------
 
 def test_the_diagnosis_names_a_user_term_and_the_final_model_reaches_the_noise(wobbly, capsys, tmp_path):
