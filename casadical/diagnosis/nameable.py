@@ -170,7 +170,7 @@ def cause_checks(scr: Screen, fit: LinearFit, cand: Candidate, cal: Measurements
     if cand.cause == "drift":
         hv = out["halves"] = halves(fit, params, cal, None, alpha, cand.session)
         if not hv[0].agree:
-            out["reasons"].append("the first and second half in time disagree: " + hv[0].text())
+            out["reasons"].append("the first and second half in time differ: " + hv[0].text())
         return out
     # a coupling is a straight line in its source joint's reading: the same slope over either half of that range
     reading = cand.source_joint if cand.cause == "joint_coupling" else cand.joint
@@ -181,5 +181,5 @@ def cause_checks(scr: Screen, fit: LinearFit, cand: Candidate, cal: Measurements
             out["reasons"].append(rs.text())
     if not hv[0].agree:
         whose = f"joint {reading}'s" if cand.cause == "joint_coupling" else "the joint's"
-        out["reasons"].append(f"the halves of {whose} range disagree: " + hv[0].text())
+        out["reasons"].append(f"the halves of {whose} range differ: " + hv[0].text())
     return out
