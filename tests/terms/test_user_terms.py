@@ -518,37 +518,16 @@ def test_a_term_of_scope_session_is_dropped_when_the_calibration_is_taken_to_oth
 
 # --- every term accounted for in every output ---------------------------------------------------------------
 
-TWO_WOBBLES = """
-[[term]]
-name = "wobble_j2"           # in the truth's data: joint 2's bearing tips its link by 0.3 mrad (sin q2 + cos q2)
-joint = 2
-frame = ["0", "0", "0", "a2 * sin(q2) + b2 * cos(q2)", "0", "0"]
-[term.parameters.a2]
-scale = 1e-4
-lower = -0.005
-upper = 0.005
-unit = "rad"
-[term.parameters.b2]
-scale = 1e-4
-lower = -0.005
-upper = 0.005
-unit = "rad"
+def _wobble(j: int) -> str:
+    """A term of a terms file: joint ``j``'s link tipping about its x axis by a sin(qj) + b cos(qj) (rad)."""
+    params = "".join(f"[term.parameters.{p}{j}]\nscale = 1e-4\nlower = -0.005\nupper = 0.005\nunit = \"rad\"\n"
+                     for p in "ab")
+    return (f'[[term]]\nname = "wobble_j{j}"\njoint = {j}\n'
+            f'frame = ["0", "0", "0", "a{j} * sin(q{j}) + b{j} * cos(q{j})", "0", "0"]\n{params}')
 
-[[term]]
-name = "wobble_j3"           # not in the data
-joint = 3
-frame = ["0", "0", "0", "a3 * sin(q3) + b3 * cos(q3)", "0", "0"]
-[term.parameters.a3]
-scale = 1e-4
-lower = -0.005
-upper = 0.005
-unit = "rad"
-[term.parameters.b3]
-scale = 1e-4
-lower = -0.005
-upper = 0.005
-unit = "rad"
-"""
+
+#: joint 2's wobble is in the truth's data (its bearing tips the link by 0.3 mrad (sin q2 + cos q2)); joint 3's not
+TWO_WOBBLES = _wobble(2) + "\n" + _wobble(3)
 
 
 @pytest.mark.parametrize("seed", [0, 1])
@@ -556,8 +535,9 @@ def test_every_user_term_is_accounted_for_in_every_output(tmp_path, capsys, seed
     """A 5-axis DH arm whose joint 2 tips (the independent truth's axis tilt, which on this link is exactly a frame
     effect about x after the link transform) and a terms file with that term and one of joint 3 the data lack:
     the terminal (summary and --verbose), the JSON (user_terms, settings, inputs) and the HTML say both, the one
-    named (its finding) and the other screened and never supported, with its best score test above the level it
-    was held to (issue 47: the user could not tell "screened and rejected" from "ignored")."""
+    named (its finding) and the other with why it is not (screened and never supported: its best score test above
+    the level it was held to; or fitted before joint 2's tilt was in the model and not accepted: why) (issue 47:
+    the user could not tell "screened and rejected" from "ignored")."""
     from tests.helpers import hidden
     from tests.helpers.arms import to_toml
     from tests.report.test_html import Page
