@@ -22,7 +22,7 @@ from dataclasses import dataclass
 from ..terms.definitions import known
 from .candidates import Candidate
 from .state import DiagnosisRun
-from .validation import KINDS
+from .validation import KINDS, cv_text
 from .words import gain_words
 
 
@@ -146,7 +146,6 @@ def _outcome(run: DiagnosisRun, c: Candidate) -> dict:
 
 
 def _held(cv: dict | None) -> str:
-    """A step's held-out means before and after, by kind of fold, in words."""
-    cv = cv or {}
-    return ", ".join(f"{k} {cv[k + '_before']:.4f} -> {cv[k]:.4f} mm" for k in KINDS
-                     if cv.get(k) is not None and cv.get(k + "_before") is not None)
+    """A step's held-out means before and after (its :func:`.validation.cv_record`), by kind of fold, in words."""
+    kinds = [k for k in KINDS if (cv or {}).get(k) is not None and cv.get(f"{k}_before") is not None]
+    return cv_text({k: cv[f"{k}_before"] for k in kinds}, {k: cv[k] for k in kinds})
