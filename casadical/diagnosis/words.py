@@ -182,6 +182,9 @@ def size(f: "Finding", final: "CalibrationResult") -> str:
         speed = float(np.linalg.norm(v))
         std = math.sqrt(((v * s) ** 2).sum()) / speed if speed > 0 else math.nan
         return f"{g3(speed * 1e6)} um/s{relative(std, speed)}"
+    if c.user:      # a cause of the user's own: its parameters as the parameter table reads them
+        return ", ".join(f"{n.split('.', 1)[-1]} = {g3(p.to_reading(p.value))} {p.reading_unit}"
+                         + relative(p.std, p.value) for n, p in zip(names, P))
     return ""
 
 

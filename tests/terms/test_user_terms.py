@@ -6,6 +6,7 @@ from __future__ import annotations
 import builtins
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -558,6 +559,8 @@ def test_every_user_term_is_accounted_for_in_every_output(tmp_path, capsys, seed
     assert set(got) == {"wobble_j2", "wobble_j3"}
     named, absent = got["wobble_j2"]["screen"][0], got["wobble_j3"]["screen"][0]
     assert named["outcome"] == "named" and doc["findings"][named["finding"] - 1]["cause"] == "wobble_j2"
+    size = doc["findings"][named["finding"] - 1]["summary"]["size"]        # its values, as the table reads them
+    assert re.fullmatch(r"a2 = -?[\d.e+-]+ deg \+- [\d.]+ %, b2 = -?[\d.e+-]+ deg \+- [\d.]+ %", size), size
     # before joint 2's tilt is in the model, joint 3's term may take part of it: fitted then, and not accepted
     assert absent["outcome"] in ("not supported", "rejected"), absent
     if absent["outcome"] == "not supported":
