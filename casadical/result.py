@@ -3,7 +3,7 @@
 :class:`CalibrationResult` is what :func:`casadical.calibration.calibrate`
 returns (statsmodels style: the model and its results kept apart);
 :func:`load_calibration` reads the JSON :meth:`CalibrationResult.save`
-writes (INTERFACE.md section 4).
+writes (docs/formats.md section 4).
 """
 
 from __future__ import annotations
@@ -441,7 +441,7 @@ class CalibrationResult:
         if self.loss.robust:
             lines.append(f"robust loss: pseudo-Huber, noise scale {self.loss.sigma * 1000:.4f} mm per axis, "
                          f"linear beyond {self.loss.c:g} sigma; "
-                         + (f"{len(self.downweighted)} pose(s) down-weighted below half weight (file lines "
+                         + (f"{len(self.downweighted)} pose(s) down-weighted below half weight (rows "
                             + listing([d["line"] for d in self.downweighted], 12) + ")"
                             if self.downweighted else "no pose down-weighted below half weight"))
         for n in self.notes:
@@ -449,7 +449,7 @@ class CalibrationResult:
         return "\n".join(lines)
 
     def to_dict(self) -> dict:
-        """The calibration JSON of INTERFACE.md section 4 (plus what rebuilds the model)."""
+        """The calibration JSON of docs/formats.md section 4 (plus what rebuilds the model)."""
         params = []
         tests = self.significance()
         for p in self.parameters:

@@ -1,4 +1,4 @@
-"""Robot descriptions: the TOML contract (INTERFACE.md section 1) and built-ins.
+"""Robot descriptions: the TOML contract (docs/formats.md section 1) and built-ins.
 
 A :class:`Robot` holds nominal values only, in SI units (m, rad, kg). The
 symbolic model (:mod:`casadical.model.symbolic`) turns it into CasADi expressions.

@@ -2,7 +2,7 @@
 
 This is the honest baseline for the benchmarks: what one would write with
 numpy alone to evaluate casadical's model for many poses at once, and its
-Jacobian by forward finite differences. It follows INTERFACE.md section 1 and
+Jacobian by forward finite differences. It follows docs/formats.md section 1 and
 :mod:`casadical.model.kinematics` exactly:
 
 - link transforms, ``mdh``: Rx(alpha) Tx(a) Ry(beta) Ty(b) Rz(q+theta) Tz(d);

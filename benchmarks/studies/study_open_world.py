@@ -6,7 +6,7 @@ validation poses, 0.02 mm noise, and diagnosed with the default settings. For ea
 the three seeds:
 
 - **located**: the structure screen's strongest structure is where the effect lives (the joint, covariate
-  and effect of INTERFACE section 4 that the case states); for an effect the catalogue now holds, the
+  and effect of docs/formats.md section 4 that the case states); for an effect the catalogue now holds, the
   cause is named exactly instead;
 - **named**: seeds in which the final model names a catalogue cause the truth does not hold (a stand-in);
 - **bad shots**: seeds in which a pose is called a likely bad measurement (the data hold none);

@@ -47,7 +47,7 @@ def note_set_aside(run: CalibrationRun) -> None:
                                     run.cov)
         run.notes.append(f"the robust loss set aside {len(down)} pose(s) of {data.path} whose residual exceeds "
                          f"{math.sqrt(DOWNWEIGHT_REPORT ** -2 - 1) * run.loss.c:.1f} times the noise scale of "
-                         f"{scale} (lines "
+                         f"{scale} (rows "
                          + listing([f"{d['file']}:{d['line']}" if "file" in d else d["line"] for d in down], 10)
                          + "): " + shared.text() + ("; diagnose looks for its cause" if shared.structured else
                                                     "; check them, or pass --robust none to fit them anyway"))

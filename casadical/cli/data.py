@@ -64,6 +64,9 @@ def register(sub) -> None:
 
 def _add_import_options(p) -> None:
     p.add_argument("--out", required=True, metavar="OUT.csv", help="output CSV")
+    p.add_argument("--allow-multiturn", action="store_true",
+                   help="accept joint readings beyond a turn (2 pi) with joint_unit = \"rad\" (a joint that turns "
+                        "more than once; else they are an error: degrees mapped as radians)")
     p.add_argument("--keep-order", action="store_true",
                    help="keep the file's row order where the timestamps say otherwise (default: sort by time)")
     add_force(p)
@@ -129,7 +132,7 @@ def run_import(args) -> int:
     map_files = [str(f) for m in args.maps if (f := mapping_file(m)) is not None]
     check_outputs({"--out": args.out}, [args.source, *map_files], args.force)
     imported = import_file(args.source, args.out, column_map, overwrite=args.force,
-                           sort_by_time=not args.keep_order)
+                           sort_by_time=not args.keep_order, multiturn=args.allow_multiturn)
     print(f"mapping ({column_map.source}):")
     groups: dict[str, list] = {}
     for m in imported.mapped:

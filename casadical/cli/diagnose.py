@@ -144,14 +144,15 @@ def run(args) -> int:
     say = status.timed_line()
     report = diagnose(robot, cal, val, settings, progress=say if args.verbose else _brief(say), other=other,
                       **check_options(args))
+    report.inputs = _inputs(args)
     out = human_stream(args.json, args.html)      # '-': stdout holds that output alone, the words go to stderr
     print(report.text(verbose=args.verbose), file=out)
     print(file=out)
     if args.json:
         doc = report.to_dict()
         # the poses the report was made from, for plan-poses REPORT.json (relative to the report's folder)
-        doc["inputs"] = {"data": [_beside(p, args.json) for p in args.data],
-                         "validate": [_beside(p, args.json) for p in args.validate]}
+        doc["inputs"].update(data=[_beside(p, args.json) for p in args.data],
+                             validate=[_beside(p, args.json) for p in args.validate])
         write_json(args.json, doc, args.force)
         print(f"report -> {'standard output' if args.json == STDOUT else args.json}", file=out)
     if args.html:
@@ -163,6 +164,17 @@ def run(args) -> int:
         report.final.save(args.out, overwrite=args.force)
         print(f"final model -> {args.out}", file=out)
     return 0
+
+
+#: what the command line gave that the report's inputs name on their own (the rest are its options)
+_GIVEN = ("robot", "data", "validate", "transfer", "terms")
+
+
+def _inputs(args) -> dict:
+    """What the user gave, for the record: the robot, the files, and every option of the command line (as given
+    or by default; outputs and the words' options too)."""
+    options = {k: v for k, v in sorted(vars(args).items()) if k not in (*_GIVEN, "func", "command", "debug")}
+    return {**{k: getattr(args, k) for k in _GIVEN}, "options": options}
 
 
 def _joint_pair(text: str, n: int) -> tuple[int, int]:

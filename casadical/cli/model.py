@@ -6,6 +6,7 @@ import math
 
 import numpy as np
 
+from .._format import number
 from ..errors import InputError
 from .common import (
     add_checks,
@@ -152,15 +153,29 @@ def user_term_lines(model, from_data: bool) -> list[str]:
         for effect, texts in d.texts.items():
             lines.append(f"  {effect} = " + (texts[0] if len(texts) == 1 and effect in ("angle", "offset")
                                              else "[" + ", ".join(texts) + "]"))
+        defined = {f"{d.name}.{pd.name}": pd for pd in d.parameters}
         for p in model.parameters:
             if p.term == d.name:
                 lines.append(f"  {p.name}: " + ("identifiable" if p.identifiable else
-                                                f"NOT identifiable ({p.reason})"))
+                                                f"NOT identifiable ({p.reason})")
+                             + _as_defined(defined.get(p.name.split("@")[0]), p))
         cols = [c for c in d.columns() if c != "row"]
         if cols and not from_data:
             lines.append(f"  reads {', '.join(cols)}: 0 at the random poses; give --poses DATA.csv to judge it on "
                          "measured poses")
     return lines
+
+
+def _as_defined(pd, p) -> str:
+    """A user term's parameter as its file states it (unit, bounds, start), and the unit the table shows it in
+    when that is another (rad and m are shown in deg and mm, as every parameter)."""
+    if pd is None:
+        return ""
+    unit = f" {pd.unit}" if pd.unit else ""
+    shown = (f" (the table below shows it in {p.reading_unit}: {number(p.to_reading(1.0), 4)} {p.reading_unit} "
+             f"per {pd.unit})" if pd.unit and p.reading_unit != pd.unit else "")
+    return (f"; in the terms file: unit {pd.unit or '(none)'}{shown}, bounds {number(pd.lower, 4)} .. "
+            f"{number(pd.upper, 4)}{unit}, start {number(pd.start, 4)}{unit}")
 
 
 def param_json(p) -> dict:

@@ -1,4 +1,4 @@
-"""Measurement files: the CSV contract of INTERFACE.md section 2.
+"""Measurement files: the CSV contract of docs/formats.md section 2.
 
 One row per pose, in measurement order: ``q1_deg..qN_deg`` (``qK_mm`` for a prismatic joint K), optionally
 ``x_mm, y_mm, z_mm`` (a file without them is a list of poses to predict or
@@ -357,10 +357,13 @@ def _short(text: str, n: int = 40) -> str:
 
 
 def _misspelt(header: list[str], missing: str, present: list[str], path: str) -> None:
-    """An unknown column that looks like the missing one of a triple (``x_mn`` for ``x_mm``) is the one named."""
+    """An unknown column that looks like the missing one of a triple (``x_mn`` for ``x_mm``) is the one named; one
+    that holds a name of the triple whole (``std_z_mm``, ``std_y_mm``: other columns about them) is not a
+    misspelling."""
     import difflib
 
-    unknown = [h for h in header if h not in _KNOWN and not _Q.match(h)]
+    unknown = [h for h in header
+               if h not in _KNOWN and not _Q.match(h) and not any(c in h for c in (missing, *present))]
     near = difflib.get_close_matches(missing, unknown, n=1, cutoff=0.6)
     if near:
         raise DataFileError(f"is not a column casadical knows; is it {missing!r}? ({', '.join(present)} are there, "

@@ -9,7 +9,7 @@ sessions fits one robot with a base pose per session
 (:class:`casadical.terms.sessions.SessionFrames`), and the diagnosis asks of
 every cause whether one value serves every session.
 
-Sessions come from the ``session`` column of a file (INTERFACE.md section
+Sessions come from the ``session`` column of a file (docs/formats.md section
 2), or one per file when several files are given (``calibrate ROBOT A.csv
 B.csv``): :func:`read_sessions` and :func:`combine`.
 """

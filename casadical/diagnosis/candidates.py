@@ -18,7 +18,7 @@ class Candidate:
     Attributes
     ----------
     cause : str
-        Cause name of INTERFACE.md section 4 (or ``nonlinear_stiffness``).
+        Cause name of docs/formats.md section 4 (or ``nonlinear_stiffness``).
     joint, harmonic : int or None
         For ``thermal_expansion`` a joint means that link's own coefficient.
     source : str or None

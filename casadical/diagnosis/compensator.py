@@ -83,20 +83,30 @@ def judge(folds: GPCompensatorFolds, shrink: float, alpha: float, band: float = 
     reasons = []
     b, a = means["random"]
     if not p < alpha:
-        reasons.append(f"it does not lower the held-out error significantly where it interpolates (random "
-                       f"{b:.4f} -> {a:.4f} mm, p = {p:.2g})")
+        # the level beside the p-value: p = 0.0021 reads as significant where the level is 8.3e-05 (issue 47)
+        reasons.append(f"it does not lower the held-out error significantly where it interpolates: random "
+                       f"{_change(b, a)}, p = {p:.2g}, not below the level {alpha:.2g} of its tests")
     elif not a < b * (1 - MIN_GAIN):
-        reasons.append(f"it lowers the held-out error where it interpolates by {MIN_GAIN:.0%} or less (random "
-                       f"{b:.4f} -> {a:.4f} mm)")
+        reasons.append(f"it lowers the held-out error where it interpolates by {MIN_GAIN:.0%} or less: random "
+                       f"{_change(b, a)}")
     worse = [k for k in EXTRAPOLATING if k in means and means[k][1] > means[k][0]]
     if worse:
         reasons.append("it raises the held-out error where it must extrapolate: "
-                       + ", ".join(f"{k} {means[k][0]:.4f} -> {means[k][1]:.4f} mm" for k in worse))
+                       + ", ".join(f"{k} {_change(*means[k])}" for k in worse))
     high = [k for k in KINDS if k in worst and worst[k][1] > worst[k][0] * (1 + WORST_SHARE)]
     if high:
         reasons.append(f"it raises the worst held-out error by more than {WORST_SHARE:.0%}: "
-                       + ", ".join(f"{k} {worst[k][0]:.4f} -> {worst[k][1]:.4f} mm" for k in high))
+                       + ", ".join(f"{k} {_change(*worst[k])}" for k in high))
     return reasons, means, worst, p
+
+
+def _change(before: float, after: float) -> str:
+    """``before -> after`` (mm) to 4 decimals, and the change itself where those hide it (0.0516 -> 0.0516 mm
+    would read as no change at all: issue 47)."""
+    text = f"{before:.4f} -> {after:.4f} mm"
+    if f"{before:.4f}" == f"{after:.4f}" and before != after:
+        text += f" ({abs(after - before):.2g} mm {'lower' if after < before else 'higher'})"
+    return text
 
 
 def compensator_step(current: CalibrationResult, spec: str, cal: Measurements, val: Measurements, all_schemes,

@@ -18,12 +18,12 @@ from .catalogue import NotTried
 def set_aside_note(structure: SetAsideStructure, not_tried: list[NotTried], path: str,
                    misses: dict[int, list[int]] | None = None, where: dict[int, str] | None = None) -> str:
     """The note on the final fit's set-aside poses: the largest misses of structure the screen found (``misses``:
-    finding number -> file lines; ``where``: the findings' words), bad measurements, or structure with where (and
+    finding number -> file rows; ``where``: the findings' words), bad measurements, or structure with where (and
     what would let the diagnosis try a cause of it)."""
-    what = (f"the robust loss set aside {structure.n_set_aside} calibration pose(s) of {path} (lines "
+    what = (f"the robust loss set aside {structure.n_set_aside} calibration pose(s) of {path} (rows "
             + listing(structure.lines, 10) + "): ")
-    parts = [(f"line {lines[0]} is the largest miss" if len(lines) == 1 else
-              f"lines {listing([str(x) for x in lines], 10)} are the largest misses")
+    parts = [(f"row {lines[0]} is the largest miss" if len(lines) == 1 else
+              f"rows {listing([str(x) for x in lines], 10)} are the largest misses")
              + f" of the structure in finding {n} ({where[n]}), not bad measurements"
              for n, lines in (misses or {}).items()]
     what += "; ".join(parts + [structure.text()] * bool(structure.text()))

@@ -170,7 +170,7 @@ def cause_checks(scr: Screen, fit: LinearFit, cand: Candidate, cal: Measurements
     if "time_halves" in asked:
         hv = out["halves"] = halves(fit, params, cal, None, alpha, cand.session)
         if not hv[0].agree:
-            out["reasons"].append("the first and second half in time disagree: " + hv[0].text())
+            out["reasons"].append("the first and second half in time differ: " + hv[0].text())
         return out
     # a coupling is a straight line in its source joint's reading: the same slope over either half of that range
     reading = cand.kind.reading(cand)
@@ -181,5 +181,5 @@ def cause_checks(scr: Screen, fit: LinearFit, cand: Candidate, cal: Measurements
             out["reasons"].append(rs.text())
     if not hv[0].agree:
         whose = f"joint {reading}'s" if reading != cand.joint else "the joint's"
-        out["reasons"].append(f"the halves of {whose} range disagree: " + hv[0].text())
+        out["reasons"].append(f"the halves of {whose} range differ: " + hv[0].text())
     return out

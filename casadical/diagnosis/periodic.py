@@ -32,7 +32,7 @@ import numpy as np
 from scipy import special
 
 from ..data.measurements import Measurements
-from ..model.parameters import Parameter
+from ..model.parameters import READING, Parameter
 from ..terms.periodic import phase
 from .screening import LinearFit, Screen, periodic_columns
 
@@ -149,7 +149,13 @@ class Halves:
         Of the difference of the two (s, c) estimates against their
         standard errors (2 degrees of freedom).
     agree : bool
-        ``chi2`` below the chi-square(2) quantile at ``1 - alpha``.
+        ``chi2`` below the chi-square(2) quantile at ``1 - alpha`` (``limit``): the two halves' estimates
+        cannot be told apart within their errors (whatever their signs).
+    limit : float
+        That quantile.
+    decides : bool
+        This split is the one the acceptance tests (the joint's range for a function of a joint's reading,
+        time for a drift); the other is reported only.
     """
 
     split: str
@@ -160,27 +166,39 @@ class Halves:
     unit: str = ""     # a one-parameter term: its value on each half, in this unit
     #: a linear axis' periodic error: its amplitudes in mm (``amplitude_arcsec`` holds them), with their phases
     linear: bool = False
+    limit: float = math.nan
+    decides: bool = True
 
     def to_dict(self) -> dict:
+        test = {"chi2": round(self.chi2, 3), "agree": self.agree, "chi2_limit": round(self.limit, 3),
+                "decides": self.decides}
         if self.linear:
             return {"split": self.split, "amplitude_mm": [round(a, 5) for a in self.amplitude_arcsec],
-                    "phase_deg": [round(a, 2) for a in self.phase_deg], "chi2": round(self.chi2, 3),
-                    "agree": self.agree}
+                    "phase_deg": [round(a, 2) for a in self.phase_deg], **test}
         if self.unit:
-            return {"split": self.split, "values": list(self.amplitude_arcsec), "unit": self.unit,
-                    "chi2": round(self.chi2, 3), "agree": self.agree}
+            return {"split": self.split, "values": list(self.amplitude_arcsec), "unit": self.unit, **test}
         return {"split": self.split, "amplitude_arcsec": [round(a, 3) for a in self.amplitude_arcsec],
-                "phase_deg": [round(a, 2) for a in self.phase_deg], "chi2": round(self.chi2, 3),
-                "agree": self.agree}
+                "phase_deg": [round(a, 2) for a in self.phase_deg], **test}
 
     def text(self) -> str:
         what = "lower / upper half of the joint's range" if self.split == "joint" else "first / second half in time"
         a, b = self.amplitude_arcsec
         pa, pb = self.phase_deg
+        unit, factor = READING.get(self.unit, (self.unit, 1.0))      # a relative scale in ppm, not "1"
         values = (f"{a:.3g} / {b:.3g} mm, phase {pa:.0f} / {pb:.0f} deg" if self.linear else
-                  f"{a:.4g} / {b:.4g} {self.unit}" if self.unit else
+                  f"{a * factor:.4g} / {b * factor:.4g} {unit}" if self.unit else
                   f"{a:.1f} / {b:.1f} arcsec, phase {pa:.0f} / {pb:.0f} deg")
-        return f"{what}: {values} ({'agree' if self.agree else 'disagree'}, chi2 = {self.chi2:.1f})"
+        return f"{what}: {values} ({verdict(self.agree, self.chi2, self.limit, self.decides)})"
+
+
+def verdict(agree: bool, chi2: float, limit: float, decides: bool = True) -> str:
+    """The halves' test in words: "the same within their errors" says what the test can say (their difference
+    is below what their standard errors allow; two uncertain halves may even differ in sign), never "agree"; a
+    split the acceptance does not test is "reported only"."""
+    than = f" {limit:.1f}" if math.isfinite(limit) else " the limit"
+    words = (f"the same within their errors, chi2 = {chi2:.1f} below{than}" if agree else
+             f"differ, chi2 = {chi2:.1f} above{than}")
+    return words + ("" if decides else "; reported only, the acceptance tests the halves of the range")
 
 
 def halves(fit: LinearFit, params: list[Parameter], data: Measurements, joint: int | None,
@@ -223,5 +241,5 @@ def halves(fit: LinearFit, params: list[Parameter], data: Measurements, joint: i
             unit = ""
         else:
             amp, ph, unit = tuple(float(params[0].to_display(e[0])) for e in est), (0.0, 0.0), params[0].display_unit
-        out.append(Halves(split, amp, ph, chi2, chi2 < crit, unit, linear))
+        out.append(Halves(split, amp, ph, chi2, chi2 < crit, unit, linear, crit, decides=not out))
     return out

@@ -200,6 +200,11 @@ class DiagnosisReport:
     interval_coverage : float or None
         The share of the validation poses whose measured point lies inside the final model's 95 % interval
         (:func:`casadical.stats.predictive.prediction_interval`); None without a parameter covariance.
+    user_terms : list of dict
+        Each cause of the user's own (a terms file's), its definition and what the diagnosis concluded of each
+        of its candidates (:func:`casadical.diagnosis.user_terms.accounts`); [] without a terms file.
+    inputs : dict
+        What the caller gave, for the record (the command line: the robot, the files, the options as given).
     """
 
     robot: str
@@ -221,6 +226,8 @@ class DiagnosisReport:
     not_tried: list = field(default_factory=list)
     noise: dict = field(default_factory=dict)
     interval_coverage: float | None = None
+    user_terms: list = field(default_factory=list)
+    inputs: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         from ..robot import robot_to_dict
@@ -250,6 +257,10 @@ class DiagnosisReport:
             "time_s": self.time_s,
             "settings": self.settings,
         }
+        if self.user_terms:
+            doc["user_terms"] = self.user_terms
+        if self.inputs:
+            doc["inputs"] = dict(self.inputs)
         if self.final_sessions:
             doc["final"]["sessions"] = {s: st.to_dict() for s, st in self.final_sessions.items()}
         if self.final_orientation is not None:
@@ -295,6 +306,8 @@ class DiagnosisReport:
         lines += [""] + self._final_lines()
         if verbose:
             lines += [""] + self._steps_lines() + [""] + self._evidence_lines()
+        if self.user_terms:
+            lines += [""] + self._user_term_lines()
         if self.not_tried:
             lines += ["", "not tried on these data (why; what would allow it):"]
             lines += [x for n in self.not_tried for x in wrap(_not_tried_text(n), "      ", "  - ")]
@@ -327,6 +340,16 @@ class DiagnosisReport:
         if self.transfer:
             out += wrap(self.transfer["text"], "    ", "  ")
         out += wrap_spec(self.final_model, "    ", "  model: ")
+        return out
+
+    def _user_term_lines(self) -> list[str]:
+        """Each cause of the user's own and what the diagnosis concluded of it (every term of the file, whatever
+        came of it)."""
+        files = sorted({u["file"] for u in self.user_terms if u.get("file")})
+        out = [f"terms of your own ({', '.join(files) or 'the terms file'}): what the diagnosis concluded of each"]
+        for u in self.user_terms:
+            for s in u["screen"]:
+                out += wrap(f"{s['label']}: {s['text']}", "      ", "  - ")
         return out
 
     def _steps_lines(self) -> list[str]:

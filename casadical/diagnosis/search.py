@@ -33,6 +33,7 @@ from .report import Finding, Step
 from .screening import Scored, Screen, ambiguous
 from .state import DiagnosisRun
 from .statistics import NestedTest, nested_test, noise_ssr
+from .user_terms import record_scores
 from .validation import EXTRAPOLATING, by_kind, cv_failure, cv_record, cv_text, extrapolation_gain, not_better
 
 
@@ -88,6 +89,7 @@ class Verdict:
 def search_causes(run: DiagnosisRun) -> None:
     run.not_tried = not_tried(run.robot, run.cal, run.torques(run.current), run.s)
     for rnd in range(run.s.max_rounds):
+        run.round = rnd + 1
         run.say(f"round {rnd + 1}: screening candidate causes")
         chosen = screen_round(run)
         if chosen is None:
@@ -174,6 +176,7 @@ def screen_round(run: DiagnosisRun) -> Chosen | None:
             scr = scr.with_candidates(cands)
         scored = scr.scores(cands)
         level = math.log10(run.s.alpha / max(run.n_tests(cands), 1))
+        record_scores(run, scored, level)       # the user's own terms: each accounted for in the report
         if not scored or scored[0].log10_p >= level:
             best = scored[0] if scored else None
             run.say("  no candidate passes the score test" +

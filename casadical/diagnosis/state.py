@@ -94,6 +94,9 @@ class DiagnosisRun:
 
     # search_causes
     not_tried: list = field(default_factory=list)     # kinds of cause these data cannot test
+    round: int = 0                                    # the round under way (1, 2, ...)
+    user_scores: dict = field(default_factory=dict)   # each user candidate's score test by round (.user_terms)
+    round_steps: dict = field(default_factory=dict)   # round -> the number of steps before it (.user_terms)
     later: dict[Candidate, int] = field(default_factory=dict)    # not significant yet: screened again later
     unexplained: UnexplainedLog = field(default_factory=UnexplainedLog)
     before: dict[Candidate, CalibrationResult] = field(default_factory=dict)   # fit before each finding

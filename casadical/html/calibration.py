@@ -139,9 +139,9 @@ def calibration_html(result: CalibrationResult, data: Measurements, before: Cali
         note = next((n for n in result.notes if n.startswith("the robust loss set aside")), "")
         verdict = note.split("): ", 1)[1] if "): " in note else "likely bad measurements"
         page.para(f"{len(result.downweighted)} pose(s) weighed less than half (noise scale "
-                  f"{result.loss.sigma * 1000:.4f} mm per axis): {esc(verdict)}. These lines of "
+                  f"{result.loss.sigma * 1000:.4f} mm per axis): {esc(verdict)}. These rows of "
                   f"<code>{esc(data.path)}</code>:")
-        page.table(["file line", "residual mm", "weight"],
+        page.table(["file row", "residual mm", "weight"],
                    [[str(d["line"]), num(d["residual_mm"]), f"{d['weight']:.3f}"]
                     for d in sorted(result.downweighted, key=lambda d: -d["residual_mm"])])
 
@@ -264,12 +264,12 @@ def _per_pose(data: Measurements, r0, r1, before_label: str):
         a = ax[k][0]
         for r, n, colour, alpha, label in ((r0, n0, BEFORE, 0.6, before_label), (r1, n1, AFTER, 0.8, "calibrated")):
             a.points(x, r[:, k], colour, 1.5, alpha, label=label, legend_r=3.0,
-                     titles=[f"line {ln}: {name} {v:+.4f} mm, error {e:.4f} mm ({label})"
+                     titles=[f"row {ln}: {name} {v:+.4f} mm, error {e:.4f} mm ({label})"
                              for ln, v, e in zip(x, r[:, k], n)])
         a.hline(0)
         a.ylabel = f"{name} residual (mm)"
         ticks(a, n=5)
-    ax[-1][0].xlabel = f"line in {data.path.rsplit('/', 1)[-1]}"
+    ax[-1][0].xlabel = f"row in {data.path.rsplit('/', 1)[-1]}"
     legend_above(ax[0][0])
     return fig
 
@@ -284,7 +284,7 @@ def _per_joint(data: Measurements, r1):
         for k, name in enumerate(AXES):
             a = ax[k][j]
             a.points(q[:, j], r1[:, k], AFTER, 1.25, 0.7,
-                     titles=[f"line {ln}: q{j + 1} {v:.1f} {unit}, {name} {r:+.4f} mm, error {e:.4f} mm"
+                     titles=[f"row {ln}: q{j + 1} {v:.1f} {unit}, {name} {r:+.4f} mm, error {e:.4f} mm"
                              for ln, v, r, e in zip(data.lines, q[:, j], r1[:, k], err)])
             a.hline(0)
             ticks(a, x=False, n=4)

@@ -8,7 +8,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from ..model.parameters import READING
 from ..terms import UNEXPLAINED
+from ..terms.definitions import EFFECTS
 from .figures import AFTER, BEFORE, CURVE, SERIES, ecdf, figure, legend_above, ticks
 from .page import Page, Raw, esc, gain, model_label, num, sig
 from .parameters import parameter_table_html
@@ -77,14 +79,14 @@ def diagnosis_html(report: DiagnosisReport, processes: int = 1, progress=None, p
     _decision(page, report)
     _errors(page, report)
     sections = [("evidence", "Evidence for each finding"), ("steps", "Steps"),
-                (KEPT_OUT, "Structure kept out of the model"), ("transfer", "On another series"),
-                ("periodograms", "What is left"), ("accuracy", "Where the model is accurate"),
-                ("not-tried", "Not tried on these data"), ("parameters", "Final parameters"),
-                ("notes", "Notes and settings")]
+                (KEPT_OUT, "Structure kept out of the model"), ("user-terms", "Terms of your own"),
+                ("transfer", "On another series"), ("periodograms", "What is left"),
+                ("accuracy", "Where the model is accurate"), ("not-tried", "Not tried on these data"),
+                ("parameters", "Final parameters"), ("notes", "Notes, inputs and settings")]
     present = {KEPT_OUT: bool(kept_out), "transfer": bool(report.transfer),
                "periodograms": bool(report.periodograms), "evidence": bool(report.findings),
                "accuracy": report.final.uncertainty is not None and report.final.model.robot.n >= 2,
-               "not-tried": bool(report.not_tried)}
+               "not-tried": bool(report.not_tried), "user-terms": bool(report.user_terms)}
     page.para("The evidence behind them, further down:")
     page.items([page.ref(a, t) for a, t in sections if present.get(a, True)], "ol")
 
@@ -92,6 +94,8 @@ def diagnosis_html(report: DiagnosisReport, processes: int = 1, progress=None, p
     _steps(page, report)
     if kept_out:
         _kept_out(page, report, kept_out)
+    if report.user_terms:
+        _user_terms(page, report)
     if report.transfer:
         _transfer(page, report)
     if report.periodograms:
@@ -113,9 +117,7 @@ def diagnosis_html(report: DiagnosisReport, processes: int = 1, progress=None, p
     page.para("The final model fitted on the calibration poses (what <code>diagnose --out</code> writes). "
               "Angles in degrees, lengths in millimetres; greyed rows are held.")
     parameter_table_html(page, report.final, fold=True)
-    page.heading("Notes and settings", anchor="notes")
-    page.items([esc(n) for n in report.notes])
-    page.pairs([(k, esc(str(v))) for k, v in report.settings.items()])
+    _notes_and_settings(page, report)
     return page.html(progress)
 
 
@@ -140,15 +142,18 @@ def _decision(page: Page, report: DiagnosisReport) -> None:
         anchor = evidence.get(id(f))
         name = page.ref(anchor, row["label"]) if anchor else row["label"]
         g = gain(f.gain_mm) if f.in_model else "kept out"
-        rows.append([str(k), name, row["where"], row["size"].replace(" +- ", " \u00b1 "), g, row["scope"]])
+        # the std with its sign and unit on one line: "\u00b1 5.8 %" never breaks
+        size = row["size"].replace(" +- ", " \u00b1\u00a0").replace(" %", "\u00a0%")
+        rows.append([str(k), name, row["where"], size, g, row["scope"]])
         classes.append("" if f.in_model else "off")
         actions.append("What to do: " + row["action"])
     page.para(f"Each cause the data support, with its size in the final model (&plusmn; its standard error), its "
               f"gain on the {report.final_validation.n_poses} validation poses (against the model it extends), "
               "whether it is a property of the robot or of the measurement session, and under it what to do about it. "
               "Greyed: structure kept out of the model.")
+    # where and size break over lines in a narrow window: the table fits 800 px without scrolling sideways
     page.table(["#", "finding", "where", "size", "gain on validation", "scope"], rows,
-               text_columns=(1, 2, 3, 4, 5), row_classes=classes, details=actions)
+               text_columns=(1, 2, 3, 4, 5), row_classes=classes, details=actions, soft_columns=(2, 3, 5))
 
 
 def _evidence_anchors(report: DiagnosisReport) -> dict[int, str]:
@@ -187,15 +192,43 @@ def _errors(page: Page, report: DiagnosisReport) -> None:
                      + page.ref("transfer", "details") + ".")
     if extra:
         page.para(" ".join(extra))
+    for n in _worst_notes(report):     # what the table's max column means, beside it (not at the page's end)
+        page.para("<b>Worst validation error.</b> " + esc(n), "note")
+
+
+#: the notes that explain the worst validation error of the errors table (casadical.diagnosis.never_worse,
+#: casadical.diagnosis.worst_case): shown beside it
+WORST_NOTES = ("judge only:", "worst case:")
+
+
+def _worst_notes(report: DiagnosisReport) -> list[str]:
+    return [n for n in report.notes if n.startswith(WORST_NOTES)]
 
 
 # --- steps ---------------------------------------------------------------------------
 
 
 def _held_cells(s: Step) -> list:
+    """The held-out means of a step, each with its gain; the GP compensator's against its own folds' baseline,
+    said in the cell (:func:`_compensator_folds`)."""
     cv = s.cv_mm or {}
-    return [Raw(num(cv.get(k)) + (f"<br><small>{gain(_drop(cv, k), unit='')}</small>"
+    against = _is_compensator(s)
+    return [Raw(num(cv.get(k)) + (f"<br><small>{gain(_drop(cv, k), unit='')}"
+                                  + (f", from {num(cv.get(f'{k}_before'))}" if against else "") + "</small>"
                                   if _drop(cv, k) is not None else "")) for k in KINDS]
+
+
+def _is_compensator(s: Step) -> bool:
+    return s.candidate is not None and s.candidate.cause == UNEXPLAINED.name and s.candidate.joint is None
+
+
+def _compensator_folds(before: float | None) -> str:
+    """Why the GP compensator's held-out means start from another figure than the step before it shows."""
+    return ("The GP compensator is judged on the same folds, but with the model it extends fitted once on every "
+            "calibration pose" + (f" (its mean error there: {before:.4f} mm)" if before is not None else "")
+            + " and only the process held out: its held-out means measure what the compensator adds to that fit, "
+            "not how the whole model extrapolates, so they do not continue the held-out means of the steps "
+            "before it, where every fold refits the model.")
 
 
 def _val_cell(s: Step) -> Raw:
@@ -218,13 +251,20 @@ def _steps(page: Page, report: DiagnosisReport) -> None:
               "and held-out means on folds that interpolate, follow time, and extrapolate over joint ranges). The "
               "validation columns judge and never decide. Under each mean, its gain (mm) against the model the "
               "step extends (column <i>extends</i>: that model's step). Hover over a step for its whole model, or "
-              "see the footnotes.")
+              "see the footnotes. Steps are numbered in the order the diagnosis tried them, 1 to "
+              f"{len(report.steps)}: the accepted ones are in this table, "
+              + (f"the {len(rejected)} not accepted, numbered in between, in the folded table below it."
+                 if rejected else "and every step tried was accepted."))
     page.table(["#", "accepted step", "extends", "calibration rms mm", "held-out mean, random folds, mm",
                 "held-out mean, time folds, mm", "held-out mean, joint folds, mm", "validation mean mm",
                 "validation max mm", "validation rms mm"],
                [[str(number[id(s)]), model_label(page, step_label(s), s.model), extends(s),
                  num(s.calibration.rms_mm), *_held_cells(s), _val_cell(s), num(s.validation.max_mm),
                  num(s.validation.rms_mm)] for s in acc], text_columns=(1,))
+    gp = next((s for s in acc if _is_compensator(s)), None)
+    if gp is not None:
+        page.para(f"Step {number[id(gp)]}: " + esc(_compensator_folds((gp.cv_mm or {}).get("random_before"))),
+                  "note")
     if rejected:
         better = sum(1 for s in rejected if (s.gain_mm or 0) > 0)
         page.para(f"{len(rejected)} candidate steps were not accepted ({better} of them would have lowered this "
@@ -242,14 +282,19 @@ def _steps(page: Page, report: DiagnosisReport) -> None:
                           "Validation mean error and held-out means on the calibration poses along the accepted "
                           f"steps (the nominal model, not shown: {report.steps[0].validation.mean_mm:.4f} mm).")
         page.para(f"How the error falls along the accepted steps: {ref}.")
-    e0 = np.asarray(report.plots.get("val_errors_nominal_mm", []), float)
+    # every pose, the final model against the kinematic calibration: the comparison the headline makes
+    kinematic = "val_errors_kinematic_mm" in report.plots
+    e0 = np.asarray(report.plots.get("val_errors_kinematic_mm" if kinematic else "val_errors_nominal_mm", []),
+                    float)
     e1 = np.asarray(report.plots.get("val_errors_final_mm", []), float)
     if len(e0) and len(e1):
-        ref = page.figure(partial(_per_pose, e0, e1, report.plots.get("val_lines")), "fig-poses",
-                          "Position error of each validation pose, nominal model (base fitted) and final model: "
-                          "distribution (top) and per pose (bottom).")
-        page.para(f"Every validation pose before and after: {ref}; the median goes from {np.median(e0):.4f} mm "
-                  f"to {np.median(e1):.4f} mm, the worst from {e0.max():.4f} mm to {e1.max():.4f} mm.")
+        name = "kinematic calibration" if kinematic else "nominal model (base fitted)"
+        ref = page.figure(partial(_per_pose, e0, e1, report.plots.get("val_lines"), name), "fig-poses",
+                          f"Position error of each validation pose, the {name} and the final model (the comparison "
+                          "the headline makes): distribution (top) and per pose (bottom).")
+        page.para(f"Every validation pose, {name} and final model: {ref}; the median goes from "
+                  f"{np.median(e0):.4f} mm to {np.median(e1):.4f} mm, the worst from {e0.max():.4f} mm to "
+                  f"{e1.max():.4f} mm.")
 
 
 def _along_steps(steps: list[Step]):
@@ -273,16 +318,17 @@ def _along_steps(steps: list[Step]):
     return fig
 
 
-def _per_pose(e0: np.ndarray, e1: np.ndarray, lines=None):
+def _per_pose(e0: np.ndarray, e1: np.ndarray, lines=None, name: str = "kinematic calibration"):
     fig, ax = figure(8.6, 5.6, 2, 1)
-    ecdf(ax[0][0], e0, e1, "nominal model (base fitted)", "final model")
+    ecdf(ax[0][0], e0, e1, name, "final model")
     legend_above(ax[0][0])
     a = ax[1][0]
     idx = np.arange(len(e0))
     titles = None
+    short = name.split()[0]
     if lines is not None and len(lines) == len(e0):
-        titles = [f"line {n}: nominal {x:.4f} mm, final {y:.4f} mm" for n, x, y in zip(lines, e0, e1)]
-    a.points(idx, e0, BEFORE, 1.3, 0.6, label="nominal", titles=titles)
+        titles = [f"row {n}: {short} {x:.4f} mm, final {y:.4f} mm" for n, x, y in zip(lines, e0, e1)]
+    a.points(idx, e0, BEFORE, 1.3, 0.6, label=short, titles=titles)
     a.points(idx, e1, AFTER, 1.3, 0.8, label="final", titles=titles)
     a.xlabel, a.ylabel = "validation pose (file order)", "position error (mm)"
     ticks(a)
@@ -306,9 +352,7 @@ def _findings(page: Page, report: DiagnosisReport) -> None:
         page.parts.append(f'<h3 id="{anchor}">{esc(head)}: {gain(f.gain_mm)} on validation</h3>')
         entries = []
         if f.parameters:
-            entries.append(("values", esc(", ".join(
-                f"{n} = {sig(p['value'])}" + (f" \u00b1 {sig(p['std'], 2)}" if p.get("std") is not None else "")
-                + f" {p['unit']}" for n, p in f.parameters.items()))))
+            entries.append(("values", esc(", ".join(_value(n, p) for n, p in f.parameters.items()))))
         hu = f.holds_up or {}
         if "test" in hu:
             entries.append(("significance", esc(hu["test"] + " on the calibration poses")))
@@ -327,6 +371,8 @@ def _findings(page: Page, report: DiagnosisReport) -> None:
         if "cv_mm" in hu or hu.get("halves"):
             with page.folded("Held-out means by kind of fold" + (" and the two halves" if hu.get("halves") else "")):
                 if "cv_mm" in hu:
+                    if f.cause == UNEXPLAINED.name:
+                        page.para(esc(_compensator_folds(hu["cv_mm"].get("random_before"))), "note")
                     page.table(["held-out folds", "before mm", "with it mm", "gain"],
                                [[kind, num(hu["cv_mm"].get(f"{kind}_before")), num(hu["cv_mm"].get(kind)),
                                  gain(_drop(hu["cv_mm"], kind))] for kind in KINDS if kind in hu["cv_mm"]
@@ -335,6 +381,13 @@ def _findings(page: Page, report: DiagnosisReport) -> None:
                     _halves_table(page, hu["halves"])
         if f.plot:
             page.figure(partial(_finding_plot, f), f"fig-{anchor}", _finding_caption(f))
+
+
+def _value(name: str, p: dict) -> str:
+    """A finding's parameter, value and std, in the unit a person reads (a relative scale in ppm, not "1")."""
+    unit, factor = READING.get(p["unit"], (p["unit"], 1.0))
+    std = f" \u00b1 {sig(p['std'] * factor, 2)}" if p.get("std") is not None else ""
+    return f"{name} = {sig(p['value'] * factor)}{std}" + (f" {unit}" if unit else "")
 
 
 def _drop(cv: dict, kind: str) -> float | None:
@@ -355,7 +408,7 @@ def _resolution(r: dict) -> str:
 
 def _halves_table(page: Page, halves: list[dict]) -> None:
     rows = []
-    for h in halves:
+    for k, h in enumerate(halves):
         what = "joint range: lower / upper half" if h.get("split") == "joint" else "time: first / second half"
         if "amplitude_arcsec" in h:
             a, b = h["amplitude_arcsec"]
@@ -366,11 +419,25 @@ def _halves_table(page: Page, halves: list[dict]) -> None:
             pa, pb = h["phase_deg"]
             size, phase = f"{sig(a, 3)} / {sig(b, 3)} mm", f"{pa:.0f} / {pb:.0f} deg"
         else:
-            a, b = h["values"]
-            size, phase = f"{sig(a, 3)} / {sig(b, 3)} {h.get('unit', '')}", ""
-        rows.append([what, size, phase, f"{h['chi2']:.1f}", "agree" if h["agree"] else "disagree"])
+            unit, factor = READING.get(h.get("unit", ""), (h.get("unit", ""), 1.0))
+            a, b = (v * factor for v in h["values"])
+            size, phase = f"{sig(a, 4)} / {sig(b, 4)} {unit}", ""
+            if a * b < 0 and h["agree"]:
+                size += " (opposite signs, within their errors)"
+        decides = h.get("decides", k == 0)
+        limit = h.get("chi2_limit")
+        rows.append([what, size, phase, f"{h['chi2']:.1f}" + (f" (limit {limit:.1f})" if limit is not None else ""),
+                     ("the same within their errors" if h["agree"] else "differ")
+                     + ("" if decides else "; reported only")])
     page.table(["stable over", "size (each half)", "phase (each half)", "chi2", "verdict"], rows,
-               text_columns=(0, 1, 2, 4))
+               text_columns=(0, 1, 2, 4), soft_columns=(1, 4))
+    if any(not h.get("decides", k == 0) for k, h in enumerate(halves)):
+        page.para("Accepted on the halves of the range: the term fitted on each half, their difference tested "
+                  "against the halves' standard errors (chi-square); below the limit the halves cannot be told "
+                  "apart, whatever their signs. The halves in time are reported only, not tested: a function of a "
+                  "joint's reading is judged over the joint's range, and halves in time can differ because they "
+                  "cover different parts of it, or because something changed while measuring (a drift, a "
+                  "warm-up: causes the diagnosis tries where the poses have times).", "note")
 
 
 def _transfer_text(t: dict) -> Raw:
@@ -400,14 +467,14 @@ def _finding_plot(f: Finding):
         y = np.asarray(pl["partial"], float)
         titles = None
         if has:
-            titles = [f"line {n}: error {e:.4f} mm; {v:.1f} arcsec at {u:.4g}" for n, e, v, u in zip(lines, err, y, x)]
+            titles = [f"row {n}: error {e:.4f} mm; {v:.1f} arcsec at {u:.4g}" for n, e, v, u in zip(lines, err, y, x)]
         ax.points(x, y, AFTER, 1.5, 0.55, label="residual + fitted effect", titles=titles, legend_r=3.0)
         ax.line(pl["curve_x"], pl["curve_y"], CURVE, 2.0, label="fitted effect")
     else:
         b, a = np.asarray(pl["before"], float), np.asarray(pl["after"], float)
         titles = None
         if has:
-            titles = [f"line {n}: error {e:.4f} mm; before {u:.4f}, after {v:.4f}"
+            titles = [f"row {n}: error {e:.4f} mm; before {u:.4f}, after {v:.4f}"
                       for n, e, u, v in zip(lines, err, b, a)]
         ax.points(x, b, BEFORE, 1.5, 0.6, label="before", titles=titles, legend_r=3.0)
         ax.points(x, a, AFTER, 1.5, 0.7, label="after", titles=titles, legend_r=3.0)
@@ -423,6 +490,80 @@ def _wrap(label: str, width: int = 34) -> str:
         return label
     cut = label.rfind(" ", 0, len(label) // 2 + 8)
     return label if cut < 0 else label[:cut] + "\n" + label[cut + 1:]
+
+
+# --- the user's own terms, the inputs and the settings --------------------------------------------
+
+
+def _user_terms(page: Page, report: DiagnosisReport) -> None:
+    """Each cause of the user's own (a terms file's) and what the diagnosis concluded of it: every term of the
+    file, whatever came of it (casadical.diagnosis.user_terms)."""
+    page.heading("Terms of your own", anchor="user-terms")
+    files = sorted({u["file"] for u in report.user_terms if u.get("file")})
+    page.para("The causes of " + (", ".join(f"<code>{esc(f)}</code>" for f in files) or "the terms file")
+              + ", screened beside the catalogue's by the same tests and rules, and what the diagnosis concluded of "
+              "each: named (a finding), fitted and not accepted (why), screened and never supported (its best "
+              "score test against the round's corrected level), or not screened (why).")
+    rows, details = [], []
+    for u in report.user_terms:
+        joints = u.get("joints", [u["joint"]] if "joint" in u else [])
+        where = (f"joint{'s' if len(joints) > 1 else ''} {', '.join(map(str, joints))}" if joints else "-")
+        for s in u["screen"]:
+            outcome = s["outcome"]
+            if outcome == "named":
+                outcome = Raw(page.ref(f"finding-{s['finding']}", f"named: finding {s['finding']}"))
+            rows.append([u["name"] + (f" @{s['session']}" if s.get("session") else ""), f"{where}, {u['scope']}",
+                         outcome])
+            details.append(s["text"])
+    page.table(["term", "where, scope", "outcome"], rows, text_columns=(0, 1, 2), details=details,
+               row_classes=["" if r[2] != "not screened" else "off" for r in rows])
+    with page.folded("The terms as the file states them"):
+        page.table(["term", "effects", "parameters (unit, bounds, start)"],
+                   [[u["name"], "; ".join(f"{k} = {', '.join(v) if isinstance(v, list) else v}" for k, v in u.items()
+                                         if k in EFFECTS),
+                     "; ".join(f"{n} ({p.get('unit') or 'no unit'}, {p['lower']:g} .. {p['upper']:g}, "
+                               f"{p.get('start', 0.0):g})" for n, p in u.get("parameters", {}).items())]
+                    for u in report.user_terms], text_columns=(0,), wrap_columns=(1, 2))
+
+
+#: what a command line's inputs are called on the page (DiagnosisReport.inputs)
+_INPUTS = (("robot", "robot"), ("data", "calibration poses"), ("validate", "validation poses"),
+           ("transfer", "other series (--transfer)"), ("terms", "terms file (--terms)"))
+
+
+def _notes_and_settings(page: Page, report: DiagnosisReport) -> None:
+    """The notes (but those beside the errors table), what the user gave and the settings of the diagnosis,
+    in words (yes / no, not set), not as Python prints them."""
+    page.heading("Notes, inputs and settings", anchor="notes")
+    page.items([esc(n) for n in report.notes if not n.startswith(WORST_NOTES)])
+    given = report.inputs or {}
+    inputs = [(label, esc(_setting(given[k]))) for k, label in _INPUTS if given.get(k) not in (None, [], "")]
+    if "terms" not in given and report.settings.get("terms"):
+        inputs.append(("terms file (--terms)", esc(_setting(report.settings["terms"]))))
+    if report.user_terms:
+        inputs.append(("terms of your own", page.ref("user-terms", ", ".join(u["name"] for u in report.user_terms))))
+    if inputs:
+        page.para("<b>Inputs</b>")
+        page.pairs(inputs)
+    page.para("<b>Settings of the diagnosis</b>")
+    page.pairs([(k.replace("_", " "), esc(_setting(v))) for k, v in report.settings.items()])
+    options = given.get("options")
+    if options:
+        with page.folded(f"The command line's {len(options)} options, as given or by default"):
+            page.pairs([(f"--{k.replace('_', '-')}", esc(_setting(v))) for k, v in options.items()])
+
+
+def _setting(v) -> str:
+    """A setting in words: yes / no, not set, a list joined."""
+    if isinstance(v, bool):
+        return "yes" if v else "no"
+    if v is None:
+        return "not set"
+    if isinstance(v, (list, tuple)):
+        return ", ".join(_setting(x) for x in v) or "none"
+    if isinstance(v, float):
+        return f"{v:g}"
+    return str(v)
 
 
 # --- unexplained, transfer, periodograms ------------------------------------------------
@@ -581,7 +722,7 @@ def _accuracy_plot(m: dict, lines=None):
         q = np.asarray(m["measured"], float)
         titles = None
         if lines is not None and len(lines) == len(q):
-            titles = [f"line {n}: q{ja} {a:.1f} {ua}, q{jb} {b:.1f} {ub}" for n, a, b in zip(lines, q[:, 0], q[:, 1])]
+            titles = [f"row {n}: q{ja} {a:.1f} {ua}, q{jb} {b:.1f} {ub}" for n, a, b in zip(lines, q[:, 0], q[:, 1])]
         ax.points(q[:, 0], q[:, 1], "#fff", 1.5, edge="#000", label="calibration poses", titles=titles,
                   legend_r=2.5)
         legend_above(ax)

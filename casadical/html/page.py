@@ -36,6 +36,7 @@ th,td{border-bottom:1px solid var(--line);padding:.25em .6em;text-align:right;ve
 th{background:var(--faint);font-weight:600;white-space:normal;vertical-align:bottom}
 td.t,th.t{text-align:left}
 td.w,th.w{white-space:normal;min-width:16em;max-width:42em;text-align:left}
+td.s,th.s{white-space:normal;text-align:left;min-width:6em}
 tr.off td{color:var(--muted)}
 tr.weak td{background:#fdf1dc}
 tr.has-detail td{border-bottom:none}
@@ -118,7 +119,7 @@ class Page:
 
     def table(self, header: list, rows: list[list], text_columns: tuple[int, ...] = (0,),
               wrap_columns: tuple[int, ...] = (), row_classes: list[str] | None = None,
-              details: list[str] | None = None) -> None:
+              details: list[str] | None = None, soft_columns: tuple[int, ...] = ()) -> None:
         """A table in its own scroll container.
 
         Parameters
@@ -131,6 +132,9 @@ class Page:
             Left-aligned columns (numbers are right-aligned).
         wrap_columns : tuple of int
             Long text that wraps (every other cell stays on one line).
+        soft_columns : tuple of int
+            Short text that may break over lines where the page is narrow
+            (no minimum width: a table of them fits a narrow window).
         row_classes : list of str, optional
             A class per row (``off`` greys a row out).
         details : list of str, optional
@@ -139,7 +143,7 @@ class Page:
             would make a column too wide.
         """
         def kind(k: int) -> str:
-            return "w" if k in wrap_columns else ("t" if k in text_columns else "")
+            return "w" if k in wrap_columns else "s" if k in soft_columns else ("t" if k in text_columns else "")
 
         out = ['<div class="scroll"><table>']
         out.append("<thead><tr>" + "".join(

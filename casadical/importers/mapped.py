@@ -288,17 +288,21 @@ def joint_columns(cmap: ColumnMap) -> list[str]:
     return [f"q{i}_{'mm' if i in cmap.linear_axes else 'deg'}" for i in range(1, len(cmap.joints) + 1)]
 
 
-def _check_joint_unit(readings: list[tuple[int, np.ndarray]], unit: str, t: _Table) -> None:
-    """Warn when the joint readings look like the other unit (the import goes on)."""
+def _check_joint_unit(readings: list[tuple[int, np.ndarray]], cmap: ColumnMap, t: _Table, multiturn: bool) -> None:
+    """Readings in degrees declared as radians are an error (converted, a turn of a few degrees would become
+    hundreds, which calibrate refuses as beyond the joint's limits), unless ``multiturn`` (a joint that turns
+    more than once); readings that look like radians declared as degrees are a warning (calibrate warns of
+    them too, and goes on)."""
+    unit = cmap.joint_unit
     top, j = max((float(np.max(np.abs(v))), j) for j, v in readings)
+    if unit == "rad" and top > 2.02 * math.pi and not multiturn:
+        raise ColumnMapError(f"joint readings of {t.file} reach {top:g} (column {t.header[j]!r}) with joint_unit = "
+                             f'"rad": more than a turn (2 pi), these look like degrees: set joint_unit = "deg", or '
+                             "pass --allow-multiturn if a joint turns more than once", file=cmap.origin("joint_unit"),
+                             column="joint_unit")
     if unit == "deg" and looks_like_radians(np.column_stack([v for _, v in readings]), tol=0.0):
-        what = "every joint reading is within +-6.3: these look like radians"
-    elif unit == "rad" and top > 2.02 * math.pi:
-        what = f"column {t.header[j]!r} reaches {top:g}, more than 2 pi: degrees?"
-    else:
-        return
-    warnings.warn(f"{t.file}: {what}, but the mapping says joint_unit = \"{unit}\"", DataWarning,
-                  stacklevel=4)
+        warnings.warn(f"{t.file}: every joint reading is within +-6.3: these look like radians, but the mapping says "
+                      'joint_unit = "deg"', DataWarning, stacklevel=4)
 
 
 # --- the mapping ---------------------------------------------------------------------------
@@ -356,7 +360,7 @@ class _Header:
 
 
 def read_mapped(path: str | os.PathLike[str], column_map: ColumnMap,
-                sort_by_time: bool = True) -> Imported:
+                sort_by_time: bool = True, multiturn: bool = False) -> Imported:
     """Read a tracker file into contract columns as ``column_map`` says.
 
     Parameters
@@ -369,6 +373,9 @@ def read_mapped(path: str | os.PathLike[str], column_map: ColumnMap,
         With a ``time`` column, put rows that are out of time order in time
         order (stable sort, with a warning), because the contract's row
         order is time order. With False the file order is kept.
+    multiturn : bool, default False
+        Accept readings beyond a turn (2 pi) with ``joint_unit = "rad"``
+        (a joint that turns more than once); else they are an error.
 
     Returns
     -------
@@ -383,12 +390,15 @@ def read_mapped(path: str | os.PathLike[str], column_map: ColumnMap,
         Empty file, missing, ambiguous or clashing column, wrong number of
         fields, non-numeric value or bad timestamp; ``file``, ``row`` (1-based
         line) and ``column`` (the source column) say where.
+    ColumnMapError
+        A unit the data contradict: points kilometres apart, joint readings
+        beyond a turn in radians (unless ``multiturn``).
 
     Warns
     -----
     DataWarning
         Unusable timestamps (``time_s`` omitted), rows out of time order,
-        joint readings that look like the other angle unit.
+        joint readings in degrees that look like radians.
     """
     cmap, path = column_map, Path(path)
     file = str(path)
@@ -413,7 +423,7 @@ def read_mapped(path: str | os.PathLike[str], column_map: ColumnMap,
     readings = [(j, _numbers(t, j, cmap.decimal)) for j in joint_idx]
     revolute = [r for i, r in enumerate(readings, 1) if i not in cmap.linear_axes]
     if revolute:
-        _check_joint_unit(revolute, cmap.joint_unit, t)
+        _check_joint_unit(revolute, cmap, t, multiturn)
     names = joint_columns(cmap)
     for i, ((j, values), name) in enumerate(zip(readings, names), 1):
         linear = i in cmap.linear_axes
@@ -509,7 +519,7 @@ def _check_position_unit(columns: dict[str, np.ndarray], cmap: ColumnMap, t: _Ta
 
 
 def import_file(src: str | os.PathLike[str], dst: str | os.PathLike[str], column_map: ColumnMap,
-                overwrite: bool = False, sort_by_time: bool = True) -> Imported:
+                overwrite: bool = False, sort_by_time: bool = True, multiturn: bool = False) -> Imported:
     """Convert a tracker file to a measurement CSV (:meth:`Measurements.write_csv`, atomic).
 
     Parameters
@@ -519,7 +529,7 @@ def import_file(src: str | os.PathLike[str], dst: str | os.PathLike[str], column
     column_map : ColumnMap
     overwrite : bool, default False
         Replace ``dst`` if it exists.
-    sort_by_time : bool, default True
+    sort_by_time, multiturn : bool
         See :func:`read_mapped`.
 
     Returns
@@ -537,6 +547,6 @@ def import_file(src: str | os.PathLike[str], dst: str | os.PathLike[str], column
     # fail before the (slow) read when the output is refused anyway
     if not overwrite and Path(dst).exists():
         raise InputError(EXISTS, file=str(dst))
-    imported = read_mapped(src, column_map, sort_by_time=sort_by_time)
+    imported = read_mapped(src, column_map, sort_by_time=sort_by_time, multiturn=multiturn)
     imported.measurements().write_csv(dst, overwrite=overwrite)
     return imported

@@ -24,7 +24,9 @@ evaluation time, the same bits), used at once, and compiled again with
 the optimised code when it is ready (:func:`upgraded`) and only that goes
 into the cache. No compiler outlives the process: at its end the run waits
 for those still running (:func:`finish`; killed instead when the process
-ends on an error or a signal), so the next run finds them in the cache.
+ends on an error or a signal), so the next run finds them in the cache. Each
+compiler runs in a process group of its own, which is killed whole: the
+driver's own children (cc1, the assembler) go with it.
 
 The folder is ``$CASADICAL_CACHE`` if set, else ``$XDG_CACHE_HOME/casadical``
 or ``~/.cache/casadical``. An entry is one file,
@@ -85,13 +87,21 @@ _LISTENERS: list = []
 
 @contextlib.contextmanager
 def announcing(say):
-    """Within the block, ``say(text)`` hears of a compilation that takes seconds before it starts (the command
-    line's progress line: a first run must not look as if it hangs)."""
-    _LISTENERS.append(say)
+    """Within the block, ``say(text)`` hears of the first compilation that takes seconds before it starts (the
+    command line's progress line: a first run must not look as if it hangs). Once per block: a run compiles
+    the parts of the model it needs as it needs them (a diagnosis: those with and without the gravity
+    torques, of positions and of full poses), and the notice said at the first covers them all."""
+    said = []
+
+    def once(text: str) -> None:
+        if not said:
+            said.append(text)
+            say(text)
+    _LISTENERS.append(once)
     try:
         yield
     finally:
-        _LISTENERS.remove(say)
+        _LISTENERS.remove(once)
 
 
 def announce(text: str) -> None:
@@ -289,31 +299,12 @@ def _compile(items: list[tuple[ca.Function, str]], cc: str) -> list[ca.Function]
         jobs = []
         try:
             for fun, _ in items:
-                name = fun.name()
-                gen = ca.CodeGenerator(f"{name}.c", {"with_header": False})
-                gen.add(fun)
-                c_file = gen.generate(tmp + os.sep)
-                library = os.path.join(tmp, name + _SUFFIX)
-                # a child process Python waits for: Ctrl-C stops it and raises KeyboardInterrupt here (CasADi's
-                # own JIT runs the compiler through system(), which ignores the interrupt in the caller)
-                try:
-                    p = subprocess.Popen([cc, *FLAGS, c_file, "-o", library], stdout=subprocess.PIPE,
-                                         stderr=subprocess.PIPE, text=True)
-                except OSError as e:
-                    raise CompileError(f"cannot run {cc}: {e}") from e
-                jobs.append((p, library))
+                jobs.append(_start(cc, FLAGS, _generate(fun, tmp), os.path.join(tmp, fun.name() + _SUFFIX)))
             checkpoint("compile")     # where a test has the process signal itself while the compilers run
-            for p, _ in jobs:
-                _, err = p.communicate()
-                if p.returncode == -signal.SIGINT:
-                    raise KeyboardInterrupt  # the compiler alone got the Ctrl-C
-                if p.returncode:
-                    raise CompileError(f"{cc} failed: {(err or '').strip()[-200:]}")
+            _wait([p for p, _ in jobs], cc)
         finally:      # an error or an interrupt: no compiler outlives the call
             for p, _ in jobs:
-                if p.poll() is None:
-                    p.kill()
-                    p.wait()
+                _kill(p)
         out = []
         for (fun, key), (_, library) in zip(items, jobs):
             data = Path(library).read_bytes()
@@ -405,11 +396,14 @@ def _generate(fun: ca.Function, folder: str) -> str:
 
 
 def _start(cc: str, flags: tuple[str, ...], c_file: str, library: str) -> tuple[subprocess.Popen, str]:
-    """A compiler process (a child Python waits for: Ctrl-C stops it and raises KeyboardInterrupt in the
-    waiting call; CasADi's own JIT runs the compiler through system(), which ignores the interrupt)."""
+    """A compiler process, a child Python waits for (CasADi's own JIT runs the compiler through system(), which
+    ignores Ctrl-C in the caller), in a process group of its own: the driver (gcc) starts the compiler proper
+    (cc1) and the assembler as its children, and :func:`_kill` stops them all (killing the driver alone left
+    cc1 running after the command had ended). A terminal's Ctrl-C then reaches this process alone, which
+    stops the group."""
     try:
         p = subprocess.Popen([cc, *flags, c_file, "-o", library], stdout=subprocess.PIPE, stderr=subprocess.PIPE,
-                             text=True)
+                             text=True, process_group=0)
     except OSError as e:
         raise CompileError(f"cannot run {cc}: {e}") from e
     return p, library
@@ -425,8 +419,11 @@ def _wait(processes: list[subprocess.Popen], cc: str) -> None:
 
 
 def _kill(p: subprocess.Popen) -> None:
-    if p.poll() is None:
-        p.kill()
+    """Stop a compiler with every process of its group (its children too, should the driver have ended without
+    them). The group's id is the driver's: until the driver is reaped here no other process can have it."""
+    if p.returncode is None:
+        with contextlib.suppress(ProcessLookupError, PermissionError):
+            os.killpg(p.pid, signal.SIGKILL)
         p.wait()
 
 

@@ -445,8 +445,8 @@ class Superset:
         # side, the longest counts
         seconds = max(1, round(max((1e-4 if self._quick_now and f.n_instructions() >= jitcache.QUICK_MIN_INSTRUCTIONS
                                     else 5e-4) * f.n_instructions() for f in funs)))
-        jitcache.announce(f"compiling the model of {self.robot.name} for these data once (about {seconds} s; kept in "
-                          "the cache for later runs)")
+        jitcache.announce(f"compiling the model of {self.robot.name} for these data (about {seconds} s, more if the "
+                          "run needs further parts; once: later runs load it from the cache)")
 
     def evaluate(self, which: str, N: int, inputs: list, per_pose: bool, take, compile: bool = True):
         """``take(outputs)`` of ``which`` on N poses (outputs: per pose, row-major, valid inside ``take``).

@@ -14,7 +14,7 @@ A diagnosis says honestly what it could not resolve (``diagnose --json``):
   fitted values;
 - **unexplained** structure: significant structure that could not be named
   (``holds_up.structures``: a harmonic not resolved from its neighbours,
-  a trend whose halves disagree, ...). Model: the final model plus the
+  a trend whose halves differ, ...). Model: the final model plus the
   structure's candidate and the alternatives it could not be told from
   (every harmonic of its band; for a trend, the first harmonic); tested:
   the candidate's own parameters;

@@ -103,7 +103,7 @@ class Coverage:
         if beyond.any():
             rows = np.flatnonzero(beyond.any(axis=1))
             joints = sorted({int(j) + 1 for j in np.flatnonzero(beyond.any(axis=0))})
-            out.append(f"{file}: {len(rows)} pose(s) (lines {listing(lines[rows].tolist())}) have joint readings "
+            out.append(f"{file}: {len(rows)} pose(s) (rows {listing(lines[rows].tolist())}) have joint readings "
                        "outside "
                        f"the ranges the calibration saw (joints {', '.join(map(str, joints))}: "
                        + "; ".join(f"q{j} {self.q_min_deg[j - 1]:.1f}..{self.q_max_deg[j - 1]:.1f} {self.unit(j - 1)}"
@@ -112,9 +112,9 @@ class Coverage:
         only_far = far & ~beyond.any(axis=1)
         if only_far.any():
             rows = np.flatnonzero(only_far)
-            out.append(f"{file}: {len(rows)} pose(s) (lines {listing(lines[rows].tolist())}) lie far from every "
-                       f"calibration pose (more than {self.far_limit_deg():.0f} in joint space: deg"
-                       + (", mm of a linear axis" if "mm" in (self.units or ()) else "") + "): "
+            out.append(f"{file}: {len(rows)} pose(s) (rows {listing(lines[rows].tolist())}) lie far from every "
+                       f"calibration pose (more than {self.far_limit_deg():.0f} deg away in joint space"
+                       + (", a linear axis' mm counted as deg" if "mm" in (self.units or ()) else "") + "): "
                        "the model interpolates over a gap there")
         return out
 

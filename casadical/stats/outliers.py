@@ -149,7 +149,7 @@ class SetAsideStructure:
         if len(self.accounted) and not len(bad) and not sig:
             return ""
         if len(self.accounted) and not sig:      # the rest of the set-aside poses, with nothing of their own
-            return (f"the other {len(bad)} (lines " + listing(self._lines(bad), 10) + ") share no structure: "
+            return (f"the other {len(bad)} (rows " + listing(self._lines(bad), 10) + ") share no structure: "
                     "likely bad measurements")
         if self.n_set_aside < 2:
             return "likely a bad measurement (a single pose: no structure to test)"
@@ -162,7 +162,7 @@ class SetAsideStructure:
         parts = [f"{t.where} ({len(t.poses)} of them, p = {max(t.p_value * m, 1e-300):.2g})" for t in sig]
         text = "not bad measurements but structure the model lacks: " + "; ".join(parts)
         if len(bad):
-            text += (f"; the other {len(bad)} (lines " + listing(self._lines(bad), 10)
+            text += (f"; the other {len(bad)} (rows " + listing(self._lines(bad), 10)
                      + ") share none of it: likely bad measurements")
         return text
 

@@ -93,7 +93,7 @@ class ErrorTerm:
     #: registry key, also used in model specifications ("kinematic+compliance")
     name: ClassVar[str] = ""
     aliases: ClassVar[tuple[str, ...]] = ()
-    #: cause name of INTERFACE.md section 4
+    #: cause name of docs/formats.md section 4
     cause: ClassVar[str] = ""
     #: covariates read per pose (columns of the measurement file)
     covariates: ClassVar[tuple[str, ...]] = ()

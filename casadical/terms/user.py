@@ -23,6 +23,7 @@ from dataclasses import replace
 import casadi as ca
 import numpy as np
 
+from .._format import g3, relative
 from ..errors import DataFileError, TermsFileError
 from ..model.parameters import Parameter
 from ..robot import Robot
@@ -237,6 +238,11 @@ class UserCauses(Cause):
 
     def short_name(self, cand) -> str:
         return cand.cause.replace("_", " ")
+
+    def size(self, cand, values, stds, params, linear) -> str:
+        """Its parameters as the parameter table reads them (``a2 = 0.017 deg +- 5.5 %``)."""
+        return ", ".join(f"{p.name.split('.', 1)[-1]} = {g3(p.to_reading(p.value))} {p.reading_unit}"
+                         + relative(p.std, p.value) for p in params)
 
     def parameter_names(self, cand) -> list[str]:
         return list(cand.user)

@@ -166,7 +166,7 @@ def test_json_to_standard_output_is_clean_json(cmd, poses):
     assert r.returncode == 0, r.stderr
     doc = json.loads(r.stdout)
     assert isinstance(doc, dict) and doc
-    if cmd == "diagnose":       # the report (keys of INTERFACE.md) and the summary beside it, on stderr
+    if cmd == "diagnose":       # the report (keys of docs/formats.md section 4) and the summary beside it, on stderr
         assert {"steps", "findings", "final"} <= set(doc)
         assert "findings (sizes in the final model" in r.stderr and "final model -> " in r.stderr
     if cmd in ("compare", "plan-poses", "study"):

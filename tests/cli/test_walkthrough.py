@@ -168,6 +168,20 @@ def test_a_misspelt_column_is_the_one_named(tmp_path, capsys):
     assert err[0].startswith(f"casadical: error: {bad}, row 1, column 'x_mn': ") and "'x_mm'" in err[0], err
 
 
+@pytest.mark.parametrize("missing", ["z_mm", "rz_deg"])
+def test_a_missing_column_is_named_not_the_valid_column_about_it(tmp_path, capsys, missing):
+    """Series B without its z_mm (rz_deg) column: the error names that column as missing, never its valid
+    std_z_mm (std_rz_deg) as an unknown misspelling of it (issue 47)."""
+    lines = [line.split(",") for line in SERIES_B.read_text().splitlines()[:30]]
+    k = lines[0].index(missing)
+    bad = tmp_path / "bad.csv"
+    bad.write_text("\n".join(",".join(f[:k] + f[k + 1:]) for f in lines) + "\n")
+    code, _, err = cli(capsys, "calibrate", "ur10", bad, "--out", tmp_path / "c.json")
+    assert code == 2 and len(err) == 1
+    assert err[0].startswith(f"casadical: error: {bad}, row 1, column {missing!r}: has only some of "), err
+    assert "std_" not in err[0] and "not a column casadical knows" not in err[0], err
+
+
 def test_an_unknown_option_names_the_command_once(tmp_path, capsys):
     """(Before: 'casadical: error: casadical: unrecognized arguments: ...'.)"""
     code, _, err = cli(capsys, "diagnose", "ur10", "a.csv", "--validate", "b.csv", "--no-such-option")

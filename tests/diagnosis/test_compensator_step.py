@@ -98,3 +98,29 @@ def test_paired_gain_is_scipys_wilcoxon():
             before[-10:], after[-10:] = np.round(before[-10:], 1), np.round(after[-10:], 1)    # ties
             expected = stats.wilcoxon(before - after, alternative="greater").pvalue
             assert paired_gain(before, after) == pytest.approx(expected, rel=1e-9, abs=1e-300)
+
+
+@pytest.mark.parametrize("seed", [1, 2])
+def test_a_rejected_gp_compensator_says_why_without_contradicting_itself(seed):
+    """A 5-axis arm whose axis tilts (an effect no catalogue cause has), 36 calibration poses as in the ABB IRB 120
+    tracker set of issue 47: the GP compensator is rejected, and its reason never reads as no change where it says
+    a change ('0.0516 -> 0.0516 mm') nor as a significant p-value where it says not significant ('p = 0.0021'):
+    each before -> after differs as written or says by how much, and each p-value comes with the level it is not
+    below."""
+    import re
+
+    from tests.helpers import hidden
+
+    c = hidden.case("arm5", "axis tilt", seed)
+    robot, cal, val = hidden.make_data(c, n_cal=36, n_val=100)[:3]
+    report = diagnose(robot, cal, val, DiagnosisSettings(seed=seed))
+    step = report.steps[-1]
+    assert step.model.endswith("+gp_compensator") and not step.accepted
+    reason = step.reason
+    pairs = re.findall(r"(\d+\.\d+) -> (\d+\.\d+) mm( \((\S+) mm (lower|higher)\))?", reason)
+    assert pairs, reason
+    for before, after, said, change, _ in pairs:
+        assert before != after or (said and float(change) > 0), reason
+    for p, level in re.findall(r"p = (\S+), not below the level (\S+) of its tests", reason):
+        assert float(p) >= float(level), reason
+    assert len(re.findall(r"p = ", reason)) == len(re.findall(r"not below the level", reason)), reason

@@ -3,7 +3,7 @@ coupling and the mount compliance of tests/helpers/hidden.py OUTSIDE are the cat
 tests/diagnosis/test_new_causes_named.py).
 
 The diagnosis names no stand-in for them (no catalogue cause in its final model), says where the leftover
-lives (the structure screen's strongest structure: the joint, the covariate and the effect of INTERFACE
+lives (the structure screen's strongest structure: the joint, the covariate and the effect of docs/formats.md
 section 4), calls none of the poses a bad measurement, and is never worse than a kinematic calibration of the
 same poses; a true blunder is still named one. Noise alone gives no structure. ``pytest -m slow`` runs every
 arm; the default run takes each effect on one arm in turn, three seeds each.

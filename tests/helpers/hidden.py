@@ -70,7 +70,7 @@ EFFECTS = ("none", "compliance", "progressive stiffness", "gear error", "encoder
            "motion backlash", "thermal expansion", "thermal expansion of a link", "drift", "two sessions", "several",
            "full pose", "bad shots")
 #: effects outside the diagnosis catalogue (:func:`case` makes them; not in the matrix of EFFECTS): what a diagnosis
-#: may at most call ``unexplained`` (INTERFACE.md section 4: ``Case.unexplained`` holds the joint, covariate and
+#: may at most call ``unexplained`` (docs/formats.md section 4: ``Case.unexplained`` holds the joint, covariate and
 #: effect its structure screen would name), never a catalogue cause. ``joint coupling`` and ``mount compliance``
 #: have terms (casadical/terms) that are not in the catalogue yet
 OUTSIDE = ("joint coupling", "mount compliance", "axis tilt", "another joint's reading", "another joint's load",

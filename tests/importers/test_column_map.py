@@ -31,6 +31,7 @@ from casadical.robot import robot_from_dict
 ROOT = Path(__file__).resolve().parents[2]
 DATASET = ROOT / "problems" / "datasets" / "ur10-ipa"
 RAW_B = DATASET / "raw" / "Series_B" / "measurements_joint_configurations.csv"
+SERIES_B = DATASET / "series_b.csv"
 
 # Barrett WAM-like 7-axis arm (standard DH, no parallel axes: no Hayati beta)
 WAM7 = {
@@ -329,6 +330,27 @@ def test_bad_input_through_the_cli_is_one_line(tmp_path):
         assert msg[0].startswith("casadical: error: " + expected), (what, msg[0])
         assert not out.exists()
     assert main(["import", str(src), "--map", str(good_map), "--out", str(out)]) == 0
+
+
+def test_degrees_mapped_as_radians_are_an_error_that_writes_nothing(tmp_path):
+    """Series B (joint readings in degrees, up to 200 on joint 4) mapped with joint_unit = "rad": one line of error
+    naming the key, and no file (issue 47: a warning, exit 0, and a file with readings of -10,313 deg that
+    calibrate then refused); a joint that turns more than once is allowed on request, and then the readings are
+    converted as asked."""
+    src = tmp_path / "b.csv"
+    src.write_text("\n".join(SERIES_B.read_text().splitlines()[:20]) + "\n")
+    out = tmp_path / "o.csv"
+    maps = ["--map", "joints=q1_deg,q2_deg,q3_deg,q4_deg,q5_deg,q6_deg", "--map", "joint_unit=rad",
+            "--map", "position=x_mm,y_mm,z_mm", "--map", "position_unit=mm", "--map", "others=drop"]
+    r = _cli("import", str(src), *maps, "--out", str(out))
+    msg = r.stderr.strip().splitlines()
+    assert r.returncode == 2 and len(msg) == 1 and not out.exists(), r.stderr
+    assert msg[0].startswith("casadical: error: --map, column 'joint_unit': joint readings of ") \
+        and "'q4_deg'" in msg[0] and 'set joint_unit = "deg"' in msg[0] and "--allow-multiturn" in msg[0], msg
+    r = _cli("import", str(src), *maps, "--out", str(out), "--allow-multiturn")
+    assert r.returncode == 0 and "warning" not in r.stderr, r.stderr
+    raw, got = _csv_columns(src), _csv_columns(out)
+    assert np.allclose(np.degrees(np.array(raw["q4_deg"], float)), np.array(got["q4_deg"], float))
 
 
 # --- the UR10 preset and the guide's worked example --------------------------------------------

@@ -58,7 +58,7 @@ def _t(x=0, y=0, z=0):
 
 
 def explicit_fk(robot, q):
-    """The INTERFACE.md definition, written out with 4x4 matrices."""
+    """The definition of docs/formats.md section 1, written out with 4x4 matrices."""
     x, y, z = robot.base_xyz
     r, p, w = robot.base_rpy
     T = _t(x, y, z) @ _rz(w) @ _ry(p) @ _rx(r)

@@ -252,10 +252,34 @@ def test_a_first_run_says_it_compiles_and_a_second_compiles_nothing(tmp_path):
                      json.loads(out.read_text())["parameters"]))
     (said0, cache0, p0), (said1, cache1, p1) = runs
     # about 1 s with the quick compile (a core free), 2 s at -O1 at once (a loaded machine: jitcache.spare_core)
-    assert said0 in [[f"compiling the model of three-axis test arm for these data once (about {t} s; kept in the "
-                      "cache for later runs)"] for t in (1, 2)], said0
+    assert said0 in [[f"compiling the model of three-axis test arm for these data (about {t} s, more if the run "
+                      "needs further parts; once: later runs load it from the cache)"] for t in (1, 2)], said0
     assert said1 == [] and cache1 == cache0 == ["superset_fk", "superset_jac"]
     assert p0 == p1
+
+
+@needs_compiler
+def test_a_run_that_compiles_several_parts_says_so_once(tmp_path):
+    """A diagnosis compiles several parts of the model (with and without the gravity torques) into an empty
+    cache: its notice comes once, not once per part (issue 47: four times in one run of the README job); the
+    next run, from the cache, says nothing."""
+    (tmp_path / "arm.toml").write_text(to_toml(ARM5))
+    robot = robot_from_dict(ARM5)
+    cal, truth = simulate(robot, 150, Effects(stiffness={2: 4e5}), seed=1, floor_z=None)
+    val, _ = simulate(robot, 120, Effects(stiffness={2: 4e5}), truth=truth, seed=2, floor_z=None)
+    cal.write_csv(tmp_path / "cal.csv")
+    val.write_csv(tmp_path / "val.csv")
+    env = {**os.environ, "CASADICAL_JIT": "1", "CASADICAL_CACHE": str(tmp_path / "cache")}
+    said, parts = [], []
+    for k in range(2):
+        r = subprocess.run([sys.executable, "-m", "casadical", "diagnose", str(tmp_path / "arm.toml"),
+                            str(tmp_path / "cal.csv"), "--validate", str(tmp_path / "val.csv"), "--no-blackbox",
+                            "--out", str(tmp_path / f"final{k}.json")], capture_output=True, text=True, env=env)
+        assert r.returncode == 0, r.stderr
+        said.append([line for line in r.stderr.splitlines() if line.startswith("compiling the model of")])
+        parts.append(sorted(p.name for p in (tmp_path / "cache").iterdir()))
+    assert len(said[0]) == 1 and said[1] == [], said
+    assert len(parts[0]) >= 4 and parts[1] == parts[0]      # more than one part was compiled, said once
 
 
 @needs_compiler

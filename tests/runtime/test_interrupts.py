@@ -318,3 +318,66 @@ def test_ctrl_c_during_the_jit_stops_cleanly(tmp_path):
     assert not (tmp_path / "out.csv").exists()
     assert not list(tmp_path.glob("casadical-jit-*"))
     assert not (tmp_path / "cache").exists() or not list((tmp_path / "cache").iterdir())
+
+
+def _compilers(folder) -> list[str]:
+    """Live processes whose command line names a file in ``folder`` (the compiler driver, cc1, the assembler)."""
+    out = []
+    for d in os.listdir("/proc"):
+        if d.isdigit() and int(d) != os.getpid():
+            try:
+                cmd = Path(f"/proc/{d}/cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace")
+            except OSError:
+                continue
+            if str(folder) in cmd and "casadical" not in cmd.split()[0] and _alive(int(d)) and not _killed(int(d)):
+                out.append(f"{d}: {cmd[:160]}")
+    return out
+
+
+def _killed(pid: int) -> bool:
+    """A SIGKILL is pending for ``pid``: it dies the next time it is scheduled."""
+    try:
+        status = Path(f"/proc/{pid}/status").read_text()
+    except OSError:
+        return True
+    pending = 0
+    for line in status.splitlines():
+        if line.startswith(("SigPnd:", "ShdPnd:")):
+            pending |= int(line.split()[1], 16)
+    return bool(pending & (1 << (signal.SIGKILL - 1)))
+
+
+@pytest.mark.skipif(not shutil.which("gcc"), reason="needs gcc (its compiler proper, cc1, is its child)")
+@pytest.mark.parametrize("point, quick", [("compile", False), ("compile", True), ("solver", True)],
+                         ids=["optimised", "quick", "background"])
+def test_ctrl_c_while_the_model_compiles_leaves_no_compiler_behind(tmp_path, point, quick):
+    """SIGINT to the command alone (``kill -INT PID``; issue 47: ``calibrate ... --model kinematic+compliance``
+    into an empty cache, interrupted while gcc ran) once the compiler proper (cc1, the driver's child) runs:
+    exit 130 and no compiler process left, whether the run waited for the optimised compile, for the quick one,
+    or had the optimised one in the background while IPOPT iterated (jitcache.spare_core decides which; forced
+    here)."""
+    robot_file, data_file = arm_files(str(tmp_path), "arm5", 300, 0)
+    fifo = tmp_path / "hold"
+    os.mkfifo(fifo)
+    run = (f"from casadical.model import jitcache; jitcache.spare_core = lambda: {quick}; "
+           "from casadical.__main__ import run; run()")     # the ``casadical`` command
+    p = subprocess.Popen([sys.executable, "-c", run, "calibrate", robot_file, data_file, "--model",
+                          "kinematic+compliance", "--out", str(tmp_path / "cal.json")], cwd=tmp_path,
+                         env={**os.environ, "PYTHONPATH": str(ROOT), "CASADICAL_JIT": "1", "TMPDIR": str(tmp_path),
+                              "CASADICAL_CACHE": str(tmp_path / "cache"), "CASADICAL_PAUSE_AT": f"{point}:{fifo}"},
+                         stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True, start_new_session=True)
+    try:
+        with open(fifo, "wb"):         # returns once the command waits at ``point``: its compilers started
+            t0 = time.monotonic()
+            while not any("cc1" in c for c in _compilers(tmp_path)) and time.monotonic() - t0 < 30:
+                time.sleep(0.01)
+            running = _compilers(tmp_path)
+            assert any("cc1" in c for c in running), running
+            os.kill(p.pid, signal.SIGINT)
+        _, err = p.communicate(timeout=60)
+    finally:
+        if p.poll() is None:
+            p.kill()
+    assert p.returncode == 130 and "interrupted; no output was written" in err and "Traceback" not in err, err
+    assert _compilers(tmp_path) == [], "a compiler outlived the command"     # (one killed but not yet gone aside)
+    assert not (tmp_path / "cal.json").exists()

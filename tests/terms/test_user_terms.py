@@ -6,6 +6,7 @@ from __future__ import annotations
 import builtins
 import json
 import math
+import re
 from pathlib import Path
 
 import numpy as np
@@ -445,6 +446,21 @@ def test_inspect_shows_each_terms_expressions_and_what_the_poses_identify(wobbly
     assert doc["identifiability"]["poses"] == 120
 
 
+def test_inspect_says_a_term_parameters_unit_as_the_file_states_it(tmp_path, capsys):
+    """A parameter of unit rad (start 2 mrad): inspect gives it in rad as the file states it, with its bounds, and
+    says the table shows it in deg and how (issue 47: shown only as deg); the table's value is the start in
+    degrees."""
+    path = tmp_path / "w.toml"
+    path.write_text(EXAMPLE.read_text().replace('unit = "rad"', 'unit = "rad"\nstart = 0.002', 1))
+    assert main(["inspect", "ur10", "--model", "kinematic", "--terms", str(path), "--poses", "50"]) == 0
+    out = capsys.readouterr().out
+    es = next(x for x in out.splitlines() if x.startswith("  axis_wobble.es: "))
+    assert es.endswith("in the terms file: unit rad (the table below shows it in deg: 57.3 deg per rad), bounds "
+                       "-0.005 .. 0.005 rad, start 0.002 rad"), es
+    row = next(x for x in out.splitlines() if x.startswith("axis_wobble.es "))
+    assert float(row.split()[2]) == pytest.approx(math.degrees(0.002), rel=1e-5) and row.split()[5] == "deg"
+
+
 # --- the diagnosis ------------------------------------------------------------------------------
 
 def test_the_diagnosis_names_a_user_term_and_the_final_model_reaches_the_noise(wobbly, capsys, tmp_path):
@@ -498,3 +514,75 @@ def test_a_term_of_scope_session_is_dropped_when_the_calibration_is_taken_to_oth
                  str(again), "--quiet"]) == 0, capsys.readouterr().err
     doc = json.loads(again.read_text())
     assert doc["model"] == "kinematic+axis_wobble" and doc["user_terms"][0]["scope"] == "session"
+
+
+# --- every term accounted for in every output ---------------------------------------------------------------
+
+def _wobble(j: int) -> str:
+    """A term of a terms file: joint ``j``'s link tipping about its x axis by a sin(qj) + b cos(qj) (rad)."""
+    params = "".join(f"[term.parameters.{p}{j}]\nscale = 1e-4\nlower = -0.005\nupper = 0.005\nunit = \"rad\"\n"
+                     for p in "ab")
+    return (f'[[term]]\nname = "wobble_j{j}"\njoint = {j}\n'
+            f'frame = ["0", "0", "0", "a{j} * sin(q{j}) + b{j} * cos(q{j})", "0", "0"]\n{params}')
+
+
+#: joint 2's wobble is in the truth's data (its bearing tips the link by 0.3 mrad (sin q2 + cos q2)); joint 3's not
+TWO_WOBBLES = _wobble(2) + "\n" + _wobble(3)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_every_user_term_is_accounted_for_in_every_output(tmp_path, capsys, seed):
+    """A 5-axis DH arm whose joint 2 tips (the independent truth's axis tilt, which on this link is exactly a frame
+    effect about x after the link transform) and a terms file with that term and one of joint 3 the data lack:
+    the terminal (summary and --verbose), the JSON (user_terms, settings, inputs) and the HTML say both, the one
+    named (its finding) and the other with why it is not (screened and never supported: its best score test above
+    the level it was held to; or fitted before joint 2's tilt was in the model and not accepted: why) (issue 47:
+    the user could not tell "screened and rejected" from "ignored")."""
+    from tests.helpers import hidden
+    from tests.helpers.arms import to_toml
+    from tests.report.test_html import Page
+
+    c = hidden.case("arm5", "axis tilt", seed)
+    hidden.make_data(c, n_cal=80, n_val=200, folder=tmp_path)
+    (tmp_path / "arm.toml").write_text(to_toml(hidden.robot_doc("arm5")))
+    (tmp_path / "terms.toml").write_text(TWO_WOBBLES)
+    outputs = {k: tmp_path / f"r.{k}" for k in ("json", "html")}
+    argv = ["diagnose", str(tmp_path / "arm.toml"), str(tmp_path / "cal.csv"), "--validate", str(tmp_path / "val.csv"),
+            "--terms", str(tmp_path / "terms.toml"), "--json", str(outputs["json"]), "--html", str(outputs["html"]),
+            "--no-blackbox", "--verbose"]
+    assert main(argv) == 0
+    out = capsys.readouterr().out
+    doc = json.loads(outputs["json"].read_text())
+    # the JSON: each term, its definition and outcome; the terms file in the settings and the inputs
+    got = {u["name"]: u for u in doc["user_terms"]}
+    assert set(got) == {"wobble_j2", "wobble_j3"}
+    named, absent = got["wobble_j2"]["screen"][0], got["wobble_j3"]["screen"][0]
+    assert named["outcome"] == "named" and doc["findings"][named["finding"] - 1]["cause"] == "wobble_j2"
+    size = doc["findings"][named["finding"] - 1]["summary"]["size"]        # its values, as the table reads them
+    assert re.fullmatch(r"a2 = -?[\d.e+-]+ deg \+- [\d.]+ %, b2 = -?[\d.e+-]+ deg \+- [\d.]+ %", size), size
+    # before joint 2's tilt is in the model, joint 3's term may take part of it: fitted then, and not accepted
+    assert absent["outcome"] in ("not supported", "rejected"), absent
+    if absent["outcome"] == "not supported":
+        assert absent["score"]["p"] > absent["score"]["level"], absent
+    else:
+        assert absent["text"].startswith(f"fitted at step {absent['steps'][-1]} (round "), absent
+        assert "not accepted: " in absent["text"] or "the round accepted wobble_j2 joint 2" in absent["text"], absent
+    assert not any(f["cause"] == "wobble_j3" for f in doc["findings"])
+    assert got["wobble_j2"]["parameters"]["a2"]["unit"] == "rad" and got["wobble_j2"]["joint"] == 2
+    assert doc["settings"]["terms"] == [str(tmp_path / "terms.toml")]
+    assert doc["inputs"]["terms"] == str(tmp_path / "terms.toml") and doc["inputs"]["options"]["no_blackbox"]
+    # the terminal: both, each with what the diagnosis concluded
+    said = " ".join(out.split())
+    assert f"terms of your own ({tmp_path / 'terms.toml'})" in said
+    assert f"- wobble_j2 joint 2: named: finding {named['finding']}," in said
+    assert f"- wobble_j3 joint 3: {' '.join(absent['text'].split())}" in said
+    if absent["outcome"] == "not supported":
+        assert "screened in " in absent["text"] and "never supported: its best score test" in absent["text"]
+        assert f"not significant at the round's corrected level {absent['score']['level']:.2g}" in said
+    # the HTML: a section of them, and the terms file among the inputs
+    page = Page(outputs["html"].read_text())
+    rows = {r["term"]: r for r in page.table("user-terms")}
+    assert rows["wobble_j2"]["outcome"] == f"named: finding {named['finding']}"
+    assert rows["wobble_j3"]["outcome"] == absent["outcome"]
+    assert " ".join(absent["text"].split()) in page.text
+    assert "terms file (--terms)" in page.text and str(tmp_path / "terms.toml") in page.text
