@@ -173,7 +173,8 @@ _GIVEN = ("robot", "data", "validate", "transfer", "terms")
 def _inputs(args) -> dict:
     """What the user gave, for the record: the robot, the files, and every option of the command line (as given
     or by default; outputs and the words' options too)."""
-    options = {k: v for k, v in sorted(vars(args).items()) if k not in (*_GIVEN, "func", "command", "debug")}
+    options = {k: v for k, v in sorted(vars(args).items())
+               if k not in (*_GIVEN, "func", "command", "debug") and not k.startswith("_")}  # not what was read
     return {**{k: getattr(args, k) for k in _GIVEN}, "options": options}
 
 
