@@ -37,6 +37,8 @@ from .program import Program, Target
 
 #: inverse kinematics: random starts per target besides the program's joint targets and the middle of the ranges
 IK_STARTS = 24
+#: inverse kinematics: random joints the starts in a pose's configuration are drawn from
+IK_POOL = 50_000
 #: inverse kinematics: tolerance of the tool point (mm) and of the orientation (rad) of a solution
 IK_TOL_MM, IK_TOL_RAD = 1e-7, 1e-9
 #: the checks of compensate's targets that the filter's own targets need not pass (they are the program's)
@@ -205,7 +207,6 @@ def filter_program(cal: CalibrationResult, program: Program, *, orientation: boo
     for o in outcomes:
         _frames_of(o, program)
     _nominal_joints(cal, program, outcomes)
-    held = ""
     for tool in sorted({o.tool for o in outcomes if o.q_programmed is not None and not o.why}):
         group = [o for o in outcomes if o.tool == tool and o.q_programmed is not None and not o.why]
         T = program.tools[tool]
@@ -220,9 +221,6 @@ def filter_program(cal: CalibrationResult, program: Program, *, orientation: boo
             res = compensate(calibrated, targets, tolerance_mm=tolerance_mm, max_change_deg=max_change_deg,
                              max_deg_per_mm=max_deg_per_mm, orientation=None if hold else False,
                              flange_rotations=flange if hold else None, check=False, **_TRUSTED)
-        held = (f"the orientation of each target's tool (the flange's), "
-                f"{'as the calibration measured it' if orientation is None else 'as asked (--hold-orientation)'}"
-                if hold else res.held.replace("the point", "the tool point"))
         before_xyz, before_R = tool_pose(calibrated, q0, T)
         after_xyz, after_R = tool_pose(calibrated, res.q, T)
         bad = _failing_rows(res)
@@ -245,11 +243,13 @@ def filter_program(cal: CalibrationResult, program: Program, *, orientation: boo
             o.residual_mm = float(np.linalg.norm(after_xyz[i] - xyz[i]) * 1e3)
             o.residual_deg = _angle(after_R[i], R[i]) if hold else math.nan
             _written(o, nominal, T, program)
-    if not held:
-        held = ("the orientation of each target's tool" if hold else
-                "nothing but the tool point" + ("" if orientation is not None or n < 6 else
-                                                " (the calibration measured positions alone: "
-                                                "--hold-orientation holds the orientation)"))
+    if hold:
+        held = ("the tool point and the orientation each target means (the flange's), "
+                + ("as the calibration measured orientation" if orientation is None else "as asked"))
+    else:
+        held = "the tool point alone, with the least joint change" + (
+            " (the calibration measured positions alone; --hold-orientation holds the orientation too)"
+            if orientation is None and n >= 6 else "")
     return FilterResult(program, outcomes, held, hold, prismatic)
 
 
@@ -312,15 +312,19 @@ def _inverse(cal, program: Program, group: list[Outcome], tool: str, known: list
     T = program.tools[tool]
     nominal = in_robot_frame(cal, T, nominal=True)
     rng = np.random.default_rng(0)
-    starts = np.vstack([np.array(known).reshape(-1, n), lim.mean(axis=1)[None],
+    common = np.vstack([np.array(known).reshape(-1, n), lim.mean(axis=1)[None],
                         rng.uniform(lim[:, 0], lim[:, 1], (IK_STARTS, n))])
-    S = len(starts)
+    pool = rng.uniform(lim[:, 0], lim[:, 1], (IK_POOL, n))
+    S = len(common) + IK_STARTS
     frozen = np.array([j in program.external_axes for j in range(n)])      # the pose gives them
     q0, xyz, Rf = [], [], []
     for o in group:
         t = o.target
         P = program.bases[o.base] @ t.pose
-        s = starts.copy()
+        # as many starts again in the configuration the pose names (where it names one)
+        fit = pool[t.matches(pool)] if t.matches is not None else pool
+        fit = np.vstack([fit[:IK_STARTS], pool[:max(0, IK_STARTS - len(fit))]])
+        s = np.vstack([common, fit])
         for j, v in t.external.items():
             s[:, j] = v
         q0.append(s)
@@ -339,7 +343,7 @@ def _inverse(cal, program: Program, group: list[Outcome], tool: str, known: list
         rows = np.arange(k * S, (k + 1) * S)
         sols = res.q[rows[ok[rows]]]
         if o.target.matches is not None:
-            sols = sols[[bool(o.target.matches(q)) for q in sols]] if len(sols) else sols
+            sols = sols[o.target.matches(sols)] if len(sols) else sols
         out[id(o)] = sols
     return out
 

@@ -218,7 +218,8 @@ class _Reader:
                 out["T"] = (turn_bits(q, main, int(t.numbers["T"].value)), "int")
             return out
         t.write = write
-        t.matches = lambda q, t=t: "T" not in t.config or turn_bits(q, main, t.config["T"]) == t.config["T"]
+        t.matches = lambda q, t=t: (np.ones(len(q), bool) if "T" not in t.config else np.all(
+            [(q[:, j] < 0) == bool(t.config["T"] >> k & 1) for k, j in enumerate(main)], axis=0))
         return t
 
     # --- the program ---------------------------------------------------------------------------------------

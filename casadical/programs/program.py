@@ -220,7 +220,7 @@ class Target:
         ``write(q, pose)`` -> ``{field: (value, unit)}``: the fields' new values for joints ``q`` (SI, robot
         order) and, for a pose, the pose (4x4, m, its base frame); :meth:`Program.edited` formats them.
     matches : callable
-        ``matches(q)`` -> bool: joints ``q`` (SI) are in the configuration the pose names.
+        ``matches(q)`` -> bool per row: joints ``q`` (SI, (N, n)) are in the configuration the pose names.
     """
 
     name: str
@@ -404,6 +404,8 @@ def frame(xyz_m, R) -> np.ndarray:
     return T
 
 
-def quadrant(angle_rad: float) -> int:
-    """ABB's quadrant of a joint angle: ``floor(angle / 90 deg)`` (0 for 0..90 deg, -1 for -90..0)."""
-    return int(math.floor(math.degrees(angle_rad) / 90.0 + 1e-9))
+def quadrant(angle_rad):
+    """ABB's quadrant of joint angles: ``floor(angle / 90 deg)`` (0 for 0..90 deg, -1 for -90..0); an int for one
+    angle, an int array for several."""
+    out = np.floor(np.degrees(angle_rad) / 90.0 + 1e-9).astype(int)
+    return int(out) if out.ndim == 0 else out

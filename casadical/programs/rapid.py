@@ -217,7 +217,7 @@ class _Reader:
                         for j, k in zip(external, EAX)})
             return out
         t.write = write
-        t.matches = lambda q, t=t: all(quadrant(q[j]) == t.config[k] for k, j in quads)
+        t.matches = lambda q, t=t: np.all([quadrant(q[:, j]) == t.config[k] for k, j in quads] or [True], axis=0)
         return t
 
     # --- moves ---------------------------------------------------------------------------------------------

@@ -139,7 +139,7 @@ def _literal(c: Cursor, name: str, n: int, prismatic) -> Target:
             return {**{k: (P[i, 3], "m") for i, k in enumerate("xyz")},
                     **{k: (rv[i], "rad") for i, k in enumerate(POSE_FIELDS[3:])}}
         t.write = write
-        t.matches = lambda q: True
+        t.matches = lambda q: np.ones(len(q), bool)
         return t
     if len(numbers) != n:
         c.error(f"a joint list of {len(numbers)} values, but the calibrated robot has {n} joints", start)
