@@ -5,12 +5,13 @@ Shared with ``plan-poses --program``: reading the tool and base options of a lan
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
 
 from ..errors import InputError
-from .common import check_outputs, human_stream, write_json
+from .common import check_outputs, float_in, human_stream, write_json
 
 
 def add_program_options(p) -> None:
@@ -128,3 +129,62 @@ def _ordered(sources: list[str], language: str) -> list[str]:
     src = [s for s in sources if s.lower().endswith(".src")]
     dat = [s for s in sources if not s.lower().endswith(".src")]
     return src + dat
+
+
+def add_measurement_program(p) -> None:
+    """plan-poses' options of the measurement run as a program."""
+    g = p.add_argument_group("the measurement run as a robot program")
+    g.add_argument("--program", metavar="RUN.script|.src|.mod",
+                   help="also write the selected poses as a program (URScript, KRL .src with its .dat, RAPID .mod) "
+                        "that moves to each with a joint move and waits for the measurement; the poses, and "
+                        "SELECTED.csv, in an order of short joint moves (no needless wrist turns)")
+    g.add_argument("--wait-s", type=float_in(0, math.inf), default=2.0, metavar="S",
+                   help="with --program: wait this long at each pose for the measurement (default: %(default)g s)")
+    g.add_argument("--handshake", metavar="OUT,IN",
+                   help="with --program: at each pose set digital output OUT and wait for input IN (the "
+                        "measurement done), then clear OUT and wait for IN to fall, instead of --wait-s")
+
+
+def measurement_outputs(args) -> dict[str, str]:
+    """The files --program writes (checked with the command's other outputs), by option."""
+    from ..programs.program import language_of
+
+    if not args.program:
+        if args.handshake:
+            raise InputError("--handshake is for --program")
+        return {}
+    language = language_of(args.program)
+    if language is None:
+        raise InputError("--program: a .script, .urscript, .src or .mod file (its type is the language)",
+                         file=args.program)
+    return {f"--program {Path(o).suffix}": o for o in outputs_of(args.program, language)}
+
+
+def write_measurement_program(args, values, prismatic) -> None:
+    """The measurement run of ``values`` (rows in visiting order, the files' units) as the program of
+    ``--program``."""
+    from ..programs import krl, rapid, urscript
+    from ..programs.program import language_of
+    from ..runtime.files import atomic_write
+
+    language = language_of(args.program)
+    handshake = None
+    if args.handshake:
+        try:
+            out, inp = (int(x) for x in args.handshake.split(","))
+        except ValueError:
+            raise InputError(f"--handshake {args.handshake}: expected OUT,IN (two signal numbers)") from None
+        handshake = (out, inp)
+    name = "".join(ch if ch.isalnum() or ch == "_" else "_" for ch in Path(args.program).stem) or "run"
+    if not name[0].isalpha():
+        name = "run_" + name
+    if language == "krl":
+        src, dat = krl.measurement_program(name, values, prismatic, args.wait_s, handshake)
+        atomic_write(args.program, src, overwrite=args.force)
+        atomic_write(str(Path(args.program).with_suffix(".dat")), dat, overwrite=args.force)
+    elif language == "rapid":
+        atomic_write(args.program, rapid.measurement_program(name, values, prismatic, args.wait_s, handshake),
+                     overwrite=args.force)
+    else:
+        atomic_write(args.program, urscript.measurement_program(name, values, prismatic, args.wait_s, handshake),
+                     overwrite=args.force)

@@ -344,19 +344,18 @@ def turn_bits(q: np.ndarray, main: list[int], old: int = 0) -> int:
     return bits
 
 
-def measurement_program(name: str, q: np.ndarray, prismatic: tuple[bool, ...], wait_s: float | None,
+def measurement_program(name: str, values: np.ndarray, prismatic: tuple[bool, ...], wait_s: float | None,
                         handshake: tuple[int, int] | None) -> tuple[str, str]:
-    """The ``.src`` and ``.dat`` of a KRL program that moves to each row of ``q`` (rad; m for a linear axis)
-    with ``PTP`` to an ``E6AXIS`` and waits for the measurement: ``wait_s`` seconds, or sets ``$OUT[o]`` and
+    """The ``.src`` and ``.dat`` of a KRL program that moves to each row of ``values`` (deg; mm for a linear axis)
+    with ``PTP`` to an ``E6AXIS`` and waits for the measurement: ``WAIT SEC wait_s``, or sets ``$OUT[o]`` and
     waits for ``$IN[i]`` (``handshake = (o, i)``), then clears it and waits for the input to fall."""
     main, external = axes_of(prismatic)
     src = [f"DEF {name}( )", "; casadical plan-poses: the measurement run, one pose after another",
-           "BAS(#INITMOV, 0)"]
+           "BAS(#INITMOV, 0)", "BAS(#TOOL, 0)", "BAS(#BASE, 0)"]
     dat = [f"DEFDAT {name}"]
-    for i, row in enumerate(q, start=1):
-        fields = [f"{k} {np.degrees(row[j])!r}" for j, k in zip(main, JOINTS)]
-        fields += [f"{k} {(row[j] * 1000.0 if prismatic[j] else np.degrees(row[j]))!r}"
-                   for j, k in zip(external, EXTERNAL)]
+    for i, row in enumerate(values, start=1):
+        fields = [f"{k} {float(row[j])!r}" for j, k in zip(main, JOINTS)]
+        fields += [f"{k} {float(row[j])!r}" for j, k in zip(external, EXTERNAL)]
         dat.append(f"DECL E6AXIS XM{i}={{{','.join(fields)}}}")
         src += [f"; pose {i}", f"PTP XM{i}"]
         if handshake is None:

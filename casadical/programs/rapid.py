@@ -294,20 +294,19 @@ def _numbers(c: Cursor, value, n: int, tok) -> list[Number]:
     return value
 
 
-def measurement_program(name: str, q: np.ndarray, prismatic: tuple[bool, ...], wait_s: float | None,
+def measurement_program(name: str, values: np.ndarray, prismatic: tuple[bool, ...], wait_s: float | None,
                         handshake: tuple[int, int] | None) -> str:
-    """A RAPID module that moves to each row of ``q`` (rad; m for a linear axis) with ``MoveAbsJ`` and waits for
-    the measurement: ``WaitTime wait_s``, or sets digital output ``do<o>`` and waits for input ``di<i>``
+    """A RAPID module that moves to each row of ``values`` (deg; mm for a linear axis) with ``MoveAbsJ`` and waits
+    for the measurement: ``WaitTime wait_s``, or sets digital output ``do<o>`` and waits for input ``di<i>``
     (``handshake = (o, i)``), then clears it and waits for the input to fall."""
     main, external = axes_of(prismatic)
     lines = [f"MODULE {name}", "  ! casadical plan-poses: the measurement run, one pose after another"]
-    for i, row in enumerate(q, start=1):
-        rax = [repr(float(np.degrees(row[j]))) for j in main] + ["0"] * (6 - len(main))
-        eax = [repr(float(row[j] * 1000.0 if prismatic[j] else np.degrees(row[j]))) for j in external]
-        eax += ["9E9"] * (6 - len(eax))
+    for i, row in enumerate(values, start=1):
+        rax = [repr(float(row[j])) for j in main] + ["0"] * (6 - len(main))
+        eax = [repr(float(row[j])) for j in external] + ["9E9"] * (6 - len(external))
         lines.append(f"  CONST jointtarget jm{i} := [[{','.join(rax)}],[{','.join(eax)}]];")
     lines.append("  PROC main()")
-    for i in range(1, len(q) + 1):
+    for i in range(1, len(values) + 1):
         lines += [f"    ! pose {i}", f"    MoveAbsJ jm{i}\\NoEOffs, v200, fine, tool0;"]
         if handshake is None:
             lines.append(f"    WaitTime {wait_s!r};")

@@ -149,15 +149,16 @@ def _literal(c: Cursor, name: str, n: int, prismatic) -> Target:
     return t
 
 
-def measurement_program(name: str, q: np.ndarray, prismatic: tuple[bool, ...], wait_s: float | None,
+def measurement_program(name: str, values: np.ndarray, prismatic: tuple[bool, ...], wait_s: float | None,
                         handshake: tuple[int, int] | None) -> str:
-    """A URScript program that moves to each row of ``q`` (rad; m for a linear axis) with ``movej`` and waits
-    for the measurement: ``wait_s`` seconds, or sets digital output ``handshake[0]`` and waits for input
-    ``handshake[1]`` (then clears the output and waits for the input to fall)."""
+    """A URScript program that moves to each row of ``values`` (the files' units: deg; mm for a linear axis; written
+    in rad and m) with ``movej`` and waits for the measurement: ``wait_s`` seconds, or sets digital output
+    ``handshake[0]`` and waits for input ``handshake[1]`` (then clears the output and waits for the input to
+    fall)."""
     lines = [f"def {name}():", "  # casadical plan-poses: the measurement run, one pose after another"]
-    for i, row in enumerate(q, start=1):
-        values = ", ".join(repr(float(v)) for v in row)
-        lines += [f"  # pose {i}", f"  movej([{values}], a=0.5, v=0.3)"]
+    for i, row in enumerate(values, start=1):
+        joints = ", ".join(repr(float(v) / 1000.0 if p else float(np.radians(v))) for v, p in zip(row, prismatic))
+        lines += [f"  # pose {i}", f"  movej([{joints}], a=0.5, v=0.3)"]
         if handshake is None:
             lines.append(f"  sleep({wait_s!r})")
         else:
