@@ -32,7 +32,7 @@ import numpy as np
 from ..apply.inverse import MAX_DEG_PER_MM, calibrated_on_orientation, compensate
 from ..data.measurements import Measurements
 from ..model.symbolic import Model, pose_to_base0
-from ..result import CalibrationResult
+from ..result import CalibrationResult, rotation_angles_between
 from .program import Program, Target
 
 #: inverse kinematics: random starts per target besides the program's joint targets and the middle of the ranges
@@ -230,6 +230,10 @@ def filter_program(cal: CalibrationResult, program: Program, *, orientation: boo
             o.miss_deg = _angle(before_R[i], R[i])
             if i in bad:
                 o.why = bad[i]
+            elif hold and not res.orientation_held[i]:
+                o.why = ("near a singular configuration: the orientation cannot be held within --max-change-deg of "
+                         f"the programmed joints and {max_deg_per_mm:g} deg per mm (--position-only corrects the "
+                         "tool point alone)")
             elif res.damped[i]:
                 o.why = (f"near a singular configuration (condition number {res.largest_sv[i] / res.smallest_sv[i]:.3g}"
                          f"): the correction would move the joints more than {max_deg_per_mm:g} deg per mm "
@@ -382,8 +386,8 @@ def _coverage(cal: CalibrationResult, q: np.ndarray, prismatic) -> list[str]:
 
 
 def _angle(A: np.ndarray, B: np.ndarray) -> float:
-    c = (np.trace(A.T @ B) - 1.0) / 2.0
-    return float(np.degrees(np.arccos(np.clip(c, -1.0, 1.0))))
+    """The angle between two rotations (deg), exact near zero."""
+    return float(np.degrees(rotation_angles_between(A[None], B[None])[0]))
 
 
 def _written(o: Outcome, nominal: CalibrationResult, T: np.ndarray, program: Program) -> None:

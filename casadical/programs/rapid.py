@@ -123,12 +123,12 @@ class _Reader:
         value = self.value(c)
         name = name_tok.text
         if typ == "tooldata":
-            robhold, tframe = _nums(value[0]), value[1]
+            robhold, tframe = _flag(value[0]), value[1]
             if not robhold:
                 c.error("a stationary tool (robhold FALSE): a convention this filter does not know", name_tok)
             self.tools[name.lower()] = self._pose_frame(c, tframe, name_tok)
         elif typ == "wobjdata":
-            if _nums(value[0]):
+            if _flag(value[0]):
                 c.error("a work object the robot holds (robhold TRUE): a convention this filter does not know",
                         name_tok)
             self.wobjs[name.lower()] = (self._pose_frame(c, value[3], name_tok)
@@ -284,7 +284,7 @@ class _Reader:
         return out
 
 
-def _nums(v) -> bool:
+def _flag(v) -> bool:
     return bool(v) if isinstance(v, bool) else False
 
 
