@@ -35,8 +35,10 @@ from .program import (
     Use,
     abc_matrix,
     axes_of,
+    axis_fields,
     frame,
     matrix_abc,
+    reading,
     statements,
     tokenize,
 )
@@ -183,26 +185,18 @@ class _Reader:
                 t.unfit = f"leaves out {', '.join(missing)} (taken from the current position at run time)"
                 return t
             q = np.zeros(len(prismatic))
-            for j, k in zip(main, JOINTS):
-                q[j] = np.radians(values[k])
-            for j, k in zip(external, ext_names):
-                q[j] = values[k] / 1000.0 if prismatic[j] else np.radians(values[k])
+            for j, k in zip(main + external, JOINTS[:len(main)] + ext_names):
+                q[j] = reading(values[k], prismatic[j])
             t.q = q
-
-            def write(q, P):
-                out = {k: (np.degrees(q[j]), "deg") for j, k in zip(main, JOINTS)}
-                out.update({k: (q[j] * 1000.0 if prismatic[j] else np.degrees(q[j]), "mm" if prismatic[j] else "deg")
-                            for j, k in zip(external, ext_names)})
-                return out
-            t.write = write
+            t.write = lambda q, P: {**axis_fields(q, prismatic, main, JOINTS), **axis_fields(q, prismatic, external,
+                                                                                            ext_names)}
             return t
         missing = [k for k in POSE if k not in values] + [k for k in ext_names if k not in values]
         if missing:
             t.unfit = f"leaves out {', '.join(missing)} (taken from the current position at run time)"
             return t
         t.pose = frame_of([values[k] for k in POSE])
-        t.external = {j: (values[k] / 1000.0 if prismatic[j] else np.radians(values[k]))
-                      for j, k in zip(external, ext_names)}
+        t.external = {j: reading(values[k], prismatic[j]) for j, k in zip(external, ext_names)}
         if "T" in values:
             t.config["T"] = int(values["T"])
         if "S" in values:
@@ -212,8 +206,7 @@ class _Reader:
             abc = matrix_abc(P[:3, :3], np.array([t.numbers[k].value for k in "ABC"]))
             out = {k: (P[i, 3] * 1000.0, "mm") for i, k in enumerate("XYZ")}
             out.update({k: (abc[i], "deg") for i, k in enumerate("ABC")})
-            out.update({k: (q[j] * 1000.0 if prismatic[j] else np.degrees(q[j]), "mm" if prismatic[j] else "deg")
-                        for j, k in zip(external, ext_names)})
+            out.update(axis_fields(q, prismatic, external, ext_names))
             if "T" in t.numbers:
                 out["T"] = (turn_bits(q, main, int(t.numbers["T"].value)), "int")
             return out

@@ -313,6 +313,17 @@ def axes_of(prismatic: tuple[bool, ...], main: int = 6) -> tuple[list[int], list
     return first, [j for j in range(len(prismatic)) if j not in first]
 
 
+def reading(value: float, prismatic: bool) -> float:
+    """An axis value as a program writes it (deg; mm for a linear axis) -> the robot's reading (rad; m)."""
+    return value / 1000.0 if prismatic else math.radians(value)
+
+
+def axis_fields(q: np.ndarray, prismatic, axes: list[int], names) -> dict[str, tuple[float, str]]:
+    """The fields ``names`` of the robot joints ``axes`` at readings ``q`` (SI) as a program writes them:
+    ``{name: (value, unit)}``, deg (mm for a linear axis)."""
+    return {k: (q[j] * 1000.0, "mm") if prismatic[j] else (math.degrees(q[j]), "deg") for j, k in zip(axes, names)}
+
+
 # --- numbers ------------------------------------------------------------------------------------------------
 
 

@@ -31,10 +31,12 @@ from .program import (
     Target,
     Use,
     axes_of,
+    axis_fields,
     frame,
     matrix_quaternion,
     quadrant,
     quaternion_matrix,
+    reading,
     tokenize,
 )
 
@@ -176,22 +178,14 @@ class _Reader:
             numbers = {**dict(zip(RAX, rax)), **dict(zip(EAX, eax))}
             t = Target(name, "joints", c.file, tok.line, tok.text, numbers)
             q = np.zeros(len(prismatic))
-            for j, x in zip(main, rax):
-                q[j] = np.radians(x.value)
-            for j, x in zip(external, eax):
-                q[j] = x.value / 1000.0 if prismatic[j] else np.radians(x.value)
+            for j, x in zip(main + external, rax[:len(main)] + eax[:len(external)]):
+                q[j] = reading(x.value, prismatic[j])
             unused = [k for j, k, x in zip(external, EAX, eax) if abs(x.value) >= UNUSED]
             if unused:
                 t.unfit = f"gives {', '.join(unused)} as not used (9E9), an axis of the robot"
                 return t
             t.q = q
-
-            def write(q, P):
-                out = {k: (np.degrees(q[j]), "deg") for j, k in zip(main, RAX)}
-                out.update({k: (q[j] * 1000.0 if prismatic[j] else np.degrees(q[j]), "mm" if prismatic[j] else "deg")
-                            for j, k in zip(external, EAX)})
-                return out
-            t.write = write
+            t.write = lambda q, P: {**axis_fields(q, prismatic, main, RAX), **axis_fields(q, prismatic, external, EAX)}
             return t
         trans, rot = _numbers(c, value[0], 3, tok), _numbers(c, value[1], 4, tok)
         conf, eax = _numbers(c, value[2], 4, tok), _numbers(c, value[3], 6, tok)
@@ -204,7 +198,7 @@ class _Reader:
             t.unfit = f"gives {', '.join(unused)} as not used (9E9), an axis of the robot"
             return t
         t.pose = _frame([x.value for x in trans], [x.value for x in rot])
-        t.external = {j: (x.value / 1000.0 if prismatic[j] else np.radians(x.value)) for j, x in zip(external, eax)}
+        t.external = {j: reading(x.value, prismatic[j]) for j, x in zip(external, eax)}
         quads = [(k, main[a]) for k, a in (("cf1", 0), ("cf4", 3), ("cf6", 5)) if a < len(main)]
         t.config = {k: int(numbers[k].value) for k, _ in quads}
 
@@ -213,8 +207,7 @@ class _Reader:
             out = {k: (P[i, 3] * 1000.0, "mm") for i, k in enumerate("xyz")}
             out.update({k: (quat[i], "quaternion") for i, k in enumerate(("q1", "q2", "q3", "q4"))})
             out.update({k: (quadrant(q[j]), "int") for k, j in quads})
-            out.update({k: (q[j] * 1000.0 if prismatic[j] else np.degrees(q[j]), "mm" if prismatic[j] else "deg")
-                        for j, k in zip(external, EAX)})
+            out.update(axis_fields(q, prismatic, external, EAX))
             return out
         t.write = write
         t.matches = lambda q, t=t: np.all([quadrant(q[:, j]) == t.config[k] for k, j in quads] or [True], axis=0)

@@ -292,13 +292,18 @@ def readings(values, arm):
     return np.where(arm.prismatic, v / 1000.0, np.radians(v))
 
 
+def frames(language, d) -> list:
+    """The KRL program's TOOL_DATA (its $config.dat) and BASE_DATA[1] (an option) on the command line."""
+    if language != "krl":
+        return []
+    return ["--config", d / "config.dat", "--base", "1=" + ",".join(
+        f"{v:.9f}" for v in list(BASES[1][:3, 3] * 1000) + list(cv.matrix_to_abc(BASES[1][:3, :3])))]
+
+
 def test_filter_touches_only_targets_and_reaches_them(setup, capsys):
     language, d, (path, meaning), arm, true, nominal, session, cal, accuracy = setup
     out = d / ("filtered" + path.suffix)
-    args = ["compensate", d / "cal.json", path, "--out", out, "--json", d / "report.json"]
-    if language == "krl":
-        args += ["--config", d / "config.dat", "--base", "1=" + ",".join(
-            f"{v:.9f}" for v in list(BASES[1][:3, 3] * 1000) + list(cv.matrix_to_abc(BASES[1][:3, :3])))]
+    args = ["compensate", d / "cal.json", path, "--out", out, "--json", d / "report.json", *frames(language, d)]
     code, text, err = cli(capsys, *args)
     assert code == 0, err
     report = json.loads((d / "report.json").read_text())
@@ -371,10 +376,8 @@ def test_hold_orientation_holds_each_tools_orientation(setup, capsys):
     degrees is corrected, not only its point)."""
     language, d, (path, _), *_ = setup
     out = d / ("held" + path.suffix)
-    args = ["compensate", d / "cal.json", path, "--out", out, "--json", d / "held.json", "--hold-orientation"]
-    if language == "krl":
-        args += ["--config", d / "config.dat", "--base", "1=" + ",".join(
-            f"{v:.9f}" for v in list(BASES[1][:3, 3] * 1000) + list(cv.matrix_to_abc(BASES[1][:3, :3])))]
+    args = ["compensate", d / "cal.json", path, "--out", out, "--json", d / "held.json", "--hold-orientation",
+            *frames(language, d)]
     code, text, err = cli(capsys, *args)
     assert code == 0, err
     report = json.loads((d / "held.json").read_text())
@@ -385,7 +388,7 @@ def test_hold_orientation_holds_each_tools_orientation(setup, capsys):
     assert max(t["residual_mm"] for t in done) < 1e-4
 
 
-@pytest.mark.parametrize("language, edit, token", [
+@pytest.mark.parametrize("setup, edit, token", [
     ("urscript", lambda s: s.replace("movel(p[", "movec(p[", 1), "movec"),
     ("urscript", lambda s: re.sub(r"  set_tcp\(p\[0.01, [^\n]*\n", "", s, count=1), None),
     ("krl", lambda s: s.replace("LIN XP", "SLIN XP", 1), "SLIN"),
@@ -394,11 +397,9 @@ def test_hold_orientation_holds_each_tools_orientation(setup, capsys):
     ("rapid", lambda s: s.replace(", tGun\\WObj", ", tDrill\\WObj", 1), "tDrill"),
     ("rapid", lambda s: s.replace("TASK PERS wobjdata wTable := [FALSE", "TASK PERS wobjdata wTable := [TRUE"),
      "wTable"),
-])
-def test_bad_program_is_one_line_and_nothing_is_written(setup, capsys, language, edit, token):
-    lang, d, (path, _), *_ = setup
-    if lang != language:
-        pytest.skip("another language's program")
+], indirect=["setup"])
+def test_bad_program_is_one_line_and_nothing_is_written(setup, capsys, edit, token):
+    language, d, (path, _), *_ = setup
     bad = d / ("bad" + path.suffix)
     bad.write_text(edit(path.read_text()))
     if language == "krl":
