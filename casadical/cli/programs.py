@@ -15,11 +15,14 @@ from .common import check_outputs, float_in, human_stream, write_json
 
 
 def add_program_options(p) -> None:
-    """The options only the program form of compensate reads."""
-    g = p.add_argument_group("robot programs (PROGRAM a .script/.urscript, .src with its .dat, or .mod file)")
-    g.add_argument("--hold-orientation", action="store_true",
+    """compensate's options of what is held and its report (both forms), and those only the program form reads."""
+    p.add_argument("--hold-orientation", action="store_true",
                    help="hold the orientation a target means (the flange's) even where the calibration measured "
                         "positions alone (default: held only by a full-pose calibration)")
+    p.add_argument("--json", metavar="REPORT.json", default=None,
+                   help="write the report as JSON: what was held (held, orientation_held); for a program each "
+                        "target's correction or why it was left")
+    g = p.add_argument_group("robot programs (PROGRAM a .script/.urscript, .src with its .dat, or .mod file)")
     g.add_argument("--tool", action="append", default=[], metavar="TOOL",
                    help="URScript: the TCP the program starts with, X,Y,Z,RX,RY,RZ (m, rotation vector in rad); "
                         "KRL: TOOL_DATA[N] as N=X,Y,Z,A,B,C (mm, deg), repeatable")
@@ -29,8 +32,6 @@ def add_program_options(p) -> None:
                    help="KRL: a file with TOOL_DATA[n] = {...} and BASE_DATA[n] = {...} assignments")
     g.add_argument("--extrapolate", action="store_true",
                    help="correct targets outside what the calibration saw too (default: leave them as written)")
-    g.add_argument("--json", metavar="REPORT.json", default=None,
-                   help="write the report (what was held; each target's correction or why it was left) as JSON")
 
 
 def _values(text: str, option: str, count: int = 6) -> np.ndarray:
