@@ -33,7 +33,6 @@ from ..errors import ProgramError
 
 #: program file types and their language
 SUFFIXES = {".script": "urscript", ".urscript": "urscript", ".src": "krl", ".mod": "rapid"}
-LANGUAGES = ("urscript", "krl", "rapid")
 
 #: how close a written number is to the value it stands for, by what it is (its unit): far below what a controller
 #: resolves, so that reading the program back gives the computed joints to 1e-6 deg
