@@ -48,7 +48,7 @@ def register(sub) -> None:
                                    "nothing is written then.")
     p.add_argument("cal", metavar="CAL.json", help="calibration JSON written by 'calibrate'")
     p.add_argument("targets", metavar="TARGETS.csv|PROGRAM",
-                   help="programmed joints and desired tool points, or a robot program")
+                   help="programmed joints and desired tool points, or a program (URScript, KRL, RAPID)")
     p.add_argument("--out", required=True, metavar="JOINTS.csv|FILTERED",
                    help="corrected joint targets to write (a program: the filtered program, of the same file type)")
     p.add_argument("--tolerance-mm", type=float_in(0, math.inf), default=1e-4,

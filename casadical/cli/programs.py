@@ -25,9 +25,11 @@ def add_program_options(p) -> None:
     g = p.add_argument_group("robot programs (PROGRAM a .script/.urscript, .src with its .dat, or .mod file)")
     g.add_argument("--tool", action="append", default=[], metavar="TOOL",
                    help="URScript: the TCP the program starts with, X,Y,Z,RX,RY,RZ (m, rotation vector in rad); "
-                        "KRL: TOOL_DATA[N] as N=X,Y,Z,A,B,C (mm, deg), repeatable")
+                        "KRL: TOOL_DATA[N] as N=X,Y,Z,A,B,C (mm, deg), repeatable (default: none; the program's "
+                        "own)")
     g.add_argument("--base", action="append", default=[], metavar="N=X,Y,Z,A,B,C",
-                   help="KRL: BASE_DATA[N] (mm, deg; in the robot base frame), repeatable")
+                   help="KRL: BASE_DATA[N] (mm, deg; in the robot base frame), repeatable (default: none; the "
+                        "program's own)")
     g.add_argument("--config", metavar="$config.dat",
                    help="KRL: a file with TOOL_DATA[n] = {...} and BASE_DATA[n] = {...} assignments")
     g.add_argument("--extrapolate", action="store_true",
