@@ -9,7 +9,9 @@ z_i`` and angles ``a_i, b_i, c_i`` (about x, y, z), commanded at ``x_c, y_c, z_c
   ``S_l = sqrt(sum (l_i - l_bar)^2 / (n - 1))``; ``RP_a = +-3 S_a`` with ``S_a = sqrt(sum (a_i - a_bar)^2 /
   (n - 1))``, likewise b and c; it needs two cycles or more (None with one);
 - distance accuracy between poses ``A`` and ``B`` (cycle by cycle): ``D_c = |P_cA - P_cB|``, ``D_i = |P_Ai -
-  P_Bi|``, ``AD_p = D_bar - D_c``; distance repeatability ``RD_p = +-3 sqrt(sum (D_i - D_bar)^2 / (n - 1))``.
+  P_Bi|``, ``AD_p = D_bar - D_c``; distance repeatability ``RD_p = +-3 sqrt(sum (D_i - D_bar)^2 / (n - 1))``;
+  in orientation ``D_ai = a_Ai - a_Bi``, ``D_ca = a_cA - a_cB``, ``AD_a = D_a_bar - D_ca`` and ``RD_a = +-3
+  sqrt(sum (D_ai - D_a_bar)^2 / (n - 1))``, likewise b and c.
 
 Angles are the measurement files' ``R = Rx(a) Ry(b) Rz(c)`` (intrinsic x-y-z, ``rx_deg, ry_deg, rz_deg``), their
 differences wrapped to +-180 deg. Positions in mm, angles in deg. A cube's summary is the largest of its poses'
@@ -89,7 +91,7 @@ def pose_characteristics(p: Poses) -> list[dict]:
 
 def distance_characteristics(p: Poses, pairs: list[tuple[str, str]]) -> list[dict]:
     """AD and RD of each pair of poses of each cube (cycles matched): ``cube``, ``pair``, ``n``, ``D_c``,
-    ``AD_p``, ``RD_p`` (None with one cycle)."""
+    ``AD_p``, ``RD_p`` and, with angles, ``AD_a/b/c``, ``RD_a/b/c`` (RD None with one cycle)."""
     out = []
     for cube in dict.fromkeys(p.cube.tolist()):
         for a, b in pairs:
@@ -101,8 +103,15 @@ def distance_characteristics(p: Poses, pairs: list[tuple[str, str]]) -> list[dic
             ia, ib = np.array([ra[c] for c in cycles]), np.array([rb[c] for c in cycles])
             dc = float(np.linalg.norm(p.commanded[ia[0]] - p.commanded[ib[0]]))
             D = np.linalg.norm(p.attained[ia] - p.attained[ib], axis=1)
-            out.append({"cube": cube, "pair": f"{a}-{b}", "n": len(cycles), "D_c": dc,
-                        "AD_p": float(D.mean() - dc), "RD_p": 3 * _std(D) if len(D) >= 2 else None})
+            d = {"cube": cube, "pair": f"{a}-{b}", "n": len(cycles), "D_c": dc, "AD_p": float(D.mean() - dc),
+                 "RD_p": 3 * _std(D) if len(D) >= 2 else None}
+            if p.attained_angles is not None and p.commanded_angles is not None:
+                Da = wrap(p.attained_angles[ia] - p.attained_angles[ib])           # D_ai = a_Ai - a_Bi
+                Dca = wrap(p.commanded_angles[ia[0]] - p.commanded_angles[ib[0]])
+                for k, name in enumerate("abc"):
+                    d[f"AD_{name}"] = float(wrap(Da[:, k].mean() - Dca[k]))
+                    d[f"RD_{name}"] = 3 * _std(Da[:, k]) if len(D) >= 2 else None
+            out.append(d)
     return out
 
 
@@ -197,7 +206,8 @@ class Iso9283:
                                                                                              "AD_p", "RD_p")),
                                    ("poses", "Per pose", ("AP_p", "AP_x", "AP_y", "AP_z", "RP_l", "AP_a", "AP_b",
                                                           "AP_c", "RP_a", "RP_b", "RP_c")),
-                                   ("distances", "Per pair of poses", ("AD_p", "RD_p"))):
+                                   ("distances", "Per pair of poses", ("AD_p", "RD_p", "AD_a", "AD_b", "AD_c",
+                                                                        "RD_a", "RD_b", "RD_c"))):
             first = self.states[next(iter(self.states))][key]
             if not first:
                 continue

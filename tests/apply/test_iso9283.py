@@ -119,6 +119,12 @@ def independent(header, rows):
         Dc = np.linalg.norm(P(a[0], "cmd_") - P(b[0], "cmd_"))
         D = np.array([np.linalg.norm(P(ra) - P(rb)) for ra, rb in zip(a, b)])
         dist[cube] = {"AD_p": D.mean() - Dc, "RD_p": 3 * math.sqrt(((D - D.mean()) ** 2).sum() / (len(D) - 1))}
+        if "rx_deg" in col:
+            for a_, name in zip("abc", ("rx_deg", "ry_deg", "rz_deg")):
+                Da = np.array([(ra[col[name]] - rb[col[name]] + 180) % 360 - 180 for ra, rb in zip(a, b)])
+                Dca = (a[0][col["cmd_" + name]] - b[0][col["cmd_" + name]] + 180) % 360 - 180
+                dist[cube][f"AD_{a_}"] = Da.mean() - Dca
+                dist[cube][f"RD_{a_}"] = 3 * math.sqrt(((Da - Da.mean()) ** 2).sum() / (len(Da) - 1))
     return out, dist
 
 
@@ -147,9 +153,12 @@ def test_ap_rp_ad_rd_match_the_standard(arm, capsys, seed):
     for key, want in poses.items():
         for k, v in want.items():
             assert got[key][k] == pytest.approx(v, rel=1e-9, abs=1e-9), (key, k)
+    assert len(report["before"]["distances"]) == 2
     for p in report["before"]["distances"]:
-        for k in ("AD_p", "RD_p"):
-            assert p[k] == pytest.approx(dist[int(p["cube"])][k], rel=1e-9, abs=1e-9)
+        want = dist[int(p["cube"])]
+        assert len(want) == 8
+        for k, v in want.items():
+            assert p[k] == pytest.approx(v, rel=1e-9, abs=1e-9), k
     # what the truth hides: an error of tenths of a millimetre or more, a scatter of its joints of 0.004 deg (at an
     # arm's reach under a millimetre, 3 sigma and more)
     assert min(p["AP_p"] for p in got.values()) > 0.2
