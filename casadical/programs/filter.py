@@ -303,7 +303,8 @@ def _nominal_joints(cal: CalibrationResult, program: Program, outcomes: list[Out
                 o.why = ("the nominal model reaches it nowhere within the joint limits"
                          + (" in the configuration it names" if t.config else "") + ": unreachable")
                 continue
-            d = np.linalg.norm((sols - previous) * scale, axis=1)
+            ref = previous if t.near is None else t.near        # URScript's qnear: where the controller starts
+            d = np.linalg.norm((sols - ref) * scale, axis=1)
             o.q_programmed = sols[int(np.argmin(d))]
         previous = o.q_programmed
 
@@ -329,6 +330,8 @@ def _inverse(cal, program: Program, group: list[Outcome], tool: str, known: list
         fit = pool[t.matches(pool)] if t.matches is not None else pool
         fit = np.vstack([fit[:IK_STARTS], pool[:max(0, IK_STARTS - len(fit))]])
         s = np.vstack([common, fit])
+        if t.near is not None:
+            s[-1] = t.near
         for j, v in t.external.items():
             s[:, j] = v
         q0.append(s)

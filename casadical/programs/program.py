@@ -220,6 +220,9 @@ class Target:
         order) and, for a pose, the pose (4x4, m, its base frame); :meth:`Program.edited` formats them.
     matches : callable
         ``matches(q)`` -> bool per row: joints ``q`` (SI, (N, n)) are in the configuration the pose names.
+    near : ndarray or None
+        The joints the controller's inverse kinematics of the pose starts from, where the program names them
+        (URScript ``get_inverse_kin(pose, qnear=...)``); None: the joints before it.
     """
 
     name: str
@@ -236,6 +239,7 @@ class Target:
     unfit: str = ""
     write: Callable | None = None
     matches: Callable | None = None
+    near: np.ndarray | None = None
 
     @property
     def label(self) -> str:

@@ -4,7 +4,9 @@ What is read, statement by statement (a statement is a line; ``#`` starts a comm
 
 - ``movej``, ``movel``, ``movep`` with a joint list ``[q1, ..., qn]`` (rad; m for a linear axis), a pose
   ``p[x, y, z, rx, ry, rz]`` (m, rotation vector in rad, robot base frame) or the name of a variable
-  assigned one (``global home = [...]``, ``pick = p[...]``; the last assignment before the move);
+  assigned one (``global home = [...]``, ``pick = p[...]``; the last assignment before the move), or
+  ``get_inverse_kin(pose, qnear=joints)`` of such a pose (as PolyScope writes waypoints: the inverse kinematics
+  nearest ``qnear``);
 - ``set_tcp(p[...])`` or ``set_tcp(name)``: the tool (TCP) of the moves after it; ``--tool`` gives the one
   the program starts with (the installation's), else a move before any ``set_tcp`` is an error.
 
@@ -101,6 +103,16 @@ def read(path: str, prismatic: tuple[bool, ...], tool: np.ndarray | None = None)
             if id(target) not in used:
                 used.add(id(target))
                 targets.append(target)
+        elif arg.text == "get_inverse_kin" and c.at("(", 1):
+            c.next()
+            c.next()
+            target = _inverse_kin(c, variables, n, prismatic)
+            if target is None:
+                skipped.append(Skipped(path, arg.line, arg.text, "an expression computed at run time"))
+                continue
+            if id(target) not in used:
+                used.add(id(target))
+                targets.append(target)
         else:
             skipped.append(Skipped(path, arg.line, arg.text, "an expression computed at run time"))
             continue
@@ -111,6 +123,33 @@ def read(path: str, prismatic: tuple[bool, ...], tool: np.ndarray | None = None)
         target.uses.append(Use(path, first.line, first.text, active, "base"))
     main = list(range(n))
     return Program("urscript", path, {path: text}, targets, tools, {"base": np.eye(4)}, skipped, main, [])
+
+
+def _inverse_kin(c: Cursor, variables: dict, n: int, prismatic) -> Target | None:
+    """``get_inverse_kin(pose[, qnear=joints][, ...])`` after its ``(``: the pose target, its ``near`` the joints
+    qnear names (a list or a joint variable); None when the pose is an expression."""
+    t = c.peek()
+    if c.at("p") and c.at("[", 1):
+        target = _literal(c, "", n, prismatic)
+    elif t.kind == "name" and isinstance(variables.get(t.text), Target) and variables[t.text].kind == "pose":
+        c.next()
+        target = variables[t.text]
+    else:
+        return None
+    if not (c.at(",") or c.at(")")):
+        return None
+    if c.at(","):
+        c.next()
+        if c.at("qnear") and c.at("=", 1):
+            c.next()
+            c.next()
+        q = c.peek()
+        if c.at("["):
+            target.near = _literal(c, "", n, prismatic).q
+        elif q is not None and q.kind == "name" and isinstance(variables.get(q.text), Target) \
+                and variables[q.text].kind == "joints":
+            target.near = variables[q.text].q
+    return target
 
 
 def _literal(c: Cursor, name: str, n: int, prismatic) -> Target:

@@ -412,3 +412,45 @@ def test_bad_program_is_one_line_and_nothing_is_written(setup, capsys, edit, tok
     assert code == 2
     one_error(err, str(bad), "line ", *([f"token '{token}'"] if token else ["token"]))
     assert not out.exists() and not out.with_suffix(".dat").exists()
+
+
+@pytest.mark.parametrize("setup", ["urscript"], indirect=True)
+def test_polyscope_waypoints_through_get_inverse_kin(setup, capsys):
+    """PolyScope writes a waypoint as a pose and the joints its inverse kinematics starts from: movej(
+    get_inverse_kin(Waypoint_p, qnear=Waypoint_q)). The pose is filtered (the branch nearest qnear), qnear is kept;
+    every other byte too."""
+    language, d, _, arm, true, nominal, session, cal, accuracy = setup
+    rng = np.random.default_rng(11)
+    lines = ["def Program():", "  set_tcp(p[0.0,0.0,0.1,0.0,0.0,0.0])", '  $ 1 "Robot Program"']
+    tool = cv.frame([0.0, 0.0, 0.1], np.eye(3))
+    q = []
+    while len(q) < 4:
+        c = sample(nominal, 1, rng, floor_z=None)[0]
+        if jacobian_ok(nominal, c):
+            q.append(c)
+    for k, row in enumerate(q, start=1):
+        P = tcp(nominal, row, tool)[0]
+        pose = ", ".join(f"{v:.6f}" for v in [*P[:3, 3], *cv.matrix_to_rotvec(P[:3, :3])])
+        lines += [f"  global Waypoint_{k}_p=p[{pose}]",
+                  f"  global Waypoint_{k}_q=[{', '.join(f'{v:.6f}' for v in row)}]",
+                  f'  $ {k + 1} "Waypoint_{k}" "breakAfter"',
+                  f"  movej(get_inverse_kin(Waypoint_{k}_p, qnear=Waypoint_{k}_q), a=1.39, v=1.04)"]
+    lines.append("end")
+    path = d / "polyscope.script"
+    path.write_text("\n".join(lines) + "\n")
+    out = d / "polyscope_filtered.script"
+    code, text, err = cli(capsys, "compensate", d / "cal.json", path, "--out", out, "--json", d / "ps.json")
+    assert code == 0, err
+    report = json.loads((d / "ps.json").read_text())
+    assert report["corrected"] == 4 and [t["name"] for t in report["targets"]] == [f"Waypoint_{k}_p"
+                                                                                     for k in range(1, 5)]
+    before, after = path.read_text().splitlines(), out.read_text().splitlines()
+    for k, t in enumerate(report["targets"]):
+        # the branch nearest qnear: the waypoint's own joints (to the pose's 6 decimals as written)
+        assert np.abs(np.array(t["programmed_joints"]) - np.degrees(q[k])).max() < 2e-3
+        line = t["line"] - 1
+        assert before[line] != after[line] and before[line + 1] == after[line + 1]      # qnear kept
+        v = [float(x) for x in re.search(r"p\[([^\]]*)\]", after[line]).group(1).split(",")]
+        P = tcp(nominal, np.radians(t["joints"]), tool)[0]
+        assert np.linalg.norm(np.array(v[:3]) - P[:3, 3]) * 1e3 < 1e-6
+    assert sum(a != b for a, b in zip(before, after)) == 4
