@@ -78,6 +78,25 @@ class TermsFileError(InputError):
         return ", ".join(where) + ": " + self.message if where else self.message
 
 
+class ProgramError(InputError):
+    """A robot program (URScript, KUKA KRL, ABB RAPID) that ``compensate`` cannot read or correct.
+
+    One line naming the file, the line and the token at fault: ``cell.src, line 12, token 'SPTP': ...``.
+    """
+
+    def __init__(self, message: str, file: str | None = None, line: int | None = None, token: str | None = None):
+        self.token = token
+        super().__init__(message, file=file, row=line)
+
+    def _format(self) -> str:
+        where = [str(self.file)] if self.file is not None else []
+        if self.row is not None:
+            where.append(f"line {self.row}")
+        if getattr(self, "token", None) is not None:
+            where.append(f"token {self.token!r}")
+        return ", ".join(where) + ": " + self.message if where else self.message
+
+
 class ModelError(CasadicalError):
     """A model cannot be built from the given robot and error terms."""
 

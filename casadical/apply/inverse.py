@@ -292,8 +292,18 @@ def output_columns(n: int, columns: list[str] | None = None) -> list[str]:
     return ["programmed_" + c for c in q] + ["d" + c for c in q] + ["residual_mm", "orientation_error_deg"]
 
 
-def held_description(n: int, orientation: bool, probe: bool = False) -> str:
-    """What :func:`compensate` holds besides the tool point, for ``n`` joints (``probe``: the targets' orientation)."""
+def calibrated_on_orientation(cal: CalibrationResult) -> bool:
+    """The calibration was fitted on measured orientations (a full-pose calibration whose loss had them)."""
+    return bool(cal.has_orientation and cal.full_pose)
+
+
+def held_description(n: int, orientation: bool, probe: bool = False, position_only_calibration: bool = False) -> str:
+    """What :func:`compensate` holds besides the tool point, for ``n`` joints (``probe``: the targets' orientation;
+    ``position_only_calibration``: the orientation is not held by default because the calibration never measured
+    it)."""
+    if position_only_calibration and not orientation and n >= 6:
+        return (f"nothing else, as the calibration measured positions alone (--hold-orientation holds the nominal "
+                f"flange orientation): least joint change for the other {n - 3} degree(s) of freedom")
     if orientation:
         text = ("the probe orientation of the targets (rx_deg, ry_deg, rz_deg), through the calibrated probe "
                 "mounting" if probe else
@@ -307,7 +317,8 @@ def held_description(n: int, orientation: bool, probe: bool = False) -> str:
 
 def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: float = 1e-4,
                max_iter: int = 30, max_change_deg: float = 5.0, orientation: bool | None = None,
-               max_deg_per_mm: float = MAX_DEG_PER_MM, check: bool = True, **checks: bool) -> CompensationResult:
+               max_deg_per_mm: float = MAX_DEG_PER_MM, check: bool = True, flange_rotations: np.ndarray | None = None,
+               frozen: np.ndarray | None = None, **checks: bool) -> CompensationResult:
     """Corrected joints that put the calibrated model's tool point on each target.
 
     Parameters
@@ -333,8 +344,14 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
         have ``rx_deg, ry_deg, rz_deg`` (measurement frame; the calibration
         must be a full-pose one, whose probe mounting turns it into the
         flange's), else the flange orientation of the nominal model at the
-        programmed joints; default: for robots with 6 joints or more. False:
-        the point alone (the orientation columns are then ignored).
+        programmed joints. Default: what the calibration measured: the
+        targets' probe orientation when they have one, the nominal flange
+        orientation on robots with 6 joints or more when the calibration was
+        fitted on measured orientations (:func:`calibrated_on_orientation`),
+        else the point alone (a position-only calibration never saw the
+        orientation: holding it would move the joints by degrees to correct
+        what it cannot know). True: hold it anyway. False: the point alone
+        (the orientation columns are then ignored).
     max_deg_per_mm : float
         Largest joint motion per millimetre of correction (or per
         milliradian of orientation), in degrees, along any direction of
@@ -343,6 +360,14 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
         keeps part of its miss and is named in a warning with the
         conditioning of its equations. Larger values reach such targets
         more exactly with larger joint motions.
+    flange_rotations : ndarray, shape (N, 3, 3), optional
+        Hold these flange (last link frame) rotations, measurement frame, one
+        per row, instead of the nominal model's at the programmed joints
+        (an inverse kinematics of given poses: :mod:`casadical.programs`).
+        Not with ``orientation=False`` nor targets with a probe orientation.
+    frozen : ndarray of bool, shape (n,), optional
+        Joints held at their programmed values (e.g. a linear axis whose
+        position a Cartesian target gives).
     check : bool
         Raise :class:`TargetError` for a row that is not reached or whose
         solution is beyond a joint limit (default). With False the result
@@ -384,13 +409,19 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
     if not (tolerance_mm > 0 and max_change_deg > 0 and max_deg_per_mm > 0 and max_iter >= 1):
         raise InputError(f"tolerance_mm, max_change_deg and max_deg_per_mm must be positive and max_iter at least "
                          f"1, got {tolerance_mm}, {max_change_deg}, {max_deg_per_mm} and {max_iter}")
+    if flange_rotations is not None:
+        flange_rotations = np.asarray(flange_rotations, float)
+        if orientation is False or targets.has_orientation or flange_rotations.shape != (len(targets), 3, 3):
+            raise InputError("flange_rotations: one rotation (3x3) per row, with orientation not False and targets "
+                             "without rx_deg, ry_deg, rz_deg")
+        orientation = True
     probe = targets.has_orientation and orientation is not False
     if probe and not cal.has_orientation:
         raise InputError("holds the probe orientation of each target, but the calibration has no probe mounting "
                          "(it was calibrated on positions alone): calibrate on data with measured orientations, or "
                          "pass --position-only (orientation=False) to reach the points alone",
                          file=targets.path, row=1, column="rx_deg")
-    hold = (n >= 6 or probe) if orientation is None else bool(orientation)
+    hold = (probe or (n >= 6 and calibrated_on_orientation(cal))) if orientation is None else bool(orientation)
     if hold and n < 6:
         raise InputError(f"the orientation cannot be held with {n} joints: 6 are needed"
                          + ("; pass --position-only (orientation=False) to reach the points alone" if probe else ""),
@@ -399,7 +430,7 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
     programmed = cal.predict(targets)    # the calibrated tool points at the programmed joints
     check_poses(targets, model.robot, predicted=programmed, **checks)
 
-    eqs = _Equations(cal, targets, hold, probe)
+    eqs = _Equations(cal, targets, hold, probe, flange_rotations, frozen)
     tol = tolerance_mm * 1e-3
     N = len(targets)
     # max_change_deg: millimetres for a prismatic joint (the reading's file unit)
@@ -434,9 +465,10 @@ def compensate(cal: CalibrationResult, targets: Measurements, *, tolerance_mm: f
     residual = np.linalg.norm(r[:, :3], axis=1)
     angle = np.linalg.norm(r[:, 3:], axis=1) / ORIENTATION_WEIGHT if hold else None
     start = np.linalg.norm(programmed - targets.xyz, axis=1)
+    held = held_description(n, hold, probe, orientation is None and not calibrated_on_orientation(cal))
     result = CompensationResult(targets, q, residual, start, angle, iterations,
-                                (residual <= tol) | (damped & settled), tol, held_description(n, hold, probe),
-                                model.robot.limits, limit, probe, small, large, damped, max_deg_per_mm)
+                                (residual <= tol) | (damped & settled), tol, held, model.robot.limits, limit, probe,
+                                small, large, damped, max_deg_per_mm)
     if hold:
         loose = np.flatnonzero(result.converged & on_point & ~result.orientation_held)
         if loose.size:
@@ -555,14 +587,19 @@ class _Equations:
     The joints are the solver's: each reading times :attr:`scale` (1 for a revolute joint, rad per mm for a linear
     axis, so that a millimetre weighs as a degree), the Jacobian with respect to them."""
 
-    def __init__(self, cal: CalibrationResult, targets: Measurements, hold: bool, probe: bool = False):
+    def __init__(self, cal: CalibrationResult, targets: Measurements, hold: bool, probe: bool = False,
+                 rotations: np.ndarray | None = None, frozen: np.ndarray | None = None):
         self.cal, self.targets, self.model = cal, targets, cal.model
         self.scale = np.where(np.array(cal.model.robot.prismatic, bool), np.radians(1.0) / 1e-3, 1.0)
+        # a frozen joint's columns are zero: the step's null space, where it goes back to the start, holds it
+        self.moving = np.ones(cal.model.robot.n) if frozen is None else (~np.asarray(frozen, bool)).astype(float)
         self.p, self.base0 = cal.parameters.values, cal.base0
         self.cov = self.model.covariates(targets)
         self.goal = targets.xyz
         self.R_goal = None
-        if hold and probe:
+        if hold and rotations is not None:
+            self.R_goal = rotations
+        elif hold and probe:
             # the flange orientation that puts the probe at the target's: probe = flange x mounting
             self.R_goal = targets.rotations @ cal.tool_rotation().T
         elif hold:
@@ -578,11 +615,11 @@ class _Equations:
         q = q / self.scale
         r = self.cal.predict(_at(self.targets, index, q)) - self.goal[index]
         _, J = self.model.predict_q_jacobian(q, self.p, self.cov[index], self.base0)
-        J = J / self.scale
+        J = J * (self.moving / self.scale)
         if not hold:
             return r, J
         R, Jw = self.model.flange_rotation_jacobian(q, self.p, self.cov[index], self.base0)
-        Jw = Jw / self.scale
+        Jw = Jw * (self.moving / self.scale)
         return (np.concatenate([r, ORIENTATION_WEIGHT * self._from_held(R, index)], axis=1),
                 np.concatenate([J, ORIENTATION_WEIGHT * Jw], axis=1))
 

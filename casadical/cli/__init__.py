@@ -27,11 +27,11 @@ from ..runtime import interrupts
 from ..runtime.files import outputs_together
 from ..runtime.interrupts import exit_code, handle_signals
 from ..runtime.threads import evaluation_threads, limited_threads
-from . import cache, calibrate, compare, compensate, data, diagnose, export, model, planning, study
+from . import cache, calibrate, compare, compensate, data, diagnose, export, iso9283, model, planning, study
 from .common import Status
 
 #: command modules, in the order ``--help`` lists them
-COMMANDS = (model, calibrate, diagnose, compensate, planning, compare, study, data, export, cache)
+COMMANDS = (model, calibrate, diagnose, compensate, iso9283, planning, compare, study, data, export, cache)
 
 class UsageError(CasadicalError):
     """A command line that argparse rejects (unknown option, value out of its domain)."""

@@ -28,6 +28,7 @@ from .common import (
     user_terms,
     write_json,
 )
+from .programs import add_measurement_program, measurement_outputs, write_measurement_program
 
 
 def register(sub) -> None:
@@ -65,6 +66,7 @@ def register(sub) -> None:
     p.add_argument("--relaxation", choices=("first-order", "cvxpy"), default="first-order",
                    help="solver of the continuous relaxation (default: %(default)s)")
     add_json(p, "the summary")
+    add_measurement_program(p)
     add_checks(p)
     add_quiet(p)
     add_urdf_chain(p)
@@ -122,7 +124,8 @@ def cmd_plan_poses(args) -> int:
     from ..planning.observability import JIT_MIN_CANDIDATES, design_problem
     from ..planning.selectors import PlanSettings, select_poses
 
-    check_outputs({"--out": args.out, "--json": args.json}, [args.robot, args.candidates], args.force)
+    check_outputs({"--out": args.out, "--json": args.json, **measurement_outputs(args)}, [args.robot, args.candidates],
+                  args.force)
     robot = robot_from_args(args.robot, args)
     data = Measurements.read_csv(args.candidates, robot=robot)
     N = len(data)
@@ -157,15 +160,28 @@ def cmd_plan_poses(args) -> int:
             raise
         raise InputError(str(e), file=args.candidates) from e
     res.jacobian_time_s = t_jac
-    lines = _write_rows(args.candidates, res.indices, args.out, args.force)
+    indices = np.asarray(res.indices)
+    if args.program:       # the run's order: short joint moves; the CSV in the same order
+        from ..planning.order import measurement_order
+
+        values = np.column_stack([data.columns[c] for c in data.q_columns])[indices]
+        order = measurement_order(values)
+        indices = indices[order]
+        write_measurement_program(args, values[order], robot.prismatic)
+    lines = _write_rows(args.candidates, indices, args.out, args.force)
     out = human_stream(args.json)         # --json -: standard output holds the JSON alone
     print(f"model {model.spec} on {robot.name}: {problem.n_parameters} identifiable parameters "
           f"from {N} candidates in {args.candidates}", file=out)
     print(res.summary(), file=out)
-    print(f"selected rows -> {args.out}", file=out)
+    print(f"selected rows -> {args.out}" + (" (in the order of the measurement run)" if args.program else ""),
+          file=out)
+    if args.program:
+        print(f"measurement run -> {args.program}", file=out)
     if args.json:
         doc = {"robot": robot.name, "model": model.spec, "candidates": args.candidates,
                "file_lines": lines, **res.to_dict()}
+        if args.program:
+            doc["program"] = {"file": args.program, "order": [int(i) for i in indices]}
         write_json(args.json, doc, args.force)
         print(f"summary -> {'standard output' if args.json == '-' else args.json}", file=out)
     return 0
@@ -186,6 +202,9 @@ def cmd_plan_report(args) -> int:
     from ..robot import robot_from_dict
 
     report_path = args.robot
+    if args.program:
+        raise InputError("--program is for plan-poses ROBOT; with a report, write the run from SELECTED.csv with "
+                         "plan-poses ROBOT SELECTED.csv -m M --program ...")
     check_outputs({"--out": args.out, "--json": args.json}, [report_path, args.candidates, *(args.measured or [])],
                   args.force)
     if args.method != "d-optimal" or args.model != "kinematic+compliance":

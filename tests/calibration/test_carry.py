@@ -75,7 +75,7 @@ def _one_orientation_session(tmp_path, robot):
     with warnings.catch_warnings():     # rows where the orientation cannot be held are left out below
         warnings.simplefilter("ignore")
         res = compensate(nom, Measurements.from_arrays(np.repeat(q0[None], len(pts), 0), pts), max_change_deg=90,
-                         check=False)
+                         orientation=True, check=False)     # held: one flange orientation (not by default here)
     held = res.converged & (res.orientation_error < 1e-6)
     return res.q[held][:120]
 

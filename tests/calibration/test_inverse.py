@@ -61,6 +61,12 @@ ROBOTS = {"ys100": (lambda: load_robot("ys100"), {2: 1.5e6, 3: 1.2e6}, 110.0),
           "arm7": (lambda: robot_from_dict(ARM7_DH), {2: 1e4, 4: 8e3}, None)}
 
 
+def taught(cal, targets, **options):
+    """compensate holding what the programmer taught: the nominal flange orientation on 6 axes or more (these
+    calibrations are position-only: compensate holds no orientation unless asked)."""
+    return compensate(cal, targets, orientation=True if cal.model.robot.n >= 6 else None, **options)
+
+
 def equations_jacobian(model, q, params, cov, base0, hold):
     """Jacobian of the equations compensate solves (position, and orientation if held)."""
     _, J = model.predict_q_jacobian(q, params, cov, base0)
@@ -124,7 +130,7 @@ def rms(x):
 @pytest.mark.parametrize("name", list(ROBOTS))
 def test_true_robot_lands_on_the_targets(name, seed):
     robot, truth, cal, (val_rms, model_rms), targets = setup(name, seed)
-    res = compensate(cal, targets)
+    res = taught(cal, targets)
     before = true_error_mm(truth, targets, targets.q)
     after = true_error_mm(truth, targets, res.q)
     assert rms(before) > 0.5 and rms(before) > 10 * rms(after), (rms(before), rms(after))
@@ -159,11 +165,11 @@ def test_periodic_gear_error_is_compensated(seed):
     eff = Effects(stiffness={2: 1.5e6}, periodic=[(2, 3, math.radians(0.02), 0.7)], **BASE)
     robot, truth, cal, (val_rms, model_rms), targets = setup("ys100", seed, effects=eff,
                                                              spec="kinematic+compliance[2]+periodic[2:3]")
-    after = true_error_mm(truth, targets, compensate(cal, targets).q)
+    after = true_error_mm(truth, targets, taught(cal, targets).q)
     assert rms(after) < 2 * val_rms + 0.01, (rms(after), val_rms)
     assert rms(after) < 2 * model_rms + 0.002, (rms(after), model_rms)
     plain = calibrate(robot, _calibration_data(robot, truth, seed), "kinematic+compliance[2]", "lm", warn=False)
-    missed = true_error_mm(truth, targets, compensate(plain, targets).q)
+    missed = true_error_mm(truth, targets, taught(plain, targets).q)
     assert rms(missed) > 2 * rms(after), (rms(missed), rms(after))
 
 
@@ -184,7 +190,7 @@ def test_a_smooth_correction_in_predict_is_honoured():
                                                                      np.sin(2 * q[:, 2])])
 
     corrected = Corrected(**vars(cal))
-    res = compensate(corrected, targets)
+    res = taught(corrected, targets)
     at = Measurements.from_arrays(res.q)
     assert np.abs(corrected.predict(at) - targets.xyz).max() < 1e-7
     assert np.abs(cal.predict(at) - targets.xyz).max() > 0.1e-3  # the correction did move the joints
@@ -222,7 +228,7 @@ def test_singular_wrist_reaches_the_point_and_says_so():
     goal = Model(robot, "nominal").predict(q0, base0=truth.base0)
     singular = Measurements.from_arrays(q0, goal)
     with pytest.warns(ConvergenceWarning, match="cannot be held"):
-        res = compensate(cal, singular)
+        res = taught(cal, singular)
     assert res.converged.all() and not res.orientation_held.all()
     assert rms(true_error_mm(truth, singular, res.q)) < rms(true_error_mm(truth, singular, q0)) / 10
 
@@ -249,7 +255,8 @@ def run(*args):
 def test_cli_writes_corrected_joints(files, capsys):
     d, cal, truth = files
     out = d / "joints.csv"
-    assert main(["compensate", str(d / "cal.json"), str(d / "targets.csv"), "--out", str(out)]) == 0
+    assert main(["compensate", str(d / "cal.json"), str(d / "targets.csv"), "--out", str(out),
+                 "--hold-orientation"]) == 0
     text = capsys.readouterr().out
     assert "largest correction" in text and "flange orientation" in text
     targets = Measurements.read_csv(d / "targets.csv", n_joints=6)
@@ -268,7 +275,7 @@ def test_cli_writes_corrected_joints(files, capsys):
     back = load_calibration(d / "cal.json")
     np.testing.assert_allclose(back.predict(joints), targets.xyz, atol=1e-9)
     # the same as the Python API; the output is not overwritten without --force
-    np.testing.assert_allclose(joints.q, compensate(cal, targets).q, atol=1e-12)
+    np.testing.assert_allclose(joints.q, taught(cal, targets).q, atol=1e-12)
     before = out.read_text()
     assert "exists already" in cli_error(capsys, d / "cal.json", d / "targets.csv", "--out", out)
     assert out.read_text() == before
@@ -306,7 +313,7 @@ def test_unreachable_target_is_an_error_naming_the_row(files, tmp_path):
 def test_solution_beyond_a_joint_limit_is_an_error_naming_row_and_column(files, tmp_path, capsys):
     d, cal, _ = files
     targets = Measurements.read_csv(d / "targets.csv", n_joints=6)
-    res = compensate(cal, targets)
+    res = taught(cal, targets)
     i, j = np.unravel_index(np.argmax(np.abs(res.dq)), res.dq.shape)
     # a limit between the programmed and the corrected joint: the program is legal, its correction is not
     doc = json.loads((d / "cal.json").read_text())
@@ -324,9 +331,9 @@ def test_solution_beyond_a_joint_limit_is_an_error_naming_row_and_column(files, 
     beyond = np.flatnonzero(side * (np.degrees(res.q[legal, j]) - limit) > 0)
     first = beyond[0] + 2  # file row of the first row beyond the limit (the header is row 1)
     with pytest.raises(TargetError, match=rf"row {first}, column 'q{j + 1}_deg': the corrected joint would be"):
-        compensate(load_calibration(tight), targets)
+        taught(load_calibration(tight), targets)
     out = tmp_path / "joints.csv"
-    line = cli_error(capsys, tight, path, "--out", out)
+    line = cli_error(capsys, tight, path, "--out", out, "--hold-orientation")
     assert f"row {first}, column 'q{j + 1}_deg'" in line and f"beyond its limit {limit:g} deg" in line
     assert not out.exists()
 
@@ -377,7 +384,7 @@ def test_position_only_on_six_axes_changes_less(files):
     with warnings.catch_warnings():
         warnings.simplefilter("error")
         targets = Measurements.read_csv(files[0] / "targets.csv", n_joints=6)
-        held = compensate(cal, targets)
+        held = taught(cal, targets)
         free = compensate(cal, targets, orientation=False)
     assert free.orientation_error is None and "least joint change" in free.held
     assert np.all(np.linalg.norm(free.dq, axis=1) <= np.linalg.norm(held.dq, axis=1) + 1e-12)
@@ -439,7 +446,7 @@ def test_near_a_stretched_elbow_the_correction_is_damped_and_said(seed):
     prog = Measurements.from_arrays(q0, goal)
     prog.path = "program.csv"
     with pytest.warns(ConvergenceWarning, match="near a singular configuration") as caught:
-        res = compensate(cal, prog)
+        res = taught(cal, prog)
     text = str(caught[0].message)
     assert "rows 6 (condition number" in text and ", 7 (condition number" in text and "--max-deg-per-mm" in text
     assert res.damped.tolist() == [False] * 4 + [True] * 2 and res.converged.all()
@@ -447,13 +454,13 @@ def test_near_a_stretched_elbow_the_correction_is_damped_and_said(seed):
     assert np.all(moved[4:] <= 2.0 * 0.4 * 1.01), moved                  # the bound, per mm of correction
     assert np.all(res.residual[4:] > 1e-6) and np.all(res.residual[:4] <= 1e-7)
     # the bound on exact rows changes nothing; a larger bound reaches the near-singular ones
-    loose = compensate(cal, prog, max_deg_per_mm=1e4)
+    loose = taught(cal, prog, max_deg_per_mm=1e4)
     assert np.all(loose.residual <= 1e-7) and np.allclose(loose.q[:4], res.q[:4], atol=1e-9)
     assert np.degrees(np.linalg.norm(loose.dq[4:], axis=1)).max() > 2 * moved[4:].max()
     # a small miss: the damped least squares of the linearised equations, singular value by singular value
     small = Measurements.from_arrays(q0[4:], cal.predict(Measurements.from_arrays(q0[4:])) + miss[4:] * 1e-3)
     with pytest.warns(ConvergenceWarning):
-        dq = compensate(cal, small).dq
+        dq = taught(cal, small).dq
     U, s, Vt = _weakest(cal, q0[4:], False)
     eps = 1 / (np.radians(2.0) * 1e3)
     gain = np.where(s >= eps, 1 / s, 2 * s / (eps ** 2 + s ** 2))
@@ -472,7 +479,7 @@ def test_near_the_singular_ur10_wrist_no_joint_moves_by_degrees():
     prog = Measurements.from_arrays(q0, cal.predict(Measurements.from_arrays(q0)) + miss)
     prog.path = "program.csv"
     with pytest.warns(ConvergenceWarning, match="near a singular configuration") as caught:
-        res = compensate(cal, prog)
+        res = taught(cal, prog)
     assert any("rows 2 (condition number" in str(w.message) for w in caught)
     assert res.converged.all() and np.all(res.residual <= 1e-7)
     moved = np.degrees(np.abs(res.dq)).max(axis=1)

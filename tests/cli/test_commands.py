@@ -3,6 +3,7 @@
 import json
 import subprocess
 import sys
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -132,6 +133,8 @@ def poses(tmp_path_factory):
     cal.write_csv(d / "cal.csv")
     val.write_csv(d / "val.csv")
     assert main(["candidates", "ys100", "-n", "300", "--out", str(d / "cand.csv")]) == 0
+    assert main(["calibrate", "ys100", str(d / "cal.csv"), "--model", "kinematic", "--out", str(d / "cal.json"),
+                 "--quiet"]) == 0
     (d / "study.toml").write_text('name = "one"\nprotocol = "ca-ys100"\nseed = 1\nrepetitions = 1\n'
                                   'validation_poses = 20\n[[plan]]\nmethod = "random"\nposes = 25\n'
                                   '[[method]]\nmethod = "Nominal"\n[[method]]\nmethod = "KM"\n')
@@ -147,6 +150,9 @@ JSON_COMMANDS = {
                  "--out", "{d}/final.json", "--force"],
     "cache": ["cache", "--info"],
     "study": ["study", "{d}/study.toml", "--out", "{d}/study-results", "--serial"],
+    "compensate": ["compensate", "{d}/cal.json", "{d}/val.csv", "--out", "{d}/joints.csv", "--force"],
+    "iso9283": ["iso9283", "ur10", str(Path(__file__).resolve().parents[2] / "problems" / "datasets" / "ur10-ipa"
+                                       / "series_d.csv")],
 }
 
 

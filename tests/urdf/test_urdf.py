@@ -559,7 +559,8 @@ def test_every_command_that_reads_a_robot_takes_the_chain_options(capsys):
         assert (chain <= options) == takes_robot, name
         assert not (chain & options) or chain <= options, name
         robots |= {name} if takes_robot else set()
-    assert robots == {"inspect", "predict", "calibrate", "diagnose", "plan-poses", "candidates", "compare", "export"}
+    assert robots == {"inspect", "predict", "calibrate", "diagnose", "plan-poses", "candidates", "compare", "export",
+                      "iso9283"}
     # a command that reads a calibration only: the options are unknown there (one line)
     assert main(["compensate", "cal.json", "targets.csv", "--out", "j.csv", "--urdf-tip", "tool0"]) == 2
     err = capsys.readouterr().err.strip().splitlines()
