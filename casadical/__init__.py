@@ -10,7 +10,7 @@ __version__ = "0.1.0"
 #: ``--help``) start without CasADi (PEP 562)
 _EXPORTS = {"CalibrationResult": "result", "calibrate": "calibration", "load_calibration": "result",
             "Measurements": "data.measurements", "CasadicalError": "errors", "Model": "model.symbolic",
-            "parse_spec": "model.symbolic", "Parameter": "model.parameters", "Parameters": "model.parameters",
+            "parse_spec": "model.symbolic", "Parameter": "parameters", "Parameters": "parameters",
             "Robot": "robot", "load_robot": "loading"}
 
 __all__ = ["CalibrationResult", "CasadicalError", "Measurements", "calibrate", "load_calibration", "Model", "Parameter",
@@ -21,8 +21,8 @@ if _typing.TYPE_CHECKING:
     from .data.measurements import Measurements
     from .errors import CasadicalError
     from .loading import load_robot
-    from .model.parameters import Parameter, Parameters
     from .model.symbolic import Model, parse_spec
+    from .parameters import Parameter, Parameters
     from .result import CalibrationResult, load_calibration
     from .robot import Robot
 else:

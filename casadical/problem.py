@@ -29,14 +29,13 @@ import numpy as np
 
 from .data.measurements import Measurements
 from .errors import CasadicalError
-from .model.parameters import Parameters
 from .model.symbolic import Model
+from .parameters import Parameters
+from .runtime.chunks import pose_chunks
 from .stats.identifiability import triangular_factor
 
 #: median of the norm of a 3-vector of independent N(0, 1) components (sqrt of chi2(3)'s median)
 CHI3_MEDIAN = 1.5381722544550522
-#: poses per chunk when linearising (Jacobian block of 3 x chunk x P doubles)
-CHUNK = 4096
 #: a problem keeps the model's Jacobian at the last parameter values it was asked for when it holds at most this
 #: many numbers (2,000 full poses of a 84-parameter model: 1.0 M, 8 MB): see CalibrationProblem.model_jacobian
 MEMO_NUMBERS = 2_000_000
@@ -393,9 +392,3 @@ def jacobian_factor(model: Model, q: np.ndarray, values: np.ndarray, cov: np.nda
         blocks = (np.concatenate([J, rot_weight * Jo], axis=1) for J, Jo in
                   (model.pose_jacobian(q[s], rot[s], values, cov[s], base0)[1::2] for s in pose_chunks(len(q))))
     return triangular_factor(blocks, len(values))
-
-
-def pose_chunks(N: int):
-    """Slices of at most ``CHUNK`` poses covering ``N``."""
-    for a in range(0, N, CHUNK):
-        yield slice(a, min(a + CHUNK, N))

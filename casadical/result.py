@@ -20,9 +20,9 @@ from .data.calibration_file import restored_terms, user_definitions, validate_ca
 from .data.checks import check_calibration_fits, check_poses
 from .data.measurements import Measurements, session_index
 from .errors import CalibrationFileError, CasadicalError, InputError, listing
-from .model.kinematics import matrix_to_rpy
-from .model.parameters import Parameters
+from .kinematics import matrix_to_rpy
 from .model.symbolic import Model, base0_to_pose
+from .parameters import Parameters
 from .problem import RobustLoss
 from .robot import robot_from_dict, robot_to_dict
 from .runtime.files import atomic_write
@@ -201,7 +201,7 @@ class CalibrationResult:
 
     def tool_rotation(self) -> np.ndarray:
         """The probe's mounting rotation on the flange (3x3): ``Rz(tool_yaw) Ry(tool_pitch) Rx(tool_roll) R0``."""
-        from .model.kinematics import base_pose_matrix
+        from .kinematics import base_pose_matrix
         self._check_orientation()
         p = self.parameters
         D = base_pose_matrix([0.0, 0.0, 0.0], [p[f"tool_{k}"].value for k in ("roll", "pitch", "yaw")])[:3, :3]
@@ -262,7 +262,7 @@ class CalibrationResult:
 
     def base_matrix(self, session: str | None = None) -> np.ndarray:
         """Robot base in the measurement frame (of ``session``; default: the primary one), 4x4."""
-        from .model.kinematics import base_pose_matrix
+        from .kinematics import base_pose_matrix
         p = self.parameters
         sessions = self.sessions
         if session is None or not sessions or session == sessions[0]:

@@ -18,7 +18,7 @@ import numpy as np
 
 from casadical import Measurements, load_robot
 from casadical.diagnosis import DiagnosisSettings, diagnose
-from casadical.stats.predictive import prediction_interval
+from casadical.prediction import prediction_interval
 
 DATA = Path("problems/datasets/ur10-ipa/series_a.csv")   # 11,911 poses of a real UR10 (MIT licence)
 

@@ -5,7 +5,8 @@ or inside a function (a lazy import is still a dependency: it runs the
 first time the function does), except those under ``if TYPE_CHECKING:``.
 ``from pkg import x`` counts as an import of ``pkg`` and, when there is one,
 of its submodule ``x``. Run as a script, it prints the import cycles (strongly connected
-components of more than one module)::
+components of more than one module), then those among the packages (a package and top-level module is one
+node: ``casadical.diagnosis``, ``casadical.result``) and, without any, each package's floor::
 
     python tests/import_graph.py
 """
@@ -126,10 +127,58 @@ def cycles(g: dict[str, set[str]]) -> list[set[str]]:
     return sorted(out, key=len, reverse=True)
 
 
+def unit(module: str) -> str:
+    """The package (or top-level module) a module belongs to: ``casadical.diagnosis.words`` -> ``diagnosis``,
+    ``casadical.result`` -> ``result``; the package's own ``__init__`` -> ``casadical``."""
+    parts = module.split(".")
+    return parts[1] if len(parts) > 1 else PACKAGE
+
+
+def packages(g: dict[str, set[str]]) -> dict[str, set[str]]:
+    """Each package or top-level module -> the others its modules import (lazy imports too). The package's own
+    ``__init__`` (``casadical``: its version and lazy public names) is left out: it imports nothing eagerly."""
+    out: dict[str, set[str]] = {unit(m): set() for m in g if unit(m) != PACKAGE}
+    for a, bs in g.items():
+        for b in bs:
+            if PACKAGE not in (unit(a), unit(b)) and unit(a) != unit(b):
+                out[unit(a)].add(unit(b))
+    return out
+
+
+def floors(p: dict[str, set[str]]) -> dict[str, int]:
+    """Each package's floor: 1 for what imports none of the others, else one above the highest it imports (a
+    package graph with a cycle has no floors: ValueError)."""
+    if cycles(p):
+        raise ValueError(f"the packages import each other in a loop: {cycles(p)}")
+    out: dict[str, int] = {}
+
+    def floor(u: str) -> int:
+        if u not in out:
+            out[u] = 1 + max((floor(v) for v in p[u]), default=0)
+        return out[u]
+    for u in p:
+        floor(u)
+    return out
+
+
+def floor_lines(g: dict[str, set[str]]) -> list[str]:
+    """The floors in words, top floor first: ``floor 5  terms`` (docs/architecture.md quotes them)."""
+    f = floors(packages(g))
+    return [f"floor {k:2d}  " + "  ".join(sorted(u for u in f if f[u] == k))
+            for k in sorted(set(f.values()), reverse=True)]
+
+
 if __name__ == "__main__":
     g = graph()
     found = cycles(g)
     print(f"{len(g)} modules, {sum(map(len, g.values()))} imports; {len(found)} cycle(s)")
     for comp in found:
         print(f"{len(comp)} modules: {', '.join(sorted(comp))}")
+    p = packages(g)
+    found = cycles(p)
+    print(f"{len(p)} packages and top-level modules; {len(found)} cycle(s) among them")
+    for comp in found:
+        print(f"{len(comp)} packages: {', '.join(sorted(comp))}")
+    if not found:
+        print("\n".join(floor_lines(g)))
     sys.exit(0)

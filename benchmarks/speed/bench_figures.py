@@ -40,7 +40,7 @@ def cpu():
     return a.ru_utime + a.ru_stime + b.ru_utime + b.ru_stime
 t0, c0 = time.perf_counter(), cpu()
 from casadical.cli import main
-import casadical.calibration, casadical.diagnosis, casadical.stats.predictive
+import casadical.calibration, casadical.diagnosis, casadical.prediction
 t1, c1 = time.perf_counter(), cpu()
 import casadical.html
 from casadical.html import page

@@ -34,12 +34,12 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from casadical import calibrate, load_robot  # noqa: E402
-from casadical.compensators.gp import FIT_ITERATIONS, FIT_POSES, LENGTH_BOUNDS, ResidualGP  # noqa: E402
-from casadical.compensators.per_session import (  # noqa: E402
+from casadical.calibration.per_session import (  # noqa: E402
     gp_compensator_data,
     gp_compensator_held_out,
     with_gp_compensator,
 )
+from casadical.compensators.gp import FIT_ITERATIONS, FIT_POSES, LENGTH_BOUNDS, ResidualGP  # noqa: E402
 from casadical.data import Measurements  # noqa: E402
 from casadical.diagnosis.validation import joint_levers, schemes  # noqa: E402
 

@@ -45,7 +45,7 @@ UNITS = [
     ("structure searches (140 pairs of covariate and effect each)", "casadical.diagnosis.structure",
      "StructureScreen", "strongest"),
     ("GP compensator fits (hyperparameters)", "casadical.compensators.gp", "ResidualGP", "fit"),
-    ("GP compensator held-out folds", "casadical.compensators.per_session", None, "gp_compensator_held_out"),
+    ("GP compensator held-out folds", "casadical.calibration.per_session", None, "gp_compensator_held_out"),
 ]
 
 CHILD = r"""

@@ -3,7 +3,7 @@
 This is the honest baseline for the benchmarks: what one would write with
 numpy alone to evaluate casadical's model for many poses at once, and its
 Jacobian by forward finite differences. It follows docs/formats.md section 1 and
-:mod:`casadical.model.kinematics` exactly:
+:mod:`casadical.kinematics` exactly:
 
 - link transforms, ``mdh``: Rx(alpha) Tx(a) Ry(beta) Ty(b) Rz(q+theta) Tz(d);
   ``dh``: Rz(q+theta) Tz(d) Tx(a) Rx(alpha) Ry(beta) Ty(b); tool Tx Ty Tz;
@@ -254,8 +254,8 @@ def check(robot_name: str = "ys100", N: int = 200, seed: int = 0, verbose: bool 
     with every column times its parameter's scale (metres per typical
     deviation: all parameters weigh alike).
     """
+    from casadical.kinematics import base_pose_matrix
     from casadical.loading import load_robot
-    from casadical.model.kinematics import base_pose_matrix
     from casadical.model.symbolic import Model, pose_to_base0
 
     robot = load_robot(robot_name)

@@ -16,7 +16,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..model.parameters import Parameter
+from ..parameters import Parameter
 from ..robot import Robot
 from ..terms import make_term
 from ..terms.compliance import JointCompliance

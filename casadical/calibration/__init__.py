@@ -42,7 +42,19 @@ The package is :func:`calibrate` as a pipeline of named stages
 :mod:`.state` holds what a calibration carries from stage to stage.
 """
 
-from ..result import CalibrationResult, ErrorStats, load_calibration
-from .pipeline import STAGES, calibrate
+import typing as _typing
+
+from .._lazy import lazy
+
+#: public name -> its module (the result's names from casadical.result), imported on first use: a command
+#: that reads a calibration (predict) imports the per-session GP compensator, not the pipeline that fits one
+_EXPORTS = {"STAGES": "pipeline", "calibrate": "pipeline", "CalibrationResult": ".result",
+            "ErrorStats": ".result", "load_calibration": ".result"}
 
 __all__ = ["STAGES", "CalibrationResult", "ErrorStats", "calibrate", "load_calibration"]
+
+if _typing.TYPE_CHECKING:
+    from ..result import CalibrationResult, ErrorStats, load_calibration
+    from .pipeline import STAGES, calibrate
+else:
+    __getattr__, __dir__ = lazy(__name__, globals(), _EXPORTS)

@@ -10,8 +10,8 @@ from __future__ import annotations
 
 from ..data.calibration_file import restore_term
 from ..errors import CasadicalWarning
-from ..model.parameters import Parameters
 from ..model.symbolic import Model, spec_of
+from ..parameters import Parameters
 from ..terms import ErrorTerm, SessionLocal
 from ..terms.geometric import Geometric
 from .for_data import set_references, with_sessions

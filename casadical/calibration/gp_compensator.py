@@ -1,7 +1,7 @@
 """Stage ``add_gp_compensator`` (``+gp_compensator``): the GP compensator, a Gaussian process of what the model
 leaves, one per session.
 
-Fitted by :mod:`casadical.compensators.per_session` and applied where it
+Fitted by :mod:`casadical.calibration.per_session` and applied where it
 knows the residual; the note says at how many of the calibration poses.
 """
 
@@ -15,7 +15,7 @@ def add_gp_compensator(run: CalibrationRun) -> None:
     if not run.want_gp:
         return
     # here, not at import: the compensators, only for +gp_compensator
-    from ..compensators.per_session import fit_gp_compensator, gp_compensator_coverage, with_gp_compensator
+    from .per_session import fit_gp_compensator, gp_compensator_coverage, with_gp_compensator
 
     result, data = run.result, run.data
     gps, _ = fit_gp_compensator(result, data)

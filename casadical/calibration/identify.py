@@ -12,8 +12,8 @@ import numpy as np
 
 from ..data.simulate import sample_poses
 from ..errors import IdentifiabilityError, IdentifiabilityWarning
-from ..model.parameters import Parameters
 from ..model.symbolic import Model
+from ..parameters import Parameters
 from ..problem import ROT_WEIGHT_PRIOR, jacobian_factor
 from ..stats.identifiability import analyse
 from .state import CalibrationRun

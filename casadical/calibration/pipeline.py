@@ -78,7 +78,7 @@ def calibrate(robot: Robot | CalibrationResult, data: Measurements, model: str |
         leaves (in the robot base frame) and adds it to the model;
         ``+gp_compensator`` a Gaussian process of the joint readings per
         session, applied where it knows (the GP compensator, one per session:
-        :mod:`casadical.compensators.per_session`).
+        :mod:`casadical.calibration.per_session`).
     solver : {"ipopt", "lm", "gn", "auto"}
         ``auto`` runs Levenberg-Marquardt and hands over to IPOPT if the
         solution leaves the parameter bounds.

@@ -26,7 +26,8 @@ from dataclasses import fields, replace
 import numpy as np
 
 from ..errors import ConvergenceWarning, IdentifiabilityError, SolverError
-from ..problem import CalibrationProblem, pose_chunks
+from ..problem import CalibrationProblem
+from ..runtime.chunks import pose_chunks
 from ..solvers import Ipopt, make_solver
 from ..solvers.ipopt import HANDOVER
 from ..stats.identifiability import Identifiability, triangular_factor

@@ -15,9 +15,9 @@ import numpy as np
 from ..data.checks import check_poses
 from ..data.measurements import Measurements, session_index
 from ..errors import IdentifiabilityError, InputError
-from ..model.kinematics import matrix_to_rpy
-from ..model.parameters import Parameters
+from ..kinematics import matrix_to_rpy
 from ..model.symbolic import Model, base0_to_pose, pose_to_base0
+from ..parameters import Parameters
 from ..stats.alignment import align
 from .state import CalibrationRun
 

@@ -22,8 +22,8 @@ from ..errors import CasadicalWarning
 
 if TYPE_CHECKING:
     from ..data.measurements import Measurements
-    from ..model.parameters import Parameters
     from ..model.symbolic import Model
+    from ..parameters import Parameters
     from ..problem import CalibrationProblem, Linearization, RobustLoss
     from ..result import CalibrationResult
     from ..robot import Robot

@@ -359,7 +359,7 @@ def warn_session_frame(sessions: list[str], data, holder: str) -> None:
 
 def compensator_line(cal, data) -> str:
     """Where the GP compensator (one per session) applied, in words ('' without one)."""
-    from ..compensators.per_session import gp_compensator_coverage
+    from ..calibration.per_session import gp_compensator_coverage
 
     known, total = gp_compensator_coverage(cal, data)
     if not total:

@@ -236,7 +236,7 @@ def run_predict(args) -> int:
         # read as the model's (compensate takes it for the target orientation)
         out = out.with_columns({f"measured_{k}" if k in RXYZ else k: v for k, v in out.columns.items()})
     if args.std:
-        from ..stats.predictive import prediction_interval, prediction_std
+        from ..prediction import prediction_interval, prediction_std
 
         try:
             sp, sl = prediction_std(cal, data)

@@ -5,8 +5,9 @@ error is learnt by a regressor mapping per-pose features ``X`` (n, d) to
 residuals ``Y`` (n, 3). Every compensator lives in this package:
 
 - the **GP compensator** (:mod:`.gp`, :class:`~.gp.ResidualGP`): a Gaussian
-  process of the joint readings, one per session (:mod:`.per_session`:
-  fitted, applied where it knows, judged on folds); the model term
+  process of the joint readings, one per session (fitted on a calibration,
+  applied where it knows, judged on folds: :mod:`casadical.calibration.per_session`,
+  above the calibration result it is made from); the model term
   ``gp_compensator``;
 - the **RBF compensator** (:class:`RBFNetwork`): Gaussian radial-basis
   network (the GA paper: six effective joint torques -> residual error,
@@ -23,8 +24,21 @@ passed unscaled, and both share the :class:`Compensator` interface: ``fit(X, Y) 
 
 from __future__ import annotations
 
-from .base import Compensator, Standardizer
-from .mlp import MLP
-from .rbf import RBFNetwork
+import typing as _typing
+
+from .._lazy import lazy
+
+#: public name -> its module, imported on first use (PEP 562): importing one module of the package
+#: imports no other
+_EXPORTS = {"Compensator": "base", "Standardizer": "base", "MLP": "mlp", "RBFNetwork": "rbf"}
+
+
 
 __all__ = ["Compensator", "MLP", "RBFNetwork", "Standardizer"]
+
+if _typing.TYPE_CHECKING:
+    from .base import Compensator, Standardizer
+    from .mlp import MLP
+    from .rbf import RBFNetwork
+else:
+    __getattr__, __dir__ = lazy(__name__, globals(), _EXPORTS)

@@ -68,7 +68,7 @@ from ..runtime.threads import limited_threads
 #: every pose; at 0.8 the share in series was 76 % and its held-out mean 0.010 mm worse)
 MAX_STD_RATIO = 0.95
 #: the 95 % quantile of a chi distribution with 3 degrees of freedom, sqrt(7.8147): the factor of a 95 % interval of
-#: a measured point whose three axes are Gaussian alike (:mod:`casadical.stats.predictive`)
+#: a measured point whose three axes are Gaussian alike (:mod:`casadical.prediction`)
 CHI3_95 = 2.7955
 #: bounds of the length scales (rad)
 LENGTH_BOUNDS = (0.05, 100.0)
@@ -200,7 +200,7 @@ class ResidualGP:
         (0: the whole correction wherever ``r < max_std_ratio``).
     interval_k : float
         The factor of the 95 % interval of a measured point at the poses of
-        its session (:func:`casadical.stats.predictive.prediction_interval`):
+        its session (:func:`casadical.prediction.prediction_interval`):
         :data:`CHI3_95`, or as the diagnosis calibrates it on its folds.
     pose_weights : ndarray, shape (N,), optional
         Each training pose's robust weight (:func:`robust_weights`; its noise

@@ -16,8 +16,8 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import InputError
+from ..kinematics import base_pose_matrix
 from ..loading import load_robot
-from ..model.kinematics import base_pose_matrix
 from ..model.symbolic import Model, pose_to_base0
 from ..robot import PROBLEMS, Robot, _Validator
 from ..runtime.files import finite_number, named_toml, read_toml

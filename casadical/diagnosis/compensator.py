@@ -1,7 +1,7 @@
 """The diagnosis's last step: the GP compensator, judged like every step.
 
 After the named causes, what remains is learnt by the GP compensator, one
-per session (:mod:`casadical.compensators.per_session`: a Gaussian process
+per session (:mod:`casadical.calibration.per_session`: a Gaussian process
 of the joint readings, its correction shrunk with its predictive
 uncertainty). It is judged on the calibration poses' folds (its
 hyperparameters from all poses, the process conditioned on each fold's
@@ -30,7 +30,7 @@ from typing import Callable
 
 import numpy as np
 
-from ..compensators.per_session import (
+from ..calibration.per_session import (
     GPCompensatorFolds,
     fit_gp_compensator,
     gp_compensator_coverage,
@@ -40,8 +40,8 @@ from ..compensators.per_session import (
 )
 from ..data.measurements import Measurements
 from ..errors import InputError
+from ..prediction import prediction_std
 from ..result import CalibrationResult
-from ..stats.predictive import prediction_std
 from ..terms import UNEXPLAINED
 from .candidates import Candidate, compose_spec
 from .never_worse import WORST_SHARE, noise_band

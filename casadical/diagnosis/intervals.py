@@ -2,7 +2,7 @@
 compensator applies, calibrated on the calibration poses' random folds.
 
 Reads ``parametric``, ``final``, ``cal``, ``schemes`` and ``prior``; sets ``uncertainty.interval_k`` of both fits
-(:func:`casadical.stats.predictive.fold_interval_k`): the 95 % quantile of each calibration pose's held-out error
+(:func:`casadical.prediction.fold_interval_k`): the 95 % quantile of each calibration pose's held-out error
 (one Gauss-Newton step per fold from the fit on all poses, :func:`.validation.linear_cv`, the diagnosis's own
 random folds) over the ``sqrt(std^2 / 3 + sigma^2)`` the interval takes there, never below chi_3's 2.796. The poses
 the robust loss set aside are left out (a bad shot is outside any interval; counting them outside by asking a
@@ -23,8 +23,8 @@ from __future__ import annotations
 
 import dataclasses
 
+from ..prediction import fold_interval_k, noise_sigma, prediction_std
 from ..result import learning_mask
-from ..stats.predictive import fold_interval_k, noise_sigma, prediction_std
 from .state import DiagnosisRun
 
 

@@ -2,7 +2,7 @@
 
 Reads ``final``, ``parametric`` and ``kinematic``; sets ``final_errors`` and ``final_val`` (its validation
 errors), ``interval_coverage`` (the share of the validation poses inside the final model's 95 % interval of a
-measured point, :func:`casadical.stats.predictive.prediction_interval`) and ``set_aside`` (the poses the final
+measured point, :func:`casadical.prediction.prediction_interval`) and ``set_aside`` (the poses the final
 fit set aside, tested for shared structure before they are called bad measurements: :mod:`casadical.stats.outliers`;
 those the structure screen brings back within the robust loss's limit are the largest misses of that structure,
 ``structure_misses``), and adds the notes: a worst
@@ -40,7 +40,7 @@ def judge_final_model(run: DiagnosisRun) -> None:
     if note:
         run.notes.append(note)
     if final.uncertainty is not None:
-        from ..stats.predictive import prediction_interval
+        from ..prediction import prediction_interval
 
         radius = prediction_interval(final, run.val)
         inside = run.final_errors <= radius

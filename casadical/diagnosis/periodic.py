@@ -32,7 +32,7 @@ import numpy as np
 from scipy import special
 
 from ..data.measurements import Measurements
-from ..model.parameters import READING, Parameter
+from ..parameters import READING, Parameter
 from ..terms.periodic import phase
 from .screening import LinearFit, Screen, periodic_columns
 

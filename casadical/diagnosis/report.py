@@ -199,7 +199,7 @@ class DiagnosisReport:
         units, where the noise is known (:class:`casadical.diagnosis.noise.NoiseFloor`).
     interval_coverage : float or None
         The share of the validation poses whose measured point lies inside the final model's 95 % interval
-        (:func:`casadical.stats.predictive.prediction_interval`); None without a parameter covariance.
+        (:func:`casadical.prediction.prediction_interval`); None without a parameter covariance.
     user_terms : list of dict
         Each cause of the user's own (a terms file's), its definition and what the diagnosis concluded of each
         of its candidates (:func:`casadical.diagnosis.user_terms.accounts`); [] without a terms file.

@@ -36,7 +36,7 @@ import numpy as np
 from numpy.polynomial import legendre
 
 from ..data import Measurements
-from ..model.kinematics import Geometry, chain_angles, forward, mount_moment
+from ..kinematics import Geometry, chain_angles, forward, mount_moment
 from ..result import CalibrationResult
 from ..terms import UNEXPLAINED
 from ..terms.mount_compliance import max_mount_moment

@@ -27,8 +27,8 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..calibration.per_session import with_gp_compensator
 from ..compensators.gp import ResidualGP
-from ..compensators.per_session import with_gp_compensator
 from ..data.measurements import session_index
 from ..terms import SessionLocal
 from .candidates import compose_spec

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..model.parameters import READING
+from ..parameters import READING
 from ..terms import UNEXPLAINED
 from ..terms.definitions import EFFECTS
 from .figures import AFTER, BEFORE, CURVE, SERIES, ecdf, figure, legend_above, ticks
@@ -682,7 +682,7 @@ def _periodograms(report: DiagnosisReport):
 
 
 def _accuracy(page: Page, report: DiagnosisReport, poses, joints) -> None:
-    from ..stats.predictive import accuracy_map
+    from ..prediction import accuracy_map
 
     m = accuracy_map(report.final, poses.q if poses is not None else None, joints)
     ja, jb = m["joints"]

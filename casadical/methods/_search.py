@@ -24,9 +24,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import CasadicalError, InputError
-from ..model.parameters import Parameters
 from ..model.symbolic import Model, pose_to_base0
 from ..optim import TLBO, Box, CulturalAlgorithm, GeneticAlgorithm
+from ..parameters import Parameters
 from ..stats.alignment import align
 
 #: Stiffness search range of the CA paper reproduction (docs/papers.md, A15), N m/rad.

@@ -199,7 +199,7 @@ def frame_rotations(result: CalibrationResult, data: Measurements, frame: str) -
         return np.broadcast_to(np.eye(3), (N, 3, 3))
     if frame != "joint1":
         raise InputError(f"unknown compensator frame {frame!r}; use 'measurement' or 'joint1'")
-    from ..model.kinematics import base_pose_matrix
+    from ..kinematics import base_pose_matrix
     xyz, rpy = result.base_pose()
     Rb = base_pose_matrix(xyz, rpy)[:3, :3]
     p = result.parameters

@@ -30,6 +30,17 @@ import casadi as ca
 import numpy as np
 
 from ..errors import CasadicalWarning, DataFileError, ModelError
+from ..kinematics import (
+    Geometry,
+    base_pose_matrix,
+    chain_angles,
+    compose,
+    forward,
+    rpy_pose,
+    small_pose,
+    small_rotation,
+)
+from ..parameters import Parameters
 from ..robot import Robot
 from ..runtime.threads import evaluation_threads
 from ..terms import REGISTRY, Context, ErrorTerm, SessionLocal, covariate_names, make_term
@@ -41,8 +52,6 @@ from . import jitcache
 from ._batch import BLOCK_MIN, batch, mapped  # noqa: F401 (names the tests use)
 from ._batch import Batch as _Batch
 from ._batch import Blocks as _Blocks
-from .kinematics import Geometry, base_pose_matrix, chain_angles, compose, forward, rpy_pose, small_pose, small_rotation
-from .parameters import Parameters
 from .superset import Mapping
 from .superset import outputs as superset_outputs
 
@@ -604,7 +613,7 @@ class Model:
 
     def torques(self, q, params=None, cov=None) -> np.ndarray:
         """Gravity torques (N m) that every joint's drive carries, shape (N, n)
-        (:func:`~casadical.model.kinematics.drive_torques`)."""
+        (:func:`~casadical.kinematics.drive_torques`)."""
         N, q, p, cov, _ = self._inputs(q, params, cov, None)
         return self._batch("tau", N)(q, p, cov)[0]
 

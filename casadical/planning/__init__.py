@@ -11,29 +11,21 @@
 The ``plan-poses`` and ``candidates`` commands are in :mod:`casadical.cli.planning`.
 """
 
-from .doptimal import (
-                       DOptimalDesign,
-                       ExactDesign,
-                       Relaxation,
-                       RelaxationSettings,
-                       d_efficiency,
-                       d_optimal_design,
-                       exchange,
-                       relax_cvxpy,
-                       relax_multiplicative,
-                       round_and_exchange,
-                       upper_bound,
-)
-from .observability import (
-                       DesignProblem,
-                       Observability,
-                       design_problem,
-                       indices_from_singular_values,
-                       log_det_information,
-                       o1_batch,
-                       observability,
-)
-from .selectors import METHODS, PlanResult, PlanSettings, random_o1, select_poses
+import typing as _typing
+
+from .._lazy import lazy
+
+#: public name -> its module, imported on first use (PEP 562): importing one module of the package
+#: imports no other
+_EXPORTS = {"DOptimalDesign": "doptimal", "ExactDesign": "doptimal", "Relaxation": "doptimal",
+            "RelaxationSettings": "doptimal", "d_efficiency": "doptimal", "d_optimal_design": "doptimal",
+            "exchange": "doptimal", "relax_cvxpy": "doptimal", "relax_multiplicative": "doptimal",
+            "round_and_exchange": "doptimal", "upper_bound": "doptimal", "DesignProblem": "observability",
+            "Observability": "observability", "design_problem": "observability",
+            "indices_from_singular_values": "observability", "log_det_information": "observability",
+            "o1_batch": "observability", "observability": "observability", "METHODS": "selectors",
+            "PlanResult": "selectors", "PlanSettings": "selectors", "random_o1": "selectors",
+            "select_poses": "selectors"}
 
 __all__ = [
     "DOptimalDesign", "DesignProblem", "ExactDesign", "METHODS", "Observability", "PlanResult",
@@ -42,3 +34,30 @@ __all__ = [
     "observability", "random_o1", "relax_cvxpy", "relax_multiplicative", "round_and_exchange",
     "select_poses", "upper_bound",
 ]
+
+if _typing.TYPE_CHECKING:
+    from .doptimal import (
+        DOptimalDesign,
+        ExactDesign,
+        Relaxation,
+        RelaxationSettings,
+        d_efficiency,
+        d_optimal_design,
+        exchange,
+        relax_cvxpy,
+        relax_multiplicative,
+        round_and_exchange,
+        upper_bound,
+    )
+    from .observability import (
+        DesignProblem,
+        Observability,
+        design_problem,
+        indices_from_singular_values,
+        log_det_information,
+        o1_batch,
+        observability,
+    )
+    from .selectors import METHODS, PlanResult, PlanSettings, random_o1, select_poses
+else:
+    __getattr__, __dir__ = lazy(__name__, globals(), _EXPORTS)

@@ -15,7 +15,7 @@ from typing import Iterable
 
 import numpy as np
 
-from ..model.parameters import Parameters
+from ..parameters import Parameters
 from ..terms.geometric import Geometric
 
 _GROUP_PRIORITY = {"base": 0, "tool": 1, "link": 3, "loop": 3}

@@ -33,12 +33,15 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..data.measurements import Measurements
 from ..errors import listing
-from ..problem import pose_chunks
+from ..runtime.chunks import pose_chunks
+
+if TYPE_CHECKING:      # a type only: the data layer stands above the statistics
+    from ..data.measurements import Measurements
 
 #: family-wise level of the tests together: below it, set-aside poses share structure
 ALPHA = 0.001

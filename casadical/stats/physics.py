@@ -41,15 +41,18 @@ from __future__ import annotations
 import math
 import re
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from ..data.measurements import Measurements
-from ..problem import pose_chunks
+from ..runtime.chunks import pose_chunks
 from ..terms import REGISTRY
 from ..terms.backlash import MIN_SIDE_POSES, MIN_SIDE_SHARE, sign_changes  # noqa: F401 (their home was here)
 from ..terms.compliance import JointCompliance
 from ..terms.geometric import Geometric
+
+if TYPE_CHECKING:      # a type only: the data layer stands above the statistics
+    from ..data.measurements import Measurements
 
 #: a term's parameter whose column is this much a combination of the geometric columns (variance inflation
 #: factor, 1 / (1 - R^2)) cannot be told from the geometry: R^2 above 0.999. Below that a strong effect can

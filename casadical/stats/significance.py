@@ -50,7 +50,7 @@ from statistics import NormalDist
 
 from .._format import number
 from ..errors import SignificanceWarning, listing
-from ..model.parameters import Parameter, Parameters
+from ..parameters import Parameter, Parameters
 
 #: default confidence level of intervals and significance
 LEVEL = 0.95

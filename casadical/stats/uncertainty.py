@@ -30,7 +30,7 @@ class Uncertainty:
     sigma: float
     dof: int
     #: the factor of the 95 % interval of a measured point where no GP compensator applies, calibrated on the
-    #: calibration poses' folds (:func:`casadical.stats.predictive.fold_interval_k`); None: chi_3's
+    #: calibration poses' folds (:func:`casadical.prediction.fold_interval_k`); None: chi_3's
     interval_k: float | None = None
 
     @property

@@ -20,8 +20,8 @@ from typing import Any, ClassVar
 import numpy as np
 
 from ..errors import ModelError
-from ..model.kinematics import Frames, Geometry, chain_angles, drive_torques, forward, gravity_torques, mount_moment
-from ..model.parameters import Parameter
+from ..kinematics import Frames, Geometry, chain_angles, drive_torques, forward, gravity_torques, mount_moment
+from ..parameters import Parameter
 from ..robot import GRAVITY, Robot
 
 REGISTRY: dict[str, type["ErrorTerm"]] = {}
@@ -66,7 +66,7 @@ class Context:
 
     def torques(self) -> list:
         """Gravity torque each joint's drive carries, undeflected configuration, row payload
-        (:func:`~casadical.model.kinematics.drive_torques`: the torque about the joint's axis unless joints are
+        (:func:`~casadical.kinematics.drive_torques`: the torque about the joint's axis unless joints are
         coupled)."""
         if self._torques is None:
             tau = gravity_torques(self.robot, self.frames(), self.cov["payload_kg"])
@@ -75,7 +75,7 @@ class Context:
 
     def moment(self):
         """Moment of the weights about the robot base frame's origin (3x1, N m), undeflected configuration, row
-        payload (:func:`~casadical.model.kinematics.mount_moment`)."""
+        payload (:func:`~casadical.kinematics.mount_moment`)."""
         if self._moment is None:
             self._moment = mount_moment(self.robot, self.frames(), self.cov["payload_kg"])
         return self._moment
@@ -217,7 +217,7 @@ class ErrorTerm:
     def base_tilt(self, ctx: Context):
         """Rotation vector (3x1, rad, robot base frame) by which the robot base frame turns about its origin
         before joint 1: a tilt of the mount (default: none). The model turns the tool point and the flange's
-        orientation by the rotation of the terms' vectors summed (:func:`~casadical.model.kinematics.small_rotation`).
+        orientation by the rotation of the terms' vectors summed (:func:`~casadical.kinematics.small_rotation`).
         """
         return None
 

@@ -9,8 +9,8 @@ import numpy as np
 
 from .._format import g3, relative
 from ..errors import ModelError
-from ..model.kinematics import Geometry, chain_angles, forward, rotx, roty
-from ..model.parameters import Parameter
+from ..kinematics import Geometry, chain_angles, forward, rotx, roty
+from ..parameters import Parameter
 from ..robot import Robot
 from .base import Context, ErrorTerm, max_gravity_torque, register, revolute
 from .cause import Cause, register_cause

@@ -218,7 +218,7 @@ class Cause:
 
     def size(self, cand: Any, values, stds, params: list, linear: bool) -> str:
         """The size of a finding in a few words (``k2 = 5.38e4 N m/rad +- 6.2 %``) from its parameters' final
-        ``values``, ``stds`` and :class:`~casadical.model.parameters.Parameter` objects; ``linear``: its joint is a
+        ``values``, ``stds`` and :class:`~casadical.parameters.Parameter` objects; ``linear``: its joint is a
         linear axis (metres where a revolute joint has radians). Nothing by default."""
         return ""
 

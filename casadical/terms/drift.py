@@ -8,7 +8,7 @@ import casadi as ca
 import numpy as np
 
 from .._format import g3, relative
-from ..model.parameters import Parameter
+from ..parameters import Parameter
 from ..robot import Robot
 from .base import ReferencedTerm, register
 from .cause import Cause, register_cause

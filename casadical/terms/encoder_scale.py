@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 
 from .._format import relative
-from ..model.parameters import Parameter
+from ..parameters import Parameter
 from ..robot import Robot
 from .base import Context, ErrorTerm, register
 from .cause import Cause, register_cause

@@ -4,8 +4,8 @@ from __future__ import annotations
 
 import math
 
-from ..model.kinematics import Geometry
-from ..model.parameters import Parameter
+from ..kinematics import Geometry
+from ..parameters import Parameter
 from ..robot import Robot
 from .base import Context, ErrorTerm, register
 from .cause import Cause, register_cause

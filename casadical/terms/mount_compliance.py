@@ -7,8 +7,8 @@ import numpy as np
 
 from .._format import relative
 from ..errors import ModelError
-from ..model.kinematics import Geometry, chain_angles, forward, mount_moment
-from ..model.parameters import Parameter
+from ..kinematics import Geometry, chain_angles, forward, mount_moment
+from ..parameters import Parameter
 from ..robot import GRAVITY, Robot
 from .base import Context, ErrorTerm, reach, register
 from .cause import Cause, register_cause

@@ -7,7 +7,7 @@ import math
 import numpy as np
 
 from .._format import g3, relative
-from ..model.parameters import Parameter
+from ..parameters import Parameter
 from ..robot import Robot
 from .base import Context, ErrorTerm, max_gravity_torque, register, revolute
 from .cause import Cause, load_item, register_cause

@@ -9,7 +9,7 @@ import numpy as np
 
 from .._format import relative
 from ..errors import ModelError
-from ..model.parameters import Parameter
+from ..parameters import Parameter
 from ..robot import Robot
 from .base import Context, ErrorTerm, register
 from .cause import Cause, register_cause

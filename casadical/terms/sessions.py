@@ -6,7 +6,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import DataFileError, ModelError
-from ..model.parameters import Parameter
+from ..parameters import Parameter
 from ..robot import Robot
 from .base import Context, ErrorTerm, register
 from .geometric import ANGLE_SCALE, LENGTH_SCALE

@@ -7,7 +7,7 @@ from dataclasses import replace
 import numpy as np
 
 from ..errors import ModelError
-from ..model.parameters import Parameter
+from ..parameters import Parameter
 from ..robot import Robot
 from .base import Context, ErrorTerm, check_linear, legendre, linear_axes, register, travel
 from .cause import Cause, register_cause

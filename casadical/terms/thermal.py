@@ -6,8 +6,8 @@ from dataclasses import replace
 
 from .._format import relative
 from ..errors import ModelError
-from ..model.kinematics import Geometry
-from ..model.parameters import Parameter
+from ..kinematics import Geometry
+from ..parameters import Parameter
 from ..robot import Robot
 from .base import Context, ReferencedTerm, register
 from .cause import Cause, register_cause

@@ -2,8 +2,8 @@
 
 from __future__ import annotations
 
-from ..model.kinematics import compose, rotx, roty, rotz
-from ..model.parameters import Parameter
+from ..kinematics import compose, rotx, roty, rotz
+from ..parameters import Parameter
 from ..robot import Robot
 from .base import Context, ErrorTerm, register
 

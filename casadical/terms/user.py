@@ -25,7 +25,7 @@ import numpy as np
 
 from .._format import g3, relative
 from ..errors import DataFileError, TermsFileError
-from ..model.parameters import Parameter
+from ..parameters import Parameter
 from ..robot import Robot
 from . import expression as ex
 from .base import Context, ErrorTerm

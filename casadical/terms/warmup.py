@@ -9,7 +9,7 @@ import casadi as ca
 import numpy as np
 
 from ..errors import ModelError
-from ..model.parameters import Parameter
+from ..parameters import Parameter
 from ..robot import Robot
 from .base import ReferencedTerm, register
 from .cause import Cause, register_cause

@@ -7,7 +7,18 @@ nominal) geometry as URDF text whose tool-point link has the forward
 kinematics of casadical's geometric model. The XML is parsed by yourdfpy.
 """
 
-from .read import PARALLEL_TOL_DEG, robot_from_urdf
-from .write import NOT_IN_URDF, robot_to_urdf
+import typing as _typing
+
+from .._lazy import lazy
+
+#: public name -> its module, imported on first use (PEP 562): importing one module of the package
+#: imports no other
+_EXPORTS = {"PARALLEL_TOL_DEG": "read", "robot_from_urdf": "read", "NOT_IN_URDF": "write", "robot_to_urdf": "write"}
 
 __all__ = ["NOT_IN_URDF", "PARALLEL_TOL_DEG", "robot_from_urdf", "robot_to_urdf"]
+
+if _typing.TYPE_CHECKING:
+    from .read import PARALLEL_TOL_DEG, robot_from_urdf
+    from .write import NOT_IN_URDF, robot_to_urdf
+else:
+    __getattr__, __dir__ = lazy(__name__, globals(), _EXPORTS)

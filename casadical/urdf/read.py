@@ -32,7 +32,7 @@ from typing import Any
 import numpy as np
 
 from ..errors import RobotFileError
-from ..model.kinematics import matrix_to_rpy
+from ..kinematics import matrix_to_rpy
 from ..robot import GRAVITY, PRISMATIC, REVOLUTE, Joint, Robot
 
 #: Consecutive axes closer to parallel than this (deg) get Hayati's beta. It

@@ -23,7 +23,7 @@ import numpy as np
 
 from .. import __version__
 from ..errors import ModelError
-from ..model.kinematics import Geometry, base_pose_matrix, forward, matrix_to_rpy, pose_matrix
+from ..kinematics import Geometry, base_pose_matrix, forward, matrix_to_rpy, pose_matrix
 from ..robot import Robot
 from ..terms import Context, make_term
 

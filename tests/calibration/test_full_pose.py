@@ -124,7 +124,7 @@ def test_the_loss_alone_is_the_linearisations_to_the_bit(monkeypatch, full_pose)
     a sum per chunk, and the orientation's share as ``k^2 |r_o|^2``: 1-2 ulp apart at most points)."""
     from casadical.problem import CalibrationProblem
 
-    monkeypatch.setattr("casadical.problem.CHUNK", 16)
+    monkeypatch.setattr("casadical.runtime.chunks.CHUNK", 16)
     robot = robot_from_dict(ARM7, "arm")
     data, _ = simulate(robot, 60, EFFECTS, seed=4, floor_z=-10.0)
     res = calibrate(robot, data, "kinematic", "lm", warn=False, position_only=not full_pose)

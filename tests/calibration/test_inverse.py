@@ -85,7 +85,7 @@ def well_conditioned(robot, q, hold, floor=0.05):
 def nominal_rotation_at_calibrated_base(cal, q0):
     """What the programmer taught, computed apart from compensate: a nominal model at the calibrated base."""
     xyz, rpy = cal.base_pose()
-    from casadical.model.kinematics import base_pose_matrix
+    from casadical.kinematics import base_pose_matrix
     T = base_pose_matrix(xyz, rpy)
     return Model(cal.model.robot, "nominal").flange_rotation(q0, base0=pose_to_base0(T))
 

@@ -85,7 +85,7 @@ def test_bad_shots_do_not_widen_the_intervals(tmp_path, seed):
     """4 bad shots (10 mm) among 60 calibration poses: the robust loss sets them aside, but the covariance's own
     sigma counts each by its miss (about 4x the noise); the parameters' part at the robust noise scale keeps the
     95 % interval holding 90-98 % of 400 other measured points (at the covariance's sigma: all of them)."""
-    from casadical.stats.predictive import covariance_scale
+    from casadical.prediction import covariance_scale
 
     (tmp_path / "arm.toml").write_text(to_toml(ARM4))
     rng = np.random.default_rng(seed)

@@ -17,7 +17,7 @@ def _series(robot, truth, n, seed, base_xyz, base_rpy):
     """Another measurement series of the same robot: the tracker stands elsewhere."""
     from dataclasses import replace
 
-    from casadical.model.kinematics import base_pose_matrix
+    from casadical.kinematics import base_pose_matrix
     from casadical.model.symbolic import pose_to_base0
     t2 = replace(truth, base0=pose_to_base0(base_pose_matrix(base_xyz, base_rpy)))
     data, _ = simulate(robot, n, truth=t2, seed=seed, floor_z=None)

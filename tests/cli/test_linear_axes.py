@@ -165,8 +165,8 @@ def test_export_writes_the_axis_as_a_prismatic_joint(arm, capsys):
 
 def test_the_accuracy_map_spans_the_axis_travel_in_mm(arm, capsys):
     """The accuracy map over a linear axis: its grid spans the axis' limits in mm, its labels say mm."""
+    from casadical.prediction import accuracy_map
     from casadical.result import load_calibration
-    from casadical.stats.predictive import accuracy_map
 
     name, axis, d = arm
     with warnings.catch_warnings():

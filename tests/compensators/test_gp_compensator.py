@@ -1,5 +1,5 @@
 """The GP compensator (one per session): a Gaussian process of the residual that knows where it holds
-(casadical.compensators.per_session)."""
+(casadical.calibration.per_session)."""
 
 import json
 import math
@@ -168,7 +168,7 @@ def test_the_correction_shrinks_with_what_it_knows():
 def test_the_worst_case_judge_compares_like_with_like():
     """The GP compensator's worst held-out error leaves out the poses both models miss by more than the noise:
     a rise there does not veto a real gain; a rise elsewhere does."""
-    from casadical.compensators.per_session import GPCompensatorFolds
+    from casadical.calibration.per_session import GPCompensatorFolds
     from casadical.diagnosis.compensator import judge
 
     rng = np.random.default_rng(0)

@@ -9,7 +9,7 @@ import pytest
 from casadical.calibration import load_calibration
 from casadical.data import Measurements
 from casadical.diagnosis import DiagnosisSettings, diagnose
-from casadical.stats.predictive import CHI3_95, fold_interval_k, prediction_interval
+from casadical.prediction import CHI3_95, fold_interval_k, prediction_interval
 from tests.helpers import hidden
 
 

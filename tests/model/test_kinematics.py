@@ -177,7 +177,7 @@ def test_hh800_loop_reduces_to_linear_coupling():
 def test_hh800_loop_closes_with_other_lengths():
     import casadi as ca
 
-    from casadical.model.kinematics import fourbar_rocker_angle
+    from casadical.kinematics import fourbar_rocker_angle
     rng = np.random.default_rng(9)
     for _ in range(20):
         lam, phi = rng.uniform(0.5, 2.5), 0.0

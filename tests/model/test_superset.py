@@ -18,8 +18,8 @@ import numpy as np
 import pytest
 
 from casadical.data.simulate import Effects, sample_poses, simulate
+from casadical.kinematics import base_pose_matrix
 from casadical.model._batch import batch
-from casadical.model.kinematics import base_pose_matrix
 from casadical.model.superset import Mapping, outputs, superset_for
 from casadical.model.symbolic import Model, parse_spec, pose_to_base0
 from casadical.robot import robot_from_dict

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 
 from casadical.data import Measurements
-from casadical.model.kinematics import base_pose_matrix
+from casadical.kinematics import base_pose_matrix
 from casadical.model.symbolic import Model, pose_to_base0
 from casadical.robot import robot_from_dict
 from tests.helpers.arms import ARM4, ARM5, ARM5_COUPLED, ARM7

@@ -900,7 +900,7 @@ def test_diagnosis_report_maps_where_the_model_is_accurate(browser, tmp_path):
     """diagnose --html --map-joints 2,3: a map of the predicted uncertainty over joints 2 and 3 with the
     calibration poses on it, readable in a real browser; it is lowest where the poses are (5-axis DH arm,
     joint 2 measured over 40 deg of its 180)."""
-    from casadical.stats.predictive import accuracy_map
+    from casadical.prediction import accuracy_map
     from tests import truth
 
     (tmp_path / "arm.toml").write_text(to_toml(ARM5))

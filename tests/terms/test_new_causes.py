@@ -165,7 +165,7 @@ def test_a_calibration_taken_further_joins_the_couplings():
 
 
 def test_a_mount_at_its_bound_says_what_that_means():
-    from casadical.model.parameters import Parameter
+    from casadical.parameters import Parameter
     from casadical.stats.physics import inside_bounds
 
     p = {"cmount": Parameter("cmount", 0.0, "rad/(N*m)", 1e-8, "mount_compliance", lower=0.0, upper=1e-5,

@@ -11,7 +11,7 @@ Two parts, independent and added in variance:
   (:func:`covariance_scale`: poses the loss sets aside count in that
   ``sigma`` by their miss);
 - the **GP compensator** (one per session,
-  :mod:`casadical.compensators.per_session`): its Gaussian processes'
+  :mod:`casadical.calibration.per_session`): its Gaussian processes'
   predictive std where they know the residual, their prior std where they
   do not (there the compensator adds nothing and the
   residual the named causes leave is all there is).
@@ -59,11 +59,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..compensators.gp import CHI3_95
-from ..data.measurements import Measurements
-from ..errors import InputError
-from ..result import CalibrationResult
-from ..terms.gp_compensator import fitted_processes
+from .compensators.gp import CHI3_95
+from .data.measurements import Measurements
+from .errors import InputError
+from .result import CalibrationResult
+from .terms.gp_compensator import fitted_processes
 
 
 def prediction_std(result: CalibrationResult, data: Measurements) -> tuple[np.ndarray, np.ndarray | None]:
@@ -153,7 +153,7 @@ def fold_interval_k(errors: np.ndarray, var: np.ndarray, sigma: np.ndarray, leve
     holds every effect gives: the quantile's scatter on few poses must not narrow it; without the floor the GP
     compensator's held 89.5 % of the README split's validation poses). The named causes' factor
     (:mod:`casadical.diagnosis.intervals`) and the GP compensator's
-    (:meth:`casadical.compensators.per_session.GPCompensatorFolds.interval_k`)."""
+    (:meth:`casadical.calibration.per_session.GPCompensatorFolds.interval_k`)."""
     z = np.asarray(errors) / np.sqrt(np.asarray(var) / 3 + np.asarray(sigma) ** 2)
     z = z[np.isfinite(z)]
     return max(CHI3_95, float(np.quantile(z, level))) if len(z) else CHI3_95
@@ -216,7 +216,7 @@ def accuracy_map(result: CalibrationResult, measured_q: np.ndarray | None = None
         raise InputError("an accuracy map needs two joints")
     lim = robot.limits
     if joints is None:
-        from ..data.simulate import sample_poses
+        from .data.simulate import sample_poses
 
         q = sample_poses(robot, 400, np.random.default_rng(seed), floor_z=None)
         s = _total(result, q)

@@ -16,7 +16,7 @@ from typing import Any
 import casadi as ca
 import numpy as np
 
-from ..robot import Robot
+from .robot import Robot
 
 Pose = tuple[Any, Any]  # (R: 3x3, t: 3x1)
 

@@ -28,14 +28,14 @@ from typing import Callable
 
 import numpy as np
 
+from ..compensators.gp import MAX_STD_RATIO, ROBUST_NU, ResidualGP
 from ..data.measurements import Measurements, session_index
 from ..model.symbolic import Model
+from ..prediction import fold_interval_k
 from ..result import CalibrationResult, learning_mask, rebuilt
 from ..runtime.threads import limited_threads
-from ..stats.predictive import fold_interval_k
 from ..terms import SessionLocal, make_term
 from ..terms.gp_compensator import fitted_processes
-from .gp import MAX_STD_RATIO, ROBUST_NU, ResidualGP
 
 #: a session's process learns from at most this many of its poses (drawn at random): its cost grows with the cube
 #: of the poses, in the fit and in every held-out fold, and its size in the model with their number
@@ -130,7 +130,7 @@ class GPCompensatorFolds:
         """The factor of a 95 % interval of a measured point, calibrated on the random folds: the ``level``
         quantile of each held-out pose's error over ``sqrt(std^2 / 3 + sigma^2)`` (``std`` what the fold's
         process leaves, :meth:`ResidualGP.predictive_std`, and the parameters' part ``params_var`` (m^2, one per
-        pose of ``keep``; :func:`casadical.stats.predictive.prediction_std`), as the interval adds them;
+        pose of ``keep``; :func:`casadical.prediction.prediction_std`), as the interval adds them;
         ``sigma`` its white noise), never below :data:`CHI3_95`."""
         e, s2, sigma = [np.zeros(0)], [np.zeros(0)], [np.zeros(0)]
         for at, Y, pred, ratio, var, prior, noise in self.folds.get("random", []):

@@ -12,8 +12,8 @@ from typing import Iterable, Iterator
 
 import numpy as np
 
-from .._format import number
-from ..errors import CasadicalError
+from ._format import number
+from .errors import CasadicalError
 
 #: Units whose values are displayed in another unit: SI unit -> (display unit, factor).
 DISPLAY = {
