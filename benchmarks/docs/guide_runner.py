@@ -22,6 +22,10 @@ root):
 - a comment ``<!-- check: lines of FILE -->`` before a Markdown table or a
   fence: every line of it (but a table's header and ``...`` lines) must be a
   line of FILE, a file an earlier step wrote (the export table).
+
+A quoted figure matches a printed one to a tolerance no CPU changes (one unit
+of its last digit, or a thousandth of it, at most ten units of its last digit;
+a count exactly: ``figures.py`` says why); words must be as quoted.
 - ``python`` blocks are not run (fragments that continue the text).
 
 ``python benchmarks/docs/guide_runner.py`` runs it and prints each step with its
@@ -38,6 +42,8 @@ import tempfile
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
+
+from figures import Quote, same_line
 
 ROOT = Path(__file__).resolve().parents[2]
 GUIDE = ROOT / "docs" / "guide.md"
@@ -94,18 +100,10 @@ def parse(text: str) -> list[Step]:
     return steps
 
 
-def quoted_pattern(quoted: str) -> re.Pattern:
-    """The regular expression a quoted output must match: ``...`` any text, whitespace any whitespace."""
-    parts = []
-    for piece in re.split(r"(\.\.\.|\s+)", quoted.strip()):
-        if piece == "...":
-            parts.append(r"[\s\S]*?")
-        elif piece.isspace():
-            parts.append(r"\s+")
-        elif piece:
-            parts.append(re.escape(piece))
-    # "...\n" then more text: the wildcard already covers the whitespace
-    return re.compile("".join(parts).replace(r"[\s\S]*?\s+", r"[\s\S]*?"))
+def quoted_pattern(quoted: str) -> Quote:
+    """What a quoted output must match (``.search(printed)``): ``...`` any text, whitespace any whitespace, a
+    figure one within its tolerance (figures.py)."""
+    return Quote(quoted)
 
 
 def table_lines(block: str) -> list[str]:
@@ -118,17 +116,18 @@ def table_lines(block: str) -> list[str]:
 
 def check_output(out: Step, printed: str) -> bool:
     """Whether a quoted output block occurs in what its sh block printed (``...`` = anything)."""
-    return quoted_pattern(out.text).search(printed) is not None
+    return quoted_pattern(out.text).search(printed)
 
 
 def check_lines(step: Step, folder: Path) -> str | None:
-    """None if every quoted line of a ``check: lines of FILE`` step is a line of FILE in ``folder``, else why not."""
+    """None if every quoted line of a ``check: lines of FILE`` step is a line of FILE in ``folder`` (its figures
+    within their tolerance), else why not."""
     path = Path(folder) / step.target
     if not path.is_file():
         return f"{step.target} was not written by the steps before"
     text = path.read_text(encoding="utf-8")
-    have = {ln.rstrip() for ln in text.splitlines()}
-    missing = [ln for ln in table_lines(step.text) if ln not in have]
+    have = [ln.rstrip() for ln in text.splitlines()]
+    missing = [ln for ln in table_lines(step.text) if not any(same_line(ln, h) for h in have)]
     if missing:
         return (f"lines quoted from {step.target} that it does not hold ({len(missing)}):\n" + "\n".join(missing)
                 + f"\n--- {step.target}:\n{_clip(text)}")

@@ -15,7 +15,8 @@ The docs' text is exactly what the script prints, so regenerating is copying, an
 
 Timings vary from run to run: the columns a block names as timings (``time (s)``, ``fit time``, ...)
 are regenerated but never compared; a block whose every figure is a timing (``check=False``) is only
-regenerated. Every other cell is compared exactly, at the precision it is printed with.
+regenerated. Every other cell is compared at the precision it is printed with, to the tolerance of a figure
+no CPU changes (``figures.py``: one unit of its last digit, or a thousandth of it; counts and words exactly).
 
 Usage::
 
@@ -47,6 +48,8 @@ import tempfile
 import time
 from dataclasses import dataclass
 from pathlib import Path
+
+from figures import same_line
 
 ROOT = Path(__file__).resolve().parents[2]
 DOCS = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
@@ -325,7 +328,7 @@ def compare(quoted: Quoted, generated: str) -> str | None:
     if not block.check:
         return None
     a, b = masked(quoted.text, block), masked(generated, block)
-    if a == b:
+    if len(a) == len(b) and all(same_line(x, y) for x, y in zip(a, b)):
         return None
     diff = difflib.unified_diff(a, b, f"{quoted.path.name} (line {quoted.line})", f"job {block.job} now",
                                 lineterm="", n=0)
