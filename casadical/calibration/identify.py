@@ -64,7 +64,12 @@ def analyse_identifiability(run: CalibrationRun) -> None:
     if run.full_pose:   # the mounting's deviations have no nominal: at the reference R0
         for k in ("roll", "pitch", "yaw"):
             nominal[params.index(f"tool_{k}")] = params[f"tool_{k}"].value
-    R = jacobian_factor(model, q, nominal, run.cov, run.base0, run.rot)
+    if run.data.touches:    # what touches cannot see is fixed already (fix_unobservable): not asked of the poses
+        unseen = {n for u in run.unobservable for n in u["parameters"]}
+        generic = [n for n in generic if n not in unseen]
+        needed = len(generic)
+    R = jacobian_factor(model, q, nominal, run.cov, run.base0, run.rot,
+                        layout=run.data.layout if run.data.touches else None)
     ident = analyse(R, params, n_equations=per_pose * len(q))
     lost = [u for u in ident.unidentifiable if u.name in generic]
     if lost:

@@ -83,6 +83,8 @@ class CalibrationRun:
     options: Options
     prior: CalibrationResult | None = None   # a calibration taken further (the robot is its robot)
     notes: list[str] = field(default_factory=list)
+    #: fix_unobservable: what rows that touch cannot see ({"what", "why", "parameters"} each)
+    unobservable: list[dict] = field(default_factory=list)
 
     @property
     def user_terms(self) -> tuple:
