@@ -208,6 +208,7 @@ class Robot:
     nominal: Path
     calibrated: Path | None = None
     source: str = ""                # where the calibrated URDF comes from
+    kind: str = ""                  # "stored" (in the peer's repository) or "run" (our run of the peer)
     train: str | None = None
     train_how: str = ""             # "*": the peer's config.yaml, "?": inferred, "run": our run of the peer
 
@@ -229,12 +230,12 @@ def find_robots(peer: Path | None, peer_runs: Path | None) -> list[Robot]:
         stored = calibrated_dir / folder.name / nominal.name
         ran = peer_runs / folder.name / nominal.name if peer_runs else None
         if stored.exists():
-            robot.calibrated, robot.source = stored, "stored in the peer's repository"
+            robot.calibrated, robot.source, robot.kind = stored, "stored in the peer's repository", "stored"
             config = stored.parent / "config.yaml"
             if config.exists():
                 robot.train, robot.train_how = _trained_on(config), "*"
         elif ran is not None and ran.exists():
-            robot.calibrated, robot.source = ran, f"our run of the peer ({ran.parent})"
+            robot.calibrated, robot.source, robot.kind = ran, f"our run of the peer ({ran.parent})", "run"
             robot.train, robot.train_how = _trained_on(ran.parent / "config.yaml"), "run"
         robots.append(robot)
     return robots
@@ -310,6 +311,7 @@ def run(robots: list[Robot]) -> list[dict]:
         ours = casadical_model(r.name, r.nominal, train, r.placements[train])
         for place, sockets in r.placements.items():
             row = {"robot": r.name, "placement": place, "rows": sum(len(q) for q in sockets.values()),
+                   "peer_kind": r.kind,
                    "trained": place == r.train, "train_how": r.train_how if place == r.train else "",
                    "nominal": measures(nominal, sockets)}
             row["peer"] = measures(calibrated, sockets) if calibrated else None
@@ -334,11 +336,12 @@ def print_table(robots: list[Robot], rows: list[dict]) -> None:
         mine = [x for x in rows if x["robot"] == r.name]
         for x in mine:
             mark = {"*": "*", "?": "?", "run": "r"}.get(x["train_how"], " ")
-            print(f"{x['robot']:<20} {x['placement'] + mark:<13} {x['rows']:>4}  {_pair(x['nominal']):>20}  "
+            print(f"{x['robot']:<20} {x['placement']:<12}{mark} {x['rows']:>4}  {_pair(x['nominal']):>20}  "
                   f"{_pair(x['peer']):>17}  {_pair(x['casadical']):>17}")
         held = [x for x in mine if not x["trained"]]
         means = {k: _means([x[k] for x in held if x[k]]) for k in ("nominal", "peer", "casadical")}
-        print(f"{'':<20} {'held-out mean':<13} {len(held):>4}  {_pair(means['nominal']):>20}  "
+        label = "held-out mean" if len(held) < len(mine) else "mean"
+        print(f"{'':<20} {label:<13} {len(held):>4}  {_pair(means['nominal']):>20}  "
               f"{_pair(means['peer']):>17}  {_pair(means['casadical']):>17}")
         print(f"{'':<20} calibrated URDF: {r.source or 'none in the peer repository'}")
 
@@ -347,23 +350,25 @@ def _means(pairs):
     return tuple(float(np.mean(v)) for v in zip(*pairs)) if pairs else None
 
 
-def summary(rows: list[dict]) -> dict:
-    """The issue's ranges: nominal consistency and distance error over every placement; the peer's on the
-    placements it never saw, per placement and per robot mean."""
-    nominal = [x["nominal"] for x in rows]
+def summary(rows: list[dict], kind: str) -> dict:
+    """The issue's ranges for the robots whose calibrated URDF is of ``kind`` ("stored": in the peer's
+    repository, "run": our runs of the peer): the nominal consistency and distance error over every placement,
+    the peer's on the placements it never saw, per placement and per robot mean."""
+    rows = [x for x in rows if x["peer_kind"] == kind]
     held = [x for x in rows if x["peer"] and not x["trained"]]
     per_robot = {}
     for x in held:
         per_robot.setdefault(x["robot"], []).append(x["peer"])
     means = {k: _means(v) for k, v in per_robot.items()}
     span = lambda v: (min(v), max(v)) if v else None   # noqa: E731
-    return {"nominal_consistency_mm": span([m[0] for m in nominal]),
-            "nominal_distance_error_mm": span([m[1] for m in nominal]),
+    return {"robots": sorted({x["robot"] for x in rows}),
+            "nominal_consistency_mm": span([x["nominal"][0] for x in rows]),
+            "nominal_distance_error_mm": span([x["nominal"][1] for x in rows]),
             "peer_held_out_consistency_mm": span([x["peer"][0] for x in held]),
             "peer_held_out_distance_error_mm": span([x["peer"][1] for x in held]),
             "peer_robot_mean_consistency_mm": span([m[0] for m in means.values()]),
             "peer_robot_mean_distance_error_mm": span([m[1] for m in means.values()]),
-            "peer_robot_means": means}
+            "peer_robot_means_mm": means}
 
 
 def main(argv=None) -> int:
@@ -396,11 +401,17 @@ def main(argv=None) -> int:
                 print(f"forward model vs the peer's stored kpis.yaml points, {robot}: {n} rows, max {worst:.2e} m")
     rows = run(robots)
     print_table(robots, rows)
-    s = summary(rows)
-    print("\nranges: " + "; ".join(f"{k} {v[0]:.2f}-{v[1]:.2f}" for k, v in s.items()
-                                   if k != "peer_robot_means" and v))
+    sums = {kind: summary(rows, kind) for kind in ("stored", "run")}
+    for kind, s in sums.items():
+        if not s["robots"]:
+            continue
+        print(f"\nranges, peer's URDFs {'in its repository' if kind == 'stored' else 'of our runs'} "
+              f"({', '.join(s['robots'])}):")
+        for k, v in s.items():
+            if k.endswith("_mm") and isinstance(v, tuple):
+                print(f"  {k:<36} {v[0]:.3f} - {v[1]:.3f}")
     if args.json:
-        args.json.write_text(json.dumps({"rows": rows, "summary": s}, indent=1))
+        args.json.write_text(json.dumps({"rows": rows, "summary": sums}, indent=1))
     return 0
 
 
