@@ -110,7 +110,9 @@ def nlpsol(*a, **k):
     spans["nlpsol (Hessian built)"] = time.perf_counter() - t0
     class Timed:
         def __call__(self, *b, **c):
-            return timed("IPOPT", solver)(*b, **c)
+            out = timed("IPOPT", solver)(*b, **c)
+            spans["IPOPT iterations"] = solver.stats()["iter_count"]
+            return out
         def stats(self):
             return solver.stats()
     return Timed()
@@ -222,9 +224,9 @@ def bench(args, peer: Path, python: str) -> dict:
             if casadical_cmd:
                 out["casadical"].append(timed_run(casadical_cmd, env=env)[:2])
         if args.phases:
-            _, _, stdout = timed_run([python, "-c", PHASES_DRIVER] + cmd[2:], cwd=scripts, env=env)
+            wall, _, stdout = timed_run([python, "-c", PHASES_DRIVER] + cmd[2:], cwd=scripts, env=env)
             line = next(ln for ln in stdout.splitlines() if ln.startswith("PHASES "))
-            out["phases"] = json.loads(line[len("PHASES "):])
+            out["phases"] = json.loads(line[len("PHASES "):]) | {"process": wall}
     out["load_after"] = load_average()
     return out
 
@@ -248,6 +250,8 @@ def report(out: dict, runs: int) -> None:
         s = p["spans"]
         known = ("load_model", "read_data", "create_symbolic_fk", "evaluate_fks", "optimize")
         print("\nthe peer's time, one run in a timing driver (s):")
+        print(f"  {'the whole process':<62}{p['process']:6.2f}")
+        print(f"  {'Python start and exit, the driver':<62}{p['process'] - p['import'] - p['main']:6.2f}")
         print(f"  imports (casadi, yourdfpy, forwardkinematics, tkinter root)   {p['import']:6.2f}")
         for name in known[:4]:
             label = name + (" (before and after the fit)" if name == "evaluate_fks" else "")
@@ -257,7 +261,7 @@ def report(out: dict, runs: int) -> None:
         print(f"  {'optimize: symbolic objective (a substitute per row), URDF out':<62}{rest:6.2f}")
         print(f"  {'optimize: nlpsol (CasADi builds the Hessian of the Lagrangian)':<62}"
               f"{s['nlpsol (Hessian built)']:6.2f}")
-        print(f"  {'optimize: IPOPT':<62}{s['IPOPT']:6.2f}")
+        print(f"  {'optimize: IPOPT, ' + str(s['IPOPT iterations']) + ' iterations':<62}{s['IPOPT']:6.2f}")
         print(f"  {'optimize: per-iteration URDFs and KPIs (saving_steps)':<62}{saving:6.2f}")
         print(f"  {'everything inside main()':<62}{p['main']:6.2f}")
 
