@@ -231,3 +231,20 @@ def test_the_fixture_file():
         assert f["points"].keys() == block.points.keys()
         for k, p in f["points"].items():
             assert np.allclose(np.array(p) / 1000, block.points[k], rtol=1e-15, atol=1e-18)
+
+
+def test_a_payload_per_row_is_carried_and_written(tmp_path):
+    """With a compliant joint, the payload of each row bends the arm: the readings are solved under it, and the file
+    says it (payload_kg)."""
+    robot, rng = draw(ARM6, 10, Effects(stiffness={2: 1e5, 3: 1e5}))
+    socket = reachable_point(robot, rng, WORLD)
+    load = np.array([0.0, 5.0, 10.0, 2.5])
+    rows = socket_rows(robot, {"s": socket}, 4, rng, WORLD, payload=load)
+    head, cells = read(rows.write_csv(tmp_path / "load.csv"))
+    assert head[-2:] == ["point", "payload_kg"] and [float(r["payload_kg"]) for r in cells] == load.tolist()
+    q = readings(cells, robot.arm.n)
+    state = robot.state(q, load, mount=WORLD.mount_compliance)
+    B = WORLD.base()
+    assert np.abs(robot.tool_point(state) @ B[:3, :3].T + B[:3, 3] - socket).max() < 1e-9
+    empty = robot.state(q, np.zeros(4), mount=WORLD.mount_compliance)
+    assert np.linalg.norm(robot.tool_point(empty) - robot.tool_point(state), axis=1)[1:].min() > 1e-5

@@ -134,7 +134,8 @@ class Touches:
     temperature: np.ndarray | None = None                      # deg C per row (None: none)
     #: what was hidden: "points" {(session, name): world xyz}, "planes" {(session, name): (point, unit normal)},
     #: "tools" {name: offset in the last link frame}, "fixtures" {session: (fixture name, 4x4 pose)},
-    #: "bases" {session: 4x4 base pose in the world}, "targets" (N, 3) world positions the tool point was put at
+    #: "bases" {session: 4x4 base pose in the world}, "targets" (N, 3): where each row's true tool point stands
+    #: (world; the contact noise included; NaN on tracker rows)
     truth: dict = field(default_factory=dict)
 
     def __len__(self) -> int:
@@ -149,8 +150,9 @@ class Touches:
         truth = {}
         for key in set(self.truth) | set(other.truth):
             a, b = self.truth.get(key), other.truth.get(key)
-            if key == "targets":
-                truth[key] = cat([a, b]) if a is not None and b is not None else None
+            if key == "targets":            # rows without one (tracker rows) have NaN
+                truth[key] = cat([np.full((len(self), 3), np.nan) if a is None else a,
+                                  np.full((len(other), 3), np.nan) if b is None else b])
             else:
                 truth[key] = {**(a or {}), **(b or {})}
         return Touches(np.vstack([self.q, other.q]), self.session + other.session, self.point + other.point,
@@ -263,9 +265,20 @@ def solve_readings(robot: TrueRobot, targets: np.ndarray, rng: np.random.Generat
     if starts_per_try is None:      # about 1 in 10 random poses has its tool within 45 deg of a direction
         starts_per_try = 6 if cone is None else 40
     q = np.zeros((N, n))
+    solved = np.zeros(N, bool)
     todo = np.arange(N)
     rigid = robot.with_effects(Effects())       # near the target first without the drives' effects: cheaper
     for _ in range(attempts):
+        # a row met before may miss now that the row before it has its reading (a joint's last move changed):
+        # onto its target again from where it stands
+        again = todo[solved[todo]]
+        if len(again):
+            q[again] = _gauss_newton(robot, q, again, targets, session, offset, payload, temperature, lo, hi,
+                                     10)[0]
+            todo = np.flatnonzero(_misses(robot, q, targets, session, offset, payload, temperature))
+            if not len(todo):
+                return q
+        solved[todo] = False
         # several random starts per target at once (the rigid arm has no backlash: the batch's order is no matter)
         starts = rng.uniform(lo, hi, (starts_per_try * len(todo), n))
         which = np.repeat(todo, starts_per_try)
@@ -289,12 +302,18 @@ def solve_readings(robot: TrueRobot, targets: np.ndarray, rng: np.random.Generat
             q[found] = starts[list(first.values())]
             q[found] = _gauss_newton(robot, q, found, targets, session, offset, payload, temperature, lo, hi,
                                      10)[0]
-        miss = np.linalg.norm(_world_points(robot, q, session, offset, payload, temperature) - targets, axis=1)
-        todo = np.flatnonzero(miss > IK_TOLERANCE)
+            solved[found] = True
+        todo = np.flatnonzero(_misses(robot, q, targets, session, offset, payload, temperature))
         if not len(todo):
             return q
     raise ValueError(f"{len(todo)} of {N} targets not reached from {attempts * starts_per_try} random starts "
                      f"(first: {targets[todo[0]]} m)")
+
+
+def _misses(robot, q, targets, session, offset, payload, temperature) -> np.ndarray:
+    """Which rows' true tool point (in row order: the joints' last moves of all of ``q``) misses its target."""
+    p = _world_points(robot, q, session, offset, payload, temperature)
+    return np.linalg.norm(p - targets, axis=1) > IK_TOLERANCE
 
 
 def _tool_axes(robot: TrueRobot, q: np.ndarray, session: Session) -> np.ndarray:
@@ -306,11 +325,11 @@ def _tool_axes(robot: TrueRobot, q: np.ndarray, session: Session) -> np.ndarray:
 def _gauss_newton(robot, q, rows, targets, session, offset, payload, temperature, lo, hi, iterations,
                   tolerance=IK_TOLERANCE):
     """Damped Gauss-Newton steps of the least norm, projected on the limits ``lo``, ``hi``, for ``rows`` of ``q``
-    until each meets its target (the other
-    rows fixed: with them, they set the joints' last moves) to within ``tolerance`` (m), with the rigid arm's
-    Jacobian at the deflected pose: the steps are approximate (they leave out how the drives' errors change with
-    the readings), the target met is exact. Returns the rows' readings and which of them met their target (those
-    still going after ``iterations`` did not, as far as the last step knew)."""
+    until each is within ``tolerance`` (m) of its target; the other rows stay (with them, they set the joints'
+    last moves). The Jacobian is the rigid arm's at the deflected pose: the steps are approximate (they leave
+    out how the drives' errors change with the readings), the target met is exact. Returns the rows' readings
+    and which of them met their target (those still going after ``iterations`` did not, as far as the last step
+    knew)."""
     q = q.copy()
     active = np.asarray(rows)
     for _ in range(iterations):
@@ -398,8 +417,7 @@ def pivot_rows(robot: TrueRobot, name: str, pivot, count: int, rng: np.random.Ge
     q = kept[:count]
     points = _world_points(robot, q, session, offset, payload, temperature)
     true = np.linalg.norm(points - pivot, axis=1)
-    truth = {"points": {(session.name, name): pivot}, "bases": {session.name: session.base()}, "targets": points,
-             "distances": {(session.name, name): true}}
+    truth = {"points": {(session.name, name): pivot}, "bases": {session.name: session.base()}, "targets": points}
     if tool:
         truth["tools"] = {tool: np.asarray(offset, float)}
     return _rows(q, session, point=name, distance=true + rng.normal(0.0, noise, count), tool=tool,
