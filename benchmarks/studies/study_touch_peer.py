@@ -343,6 +343,10 @@ def print_table(robots: list[Robot], rows: list[dict]) -> None:
         label = "held-out mean" if len(held) < len(mine) else "mean"
         print(f"{'':<20} {label:<13} {len(held):>4}  {_pair(means['nominal']):>20}  "
               f"{_pair(means['peer']):>17}  {_pair(means['casadical']):>17}")
+        if means["peer"] and means["casadical"]:
+            c, d = (means["casadical"][i] / means["peer"][i] for i in (0, 1))
+            print(f"{'':<20} casadical / peer, held out: consistency {c:.2f} (issue 45: at most 0.8), distance "
+                  f"error {d:.2f} (at most 1)")
         print(f"{'':<20} calibrated URDF: {r.source or 'none in the peer repository'}")
 
 
