@@ -43,6 +43,20 @@ PANDA2_PLACEMENTS = ("back_left", "back_right", "front_center", "front_left", "f
 SOCKETS = {"hole_0.csv": "socket0", "hole_1.csv": "socket1"}
 #: the block's two sockets, mm in the block's frame (the peer's ``--offset-distance`` default, 0.05 m)
 SOCKET_DISTANCE_MM = 50.0
+#: the peer's model (its ``urdf/NAME.urdf``, ``config_optimizer/NAME.yaml``) a user takes for each robot folder of
+#: its data (its README); the others are Pandas
+MODELS = {"kuka_14": "iiwa14", "dinova_1": "gen3lite", "dinova_2": "gen3lite", "panda_1_with_sensor": "panda_plus_bota"}
+
+
+def model_of(robot: str) -> str:
+    """The peer's model name for a robot folder of its data."""
+    return MODELS.get(robot, "panda")
+
+
+def front_placement(names) -> str:
+    """The placement a user trains on first: the first ``front*`` one (sorted), else the first."""
+    names = sorted(names)
+    return next((n for n in names if n.startswith("front")), names[0])
 
 FIXTURE_TOML = f"""\
 # The MUKCa block (github platonics-delft/kinematics_calibration, stl/MUKCa_tool.stl): two spherical sockets

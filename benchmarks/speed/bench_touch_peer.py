@@ -81,8 +81,8 @@ import time
 from contextlib import contextmanager
 from pathlib import Path
 
-#: the robot folders' nominal URDFs (as study_touch_peer.py); the rest are Pandas
-MODELS = {"kuka_14": "iiwa14", "dinova_1": "gen3lite", "dinova_2": "gen3lite", "panda_1_with_sensor": "panda_plus_bota"}
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "datasets"))
+from mukca import front_placement, model_of  # noqa: E402
 
 #: run inside the peer's Python: its script's main() with timers around its stages (printed as one JSON line)
 PHASES_DRIVER = r"""
@@ -180,7 +180,7 @@ def work_copy(peer: Path, robot: str, into: Path) -> Path:
 
 
 def peer_command(python: str, robot: str, placement: str) -> list[str]:
-    return [python, "run_optimizer.py", "--model", MODELS.get(robot, "panda"), "--data", f"{robot}/{placement}"]
+    return [python, "run_optimizer.py", "--model", model_of(robot), "--data", f"{robot}/{placement}"]
 
 
 def peer_result(stdout: str) -> tuple[float, float, float]:
@@ -191,11 +191,6 @@ def peer_result(stdout: str) -> tuple[float, float, float]:
     if len(mae) < 2 or len(dist) < 2:
         raise SystemExit("bench_touch_peer.py: the peer printed no result:\n" + stdout[-2000:])
     return mae[0] * 1000, mae[-1] * 1000, dist[-1] * 1000
-
-
-def front_placement(names) -> str:
-    names = sorted(names)
-    return next((n for n in names if n.startswith("front")), names[0])
 
 
 def bench(args, peer: Path, python: str) -> dict:
@@ -273,7 +268,7 @@ def calibrate_all(peer: Path, python: str, into: Path) -> None:
         env["DISPLAY"] = display
         for folder in sorted(p for p in (peer / "data").iterdir() if p.is_dir()):
             robot = folder.name
-            model = MODELS.get(robot, "panda")
+            model = model_of(robot)
             placements = [p.name for p in folder.iterdir() if (p / "hole_0.csv").exists()]
             if (peer / "calibrated_urdf" / robot / f"{model}.urdf").exists() or len(placements) < 2:
                 continue

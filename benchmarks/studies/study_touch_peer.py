@@ -57,16 +57,13 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT / "benchmarks" / "datasets"))
-from mukca import SOCKET_DISTANCE_MM, read_placement  # noqa: E402
+from mukca import SOCKET_DISTANCE_MM, front_placement, model_of, read_placement  # noqa: E402
 
 BUNDLED = ROOT / "problems" / "datasets" / "panda-mukca" / "raw"
 TIP = "ball_link"
 FK_TOLERANCE_M = 1e-9
 
-#: the nominal URDF a user of the repository takes for each robot folder (its README, config_optimizer/*.yaml)
-NOMINAL = {"kuka_14": "iiwa14.urdf", "dinova_1": "gen3lite.urdf", "dinova_2": "gen3lite.urdf",
-           "panda_1_with_sensor": "panda_plus_bota.urdf"}
-#: the calibrated URDF's file name in calibrated_urdf/ROBOT/ (the optimizer writes the nominal's name)
+#: a model: joint readings (rad, (N, n)) -> ball points (m, (N, 3))
 Points = Callable[[np.ndarray], np.ndarray]
 
 
@@ -225,7 +222,7 @@ def find_robots(peer: Path | None, peer_runs: Path | None) -> list[Robot]:
                       if (p / "hole_0.csv").exists() and (p / "hole_1.csv").exists()}
         if not placements:
             continue
-        nominal = urdf_dir / NOMINAL.get(folder.name, "panda.urdf")
+        nominal = urdf_dir / f"{model_of(folder.name)}.urdf"
         robot = Robot(folder.name, placements, nominal)
         stored = calibrated_dir / folder.name / nominal.name
         ran = peer_runs / folder.name / nominal.name if peer_runs else None
@@ -251,12 +248,6 @@ def _trained_on(config: Path) -> str:
         if "/data/" in line:
             return line.rstrip("/").rsplit("/", 1)[-1]
     raise ValueError(f"{config}: no data_path")
-
-
-def front_placement(names) -> str:
-    """The placement a user trains on first: the first ``front*`` one (sorted), else the first."""
-    names = sorted(names)
-    return next((n for n in names if n.startswith("front")), names[0])
 
 
 # --- the checks of the forward model -------------------------------------------------------------------------
