@@ -429,6 +429,11 @@ class CalibrationResult:
             lines.append(f"residual sigma {self.uncertainty.sigma * 1000:.4f} mm per axis, "
                          f"{self.uncertainty.dof} degrees of freedom")
         lines += self.base_lines()
+        lines += [f"not seen by these data: {u['what']} ({u['why']}): {', '.join(u['parameters'])} held"
+                  for u in self.unobservable]
+        if self.frame == "base":
+            lines.append("frame: the robot's base frame (touches alone: predict and compensate read and write "
+                         "points in it)")
         tests = self.significance()
         lines += ["", "identified parameters (angles in deg, lengths in mm; t = deviation/std, significant at "
                       f"{100 * LEVEL:g} % when |t| > {t_critical(LEVEL, self._dof()):.3g}; rel.std = std/|deviation|):",

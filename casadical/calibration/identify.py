@@ -17,6 +17,7 @@ from ..model.symbolic import Model
 from ..problem import ROT_WEIGHT_PRIOR, jacobian_factor
 from ..stats.identifiability import analyse
 from .state import CalibrationRun
+from .unobservable import BASE_WHY
 
 _GENERIC: dict = {}
 
@@ -71,6 +72,15 @@ def analyse_identifiability(run: CalibrationRun) -> None:
     R = jacobian_factor(model, q, nominal, run.cov, run.base0, run.rot,
                         layout=run.data.layout if run.data.touches else None)
     ident = analyse(R, params, n_equations=per_pose * len(q))
+    if run.data.touches and run.data.touching.all():
+        # touches alone: a parameter that only moves the whole robot (the first link's place) is the base pose's
+        whole = [u for u in ident.unidentifiable if u.name in generic and u.reason.startswith("has no effect")]
+        for u in whole:
+            u.reason = f"moves the whole robot: {BASE_WHY}"
+        base = next((e for e in run.unobservable if e["what"] == "the base pose"), None)
+        if base is not None:
+            base["parameters"] = base["parameters"] + [u.name for u in whole]
+        generic = [n for n in generic if n not in {u.name for u in whole}]
     lost = [u for u in ident.unidentifiable if u.name in generic]
     if lost:
         names = ", ".join(f"{u.name} ({u.reason})" for u in lost[:6])
