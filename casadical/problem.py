@@ -237,6 +237,12 @@ class CalibrationProblem:
     def equations_per_pose(self) -> int:
         return 6 if self.full_pose else 3
 
+    @property
+    def equations(self) -> int:
+        """The independent equations of the loss: ``equations_per_pose`` a pose; rows that touch, their
+        layout's (:attr:`casadical.rows.Layout.equations`)."""
+        return self.layout.equations if self.layout is not None else self.equations_per_pose * self.n_poses
+
     def residual_norms(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         """Position residual norms (m) and, for full pose, orientation residual norms (rad), per pose."""
         if not self.full_pose:

@@ -75,9 +75,13 @@ class ErrorStats:
         return cls(*(d[k] for k in fields), {k: d[k] for k in ("consistency_mm", "distance_error_mm") if k in d})
 
     def line(self) -> str:
-        touch = "".join(f", {k.removesuffix('_mm').replace('_', ' ')} {v:.4f} mm" for k, v in self.touch.items())
+        touch = f", {self.touch_words()}" if self.touch else ""
         return (f"mean {self.mean_mm:.4f}  max {self.max_mm:.4f}  std {self.std_mm:.4f}  "
                 f"rms {self.rms_mm:.4f} mm over {self.n_poses} poses{touch}")
+
+    def touch_words(self) -> str:
+        """:attr:`touch` in words: ``consistency 0.0304 mm, distance error 0.0050 mm``."""
+        return ", ".join(f"{k.removesuffix('_mm').replace('_', ' ')} {v:.4f} mm" for k, v in self.touch.items())
 
 
 @dataclass

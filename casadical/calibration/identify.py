@@ -17,7 +17,7 @@ from ..model.symbolic import Model
 from ..problem import ROT_WEIGHT_PRIOR, jacobian_factor
 from ..stats.identifiability import analyse
 from .state import CalibrationRun
-from .unobservable import BASE_WHY
+from .unobservable import whole_robot
 
 _GENERIC: dict = {}
 
@@ -55,9 +55,9 @@ def analyse_identifiability(run: CalibrationRun) -> None:
     model, params, q, per_pose = run.model, run.params, run.data.q, run.per_pose
     generic = generic_identifiable(model, params, run.cov, full_pose=run.full_pose)
     needed = len(generic)
-    if per_pose * len(q) <= needed:
+    if run.equations <= needed:
         raise IdentifiabilityError(
-            f"{run.where}{len(q)} poses give {per_pose * len(q)} equations for the {needed} identifiable parameters "
+            f"{run.where}{len(q)} poses give {run.equations} equations for the {needed} identifiable parameters "
             f"of model {model.spec}: at least {needed // per_pose + 1} poses are needed, and 3-5 times that for "
             "a reliable fit")
     # structural question, at nominal values: at a perturbed start exact redundancies only look near-exact
@@ -71,16 +71,11 @@ def analyse_identifiability(run: CalibrationRun) -> None:
         needed = len(generic)
     R = jacobian_factor(model, q, nominal, run.cov, run.base0, run.rot,
                         layout=run.data.layout if run.data.touches else None)
-    ident = analyse(R, params, n_equations=per_pose * len(q))
-    if run.data.touches and run.data.touching.all():
-        # touches alone: a parameter that only moves the whole robot (the first link's place) is the base pose's
-        whole = [u for u in ident.unidentifiable if u.name in generic and u.reason.startswith("has no effect")]
-        for u in whole:
-            u.reason = f"moves the whole robot: {BASE_WHY}"
-        base = next((e for e in run.unobservable if e["what"] == "the base pose"), None)
-        if base is not None:
-            base["parameters"] = base["parameters"] + [u.name for u in whole]
-        generic = [n for n in generic if n not in {u.name for u in whole}]
+    ident = analyse(R, params, n_equations=run.equations)
+    if run.data.touches and run.data.touching.all():      # touches alone: what moves the whole robot
+        moving = np.linalg.norm(jacobian_factor(model, q, nominal, run.cov, run.base0), axis=0) > 0
+        whole = whole_robot(ident, {n for n, m in zip(params.names, moving) if m}, run.unobservable)
+        generic = [n for n in generic if n not in whole]
     lost = [u for u in ident.unidentifiable if u.name in generic]
     if lost:
         names = ", ".join(f"{u.name} ({u.reason})" for u in lost[:6])

@@ -182,7 +182,7 @@ def separated(problem: CalibrationProblem, values: np.ndarray, ident: Identifiab
             yield J[:, :, cols] * scale * np.sqrt(w)[:, None, None]
 
     R = triangular_factor(blocks(), len(cols))
-    sigma = math.sqrt(ssr[0] / max(problem.equations_per_pose * problem.n_poses - len(f), 1))
+    sigma = math.sqrt(ssr[0] / max(problem.equations - len(f), 1))
     out = []
     for j, name in enumerate(cands):
         perp = float(np.linalg.norm(R[len(f):, len(f) + j]))     # the column beyond the free columns' span

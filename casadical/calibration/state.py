@@ -142,6 +142,12 @@ class CalibrationRun:
         return 6 if self.full_pose else 3
 
     @property
+    def equations(self) -> int:
+        """Equations the poses give: ``per_pose`` each; rows that touch, their layout's (each group's unknowns
+        used up: :attr:`casadical.rows.Layout.equations`)."""
+        return self.data.layout.equations if self.data.touches else self.per_pose * len(self.data)
+
+    @property
     def where(self) -> str:
         """The data file as a message's prefix (``"file: "``), or nothing."""
         return f"{self.data.path}: " if self.data.path else ""

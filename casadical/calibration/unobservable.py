@@ -24,27 +24,48 @@ SCALE_WHY = "no known distance"
 
 
 def fix_unobservable(run: CalibrationRun) -> None:
-    data, params = run.data, run.params
+    run.unobservable = unseen(run.data, run.params)
+    for u in run.unobservable:
+        run.params.fix(u["parameters"], f"{u['what']}: {u['why']}")
+
+
+def unseen(data, params) -> list[dict]:
+    """What the rows of ``data`` that touch cannot see among the free ``params``: entries ``what``, ``why`` and
+    ``parameters`` (to be held); none for measured rows alone."""
     if not data.touches:
-        return
+        return []
+    out = []
     measured = ~data.touching
     sessions = data.sessions if data.sessions is not None else np.full(len(data), None, dtype=object)
     names = data.session_names or [None]
     blind = [s for s in names if not measured[sessions == s].any()]
-    for k, s in enumerate(names):
-        if s not in blind:
-            continue
-        at = "" if k == 0 else f"@{s}"
-        fixed = [p.name for p in params if p.group == "base" and p.name.endswith(at) and (at or "@" not in p.name)
-                 and not p.fixed]
-        params.fix(fixed, f"the base pose: {BASE_WHY}")
-        run.unobservable.append({"what": "the base pose" + (f" of session {s}" if s else ""), "why": BASE_WHY,
-                                 "parameters": fixed})
+    # every session's base pose at once when no row is measured; else each session's without a measured row
+
+    def base(s) -> list[str]:
+        at = "" if s == names[0] else f"@{s}"
+        return [p.name for p in params if p.group == "base" and not p.fixed
+                and (p.name.endswith(at) if at else "@" not in p.name)]
+    if len(blind) == len(names):
+        out.append({"what": "the base pose", "why": BASE_WHY, "parameters": [n for s in blind for n in base(s)]})
+    else:
+        out += [{"what": f"the base pose of session {s}", "why": BASE_WHY, "parameters": base(s)} for s in blind]
     if not data.layout.known_distance():
         lengths = [p for p in params if p.term == "geometric" and p.group == "link" and p.unit == "m"
                    and not p.fixed]
         if lengths:
             longest = max(lengths, key=lambda p: abs(p.nominal))
-            params.fix([longest.name], f"the scale of every length: {SCALE_WHY}")
-            run.unobservable.append({"what": "the scale of every length", "why": SCALE_WHY,
-                                     "parameters": [longest.name]})
+            out.append({"what": "the scale of every length", "why": SCALE_WHY, "parameters": [longest.name]})
+    return out
+
+
+def whole_robot(ident, moving: set[str], unobservable: list[dict]) -> set[str]:
+    """Touches alone: the parameters ``ident`` finds without effect that do move the point (``moving``: their
+    columns before the projection are not zero): they only move the whole robot (the first link's place: the base
+    pose's). Reworded and added to ``unobservable``'s base pose; their names."""
+    whole = [u for u in ident.unidentifiable if u.name in moving and u.reason.startswith("has no effect")]
+    for u in whole:
+        u.reason = f"moves the whole robot: {BASE_WHY}"
+    base = next((e for e in unobservable if e["what"] == "the base pose"), None)
+    if base is not None:
+        base["parameters"] = base["parameters"] + [u.name for u in whole]
+    return {u.name for u in whole}

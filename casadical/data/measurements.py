@@ -610,6 +610,17 @@ def check_touch_rows(data: Measurements) -> None:
     if len(both):
         raise DataFileError("a row touches a point and a plane: give one", file=data.path, row=data.line(both[0]),
                             column="plane")
+    distance = data.get(DISTANCE)
+    if distance is not None:
+        has = np.isfinite(distance)
+        bad = np.flatnonzero(has & ~point)
+        if len(bad):
+            raise DataFileError("distance_mm without a point: a distance is measured from a pivot, named in point",
+                                file=data.path, row=data.line(bad[0]), column=DISTANCE)
+        bad = np.flatnonzero(has & (distance <= 0))
+        if len(bad):
+            raise DataFileError(f"distance {distance[bad[0]]:g} mm is not a length", file=data.path,
+                                row=data.line(bad[0]), column=DISTANCE)
     if data.has_positions:
         xyz = np.column_stack([data.columns[c] for c in XYZ])
         measured = np.isfinite(xyz).any(axis=1)
@@ -628,17 +639,6 @@ def check_touch_rows(data: Measurements) -> None:
         i = int(np.flatnonzero(~touching)[0])
         raise DataFileError("a row touches nothing (point and plane empty) and the file has no x_mm, y_mm, z_mm",
                             file=data.path, row=data.line(i), column="point")
-    distance = data.get(DISTANCE)
-    if distance is not None:
-        has = np.isfinite(distance)
-        bad = np.flatnonzero(has & ~point)
-        if len(bad):
-            raise DataFileError("distance_mm without a point: a distance is measured from a pivot, named in point",
-                                file=data.path, row=data.line(bad[0]), column=DISTANCE)
-        bad = np.flatnonzero(has & (distance <= 0))
-        if len(bad):
-            raise DataFileError(f"distance {distance[bad[0]]:g} mm is not a length", file=data.path,
-                                row=data.line(bad[0]), column=DISTANCE)
     sessions = data.sessions if data.sessions is not None else np.full(len(data), "", dtype=object)
     for column, mask in (("point", point), ("plane", plane)):
         names = data.columns[column] if column in data.columns else None

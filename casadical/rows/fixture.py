@@ -131,6 +131,11 @@ class FixturePoints(RowKind):
     words = "the tool point in a socket of a fixture of known geometry"
     unknowns = 6
 
+    def rank(self, group) -> int:
+        """6; 5 when the points touched lie on one line (the turn about it is free)."""
+        x = np.array([group.fixture.points[p] for p in dict.fromkeys(group.point_names.tolist())])
+        return 6 if np.linalg.matrix_rank(x - x[0], tol=1e-9) >= 2 else 5
+
     def fit(self, P: np.ndarray, group):
         names = group.point_names
         means = np.array([P[names == p].mean(axis=0) for p in group.fixture.points if np.any(names == p)])

@@ -28,9 +28,10 @@ class RowKind:
 
     A kind that measures positions (the tracker) has no unknown of its own; a touch kind has, per group (its
     rows of one session that touch the same thing): :attr:`unknowns` numbers, fitted by :meth:`fit` to the
-    rows' model points ``P`` (n, 3); :meth:`residual` gives each row's 3-vector from them, and :meth:`basis` the
-    derivative of the stacked residual with respect to the unknowns (3n, :attr:`unknowns`), which the Jacobian
-    is projected away from.
+    rows' model points ``P`` (n, 3); :meth:`residual` gives each row's 3-vector from them, :meth:`row_map` how a
+    change of a model point moves it, and :meth:`basis` the derivative of the stacked residual with respect to
+    the unknowns (3n, :attr:`unknowns`), which the Jacobian is projected away from
+    (:class:`~casadical.rows.layout.Projection`).
     """
 
     #: the kind's name: the column that makes a row of it (``point``, ``plane``), or ``tracker``
@@ -39,8 +40,14 @@ class RowKind:
     words: ClassVar[str] = ""
     #: the unknowns of one group of its rows (3: a point; 3: a plane's normal and offset; 6: a fixture's pose)
     unknowns: ClassVar[int] = 0
+    #: the independent equations one row gives (3: a point; 1: a distance, a distance from a plane)
+    per_row: ClassVar[int] = 3
     #: the fewest rows a group needs to fix its unknowns with room left to check the robot
     min_rows: ClassVar[int] = 4
+
+    def rank(self, group) -> int:
+        """How many of the group's unknowns its rows fix (its equations used up)."""
+        return self.unknowns
 
     def fit(self, P: np.ndarray, group) -> object:
         """The group's unknowns fitted to its rows' model points ``P`` (n, 3)."""
@@ -57,20 +64,6 @@ class RowKind:
     def basis(self, P: np.ndarray, fitted, group) -> np.ndarray:
         """d (stacked residual) / d (unknowns), (3n, :attr:`unknowns`)."""
         raise NotImplementedError
-
-    def project(self, P: np.ndarray, J: np.ndarray | None, group) -> tuple[np.ndarray, np.ndarray | None, object]:
-        """The group's residuals (n, 3), their Jacobian (n, 3, p) projected away from the unknowns (Kaufman's
-        variable projection), and the fitted unknowns."""
-        fitted = self.fit(P, group)
-        r = self.residual(P, fitted, group)
-        if J is None:
-            return r, None, fitted
-        M = self.row_map(P, fitted, group)
-        Jr = J if M is None else np.einsum("nij,njp->nip", M, J)
-        A = self.basis(P, fitted, group)
-        flat = Jr.reshape(-1, Jr.shape[2])
-        coef, *_ = np.linalg.lstsq(A, flat, rcond=None)
-        return r, (flat - A @ coef).reshape(Jr.shape), fitted
 
     def __repr__(self) -> str:
         return f"<row kind {self.name}>"

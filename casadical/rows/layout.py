@@ -71,41 +71,28 @@ class Layout:
         """Something measures a length: tracker rows, a pivot's distances, or a fixture's points."""
         return any(g.kind in (TRACKER_POINT, PIVOT_DISTANCE, FIXTURE_POINTS) for g in self.groups)
 
+    @property
+    def equations(self) -> int:
+        """The independent equations the rows give: each row's (3 for a point, 1 for a distance or a distance from
+        a plane) less each group's unknowns (:meth:`~.kind.RowKind.rank`) and, for touches alone, the whole
+        robot's turn."""
+        n = sum(g.kind.per_row * len(g.rows) - g.kind.rank(g) for g in self.groups)
+        return n - (3 if self.touches and not self.tracked.any() else 0)
+
     def residuals(self, P: np.ndarray) -> np.ndarray:
         """Every row's residual (n, 3, m) from the model's points ``P`` (n, 3)."""
-        return self.project(P, None)[0]
+        return self.projection(P).r
 
     def project(self, P: np.ndarray, J: np.ndarray | None) -> tuple[np.ndarray, np.ndarray | None]:
-        """Every row's residual and, with ``J`` (n, 3, p), its Jacobian projected away from the unknowns.
+        """Every row's residual and, with ``J`` (n, 3, p), its Jacobian projected away from the unknowns
+        (:class:`Projection`)."""
+        proj = self.projection(P, gauge=J is not None)
+        return proj.r, None if J is None else proj(J)
 
-        Rows that all touch (no measured row) see the robot against nothing: a turn of the whole robot turns
-        every residual and changes no distance (the world's frame is not seen: the base pose, and the
-        parameters that only turn the whole robot). The Jacobian is projected away from that turn too, jointly
-        with the groups' unknowns (the turn's columns at each row ``e x r``, projected as the Jacobian is)."""
-        r = self._each(P, None)[0]
-        if J is None:
-            return r, None
-        gauge = not self.tracked.any()
-        p = J.shape[2]
-        if gauge:
-            J = np.concatenate([J, np.stack([np.cross(e, r) for e in np.eye(3)], axis=2)], axis=2)
-        Jp = self._each(P, J)[1]
-        if gauge:
-            flat = Jp.reshape(-1, p + 3)
-            G = flat[:, p:]
-            coef, *_ = np.linalg.lstsq(G, flat[:, :p], rcond=None)
-            Jp = (flat[:, :p] - G @ coef).reshape(self.n, 3, p)
-        return r, Jp
-
-    def _each(self, P, J):
-        r = np.empty((self.n, 3))
-        Jp = None if J is None else np.empty_like(J)
-        for g in self.groups:
-            rg, Jg, _ = g.kind.project(P[g.rows], None if J is None else J[g.rows], g)
-            r[g.rows] = rg
-            if Jp is not None:
-                Jp[g.rows] = Jg
-        return r, Jp
+    def projection(self, P: np.ndarray, gauge: bool = True) -> "Projection":
+        """The rows' residuals at the model's points ``P`` and the projection of any columns there
+        (:class:`Projection`); ``gauge=False``: without the whole robot's turn (the residuals need none)."""
+        return Projection(self, P, gauge)
 
     def fitted(self, P: np.ndarray) -> list[tuple[Group, object]]:
         """Each touch group with its unknowns fitted to the model's points ``P``."""
@@ -116,6 +103,68 @@ class Layout:
         it keeps)."""
         keep = np.asarray(keep, bool)
         return Layout(int(keep.sum()), [h for g in self.groups if (h := g.subset(keep)) is not None])
+
+
+class Projection:
+    """A layout's residuals at the model's points ``P``, and the projection of columns (n, 3, p) there.
+
+    Each group's unknowns are fitted once; a column is projected away from what they can take (Kaufman's
+    variable projection, :mod:`.kind`), so that ``r + project(J) d`` is the residual after a small change ``d``
+    of the robot's parameters with every group's unknowns fitted again. Rows that all touch (no measured row) see
+    the robot against nothing: a turn of the whole robot turns every residual and changes no distance (the
+    world's frame is not seen: the base pose, and the parameters that only turn the whole robot); the columns are
+    projected away from that turn too, jointly with the groups' unknowns (the turn's columns at each row
+    ``e x r``, projected as the columns are). Linear in the columns: projecting them one by one or together is
+    the same.
+
+    Attributes
+    ----------
+    r : ndarray (n, 3)
+        Every row's residual (m).
+    """
+
+    def __init__(self, layout: Layout, P: np.ndarray, gauge: bool = True):
+        self.layout = layout
+        self.r = np.empty((layout.n, 3))
+        self._groups = []
+        for g in layout.groups:
+            if g.kind.unknowns == 0:
+                self.r[g.rows] = g.kind.residual(P[g.rows], None, g)
+                continue
+            fitted = g.kind.fit(P[g.rows], g)
+            self.r[g.rows] = g.kind.residual(P[g.rows], fitted, g)
+            A = g.kind.basis(P[g.rows], fitted, g)
+            M = g.kind.row_map(P[g.rows], fitted, g)
+            U, sv, _ = np.linalg.svd(A, full_matrices=False)
+            U = U[:, sv > 1e-9 * max(sv.max(initial=0.0), 1e-300)]
+            self._groups.append((g, M, U))
+        self._G = None
+        if gauge and not layout.tracked.any():
+            G = self._groups_only(np.stack([np.cross(e, self.r) for e in np.eye(3)], axis=2)).reshape(-1, 3)
+            U, sv, _ = np.linalg.svd(G, full_matrices=False)
+            self._G = U[:, sv > 1e-9 * max(sv.max(initial=0.0), 1e-300)]
+
+    def _groups_only(self, J: np.ndarray) -> np.ndarray:
+        out = J.copy()
+        for g, M, U in self._groups:
+            Jg = J[g.rows] if M is None else np.einsum("nij,njp->nip", M, J[g.rows])
+            flat = Jg.reshape(-1, J.shape[2])
+            out[g.rows] = (flat - U @ (U.T @ flat)).reshape(Jg.shape)
+        return out
+
+    def __call__(self, J: np.ndarray) -> np.ndarray:
+        """The columns ``J`` (n, 3, p) projected (a column (n, 3) alone: the same shape back)."""
+        if not self._groups and self._G is None:
+            return J        # tracker rows alone: nothing to project
+        one = J.ndim == 2
+        J = J[:, :, None] if one else J
+        if J.shape[2] == 0:
+            return J.copy()
+        out = self._groups_only(J)
+        if self._G is not None:
+            flat = out.reshape(-1, J.shape[2])
+            out = (flat - self._G @ (self._G.T @ flat)).reshape(J.shape)
+        return out[:, :, 0] if one else out
 
 
 def layout(data) -> Layout:

@@ -20,6 +20,7 @@ class PivotDistance(RowKind):
     name = "pivot"
     words = "the distance from a fixed pivot nobody measured to the tool point (a draw-wire sensor, a ballbar)"
     unknowns = 3
+    per_row = 1
 
     def fit(self, P: np.ndarray, group) -> np.ndarray:
         d = group.distance

@@ -16,6 +16,7 @@ class TouchedPlane(RowKind):
     name = "plane"
     words = "the tool point on a face (a fixed plane nobody measured)"
     unknowns = 3
+    per_row = 1
 
     def fit(self, P: np.ndarray, group) -> tuple[np.ndarray, np.ndarray]:
         c = P.mean(axis=0)

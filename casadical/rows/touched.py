@@ -26,9 +26,5 @@ class TouchedPoint(RowKind):
     def basis(self, P: np.ndarray, fitted, group) -> np.ndarray:
         return -np.tile(np.eye(3), (len(P), 1))
 
-    def project(self, P, J, group):
-        c = P.mean(axis=0)
-        return P - c, None if J is None else J - J.mean(axis=0), c
-
 
 TOUCHED_POINT = register_row_kind(TouchedPoint())

@@ -14,8 +14,11 @@ class TrackerPoint(RowKind):
     unknowns = 0
     min_rows = 1
 
-    def project(self, P, J, group):
-        return P - group.xyz, J, None
+    def fit(self, P, group):
+        return None
+
+    def residual(self, P, fitted, group):
+        return P - group.xyz
 
 
 TRACKER_POINT = register_row_kind(TrackerPoint())
