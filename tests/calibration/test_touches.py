@@ -11,10 +11,9 @@ import pytest
 
 from casadical import calibrate
 from casadical.cli import main
-from casadical.data import Measurements
 from tests.helpers import hidden
-from tests.truth import Arm, Effects, Session, TrueRobot
-from tests.truth import touch
+from tests.helpers.arms import ARM4, to_toml
+from tests.truth import Arm, Effects, Session, TrueRobot, measure, sample, touch
 
 
 def _case(robot="arm7-dh", seed=0):
@@ -29,7 +28,8 @@ def test_touches_alone_hold_and_say_the_base_pose_and_the_scale(seed):
         res = calibrate(rob, cal, "kinematic", "lm")
     said = {u["what"]: u for u in res.unobservable}
     assert set(said) == {"the base pose", "the scale of every length"}
-    assert {"base_x", "base_y", "base_z", "base_roll", "base_pitch", "base_yaw"} <= set(said["the base pose"]["parameters"])
+    base = set(said["the base pose"]["parameters"])
+    assert {"base_x", "base_y", "base_z", "base_roll", "base_pitch", "base_yaw"} <= base
     for name in said["the base pose"]["parameters"] + said["the scale of every length"]["parameters"]:
         p = res.parameters[name]
         assert p.fixed and p.value == p.nominal, name
@@ -59,8 +59,7 @@ def test_a_fixture_identifies_the_scale_the_free_sockets_cannot(seed):
     scale = next(u for u in free.unobservable if u["what"] == "the scale of every length")
     (name,) = scale["parameters"]
     p = res.parameters[name]
-    truth = 1.002 * (p.nominal)          # the nominal length, grown 0.2 % (plus the truth's draw, < 2 mm)
-    assert not p.fixed and abs(p.value - truth) < 2e-3
+    assert not p.fixed
     assert abs(p.value - true_value(true, name)) < max(4 * p.std, 20e-6), (p.value, true_value(true, name), p.std)
     assert res.stats(val).touch["distance_error_mm"] < 0.02
     assert free.parameters[name].fixed
@@ -77,13 +76,12 @@ def test_tracker_and_touch_rows_fit_together(tmp_path):
     doc = hidden.robot_doc("arm7-dh")
     rng = np.random.default_rng(7)
     true = TrueRobot.draw(Arm.from_dict(doc), Effects(), rng)
-    from tests.truth import measure, sample
     shots = measure(true, sample(true, 40, rng), rng, session=Session("T"))
     rows = touch.fixture_session(true, touch.two_sockets(), 20, rng, Session("S"), contact_noise=20e-6)
     a = shots.write_csv(tmp_path / "tracker.csv")
     b = rows.write_csv(tmp_path / "touch.csv")
     (tmp_path / "fx.toml").write_text(touch.fixture_toml([touch.two_sockets()]))
-    (tmp_path / "robot.toml").write_text(__import__("tests.helpers.arms", fromlist=["to_toml"]).to_toml(doc))
+    (tmp_path / "robot.toml").write_text(to_toml(doc))
     code = main(["calibrate", str(tmp_path / "robot.toml"), str(a), str(b), "--model", "kinematic", "--fixture",
                  str(tmp_path / "fx.toml"), "--out", str(tmp_path / "cal.json"), "--quiet"])
     assert code == 0
@@ -108,7 +106,7 @@ def test_bad_touch_rows_get_one_line_naming_file_row_and_column(text, row, colum
     path = tmp_path / "bad.csv"
     path.write_text(text)
     out = tmp_path / "cal.json"
-    code = main(["calibrate", "arm4" if False else _robot_file(tmp_path), str(path), "--model", "kinematic",
+    code = main(["calibrate", _robot_file(tmp_path), str(path), "--model", "kinematic",
                  "--out", str(out)])
     err = capsys.readouterr().err.strip().splitlines()
     assert code != 0 and not out.exists()
@@ -117,7 +115,6 @@ def test_bad_touch_rows_get_one_line_naming_file_row_and_column(text, row, colum
 
 
 def _robot_file(tmp_path) -> str:
-    from tests.helpers.arms import ARM4, to_toml
     p = tmp_path / "arm4.toml"
     p.write_text(to_toml(ARM4))
     return str(p)
