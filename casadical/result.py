@@ -81,7 +81,7 @@ class ErrorStats:
 
     def touch_words(self) -> str:
         """:attr:`touch` in words: ``consistency 0.0304 mm, distance error 0.0050 mm``."""
-        return ", ".join(f"{k.removesuffix('_mm').replace('_', ' ')} {v:.4f} mm" for k, v in self.touch.items())
+        return ", ".join(f"{TOUCH_WORDS[k]} {v:.4f} mm" for k, v in self.touch.items())
 
 
 @dataclass
@@ -567,6 +567,10 @@ class CalibrationResult:
     def save(self, path: str | Path, overwrite: bool = False) -> None:
         atomic_write(path, json.dumps(self.to_dict(), indent=1, allow_nan=False, default=_json_default),
                      overwrite=overwrite)
+
+
+#: the statistics of rows that touch (:func:`touch_stats`) in words
+TOUCH_WORDS = {"consistency_mm": "consistency", "distance_error_mm": "distance error"}
 
 
 def touch_stats(layout, P: np.ndarray) -> dict:
