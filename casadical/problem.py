@@ -31,6 +31,7 @@ from .data.measurements import Measurements
 from .errors import CasadicalError
 from .model.symbolic import Model
 from .parameters import Parameters
+from .rows import Layout
 from .runtime.chunks import pose_chunks
 from .stats.identifiability import triangular_factor
 
@@ -165,6 +166,10 @@ class CalibrationProblem:
         reference mounting R0 (the model's :meth:`~casadical.model.symbolic.Model.probe_rotation`
         is compared with them); the loss then weighs both parts by
         ``loss.rot_weight``. None: positions only.
+    layout : Layout or None
+        Rows that say what the tool point touched (:mod:`casadical.rows`): each row's residual is made from the
+        model's points of its group (the touched point fitted to them), the Jacobian projected away from the
+        groups' unknowns. None: every row measured (``xyz``), as before.
     """
 
     model: Model
@@ -175,15 +180,16 @@ class CalibrationProblem:
     base0: np.ndarray
     loss: RobustLoss = field(default_factory=RobustLoss)
     rot: np.ndarray | None = None
+    layout: Layout | None = None
     _memo: tuple | None = field(default=None, init=False, repr=False, compare=False)
     _last: tuple | None = field(default=None, init=False, repr=False, compare=False)
 
     @classmethod
     def from_data(cls, model: Model, data: Measurements, params: Parameters | None = None,
                   base0: np.ndarray | None = None, loss: RobustLoss | None = None) -> "CalibrationProblem":
-        return cls(model, (params or model.parameters).copy(), data.q, data.xyz,
+        return cls(model, (params or model.parameters).copy(), data.q, measured_points(data),
                    model.covariates(data), model.base0_nominal() if base0 is None else base0,
-                   loss or RobustLoss())
+                   loss or RobustLoss(), layout=data.layout if data.touches else None)
 
     @property
     def n_poses(self) -> int:
@@ -214,6 +220,8 @@ class CalibrationProblem:
 
     def residuals(self, values: np.ndarray) -> np.ndarray:
         """Stacked residuals (m), shape (3N,)."""
+        if self.layout is not None:
+            return self.layout.residuals(self.model.predict(self.q, values, self.cov, self.base0)).ravel()
         out = np.empty((self.n_poses, 3))
         for s in pose_chunks(self.n_poses):
             out[s] = self.model.predict(self.q[s], values, self.cov[s], self.base0) - self.xyz[s]
@@ -228,6 +236,12 @@ class CalibrationProblem:
     def equations_per_pose(self) -> int:
         return 6 if self.full_pose else 3
 
+    @property
+    def equations(self) -> int:
+        """The independent equations of the loss: ``equations_per_pose`` a pose; rows that touch, their
+        layout's (:attr:`casadical.rows.Layout.equations`)."""
+        return self.layout.equations if self.layout is not None else self.equations_per_pose * self.n_poses
+
     def residual_norms(self, values: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
         """Position residual norms (m) and, for full pose, orientation residual norms (rad), per pose."""
         if not self.full_pose:
@@ -241,6 +255,9 @@ class CalibrationProblem:
     def cost(self, values: np.ndarray) -> float:
         """The loss at ``values`` (m^2) without the Jacobian: :attr:`Linearization.cost`, to the bit (the same
         residuals, each pose's ``u2`` formed as :meth:`linearize` forms it, one sum over every pose)."""
+        if self.layout is not None:
+            r = self.residuals(values).reshape(-1, 3)
+            return float(self.loss.rho(np.einsum("ij,ij->i", r, r)).sum())
         u2 = np.empty(self.n_poses)
         for s in pose_chunks(self.n_poses):
             if self.full_pose:
@@ -259,6 +276,9 @@ class CalibrationProblem:
         3-5 are the orientation's times ``loss.rot_weight``.
         """
         if not self.full_pose:
+            if self.layout is not None:     # every row at once: a group's rows make each one's residual
+                r, J = self.layout.project(*self.model_jacobian(values, slice(0, self.n_poses)))
+                return r[s], J[s], None
             xyz, J = self.model_jacobian(values, s)
             return xyz - self.xyz[s], J, None
         k = self.loss.rot_weight
@@ -311,6 +331,8 @@ class CalibrationProblem:
     def _linearize(self, values: np.ndarray) -> Linearization:
         if self.full_pose:
             return self._linearize_pose(values)
+        if self.layout is not None:
+            return self._linearize_touch(values)
         f = self.free
         scale = self.params.scales[f]
         nf = len(f)
@@ -335,6 +357,24 @@ class CalibrationProblem:
                 # stays positive semi-definite, w^3 along r_i, and LM converges as fast as for least squares
                 A -= self.loss.delta * (v * (w ** 3)[:, None]).T @ v
         return Linearization(r_all, w_all, float(self.loss.rho(u2_all).sum()), A, g, None, u2_all)
+
+    def _linearize_touch(self, values: np.ndarray) -> Linearization:
+        """:meth:`linearize` of rows some of which say what they touched: every row at once (a group's unknowns
+        are fitted to all its rows), the Jacobian projected away from them (:meth:`Layout.project`)."""
+        f = self.free
+        scale = self.params.scales[f]
+        nf = len(f)
+        xyz, J = self.model_jacobian(values, slice(0, self.n_poses))
+        r, Jp = self.layout.project(xyz, J[:, :, f])
+        Jx = Jp * scale
+        u2 = np.einsum("ij,ij->i", r, r)
+        w = self.loss.weight(u2)
+        Jw2 = (Jx * np.sqrt(w)[:, None, None]).reshape(-1, nf) if nf else np.zeros((3 * len(r), 0))
+        v = np.einsum("nkp,nk->np", Jx, r)
+        A = Jw2.T @ Jw2
+        if self.loss.delta:
+            A -= self.loss.delta * (v * (w ** 3)[:, None]).T @ v
+        return Linearization(r, w, float(self.loss.rho(u2).sum()), A, v.T @ w, None, u2)
 
     def _linearize_pose(self, values: np.ndarray) -> Linearization:
         """:meth:`linearize` of the full-pose loss: each pose's 6-vector (r_p, k r_o)."""
@@ -367,6 +407,9 @@ class CalibrationProblem:
         """
         xyz, J = self.model.predict_jacobian(self.q, values, self.cov, self.base0)
         f = self.free
+        if self.layout is not None:
+            r, Jp = self.layout.project(xyz, J[:, :, f])
+            return r.ravel(), Jp.reshape(-1, len(f)) * self.params.scales[f]
         return (xyz - self.xyz).ravel(), J[:, :, f].reshape(-1, len(f)) * self.params.scales[f]
 
 
@@ -376,19 +419,32 @@ ROT_WEIGHT_PRIOR = 1.0
 
 
 def jacobian_factor(model: Model, q: np.ndarray, values: np.ndarray, cov: np.ndarray,
-                    base0: np.ndarray, rot: np.ndarray | None = None, rot_weight: float = ROT_WEIGHT_PRIOR
-                    ) -> np.ndarray:
+                    base0: np.ndarray, rot: np.ndarray | None = None, rot_weight: float = ROT_WEIGHT_PRIOR,
+                    layout: Layout | None = None) -> np.ndarray:
     """Triangular factor ``R`` (P x P) with ``R^T R = J^T J`` of the full identification Jacobian.
 
     Computed chunk by chunk (a tall-skinny QR), so that any number of poses
     fits in memory; column inner products, hence every identifiability
     question, are those of ``J``. With ``rot`` (full pose, as
     :attr:`CalibrationProblem.rot`) ``J`` also has the orientation rows,
-    times ``rot_weight`` (m/rad).
+    times ``rot_weight`` (m/rad). With ``layout`` (rows that say what they touched) ``J`` is projected away from
+    the touched things' unknowns, all rows at once.
     """
+    if layout is not None:
+        P, J = model.predict_jacobian(q, values, cov, base0)
+        return triangular_factor([layout.project(P, J)[1]], len(values))
     if rot is None:
         blocks = (model.predict_jacobian(q[s], values, cov[s], base0)[1] for s in pose_chunks(len(q)))
     else:
         blocks = (np.concatenate([J, rot_weight * Jo], axis=1) for J, Jo in
                   (model.pose_jacobian(q[s], rot[s], values, cov[s], base0)[1::2] for s in pose_chunks(len(q))))
     return triangular_factor(blocks, len(values))
+
+
+def measured_points(data: Measurements) -> np.ndarray:
+    """The measured points of ``data`` (m, (N, 3)): NaN at rows that say what they touched, all NaN where no row
+    was measured."""
+    if data.has_positions:
+        return data.xyz
+    return np.full((len(data), 3), np.nan)
+

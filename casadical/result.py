@@ -51,20 +51,37 @@ class ErrorStats:
     max_mm: float
     std_mm: float
     rms_mm: float
+    #: of rows that say what they touched (docs/formats.md section 11): ``consistency_mm`` (their mean distance from
+    #: what they touched, fitted to them) and, where a fixture is given, ``distance_error_mm``
+    touch: dict = field(default_factory=dict)
 
     @classmethod
-    def of(cls, errors_m: np.ndarray) -> "ErrorStats":
+    def of(cls, errors_m: np.ndarray, touch: dict | None = None) -> "ErrorStats":
         e = np.asarray(errors_m) * 1000.0
-        return cls(len(e), float(e.mean()), float(e.max()), float(e.std()), float(np.sqrt((e ** 2).mean())))
+        return cls(len(e), float(e.mean()), float(e.max()), float(e.std()), float(np.sqrt((e ** 2).mean())),
+                   dict(touch or {}))
 
     def to_dict(self, n_poses: bool = True) -> dict:
-        """The statistics (mm), with the number of poses unless ``n_poses`` is False."""
-        d = {"mean_mm": self.mean_mm, "max_mm": self.max_mm, "std_mm": self.std_mm, "rms_mm": self.rms_mm}
+        """The statistics (mm), with the number of poses unless ``n_poses`` is False (and, of rows that touch,
+        :attr:`touch`'s keys)."""
+        d = {"mean_mm": self.mean_mm, "max_mm": self.max_mm, "std_mm": self.std_mm, "rms_mm": self.rms_mm,
+             **self.touch}
         return {"n_poses": self.n_poses, **d} if n_poses else d
 
+    @classmethod
+    def from_dict(cls, d: dict) -> "ErrorStats":
+        """The statistics of a JSON block (:meth:`to_dict`)."""
+        fields = ("n_poses", "mean_mm", "max_mm", "std_mm", "rms_mm")
+        return cls(*(d[k] for k in fields), {k: d[k] for k in ("consistency_mm", "distance_error_mm") if k in d})
+
     def line(self) -> str:
+        touch = f", {self.touch_words()}" if self.touch else ""
         return (f"mean {self.mean_mm:.4f}  max {self.max_mm:.4f}  std {self.std_mm:.4f}  "
-                f"rms {self.rms_mm:.4f} mm over {self.n_poses} poses")
+                f"rms {self.rms_mm:.4f} mm over {self.n_poses} poses{touch}")
+
+    def touch_words(self) -> str:
+        """:attr:`touch` in words: ``consistency 0.0304 mm, distance error 0.0050 mm``."""
+        return ", ".join(f"{TOUCH_WORDS[k]} {v:.4f} mm" for k, v in self.touch.items())
 
 
 @dataclass
@@ -91,7 +108,7 @@ class Validation:
 
     @classmethod
     def from_dict(cls, d: dict) -> "Validation":
-        return cls(str(d.get("file", "")), ErrorStats(**{k: d[k] for k in ErrorStats.__dataclass_fields__}))
+        return cls(str(d.get("file", "")), ErrorStats.from_dict(d))
 
 
 @dataclass
@@ -191,6 +208,11 @@ class CalibrationResult:
     tool0: np.ndarray | None = None
     orientation: AngleStats | None = None
     full_pose: bool = False
+    #: the frame its points are in: ``measurement`` (the instrument's, each session's), or ``base`` (the robot's base
+    #: frame: calibrated from touches alone, nothing measured the robot against the world)
+    frame: str = "measurement"
+    #: what its data could not see ({"what", "why", "parameters"}: touches' base pose, scale)
+    unobservable: list = field(default_factory=list)
 
     # --- using the model ------------------------------------------------------
 
@@ -232,14 +254,20 @@ class CalibrationResult:
         return self.model.predict(data.q, self.parameters.values, self.model.covariates(data), self.base0)
 
     def errors(self, data: Measurements) -> np.ndarray:
-        """Position error norm per pose (m)."""
-        return np.linalg.norm(self.predict(data) - data.xyz, axis=1)
+        """Position error norm per pose (m): a touch row's, its distance from what it touched (fitted to the
+        rows of its session that touch it)."""
+        return np.linalg.norm(self.residuals(data), axis=1)
 
     def residuals(self, data: Measurements) -> np.ndarray:
-        """Measured minus predicted (m, (N, 3))."""
+        """Measured minus predicted (m, (N, 3)); a touch row's, what it touched (fitted) minus its model point."""
+        if data.touches:
+            return -data.layout.residuals(self.predict(data))
         return data.xyz - self.predict(data)
 
     def stats(self, data: Measurements) -> ErrorStats:
+        if data.touches:
+            P = self.predict(data)
+            return ErrorStats.of(np.linalg.norm(data.layout.residuals(P), axis=1), touch_stats(data.layout, P))
         return ErrorStats.of(self.errors(data))
 
     @property
@@ -374,16 +402,17 @@ class CalibrationResult:
         DataFileError
             Naming the validation file (and row and column) and the override.
         """
-        if not data.has_positions:
-            raise InputError("has no measured positions (x_mm, y_mm, z_mm): validation poses need them",
-                             file=data.path)
+        if not data.measured:
+            raise InputError("has no measured positions (x_mm, y_mm, z_mm) nor rows that touch (point, plane): "
+                             "validation poses need them", file=data.path)
         xyz = self.predict(data)
         check_poses(data, self.model.robot, predicted=xyz, allow_outside_limits=allow_outside_limits,
                     angles_are_degrees=angles_are_degrees, positions_are_mm=positions_are_mm)
-        errors = np.linalg.norm(xyz - data.xyz, axis=1)
+        stats = self.stats(data)
+        errors = self.errors(data)
         check_calibration_fits(errors, data, name or f"of {self.model.robot.name}",
                                self.calibration.mean_mm if self.calibration else None, allow_mismatch)
-        self.validation = Validation(data.path, ErrorStats.of(errors))
+        self.validation = Validation(data.path, stats)
         if self.has_orientation and data.has_orientation:
             self.validation.orientation = self.orientation_stats(data)
         return self.validation.stats
@@ -404,6 +433,11 @@ class CalibrationResult:
             lines.append(f"residual sigma {self.uncertainty.sigma * 1000:.4f} mm per axis, "
                          f"{self.uncertainty.dof} degrees of freedom")
         lines += self.base_lines()
+        lines += [f"not seen by these data: {u['what']} ({u['why']}): {', '.join(u['parameters'])} held"
+                  for u in self.unobservable]
+        if self.frame == "base":
+            lines.append("frame: the robot's base frame (touches alone: predict and compensate read and write "
+                         "points in it)")
         tests = self.significance()
         lines += ["", "identified parameters (angles in deg, lengths in mm; t = deviation/std, significant at "
                       f"{100 * LEVEL:g} % when |t| > {t_critical(LEVEL, self._dof()):.3g}; rel.std = std/|deviation|):",
@@ -484,6 +518,10 @@ class CalibrationResult:
                        "sigma_mm": self.loss.sigma * 1000 if self.loss.robust else None,
                        "downweighted": self.downweighted},
         }
+        if self.frame != "measurement":
+            doc["frame"] = self.frame
+        if self.unobservable:
+            doc["unobservable"] = self.unobservable
         users = list(self.model.user_definitions)
         if users:   # the definitions of the user terms: predict, compensate, export need no terms file
             doc["user_terms"] = [d.to_dict() for d in users]
@@ -529,6 +567,34 @@ class CalibrationResult:
     def save(self, path: str | Path, overwrite: bool = False) -> None:
         atomic_write(path, json.dumps(self.to_dict(), indent=1, allow_nan=False, default=_json_default),
                      overwrite=overwrite)
+
+
+#: the statistics of rows that touch (:func:`touch_stats`) in words
+TOUCH_WORDS = {"consistency_mm": "consistency", "distance_error_mm": "distance error"}
+
+
+def touch_stats(layout, P: np.ndarray) -> dict:
+    """What rows that touch say (docs/formats.md section 11): ``consistency_mm``, their mean distance from what
+    they touched (fitted to them); ``distance_error_mm``, where a fixture is given, the mean absolute error of its
+    known distances between its points fitted each to its own rows."""
+    if not layout.touches:
+        return {}
+    r = np.linalg.norm(layout.residuals(P), axis=1)
+    errors = []
+    for g, _ in layout.fitted(P):
+        if g.fixture is None:
+            continue
+        rows = P[g.rows]
+        means = {p: rows[g.point_names == p].mean(axis=0) for p in g.fixture.points if np.any(g.point_names == p)}
+        # consistency: each of the fixture's points fitted to its own rows (its known geometry judged apart)
+        for p, m in means.items():
+            r[g.rows[g.point_names == p]] = np.linalg.norm(rows[g.point_names == p] - m, axis=1)
+        errors += [abs(float(np.linalg.norm(means[a] - means[b])) - d) for (a, b), d in g.fixture.distances().items()
+                   if a in means and b in means]
+    out = {"consistency_mm": float(r[~layout.tracked].mean() * 1000.0)}
+    if errors:
+        out["distance_error_mm"] = float(np.mean(errors) * 1000.0)
+    return out
 
 
 def rebuilt(result: CalibrationResult, model: Model, data: Measurements, note: str) -> CalibrationResult:
@@ -654,12 +720,14 @@ def load_calibration(path: str | Path, terms=()) -> CalibrationResult:
         raise CalibrationFileError(f"not a calibration JSON written by casadical ({e})", file=path) from e
     model.parameters = params
     cal = doc.get("calibration")
-    by_session = {e["name"]: ErrorStats(**e["calibration"]) for e in doc.get("sessions") or [] if e.get("calibration")}
+    by_session = {e["name"]: ErrorStats.from_dict(e["calibration"]) for e in doc.get("sessions") or []
+                  if e.get("calibration")}
     extra["uncertainty"] = _uncertainty_of(doc, params)
-    return CalibrationResult(model, params, base0, calibration=ErrorStats(**cal) if cal else None,
+    return CalibrationResult(model, params, base0, calibration=ErrorStats.from_dict(cal) if cal else None,
                              notes=doc.get("notes", []), loss=loss, downweighted=rob.get("downweighted", []),
                              coverage=coverage, by_session=by_session, tool0=tool0, orientation=angles,
-                             full_pose=full_pose, **extra)
+                             full_pose=full_pose, frame=doc.get("frame", "measurement"),
+                             unobservable=list(doc.get("unobservable") or []), **extra)
 
 
 def _statistics_of(doc: dict) -> dict:

@@ -12,6 +12,7 @@ both (``tests/test_import_graph.py`` keeps it so).
 from __future__ import annotations
 
 import math
+import re
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -92,6 +93,9 @@ class Robot:
     base_xyz: np.ndarray = field(default_factory=lambda: np.zeros(3))
     base_rpy: np.ndarray = field(default_factory=lambda: np.zeros(3))
     tool: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    #: the nominal offsets of named tool points (``[tool.NAME]``, docs/formats.md section 11): a tool of several
+    #: points (reflector nests, balls); a point not named here has ``tool``'s
+    tools: dict = field(default_factory=dict)
     payload_mass: float = 0.0
     payload_com: np.ndarray = field(default_factory=lambda: np.zeros(3))
     gravity: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, -GRAVITY]))
@@ -308,9 +312,20 @@ def robot_from_dict(data: dict[str, Any], file: str = "<dict>") -> Robot:
         tab = data.get(tname, {})
         if not isinstance(tab, dict):
             raise RobotFileError("must be a table", file=file, column=tname)
-        v.keys(tab, allowed, tname)
+        # [tool.NAME] tables are named tool points (read below), not keys of the tool
+        v.keys({k: x for k, x in tab.items() if not (tname == "tool" and isinstance(x, dict))}, allowed, tname)
         tables[tname] = tab
     base, tool, payload, grav = (tables[k] for k in ("base", "tool", "payload", "gravity"))
+    tools = {}
+    for k, sub in tool.items():     # [tool.NAME]: a named tool point's own nominal offset
+        if isinstance(sub, dict):
+            where = f"tool.{k}"
+            if not re.fullmatch(r"[A-Za-z0-9_.-]+", k):
+                raise RobotFileError(f"a tool point's name is letters, digits, _ . -, got {k!r}", file=file,
+                                     column=where)
+            v.keys(sub, _TABLE_KEYS["tool"], where)
+            tools[k] = np.array([v.number(sub, c, where, default=float(v.number(tool, c, "tool", default=0.0)))
+                                 for c in ("a_m", "b_m", "d_m")])
     direction = v.vector(grav, "direction", "gravity", 3, default=np.array([0.0, 0.0, -1.0]))
     if not np.any(direction):
         raise RobotFileError("gravity direction must not be zero", file=file,
@@ -340,7 +355,7 @@ def robot_from_dict(data: dict[str, Any], file: str = "<dict>") -> Robot:
         name=name, joints=joints, convention=convention,
         base_xyz=v.vector(base, "xyz_m", "base", 3, default=np.zeros(3)),
         base_rpy=np.radians(v.vector(base, "rpy_deg", "base", 3, default=np.zeros(3))),
-        tool=np.array([v.number(tool, k, "tool", default=0.0) for k in ("a_m", "b_m", "d_m")]),
+        tool=np.array([v.number(tool, k, "tool", default=0.0) for k in ("a_m", "b_m", "d_m")]), tools=tools,
         payload_mass=pmass,
         payload_com=v.vector(payload, "com_m", "payload", 3, default=np.zeros(3)),
         gravity=GRAVITY * direction / norm, loop=loop, source=file)
@@ -465,7 +480,8 @@ def robot_to_dict(robot: Robot) -> dict[str, Any]:
         "base": {"xyz_m": [float(x) for x in robot.base_xyz],
                  "rpy_deg": [math.degrees(x) for x in robot.base_rpy]},
         "joint": joints,
-        "tool": {"a_m": float(robot.tool[0]), "b_m": float(robot.tool[1]), "d_m": float(robot.tool[2])},
+        "tool": {"a_m": float(robot.tool[0]), "b_m": float(robot.tool[1]), "d_m": float(robot.tool[2]),
+                 **{k: {"a_m": float(x[0]), "b_m": float(x[1]), "d_m": float(x[2])} for k, x in robot.tools.items()}},
         "payload": {"mass_kg": robot.payload_mass, "com_m": [float(x) for x in robot.payload_com]},
         "gravity": {"direction": [float(x) / g for x in robot.gravity]},
     }

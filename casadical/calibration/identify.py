@@ -17,6 +17,7 @@ from ..parameters import Parameters
 from ..problem import ROT_WEIGHT_PRIOR, jacobian_factor
 from ..stats.identifiability import analyse
 from .state import CalibrationRun
+from .unobservable import whole_robot
 
 _GENERIC: dict = {}
 
@@ -54,9 +55,9 @@ def analyse_identifiability(run: CalibrationRun) -> None:
     model, params, q, per_pose = run.model, run.params, run.data.q, run.per_pose
     generic = generic_identifiable(model, params, run.cov, full_pose=run.full_pose)
     needed = len(generic)
-    if per_pose * len(q) <= needed:
+    if run.equations <= needed:
         raise IdentifiabilityError(
-            f"{run.where}{len(q)} poses give {per_pose * len(q)} equations for the {needed} identifiable parameters "
+            f"{run.where}{len(q)} poses give {run.equations} equations for the {needed} identifiable parameters "
             f"of model {model.spec}: at least {needed // per_pose + 1} poses are needed, and 3-5 times that for "
             "a reliable fit")
     # structural question, at nominal values: at a perturbed start exact redundancies only look near-exact
@@ -64,8 +65,17 @@ def analyse_identifiability(run: CalibrationRun) -> None:
     if run.full_pose:   # the mounting's deviations have no nominal: at the reference R0
         for k in ("roll", "pitch", "yaw"):
             nominal[params.index(f"tool_{k}")] = params[f"tool_{k}"].value
-    R = jacobian_factor(model, q, nominal, run.cov, run.base0, run.rot)
-    ident = analyse(R, params, n_equations=per_pose * len(q))
+    if run.data.touches:    # what touches cannot see is fixed already (fix_unobservable): not asked of the poses
+        unseen = {n for u in run.unobservable for n in u["parameters"]}
+        generic = [n for n in generic if n not in unseen]
+        needed = len(generic)
+    R = jacobian_factor(model, q, nominal, run.cov, run.base0, run.rot,
+                        layout=run.data.layout if run.data.touches else None)
+    ident = analyse(R, params, n_equations=run.equations)
+    if run.data.touches and run.data.touching.all():      # touches alone: what moves the whole robot
+        moving = np.linalg.norm(jacobian_factor(model, q, nominal, run.cov, run.base0), axis=0) > 0
+        whole = whole_robot(ident, {n for n, m in zip(params.names, moving) if m}, run.unobservable)
+        generic = [n for n in generic if n not in whole]
     lost = [u for u in ident.unidentifiable if u.name in generic]
     if lost:
         names = ", ".join(f"{u.name} ({u.reason})" for u in lost[:6])

@@ -15,7 +15,7 @@ import numpy as np
 
 from ..data.measurements import session_index
 from ..errors import listing
-from ..result import CalibrationResult, ErrorStats
+from ..result import CalibrationResult, ErrorStats, touch_stats
 from ..stats import outliers as set_aside
 from ..stats.coverage import Coverage
 from ..stats.significance import FitStatistics
@@ -44,13 +44,14 @@ def note_set_aside(run: CalibrationRun) -> None:
                  f"{loss.sigma * 1000:.4f} mm and {math.degrees(loss.sigma_rot):.4f} deg")
         # bad measurements, or poses that share structure the model lacks (casadical.stats.outliers)
         shared = set_aside.of_model(run.model, run.params.values, run.base0, data, lin.weights < DOWNWEIGHT_REPORT,
-                                    run.cov)
+                                    run.cov) if not data.touches else None
         run.notes.append(f"the robust loss set aside {len(down)} pose(s) of {data.path} whose residual exceeds "
                          f"{math.sqrt(DOWNWEIGHT_REPORT ** -2 - 1) * run.loss.c:.1f} times the noise scale of "
                          f"{scale} (rows "
                          + listing([f"{d['file']}:{d['line']}" if "file" in d else d["line"] for d in down], 10)
-                         + "): " + shared.text() + ("; diagnose looks for its cause" if shared.structured else
-                                                    "; check them, or pass --robust none to fit them anyway"))
+                         + "): " + (shared.text() + "; diagnose looks for its cause" if shared is not None and
+                                    shared.structured else (shared.text() + "; " if shared is not None else "")
+                                    + "check them, or pass --robust none to fit them anyway"))
 
 
 def assemble_result(run: CalibrationRun) -> None:
@@ -59,10 +60,15 @@ def assemble_result(run: CalibrationRun) -> None:
     by_session = {s: ErrorStats.of(norms[idx]) for s, idx in session_index(data).items()} \
         if len(data.session_names) > 1 else {}
     coverage = Coverage.of(data.q_deg, units=run.model.robot.units)
+    touch = touch_stats(data.layout, run.model.predict(data.q, run.params.values, run.cov, run.base0)) \
+        if data.touches else {}
     result = CalibrationResult(run.model, run.params, run.base0, run.solution, run.solver_name, run.ident, unc,
-                               ErrorStats.of(norms), run.notes, run.problem.loss, run.down, coverage,
+                               ErrorStats.of(norms, touch), run.notes, run.problem.loss, run.down, coverage,
                                by_session=by_session, statistics=FitStatistics.of(unc),
                                tool0=run.tool0 if run.model.orientation else None)
+    result.unobservable = list(run.unobservable)
+    # touches alone: nothing measures the robot against the world; its points are in its base frame
+    result.frame = "base" if data.touches and data.touching.all() else "measurement"
     if result.has_orientation and data.has_orientation:
         result.orientation = result.orientation_stats(data)
     result.full_pose = run.full_pose

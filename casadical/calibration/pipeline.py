@@ -30,6 +30,7 @@ from .solve import solve_parameters
 from .spec import read_model_spec
 from .start import start_pose
 from .state import CalibrationRun, Options
+from .unobservable import fix_unobservable
 
 #: the stages of :func:`calibrate`, in order
 STAGES: tuple[Callable[[CalibrationRun], None], ...] = (
@@ -37,6 +38,7 @@ STAGES: tuple[Callable[[CalibrationRun], None], ...] = (
     read_model_spec,          # the terms asked for; compensators to fit after the model
     build_model,              # the model for these data (or the calibration's, taken further), the free set
     start_pose,               # base pose (each session's) and probe mounting in closed form; plausibility
+    fix_unobservable,         # touches: what they cannot see (a base pose, the scale), fixed and said
     analyse_identifiability,  # enough poses; fix what these poses cannot identify
     solve_parameters,         # the robust solve; free and re-solve what the fit tells apart
     estimate_precision,       # standard errors, correlations, significance

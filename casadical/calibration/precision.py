@@ -26,7 +26,7 @@ def estimate_precision(run: CalibrationRun) -> None:
     norms = np.linalg.norm(lin.r, axis=1)
     # full pose: the orientation rows count as equations, in position units (weighted by k)
     unc = from_normal(lin.A, float(lin.weights @ (lin.u2 if run.full_pose else norms ** 2)),
-                      run.per_pose * len(run.data), problem.scale, [params.names[i] for i in problem.free])
+                      run.equations, problem.scale, [params.names[i] for i in problem.free])
     for n, s in zip(unc.names, unc.std):
         params[n].std = float(s)
     for i in np.flatnonzero(~params.free):

@@ -27,6 +27,7 @@ def prepare_data(run: CalibrationRun) -> None:
         raise InputError(f"has {data.n_joints} joint columns but robot {robot.name} has {robot.n} joints",
                          file=data.path)
     run.loss = robust_loss(run.options.robust)
-    run.full_pose = data.has_orientation and not run.options.position_only
+    # a touch row has no orientation: data that touch are calibrated on the positions
+    run.full_pose = data.has_orientation and not run.options.position_only and not data.touches
     if run.full_pose:
         run.measured_rot = data.rotations   # all three columns, or an error naming the missing one

@@ -26,9 +26,9 @@ from dataclasses import fields, replace
 import numpy as np
 
 from ..errors import ConvergenceWarning, IdentifiabilityError, SolverError
-from ..problem import CalibrationProblem
+from ..problem import CalibrationProblem, measured_points
 from ..runtime.chunks import pose_chunks
-from ..solvers import Ipopt, make_solver
+from ..solvers import Ipopt, SolverResult, make_solver
 from ..solvers.ipopt import HANDOVER
 from ..stats.identifiability import Identifiability, triangular_factor
 from ..terms.geometric import Geometric
@@ -87,6 +87,8 @@ def _solve(problem: CalibrationProblem, x0: np.ndarray, solver: str, opts: dict,
 def subsample(problem: CalibrationProblem, n: int) -> CalibrationProblem:
     """The problem on every k-th pose (at least ``n`` poses): the same model, parameters and loss."""
     s = slice(0, problem.n_poses, max(problem.n_poses // n, 1))
+    if problem.layout is not None:      # touches: a group's rows make each one's residual; small data anyway
+        return problem
     return replace(problem, params=problem.params.copy(), q=problem.q[s], xyz=problem.xyz[s], cov=problem.cov[s],
                    rot=None if problem.rot is None else problem.rot[s])
 
@@ -181,7 +183,7 @@ def separated(problem: CalibrationProblem, values: np.ndarray, ident: Identifiab
             yield J[:, :, cols] * scale * np.sqrt(w)[:, None, None]
 
     R = triangular_factor(blocks(), len(cols))
-    sigma = math.sqrt(ssr[0] / max(problem.equations_per_pose * problem.n_poses - len(f), 1))
+    sigma = math.sqrt(ssr[0] / max(problem.equations - len(f), 1))
     out = []
     for j, name in enumerate(cands):
         perp = float(np.linalg.norm(R[len(f):, len(f) + j]))     # the column beyond the free columns' span
@@ -207,8 +209,8 @@ def _free_separated(run: CalibrationRun, problem: CalibrationProblem, res, name:
                      "these poses (std below a tenth of the typical size): identified; they stay strongly "
                      f"correlated with {', '.join(sorted({c for cs in partners.values() for c in cs}))}")
     first = res
-    problem = CalibrationProblem(run.model, params, run.data.q, run.data.xyz, run.cov, run.base0, problem.loss,
-                                 run.rot)
+    problem = CalibrationProblem(run.model, params, run.data.q, measured_points(run.data), run.cov, run.base0,
+                                 problem.loss, run.rot, problem.layout)
     res, name = solve_robust(problem, problem.x_from_values(params.values), run.options.solver,
                              run.options.solver_options, False, warm=problem.n_poses >= LARGE_POSES)
     res.solve_time_s += first.solve_time_s
@@ -220,7 +222,15 @@ def solve_parameters(run: CalibrationRun) -> None:
     """Sets ``problem``, ``solution``, ``solver_name``, ``expected`` and the parameters' values; raises when
     no parameter is free or the cost is not finite, notes a solve that did not converge."""
     params, loss, opts = run.params, run.loss, run.options
-    problem = CalibrationProblem(run.model, params, run.data.q, run.data.xyz, run.cov, run.base0, loss, run.rot)
+    problem = CalibrationProblem(run.model, params, run.data.q, measured_points(run.data), run.cov, run.base0, loss,
+                                 run.rot, run.data.layout if run.data.touches else None)
+    if len(problem.free) == 0 and run.data.touches:
+        # touches and the nominal model: its base pose is not seen, nothing is left to fit; judged as it is
+        if loss.robust and not math.isfinite(loss.sigma):
+            problem = replace(problem, loss=loss.with_sigma_from(problem.residual_norms(params.values)[0]))
+        run.problem, run.solver_name = problem, "none"
+        run.solution = SolverResult(np.zeros(0), problem.cost(params.values), True, "nothing to fit", 0, 0.0)
+        return
     if len(problem.free) == 0:
         raise IdentifiabilityError("no free parameter left to identify")
     estimate = (not (math.isfinite(loss.sigma) and math.isfinite(loss.sigma_rot)) if run.full_pose

@@ -18,6 +18,7 @@ from ..errors import IdentifiabilityError, InputError
 from ..kinematics import matrix_to_rpy
 from ..model.symbolic import Model, base0_to_pose, pose_to_base0
 from ..parameters import Parameters
+from ..problem import measured_points
 from ..stats.alignment import align
 from .state import CalibrationRun
 
@@ -35,16 +36,23 @@ def align_sessions(model: Model, data: Measurements, start: np.ndarray, xyz: np.
     """The closed-form alignment of each session's robot-frame points ``start`` to its measurements ``xyz``.
 
     Sets the reference pose of every session other than the first in the
-    model's sessions term; returns the first session's (``base0``).
+    model's sessions term; returns the first session's (``base0``). Rows that say what they touched have no
+    measured point (NaN): a session's alignment takes its measured rows; a session of touches alone stands at
+    the robot's base frame (the identity: nothing measures the robot against the world).
     """
+    measured = np.isfinite(xyz).all(axis=1)
+
+    def aligned(idx):
+        idx = idx[measured[idx]]
+        return pose_to_base0(np.eye(4) if not len(idx) else align(start[idx], xyz[idx]))
+
     frames = model.term("sessions")
     if frames is None:
-        return pose_to_base0(align(start, xyz))
+        return aligned(np.arange(len(xyz)))
     idx = session_index(data)
     for s in frames.names[1:]:
-        frames.set_reference(s, pose_to_base0(align(start[idx[s]], xyz[idx[s]])))
-    first = idx[frames.names[0]]
-    return pose_to_base0(align(start[first], xyz[first]))
+        frames.set_reference(s, aligned(idx[s]))
+    return aligned(idx[frames.names[0]])
 
 
 def mean_mounting(probe: np.ndarray, measured: np.ndarray) -> np.ndarray:
@@ -78,7 +86,7 @@ def start_pose(run: CalibrationRun) -> None:
                 allow_mismatch=opts.allow_mismatch, predicted=None if refits else start_xyz,
                 nominal=prior is None, calibration=own)
     try:
-        run.base0 = align_sessions(model, data, start_xyz, data.xyz)
+        run.base0 = align_sessions(model, data, start_xyz, measured_points(data))
     except IdentifiabilityError as e:      # fewer than 3 poses (of a session), or all on a line
         raise IdentifiabilityError(f"{run.where}{e}") from e
     run.cov = model.covariates(data)

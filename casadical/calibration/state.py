@@ -83,6 +83,8 @@ class CalibrationRun:
     options: Options
     prior: CalibrationResult | None = None   # a calibration taken further (the robot is its robot)
     notes: list[str] = field(default_factory=list)
+    #: fix_unobservable: what rows that touch cannot see ({"what", "why", "parameters"} each)
+    unobservable: list[dict] = field(default_factory=list)
 
     @property
     def user_terms(self) -> tuple:
@@ -138,6 +140,12 @@ class CalibrationRun:
     def per_pose(self) -> int:
         """Equations each pose gives: 3 (position), 6 (full pose)."""
         return 6 if self.full_pose else 3
+
+    @property
+    def equations(self) -> int:
+        """Equations the poses give: ``per_pose`` each; rows that touch, their layout's (each group's unknowns
+        used up: :attr:`casadical.rows.Layout.equations`)."""
+        return self.data.layout.equations if self.data.touches else self.per_pose * len(self.data)
 
     @property
     def where(self) -> str:

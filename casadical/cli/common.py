@@ -267,8 +267,29 @@ def add_session_tool(p: argparse.ArgumentParser) -> None:
                         "probe was re-mounted between them)")
 
 
+def add_fixture(p: argparse.ArgumentParser) -> None:
+    """``--fixture FILE``: the known geometry of the points the rows touch (docs/formats.md section 11)."""
+    p.add_argument("--fixture", metavar="FILE", default=None,
+                   help="a fixture file (TOML): touched points at known coordinates in a fixture's own frame (two "
+                        "sockets 50 mm apart), whose pose in each session is estimated; see 'What the tool "
+                        "touches' in docs/formats.md")
+
+
+def fixtures(args) -> list:
+    """The fixtures of a command's ``--fixture FILE`` (none without it), read and checked once."""
+    if getattr(args, "fixture", None) is None:
+        return []
+    if not hasattr(args, "_fixtures"):
+        from ..rows import read_fixture_file
+        args._fixtures = read_fixture_file(args.fixture)
+    return args._fixtures
+
+
 def timed(data, args):
-    """``data`` with times from its rows if ``--row-spacing-s`` was given and it has no ``time_s``."""
+    """``data`` as the command's options make it: with the fixtures of ``--fixture``, and with times from its rows
+    if ``--row-spacing-s`` was given and it has no ``time_s``."""
+    if fixtures(args):
+        data = data.with_fixtures(fixtures(args))
     spacing = getattr(args, "row_spacing_s", None)
     if spacing is None:
         return data

@@ -9,6 +9,7 @@ from .common import (
     STDOUT,
     Status,
     add_checks,
+    add_fixture,
     add_force,
     add_quiet,
     add_row_spacing,
@@ -101,6 +102,7 @@ def register(sub) -> None:
     add_quiet(p)
     add_urdf_chain(p)
     add_terms(p)
+    add_fixture(p)
     add_force(p)
     p.set_defaults(func=run)
 

@@ -10,6 +10,7 @@ from .._format import number
 from ..errors import InputError
 from .common import (
     add_checks,
+    add_fixture,
     add_force,
     add_json,
     add_terms,
@@ -20,6 +21,7 @@ from .common import (
     int_at_least,
     robot_from_args,
     robot_or_calibration,
+    timed,
     user_terms,
     warn_session_frame,
     warn_session_terms,
@@ -41,6 +43,7 @@ def register(sub) -> None:
     add_json(p, "the model description")
     add_urdf_chain(p)
     add_terms(p)
+    add_fixture(p)
     add_force(p)
     p.set_defaults(func=run_inspect)
 
@@ -77,16 +80,27 @@ def run_inspect(args) -> int:
         named = {item.split("@")[0].split("[")[0].strip() for item in spec.split("+")}
         spec = "+".join([spec] + [d.name for d in user_terms(args) if d.name not in named])
     model = Model(robot, spec, user_terms=user_terms(args))
+    unobservable = []
     if isinstance(args.poses, str):
         from ..data import Measurements
-        data = Measurements.read_csv(args.poses, robot=robot)
+        data = timed(Measurements.read_csv(args.poses, robot=robot), args)
         q, cov, n_poses = data.q, model.covariates(data), len(data)
     else:
         rng = np.random.default_rng(args.seed)
         q = sample_poses(robot, args.poses, rng, floor_z=None)
         cov, n_poses = _random_covariates(model, len(q)), args.poses
-    _, J = model.predict_jacobian(q, cov=cov)
+    P, J = model.predict_jacobian(q, cov=cov)
+    if isinstance(args.poses, str) and data.touches:
+        # rows that touch: what they cannot see held and said (as calibrate does), the rest from what they touched
+        from ..calibration.unobservable import unseen, whole_robot
+        unobservable = unseen(data, model.parameters)
+        for u in unobservable:
+            model.parameters.fix(u["parameters"], f"{u['what']}: {u['why']}")
+        moving = {n for n, m in zip(model.parameters.names, np.linalg.norm(J, axis=(0, 1)) > 0) if m}
+        J = data.layout.project(P, J)[1]
     ident = analyse(J, model.parameters)
+    if unobservable and data.touching.all():
+        whole_robot(ident, moving, unobservable)
     ident.apply(model.parameters)
     size = model.expression_size()
     if args.json:
@@ -99,6 +113,8 @@ def run_inspect(args) -> int:
                                 "rank": len(ident.identifiable)},
             "parameters": [param_json(p) for p in model.parameters],
         }
+        if unobservable:
+            doc["unobservable"] = unobservable
         if model.user_terms:
             doc["user_terms"] = [{**t.definition.to_dict(), "identifiable": {
                 p.name: bool(p.identifiable) for p in model.parameters if p.term == t.name}}
@@ -116,6 +132,8 @@ def run_inspect(args) -> int:
     print(f"identifiability from {where}: "
           f"{len(ident.identifiable)} of {len(ident.identifiable) + len(ident.unidentifiable)} "
           f"free parameters identifiable, condition number {ident.condition_number:.3g}")
+    for u in unobservable:
+        print(f"not seen by these rows: {u['what']} ({u['why']}): {', '.join(u['parameters'])} held")
     for line in user_term_lines(model, isinstance(args.poses, str)):
         print(line)
     print()

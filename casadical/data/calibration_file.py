@@ -25,6 +25,8 @@ from ..terms import ErrorTerm, SessionLocal
 from ..terms.definitions import by_name, definitions_from_list
 
 STATS_KEYS = ("n_poses", "mean_mm", "max_mm", "std_mm", "rms_mm")
+#: optional statistics of rows that say what they touched (docs/formats.md section 11)
+TOUCH_KEYS = ("consistency_mm", "distance_error_mm")
 #: largest count of equations or parameters a file may give (beyond, no float holds it exactly)
 MAX_COUNT = 2 ** 53
 #: keys of ``statistics`` (the fit's size, noise and information criteria)
@@ -81,6 +83,7 @@ def validate_calibration_document(doc: Any, path: str, terms=()) -> None:
     _check_parameters(doc["parameters"], list(units), doc["model"], err, units)
     _check_base0(doc["base0"], err)
     _check_stats(doc.get("calibration"), err)
+    _check_touches(doc, list(units), err)
     _check_fit_statistics(doc.get("statistics"), err)
     _check_validation(doc.get("validation"), err)
     _check_robust(doc.get("robust"), err)
@@ -247,7 +250,7 @@ def _check_base0(base0: Any, err) -> None:
 def _check_stats(stats: Any, err, key: str = "calibration", extra: tuple[str, ...] = ()) -> None:
     if stats is None:
         return
-    known = extra + STATS_KEYS
+    known = extra + STATS_KEYS + TOUCH_KEYS
     if not isinstance(stats, dict):
         raise err(key, f"must be an object ({', '.join(known)}) or null, got {_kind(stats)}")
     for k in stats:
@@ -260,6 +263,26 @@ def _check_stats(stats: Any, err, key: str = "calibration", extra: tuple[str, ..
         if not ok:
             raise err(f"{key}.{k}", f"must be a {'whole' if k == 'n_poses' else 'finite'} number >= 0, "
                                     f"got {v!r}")
+    for k in TOUCH_KEYS:
+        if k in stats and not (finite_number(stats[k]) and stats[k] >= 0):
+            raise err(f"{key}.{k}", f"must be a finite number >= 0, got {stats[k]!r}")
+
+
+def _check_touches(doc: dict, names: list[str], err) -> None:
+    """What a calibration from touches says it could not see: ``frame`` ("base") and ``unobservable``."""
+    if "frame" in doc and doc["frame"] != "base":
+        raise err("frame", f"must be \"base\" (a calibration from touches alone) or absent, got {doc['frame']!r}")
+    unob = doc.get("unobservable", [])
+    if not isinstance(unob, list):
+        raise err("unobservable", f"must be a list, got {_kind(unob)}")
+    for k, u in enumerate(unob):
+        key = f"unobservable[{k}]"
+        if not (isinstance(u, dict) and set(u) == {"what", "why", "parameters"} and isinstance(u["what"], str)
+                and isinstance(u["why"], str) and isinstance(u["parameters"], list)):
+            raise err(key, "must be an object with what, why (text) and parameters (a list of names)")
+        unknown = [n for n in u["parameters"] if n not in names]
+        if unknown:
+            raise err(f"{key}.parameters", f"{unknown[0]!r} is not a parameter of the model")
 
 
 def _check_validation(validation: Any, err) -> None:

@@ -89,7 +89,14 @@ def check_poses(data: Measurements, robot: Robot, *, allow_outside_limits: bool 
         return
     check_angle_units(data, robot, allow=angles_are_degrees)
     check_joint_limits(data, robot, allow=allow_outside_limits)
-    if data.has_positions:
+    if data.has_positions and data.touches:     # the measured rows alone (a touch row has no position)
+        tracked = np.flatnonzero(~data.touching)
+        if len(tracked):
+            check_poses(data.subset(tracked), robot, allow_outside_limits=True, angles_are_degrees=True,
+                        positions_are_mm=positions_are_mm, allow_mismatch=allow_mismatch,
+                        predicted=None if predicted is None else np.asarray(predicted)[tracked], nominal=nominal,
+                        calibration=calibration)
+    elif data.has_positions:
         judge = predicted is None or nominal or calibration is not None
         if predicted is None:
             from ..model.symbolic import Model

@@ -31,6 +31,12 @@ XYZ = ("x_mm", "y_mm", "z_mm")
 #: measured orientation of the probe, measurement frame: R = Rx(rx) Ry(ry) Rz(rz) (intrinsic XYZ), degrees
 RXYZ = ("rx_deg", "ry_deg", "rz_deg")
 NUMERIC_OPTIONAL = ("payload_kg", "temperature_c", "time_s", "source_row")
+#: what a touch row touched instead of being measured (docs/formats.md section 11): text columns, and a pivot's
+#: measured distance
+TOUCH = ("point", "plane")
+DISTANCE = "distance_mm"
+#: the tool point a row measures, where the tool carries several (reflector nests, balls)
+TOOL = "tool"
 
 
 @dataclass
@@ -66,6 +72,8 @@ class Measurements:
     sources : ndarray of str or None
         Each pose's file, where the data come from several
         (:func:`casadical.data.sessions.combine`); None: all from ``path``.
+    fixtures : tuple of Fixture
+        The fixtures whose points the rows touch (``--fixture FILE``, :mod:`casadical.rows.fixture`).
     """
 
     columns: dict[str, np.ndarray]
@@ -76,6 +84,7 @@ class Measurements:
     checked: set = field(default_factory=set, repr=False, compare=False)
     sessions: np.ndarray | None = None
     sources: np.ndarray | None = None
+    fixtures: tuple = ()
     _n_joints: int = field(init=False)
     _q_columns: list = field(init=False, repr=False)
 
@@ -148,6 +157,46 @@ class Measurements:
         return np.column_stack([self.columns[c] for c in XYZ]) / 1000.0
 
     @property
+    def touches(self) -> bool:
+        """Some rows say what the tool point touched (``point``, ``plane``) instead of where it was."""
+        return any(self._text(c).any() for c in TOUCH)
+
+    @property
+    def measured(self) -> bool:
+        """Every row is a measurement: a measured point, or what the tool point touched."""
+        if not self.touches:
+            return self.has_positions
+        return bool(self.touching.all() or (self.has_positions and np.isfinite(self.xyz[~self.touching]).all()))
+
+    @property
+    def touching(self) -> np.ndarray:
+        """The rows that say what they touched (bool, N)."""
+        return np.logical_or.reduce([self._text(c) for c in TOUCH] + [np.zeros(len(self), bool)])
+
+    def _text(self, column: str) -> np.ndarray:
+        col = self.columns.get(column)
+        if col is None:
+            return np.zeros(len(self), bool)
+        return np.array([v is not None and str(v).strip() != "" and not (isinstance(v, float) and math.isnan(v))
+                         for v in col], dtype=bool)
+
+    @property
+    def layout(self):
+        """The rows grouped by kind and by what they touch (:func:`casadical.rows.layout`), made once."""
+        hit = getattr(self, "_layout", None)
+        if hit is None:
+            from ..rows import layout
+            hit = self._layout = layout(self)
+        return hit
+
+    def with_fixtures(self, fixtures) -> "Measurements":
+        """The same rows, touching the points of ``fixtures`` (checked against the rows: :func:`check_fixtures`)."""
+        out = self.with_columns(self.columns)
+        out.fixtures = tuple(fixtures)
+        check_fixtures(out)
+        return out
+
+    @property
     def has_orientation(self) -> bool:
         """True when the poses have a measured orientation (``rx_deg, ry_deg, rz_deg``)."""
         return all(self.get(c) is not None for c in RXYZ)
@@ -203,12 +252,12 @@ class Measurements:
         return Measurements({k: v[index] for k, v in self.columns.items()}, self.path,
                             self.rows[index], self.moves[index], self.lines[index], set(self.checked),
                             None if self.sessions is None else self.sessions[index],
-                            None if self.sources is None else self.sources[index])
+                            None if self.sources is None else self.sources[index], self.fixtures)
 
     def with_columns(self, columns: dict[str, np.ndarray]) -> "Measurements":
         """The same poses (rows, moves, lines, sessions, sources, checks) with other columns."""
         return Measurements(columns, self.path, self.rows, self.moves, self.lines, set(self.checked),
-                            self.sessions, self.sources)
+                            self.sessions, self.sources, self.fixtures)
 
     def with_row_times(self, spacing_s: float) -> "Measurements":
         """A copy whose ``time_s`` is each pose's row in the measurement order times ``spacing_s``.
@@ -284,12 +333,16 @@ class Measurements:
             header, numeric = _check_header(next(rows, None), path, n_joints, require_positions)
             if robot is not None:
                 check_reading_units(header, robot, path)
-            columns, lines = _read_body(rows, header, numeric, path)
+            blank = ({h for h in header if h in XYZ or h in RXYZ} if any(h in TOUCH for h in header) else set()) \
+                | ({DISTANCE} if DISTANCE in header else set())
+            columns, lines = _read_body(rows, header, numeric | blank, path, blank)
         text = [h for h in header if columns[h] is None]
         if text:  # columns of words: read again for their exact text
             with _csv_rows(path) as rows:
                 columns.update(_text_columns(rows, header, text))
         data = cls(columns, path, lines=np.array(lines))
+        if any(h in TOUCH for h in header) or DISTANCE in header:
+            check_touch_rows(data)
         if n_joints is None:  # with a robot, casadical.data.checks judges the units (an error, not a warning)
             _check_units(data)
         return data
@@ -325,7 +378,7 @@ class Measurements:
 
 
 #: the columns read by name (besides q1_deg ..): a header that is one of them in other letter case is an error
-_KNOWN = frozenset(XYZ) | frozenset(RXYZ) | frozenset(NUMERIC_OPTIONAL) | {"session"}
+_KNOWN = frozenset(XYZ) | frozenset(RXYZ) | frozenset(NUMERIC_OPTIONAL) | {"session", DISTANCE, TOOL, *TOUCH}
 
 
 def _other_separator(header: list[str], path: str) -> str:
@@ -420,9 +473,10 @@ def _check_header(first: list[str] | None, path: str, n_joints: int | None, requ
         _misspelt(header, missing, turned, path)
         raise DataFileError("has only some of rx_deg, ry_deg, rz_deg (the measured orientation)", file=path, row=1,
                             column=missing)
-    if require_positions and not present:
-        raise DataFileError("has no measured positions: columns x_mm, y_mm, z_mm are required here",
-                            file=path, row=1, column="x_mm")
+    if require_positions and not present and not any(h in TOUCH for h in header):
+        raise DataFileError("has no measured positions: columns x_mm, y_mm, z_mm (or what the tool point touched: "
+                            "point, plane; docs/formats.md section 11) are required here", file=path, row=1,
+                            column="x_mm")
     numeric = ({h for h in header if _Q.match(h)} | set(present) | set(turned)
                | {c for c in NUMERIC_OPTIONAL if c in seen})
     return header, numeric
@@ -448,8 +502,10 @@ def _csv_rows(path: str) -> Iterator[Iterator[list[str]]]:
 READ_CHUNK = 8192
 
 
-def _read_body(reader, header: list[str], numeric: set[str], path: str) -> tuple[dict, list[int]]:
-    """Columns of the data rows, converted chunk by chunk; None for a column that is not all numbers."""
+def _read_body(reader, header: list[str], numeric: set[str], path: str, blank: set[str] = frozenset()
+               ) -> tuple[dict, list[int]]:
+    """Columns of the data rows, converted chunk by chunk; None for a column that is not all numbers; an empty
+    cell of a column of ``blank`` is NaN (a touch row's position)."""
     parts: dict[str, list | None] = {h: [] for h in header}
     lines: list[int] = []
     chunk: list[list[str]] = []
@@ -462,7 +518,7 @@ def _read_body(reader, header: list[str], numeric: set[str], path: str) -> tuple
             if whole is not None and parts[h] is not None:    # kept whole: written back as they were, 856 not 856.0
                 parts[h].append(whole)
             elif h in numeric:
-                parts[h].append(_numeric(values, h, path, rows))
+                parts[h].append(_numeric(values, h, path, rows, h in blank))
             elif parts[h] is not None:
                 try:
                     parts[h].append(np.array([float(x) for x in values]))
@@ -525,9 +581,12 @@ def _check_payload(payload: np.ndarray | None, lines: list[int], path: str) -> N
                             file=path, row=lines[i], column="payload_kg")
 
 
-def _numeric(values: list[str], column: str, path: str, lines: list[int]) -> np.ndarray:
+def _numeric(values: list[str], column: str, path: str, lines: list[int], blank: bool = False) -> np.ndarray:
     out = np.empty(len(values))
     for i, x in enumerate(values):
+        if blank and x == "":
+            out[i] = np.nan
+            continue
         try:
             v = float(x)
         except ValueError:
@@ -539,6 +598,76 @@ def _numeric(values: list[str], column: str, path: str, lines: list[int]) -> np.
                                 row=lines[i], column=column)
         out[i] = v
     return out
+
+
+#: the fewest rows of a session that fix a touched point or plane (docs/formats.md section 11)
+MIN_TOUCH_ROWS = 4
+
+
+def check_touch_rows(data: Measurements) -> None:
+    """The rows of a file with ``point``, ``plane`` or ``distance_mm`` as docs/formats.md section 11 says: a touch
+    row has no measured position, every other row has one, a distance goes with a point, a point or plane is
+    touched by enough rows of its session (one line naming the file, row and column)."""
+    point, plane, touching = data._text("point"), data._text("plane"), data.touching
+    both = np.flatnonzero(point & plane)
+    if len(both):
+        raise DataFileError("a row touches a point and a plane: give one", file=data.path, row=data.line(both[0]),
+                            column="plane")
+    distance = data.get(DISTANCE)
+    if distance is not None:
+        has = np.isfinite(distance)
+        bad = np.flatnonzero(has & ~point)
+        if len(bad):
+            raise DataFileError("distance_mm without a point: a distance is measured from a pivot, named in point",
+                                file=data.path, row=data.line(bad[0]), column=DISTANCE)
+        bad = np.flatnonzero(has & (distance <= 0))
+        if len(bad):
+            raise DataFileError(f"distance {distance[bad[0]]:g} mm is not a length", file=data.path,
+                                row=data.line(bad[0]), column=DISTANCE)
+    if data.has_positions:
+        xyz = np.column_stack([data.columns[c] for c in XYZ])
+        measured = np.isfinite(xyz).any(axis=1)
+        bad = np.flatnonzero(touching & measured)
+        if len(bad):
+            raise DataFileError("a row with point or plane has measured positions too: a row measures where the "
+                                "tool point was or says what it touched, not both", file=data.path,
+                                row=data.line(bad[0]), column="point" if point[bad[0]] else "plane")
+        part = np.flatnonzero(~touching & ~np.isfinite(xyz).all(axis=1))
+        if len(part):
+            i = int(part[0])
+            col = XYZ[int(np.flatnonzero(~np.isfinite(xyz[i]))[0])]
+            raise DataFileError("value is empty: a row that touches nothing (no point, no plane) is measured",
+                                file=data.path, row=data.line(i), column=col)
+    elif (~touching).any():
+        i = int(np.flatnonzero(~touching)[0])
+        raise DataFileError("a row touches nothing (point and plane empty) and the file has no x_mm, y_mm, z_mm",
+                            file=data.path, row=data.line(i), column="point")
+    sessions = data.sessions if data.sessions is not None else np.full(len(data), "", dtype=object)
+    for column, mask in (("point", point), ("plane", plane)):
+        names = data.columns[column] if column in data.columns else None
+        if names is None:
+            continue
+        names = np.array([str(v).strip() for v in names], dtype=object)
+        for s in dict.fromkeys(sessions.tolist()):
+            for name in dict.fromkeys(names[mask & (sessions == s)].tolist()):
+                rows = np.flatnonzero(mask & (sessions == s) & (names == name))
+                if len(rows) < MIN_TOUCH_ROWS:
+                    where = f" of session {s}" if s else ""
+                    raise DataFileError(f"{column} {name!r} is touched by {len(rows)} row(s){where}: too few to fix "
+                                        f"it (at least {MIN_TOUCH_ROWS})", file=data.path,
+                                        row=data.line(rows[0]), column=column)
+
+
+def check_fixtures(data: Measurements) -> None:
+    """A fixture's points against the rows: a point the rows touch with a distance is a pivot, not a fixture's;
+    a fixture point that no row touches is a warning."""
+    point = data.columns.get("point")
+    touched = set() if point is None else {str(v).strip() for v in point}
+    for f in data.fixtures:
+        unused = [p for p in f.points if p not in touched]
+        if unused:
+            warnings.warn(f"{f.file}: fixture {f.name}'s point(s) {', '.join(unused)} are touched by no row of "
+                          f"{data.path}", DataWarning, stacklevel=3)
 
 
 #: fewer rows than this never look like radians

@@ -22,7 +22,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import DataFileError, DataWarning, listing
-from .measurements import Measurements, session_name
+from .measurements import DISTANCE, RXYZ, TOOL, TOUCH, XYZ, Measurements, session_name
 
 
 def read_sessions(paths: list[str], n_joints: int | None = None, require_positions: bool = False,
@@ -89,6 +89,11 @@ def combine(parts: list[Measurements], names: list[str] | None = None) -> Measur
     from .checks import check_sessions_apart
     check_sessions_apart(parts)      # a file given twice (or its copy) would count its poses twice
     common = [c for c in parts[0].columns if all(c in p.columns for p in parts[1:])]
+    # how a row is measured (a measured point, what it touched, its tool point) is every row's: a file without
+    # such a column has it empty (a tracker session beside a session that touches)
+    measured = [c for c in dict.fromkeys(c for p in parts for c in p.columns)
+                if c in (*XYZ, *RXYZ, *TOUCH, DISTANCE, TOOL) and c not in common]
+    common += measured
     dropped = sorted({c for p in parts for c in p.columns} - set(common) - {"session"})
     if dropped:
         warnings.warn(f"{listing(dropped)}: not in every file ({', '.join(p.path for p in parts)}), so not used: "
@@ -106,7 +111,9 @@ def combine(parts: list[Measurements], names: list[str] | None = None) -> Measur
     for c in common:
         if c == "session":
             continue
-        values = [p.columns[c] for p in parts]
+        text = c in (*TOUCH, TOOL)
+        values = [p.columns[c] if c in p.columns else
+                  np.full(len(p), "" if text else np.nan, dtype=object if text else float) for p in parts]
         if any(v.dtype.kind not in "fiu" for v in values):
             values = [v.astype(object) for v in values]
         columns[c] = np.concatenate(values)
@@ -115,4 +122,5 @@ def combine(parts: list[Measurements], names: list[str] | None = None) -> Measur
     checked = set.intersection(*(p.checked for p in parts))
     return Measurements(columns, " + ".join(p.path for p in parts), rows, np.concatenate([p.moves for p in parts]),
                         np.concatenate([p.lines for p in parts]), checked, np.concatenate(labels).astype(object),
-                        np.concatenate([np.full(len(p), p.path, dtype=object) for p in parts]))
+                        np.concatenate([np.full(len(p), p.path, dtype=object) for p in parts]),
+                        tuple({f.name: f for p in parts for f in p.fixtures}.values()))

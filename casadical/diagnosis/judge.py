@@ -17,7 +17,7 @@ import math
 
 import numpy as np
 
-from ..result import ErrorStats, learning_mask
+from ..result import learning_mask
 from ..stats.outliers import of_fit
 from ..stats.physics import sag_note
 from .gaps import set_aside_note
@@ -29,7 +29,7 @@ from .state import DiagnosisRun
 def judge_final_model(run: DiagnosisRun) -> None:
     final, cal = run.final, run.cal
     run.final_errors = run.val_errors(final)
-    run.final_val = final_val = ErrorStats.of(run.final_errors)
+    run.final_val = final_val = run.val_stats(final)
     structure = None
     if run.structures:     # the validation poses the structure the screen found brings back within the loss' limit
         _, finding = run.structures[0]

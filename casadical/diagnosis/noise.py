@@ -56,6 +56,10 @@ def repeated_sigma(data: Measurements) -> tuple[float, int] | None:
     _, group, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     group = group.ravel()
     again = count[group] > 1
+    if data.touches:        # rows that touch measure no point: the measured rows alone
+        again &= ~data.touching
+        count = np.bincount(group[again], minlength=len(count))
+        again &= count[group] > 1
     if not again.any():
         return None
     xyz, g = data.xyz[again], group[again]

@@ -62,7 +62,8 @@ def _hover(res: CalibrationResult, d: Measurements) -> dict:
 
 def joint_view(res: CalibrationResult, d: Measurements) -> tuple[np.ndarray, np.ndarray]:
     """Residuals of ``res`` on ``d`` (measured minus predicted, (N, 3)) and how the tool point moves with
-    each joint's angle ((N, 3, n): the exact direction of a joint angle error, as the periodograms use it)."""
+    each joint's angle ((N, 3, n): the exact direction of a joint angle error, as the periodograms use it); rows
+    that touch: from what they touched (:mod:`casadical.rows`)."""
     m, p = res.model, res.parameters
     xyz, _, directions = m.predict_angle_jacobian(d.q, p.values, m.covariates(d), res.base0)
-    return d.xyz - xyz, directions
+    return -d.layout.residuals(xyz), directions

@@ -22,9 +22,10 @@ def check_data(run: DiagnosisRun) -> None:
     check_held_out(cal, run.val)            # validation poses the fits have seen would judge nothing
     if run.other is not None:
         check_other_series(cal, run.other)
-    run.n_eq = 3 * len(cal)
+    # rows that touch: their layout's equations (each touched thing's unknowns used up, casadical.rows)
+    run.n_eq = cal.layout.equations if cal.touches else 3 * len(cal)
     run.full_pose = cal.has_orientation and not run.s.position_only
-    run.n_fit_eq = (6 if run.full_pose else 3) * len(cal)
+    run.n_fit_eq = run.n_eq * (2 if run.full_pose else 1)
     run.schemes = run.fold_schemes()
     run.sessions = cal.session_names
     run.catalogue = Catalogue(run.robot, cal, run.s)

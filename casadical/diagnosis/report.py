@@ -330,6 +330,8 @@ class DiagnosisReport:
                            f"({gain_words(nominal.mean_mm - v.mean_mm)})")
         if against:
             out.append("  against " + " and ".join(against))
+        if v.touch:     # rows that touch: each row's distance from what it touched, fitted to its session's rows
+            out.append(f"  touches: {v.touch_words()}")
         for s, st in self.final_sessions.items():
             out.append(f"  session {s}: validation mean {st.mean_mm:.4f} mm, max {st.max_mm:.4f} mm, rms "
                        f"{st.rms_mm:.4f} mm ({st.n_poses} poses)")

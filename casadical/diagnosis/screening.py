@@ -26,7 +26,6 @@ import numpy as np
 
 from ..calibration.for_data import model_for
 from ..data.measurements import Measurements
-from ..problem import CalibrationProblem
 from ..result import CalibrationResult
 from .candidates import Candidate, compose_spec, tell_apart
 from .statistics import NestedTest, nested_test, set_aside_share
@@ -107,14 +106,15 @@ class Screen:
             else:
                 p.fixed = False
         self.model_params = params
-        prob = CalibrationProblem(big, params, cal.q, cal.xyz, big.covariates(cal), current.base0)
-        self.free = prob.free
-        xyz, J, JA = big.predict_angle_jacobian(cal.q, params.values, prob.cov, current.base0)
-        self._model_cols = (J[:, :, self.free] * params.scales[self.free], [params.names[i] for i in self.free],
-                            params.scales[self.free])
+        self.free = np.flatnonzero(params.free)
+        xyz, J, JA = big.predict_angle_jacobian(cal.q, params.values, big.covariates(cal), current.base0)
+        # touch rows: residuals from what they touched, every column projected away from its unknowns
+        self._proj = cal.layout.projection(xyz)
+        self._raw = J[:, :, self.free] * params.scales[self.free]
+        self._model_cols = (self._proj(self._raw), [params.names[i] for i in self.free], params.scales[self.free])
         self.angle_dir = {j: JA[:, :, j - 1] for j in range(1, robot.n + 1)}
         self._JA = JA
-        self.r = xyz - cal.xyz
+        self.r = self._proj.r
         self.w = current.loss.weight(np.einsum("ij,ij->i", self.r, self.r))
         # a warm-up starts at the first calibration pose of its session, as in the fits (Warmup.reference_value)
         t = cal.get("time_s")
@@ -159,7 +159,7 @@ class Screen:
             for k, p in enumerate(ps):
                 self.params.setdefault(p.name, p)
                 self.extra.append((c, k))
-                cols.append(self._column(c, k, self.cal, J, self._JA)[:, :, None])
+                cols.append(self._proj(self._column(c, k, self.cal, self._raw, self._JA))[:, :, None])
             names = names + [p.name for p in ps]
             scale = np.append(scale, [p.scale for p in ps])
         self.J = np.concatenate(cols, axis=2) if len(cols) > 1 else J
@@ -173,7 +173,8 @@ class Screen:
 
     def _column(self, c: Candidate, k: int, d: Measurements, J: np.ndarray, JA: np.ndarray) -> np.ndarray:
         """Column (N, 3), scaled, of the ``k``-th parameter of candidate ``c`` at the poses of ``d`` (``J``: the
-        model's free columns there, ``JA``: the directions of the joints' angles): an analytic cause's computed
+        model's free columns there, ``JA``: the directions of the joints' angles; not projected for touch rows):
+        an analytic cause's computed
         (:meth:`~casadical.terms.cause.Cause.analytic_column`: a periodic error, the direction of its joint's angle
         times a sine of its harmonic; a joint coupling, that direction times the source joint's reading: n (n - 1)
         pairs, one column each, need no term in the screen's model; a warm-up, a translation times its decay)."""
@@ -298,10 +299,12 @@ class Screen:
             big, p = self.model, self.model_params
             xyz, J, JA = big.predict_angle_jacobian(self.val.q, p.values, big.covariates(self.val),
                                                     self.current.base0)
+            proj = self.val.layout.projection(xyz)
+            raw = J[:, :, self.free] * p.scales[self.free]
             # column by column in memory (p, N, 3): a column is read whole, not every p-th number (6x faster)
-            JT = np.ascontiguousarray((J[:, :, self.free] * p.scales[self.free]).transpose(2, 0, 1))
-            val.update(r=xyz - self.val.xyz, JT=JT, J=JT.transpose(1, 2, 0), JA=JA, columns={})
-        r, JT, J, JA, columns = val["r"], val["JT"], val["J"], val["JA"], val["columns"]
+            JT = np.ascontiguousarray(proj(raw).transpose(2, 0, 1))
+            val.update(r=proj.r, JT=JT, raw=raw, JA=JA, proj=proj, columns={})
+        r, JT, raw, JA, proj, columns = val["r"], val["JT"], val["raw"], val["JA"], val["proj"], val["columns"]
         n_model = len(self._model_cols[1])
         # r + J step: the model's columns in one product (the step 0 on those the fit holds; the columns are rows
         # in memory, so none is copied), then the candidate's a column at a time
@@ -314,7 +317,7 @@ class Screen:
                 key = self.extra[k - n_model]
                 col = columns.get(key)
                 if col is None:
-                    col = columns[key] = self._column(*key, self.val, J, JA)
+                    col = columns[key] = proj(self._column(*key, self.val, raw, JA))
                 out += col * d
         return np.linalg.norm(out, axis=1)
 

@@ -23,7 +23,7 @@ from ..calibration.pipeline import calibrate
 from ..calibration.solve import STD_TOL
 from ..data.measurements import Measurements
 from ..problem import RobustLoss
-from ..result import AngleStats, CalibrationResult, ErrorStats
+from ..result import AngleStats, CalibrationResult, ErrorStats, touch_stats
 from ..robot import Robot
 from ..runtime.kept import Kept
 from .candidates import Candidate
@@ -172,6 +172,10 @@ class DiagnosisRun:
         return hit[1]
 
     def val_stats(self, res: CalibrationResult) -> ErrorStats:
+        """Errors of a fit on the validation poses; rows that touch: with their consistency and distance error
+        (:func:`casadical.result.touch_stats`)."""
+        if self.val.touches:
+            return ErrorStats.of(self.val_errors(res), touch_stats(self.val.layout, res.predict(self.val)))
         return ErrorStats.of(self.val_errors(res))
 
     def val_angles(self, res: CalibrationResult) -> AngleStats | None:

@@ -261,6 +261,8 @@ def covariates(res: CalibrationResult, data: Measurements, torques: np.ndarray, 
         out["moment"] = poses.moment[:, :2]
     t = data.get("time_s")
     out["time"] = np.asarray(t, float) if t is not None else np.arange(len(data), dtype=float)
+    if data.touches:        # no instrument looks at the rows that touch: no line of sight
+        return out
     x, y, z = data.xyz.T
     out["azimuth"] = np.arctan2(y, x)
     out["elevation"] = np.arctan2(z, np.hypot(x, y))
@@ -290,6 +292,9 @@ def directions(res: CalibrationResult, data: Measurements, poses: Poses
     out[("tilt", None)] = np.stack([to_meas(np.cross(np.broadcast_to(ex, (N, 3)), poses.point)),
                                     to_meas(np.cross(np.broadcast_to(ey, (N, 3)), poses.point))], axis=2)
     out[("point_base", None)] = np.ascontiguousarray(poses.R)
+    out[("point_measurement", None)] = np.broadcast_to(np.eye(3), (N, 3, 3)).copy()
+    if data.touches:
+        return out
     # the instrument at the measurement frame's origin: the point moved along the frame's axes (with time), or
     # as the instrument's own errors move it: turned about the vertical axis (azimuth), about the horizontal axis
     # across the line of sight (elevation), along the line of sight (distance)
@@ -297,7 +302,6 @@ def directions(res: CalibrationResult, data: Measurements, poses: Poses
     ez = np.broadcast_to(np.eye(3)[2], (N, 3))
     across = np.cross(ez, p)
     across /= np.maximum(np.linalg.norm(across, axis=1, keepdims=True), 1e-12)
-    out[("point_measurement", None)] = np.broadcast_to(np.eye(3), (N, 3, 3)).copy()
     out[("point_measurement", "azimuth")] = np.cross(ez, p)[:, :, None]
     out[("point_measurement", "elevation")] = np.cross(across, p)[:, :, None]
     out[("point_measurement", "distance")] = (p / np.maximum(np.linalg.norm(p, axis=1, keepdims=True), 1e-12)
@@ -305,15 +309,24 @@ def directions(res: CalibrationResult, data: Measurements, poses: Poses
     return out
 
 
-def pairs(n_joints: int, moment: bool) -> list[tuple[str, str, int | None]]:
-    """Every (covariate, effect, joint) the screen tries."""
+def projection(res: CalibrationResult, data: Measurements):
+    """How columns at ``data``'s rows are projected: away from what rows that touch fit of their own
+    (:class:`casadical.rows.layout.Projection`), unchanged for measured rows."""
+    if not data.touches:
+        return lambda X: X
+    return data.layout.projection(res.predict(data))
+
+
+def pairs(n_joints: int, moment: bool, instrument: bool = True) -> list[tuple[str, str, int | None]]:
+    """Every (covariate, effect, joint) the screen tries (``instrument``: its view too, when an instrument
+    measured every row)."""
     readings = [f"q{j}" for j in range(1, n_joints + 1)]
     robot_cov = readings + [f"tau{j}" for j in range(1, n_joints + 1)] + ["moment"] * moment + ["time"]
     out = [(c, "angle", j) for j in range(1, n_joints + 1) for c in robot_cov]
     out += [(c, "tilt", j) for j in range(1, n_joints + 1) for c in readings]
     out += [(c, "tilt", None) for c in ["moment"] * moment + ["time"]]
     out += [(c, "point_base", None) for c in robot_cov]
-    out += [(c, "point_measurement", None) for c in ("azimuth", "elevation", "distance", "time")]
+    out += [(c, "point_measurement", None) for c in INSTRUMENT * instrument + ("time",)]
     return out
 
 
@@ -392,13 +405,14 @@ class StructureScreen:
         self.poses = Poses.of(res, cal)
         self.cov = covariates(res, cal, torques, self.poses)
         self.dirs = directions(res, cal, self.poses)
+        self.project = projection(res, cal)
         self.refs = {k: (_range(v)) for k, v in self.cov.items()}
-        self.tried = pairs(cal.q.shape[1], "moment" in self.cov)
+        self.tried = pairs(cal.q.shape[1], "moment" in self.cov, "azimuth" in self.cov)
         self.level = math.log10(alpha / len(self.tried))
         self.folds = np.array_split(np.random.default_rng(seed).permutation(len(cal)), FOLDS)
 
     def columns(self, cov: str, effect: str, joint: int | None) -> np.ndarray:
-        return _columns(self.cov[cov], self.refs[cov], self.dirs[_direction_key(cov, effect, joint)])
+        return self.project(_columns(self.cov[cov], self.refs[cov], self.dirs[_direction_key(cov, effect, joint)]))
 
     def strongest(self, base: np.ndarray, r: np.ndarray, w: np.ndarray, skip=(), only=None) -> Found | None:
         """The pair that explains most of ``r`` beside the columns ``base`` (N, 3, p) at weights ``w``, if it is
@@ -446,7 +460,7 @@ def screen(res: CalibrationResult, lin: Linearized, cal: Measurements, val: Meas
     scr = StructureScreen(res, cal, cal_torques, alpha, seed)
     r, w = lin.r, lin.weights
     sw = np.sqrt(np.repeat(w, 3))
-    lin_v = dir_v = base_v = cov_v = None
+    lin_v = dir_v = base_v = cov_v = proj_v = None
     found: list[Structure] = []
     base = lin.J
     while len(found) < MAX_STRUCTURES:
@@ -461,8 +475,9 @@ def screen(res: CalibrationResult, lin: Linearized, cal: Measurements, val: Meas
             poses_v = Poses.of(res, val)
             lin_v, dir_v = Linearized.of(res, val), directions(res, val, poses_v)
             cov_v = covariates(res, val, val_torques, poses_v)
-            base_v = lin_v.J
-        Xv = _columns(cov_v[s.covariate], scr.refs[s.covariate], dir_v[_direction_key(s.covariate, s.effect, s.joint)])
+            base_v, proj_v = lin_v.J, projection(res, val)
+        Xv = proj_v(_columns(cov_v[s.covariate], scr.refs[s.covariate],
+                                           dir_v[_direction_key(s.covariate, s.effect, s.joint)]))
         base_v = np.concatenate([base_v, Xv], axis=2)
         change = base_v @ x1
         before = np.linalg.norm(lin_v.r, axis=1)
@@ -487,8 +502,8 @@ def screen_structure(run: DiagnosisRun) -> None:
     if not run.s.structure:
         return
     res = run.current
-    run.say("structure screen: what the named causes leave, against every joint's reading and torque, time, "
-            "and the instrument's view")
+    run.say("structure screen: what the named causes leave, against every joint's reading and torque, time"
+            + (" (no instrument looks at rows that touch)" if run.cal.touches else ", and the instrument's view"))
     val_torques = res.model.torques(run.val.q, res.parameters.values, res.model.covariates(run.val))
     found = screen(res, run.linearized(res), run.cal, run.val, run.torques(res), val_torques, run.s.alpha,
                    run.s.seed)

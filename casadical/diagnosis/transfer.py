@@ -73,6 +73,8 @@ class TransferStudy:
     final: Travel
     kinematic: Travel
     gains: dict = field(default_factory=dict)   # finding index -> (base gain, refit gain), mm
+    #: the other series touches alone: no base pose to re-estimate (its touched points fitted to its own rows)
+    touches: bool = False
 
     def to_dict(self) -> dict:
         return {"file": self.file, "n_base": len(self.split.base_fit), "n_refit": len(self.split.refit_fit),
@@ -80,7 +82,9 @@ class TransferStudy:
 
     def text(self) -> str:
         f, k = self.final, self.kinematic
-        return (f"taken to {self.file}: base pose re-estimated on {len(self.split.base_fit)} poses, mean "
+        first = ("as calibrated (touches see no base pose: the touched points fitted to their own rows), mean"
+                 if self.touches else f"base pose re-estimated on {len(self.split.base_fit)} poses, mean")
+        return (f"taken to {self.file}: {first} "
                 f"{f.base_mm:.4f} mm (kinematic {k.base_mm:.4f}); geometry refitted on "
                 f"{len(self.split.refit_fit)} poses with the findings frozen, mean {f.refit_mm:.4f} mm "
                 f"(kinematic refit {k.refit_mm:.4f})")
@@ -110,7 +114,8 @@ def study(final: CalibrationResult, kinematic: CalibrationResult, without: Calla
     split = Split.of(len(other), n_base, n_refit, seed)
     progress(f"transfer: taking the final and the kinematic model to {other.path} (base pose re-estimated on "
              f"{n_base} poses, geometry refitted on {n_refit})")
-    out = TransferStudy(other.path, split, travel(final, other, split), travel(kinematic, other, split))
+    out = TransferStudy(other.path, split, travel(final, other, split), travel(kinematic, other, split),
+                        touches=other.touches and bool(other.touching.all()))
     ks = list(range(n_findings)) if todo is None else todo
     for i, k in enumerate(ks, 1):
         if labels is not None:

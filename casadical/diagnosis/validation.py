@@ -235,6 +235,10 @@ def linear_cv(J: np.ndarray, r: np.ndarray, weights: np.ndarray, all_schemes: li
     very poses would not be held out.
     """
     N, _, p = J.shape
+    if p == 0:      # nothing free (touches alone: the nominal model has no base pose to fit)
+        out = CVResult()
+        out.errors = {s.name: np.linalg.norm(r, axis=1) for s in all_schemes}
+        return out
     # pose by pose in memory: the folds gather poses, and a Jacobian whose columns were taken out of a larger
     # one (J[:, :, cols]) keeps each column's poses together, where the gathers took twice as long
     J = np.ascontiguousarray(J)
@@ -318,10 +322,11 @@ class Linearized:
         m, p = res.model, res.parameters
         f = np.flatnonzero(p.free)
         xyz, J = m.predict_jacobian(data.q, p.values, m.covariates(data), res.base0, columns=f)
-        r = xyz - data.xyz
+        proj = data.layout.projection(xyz)      # touch rows: from what they touched (casadical.rows)
+        r = proj.r
         w = res.loss.weight(np.einsum("ij,ij->i", r, r))
         names = [p.names[i] for i in f]
-        return cls(J * p.scales[f], r, w, names, p.scales[f],
+        return cls(proj(J * p.scales[f]), r, w, names, p.scales[f],
                    switch_off(names, {n: p[n].value for n in names}, p.scales[f]),
                    ((p.values - p.nominal) / p.scales)[f])
 

@@ -9,6 +9,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from ..parameters import READING
+from ..result import TOUCH_WORDS
 from ..terms import UNEXPLAINED
 from ..terms.definitions import EFFECTS
 from .figures import AFTER, BEFORE, CURVE, SERIES, ecdf, figure, legend_above, ticks
@@ -169,16 +170,20 @@ def _errors(page: Page, report: DiagnosisReport) -> None:
     pose = report.final_orientation is not None
     models = [("nominal (base pose fitted)", report.steps[0].validation if report.steps else None),
               ("kinematic", report.kinematic_validation), ("final", v)]
+    # rows that touch: their consistency and the fixture's distance error too (docs/formats.md section 11)
+    touch = list(v.touch)
     rows = []
     for name, st in models:
         if st is None:
             continue
         rows.append([name, str(st.n_poses), num(st.mean_mm), num(st.max_mm), num(st.rms_mm),
-                     gain(st.mean_mm - v.mean_mm) if name != "final" else ""])
+                     *(num(st.touch.get(k)) for k in touch), gain(st.mean_mm - v.mean_mm) if name != "final" else ""])
     for s, st in report.final_sessions.items():
-        rows.append([f"final, session {s}", str(st.n_poses), num(st.mean_mm), num(st.max_mm), num(st.rms_mm), ""])
-    page.table(["model, on the validation poses", "poses", "mean mm", "max mm", "rms mm", "final against it"],
-               rows, text_columns=(0, 5))
+        rows.append([f"final, session {s}", str(st.n_poses), num(st.mean_mm), num(st.max_mm), num(st.rms_mm),
+                     *(num(st.touch.get(k)) for k in touch), ""])
+    page.table(["model, on the validation poses", "poses", "mean mm", "max mm", "rms mm",
+                *(f"{TOUCH_WORDS[k]} mm" for k in touch), "final against it"],
+               rows, text_columns=(0, 5 + len(touch)))
     extra = []
     if pose:
         o = report.final_orientation

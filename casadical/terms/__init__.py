@@ -23,6 +23,7 @@ from . import (  # noqa: F401
     straightness,
     thermal,
     tool_orientation,
+    tool_points,
     warmup,
 )
 from .base import REGISTRY, Context, ErrorTerm, ReferencedTerm, covariate_names, register

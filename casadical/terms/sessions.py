@@ -140,12 +140,18 @@ class SessionFrames(ErrorTerm):
             out[indicator(self.names[0])][:] = 1.0
         else:
             unknown = sorted(set(data.sessions.tolist()) - set(self.names))
+            # rows that say what they touched see no base pose (their points are fitted wherever the robot puts
+            # them): a session of touches alone is the primary's frame, unless the calibration's tool is a session's
+            touching = data.touching if data.touches else np.zeros(N, bool)
+            unknown = [s for s in unknown if self.tools or not touching[data.sessions == s].all()]
             if unknown:
                 i = int(np.flatnonzero(data.sessions == unknown[0])[0])
                 raise DataFileError(f"session {unknown[0]!r} is not one of the calibration's sessions "
                                     f"({', '.join(self.names)}); take the calibration there first (calibrate "
                                     "CAL.json DATA.csv --model base)", file=data.file(i), row=data.line(i),
                                     column="session")
+            known = np.isin(data.sessions, self.names)
+            out[indicator(self.names[0])][~known] = 1.0
             for s in self.names:
                 at = data.sessions == s
                 out[indicator(s)][at] = 1.0

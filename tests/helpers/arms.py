@@ -136,6 +136,27 @@ ARM6 = {
     "tool": {"a_m": 0.0, "b_m": 0.0, "d_m": 0.08},
 }
 
+#: a six-axis industrial arm (an offset shoulder and elbow), modified DH, beta on link 3: not built in
+ARM6_MDH = {
+    "name": "six-axis arm (MDH)", "convention": "mdh",
+    "joint": [
+        {"alpha_deg": 0, "a_m": 0.0, "d_m": 0.4, "min_deg": -170, "max_deg": 170, "mass_kg": 20,
+         "com_m": [0, 0, -0.1]},
+        {"alpha_deg": -90, "a_m": 0.15, "d_m": 0.0, "min_deg": -100, "max_deg": 80, "mass_kg": 12,
+         "com_m": [0.3, 0, 0.05]},
+        {"alpha_deg": 0, "a_m": 0.6, "beta_deg": 0.0, "d_m": 0.0, "min_deg": -150, "max_deg": 150, "mass_kg": 8,
+         "com_m": [0.05, 0, 0]},
+        {"alpha_deg": -90, "a_m": 0.12, "d_m": 0.62, "min_deg": -180, "max_deg": 180, "mass_kg": 4,
+         "com_m": [0, 0, -0.2]},
+        {"alpha_deg": 90, "a_m": 0.0, "d_m": 0.0, "min_deg": -120, "max_deg": 120, "mass_kg": 2,
+         "com_m": [0, 0, 0]},
+        {"alpha_deg": -90, "a_m": 0.0, "d_m": 0.0, "min_deg": -350, "max_deg": 350, "mass_kg": 0.5,
+         "com_m": [0, 0, 0]},
+    ],
+    "tool": {"a_m": 0.0, "b_m": 0.0, "d_m": 0.15},
+    "payload": {"mass_kg": 6},
+}
+
 #: five-axis arm, MDH, beta on joint 3, whose joint 3 is driven through a parallelogram (a linear coupling): its
 #: reading q3 is the forearm's direction, the chain angle q3 - q2; joint 2's drive leaves the forearm's direction
 ARM5_COUPLED = {

@@ -27,6 +27,8 @@ from tests.helpers.arms import (
     ARM4_TRACK_DH,
     ARM5,
     ARM5_COUPLED,
+    ARM6,
+    ARM6_MDH,
     ARM7,
     ARM7_DH,
     ARM_COLUMN,
@@ -79,10 +81,16 @@ OUTSIDE = ("joint coupling", "mount compliance", "axis tilt", "another joint's r
 CATALOGUED = ("joint coupling", "mount compliance")
 
 
+#: six-axis arms the touch matrix also runs on (tests/diagnosis/test_touch_effects.py): DH and MDH
+SIX_AXIS = {"arm6": ARM6, "arm6-mdh": ARM6_MDH}
+
+
 def robot_doc(name: str) -> dict:
     """A test arm's dict, or a built-in robot's TOML (read as text: the truth reads no casadical code)."""
     if name in LINEAR_ROBOTS:
         return LINEAR_ROBOTS[name]
+    if name in SIX_AXIS:
+        return SIX_AXIS[name]
     return ROBOTS[name] if name in ROBOTS else tomllib.loads((ROBOTS_DIR / f"{name}.toml").read_text())
 
 
@@ -338,6 +346,37 @@ def make_data(c: Case, n_cal: int = 80, n_val: int = 200, folder: str | Path | N
             out.append(Measurements.read_csv(path, n_joints=true.arm.n, require_positions=True))
             if name == "cal":
                 c.bad_lines = [int(i) + 2 for i in shots.bad]     # the header is line 1
+    return robot_from_dict(doc, c.robot), out[0], out[1], true
+
+
+def make_touch_data(c: Case, placements: tuple[int, int] = (3, 2), per_socket: tuple[int, int] = (25, 15),
+                    contact_noise: float = 20e-6, fixture: bool = True, true: TrueRobot | None = None):
+    """Touch data of the case's true robot: a block of two sockets 50 mm apart (tests/truth/touch.py) put at
+    ``placements`` (calibration, validation) places, each socket touched ``per_socket`` times there, the ball
+    sitting in it to ``contact_noise`` (m). Read back by casadical with the fixture file (``fixture``) or as free
+    points. Returns (robot, cal, val, true)."""
+    from casadical.data import Measurements
+    from casadical.robot import robot_from_dict
+    from casadical.rows import read_fixture_file
+    from tests.truth import touch
+
+    doc = robot_doc(c.robot)
+    rng = np.random.default_rng(c.seed)
+    true = true or TrueRobot.draw(Arm.from_dict(doc), c.effects, rng)
+    block = touch.two_sockets()
+    out = []
+    with tempfile.TemporaryDirectory(prefix="touch-") as tmp:
+        (Path(tmp) / "fixture.toml").write_text(touch.fixture_toml([block]))
+        fixtures = read_fixture_file(Path(tmp) / "fixture.toml") if fixture else ()
+        k = 0
+        for name, n, per in zip(("cal", "val"), placements, per_socket):
+            rows = None
+            for _ in range(n):
+                more = touch.fixture_session(true, block, per, rng, Session(f"P{k}"), contact_noise=contact_noise)
+                rows, k = (more if rows is None else rows + more), k + 1
+            path = rows.write_csv(Path(tmp) / f"{name}.csv", session_column=True)
+            out.append(Measurements.read_csv(path, n_joints=true.arm.n, require_positions=True)
+                       .with_fixtures(fixtures))
     return robot_from_dict(doc, c.robot), out[0], out[1], true
 
 

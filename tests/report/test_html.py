@@ -926,3 +926,17 @@ def test_diagnosis_report_maps_where_the_model_is_accurate(browser, tmp_path):
     inside = (m["x"] >= 40) & (m["x"] <= 80)
     print("inside / outside", m["std_mm"][:, inside].mean() / m["std_mm"][:, ~inside].mean())
     assert m["std_mm"][:, inside].mean() < 0.6 * m["std_mm"][:, ~inside].mean()
+
+
+def test_a_touch_diagnosis_report_in_a_browser(browser, tmp_path):
+    """A diagnosis of touch data (a ball in the sockets of a block, a compliant joint hidden): the page reads in a
+    real browser, and says the touches' consistency and distance error beside the errors."""
+    from tests.helpers import hidden
+    c = hidden.case("arm7-dh", "compliance", 0)
+    rob, cal, val, _ = hidden.make_touch_data(c, placements=(2, 1), per_socket=(20, 10))
+    report = diagnose(rob, cal, val, DiagnosisSettings(seed=0, max_rounds=1))
+    html = diagnosis_html(report)
+    seen = look(browser, html, tmp_path / "touch.html")
+    assert_readable(seen)
+    text = unescape(re.sub(r"<[^>]+>", " ", html))
+    assert "consistency" in text and "distance error" in text

@@ -21,6 +21,10 @@ outside it: a joint's error from another joint's reading (``coupling``,
 ``cross_error``), a tipping axis (``axis_tilt``), a base tilting on a
 compliant mount (``mount_compliance``, per session too) and the tracker's
 own errors (``Session.angle_error``, ``Session.distance_scale``).
+
+:mod:`truth.touch` makes the rows of what the tool touches (docs/formats.md):
+the true robot's tool point put in sockets, on planes, at a draw-wire's
+distance from a pivot, a tool of several points, fixtures placed per session.
 """
 
 from .arm import Arm, FourBar, Link
