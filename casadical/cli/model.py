@@ -78,7 +78,13 @@ def run_inspect(args) -> int:
     model = Model(robot, spec, user_terms=user_terms(args))
     if isinstance(args.poses, str):
         from ..data import Measurements
+        from ..model.symbolic import parse_spec
+        from ..terms.tool_points import check_tool_points, with_tool_points
         data = Measurements.read_csv(args.poses, robot=robot)
+        said = check_tool_points(data, robot)
+        if said:
+            print(f"note: {robot.source or robot.name}: {said}")
+        model = Model(robot, with_tool_points(parse_spec(spec, user_terms(args)), data), user_terms=user_terms(args))
         q, cov, n_poses = data.q, model.covariates(data), len(data)
     else:
         rng = np.random.default_rng(args.seed)
@@ -174,9 +180,10 @@ def param_json(p) -> dict:
 def run_predict(args) -> int:
     from ..data.checks import check_calibration_fits, check_poses
     from ..data.measurements import RXYZ, Measurements
-    from ..model.symbolic import Model
+    from ..model.symbolic import Model, parse_spec
     from ..result import CalibrationResult, ErrorStats
     from ..stats.alignment import align
+    from ..terms.tool_points import with_tool_points
 
     check_outputs({"--out": args.out}, [args.model, args.poses], args.force)
     source = robot_or_calibration(args.model, args)
@@ -190,8 +197,8 @@ def run_predict(args) -> int:
             raise InputError(f"{args.model}: --std needs a calibration JSON (a robot's nominal model has no "
                              "parameter covariance)")
         cal, robot = None, source
-        model = Model(robot, "nominal")
         data = Measurements.read_csv(args.poses, robot=robot)
+        model = Model(robot, with_tool_points(parse_spec("nominal"), data))    # each row's tool point
         xyz = model.predict(data.q, cov=model.covariates(data))
     # a robot's nominal model judges the poses as calibrate does (another robot's poses are refused); a
     # calibration's predictions are judged below against its own error
