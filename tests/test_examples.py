@@ -22,6 +22,7 @@ KEY = {
     "06_simulate.py": "within 2 std of the truth",
     "07_unexplained.py": "with gear32.toml, named causes: gear32 joint 3",
     "08_trust.py": "worst case restored: held-out mean / worst",
+    "09_three_nests.py": "the nests' distances from one another, against the truth: within",
 }
 
 
