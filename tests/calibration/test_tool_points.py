@@ -15,6 +15,7 @@ import pytest
 
 from casadical import calibrate
 from casadical.errors import CorrelationWarning, DataWarning
+from casadical.result import load_calibration
 from casadical.rows import read_fixture_file
 from casadical.stats.physics import inside_bounds
 from tests.helpers.cli import cli, one_error
@@ -153,3 +154,19 @@ def test_a_bound_note_quotes_the_bound(tmp_path):
     with pytest.warns(CorrelationWarning, match=r"tool_x:smr1 = 50 mm is at or beyond its upper bound 50 mm \(its "
                                                 r"nominal 0 mm \+ 50 mm, the geometry's bound"):
         calibrate(robot, cal, "kinematic", "ipopt")
+
+
+def test_export_keeps_each_nest_in_the_table(tmp_path, capsys):
+    """``export`` of a calibration of three nests: the geometry as fitted (the nests are the geometry's, not a
+    physical term to refit), the parameter table with each nest's identified offset."""
+    data = three_nests(0, tmp_path, n_cal=20, n_val=6)
+    cal, table = tmp_path / "cal.json", tmp_path / "table.csv"
+    assert cli(capsys, "calibrate", data.robot_file, data.cal_file, "--model", "kinematic", "--out", cal,
+               "--quiet")[0] == 0
+    code, out, err = cli(capsys, "export", cal, "--urdf", tmp_path / "arm.urdf", "--table", table, "--quiet")
+    assert code == 0, err
+    rows = {r.split(",")[1]: r.split(",") for r in table.read_text().splitlines() if r and not r.startswith("#")}
+    fitted = offsets(load_calibration(cal), NESTS)
+    for k in NESTS:
+        for i, c in enumerate("xyz"):
+            assert float(rows[f"tool_{c}:{k}"][4]) == pytest.approx(fitted[k][0][i] * 1000, abs=1e-9)
