@@ -144,9 +144,10 @@ class DiagnosisRun:
 
     def fit(self, spec: str, start: CalibrationResult | dict | None = None, loss: RobustLoss | None = None,
             parent: CalibrationResult | None = None) -> CalibrationResult:
-        """Calibrate ``spec`` on the calibration poses (the settings' solver, LM by default), from ``start``'s values (a result, or a dict of
-        ``parent``'s parameters as one step moved them), warm: from the base pose and probe mounting of the fit
-        the values are of (``calibrate(start_from=...)``), so the solve starts at its solution."""
+        """Calibrate ``spec`` on the calibration poses (the settings' solver, LM by default), from ``start``'s
+        values (a result, or a dict of ``parent``'s parameters as one step moved them), warm: from the base pose
+        and probe mounting of the fit the values are of (``calibrate(start_from=...)``), so the solve starts at
+        its solution."""
         model = model_for(self.robot, spec + ("+tool_orientation" if self.full_pose else ""), self.cal,
                           session_tools=self.s.session_tools, user_terms=self.s.terms)
         st = origin = None

@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import CorrelationWarning, listing
+from ..terms.geometric import Geometric
 
 
 @dataclass
@@ -91,7 +92,7 @@ def bound_note(p, side: str) -> str:
     unit = p.display_unit
     show = lambda v: f"{p.to_display(v):.6g} {unit}"     # noqa: E731
     text = f"{p.name} = {show(p.value)} is at or beyond its {side} bound {show(bound)}"
-    if p.term == "geometric" and p.group != "base":
+    if p.term == Geometric.name and p.group != "base":
         box = abs(p.to_display(bound) - p.to_display(p.nominal))
         return (text + f" (its nominal {show(p.nominal)} {'-' if side == 'lower' else '+'} {box:.6g} {unit}, the "
                 "geometry's bound: docs/formats.md); its standard error is not meaningful: if the value is real, "
