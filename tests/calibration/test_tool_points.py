@@ -7,6 +7,7 @@ calibration must find them, as one rigid tool, with no parameter at a bound.
 """
 
 import itertools
+import json
 import math
 import warnings
 
@@ -170,3 +171,19 @@ def test_export_keeps_each_nest_in_the_table(tmp_path, capsys):
     for k in NESTS:
         for i, c in enumerate("xyz"):
             assert float(rows[f"tool_{c}:{k}"][4]) == pytest.approx(fitted[k][0][i] * 1000, abs=1e-9)
+
+
+def test_predict_and_inspect_take_each_rows_point(tmp_path, capsys):
+    """``predict ROBOT`` (the nominal model) and ``inspect --poses`` read the tool column too: each row's nominal
+    point is its nest's (a few mm from the measured, not the nests' 60 mm ring), and each nest's offset is a
+    parameter the poses identify."""
+    data = three_nests(0, tmp_path, n_cal=20, n_val=20)
+    code, out, err = cli(capsys, "predict", data.robot_file, data.val_file, "--out", tmp_path / "p.csv")
+    assert code == 0, err
+    mean = float(out.split("mean ")[1].split()[0])
+    assert mean < 10, out
+    code, out, err = cli(capsys, "inspect", data.robot_file, "--model", "kinematic", "--poses", data.cal_file,
+                         "--json", tmp_path / "i.json")
+    assert code == 0, err
+    params = {p["name"]: p for p in json.loads((tmp_path / "i.json").read_text())["parameters"]}
+    assert all(params[f"tool_{c}:{k}"]["identifiable"] for c in "xyz" for k in NESTS)
