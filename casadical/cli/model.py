@@ -75,7 +75,6 @@ def run_inspect(args) -> int:
     if args.terms is not None:      # the terms file's terms are inspected, named in --model or not
         named = {item.split("@")[0].split("[")[0].strip() for item in spec.split("+")}
         spec = "+".join([spec] + [d.name for d in user_terms(args) if d.name not in named])
-    model = Model(robot, spec, user_terms=user_terms(args))
     if isinstance(args.poses, str):
         from ..data import Measurements
         from ..model.symbolic import parse_spec
@@ -84,9 +83,11 @@ def run_inspect(args) -> int:
         said = check_tool_points(data, robot)
         if said:
             print(f"note: {robot.source or robot.name}: {said}")
+        # each row's tool point (a tool column)
         model = Model(robot, with_tool_points(parse_spec(spec, user_terms(args)), data), user_terms=user_terms(args))
         q, cov, n_poses = data.q, model.covariates(data), len(data)
     else:
+        model = Model(robot, spec, user_terms=user_terms(args))
         rng = np.random.default_rng(args.seed)
         q = sample_poses(robot, args.poses, rng, floor_z=None)
         cov, n_poses = _random_covariates(model, len(q)), args.poses
