@@ -23,6 +23,7 @@ KEY = {
     "07_unexplained.py": "with gear32.toml, named causes: gear32 joint 3",
     "08_trust.py": "worst case restored: held-out mean / worst",
     "09_program.py": "filtered program: 6 of 6 targets corrected",
+    "10_three_nests.py": "the nests' distances from one another, against the truth: within",
 }
 
 

@@ -32,9 +32,11 @@ from ..model.symbolic import Model
 from ..result import CalibrationResult, ErrorStats
 from ..terms.geometric import Geometric
 from ..terms.tool_orientation import ToolOrientation
+from ..terms.tool_points import ToolPoints
 
-#: terms that belong to the geometry (what an export carries) or to a session (what it never does)
-GEOMETRIC = (Geometric.name, ToolOrientation.name)
+#: terms that belong to the geometry (what an export carries) or to a session (what it never does); a tool of
+#: several points is the geometry's too (the export's tool point is the robot file's [tool], the rows' without a name)
+GEOMETRIC = (Geometric.name, ToolOrientation.name, ToolPoints.name)
 #: poses drawn within the joint limits to refit on when a calibration holds none of its own (older files)
 DRAWN_POSES = 500
 
@@ -152,8 +154,9 @@ def geometric_equivalent(cal: CalibrationResult, payload_kg: float | None = None
     if cal.has_orientation:   # a full-pose calibration: the geometry reproduces the probe's orientation too
         target = target.with_orientations(full.probe_rotation(q, values, cov, cal.base0) @ cal.tool0)
     target.path = "the full model's tool points"
+    # the geometry's own (not a session's tool, nor a named tool point's: the target rows are the robot's tool point)
     start = {p.name: p.value for p in cal.parameters if p.term == Geometric.name and p.group != "base"
-             and "@" not in p.name}
+             and "@" not in p.name and ":" not in p.name}
     # the loss of a calibration of measured poses (robust, noise scales from the residuals): the geometry weighs
     # the model's departures as a kinematic calibration weighs the data's (the calibration's own, smaller noise
     # scales would make it a least-absolute fit of the departures, 1 % worse on held-out poses)

@@ -12,11 +12,12 @@ from __future__ import annotations
 import numpy as np
 
 from ..data.measurements import Measurements
-from ..errors import InputError
+from ..errors import DataWarning, InputError
 from ..model.symbolic import Model
 from ..robot import Robot
 from ..terms.compliance import JointCompliance
 from ..terms.nonlinear_stiffness import NonlinearStiffness
+from ..terms.tool_points import check_tool_points, tool_column
 from .for_data import model_for
 from .further import take_further
 from .state import CalibrationRun
@@ -56,6 +57,14 @@ def build_model(run: CalibrationRun) -> None:
                 if p.group == "tool":
                     p.fixed, p.reason = False, ""
     params = run.params
+    said = check_tool_points(run.data, run.robot)
+    if said:
+        run.note(f"{run.robot.source or run.robot.name}: {said}", DataWarning)
+    if run.model.term("tool_points") is not None and (tool_column(run.data) != "").all():
+        # every row names its tool point: the robot file's [tool] (the geometry's tool_*) is no row's
+        for p in params.select(term="geometric"):
+            if p.group == "tool" and ":" not in p.name and "@" not in p.name:
+                p.fixed, p.reason = True, "no row measures it: every row names its tool point (tool column)"
     unknown = [n for n in list(opts.fix) + list(opts.start) if n not in params]
     if unknown:
         names = params.names

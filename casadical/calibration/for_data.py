@@ -11,7 +11,7 @@ from ..errors import InputError
 from ..model.symbolic import Model, parse_spec
 from ..robot import Robot
 from ..terms import ErrorTerm, ReferencedTerm, SessionLocal, make_term
-from ..terms.tool_points import tool_points_of
+from ..terms.tool_points import named_points, with_tool_points
 
 
 def set_references(terms: list[ErrorTerm], data: Measurements) -> None:
@@ -32,8 +32,12 @@ def with_sessions(terms: list[ErrorTerm], data: Measurements, tools: bool | list
     holds several sessions; ``tools``: every session other than the first (True), or those named, has its own
     tool too."""
     names = data.session_names
-    points = tool_points_of(data)       # a tool of several points (its rows name them)
-    terms = [t for t in terms if t.name not in ("sessions", "tool_points")] + ([points] if points else [])
+    # a tool of several points (its rows name them)
+    terms = with_tool_points([t for t in terms if t.name != "sessions"], data)
+    if tools and named_points(data):
+        raise InputError("a tool per session (--session-tool) and a tool column naming each row's tool point: "
+                         "give each point its offset by name (the tool column) and leave out --session-tool, or "
+                         "the other way round", file=data.path, column="tool")
     if len(names) < 2:
         if tools:
             raise InputError("a tool per session needs data of several sessions (several files, or a session "

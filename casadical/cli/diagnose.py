@@ -79,6 +79,9 @@ def register(sub) -> None:
                         "(default: %(default)s)")
     p.add_argument("--robust", default="huber", choices=["huber", "none"],
                    help="loss of every fit, as for calibrate (default: %(default)s)")
+    p.add_argument("--solver", default="lm", choices=["lm", "ipopt", "gn", "auto"],
+                   help="solver of every fit, as for calibrate: lm (Levenberg-Marquardt), ipopt (bounded), gn "
+                        "(Gauss-Newton), auto (lm, then ipopt if a bound is crossed) (default: %(default)s)")
     p.add_argument("--no-blackbox", "--no-layer", action="store_true",
                    help="skip the GP compensator (a Gaussian process, one per session, of what the named causes leave)")
     p.add_argument("--worst-case", action="store_true",
@@ -141,7 +144,7 @@ def run(args) -> int:
                                  transfer_base_poses=args.transfer_base_poses or DiagnosisSettings.transfer_base_poses,
                                  transfer_refit_poses=args.transfer_refit_poses, session_tools=args.session_tool,
                                  structure=not args.no_structure, noise_mm=args.noise_mm,
-                                 worst_case=args.worst_case, terms=user_terms(args))
+                                 worst_case=args.worst_case, solver=args.solver, terms=user_terms(args))
     status = Status(args.quiet)
     say = status.timed_line()
     report = diagnose(robot, cal, val, settings, progress=say if args.verbose else _brief(say), other=other,

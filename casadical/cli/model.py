@@ -79,13 +79,20 @@ def run_inspect(args) -> int:
     if args.terms is not None:      # the terms file's terms are inspected, named in --model or not
         named = {item.split("@")[0].split("[")[0].strip() for item in spec.split("+")}
         spec = "+".join([spec] + [d.name for d in user_terms(args) if d.name not in named])
-    model = Model(robot, spec, user_terms=user_terms(args))
     unobservable = []
     if isinstance(args.poses, str):
         from ..data import Measurements
+        from ..model.symbolic import parse_spec
+        from ..terms.tool_points import check_tool_points, with_tool_points
         data = timed(Measurements.read_csv(args.poses, robot=robot), args)
+        said = check_tool_points(data, robot)
+        if said:
+            print(f"note: {robot.source or robot.name}: {said}")
+        # each row's tool point (a tool column)
+        model = Model(robot, with_tool_points(parse_spec(spec, user_terms(args)), data), user_terms=user_terms(args))
         q, cov, n_poses = data.q, model.covariates(data), len(data)
     else:
+        model = Model(robot, spec, user_terms=user_terms(args))
         rng = np.random.default_rng(args.seed)
         q = sample_poses(robot, args.poses, rng, floor_z=None)
         cov, n_poses = _random_covariates(model, len(q)), args.poses
@@ -207,9 +214,10 @@ def param_json(p) -> dict:
 def run_predict(args) -> int:
     from ..data.checks import check_calibration_fits, check_poses
     from ..data.measurements import RXYZ, Measurements
-    from ..model.symbolic import Model
+    from ..model.symbolic import Model, parse_spec
     from ..result import CalibrationResult, ErrorStats
     from ..stats.alignment import align
+    from ..terms.tool_points import with_tool_points
 
     check_outputs({"--out": args.out}, [args.model, args.poses], args.force)
     source = robot_or_calibration(args.model, args)
@@ -223,8 +231,8 @@ def run_predict(args) -> int:
             raise InputError(f"{args.model}: --std needs a calibration JSON (a robot's nominal model has no "
                              "parameter covariance)")
         cal, robot = None, source
-        model = Model(robot, "nominal")
         data = Measurements.read_csv(args.poses, robot=robot)
+        model = Model(robot, with_tool_points(parse_spec("nominal"), data))    # each row's tool point
         xyz = model.predict(data.q, cov=model.covariates(data))
     # a robot's nominal model judges the poses as calibrate does (another robot's poses are refused); a
     # calibration's predictions are judged below against its own error

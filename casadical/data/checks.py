@@ -84,9 +84,11 @@ def check_poses(data: Measurements, robot: Robot, *, allow_outside_limits: bool 
                             file=data.path, row=1)
     from .measurements import check_reading_units
     check_reading_units(data.q_columns, robot, data.path)    # qK_mm for a prismatic joint, qK_deg otherwise
-    key = ("poses", robot.name, robot.n, robot.limits.tobytes(), robot.tool.tobytes())
+    key = ("poses", robot.name, robot.n, robot.limits.tobytes(), robot.tool.tobytes(), tuple(robot.tools))
     if key in data.checked:
         return
+    from ..terms.tool_points import check_tool_points
+    check_tool_points(data, robot)      # the rows' tool points are the robot file's (what it lacks: a note)
     check_angle_units(data, robot, allow=angles_are_degrees)
     check_joint_limits(data, robot, allow=allow_outside_limits)
     if data.has_positions and data.touches:     # the measured rows alone (a touch row has no position)
@@ -99,8 +101,10 @@ def check_poses(data: Measurements, robot: Robot, *, allow_outside_limits: bool 
     elif data.has_positions:
         judge = predicted is None or nominal or calibration is not None
         if predicted is None:
-            from ..model.symbolic import Model
-            predicted = Model(robot, "nominal", jit=False).predict(data.q)
+            from ..model.symbolic import Model, parse_spec
+            from ..terms.tool_points import with_tool_points
+            model = Model(robot, with_tool_points(parse_spec("nominal"), data), jit=False)
+            predicted = model.predict(data.q, cov=model.covariates(data))
         for idx in session_index(data).values():    # each session in its own tracker frame
             check_position_units(data.subset(idx), np.asarray(predicted)[idx], allow=positions_are_mm)
         # with --positions-are-mm the user vouches for points the model's do not match in scale: not judged

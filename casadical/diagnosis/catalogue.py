@@ -54,7 +54,7 @@ from ..terms import ordered
 from ..terms.mount_compliance import max_mount_moment, mount_moments
 from ..terms.periodic import phase
 from .candidates import Candidate
-from .design import ONE_AT_A_TIME, moving_joint
+from .design import ONE_AT_A_TIME, moving_of
 from .periodogram import Periodogram, joint_errors, periodogram
 from .plots import joint_view
 from .settings import DiagnosisSettings
@@ -283,7 +283,7 @@ def one_at_a_time(data: Measurements) -> bool:
     """The poses move one joint at a time (from a common pose, or from the pose before): a joint's error that
     follows another joint's reading shows at one configuration of the arm only, where any function of that
     reading fits it (a coupling is not tried)."""
-    return moving_joint(data.q_deg[np.argsort(data.rows, kind="stable")])[0] >= ONE_AT_A_TIME
+    return moving_of(data)[0] >= ONE_AT_A_TIME
 
 
 def moment_changes(robot: Robot, data: Measurements) -> bool:

@@ -27,6 +27,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..data.measurements import Measurements
+from ..data.poses import first_rows, pose_index
 from ..result import CalibrationResult
 from ..terms.geometric import Geometric
 
@@ -105,20 +106,30 @@ def moving_joint(q_deg: np.ndarray) -> tuple[float, np.ndarray]:
     return max(out, key=lambda t: t[0])
 
 
+def moving_of(data: Measurements) -> tuple[float, np.ndarray]:
+    """:func:`moving_joint` of the poses of ``data`` in the measurement order, a pose measured at several tool
+    points (or again) once (:func:`casadical.data.poses.pose_index`); the joint each row's pose moves."""
+    pose = pose_index(data.q, data.sessions)
+    first = first_rows(pose)
+    order = first[np.argsort(data.rows[first], kind="stable")]
+    share, moving_ordered = moving_joint(data.q_deg[order])
+    moving = np.empty(len(first), dtype=moving_ordered.dtype)
+    moving[pose[order]] = moving_ordered
+    return share, moving[pose]
+
+
 def assess(cal: Measurements, kinematic: CalibrationResult, n_equations: int) -> Design:
     """How weak the design of ``cal`` is for the geometry (``kinematic``: its kinematic fit, on ``n_equations``
     measured coordinates)."""
     p = int(kinematic.parameters.free.sum())
     per = n_equations / max(p, 1)
-    order = np.argsort(cal.rows, kind="stable")
-    share, moving_ordered = moving_joint(cal.q_deg[order])
-    moving = np.empty_like(moving_ordered)
-    moving[order] = moving_ordered
+    share, moving = moving_of(cal)
+    poses = int(pose_index(cal.q, cal.sessions).max(initial=-1)) + 1
     unc = kinematic.uncertainty
     pairs = unc.strong_pairs(NEAR_ONE) if unc is not None else []
     reasons = []
     if per < WEAK_EQUATIONS:
-        reasons.append(f"{len(cal)} poses give {per:.1f} measured coordinates per free parameter of the kinematic "
+        reasons.append(f"{poses} poses give {per:.1f} measured coordinates per free parameter of the kinematic "
                        f"model ({n_equations} for {p}; {WEAK_EQUATIONS:g} or more make a design that can tell them)")
     if share >= ONE_AT_A_TIME:
         reasons.append(f"{share:.0%} of the poses move one joint only (from a common pose or from the pose before)")

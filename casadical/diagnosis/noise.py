@@ -15,6 +15,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..data import Measurements
+from ..terms.tool_points import tool_column
 
 #: readings equal to this (deg; mm for a linear axis), rounded, are one pose measured again
 REPEAT_DEG = 1e-3
@@ -53,6 +54,8 @@ def repeated_sigma(data: Measurements) -> tuple[float, int] | None:
     key = np.round((data.q_deg if any(data.prismatic) else np.degrees(data.q)) / REPEAT_DEG).astype(np.int64)
     if data.sessions is not None:
         key = np.column_stack([np.unique(data.sessions, return_inverse=True)[1], key])
+    # a pose measured at several tool points (a tool column) is not a pose measured again
+    key = np.column_stack([np.unique(tool_column(data), return_inverse=True)[1].ravel(), key])
     _, group, count = np.unique(key, axis=0, return_inverse=True, return_counts=True)
     group = group.ravel()
     again = count[group] > 1

@@ -9,6 +9,7 @@ any fit.
 from __future__ import annotations
 
 from ..data.checks import check_held_out, check_other_series, check_poses
+from ..terms.tool_points import check_tool_points
 from .catalogue import Catalogue
 from .state import DiagnosisRun
 
@@ -20,6 +21,9 @@ def check_data(run: DiagnosisRun) -> None:
     for d in [cal, run.val] + ([run.other] if run.other is not None else []):
         check_poses(d, run.robot, **run.checks)
     check_held_out(cal, run.val)            # validation poses the fits have seen would judge nothing
+    said = check_tool_points(cal, run.robot)    # tool points the robot file gives no nominal offset
+    if said:
+        run.notes.append(f"{run.robot.source or run.robot.name}: {said}")
     if run.other is not None:
         check_other_series(cal, run.other)
     # rows that touch: their layout's equations (each touched thing's unknowns used up, casadical.rows)

@@ -6,6 +6,9 @@ from dataclasses import dataclass, fields
 
 from ..errors import InputError
 
+#: the solvers a diagnosis may fit with
+SOLVERS = ("lm", "ipopt", "gn", "auto")
+
 
 @dataclass
 class DiagnosisSettings:
@@ -62,6 +65,10 @@ class DiagnosisSettings:
         The instrument's noise per axis (mm, 1 sigma), as the user states it:
         the report gives the final model's leftover in units of it (None: from
         repeated poses where the data hold some, :mod:`casadical.diagnosis.noise`).
+    solver : {"lm", "ipopt", "gn", "auto"}
+        The solver of every fit of a model to the calibration poses (see :func:`casadical.calibrate`):
+        Levenberg-Marquardt (unbounded, the default), IPOPT (within the parameters' bounds), Gauss-Newton, or
+        LM then IPOPT where a bound is crossed.
     terms : tuple of TermDefinition
         Causes of one's own (a terms file's, :func:`casadical.terms.definitions.read_terms_file`): screened
         beside the catalogue's, by the same tests and rules.
@@ -83,6 +90,7 @@ class DiagnosisSettings:
     structure: bool = True
     noise_mm: float | None = None
     worst_case: bool = False
+    solver: str = "lm"
     terms: tuple = ()
 
     def record(self) -> dict:
@@ -99,5 +107,7 @@ class DiagnosisSettings:
                 raise InputError(f"{name} must be at least {2 if name == 'folds' else 1}, got {getattr(self, name)}")
         if self.noise_mm is not None and not 0 < self.noise_mm < float("inf"):
             raise InputError(f"noise_mm must be a positive number of mm, got {self.noise_mm}")
+        if self.solver not in SOLVERS:
+            raise InputError(f"solver must be one of {', '.join(SOLVERS)}, got {self.solver!r}")
         if self.max_rounds < 0:
             raise InputError(f"max_rounds must not be negative, got {self.max_rounds}")

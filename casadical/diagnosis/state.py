@@ -147,9 +147,10 @@ class DiagnosisRun:
 
     def fit(self, spec: str, start: CalibrationResult | dict | None = None, loss: RobustLoss | None = None,
             parent: CalibrationResult | None = None) -> CalibrationResult:
-        """Calibrate ``spec`` on the calibration poses (LM), from ``start``'s values (a result, or a dict of
-        ``parent``'s parameters as one step moved them), warm: from the base pose and probe mounting of the fit
-        the values are of (``calibrate(start_from=...)``), so the solve starts at its solution."""
+        """Calibrate ``spec`` on the calibration poses (the settings' solver, LM by default), from ``start``'s
+        values (a result, or a dict of ``parent``'s parameters as one step moved them), warm: from the base pose
+        and probe mounting of the fit the values are of (``calibrate(start_from=...)``), so the solve starts at
+        its solution."""
         model = model_for(self.robot, spec + ("+tool_orientation" if self.full_pose else ""), self.cal,
                           session_tools=self.s.session_tools, user_terms=self.s.terms)
         st = origin = None
@@ -160,7 +161,8 @@ class DiagnosisRun:
         # each solve stops once its next step is below a hundredth of every parameter's standard error: the
         # steps after that moved no finding, and half the linearisations of the 2,000-pose job were the trials
         # of steps the cost's rounding rejected there (docs/speed.md)
-        return calibrate(self.robot, self.cal, model, "lm", solver_options={"std_tol": STD_TOL}, start=st,
+        opts = {} if self.s.solver == "ipopt" else {"std_tol": STD_TOL}     # IPOPT stops by its own tolerance
+        return calibrate(self.robot, self.cal, model, self.s.solver, solver_options=opts, start=st,
                          start_from=origin, warn=False, robust=loss or self.s.robust,
                          position_only=self.s.position_only)
 

@@ -30,6 +30,7 @@ from typing import Callable
 import numpy as np
 
 from ..data.measurements import Measurements
+from ..data.poses import first_rows, pose_index
 from ..model.symbolic import Model
 from ..robot import Robot
 from ..runtime.threads import evaluation_pool, evaluation_threads
@@ -94,6 +95,10 @@ def schemes(q: np.ndarray, rows: np.ndarray, k: int, seed: int, lever: np.ndarra
     """The random, time-blocked and joint-blocked schemes of a data set (and leave-one-session-out with
     ``sessions`` of more than one session).
 
+    A fold leaves a pose out whole: rows of one session with the same readings (a tool of several points
+    measured at each, a pose measured again: :func:`casadical.data.poses.pose_index`) are one pose, dealt to the
+    folds as one row (its first), so no fold fits a pose it holds out.
+
     ``moving``: in a design of one joint at a time, the joint each pose moves: the time blocks are cut
     within each joint's sweep (as within each session), the joint-range blocks in the joint's own sweep
     (:func:`joint_scheme`).
@@ -104,6 +109,12 @@ def schemes(q: np.ndarray, rows: np.ndarray, k: int, seed: int, lever: np.ndarra
     e.g. a flange joint with the probe on its axis) gets no joint-blocked
     scheme: leaving out a range of it tests nothing.
     """
+    pose = pose_index(q, sessions)
+    first = first_rows(pose)
+    if len(first) < len(q):     # the schemes of the poses (their first rows), each pose's rows in its pose's fold
+        pick = (lambda a: None if a is None else np.asarray(a)[first])  # noqa: E731
+        return [Scheme(s.name, [np.flatnonzero(np.isin(pose, f)) for f in s.folds])
+                for s in schemes(q[first], rows[first], k, seed, lever, min_lever, pick(sessions), pick(moving))]
     several = sessions is not None and len(set(sessions.tolist())) > 1
     groups = sessions if several else None
     if moving is not None:

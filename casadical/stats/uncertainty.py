@@ -19,6 +19,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import CorrelationWarning, listing
+from ..terms.geometric import Geometric
 
 
 @dataclass
@@ -84,6 +85,21 @@ def from_normal(A: np.ndarray, ssr: float, m: int, scale: np.ndarray, names: lis
     return Uncertainty(names, cov, float(np.sqrt(sigma2)) if dof > 0 else float("nan"), dof)
 
 
+def bound_note(p, side: str) -> str:
+    """Words for parameter ``p`` at or beyond its ``side`` bound: its value, the bound and where that comes from (a
+    bound of the geometry: the robot file's nominal plus or minus the geometry's box), and what to do."""
+    bound = p.lower if side == "lower" else p.upper
+    unit = p.display_unit
+    show = lambda v: f"{p.to_display(v):.6g} {unit}"     # noqa: E731
+    text = f"{p.name} = {show(p.value)} is at or beyond its {side} bound {show(bound)}"
+    if p.term == Geometric.name and p.group != "base":
+        box = abs(p.to_display(bound) - p.to_display(p.nominal))
+        return (text + f" (its nominal {show(p.nominal)} {'-' if side == 'lower' else '+'} {box:.6g} {unit}, the "
+                "geometry's bound: docs/formats.md); its standard error is not meaningful: if the value is real, "
+                "the robot file's nominal is that far off (correct it there)")
+    return text + "; its standard error is not meaningful, widen the bound if it is not physical"
+
+
 def warn_problems(unc: Uncertainty, params, threshold: float = 0.95,
                   expected: frozenset = frozenset()) -> list[str]:
     """Issue :class:`CorrelationWarning` for strongly correlated or bound-limited parameters.
@@ -108,8 +124,7 @@ def warn_problems(unc: Uncertainty, params, threshold: float = 0.95,
                              "of its physics that cannot be widened: it is not determined by these poses (they "
                              "cannot tell it from 0), and its standard error is not meaningful")
             else:
-                notes.append(f"{name} is at or beyond its {side} bound ({p.to_display(p.value):.6g} {p.display_unit}); "
-                             "its standard error is not meaningful, widen the bound if it is not physical")
+                notes.append(bound_note(p, side))
     for n in notes:
         warnings.warn(n, CorrelationWarning, stacklevel=3)
     return notes

@@ -12,6 +12,10 @@ from .cause import Cause, register_cause
 
 LENGTH_SCALE = 1e-3   # 1 mm
 ANGLE_SCALE = 1e-3    # 1 mrad
+#: the bounds of the geometry: every length (a link's, the tool's) within this of its nominal (m), every angle within
+#: :data:`ANGLE_BOX` (rad); docs/formats.md ("Bounds of the geometry")
+LENGTH_BOX = 0.05
+ANGLE_BOX = math.radians(5.0)
 
 
 @register
@@ -47,7 +51,7 @@ class Geometric(ErrorTerm):
         """The superset expresses it (its geometry and sessions come first)."""
         return True
 
-    def __init__(self, joints=None, length_box: float = 0.05, angle_box: float = math.radians(5.0),
+    def __init__(self, joints=None, length_box: float = LENGTH_BOX, angle_box: float = ANGLE_BOX,
                  drive_errors: bool = True):
         super().__init__(joints)
         self.length_box = length_box

@@ -9,7 +9,7 @@ from ..errors import DataFileError, ModelError
 from ..parameters import Parameter
 from ..robot import Robot
 from .base import Context, ErrorTerm, register
-from .geometric import ANGLE_SCALE, LENGTH_SCALE
+from .geometric import ANGLE_SCALE, LENGTH_BOX, LENGTH_SCALE
 
 #: the per-pose covariates of the reference pose of a pose's session (rotation row-major, translation)
 REFERENCE = tuple(f"ref{k}" for k in range(12))
@@ -107,7 +107,7 @@ class SessionFrames(ErrorTerm):
                    for k in ("roll", "pitch", "yaw")]
             if s in self.tools:
                 ps += [Parameter(f"tool_{k}@{s}", v, "m", LENGTH_SCALE, "geometric", group="tool",
-                                 lower=v - 0.05, upper=v + 0.05) for k, v in zip("xyz", robot.tool)]
+                                 lower=v - LENGTH_BOX, upper=v + LENGTH_BOX) for k, v in zip("xyz", robot.tool)]
         return ps
 
     def geometry(self, ctx: Context, geom):
