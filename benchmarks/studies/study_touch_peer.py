@@ -182,18 +182,38 @@ def measures(points: Points, sockets: dict[str, np.ndarray]) -> tuple[float, flo
     return consistency, distance_error
 
 
-# --- casadical, the third column (LEAD: fill in) -------------------------------------------------------------
+# --- casadical, the third column -------------------------------------------------------------------------------
+
+#: the model casadical calibrates (``--model``)
+MODEL = "kinematic"
+
 
 def casadical_model(robot: str, nominal_urdf: Path, train: str, train_sockets: dict[str, np.ndarray],
-                    fixture_toml: Path | None = None) -> Points | None:
-    """casadical's calibration of ``robot`` from its ``train`` placement, as a callable from joint readings (rad,
-    (N, n)) to ball points (m, (N, 3), any fixed frame), or None where there is none yet.
+                    model: str = MODEL) -> Points | None:
+    """casadical's calibration of ``robot`` from its ``train`` placement, as a user makes it with the library: the
+    placement converted to a measurement CSV (``benchmarks/datasets/mukca.py``), the block as a fixture file,
+    ``calibrate(load_robot(NOMINAL.urdf, tip="ball_link"), data, model)``; returned as a callable from joint
+    readings (rad, (N, n)) to ball points (m, (N, 3), the robot's base frame)."""
+    import tempfile
+    import warnings
 
-    LEAD: calibrate here (e.g. ``casadical calibrate NOMINAL.urdf --urdf-tip ball_link TRAIN.csv --fixture
-    two_sockets.toml``, the CSV made by ``benchmarks/datasets/mukca.py``'s ``placement_table``) and return
-    its prediction of the ball point; the table then prints it beside the nominal and the peer's URDF.
-    """
-    return None
+    from casadical import Measurements, calibrate, load_robot
+    from casadical.rows import read_fixture_file
+    from mukca import FIXTURE_TOML, SOCKETS, csv_text, degrees
+
+    arm = load_robot(nominal_urdf, tip=TIP)
+    header = [f"q{j + 1}_deg" for j in range(arm.n)] + ["point"]
+    rows = [[repr(degrees(v)) for v in reading] + [point] for point in SOCKETS.values()
+            for reading in train_sockets[point].tolist()]
+    with tempfile.TemporaryDirectory(prefix="touch-peer-") as tmp:
+        csv, toml = Path(tmp) / f"{train}.csv", Path(tmp) / "two_sockets.toml"
+        csv.write_text(csv_text(header, rows))
+        toml.write_text(FIXTURE_TOML)
+        data = Measurements.read_csv(csv, robot=arm).with_fixtures(read_fixture_file(toml))
+        with warnings.catch_warnings():          # what the calibration says is in its result; the table is ours
+            warnings.simplefilter("ignore")
+            result = calibrate(arm, data, model, allow_outside_limits=True)
+    return lambda q: result.predict(Measurements.from_arrays(np.atleast_2d(q)))
 
 
 # --- the robots ----------------------------------------------------------------------------------------------

@@ -133,9 +133,14 @@ class FixturePoints(RowKind):
 
     @staticmethod
     def _points(group) -> tuple[np.ndarray, np.ndarray]:
-        """The fixture's points the rows touch ((k, 3), in its frame) and each row's index among them."""
-        names, which = np.unique(np.asarray(group.point_names, dtype=str), return_inverse=True)
-        return np.array([group.fixture.points[p] for p in names]), which.ravel()
+        """The fixture's points the rows touch ((k, 3), in its frame) and each row's index among them; kept on the
+        group (a solver asks for them at every evaluation)."""
+        hit = group.__dict__.get("_fixture_points")
+        if hit is None:
+            names, which = np.unique(np.asarray(group.point_names, dtype=str), return_inverse=True)
+            hit = group.__dict__["_fixture_points"] = (np.array([group.fixture.points[p] for p in names]),
+                                                       which.ravel())
+        return hit
 
     def fit(self, P: np.ndarray, group):
         known, which = self._points(group)
