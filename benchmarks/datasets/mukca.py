@@ -22,9 +22,10 @@ row order is time order within a socket only.
     python benchmarks/datasets/mukca.py problems/datasets/panda-mukca
 
 rewrites the converted files of the bundled panda_2 data from its ``raw/``
-folder, and ``panda_masses.urdf``: the nominal URDF with the Panda's published
-link masses (:data:`PANDA_INERTIALS`), which a compliance needs (``--check``:
-compare instead; exit 1 if any differs).
+folder, ``panda_2_held_out.csv`` (every placement but ``front_center``) and
+``panda_masses.urdf``: the nominal URDF with the Panda's published link masses
+(:data:`PANDA_INERTIALS`), which a compliance needs (``--check``: compare
+instead; exit 1 if any differs).
 ``tests/importers/test_mukca.py`` checks that the bundled files equal a fresh
 conversion. Plain Python and numpy: nothing of casadical.
 """
@@ -93,6 +94,8 @@ PANDA_INERTIALS = {
 }
 #: the Panda URDF with its masses, beside the bundled data (made from ``raw/urdf/panda.urdf``)
 PANDA_MASSES_URDF = "panda_masses.urdf"
+#: every placement of panda_2 but ``front_center`` (the one the peer trained on), with their ``session`` column
+HELD_OUT = "panda_2_held_out.csv"
 
 
 def with_masses(urdf_text: str, inertials: dict = PANDA_INERTIALS) -> str:
@@ -215,6 +218,9 @@ def convert_dataset(dataset: str | Path, check: bool = False) -> list[str]:
     dataset = Path(dataset)
     files = converted_files(dataset / "raw" / "data" / "panda_2")
     files[PANDA_MASSES_URDF] = with_masses((dataset / "raw" / "urdf" / "panda.urdf").read_text())
+    # the eight placements the peer's calibrated URDF never saw, in one file: the README job's --validate
+    lines = files["panda_2.csv"].splitlines(keepends=True)
+    files[HELD_OUT] = "".join([lines[0]] + [x for x in lines[1:] if not x.rstrip("\n").endswith(",front_center")])
     changed = []
     for rel, text in files.items():
         path = dataset / rel

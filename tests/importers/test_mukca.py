@@ -81,6 +81,9 @@ def test_all_placements_in_one_file():
         _, alone = rows_of(DATASET / "placements" / f"{placement}.csv")
         mine = [{k: v for k, v in r.items() if k != "session"} for r in rows if r["session"] == placement]
         assert mine == alone
+    # the held-out file: the same rows but front_center's, in the same order
+    held_head, held = rows_of(DATASET / mukca.HELD_OUT)
+    assert held_head == head and held == [r for r in rows if r["session"] != "front_center"] and len(held) == 499
 
 
 def test_the_fixture_file():
