@@ -440,8 +440,9 @@ def print_table(robots: list[Robot], rows: list[dict]) -> None:
                   f"error {d:.2f} (at most 1)")
         print(f"{'':<20} calibrated URDF: {r.source or 'none in the peer repository'}")
         if r.ours:
-            how = ("chosen on the training placement's own folds, " + ", ".join(
-                f"{m} {e:.3f} mm" for m, e in r.ours.folds_mm.items())) if len(r.ours.folds_mm) > 1 else "given"
+            folds = ", ".join(f"{m} {e:.3f} mm" for m, e in r.ours.folds_mm.items())
+            how = ("given" if not folds else f"chosen on the training placement's own folds: {folds}"
+                   if len(r.ours.folds_mm) > 1 else f"the URDF weighs no link: the geometry alone; folds {folds}")
             print(f"{'':<20} casadical: {r.ours.model} on the {r.ours.robot_file} ({how})")
 
 
