@@ -103,7 +103,7 @@ JOBS: dict[str, Job] = {
     "hidden-effects": Job((_py("studies/study_hidden_effects.py"),), 10),
     "open-world": Job((_py("studies/study_open_world.py"),), 2),
     "compensator": Job((_py("studies/study_compensator.py"),), 2),
-    "touch-peer": Job((_py("studies/study_touch_peer.py"),), 1.5),
+    "touch-peer": Job((_py("studies/study_touch_peer.py"),), 0.5),
 }
 
 
