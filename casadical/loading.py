@@ -35,7 +35,7 @@ def load_robot(spec: str | Path, tip: str | None = None, base: str | None = None
     """
     path = robot_file(spec)
     if path.suffix.lower() == ".urdf":
-        from .urdf import robot_from_urdf  # here: a TOML robot needs neither yourdfpy nor the URDF writer
+        from .urdf import robot_from_urdf  # here: a TOML robot needs neither lxml nor the URDF writer
 
         return robot_from_urdf(path, tip=tip, base=base, tool=tool)
     check_not_urdf_options(spec, tip, base, tool)

@@ -22,7 +22,10 @@ row order is time order within a socket only.
     python benchmarks/datasets/mukca.py problems/datasets/panda-mukca
 
 rewrites the converted files of the bundled panda_2 data from its ``raw/``
-folder (``--check``: compare instead; exit 1 if any differs).
+folder, ``panda_2_held_out.csv`` (every placement but ``front_center``) and
+``panda_masses.urdf``: the nominal URDF with the Panda's published link masses
+(:data:`PANDA_INERTIALS`), which a compliance needs (``--check``: compare
+instead; exit 1 if any differs).
 ``tests/importers/test_mukca.py`` checks that the bundled files equal a fresh
 conversion. Plain Python and numpy: nothing of casadical.
 """
@@ -69,6 +72,56 @@ sd_mm = 0.05                  # how well the 50 mm is known: the caliper check's
 socket0 = [0.0, 0.0, 0.0]
 socket1 = [{SOCKET_DISTANCE_MM!r}, 0.0, 0.0]
 """
+
+
+#: The Panda's link masses (kg) and centres of mass (m, in each link's frame), for the gravity torques of a
+#: compliance: franka_ros ``franka_description/robots/common/inertial.yaml`` (github frankaemika/franka_ros, Apache
+#: 2.0), which takes them from Gaz, Cognetti, Oliva, Robuffo Giordano, De Luca, "Dynamic Identification of the
+#: Franka Emika Panda Robot With Retrieval of Feasible Parameters Using Penalty-Based Optimization", IEEE RA-L 4(4),
+#: 2019 (not Franka's official values, as the file says); the hand and its fingers are Franka Hand's. The ball and
+#: whatever holds it are not weighed (a few grams of printed plastic).
+PANDA_INERTIALS = {
+    "panda_link1": (4.970684, (0.003875, 0.002081, -0.04762)),
+    "panda_link2": (0.646926, (-0.003141, -0.02872, 0.003495)),
+    "panda_link3": (3.228604, (2.7518e-02, 3.9252e-02, -6.6502e-02)),
+    "panda_link4": (3.587895, (-5.317e-02, 1.04419e-01, 2.7454e-02)),
+    "panda_link5": (1.225946, (-1.1953e-02, 4.1065e-02, -3.8437e-02)),
+    "panda_link6": (1.666555, (6.0149e-02, -1.4117e-02, -1.0517e-02)),
+    "panda_link7": (7.35522e-01, (1.0517e-02, -4.252e-03, 6.1597e-02)),
+    "panda_hand": (0.73, (-0.01, 0.0, 0.03)),
+    "panda_leftfinger": (0.015, (0.0, 0.0, 0.0)),
+    "panda_rightfinger": (0.015, (0.0, 0.0, 0.0)),
+}
+#: the Panda URDF with its masses, beside the bundled data (made from ``raw/urdf/panda.urdf``)
+PANDA_MASSES_URDF = "panda_masses.urdf"
+#: every placement of panda_2 but ``front_center`` (the one the peer trained on), with their ``session`` column
+HELD_OUT = "panda_2_held_out.csv"
+
+
+def with_masses(urdf_text: str, inertials: dict = PANDA_INERTIALS) -> str:
+    """``urdf_text`` with an ``<inertial>`` (mass and centre of mass; inertia tensors zero: casadical uses none)
+    at the top of each link ``inertials`` names, and a comment saying where they come from; every other byte
+    kept. Raises ValueError for a link the URDF lacks or one that has an ``<inertial>`` already."""
+    import re
+
+    out = urdf_text
+    for link, (mass, com) in inertials.items():
+        m = re.search(rf'<link name="{re.escape(link)}"\s*(/?)>', out)
+        if m is None:
+            raise ValueError(f"the URDF has no link {link!r}")
+        end = out.find("</link>", m.end()) if not m.group(1) else m.end()
+        if "<inertial" in out[m.end():end]:
+            raise ValueError(f"link {link!r} has an <inertial> already")
+        xyz = " ".join(repr(float(v)) for v in com)
+        inertial = (f'\n    <inertial>\n      <origin rpy="0 0 0" xyz="{xyz}"/>\n      <mass value="{mass!r}"/>\n'
+                    '      <inertia ixx="0" ixy="0" ixz="0" iyy="0" iyz="0" izz="0"/>\n    </inertial>')
+        tag = f'<link name="{link}">' + inertial + ("\n  </link>" if m.group(1) else "")
+        out = out[:m.start()] + tag + out[m.end():]
+    note = ("<!-- casadical: link masses and centres of mass added from franka_ros "
+            "franka_description/robots/common/inertial.yaml\n     (Gaz et al., IEEE RA-L 2019); made by "
+            "benchmarks/datasets/mukca.py from the nominal URDF, every other line as it is -->\n")
+    head, sep, tail = out.partition("<robot")
+    return head + note + sep + tail
 
 
 class RawFileError(ValueError):
@@ -164,6 +217,10 @@ def convert_dataset(dataset: str | Path, check: bool = False) -> list[str]:
     holding ``raw/``); returns the files written, or those that differ from a fresh conversion."""
     dataset = Path(dataset)
     files = converted_files(dataset / "raw" / "data" / "panda_2")
+    files[PANDA_MASSES_URDF] = with_masses((dataset / "raw" / "urdf" / "panda.urdf").read_text())
+    # the eight placements the peer's calibrated URDF never saw, in one file: the README job's --validate
+    lines = files["panda_2.csv"].splitlines(keepends=True)
+    files[HELD_OUT] = "".join([lines[0]] + [x for x in lines[1:] if not x.rstrip("\n").endswith(",front_center")])
     changed = []
     for rel, text in files.items():
         path = dataset / rel

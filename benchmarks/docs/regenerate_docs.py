@@ -106,6 +106,7 @@ JOBS: dict[str, Job] = {
     "hidden-effects": Job((_py("studies/study_hidden_effects.py"),), 10),
     "open-world": Job((_py("studies/study_open_world.py"),), 2),
     "compensator": Job((_py("studies/study_compensator.py"),), 2),
+    "touch-peer": Job((_py("studies/study_touch_peer.py"),), 0.5),
 }
 
 
@@ -177,6 +178,8 @@ BLOCKS: dict[str, Block] = {
     # docs/guide.md
     "guide-aic": Block("guide", (r"^AIC and BIC",)),
     "guide-urdf": Block("guide", (r"^URDF read by yourdfpy",)),
+    # docs/touch.md
+    "touch-peer-panda2": Block("touch-peer", (r"^### Held-out means per robot",)),
     # docs/formats.md
     "formats-singular": Block("singular", (r"^UR10, .* measured poses",)),
 }

@@ -22,9 +22,18 @@ yourdfpy the way the peer evaluates (``update_cfg`` with the readings padded
 with zeros, ``get_transform(base_link, "ball_link")``) to 1e-9 m, and against
 the ball points the peer stored in ``calibrated_urdf/panda_6|7/kpis.yaml``.
 
-A third column, casadical's own calibration on the same training placement,
-is left to :func:`casadical_model` (the lead fills it: it returns a callable
-from joint readings to ball points, or None).
+The third column is casadical's own calibration on the same training
+placement (:func:`casadical_model`: the library as a user calls it, the
+block as a fixture file), its model chosen on that placement alone: the
+candidates of :data:`CANDIDATES` (the complete geometry; where the robot
+file weighs its links, a joint or a bearing giving way under the weights:
+the Pandas get their published masses, ``mukca.with_masses``) each fitted
+to four fifths of the training rows and judged on the fifth left out, five
+times (blocks of recording order, :func:`block_folds`); the least error
+wins (``--model`` forces one). Per robot it prints the means over the
+placements neither calibration saw and the ratios casadical / peer beside
+issue 45's targets, and a Markdown table of them (``### Held-out means per
+robot``, quoted in docs/touch.md).
 
 The peer's calibrated URDFs exist only for panda_2, 3, 4, 6 and 7.
 ``--peer-runs DIR`` adds, for the robots without one, the URDFs the peer
@@ -182,18 +191,108 @@ def measures(points: Points, sockets: dict[str, np.ndarray]) -> tuple[float, flo
     return consistency, distance_error
 
 
-# --- casadical, the third column (LEAD: fill in) -------------------------------------------------------------
+# --- casadical, the third column -------------------------------------------------------------------------------
+
+#: the models casadical tries on the training placement: the complete geometry and, where the robot file weighs its
+#: links, each joint giving way under the weights it carries (about its axis, or its bearing tilting across it)
+CANDIDATES = ("kinematic", "kinematic+joint_compliance", "kinematic+bearing_compliance")
+#: blocks of each socket's rows (in recording order) that the model choice leaves out in turn
+FOLDS = 5
+
+
+@dataclass
+class Ours:
+    """casadical's calibration of one robot: its prediction, the model chosen and each candidate's fold error."""
+
+    points: Points
+    model: str
+    robot_file: str                     # the URDF calibrated (the nominal, or the nominal with its masses)
+    folds_mm: dict[str, float] = field(default_factory=dict)
+
+
+def robot_file(robot: str, nominal_urdf: Path, folder: Path) -> Path:
+    """The URDF a user calibrates: the nominal one, or where it weighs nothing and the robot is a Panda, the same
+    file with the Panda's published link masses (``mukca.with_masses``, as ``panda_masses.urdf`` is bundled)."""
+    from mukca import with_masses
+
+    text = nominal_urdf.read_text()
+    if "<inertial" in text or not model_of(robot).startswith("panda"):
+        return nominal_urdf
+    out = folder / f"{nominal_urdf.stem}_masses.urdf"
+    out.write_text(with_masses(text))
+    return out
+
+
+def block_folds(points: np.ndarray, k: int = FOLDS) -> np.ndarray:
+    """Each row's fold: each socket's rows, in recording order, cut into ``k`` blocks (a user records a few poses of
+    one arm posture after another, so a block leaves postures out, not single rows)."""
+    fold = np.zeros(len(points), int)
+    for name in dict.fromkeys(points.tolist()):
+        rows = np.flatnonzero(points == name)
+        fold[rows] = np.arange(len(rows)) * k // len(rows)
+    return fold
+
+
+def fold_error_mm(arm, data, model: str) -> float:
+    """The mean distance of each left-out row's ball point from its socket, as the model fitted to the other rows
+    places both (:func:`block_folds`)."""
+    import warnings
+
+    from casadical import calibrate
+
+    names = np.asarray(data.columns["point"]).astype(str)
+    fold = block_folds(names)
+    errors = []
+    for k in range(FOLDS):
+        train, test = np.flatnonzero(fold != k), np.flatnonzero(fold == k)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            result = calibrate(arm, data.subset(train).with_fixtures(data.fixtures), model,
+                               allow_outside_limits=True)
+        P = result.predict(data)
+        for name in np.unique(names[test]):
+            socket = P[train][names[train] == name].mean(axis=0)
+            errors.append(np.linalg.norm(P[test][names[test] == name] - socket, axis=1))
+    return float(np.concatenate(errors).mean()) * 1000
+
 
 def casadical_model(robot: str, nominal_urdf: Path, train: str, train_sockets: dict[str, np.ndarray],
-                    fixture_toml: Path | None = None) -> Points | None:
-    """casadical's calibration of ``robot`` from its ``train`` placement, as a callable from joint readings (rad,
-    (N, n)) to ball points (m, (N, 3), any fixed frame), or None where there is none yet.
+                    model: str | None = None) -> Ours | None:
+    """casadical's calibration of ``robot`` from its ``train`` placement, as a user makes it with the library: the
+    placement converted to a measurement CSV (``benchmarks/datasets/mukca.py``), the block as a fixture file,
+    ``calibrate(load_robot(URDF, tip="ball_link"), data, model)``. The model is ``model``, or the one of
+    :data:`CANDIDATES` (the robot file weighing its links; else ``kinematic``) whose fits to the training rows
+    leave out fewest millimetres in :data:`FOLDS` blocks of them (:func:`fold_error_mm`): chosen on the training
+    placement alone, never on the placements it is judged on. Readings beyond the URDF's limits are let through
+    (``--allow-outside-limits``: the Kinova's are)."""
+    import tempfile
+    import warnings
 
-    LEAD: calibrate here (e.g. ``casadical calibrate NOMINAL.urdf --urdf-tip ball_link TRAIN.csv --fixture
-    two_sockets.toml``, the CSV made by ``benchmarks/datasets/mukca.py``'s ``placement_table``) and return
-    its prediction of the ball point; the table then prints it beside the nominal and the peer's URDF.
-    """
-    return None
+    from mukca import FIXTURE_TOML, SOCKETS, csv_text, degrees
+
+    from casadical import Measurements, calibrate, load_robot
+    from casadical.rows import read_fixture_file
+
+    with tempfile.TemporaryDirectory(prefix="touch-peer-") as tmp:
+        urdf = robot_file(robot, nominal_urdf, Path(tmp))
+        arm = load_robot(urdf, tip=TIP)
+        header = [f"q{j + 1}_deg" for j in range(arm.n)] + ["point"]
+        rows = [[repr(degrees(v)) for v in reading] + [point] for point in SOCKETS.values()
+                for reading in train_sockets[point].tolist()]
+        csv, toml = Path(tmp) / f"{train}.csv", Path(tmp) / "two_sockets.toml"
+        csv.write_text(csv_text(header, rows))
+        toml.write_text(FIXTURE_TOML)
+        data = Measurements.read_csv(csv, robot=arm).with_fixtures(read_fixture_file(toml))
+        weighed = sum(j.mass for j in arm.joints) > 0
+        folds = {}
+        if model is None:
+            folds = {m: fold_error_mm(arm, data, m) for m in (CANDIDATES if weighed else CANDIDATES[:1])}
+            model = min(folds, key=folds.get)
+        with warnings.catch_warnings():          # what the calibration says is in its result; the table is ours
+            warnings.simplefilter("ignore")
+            result = calibrate(arm, data, model, allow_outside_limits=True)
+    name = "nominal URDF" if urdf == nominal_urdf else f"nominal URDF with the Panda's masses ({urdf.name})"
+    return Ours(lambda q: result.predict(Measurements.from_arrays(np.atleast_2d(q))), model, name, folds)
 
 
 # --- the robots ----------------------------------------------------------------------------------------------
@@ -208,6 +307,7 @@ class Robot:
     kind: str = ""                  # "stored" (in the peer's repository) or "run" (our run of the peer)
     train: str | None = None
     train_how: str = ""             # "*": the peer's config.yaml, "?": inferred, "run": our run of the peer
+    ours: Ours | None = None        # casadical's calibration
 
 
 def find_robots(peer: Path | None, peer_runs: Path | None) -> list[Robot]:
@@ -290,7 +390,7 @@ def check_against_stored_kpis(peer: Path) -> list[tuple[str, int, float]]:
 
 # --- the table -----------------------------------------------------------------------------------------------
 
-def run(robots: list[Robot]) -> list[dict]:
+def run(robots: list[Robot], model: str | None = None) -> list[dict]:
     rows = []
     for r in robots:
         nominal = UrdfChain(r.nominal).points
@@ -299,14 +399,14 @@ def run(robots: list[Robot]) -> list[dict]:
             r.train = min(r.placements, key=lambda p: measures(calibrated, r.placements[p])[0])
             r.train_how = "?"
         train = r.train or front_placement(r.placements)
-        ours = casadical_model(r.name, r.nominal, train, r.placements[train])
+        ours = r.ours = casadical_model(r.name, r.nominal, train, r.placements[train], model)
         for place, sockets in r.placements.items():
             row = {"robot": r.name, "placement": place, "rows": sum(len(q) for q in sockets.values()),
                    "peer_kind": r.kind,
                    "trained": place == r.train, "train_how": r.train_how if place == r.train else "",
                    "nominal": measures(nominal, sockets)}
             row["peer"] = measures(calibrated, sockets) if calibrated else None
-            row["casadical"] = measures(ours, sockets) if ours else None
+            row["casadical"] = measures(ours.points, sockets) if ours else None
             row["casadical_trained"] = place == train and ours is not None
             rows.append(row)
     return rows
@@ -339,6 +439,32 @@ def print_table(robots: list[Robot], rows: list[dict]) -> None:
             print(f"{'':<20} casadical / peer, held out: consistency {c:.2f} (issue 45: at most 0.8), distance "
                   f"error {d:.2f} (at most 1)")
         print(f"{'':<20} calibrated URDF: {r.source or 'none in the peer repository'}")
+        if r.ours:
+            folds = ", ".join(f"{m} {e:.3f} mm" for m, e in r.ours.folds_mm.items())
+            how = ("given" if not folds else f"chosen on the training placement's own folds: {folds}"
+                   if len(r.ours.folds_mm) > 1 else f"the URDF weighs no link: the geometry alone; folds {folds}")
+            print(f"{'':<20} casadical: {r.ours.model} on the {r.ours.robot_file} ({how})")
+
+
+def markdown_summary(robots: list[Robot], rows: list[dict]) -> list[str]:
+    """Per robot, the means over the placements the calibrations never saw (a Markdown table, for the docs)."""
+    out = ["| robot | trained on | held out | nominal: consistency / distance error (mm) | peer's URDF | "
+           "casadical | casadical's model | casadical / peer: consistency (at most 0.8) | distance error "
+           "(at most 1) |", "|---|---|---|---|---|---|---|---|---|"]
+    for r in robots:
+        held = [x for x in rows if x["robot"] == r.name and not x["trained"] and not x["casadical_trained"]]
+        if not held or not r.ours:
+            continue
+        means = {k: _means([x[k] for x in held if x[k]]) for k in ("nominal", "peer", "casadical")}
+        cell = (lambda m: f"{m[0]:.3f} / {m[1]:.3f}" if m else "-")  # noqa: E731
+        ratios = ("-", "-")
+        if means["peer"]:
+            ratios = tuple(f"{means['casadical'][i] / means['peer'][i]:.2f}" for i in (0, 1))
+        train = next(x["placement"] for x in rows if x["robot"] == r.name and x["casadical_trained"])
+        out.append(f"| {r.name} | {train} | {len(held)} | {cell(means['nominal'])} | {cell(means['peer'])} | "
+                   f"{cell(means['casadical'])} | {r.ours.model.replace('kinematic+', '+')} | {ratios[0]} | "
+                   f"{ratios[1]} |")
+    return out
 
 
 def _means(pairs):
@@ -374,6 +500,8 @@ def main(argv=None) -> int:
     ap.add_argument("--peer-runs", type=Path, help="URDFs of our runs of the peer (DIR/ROBOT/URDF, config.yaml)")
     ap.add_argument("--robots", nargs="+", help="only these robot folders")
     ap.add_argument("--no-check", action="store_true", help="skip the check against yourdfpy (slow: ~1 min)")
+    ap.add_argument("--model", help="casadical's model for every robot (default: chosen per robot on its training "
+                                     "placement's folds among " + ", ".join(CANDIDATES) + ")")
     ap.add_argument("--json", type=Path, help="write the rows and the summary here")
     args = ap.parse_args(argv)
     peer = Path(args.peer) if args.peer else None
@@ -394,8 +522,10 @@ def main(argv=None) -> int:
         if peer is not None:
             for robot, n, worst in check_against_stored_kpis(peer):
                 print(f"forward model vs the peer's stored kpis.yaml points, {robot}: {n} rows, max {worst:.2e} m")
-    rows = run(robots)
+    rows = run(robots, args.model)
     print_table(robots, rows)
+    print("\n### Held-out means per robot\n")
+    print("\n".join(markdown_summary(robots, rows)))
     sums = {kind: summary(rows, kind) for kind in ("stored", "run")}
     for kind, s in sums.items():
         if not s["robots"]:
@@ -406,7 +536,9 @@ def main(argv=None) -> int:
             if k.endswith("_mm") and isinstance(v, tuple):
                 print(f"  {k:<36} {v[0]:.3f} - {v[1]:.3f}")
     if args.json:
-        args.json.write_text(json.dumps({"rows": rows, "summary": sums}, indent=1))
+        ours = {r.name: {"model": r.ours.model, "robot_file": r.ours.robot_file, "folds_mm": r.ours.folds_mm}
+                for r in robots if r.ours}
+        args.json.write_text(json.dumps({"rows": rows, "summary": sums, "casadical": ours}, indent=1))
     return 0
 
 

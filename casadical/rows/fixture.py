@@ -136,28 +136,41 @@ class FixturePoints(RowKind):
         x = np.array([group.fixture.points[p] for p in dict.fromkeys(group.point_names.tolist())])
         return 6 if np.linalg.matrix_rank(x - x[0], tol=1e-9) >= 2 else 5
 
+    @staticmethod
+    def _points(group) -> tuple[np.ndarray, np.ndarray]:
+        """The fixture's points the rows touch ((k, 3), in its frame) and each row's index among them; kept on the
+        group (a solver asks for them at every evaluation)."""
+        hit = group.__dict__.get("_fixture_points")
+        if hit is None:
+            names, which = np.unique(np.asarray(group.point_names, dtype=str), return_inverse=True)
+            hit = group.__dict__["_fixture_points"] = (np.array([group.fixture.points[p] for p in names]),
+                                                       which.ravel())
+        return hit
+
     def fit(self, P: np.ndarray, group):
-        names = group.point_names
-        means = np.array([P[names == p].mean(axis=0) for p in group.fixture.points if np.any(names == p)])
-        known = np.array([group.fixture.points[p] for p in group.fixture.points if np.any(names == p)])
-        counts = np.array([np.sum(names == p) for p in group.fixture.points if np.any(names == p)], float)
-        return kabsch(known, means, counts)
+        known, which = self._points(group)
+        counts = np.bincount(which, minlength=len(known)).astype(float)
+        means = np.stack([np.bincount(which, weights=P[:, k], minlength=len(known)) for k in range(3)], axis=1)
+        return kabsch(known, means / counts[:, None], counts)
 
     def placed(self, fitted, group) -> np.ndarray:
         """Where the fitted fixture puts each row's point (n, 3)."""
         R, t = fitted
-        return np.array([R @ group.fixture.points[p] + t for p in group.point_names])
+        known, which = self._points(group)
+        return (known @ R.T + t)[which]
 
     def residual(self, P: np.ndarray, fitted, group) -> np.ndarray:
         return P - self.placed(fitted, group)
 
     def basis(self, P: np.ndarray, fitted, group) -> np.ndarray:
-        X = self.placed(fitted, group)
-        blocks = []
-        for x in X:     # d r / d (translation, small rotation about the origin)
-            cross = np.array([[0.0, -x[2], x[1]], [x[2], 0.0, -x[0]], [-x[1], x[0], 0.0]])
-            blocks.append(np.hstack([-np.eye(3), cross]))
-        return np.vstack(blocks)
+        """d r / d (translation, small rotation about the origin), (3n, 6)."""
+        x = self.placed(fitted, group)
+        B = np.zeros((len(x), 3, 6))
+        B[:, :, :3] = -np.eye(3)
+        B[:, 0, 4], B[:, 0, 5] = -x[:, 2], x[:, 1]           # the cross-product matrix of x
+        B[:, 1, 3], B[:, 1, 5] = x[:, 2], -x[:, 0]
+        B[:, 2, 3], B[:, 2, 4] = -x[:, 1], x[:, 0]
+        return B.reshape(-1, 6)
 
 
 FIXTURE_POINTS = register_row_kind(FixturePoints())

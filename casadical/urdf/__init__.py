@@ -4,7 +4,8 @@
 :class:`~casadical.robot.Robot` in modified DH (Craig), with Hayati's beta
 on (nearly) parallel axes; :func:`robot_to_urdf` writes a calibrated (or
 nominal) geometry as URDF text whose tool-point link has the forward
-kinematics of casadical's geometric model. The XML is parsed by yourdfpy.
+kinematics of casadical's geometric model. The XML is parsed by lxml (read as yourdfpy
+reads it, which the tests compare with, without importing it: it loads trimesh and scipy).
 """
 
 import typing as _typing

@@ -1,7 +1,11 @@
 """Read a URDF robot description as a casadical :class:`~casadical.robot.Robot`.
 
-yourdfpy parses the XML into dataclasses (joint origins as 4x4 matrices,
-axes, limits, mimic tags, inertials). This module checks the tree, takes
+lxml parses the XML; this module reads what casadical uses of it (links
+and their inertials, joints: type, parent, child, origin as a 4x4 matrix,
+axis, limits, mimic tags) as yourdfpy reads them (the tests compare the
+forward kinematics with yourdfpy's), without importing it: yourdfpy loads
+trimesh and scipy, about a second and a half of every command's start on
+a small machine, for meshes casadical never reads. It checks the tree, takes
 the serial chain from the base link to the tip link, and converts the
 joint axis lines (all joint angles zero) to modified DH parameters:
 
@@ -23,11 +27,9 @@ reproduces the URDF's forward kinematics exactly (to rounding).
 
 from __future__ import annotations
 
-import io
 import math
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
 
 import numpy as np
 
@@ -204,17 +206,16 @@ def _transform(T: np.ndarray, point: np.ndarray) -> np.ndarray:
 
 @dataclass
 class _Document:
-    """A URDF parsed by yourdfpy, with the source line of every element for error messages."""
+    """A URDF's links and joints, with the source line of every element for error messages."""
 
     path: str
     name: str
-    links: dict[str, Any]
-    joints: list[Any]
+    links: dict[str, "_Link"]
+    joints: list["_Joint"]
     lines: dict[tuple[str, str], int] = field(default_factory=dict)
 
     @classmethod
     def parse(cls, path: str) -> "_Document":
-        import yourdfpy
         from lxml import etree
 
         try:
@@ -229,29 +230,27 @@ class _Document:
             raise RobotFileError(f"the top element is <{root.tag}>, a URDF's is <robot>", file=path,
                                  row=root.sourceline)
 
-        def load(xml: bytes):
-            return yourdfpy.URDF.load(io.BytesIO(xml), build_scene_graph=False, load_meshes=False).robot
-
         elements = [el for el in root if isinstance(el.tag, str)]
-        try:
-            robot = load(data)
-        except _PARSE_ERRORS as e:
-            # name the element at fault: parse each one on its own
-            for el in elements:
-                try:
-                    load(b'<robot name="x">' + etree.tostring(el, with_tail=False) + b"</robot>")
-                except _PARSE_ERRORS as e2:
-                    raise RobotFileError(f"<{el.tag} name={el.get('name')!r}>: {_why(e2)}", file=path,
-                                         row=el.sourceline) from e
-            raise RobotFileError(f"<robot>: {_why(e)}", file=path, row=root.sourceline) from e
-        doc = cls(path, robot.name, {}, robot.joints,
+        if "name" not in root.attrib:
+            raise RobotFileError(f"<robot>: {_why(KeyError('name'))}", file=path, row=root.sourceline)
+        links, joints = [], []
+        for el in elements:
+            try:
+                if el.tag == "link":
+                    links.append(_read_link(el))
+                elif el.tag == "joint":
+                    joints.append(_read_joint(el))
+            except _PARSE_ERRORS as e:
+                raise RobotFileError(f"<{el.tag} name={el.get('name')!r}>: {_why(e)}", file=path,
+                                     row=el.sourceline) from e
+        doc = cls(path, root.attrib["name"], {}, joints,
                   {(el.tag, el.get("name")): el.sourceline for el in elements})
-        for link in robot.links:
+        for link in links:
             if link.name in doc.links:
                 raise doc.error("link", link.name, "is defined twice")
             doc.links[link.name] = link
             doc.check_inertial(link)
-        for j in robot.joints:
+        for j in joints:
             doc.check_joint(j)
         return doc
 
@@ -338,12 +337,12 @@ class _Tree:
     """Links and joints as a tree: parent joint of each link, child joints of each link."""
 
     doc: _Document
-    parent: dict[str, Any]
+    parent: dict[str, "_Joint"]
     children: dict[str, list]
 
     @classmethod
     def build(cls, doc: _Document) -> "_Tree":
-        parent: dict[str, Any] = {}
+        parent: dict[str, _Joint] = {}
         children: dict[str, list] = {name: [] for name in doc.links}
         seen = set()
         for j in doc.joints:
@@ -442,6 +441,92 @@ class _Tree:
             groups[link] = g
             stack += [(j.child, g + (j.name in movable)) for j in self.children[link]]
         return groups
+
+
+# --- the elements casadical reads (as yourdfpy reads them) ---------------------------------
+
+
+@dataclass
+class _Inertial:
+    mass: float | None
+    origin: np.ndarray | None
+
+
+@dataclass
+class _Link:
+    name: str
+    inertial: _Inertial | None
+
+
+@dataclass
+class _Limit:
+    lower: float | None
+    upper: float | None
+
+
+@dataclass
+class _Mimic:
+    joint: str | None
+    multiplier: float
+    offset: float
+
+
+@dataclass
+class _Joint:
+    name: str
+    type: str | None
+    parent: str
+    child: str
+    origin: np.ndarray | None
+    axis: np.ndarray
+    limit: _Limit | None
+    mimic: _Mimic | None
+
+
+def _numbers(text: str, n: int, what: str) -> np.ndarray:
+    values = np.array([float(v) for v in text.split()])
+    if len(values) != n:
+        raise ValueError(f"{what} needs {n} numbers, got {text!r}")
+    return values
+
+
+def _origin(el) -> np.ndarray | None:
+    """``<origin xyz rpy>`` as a 4x4 matrix (rpy: fixed axes x, y, z in turn, R = Rz(y) Ry(p) Rx(r)); None if
+    absent."""
+    if el is None:
+        return None
+    r, p, y = _numbers(el.get("rpy", "0 0 0"), 3, "rpy")
+    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+    T = np.eye(4)
+    T[:3, :3] = [[cy * cp, cy * sp * sr - sy * cr, cy * sp * cr + sy * sr],
+                 [sy * cp, sy * sp * sr + cy * cr, sy * sp * cr - cy * sr],
+                 [-sp, cp * sr, cp * cr]]
+    T[:3, 3] = _numbers(el.get("xyz", "0 0 0"), 3, "xyz")
+    return T
+
+
+def _float(text: str | None) -> float | None:
+    return None if text is None else float(text)
+
+
+def _read_link(el) -> _Link:
+    inertial = el.find("inertial")
+    if inertial is not None:
+        mass = inertial.find("mass")
+        inertial = _Inertial(None if mass is None else float(mass.get("value", 0.0)), _origin(inertial.find("origin")))
+    return _Link(el.attrib["name"], inertial)
+
+
+def _read_joint(el) -> _Joint:
+    axis, limit, mimic = el.find("axis"), el.find("limit"), el.find("mimic")
+    return _Joint(
+        name=el.attrib["name"], type=el.get("type"),
+        parent=el.find("parent").get("link"), child=el.find("child").get("link"),
+        origin=_origin(el.find("origin")),
+        axis=np.array([1.0, 0.0, 0.0]) if axis is None else _numbers(axis.get("xyz", "1 0 0"), 3, "axis"),
+        limit=None if limit is None else _Limit(_float(limit.get("lower")), _float(limit.get("upper"))),
+        mimic=None if mimic is None else _Mimic(mimic.get("joint"), float(mimic.get("multiplier", 1.0)),
+                                                float(mimic.get("offset", 0.0))))
 
 
 def _why(e: Exception) -> str:

@@ -81,6 +81,9 @@ def test_all_placements_in_one_file():
         _, alone = rows_of(DATASET / "placements" / f"{placement}.csv")
         mine = [{k: v for k, v in r.items() if k != "session"} for r in rows if r["session"] == placement]
         assert mine == alone
+    # the held-out file: the same rows but front_center's, in the same order
+    held_head, held = rows_of(DATASET / mukca.HELD_OUT)
+    assert held_head == head and held == [r for r in rows if r["session"] != "front_center"] and len(held) == 499
 
 
 def test_the_fixture_file():
@@ -118,3 +121,26 @@ def test_sockets_of_another_joint_count_are_an_error(tmp_path):
     (tmp_path / "hole_1.csv").write_text("1.0,2.0\n")
     with pytest.raises(mukca.RawFileError, match="2 fields where the file has 3 joints"):
         mukca.read_placement(tmp_path)
+
+
+def test_the_panda_with_its_masses():
+    """panda_masses.urdf: the nominal Panda with the published link masses: the same points at every bundled row,
+    each joint carrying the links that move with it (joint 7: link 7, the hand and its fingers); the masses are
+    added once."""
+    from casadical import Measurements, load_robot
+    from casadical.model import Model
+
+    nominal = load_robot(DATASET / "raw" / "urdf" / "panda.urdf", tip="ball_link")
+    weighed = load_robot(DATASET / mukca.PANDA_MASSES_URDF, tip="ball_link")
+    data = Measurements.read_csv(DATASET / "panda_2.csv", robot=nominal)
+    assert np.abs(Model(nominal, "nominal").predict(data.q) - Model(weighed, "nominal").predict(data.q)).max() < 1e-12
+    assert sum(j.mass for j in nominal.joints) == 0.0
+    masses = [j.mass for j in weighed.joints]
+    assert masses[:6] == pytest.approx([4.970684, 0.646926, 3.228604, 3.587895, 1.225946, 1.666555], abs=1e-12)
+    assert masses[6] == pytest.approx(0.735522 + 0.73 + 2 * 0.015, abs=1e-12)
+    text = (DATASET / mukca.PANDA_MASSES_URDF).read_text()
+    assert text.count("<inertial>") == len(mukca.PANDA_INERTIALS)
+    with pytest.raises(ValueError, match="has an <inertial> already"):
+        mukca.with_masses(text)
+    with pytest.raises(ValueError, match="no link 'nosuch'"):
+        mukca.with_masses(text, {"nosuch": (1.0, (0.0, 0.0, 0.0))})
