@@ -14,6 +14,7 @@ from ..runtime.files import atomic_open
 from .common import (
     Status,
     add_checks,
+    add_fixture,
     add_force,
     add_json,
     add_quiet,
@@ -21,6 +22,7 @@ from .common import (
     add_urdf_chain,
     check_options,
     check_outputs,
+    fixtures,
     float_in,
     human_stream,
     int_at_least,
@@ -65,6 +67,7 @@ def register(sub) -> None:
     p.add_argument("--relaxation", choices=("first-order", "cvxpy"), default="first-order",
                    help="solver of the continuous relaxation (default: %(default)s)")
     add_json(p, "the summary")
+    add_fixture(p)
     add_checks(p)
     add_quiet(p)
     add_urdf_chain(p)
@@ -125,10 +128,14 @@ def cmd_plan_poses(args) -> int:
     check_outputs({"--out": args.out, "--json": args.json}, [args.robot, args.candidates], args.force)
     robot = robot_from_args(args.robot, args)
     data = Measurements.read_csv(args.candidates, robot=robot)
+    if fixtures(args):
+        data = data.with_fixtures(fixtures(args))
     N = len(data)
     if args.m > N:
         raise InputError(f"-m {args.m} asks for more poses than the {N} candidate rows", file=args.candidates)
     check_poses(data, robot, **check_options(args))
+    if data.touches:
+        return _plan_touches(args, robot, data)
     check_distinct_poses(data, args.m)
     # compiling the model (~1.5 s) pays only for large pools; the model decides whether it can
     model = Model(robot, args.model, jit=None if N >= JIT_MIN_CANDIDATES else False, user_terms=user_terms(args))
@@ -166,6 +173,53 @@ def cmd_plan_poses(args) -> int:
     if args.json:
         doc = {"robot": robot.name, "model": model.spec, "candidates": args.candidates,
                "file_lines": lines, **res.to_dict()}
+        write_json(args.json, doc, args.force)
+        print(f"summary -> {'standard output' if args.json == '-' else args.json}", file=out)
+    return 0
+
+
+def _plan_touches(args, robot, data) -> int:
+    """``plan-poses ROBOT CANDIDATES.csv`` of candidates that touch (a ``point`` or ``plane`` column): the Ds
+    criterion, what the rows cannot see held (:mod:`casadical.planning.touches`)."""
+    from ..model.symbolic import Model
+    from ..planning.selectors import PlanSettings
+    from ..planning.touches import select_touches, touch_problem
+
+    if args.method not in ("d-optimal", "random"):
+        raise InputError(f"--method {args.method} judges rows measured by an instrument; candidates that touch (a "
+                         "point or plane column) are selected by d-optimal (the Ds criterion) or random",
+                         file=args.candidates)
+    N = len(data)
+    model = Model(robot, args.model, jit=False, user_terms=user_terms(args))
+    status = Status(args.quiet)
+    t0 = time.perf_counter()
+    try:
+        with status.slow(f"plan-poses: the model's Jacobian at the {N} candidate rows and what they touch "
+                         f"(model {model.spec})"):
+            problem = touch_problem(model, data)
+    except IdentifiabilityError as e:
+        raise InputError(str(e), file=args.candidates) from e
+    t_jac = time.perf_counter() - t0
+    p = problem.n_parameters
+    with status.slow(f"plan-poses: selecting {args.m} of {N} rows ({args.method}, Ds criterion, {p} parameters)"):
+        res = select_touches(problem, args.m, args.method, seed=args.seed,
+                             settings=PlanSettings(relaxation=args.relaxation))
+    if not math.isfinite(res.log_det):
+        raise InputError(f"-m {args.m} rows cannot identify the {p} parameters of model {model.spec} these "
+                         "candidates identify (each point touched takes 3 of a row's equations, and 4 rows of it at "
+                         f"least): use a larger -m (3 x {p} = {3 * p} is a good start)", file=args.candidates)
+    res.jacobian_time_s = t_jac
+    lines = _write_rows(args.candidates, res.indices, args.out, args.force)
+    out = human_stream(args.json)
+    print(f"model {model.spec} on {robot.name}: {p} parameters identified by the {N} candidate rows of "
+          f"{args.candidates}, touching {len(problem.set_names)} point{'s' * (len(problem.set_names) != 1)} or "
+          f"plane{'s' * (len(problem.set_names) != 1)} of their sessions"
+          f"{' (fixture ' + ', '.join(f.name for f in data.fixtures) + ')' if data.fixtures else ''}", file=out)
+    print(res.summary(), file=out)
+    print(f"selected rows -> {args.out}", file=out)
+    if args.json:
+        doc = {"robot": robot.name, "model": model.spec, "candidates": args.candidates,
+               **({"fixture": args.fixture} if args.fixture else {}), "file_lines": lines, **res.to_dict()}
         write_json(args.json, doc, args.force)
         print(f"summary -> {'standard output' if args.json == '-' else args.json}", file=out)
     return 0
