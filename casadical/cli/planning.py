@@ -281,6 +281,11 @@ def cmd_plan_report(args) -> int:
     parts = [Measurements.read_csv(p, robot=robot) for p in paths]
     measured = parts[0] if len(parts) == 1 else combine(parts)
     candidates = Measurements.read_csv(args.candidates, robot=robot)
+    fixture = _report_fixture(args, doc, report_path)
+    if fixture:
+        from ..rows import read_fixture_file
+
+        measured, candidates = (d.with_fixtures(read_fixture_file(fixture)) for d in (measured, candidates))
     check_poses(candidates, robot, **check_options(args))
     known = measured.session_names
     if candidates.sessions is not None:
@@ -288,6 +293,8 @@ def cmd_plan_report(args) -> int:
             raise InputError(f"--session {args.session}: the candidates name their sessions (column session); "
                              "drop the option, or the column", file=args.candidates)
         unknown = sorted(set(candidates.sessions) - set(known or [None]))
+        # a candidate that touches may stand in a session of its own: a new placement of what it touches
+        unknown = [u for u in unknown if not candidates.touching[candidates.sessions == u].all()]
         if unknown:
             i = int(np.flatnonzero(candidates.sessions == unknown[0])[0])
             raise InputError(f"session {unknown[0]!r} is none of the measured sessions "
@@ -340,6 +347,23 @@ def cmd_plan_report(args) -> int:
                                "candidates": args.candidates, "file_lines": lines, **plan.to_dict()}, args.force)
         print(f"summary -> {'standard output' if args.json == '-' else args.json}", file=out)
     return 0
+
+
+def _report_fixture(args, doc: dict, report_path: str) -> str | None:
+    """The fixture file of ``plan-poses REPORT.json``: ``--fixture``, else the one the report names (its
+    ``inputs.fixture``, relative to its folder), else none."""
+    import os
+
+    if args.fixture:
+        return args.fixture
+    named = (doc.get("inputs") or {}).get("fixture")
+    if not named:
+        return None
+    path = named if os.path.isabs(named) else os.path.join(os.path.dirname(os.path.abspath(report_path)), named)
+    if not os.path.exists(path):
+        raise InputError(f"the fixture file the report was made with is not at {path} (paths are relative to the "
+                         "report's folder): give it with --fixture FILE", file=report_path)
+    return path
 
 
 def _write_rows(source: str, indices: np.ndarray, out: str, force: bool, session: str | None = None) -> list[int]:

@@ -347,13 +347,13 @@ def short_sets(problem: TouchProblem, subset) -> list[str]:
     return [f"{problem.set_names[k]} ({counts[k]} of {problem.least[k]} rows)" for k in bad]
 
 
-def random_rows(problem: TouchProblem, m: int, rng: np.random.Generator) -> np.ndarray:
-    """A uniformly random M-subset of the candidates, then each touched set it holds too few rows of filled up
-    with random rows of it (random rows of the sets with rows to spare leaving) or, where it cannot be, emptied
-    (random rows of the others joining): a random selection a calibration takes."""
-    N = problem.n_candidates
+def random_rows(sets: np.ndarray, least: np.ndarray, m: int, rng: np.random.Generator) -> np.ndarray:
+    """A uniformly random M-subset of the candidates, then each touched set (``sets``: each candidate's, -1 none;
+    ``least``: the fewest rows of each if any, :class:`TouchProblem`) it holds too few rows of filled up with
+    random rows of it (random rows of the sets with rows to spare leaving) or, where it cannot be, emptied (random
+    rows of the others joining): a random selection a calibration takes."""
+    N = len(sets)
     X = rng.choice(N, m, replace=False)
-    sets, least = problem.sets, problem.least
     for _ in range(4 * m):
         c = np.bincount(sets[X][sets[X] >= 0], minlength=len(least))
         short = np.flatnonzero((c > 0) & (c < least))
@@ -422,7 +422,7 @@ def select_touches(problem: TouchProblem, m: int, method: str = "d-optimal", *, 
         details = {"relaxation": f"{rel.method}, {rel.status}, {rel.iterations} iterations, {rel.time_s:.3g} s",
                    "exchange": f"best of {des.starts} rounded starts, {des.swaps} swaps in all"}
     else:
-        idx = random_rows(problem, m, np.random.default_rng(seed))
+        idx = random_rows(problem.sets, problem.least, m, np.random.default_rng(seed))
         ub = None
         if st.certify:
             rel = relax_ds([crit], m, exponent=EXPONENT)

@@ -114,7 +114,7 @@ def test_the_selected_rows_calibrate_more_consistently_than_random_ones(seed, tm
         return res.stats(val).touch["consistency_mm"]
 
     pick = np.random.default_rng(seed)
-    randoms = [random_rows(problem, 18, pick) for _ in range(7)]
+    randoms = [random_rows(problem.sets, problem.least, 18, pick) for _ in range(7)]
     assert all(not short_sets(problem, S) for S in randoms)
     others = [consistency(S) for S in randoms]
     mine = consistency(chosen.indices)
@@ -151,3 +151,71 @@ def test_plan_poses_on_touch_candidates_refuses_ga(tmp_path, capsys):
     err = [x for x in capsys.readouterr().err.splitlines() if "error" in x]
     assert code != 0 and len(err) == 1 and "d-optimal" in err[0] and "candidates-0.csv" in err[0], err
     assert not (tmp_path / "sel.csv").exists()
+
+
+def test_plan_poses_from_a_report_on_touch_data(tmp_path, capsys):
+    """A diagnosis of touch data (arm6-mdh, the truth's joint 2 giving way 1.5 mrad at its largest torque, three
+    placements of the block) names the compliance of joint 2; marked not significant in its report, it is an open
+    question. plan-poses REPORT.json picks 12 of the rows a user recorded at two new placements of the block (the
+    report's fixture file found from its inputs): each socket none or 4+ rows, the standard error of c2 below
+    the measured rows' and below the median of random picks; calibrated with the picked rows measured, c2's
+    standard error falls below that of the measured rows alone."""
+    import dataclasses
+
+    c = hidden.case("arm6-mdh", "compliance", 0)
+    effects = dataclasses.replace(c.effects, stiffness={2: c.effects.stiffness[2] * 0.4 / 1.5})
+    doc = hidden.robot_doc(c.robot)
+    rng = np.random.default_rng(0)
+    true = TrueRobot.draw(Arm.from_dict(doc), effects, rng)
+    block = touch.two_sockets()
+
+    def placements(names, per):
+        out = None
+        for name in names:
+            more = touch.fixture_session(true, block, per, rng, Session(name), contact_noise=20e-6)
+            out = more if out is None else out + more
+        return out.write_csv(tmp_path / f"{names[0]}.csv", session_column=True)
+
+    cal, val, cand = placements(["P0", "P1", "P2"], 12), placements(["V0"], 10), placements(["C0", "C1"], 12)
+    (tmp_path / "fx.toml").write_text(touch.fixture_toml([block]))
+    (tmp_path / "robot.toml").write_text(to_toml(doc))
+    rep = tmp_path / "rep.json"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["diagnose", str(tmp_path / "robot.toml"), str(cal), "--validate", str(val), "--fixture",
+                     str(tmp_path / "fx.toml"), "--json", str(rep), "--no-blackbox", "-q"]) == 0
+    report = json.loads(rep.read_text())
+    assert report["inputs"]["fixture"] == "fx.toml"
+    assert "joint_compliance[2]" in report["final"]["model"]
+    for e in report["final"]["parameters"]:
+        if e["name"] == "c2":
+            e["significant"] = False
+    rep.write_text(json.dumps(report))
+    plan, out = tmp_path / "plan.json", tmp_path / "picked.csv"
+    capsys.readouterr()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        assert main(["plan-poses", str(rep), str(cand), "-m", "12", "--out", str(out), "--json", str(plan),
+                     "--random-sets", "50", "-q"]) == 0
+    (q,) = [q for q in json.loads(plan.read_text())["questions"] if q["kind"] == "not significant"]
+    assert q["parameters"] == ["c2"]
+    std = {k: q[k]["std"]["c2"] for k in ("before", "planned", "random")}
+    assert std["planned"] < std["random"] < std["before"], std
+    picked = Measurements.read_csv(out, n_joints=6, require_positions=True)
+    counts = {}
+    for s, p in zip(picked.sessions, picked.columns["point"]):
+        counts[(s, p)] = counts.get((s, p), 0) + 1
+    assert len(picked) == 12 and min(counts.values()) >= 4, counts
+    # the picked rows measured (they are the truth's): the calibration's own standard error of c2 falls
+    from casadical.data.sessions import combine
+    from casadical.rows import read_fixture_file
+
+    fx = read_fixture_file(tmp_path / "fx.toml")
+    before = Measurements.read_csv(cal, n_joints=6, require_positions=True).with_fixtures(fx)
+    after = combine([before, picked], names=["cal", "picked"]).with_fixtures(fx)
+    robot = robot_from_dict(doc, c.robot)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        s0, s1 = (calibrate(robot, d, "kinematic+joint_compliance[2]", "lm", warn=False).parameters["c2"].std
+                  for d in (before, after))
+    assert s1 < s0, (s0, s1)
