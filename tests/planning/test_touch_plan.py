@@ -15,32 +15,17 @@ from casadical import calibrate
 from casadical.cli import main
 from casadical.data import Measurements
 from casadical.model import Model
-from casadical.planning.touches import random_rows, schur_log_det, select_touches, short_sets, touch_problem
+from casadical.planning.touches import schur_log_det, select_touches, short_sets, touch_problem
 from casadical.robot import robot_from_dict
 from tests.helpers import hidden
 from tests.helpers.arms import to_toml
-from tests.truth import Arm, Effects, Session, TrueRobot, touch
+from tests.helpers.touch_plan import compare, sockets
+from tests.truth import Arm, Session, TrueRobot, touch
 
 
 def _sockets(robot: str, seed: int, per_socket: int, placements: int, tmp_path, fixture: bool = True):
-    """Candidate rows of the truth's robot in the two sockets of a block at ``placements`` places, read as a user's
-    file (with the fixture file, or as free points)."""
-    doc = hidden.robot_doc(robot)
-    rng = np.random.default_rng(seed)
-    true = TrueRobot.draw(Arm.from_dict(doc), Effects(), rng)
-    block = touch.two_sockets()
-    rows = None
-    for k in range(placements):
-        more = touch.fixture_session(true, block, per_socket, rng, Session(f"P{k}"), contact_noise=20e-6)
-        rows = more if rows is None else rows + more
-    path = rows.write_csv(tmp_path / f"candidates-{seed}.csv", session_column=True)
-    (tmp_path / "fixture.toml").write_text(touch.fixture_toml([block]))
-    (tmp_path / "robot.toml").write_text(to_toml(doc))
-    data = Measurements.read_csv(path, n_joints=true.arm.n, require_positions=True)
-    if fixture:
-        from casadical.rows import read_fixture_file
-        data = data.with_fixtures(read_fixture_file(tmp_path / "fixture.toml"))
-    return robot_from_dict(doc, robot), data, true, block, rng
+    rob, data, true, rng = sockets(robot, seed, per_socket, placements, tmp_path, fixture, prefix="candidates")
+    return rob, data, true, touch.two_sockets(), rng
 
 
 def _exact_ds(model: Model, data: Measurements, names: list[str], subset) -> float:
@@ -96,34 +81,13 @@ def test_the_selected_rows_calibrate_more_consistently_than_random_ones(seed, tm
     18 rows the Ds criterion keeps calibrate a robot whose held-out consistency (three fresh placements, their
     sockets fitted to their own rows) beats the median of 7 random selections of 18 (each socket none or 4+
     rows), and the selection's information beats every one of theirs."""
-    robot, cal, true, block, rng = _sockets("arm6-mdh", seed, 30, 2, tmp_path)
-    val = None
-    for k in range(3):
-        more = touch.fixture_session(true, block, 10, rng, Session(f"V{k}"), contact_noise=20e-6)
-        val = more if val is None else val + more
-    val = Measurements.read_csv(val.write_csv(tmp_path / "val.csv", session_column=True), n_joints=true.arm.n,
-                                require_positions=True).with_fixtures(cal.fixtures)
-    model = Model(robot, "kinematic", jit=False)
-    problem = touch_problem(model, cal)
-    chosen = select_touches(problem, 18)
-
-    def consistency(S) -> float:
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore")
-            res = calibrate(robot, cal.subset(np.sort(S)), "kinematic", "lm", warn=False)
-        return res.stats(val).touch["consistency_mm"]
-
-    pick = np.random.default_rng(seed)
-    randoms = [random_rows(problem.sets, problem.least, 18, pick) for _ in range(7)]
-    assert all(not short_sets(problem, S) for S in randoms)
-    others = [consistency(S) for S in randoms]
-    mine = consistency(chosen.indices)
-    assert mine < np.median(others), (mine, sorted(others))
-    assert chosen.log_det > max(schur_log_det(problem, S) for S in randoms)
+    c = compare("arm6-mdh", seed, tmp_path)
+    assert c.selected < np.median(c.randoms), (c.selected, sorted(c.randoms))
+    assert c.selected_ds > max(c.random_ds)
 
 
 def test_plan_poses_on_touch_candidates_writes_the_rows_and_says_what_is_held(tmp_path):
-    robot, data, *_ = _sockets("arm6-mdh", 5, 12, 2, tmp_path)
+    _sockets("arm6-mdh", 5, 12, 2, tmp_path)
     cand = tmp_path / "candidates-5.csv"
     out, js = tmp_path / "sel.csv", tmp_path / "plan.json"
     code = main(["plan-poses", str(tmp_path / "robot.toml"), str(cand), "-m", "20", "--out", str(out),
