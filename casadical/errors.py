@@ -109,6 +109,10 @@ class SolverError(CasadicalError):
     """A solver failed in a way that leaves no usable result."""
 
 
+class SimulationError(CasadicalError):
+    """A simulation cannot make what it was asked (a touch the simulated robot cannot reach)."""
+
+
 class CalibrationFileError(InputError):
     """A calibration JSON written by ``calibrate`` cannot be read back."""
 

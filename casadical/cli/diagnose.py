@@ -157,7 +157,8 @@ def run(args) -> int:
         doc = report.to_dict()
         # the poses the report was made from, for plan-poses REPORT.json (relative to the report's folder)
         doc["inputs"].update(data=[_beside(p, args.json) for p in args.data],
-                             validate=[_beside(p, args.json) for p in args.validate])
+                             validate=[_beside(p, args.json) for p in args.validate],
+                             **({"fixture": _beside(args.fixture, args.json)} if args.fixture else {}))
         write_json(args.json, doc, args.force)
         print(f"report -> {'standard output' if args.json == STDOUT else args.json}", file=out)
     if args.html:

@@ -14,6 +14,7 @@ from ..runtime.files import atomic_open
 from .common import (
     Status,
     add_checks,
+    add_fixture,
     add_force,
     add_json,
     add_quiet,
@@ -21,6 +22,7 @@ from .common import (
     add_urdf_chain,
     check_options,
     check_outputs,
+    fixtures,
     float_in,
     human_stream,
     int_at_least,
@@ -67,6 +69,7 @@ def register(sub) -> None:
                    help="solver of the continuous relaxation (default: %(default)s)")
     add_json(p, "the summary")
     add_measurement_program(p)
+    add_fixture(p)
     add_checks(p)
     add_quiet(p)
     add_urdf_chain(p)
@@ -128,10 +131,14 @@ def cmd_plan_poses(args) -> int:
                   args.force)
     robot = robot_from_args(args.robot, args)
     data = Measurements.read_csv(args.candidates, robot=robot)
+    if fixtures(args):
+        data = data.with_fixtures(fixtures(args))
     N = len(data)
     if args.m > N:
         raise InputError(f"-m {args.m} asks for more poses than the {N} candidate rows", file=args.candidates)
     check_poses(data, robot, **check_options(args))
+    if data.touches:
+        return _plan_touches(args, robot, data)
     check_distinct_poses(data, args.m)
     # compiling the model (~1.5 s) pays only for large pools; the model decides whether it can
     model = Model(robot, args.model, jit=None if N >= JIT_MIN_CANDIDATES else False, user_terms=user_terms(args))
@@ -160,14 +167,7 @@ def cmd_plan_poses(args) -> int:
             raise
         raise InputError(str(e), file=args.candidates) from e
     res.jacobian_time_s = t_jac
-    indices = np.asarray(res.indices)
-    if args.program:       # the run's order: short joint moves; the CSV in the same order
-        from ..planning.order import measurement_order
-
-        values = np.column_stack([data.columns[c] for c in data.q_columns])[indices]
-        order = measurement_order(values)
-        indices = indices[order]
-        write_measurement_program(args, values[order], robot.prismatic)
+    indices = _in_run_order(args, robot, data, res.indices)
     lines = _write_rows(args.candidates, indices, args.out, args.force)
     out = human_stream(args.json)         # --json -: standard output holds the JSON alone
     print(f"model {model.spec} on {robot.name}: {problem.n_parameters} identifiable parameters "
@@ -180,6 +180,73 @@ def cmd_plan_poses(args) -> int:
     if args.json:
         doc = {"robot": robot.name, "model": model.spec, "candidates": args.candidates,
                "file_lines": lines, **res.to_dict()}
+        if args.program:
+            doc["program"] = {"file": args.program, "order": [int(i) for i in indices]}
+        write_json(args.json, doc, args.force)
+        print(f"summary -> {'standard output' if args.json == '-' else args.json}", file=out)
+    return 0
+
+
+def _in_run_order(args, robot, data, indices) -> np.ndarray:
+    """The selected rows; with ``--program``, in the order of the measurement run (short joint moves), the program
+    written."""
+    indices = np.asarray(indices)
+    if args.program:
+        from ..planning.order import measurement_order
+
+        values = np.column_stack([data.columns[c] for c in data.q_columns])[indices]
+        order = measurement_order(values)
+        indices = indices[order]
+        write_measurement_program(args, values[order], robot.prismatic)
+    return indices
+
+
+def _plan_touches(args, robot, data) -> int:
+    """``plan-poses ROBOT CANDIDATES.csv`` of candidates that touch (a ``point`` or ``plane`` column): the Ds
+    criterion, what the rows cannot see held (:mod:`casadical.planning.touches`)."""
+    from ..model.symbolic import Model
+    from ..planning.selectors import PlanSettings
+    from ..planning.touches import select_touches, touch_problem
+
+    if args.method not in ("d-optimal", "random"):
+        raise InputError(f"--method {args.method} judges rows measured by an instrument; candidates that touch (a "
+                         "point or plane column) are selected by d-optimal (the Ds criterion) or random",
+                         file=args.candidates)
+    N = len(data)
+    model = Model(robot, args.model, jit=False, user_terms=user_terms(args))
+    status = Status(args.quiet)
+    t0 = time.perf_counter()
+    try:
+        with status.slow(f"plan-poses: the model's Jacobian at the {N} candidate rows and what they touch "
+                         f"(model {model.spec})"):
+            problem = touch_problem(model, data)
+    except IdentifiabilityError as e:
+        raise InputError(str(e), file=args.candidates) from e
+    t_jac = time.perf_counter() - t0
+    p = problem.n_parameters
+    with status.slow(f"plan-poses: selecting {args.m} of {N} rows ({args.method}, Ds criterion, {p} parameters)"):
+        res = select_touches(problem, args.m, args.method, seed=args.seed,
+                             settings=PlanSettings(relaxation=args.relaxation))
+    if not math.isfinite(res.log_det):
+        raise InputError(f"-m {args.m} rows cannot identify the {p} parameters of model {model.spec} these "
+                         "candidates identify (each point touched takes 3 of a row's equations, and 4 rows of it at "
+                         f"least): use a larger -m (3 x {p} = {3 * p} is a good start)", file=args.candidates)
+    res.jacobian_time_s = t_jac
+    indices = _in_run_order(args, robot, data, res.indices)
+    lines = _write_rows(args.candidates, indices, args.out, args.force)
+    out = human_stream(args.json)
+    print(f"model {model.spec} on {robot.name}: {p} parameters identified by the {N} candidate rows of "
+          f"{args.candidates}, touching {len(problem.set_names)} point{'s' * (len(problem.set_names) != 1)} or "
+          f"plane{'s' * (len(problem.set_names) != 1)} of their sessions"
+          f"{' (fixture ' + ', '.join(f.name for f in data.fixtures) + ')' if data.fixtures else ''}", file=out)
+    print(res.summary(), file=out)
+    print(f"selected rows -> {args.out}" + (" (in the order of the measurement run)" if args.program else ""),
+          file=out)
+    if args.program:
+        print(f"measurement run -> {args.program}", file=out)
+    if args.json:
+        doc = {"robot": robot.name, "model": model.spec, "candidates": args.candidates,
+               **({"fixture": args.fixture} if args.fixture else {}), "file_lines": lines, **res.to_dict()}
         if args.program:
             doc["program"] = {"file": args.program, "order": [int(i) for i in indices]}
         write_json(args.json, doc, args.force)
@@ -246,6 +313,11 @@ def cmd_plan_report(args) -> int:
     parts = [Measurements.read_csv(p, robot=robot) for p in paths]
     measured = parts[0] if len(parts) == 1 else combine(parts)
     candidates = Measurements.read_csv(args.candidates, robot=robot)
+    fixture = _report_fixture(args, doc, report_path)
+    if fixture:
+        from ..rows import read_fixture_file
+
+        measured, candidates = (d.with_fixtures(read_fixture_file(fixture)) for d in (measured, candidates))
     check_poses(candidates, robot, **check_options(args))
     known = measured.session_names
     if candidates.sessions is not None:
@@ -253,6 +325,8 @@ def cmd_plan_report(args) -> int:
             raise InputError(f"--session {args.session}: the candidates name their sessions (column session); "
                              "drop the option, or the column", file=args.candidates)
         unknown = sorted(set(candidates.sessions) - set(known or [None]))
+        # a candidate that touches may stand in a session of its own: a new placement of what it touches
+        unknown = [u for u in unknown if not candidates.touching[candidates.sessions == u].all()]
         if unknown:
             i = int(np.flatnonzero(candidates.sessions == unknown[0])[0])
             raise InputError(f"session {unknown[0]!r} is none of the measured sessions "
@@ -305,6 +379,23 @@ def cmd_plan_report(args) -> int:
                                "candidates": args.candidates, "file_lines": lines, **plan.to_dict()}, args.force)
         print(f"summary -> {'standard output' if args.json == '-' else args.json}", file=out)
     return 0
+
+
+def _report_fixture(args, doc: dict, report_path: str) -> str | None:
+    """The fixture file of ``plan-poses REPORT.json``: ``--fixture``, else the one the report names (its
+    ``inputs.fixture``, relative to its folder), else none."""
+    import os
+
+    if args.fixture:
+        return args.fixture
+    named = (doc.get("inputs") or {}).get("fixture")
+    if not named:
+        return None
+    path = named if os.path.isabs(named) else os.path.join(os.path.dirname(os.path.abspath(report_path)), named)
+    if not os.path.exists(path):
+        raise InputError(f"the fixture file the report was made with is not at {path} (paths are relative to the "
+                         "report's folder): give it with --fixture FILE", file=report_path)
+    return path
 
 
 def _write_rows(source: str, indices: np.ndarray, out: str, force: bool, session: str | None = None) -> list[int]:

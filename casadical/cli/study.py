@@ -27,8 +27,9 @@ def register(sub) -> None:
     p.add_argument("--serial", action="store_true", help="run in this process, without Dask")
     p.add_argument("--summary", metavar="RESULTS", help="summarise RESULTS instead of running a study")
     p.add_argument("--baseline", metavar="METHOD", help="method the win rates are against (default: the first)")
-    p.add_argument("--metric", default="val_mean_mm",
-                   help="float column to compare (default: %(default)s; e.g. val_true_mean_mm)")
+    p.add_argument("--metric", default=None,
+                   help="float column to compare (default: val_mean_mm; val_consistency_mm for a study of touches; "
+                        "e.g. val_true_mean_mm)")
     p.add_argument("--plot-dir", metavar="DIR", help="write errors.png (and poses.png) into DIR (created)")
     add_json(p, "the comparison table (and, after a run, what the run did)")
     add_quiet(p)
@@ -42,7 +43,7 @@ def cmd_study(args) -> int:
     from ..study import load_study
     from ..study.summary import METRICS
 
-    if args.metric not in METRICS:
+    if args.metric is not None and args.metric not in METRICS:
         raise InputError(f"--metric: unknown column {args.metric!r}; choose from {', '.join(METRICS)}")
     if args.summary:
         given = [o for o, v in (("PROTOCOL.toml", args.protocol), ("--out", args.out), ("--workers", args.workers),

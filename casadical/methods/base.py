@@ -18,7 +18,7 @@ import numpy as np
 
 from ..data.measurements import Measurements
 from ..errors import InputError
-from ..result import CalibrationResult, ErrorStats
+from ..result import CalibrationResult, ErrorStats, touch_stats
 from ..robot import Robot
 
 REGISTRY: dict[str, type["Method"]] = {}
@@ -128,10 +128,17 @@ class MethodResult:
         return xyz
 
     def errors(self, data: Measurements) -> np.ndarray:
-        """Position error norm per pose (m)."""
+        """Position error norm per pose (m): a touch row's, its distance from what it touched (fitted to the rows
+        of its session that touch it, :meth:`CalibrationResult.errors`)."""
+        if data.touches:
+            return np.linalg.norm(data.layout.residuals(self.predict(data)), axis=1)
         return np.linalg.norm(self.predict(data) - data.xyz, axis=1)
 
     def stats(self, data: Measurements) -> ErrorStats:
+        """The error statistics of ``data`` (of rows that touch, with their consistency and distance error)."""
+        if data.touches:
+            P = self.predict(data)
+            return ErrorStats.of(np.linalg.norm(data.layout.residuals(P), axis=1), touch_stats(data.layout, P))
         return ErrorStats.of(self.errors(data))
 
     def stiffness(self) -> dict[int, float]:

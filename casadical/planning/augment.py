@@ -317,6 +317,15 @@ def relax_ds(criteria: list[Criterion], m: int, tol: float = 1e-4, max_iter: int
             status = "converged"
             break
         g = sum(q.weight * x[4] for q, x in zip(qs, st))
+        if it % 25 == 0:
+            # a weight that shrank to nothing grows back too slowly by the multiplicative steps: candidates
+            # among the M of largest variance function start again from the uniform weight
+            top = g >= np.partition(g, N - m)[N - m] if m < N else np.ones(N, bool)
+            revive = top & (w < 1e-6 * m / N)
+            if revive.any():
+                w[revive] = m / N
+                w = _cap_project(w, m)
+                continue
         # multiplicative step on the combined variance function, projected onto the capped simplex
         scale = float(np.dot(w, g)) / m
         if not scale > 0:
@@ -389,7 +398,7 @@ def _swap_scores(qs: list[_Question], X: np.ndarray, cand: np.ndarray) -> np.nda
 
 
 def _exchange(qs: list[_Question], X: np.ndarray, support: np.ndarray, n_candidates: int,
-              max_swaps: int) -> tuple[np.ndarray, int]:
+              max_swaps: int, groups: "_Groups | None" = None) -> tuple[np.ndarray, int]:
     N, m = qs[0].full.N, len(X)
     X = X.copy()
     selected = np.zeros(N, bool)
@@ -403,6 +412,8 @@ def _exchange(qs: list[_Question], X: np.ndarray, support: np.ndarray, n_candida
         cand = np.argpartition(-g, nc - 1)[:nc] if nc < N - m else np.flatnonzero(~selected)
         cand = np.union1d(cand, support[~selected[support]])
         score = _swap_scores(qs, X, cand)
+        if groups is not None:
+            score[~groups.swaps(X, cand)] = -np.inf
         c, o = np.unravel_index(int(np.argmax(score)), score.shape)
         if not score[c, o] > 1e-10:
             break
@@ -412,9 +423,122 @@ def _exchange(qs: list[_Question], X: np.ndarray, support: np.ndarray, n_candida
     return np.sort(X), swaps
 
 
+class _Groups:
+    """Candidates that must come in numbers: each group (a socket of a session) none or at least ``least`` of
+    them in a selection (the rows a calibration needs to fix what they touch); group -1 is free."""
+
+    def __init__(self, groups: np.ndarray, least: np.ndarray):
+        self.g = np.asarray(groups, dtype=int)
+        self.least = np.asarray(least, dtype=int)
+
+    def counts(self, X: np.ndarray) -> np.ndarray:
+        g = self.g[X]
+        return np.bincount(g[g >= 0], minlength=len(self.least))
+
+    def short(self, X: np.ndarray) -> np.ndarray:
+        """The groups ``X`` holds some but too few rows of."""
+        c = self.counts(X)
+        return np.flatnonzero((c > 0) & (c < self.least))
+
+    def swaps(self, X: np.ndarray, cand: np.ndarray) -> np.ndarray:
+        """Which swaps (candidate in: rows, selected out: columns) keep every group at none or enough."""
+        c = self.counts(X)
+        gi, go = self.g[cand], self.g[X]
+        ok_in = (gi < 0) | (c[np.maximum(gi, 0)] + 1 >= self.least[np.maximum(gi, 0)])
+        ok_out = (go < 0) | (c[np.maximum(go, 0)] - 1 >= self.least[np.maximum(go, 0)]) | (c[np.maximum(go, 0)] == 1)
+        return (gi[:, None] == go[None, :]) & (gi[:, None] >= 0) | ok_in[:, None] & ok_out[None, :]
+
+    def may_add(self, X: np.ndarray, rows: np.ndarray, also: int | None = None) -> np.ndarray:
+        """Unselected ``rows`` one of which can join ``X`` and keep its groups at none or enough (``also``: a group
+        whose rows may join too)."""
+        c = self.counts(X)
+        g = self.g[rows]
+        gg = np.maximum(g, 0)
+        return (g < 0) | ((c[gg] >= self.least[gg]) & (c[gg] > 0)) | (g == also)
+
+    def may_drop(self, X: np.ndarray, keep: int | None = None) -> np.ndarray:
+        """Selected rows one of which can leave ``X`` and keep its group at none or enough (``keep``: a group whose
+        rows stay)."""
+        c = self.counts(X)
+        g = self.g[X]
+        gg = np.maximum(g, 0)
+        return ((g < 0) | (c[gg] - 1 >= self.least[gg]) | (c[gg] < self.least[gg]) | (c[gg] == 1)) & (g != keep)
+
+
+def _repair(qs: list[_Question], X: np.ndarray, groups: _Groups) -> np.ndarray:
+    """``X`` with every group at none or enough rows: each short group filled up (its best rows in, the rows of
+    least use out) or emptied (its rows out, the best others in), whichever gives the larger criterion
+    (first-order choices by the variance function, the two outcomes compared exactly)."""
+    N, m = qs[0].full.N, len(X)
+    for _ in range(m + 1):
+        short = groups.short(X)
+        if not len(short):
+            return np.sort(X)
+        c = groups.counts(X)
+        k = int(short[np.argmax(c[short] / groups.least[short])])
+        options = []
+        rows_k = X[groups.g[X] == k]
+        # empty the group: its rows out, the best others in
+        Y = X[groups.g[X] != k]
+        Y = _greedy_add(qs, Y, len(rows_k), groups, exclude=k)
+        if Y is not None:
+            options.append(Y)
+        # fill it up: its best rows in, the rows of least use out
+        need = int(groups.least[k] - c[k])
+        Y = _greedy_add(qs, X, need, groups, only=k)
+        if Y is not None:
+            Y = _greedy_drop(qs, Y, need, groups, keep=k)
+            if Y is not None:
+                options.append(Y)
+        if not options:
+            raise InputError(f"cannot choose {m} of the {N} candidates so that each point touched has none or at "
+                             f"least {int(groups.least.max())} rows: change M")
+        X = max(options, key=lambda Y: _value(qs, Y, np.ones(len(Y))))
+    return np.sort(X)
+
+
+def _gain(qs: list[_Question], X: np.ndarray) -> np.ndarray:
+    """The combined variance function at the selection ``X`` (first order: what a row adds)."""
+    st = _state(qs, X, np.ones(len(X)))
+    return sum(q.weight * x[4] for q, x in zip(qs, st))
+
+
+def _greedy_add(qs, X: np.ndarray, n: int, groups: _Groups, only: int | None = None,
+                exclude: int | None = None) -> np.ndarray | None:
+    """``X`` plus ``n`` rows, one at a time the unselected row of the largest variance function that keeps the
+    groups feasible (``only``: rows of that group; ``exclude``: never rows of that group); None if too few."""
+    N = qs[0].full.N
+    X = np.array(X, dtype=int)
+    for _ in range(n):
+        out = np.setdiff1d(np.arange(N), X)
+        if only is not None:
+            out = out[groups.g[out] == only]
+        else:
+            out = out[groups.may_add(X, out) & (groups.g[out] != exclude)]
+        if not len(out):
+            return None
+        d = _gain(qs, X)[out] if len(X) else np.zeros(len(out))
+        X = np.append(X, out[int(np.argmax(d))])
+    return X
+
+
+def _greedy_drop(qs, X: np.ndarray, n: int, groups: _Groups, keep: int) -> np.ndarray | None:
+    """``X`` less ``n`` rows, one at a time the row of the smallest variance function whose leaving keeps the groups
+    feasible (never rows of group ``keep``); None if too few may leave."""
+    X = np.array(X, dtype=int)
+    for _ in range(n):
+        ok = groups.may_drop(X, keep)
+        if not ok.any():
+            return None
+        d = np.where(ok, _gain(qs, X)[X], np.inf)
+        X = np.delete(X, int(np.argmin(d)))
+    return X
+
+
 @limited_threads()
 def ds_design(criteria: list[Criterion], m: int, *, relaxation: str = "first-order", tol: float = 1e-4,
-              n_starts: int = 8, seed: int = 0, n_candidates: int | None = None) -> DsDesign:
+              n_starts: int = 8, seed: int = 0, n_candidates: int | None = None, groups: np.ndarray | None = None,
+              least: np.ndarray | None = None, exponent: float = 2.0) -> DsDesign:
     """The M candidates that, added to the measured poses, maximise ``F`` (certified).
 
     Parameters
@@ -429,6 +553,14 @@ def ds_design(criteria: list[Criterion], m: int, *, relaxation: str = "first-ord
     n_candidates : int, optional
         Unselected candidates considered per swap (largest variance function;
         the relaxation's support always): default ``max(100, 2 M)``.
+    groups, least : ndarray of int, optional
+        Candidates that count only in numbers (rows touching one point of a session:
+        :mod:`casadical.planning.touches`): candidate ``i``'s group ``groups[i]`` (-1: none), and per group the
+        fewest rows a selection holds of it if any (``least[g]``). Rounded starts are repaired to hold each
+        group none or that many, and the exchange keeps them so; the relaxation and its bound are those of the
+        unconstrained problem (a bound of the constrained designs too).
+    exponent : float
+        Of the first-order relaxation's multiplicative step (:func:`relax_ds`).
     """
     N = _check(criteria, m)
     t0 = time.perf_counter()
@@ -437,7 +569,7 @@ def ds_design(criteria: list[Criterion], m: int, *, relaxation: str = "first-ord
             raise InputError("the cvxpy relaxation plans one question at a time: give --question N")
         rel = relax_ds_cvxpy(criteria[0], m)
     elif relaxation == "first-order":
-        rel = relax_ds(criteria, m, tol=tol)
+        rel = relax_ds(criteria, m, tol=tol, exponent=exponent)
     else:
         raise InputError(f"relaxation must be 'first-order' or 'cvxpy', got {relaxation!r}")
     qs = [_Question(c, m) for c in criteria]
@@ -445,10 +577,13 @@ def ds_design(criteria: list[Criterion], m: int, *, relaxation: str = "first-ord
     support = np.flatnonzero(w > 1e-6)
     nc = n_candidates or max(100, 2 * m)
     rng = np.random.default_rng(seed)
+    grp = None if groups is None else _Groups(groups, least)
     first = np.sort(np.argsort(-w, kind="stable")[:m])
-    best, swaps = _exchange(qs, first, support, nc, 10 * m)
-    best_v = _value(qs, best, np.ones(m))
     seen = {tuple(first.tolist())}
+    if grp is not None:
+        first = _repair(qs, first, grp)
+    best, swaps = _exchange(qs, first, support, nc, 10 * m, grp)
+    best_v = _value(qs, best, np.ones(m))
     with np.errstate(divide="ignore"):
         logw = np.log(np.maximum(w, 0.0))
     for _ in range(n_starts - 1):
@@ -456,7 +591,9 @@ def ds_design(criteria: list[Criterion], m: int, *, relaxation: str = "first-ord
         if tuple(start.tolist()) in seen:
             continue
         seen.add(tuple(start.tolist()))
-        X, k = _exchange(qs, start, support, nc, 10 * m)
+        if grp is not None:
+            start = _repair(qs, start, grp)
+        X, k = _exchange(qs, start, support, nc, 10 * m, grp)
         swaps += k
         v = _value(qs, X, np.ones(m))
         if v > best_v:

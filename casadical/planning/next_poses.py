@@ -52,6 +52,9 @@ class QuestionProblem:
     tested: np.ndarray          # columns of the tested parameters
     tested_values: np.ndarray   # their sizes, scaled
     scales: np.ndarray
+    sets: np.ndarray | None = None      # rows that touch: each candidate's touched set (planning.touches)
+    least: np.ndarray | None = None     # and the fewest rows of each a selection holds if any
+    n_nuisance: int = 0                 # the last columns: what the rows touch (and the whole robot's turn)
 
     def criterion(self) -> Criterion:
         return Criterion(self.A, self.M0, self.interest)
@@ -177,16 +180,71 @@ def _pct(x: float) -> str:
 def _jacobian(model: Model, values: np.ndarray, data: Measurements, sessions: np.ndarray) -> np.ndarray:
     """Position Jacobian (N, 3, P) of ``data``'s poses at ``values``, each pose in its session ``sessions``
     (a term of one session, ``...@S``, acts at that session's poses only)."""
-    from ..terms.sessions import indicator
     from .observability import pool_jacobian
 
     model.parameters.values = values
+    return pool_jacobian(model, data.q, _covariates(model, data, sessions))
+
+
+def _covariates(model: Model, data: Measurements, sessions: np.ndarray) -> np.ndarray:
+    """``data``'s covariates, each pose in its session ``sessions``: the model holds no session frames (planned
+    for apart), its session indicators come from here."""
+    from ..terms.sessions import indicator
+
     cov = model.covariates(data)
-    # the model holds no session frames (planned for apart): its session indicators come from here
     for s in dict.fromkeys(sessions.tolist()):
         if indicator(s) in model.covariate_names:
             cov[:, model.covariate_names.index(indicator(s))] = sessions == s
-    return pool_jacobian(model, data.q, cov)
+    return cov
+
+
+def _stacked(measured: Measurements, candidates: Measurements, meas_sessions: np.ndarray,
+             cand_sessions: np.ndarray) -> Measurements:
+    """The measured rows then the candidates as one data set, each row in its session: a candidate touching a
+    point of a measured session touches the same point (its unknowns are shared). Columns one of them lacks are
+    empty (NaN, or no text) on its rows."""
+    n_m, n_c = len(measured), len(candidates)
+    cols = {}
+    for k in dict.fromkeys([*measured.columns, *candidates.columns]):
+        a, b = measured.columns.get(k), candidates.columns.get(k)
+        text = any(v is not None and v.dtype.kind not in "fiu" for v in (a, b))
+        fill = (lambda n: np.full(n, "", dtype=object)) if text else (lambda n: np.full(n, np.nan))  # noqa: E731
+        cols[k] = np.concatenate([fill(n_m) if a is None else a.astype(object if text else float),
+                                  fill(n_c) if b is None else b.astype(object if text else float)])
+    sessions = np.concatenate([meas_sessions, cand_sessions]).astype(object)
+    return Measurements(cols, measured.path, sessions=None if not any(sessions) else sessions,
+                        fixtures=measured.fixtures or candidates.fixtures)
+
+
+def _touch_problem(model: Model, values: np.ndarray, q: Question, measured: Measurements,
+                   candidates: Measurements, meas_sessions: np.ndarray, cand_sessions: np.ndarray) -> QuestionProblem:
+    """A question's problem where the rows touch (:mod:`casadical.planning.touches`): the robot's parameters the
+    measured rows and candidates identify (what they cannot see held), the nuisance (every touched point's,
+    plane's, fixture's unknowns and the whole robot's turn) among the others."""
+    from .touches import touch_problem
+
+    data = _stacked(measured, candidates, meas_sessions, cand_sessions)
+    if data.layout.tracked.any() and len(set(data.sessions.tolist() if data.sessions is not None else [])) > 1:
+        raise IdentifiabilityError(f"question {q.number}: rows of an instrument and rows that touch in several "
+                                   "sessions are not planned for together yet")
+    tp = touch_problem(model, data, values=values, cov=_covariates(model, data, data.sessions if data.sessions
+                                                                    is not None else np.full(len(data), "")),
+                       measured=len(measured))
+    held = {n: u["what"] for u in tp.unobservable for n in u["parameters"]}
+    lost = [n for n in q.interest if n not in tp.names]
+    if lost:
+        why = {n: f"not seen by rows that touch: {held[n]}" if n in held else "not identified by these rows"
+               for n in lost}
+        raise IdentifiabilityError(f"question {q.number}: the measured rows and the candidates do not identify "
+                                   + listing([f"{n} ({why[n]})" for n in lost]))
+    params = model.parameters
+    k = tp.A.shape[2] - tp.n_parameters
+    names = tp.names + [f"nuisance[{i}]" for i in range(k)]
+    scales = np.concatenate([params.scales[[params.index(n) for n in tp.names]], np.ones(k)])
+    interest = np.array([names.index(n) for n in q.interest])
+    tested = np.array([names.index(n) for n in q.tested if n in tp.names], dtype=int)
+    tv = np.array([q.tested[names[j]] for j in tested]) / scales[tested] if len(tested) else np.zeros(0)
+    return QuestionProblem(q, model, names, tp.A, tp.M0, interest, tested, tv, scales, tp.sets, tp.least, k)
 
 
 def _session_columns(J: np.ndarray, names: list[str], sessions: np.ndarray | None, order: list[str],
@@ -232,6 +290,8 @@ def build_problem(robot: Robot, base_spec: str, q: Question, final_values: dict[
     cand_sessions = candidates.sessions if candidates.sessions is not None else \
         np.full(len(candidates), order[0] if order else "", dtype=object)
     meas_sessions = measured.sessions if measured.sessions is not None else np.full(len(measured), "", dtype=object)
+    if measured.touches or candidates.touches:
+        return _touch_problem(model, values, q, measured, candidates, meas_sessions, cand_sessions)
     Jm = _jacobian(model, values, measured, meas_sessions)
     Jc = _jacobian(model, values, candidates, cand_sessions)
     ident = analyse(np.concatenate([Jm, Jc]), params)
@@ -310,15 +370,23 @@ def plan_next(robot: Robot, report: dict, questions: list[Question], final_value
         raise InputError("no open question these candidates can answer: " + "; ".join(skipped)
                          if skipped else "the report has no open question")
     say(f"selecting {m} of {len(candidates)} candidates (Ds criterion, {len(problems)} questions)")
-    design = ds_design([p.criterion() for p in problems], m, relaxation=relaxation, seed=seed)
+    # rows that touch: each point none or enough rows (the same sets in every question: the same rows)
+    touch = {"groups": problems[0].sets, "least": problems[0].least} if problems[0].sets is not None else {}
+    design = ds_design([p.criterion() for p in problems], m, relaxation=relaxation, seed=seed, **touch)
     # the whole model: every question's terms at once, D-optimal (every parameter of interest)
     say("the D-optimal augmentation of the whole model, for comparison")
     whole_q = Question(0, "whole", "", list(dict.fromkeys(c for q in kept for c in q.extra)), [], {}, 0.05, -1,
                        terms=kept[0].terms)
     wp = build_problem(robot, base, whole_q, final_values, measured, candidates, session_tools)
-    dopt = ds_design([Criterion(wp.A, wp.M0, np.arange(wp.A.shape[2]))], m, seed=seed).indices
+    whole = np.arange(wp.A.shape[2] - wp.n_nuisance)
+    dopt = ds_design([Criterion(wp.A, wp.M0, whole)], m, seed=seed, **touch).indices
     rng = np.random.default_rng(seed)
-    sets = [np.sort(rng.choice(len(candidates), m, replace=False)) for _ in range(random_sets)]
+    if touch:
+        from .touches import random_rows
+
+        sets = [random_rows(touch["groups"], touch["least"], m, rng) for _ in range(random_sets)]
+    else:
+        sets = [np.sort(rng.choice(len(candidates), m, replace=False)) for _ in range(random_sets)]
     per, units = [], {}
     for p in problems:
         conv = {n: _display(p.model, n) for n in p.question.interest}

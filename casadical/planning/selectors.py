@@ -84,6 +84,12 @@ class PlanResult:
     duplicates : int
         Candidate rows identical to an earlier one (same Jacobian block):
         offered once, so the M poses are distinct.
+    criterion : {"D", "Ds"}
+        ``Ds`` for rows that touch (:mod:`casadical.planning.touches`): ``log_det`` is that of the information
+        about the robot's parameters once what the rows touch is fitted (the Schur complement), the bound and
+        the efficiency are of it.
+    unobservable : list of dict
+        What rows that touch cannot see, held (``what``, ``why``, ``parameters``), as a calibration says it.
     """
 
     indices: np.ndarray
@@ -101,6 +107,8 @@ class PlanResult:
     details: dict = field(default_factory=dict)
     missing_parameters: list[str] = field(default_factory=list)
     duplicates: int = 0
+    criterion: str = "D"
+    unobservable: list[dict] = field(default_factory=list)
 
     @property
     def m(self) -> int:
@@ -114,17 +122,26 @@ class PlanResult:
         """Human-readable summary (printed by ``casadical plan-poses``)."""
         o = self.observability
         p = len(self.parameters)
+        ds = self.criterion == "Ds"
+        what = "rows" if ds else "poses"
         lines = [
-            f"selected {self.m} of {self.n_candidates} candidate poses by {self.method}"
+            f"selected {self.m} of {self.n_candidates} candidate {what} by {self.method}"
             + (f" (seed {self.seed})" if self.seed is not None and self.method != "d-optimal" else ""),
-            f"criterion: log det(J^T J) = {self.log_det:.6g} over {p} identifiable parameters "
-            "(Jacobian columns scaled by each parameter's typical deviation, metres)",
+            (f"criterion (Ds): log det = {self.log_det:.6g} of the information about {p} robot parameters once "
+             "every point, plane or fixture the rows touch is fitted too (the Jacobian projected away from them; "
+             "columns scaled by each parameter's typical deviation, metres)" if ds else
+             f"criterion: log det(J^T J) = {self.log_det:.6g} over {p} identifiable parameters "
+             "(Jacobian columns scaled by each parameter's typical deviation, metres)"),
             "indices: " + "  ".join(f"{k} = {v:.6g}" for k, v in o.as_dict().items()),
         ]
+        for u in self.unobservable:
+            if u["parameters"]:
+                lines.append(f"not seen by these rows: {u['what']} ({u['why']}): {', '.join(u['parameters'])} "
+                             "held")
         if self.upper_bound is not None:
-            lines.append(f"certificate: no {self.m}-pose subset of the pool exceeds log det "
+            lines.append(f"certificate: no {self.m}-{what[:-1]} subset of the pool exceeds log det "
                          f"{self.upper_bound:.6g} (relaxation bound, gap {self.relaxation_gap:.2g} per "
-                         f"parameter); D-efficiency of this selection >= {self.d_efficiency:.4f}")
+                         f"parameter); {self.criterion}-efficiency of this selection >= {self.d_efficiency:.4f}")
         elif self.missing_parameters:
             lines.append("no certificate: " + degenerate_message(self.missing_parameters, p))
         if self.duplicates:
@@ -146,6 +163,7 @@ class PlanResult:
                 "relaxation_gap": self.relaxation_gap, "time_s": self.time_s,
                 "jacobian_time_s": self.jacobian_time_s, "seed": self.seed,
                 "missing_parameters": self.missing_parameters, "duplicate_rows": self.duplicates,
+                "criterion": self.criterion, **({"unobservable": self.unobservable} if self.unobservable else {}),
                 "details": {k: v for k, v in self.details.items() if not k.startswith("_")}}
 
 

@@ -29,6 +29,7 @@ from ..model.symbolic import Model
 from ..planning.selectors import METHODS as SELECTORS
 from ..robot import PROBLEMS, Robot, robot_from_dict, robot_to_dict
 from ..runtime.files import named_toml, read_toml
+from .touch import TouchSpec, touch_from_table, touch_plan
 
 STUDY_DIR = PROBLEMS / "studies"
 #: most repetitions a protocol may ask for (the studies of docs/studies.md run 40-200; a run keeps a few
@@ -36,8 +37,8 @@ STUDY_DIR = PROBLEMS / "studies"
 MAX_REPETITIONS = 1_000_000
 SOLVERS = ("ipopt", "lm", "gn", "auto")
 _TOP_KEYS = {"name", "description", "protocol", "robot", "seed", "repetitions", "validation_poses",
-             "extra_poses", "truth", "workspace", "plan", "method"}
-_PLAN_KEYS = {"name", "method", "poses", "pool", "model", "ga_generations"}
+             "extra_poses", "truth", "workspace", "plan", "method", "touch"}
+_PLAN_KEYS = {"name", "method", "poses", "pool", "model", "ga_generations", "placements", "rows_per_point"}
 _METHOD_KEYS = {"name", "method", "settings", "model", "solver"}
 
 
@@ -59,6 +60,12 @@ class PlanSpec:
     model : str
         Model whose parameters the ``d-optimal`` and ``ga`` selectors design for.
     ga_generations : int
+    placements : int
+        A touch plan's placements of the block (0: not a touch plan; :mod:`casadical.study.touch`); its
+        ``poses`` are then the calibration rows, ``placements x sockets x rows_per_point``, and its ``pool`` the
+        candidates per socket and placement ``d-optimal`` chooses from.
+    rows_per_point : tuple of int
+        A touch plan's rows per socket and placement, one plan per number.
     """
 
     name: str
@@ -67,6 +74,8 @@ class PlanSpec:
     pool: int | None = None
     model: str = "kinematic+compliance"
     ga_generations: int = 100
+    placements: int = 0
+    rows_per_point: tuple[int, ...] = ()
 
     def pool_size(self, m: int) -> int:
         """Size of the candidate pool the ``m``-pose plan draws from."""
@@ -121,6 +130,9 @@ class Study:
     methods : list of MethodSpec
     path, text : str
         The protocol file and its text, kept with the results.
+    touch : TouchSpec or None
+        A study of touch protocols (its ``[touch]`` table): the block, the contact noise, the fresh placements
+        each calibration is judged on (:mod:`casadical.study.touch`).
     """
 
     name: str
@@ -136,6 +148,7 @@ class Study:
     description: str = ""
     path: str = ""
     text: str = ""
+    touch: TouchSpec | None = None
 
     def cells(self) -> list[tuple[PlanSpec, int]]:
         """(plan, number of poses) in protocol order: the plans of one repetition."""
@@ -151,9 +164,13 @@ class Study:
         Results of a study resume only into a folder with the same digest;
         raising ``repetitions`` extends a finished study.
         """
+        # a touch study's keys only where there are some: the digests of the studies before them stay
+        plans = [{k: v for k, v in asdict(p).items() if self.touch or k not in ("placements", "rows_per_point")}
+                 for p in self.plans]
         doc = {"robot": robot_to_dict(self.robot), "effects": asdict(self.effects), "workspace": self.workspace,
                "seed": self.seed, "validation_poses": self.validation_poses, "extra_poses": self.extra_poses,
-               "plans": [asdict(p) for p in self.plans], "methods": [asdict(m) for m in self.methods]}
+               "plans": plans, "methods": [asdict(m) for m in self.methods],
+               **({"touch": asdict(self.touch)} if self.touch else {})}
         text = json.dumps(doc, sort_keys=True, default=repr)
         return hashlib.sha256(text.encode()).hexdigest()
 
@@ -189,6 +206,7 @@ def load_study(spec: str | Path) -> Study:
         effects = effects_from_table(v.table(d, "truth", ""), robot, file)
         workspace = workspace_from_table(v.table(d, "workspace", ""), file)
         seed = 0
+    touch = touch_from_table(v.table(d, "touch", ""), v) if "touch" in d else None
     return Study(
         name=v.string(d, "name", "", default=path.stem),
         description=v.string(d, "description", "", default=""),
@@ -197,9 +215,9 @@ def load_study(spec: str | Path) -> Study:
         repetitions=v.integer(d, "repetitions", "", required=True, minimum=1, maximum=MAX_REPETITIONS),
         validation_poses=v.integer(d, "validation_poses", "", required=True, minimum=1, maximum=MAX_POSES),
         extra_poses=v.integer(d, "extra_poses", "", default=0, minimum=0, maximum=MAX_POSES),
-        plans=_plans(d, robot, v),
-        methods=_methods(d, robot, v),
-        path=file, text=path.read_text(encoding="utf-8", errors="replace"))
+        plans=_plans(d, robot, v, touch),
+        methods=_methods(d, robot, v, touch),
+        path=file, text=path.read_text(encoding="utf-8", errors="replace"), touch=touch)
 
 
 def _robot(d: dict, path: Path) -> Robot:
@@ -231,7 +249,7 @@ def _check_model(spec: str, robot: Robot, file: str, column: str) -> str:
     return spec
 
 
-def _plans(d: dict, robot: Robot, v: TomlValidator) -> list[PlanSpec]:
+def _plans(d: dict, robot: Robot, v: TomlValidator, touch: TouchSpec | None = None) -> list[PlanSpec]:
     plans: list[PlanSpec] = []
     for i, t in enumerate(_tables(d, "plan", v), start=1):
         where = f"plan[{i}]"
@@ -240,6 +258,17 @@ def _plans(d: dict, robot: Robot, v: TomlValidator) -> list[PlanSpec]:
         if selector not in SELECTORS:
             raise InputError(f"unknown pose selection method {selector!r}; choose from {', '.join(SELECTORS)}",
                              file=v.file, column=f"{where}.method")
+        if touch is not None:
+            placements, rows, pool = touch_plan(t, where, selector, touch, v)
+            model = _check_model(t.get("model", "kinematic"), robot, v.file, f"{where}.model")
+            plans.append(PlanSpec(name=v.string(t, "name", where, default=selector), selector=selector,
+                                  poses=tuple(placements * len(touch.points) * r for r in rows), pool=pool,
+                                  model=model, placements=placements, rows_per_point=rows))
+            continue
+        for key in ("placements", "rows_per_point"):
+            if key in t:
+                raise InputError("a plan of touches: the study needs a [touch] table (the block and its sockets)",
+                                 file=v.file, column=f"{where}.{key}")
         raw = t.get("poses")
         sizes = raw if isinstance(raw, list) else [raw]
         if raw is None or not sizes or any(isinstance(m, bool) or not isinstance(m, int) or m < 1 for m in sizes):
@@ -265,7 +294,7 @@ def _plans(d: dict, robot: Robot, v: TomlValidator) -> list[PlanSpec]:
     return plans
 
 
-def _methods(d: dict, robot: Robot, v: TomlValidator) -> list[MethodSpec]:
+def _methods(d: dict, robot: Robot, v: TomlValidator, touch: TouchSpec | None = None) -> list[MethodSpec]:
     from ..methods import lookup, make_method
 
     methods: list[MethodSpec] = []
@@ -275,6 +304,9 @@ def _methods(d: dict, robot: Robot, v: TomlValidator) -> list[MethodSpec]:
         if ("method" in t) == ("model" in t):
             raise InputError("give either method (a registered method) or model (a model specification)",
                              file=v.file, column=where)
+        if touch is not None and "method" in t:
+            raise InputError("a [touch] study calibrates with model = \"...\" (a model specification); the "
+                             "registered methods take tracker rows", file=v.file, column=f"{where}.method")
         if "method" in t:
             if "solver" in t:
                 raise InputError("only with model; registered methods take settings", file=v.file,

@@ -67,8 +67,10 @@ def manifest_of(study: Study) -> dict:
     return {"format": FORMAT, "format_version": 1, "casadical_version": __version__, "name": study.name,
             "description": study.description, "protocol_file": study.path, "digest": study.digest(),
             "seed": study.seed, "repetitions": study.repetitions, "robot": study.robot.name,
-            "plans": [{"name": p.name, "selector": p.selector, "poses": list(p.poses), "pool": p.pool}
-                      for p in study.plans],
+            "plans": [{"name": p.name, "selector": p.selector, "poses": list(p.poses), "pool": p.pool,
+                       **({"placements": p.placements, "rows_per_point": list(p.rows_per_point)} if p.placements
+                          else {})} for p in study.plans],
+            **({"touch": True} if study.touch is not None else {}),
             "methods": [m.name for m in study.methods], "columns": [c for c, _ in COLUMNS],
             "created": datetime.now(timezone.utc).isoformat(timespec="seconds")}
 

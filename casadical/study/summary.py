@@ -41,6 +41,9 @@ class SummaryRow:
     pairs: int
     stiffness_error_median: float
     fit_time_median: float
+    placements: int = 0
+    rows_per_point: int = 0
+    distance_error_median: float = float("nan")
 
 
 @dataclass
@@ -66,14 +69,20 @@ class Summary:
     repetitions: int
     rows: list[SummaryRow]
     values: dict = field(default_factory=dict, repr=False)
+    touch: bool = False
 
     def to_dict(self) -> dict:
         """The table as JSON-ready data (``win_rate`` None for the baseline; NaN where no repetition succeeded)."""
+        keep = (lambda r: r) if self.touch else (  # noqa: E731
+            lambda r: {k: v for k, v in r.items() if k not in ("placements", "rows_per_point",
+                                                               "distance_error_median")})
         return {"name": self.name, "metric": self.metric, "baseline": self.baseline,
-                "repetitions": self.repetitions, "rows": [asdict(r) for r in self.rows]}
+                "repetitions": self.repetitions, "rows": [keep(asdict(r)) for r in self.rows]}
 
     def table(self) -> str:
         """Markdown table."""
+        if self.touch:
+            return self._touch_table()
         out = [f"study {self.name}: {self.repetitions} repetitions; {self.metric} over the repetitions "
                f"that succeeded; win rate = share of paired repetitions with a lower {self.metric} than "
                f"{self.baseline}", "",
@@ -85,6 +94,22 @@ class Summary:
             out.append(f"| {r.plan} | {r.n_poses} | {r.method} | {r.ok}/{r.runs} | {_num(r.median)} "
                        f"| {_num(r.q25)} - {_num(r.q75)} | {_num(r.true_median)} | {win} "
                        f"| {_num(r.stiffness_error_median, 2)} | {_num(r.fit_time_median, 3)} |")
+        return "\n".join(out)
+
+    def _touch_table(self) -> str:
+        """The table of a study of touches: placements and rows per socket, the distance error beside the metric
+        (by default the consistency on fresh placements), the true error after the best rigid motion."""
+        out = [f"study {self.name}: {self.repetitions} repetitions; {self.metric} over the repetitions "
+               f"that succeeded; win rate = share of paired repetitions with a lower {self.metric} than "
+               f"{self.baseline}", "",
+               f"| plan | placements | rows per socket | rows | method | ok | median | IQR | distance error, median "
+               f"| true error, median | win rate vs {self.baseline} | fit time, median (s) |",
+               "|---|---|---|---|---|---|---|---|---|---|---|---|"]
+        for r in self.rows:
+            win = "-" if r.win_rate is None else f"{100 * r.win_rate:.0f} % of {r.pairs}"
+            out.append(f"| {r.plan} | {r.placements} | {r.rows_per_point} | {r.n_poses} | {r.method} | {r.ok}/{r.runs} "
+                       f"| {_num(r.median)} | {_num(r.q25)} - {_num(r.q75)} | {_num(r.distance_error_median)} "
+                       f"| {_num(r.true_median)} | {win} | {_num(r.fit_time_median, 3)} |")
         return "\n".join(out)
 
 
@@ -100,7 +125,7 @@ def _median(x: np.ndarray) -> float:
 
 
 def summarize(results: str | Path | ResultStore, baseline: str | None = None,
-              metric: str = "val_mean_mm") -> Summary:
+              metric: str | None = None) -> Summary:
     """The comparison table of a results folder.
 
     Parameters
@@ -108,8 +133,9 @@ def summarize(results: str | Path | ResultStore, baseline: str | None = None,
     results : path or ResultStore
     baseline : str, optional
         Method the win rates are against (default: the protocol's first method).
-    metric : str
-        A float column of the results (:data:`METRICS`).
+    metric : str, optional
+        A float column of the results (:data:`METRICS`); default ``val_mean_mm``, for a study of touches
+        ``val_consistency_mm``.
 
     Raises
     ------
@@ -117,6 +143,8 @@ def summarize(results: str | Path | ResultStore, baseline: str | None = None,
         Not a results folder, unknown baseline or metric.
     """
     store = results if isinstance(results, ResultStore) else ResultStore.open(results)
+    touch = bool(store.manifest.get("touch"))
+    metric = metric or ("val_consistency_mm" if touch else "val_mean_mm")
     if metric not in METRICS:
         raise InputError(f"unknown metric {metric!r}; choose from {', '.join(METRICS)}")
     methods = store.manifest["methods"]
@@ -130,7 +158,7 @@ def summarize(results: str | Path | ResultStore, baseline: str | None = None,
     table = store.read()
     col = {c: np.asarray(table.column(c).to_numpy(zero_copy_only=False))
            for c in ("repetition", "plan", "n_poses", "method", "status", metric, "val_true_mean_mm",
-                     "stiffness_error_pct", "fit_time_s")}
+                     "stiffness_error_pct", "fit_time_s", "val_distance_error_mm")}
     ok = col["status"] == "ok"
     usable = ok & ~np.isnan(col[metric])          # e.g. no stiffness error for a kinematic method
     rows, values = [], {}
@@ -157,12 +185,17 @@ def summarize(results: str | Path | ResultStore, baseline: str | None = None,
                         win = float(((a < b).sum() + 0.5 * (a == b).sum()) / pairs)
                 with np.errstate(invalid="ignore"):
                     done = sel & ok
+                    where = {}
+                    if touch:
+                        k = plan["poses"].index(n)
+                        where = {"placements": plan["placements"], "rows_per_point": plan["rows_per_point"][k],
+                                 "distance_error_median": _median(col["val_distance_error_mm"][done])}
                     rows.append(SummaryRow(plan["name"], int(n), m, int(sel.sum()), int(done.sum()), float(med),
                                            float(q25), float(q75), _median(col["val_true_mean_mm"][done]), win,
                                            pairs, _median(col["stiffness_error_pct"][done]),
-                                           _median(col["fit_time_s"][done])))
+                                           _median(col["fit_time_s"][done]), **where))
     return Summary(store.manifest.get("name", ""), metric, baseline, len(set(col["repetition"].tolist())),
-                   rows, values)
+                   rows, values, touch)
 
 
 def plot_summary(summary: Summary, folder: str | Path, overwrite: bool = False) -> list[Path]:

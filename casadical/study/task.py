@@ -35,6 +35,7 @@ from ..model.symbolic import Model
 from ..planning import PlanSettings, design_problem, select_poses
 from ..robot import Robot, robot_to_dict
 from .protocol import MethodSpec, PlanSpec, Study
+from .touch import TouchWorld, draw_touch_world, select_touch_rows, touch_figures
 
 #: The results table: column name and kind (``int``, ``float``, ``str``, ``map``), in order.
 COLUMNS: tuple[tuple[str, str], ...] = (
@@ -43,6 +44,8 @@ COLUMNS: tuple[tuple[str, str], ...] = (
     ("cal_mean_mm", "float"), ("cal_max_mm", "float"), ("cal_std_mm", "float"), ("cal_rms_mm", "float"),
     ("val_mean_mm", "float"), ("val_max_mm", "float"), ("val_std_mm", "float"), ("val_rms_mm", "float"),
     ("val_true_mean_mm", "float"), ("val_true_max_mm", "float"),
+    ("placements", "int"), ("rows_per_point", "int"), ("cal_consistency_mm", "float"),
+    ("val_consistency_mm", "float"), ("val_distance_error_mm", "float"),
     ("stiffness_error_pct", "float"), ("parameter_errors", "map"),
     ("plan_o1", "float"), ("plan_log_det", "float"), ("seed", "int"),
     ("plan_time_s", "float"), ("fit_time_s", "float"),
@@ -74,6 +77,8 @@ class Repetition:
     extra : Measurements or None
     pools : dict of int to Measurements
         Measured candidate poses by pool size.
+    touch : TouchWorld or None
+        A touch study's rows (:mod:`casadical.study.touch`); ``validation`` is then its fresh placements.
     """
 
     index: int
@@ -81,6 +86,7 @@ class Repetition:
     validation: Measurements
     extra: Measurements | None
     pools: dict[int, Measurements]
+    touch: TouchWorld | None = None
 
 
 def draw_repetition(study: Study, repetition: int) -> Repetition:
@@ -90,6 +96,10 @@ def draw_repetition(study: Study, repetition: int) -> Repetition:
     """
     robot, ws = study.robot, study.workspace
     truth = true_model(robot, study.effects, np.random.default_rng(seed_of(study, repetition, "truth")))
+    if study.touch is not None:
+        world, validation = draw_touch_world(study, repetition, truth,
+                                             lambda *stream: seed_of(study, repetition, *stream))
+        return Repetition(repetition, truth, validation, None, {}, world)
 
     def measured(n: int, *stream) -> Measurements:
         rng = np.random.default_rng(seed_of(study, repetition, *stream))
@@ -114,6 +124,8 @@ class Selection:
 
 def select(study: Study, rep: Repetition, plan: PlanSpec, m: int, designs: dict) -> Selection:
     """Select the ``m`` poses of ``plan`` from its pool (``designs`` caches the pools' Jacobians)."""
+    if rep.touch is not None:
+        return select_touch_rows(study, rep.touch, plan, m, designs, seed_of(study, rep.index, "plan", plan.name, m))
     pool = rep.pools[plan.pool_size(m)]
     if len(pool) == m:            # the plan takes its whole pool (random poses drawn directly)
         return Selection(np.arange(m))
@@ -156,7 +168,8 @@ def _row(repetition: int, plan: PlanSpec, m: int, method: MethodSpec, error: str
     row: dict = {name: (float("nan") if kind == "float" else {} if kind == "map" else 0 if kind == "int" else "")
                  for name, kind in COLUMNS}
     row.update(repetition=repetition, plan=plan.name, selector=plan.selector, n_poses=m, pool=plan.pool_size(m),
-               method=method.name, status=status if error else "ok", error=error)
+               method=method.name, status=status if error else "ok", error=error, placements=plan.placements,
+               rows_per_point=plan.rows_per_point[plan.poses.index(m)] if plan.placements else 0)
     return row
 
 
@@ -176,12 +189,15 @@ def error_rows(study: Study, repetition: int, error: BaseException | str, status
     return [_row(repetition, p, m, meth, msg, status) for p, m in study.cells() for meth in study.methods]
 
 
-def _figures(res: MethodResult, truth: Truth, val: Measurements) -> dict:
+def _figures(res: MethodResult, truth: Truth, val: Measurements, touch: TouchWorld | None = None) -> dict:
     """The result columns of one method's row."""
     row = {f"{what}_{s}_mm": getattr(stats, f"{s}_mm")
            for what, stats in (("cal", res.calibration), ("val", res.validation)) for s in _STATS}
-    e_true = np.linalg.norm(res.predict(val) - truth.predict(val), axis=1) * 1000.0
-    row["val_true_mean_mm"], row["val_true_max_mm"] = float(e_true.mean()), float(e_true.max())
+    if touch is not None:
+        row.update(touch_figures(res, touch))
+    else:
+        e_true = np.linalg.norm(res.predict(val) - truth.predict(val), axis=1) * 1000.0
+        row["val_true_mean_mm"], row["val_true_max_mm"] = float(e_true.mean()), float(e_true.max())
     k = res.stiffness()
     errs = [abs(k[j] / kt - 1.0) * 100.0 for j, kt in truth.effects.stiffness.items() if j in k]
     row["stiffness_error_pct"] = float(max(errs)) if errs else float("nan")
@@ -265,7 +281,7 @@ def run_task(study: Study, repetition: int) -> list[dict]:
         for plan, m in study.cells():
             try:
                 sel = select(study, rep, plan, m, designs)
-                cal = rep.pools[plan.pool_size(m)].subset(sel.indices)
+                cal = (rep.touch.rows if rep.touch is not None else rep.pools[plan.pool_size(m)]).subset(sel.indices)
             except Exception as e:  # noqa: BLE001
                 rows += [_row(repetition, plan, m, meth, describe(e)) for meth in study.methods]
                 continue
@@ -275,7 +291,7 @@ def run_task(study: Study, repetition: int) -> list[dict]:
                            seed=seed_of(study, repetition, "method", plan.name, m, meth.name))
                 try:
                     res = run_method_spec(meth, study, cal, rep, row["seed"])
-                    row.update(_figures(res, rep.truth, rep.validation))
+                    row.update(_figures(res, rep.truth, rep.validation, rep.touch))
                 except Exception as e:  # noqa: BLE001
                     row.update(status="error", error=describe(e))
                 rows.append(row)
