@@ -34,17 +34,21 @@ What this script writes into OUT (one session per column height, rows in time or
   ``upside_down`` (0 or 1), ``stationing`` (1 for a stationing point, 0 for an evaluation point), ``record``
   (the record's id);
 - ``column_arm.toml``: the arm as a casadical robot (docs/formats.md section 1), read from the dataset's URDF by
-  casadical's URDF reader with the base link ``dsr_base_0`` (where the arm is bolted on) and the tip ``prism``: MDH
-  rows, each joint's mass and centre of mass merged from the URDF's inertials (the tool's 3 kg with joint 6), and
-  gravity **right**: the URDF root's -z in the arm's base frame, (0, -1, 0): the arm hangs on the column's side,
-  its joint 1 axis horizontal;
-- ``column_arm_upright.toml``: the same arm with gravity along -z of its base frame, down joint 1's axis, as the
-  arm's own description (a URDF of the arm alone) has it: the **wrong** gravity for this mounting.
+  casadical's URDF reader with the base link ``column_tip_mount`` (the column's top plate: level, z up along the
+  column, the arm bolted on its side) and the tip ``prism``: MDH rows, joint 1's axis horizontal (``alpha_deg`` 90
+  on its row), each joint's mass and centre of mass merged from the URDF's inertials (the tool's 3 kg with joint
+  6), gravity **right**, down the column (the URDF root's -z). The base frame sits on the column's axis at its top,
+  where the column bends: the moment of the weights about it is the one that bends the column, and its z is
+  vertical, as the mount compliance and the structure screen's base tilt (about the base's x and y) expect;
+- ``column_arm_upright.toml``: the arm alone, read with its own base link ``dsr_base_0`` (its z is joint 1's axis),
+  with gravity along that z, as a description of the arm alone (the arm maker's URDF) has it: the **wrong** gravity
+  for this mounting, 90 deg off.
 
 The robot files are written here, from the fetched URDF, and not committed: they are derived from the dataset's URDF
 (its prism offset, its tool mass, the arm's inertials), which is under the dataset's licence, and the arm is not a
 robot casadical ships (problems/ holds those). The script checks them against the URDF's own forward kinematics
-(yourdfpy, joint by joint from the XML) at every record before it writes anything.
+(yourdfpy, joint by joint from the XML) at every record, read by the tests' independent forward model (tests/truth),
+before it writes anything.
 
 Usage::
 
@@ -58,6 +62,7 @@ from __future__ import annotations
 import argparse
 import math
 import sys
+import tomllib
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -70,8 +75,9 @@ from casadical.loading import load_robot  # noqa: E402
 from casadical.robot import robot_to_dict  # noqa: E402
 from tests.helpers.arms import to_toml  # noqa: E402
 
-#: the URDF links: where the arm is bolted on, and the measured point
-BASE_LINK, TIP_LINK = "dsr_base_0", "prism"
+#: the URDF links: the column's top plate (the right robot file's base: level, z up, the column's axis), the arm's
+#: own base (where it is bolted on the plate's side: its z is joint 1's axis, horizontal), the measured point
+PLATE_LINK, ARM_LINK, TIP_LINK = "column_tip_mount", "dsr_base_0", "prism"
 #: the dataset's joint order (``joint_names``)
 COLUMN_JOINT = "column_prismatic_joint"
 ARM_JOINTS = tuple(f"dsr_joint{i}" for i in range(1, 7))
@@ -130,39 +136,48 @@ def read_records(path: Path) -> list[Record]:
     return out
 
 
+#: each robot file's base link in the URDF
+BASE_OF = {ROBOT_FILE: PLATE_LINK, UPRIGHT_FILE: ARM_LINK}
+
+
 def robot_files(urdf: Path) -> dict[str, dict]:
-    """The arm's robot documents read from the URDF: gravity right (the URDF root's down in the arm's base frame)
-    and the arm-alone description (gravity down its joint 1 axis)."""
-    robot = load_robot(urdf, tip=TIP_LINK, base=BASE_LINK)
-    doc = robot_to_dict(robot)
+    """The arm's robot documents read from the URDF: on the column's top plate, gravity right (the URDF root's
+    down: -z of the plate, the arm's joint 1 axis horizontal); and the arm alone (its own base, gravity down its
+    joint 1 axis)."""
+    doc = robot_to_dict(load_robot(urdf, tip=TIP_LINK, base=PLATE_LINK))
     doc["name"] = "Doosan arm on Trailblazer's lifting column (from trailblazer.urdf)"
-    upright = {**doc, "name": doc["name"] + ", gravity down joint 1's axis (the arm alone)",
-               "gravity": {"direction": [0.0, 0.0, -1.0]}}
-    return {ROBOT_FILE: doc, UPRIGHT_FILE: upright}
+    alone = robot_to_dict(load_robot(urdf, tip=TIP_LINK, base=ARM_LINK))
+    alone.update(name="Doosan arm of Trailblazer alone (from trailblazer.urdf), gravity down joint 1's axis",
+                 gravity={"direction": [0.0, 0.0, -1.0]})
+    return {ROBOT_FILE: doc, UPRIGHT_FILE: alone}
 
 
-def urdf_prism(urdf: Path, records: list[Record]) -> tuple[np.ndarray, np.ndarray]:
-    """The prism in the arm's base frame at each record, and gravity's direction there, by yourdfpy's forward
-    kinematics of the URDF itself (not casadical's reading of it)."""
+def urdf_prism(urdf: Path, records: list[Record], base: str) -> tuple[np.ndarray, np.ndarray]:
+    """The prism in the frame of the link ``base`` at each record, and the URDF root's down there, by yourdfpy's
+    forward kinematics of the URDF itself (not casadical's reading of it)."""
     import yourdfpy
     u = yourdfpy.URDF.load(str(urdf), build_scene_graph=True, load_meshes=False)
     points = []
     for r in records:
         u.update_cfg({COLUMN_JOINT: r.column, **dict(zip(ARM_JOINTS, r.q))})
-        points.append(u.get_transform(TIP_LINK, BASE_LINK)[:3, 3])
-    root = u.base_link
-    down = u.get_transform(BASE_LINK, root)[:3, :3].T @ np.array([0.0, 0.0, -1.0])
+        points.append(u.get_transform(TIP_LINK, base)[:3, 3])
+    down = u.get_transform(base, u.base_link)[:3, :3].T @ np.array([0.0, 0.0, -1.0])
     return np.array(points), down
 
 
-def check_robot(text: str, urdf: Path, records: list[Record]) -> float:
-    """The largest distance (m) between the robot file's prism (read by the tests' independent forward model,
-    tests/truth) and the URDF's over the records; its gravity against the URDF root's down."""
+def check_robot(text: str, urdf: Path, records: list[Record], base: str) -> float:
+    """The angle (deg) between the robot file's gravity and the URDF root's down, in the frame of the link
+    ``base``; first, its prism (by the tests' independent forward model, tests/truth, its base pose applied)
+    must be the URDF's at every record."""
     from tests.truth import Arm, TrueRobot
+    from tests.truth import transforms as tf
     arm = Arm.from_toml(text)
     truth = TrueRobot(arm)
-    got = truth.tool_point(truth.state(np.array([r.q for r in records])))
-    expected, down = urdf_prism(urdf, records)
+    placed = tomllib.loads(text)["base"]
+    B = tf.pose(placed["xyz_m"], np.radians(placed["rpy_deg"]))[0]
+    got = truth.tool_point(truth.state(np.array([r.q for r in records]))) @ B[:3, :3].T + B[:3, 3]
+    expected, down = urdf_prism(urdf, records, base)
+    down = B[:3, :3].T @ down           # in the robot's frame 0
     worst = float(np.max(np.linalg.norm(got - expected, axis=1)))
     off = math.degrees(math.acos(min(1.0, float(arm.gravity @ down) / np.linalg.norm(arm.gravity))))
     if worst > FK_TOL_M:
@@ -199,7 +214,7 @@ def convert(yaml_path: Path, out: Path, urdf: Path | None = None, force: bool = 
     if solution_spaces is not None:
         records = [r for r in records if r.solution_space in solution_spaces]
     docs = {name: to_toml(doc) for name, doc in robot_files(urdf).items()}
-    off = {name: check_robot(text, urdf, records) for name, text in docs.items()}
+    off = {name: check_robot(text, urdf, records, BASE_OF[name]) for name, text in docs.items()}
     if off[ROBOT_FILE] > 0.01 or off[UPRIGHT_FILE] < 89.9:
         raise SystemExit(f"{urdf}: gravity {off[ROBOT_FILE]:.3f} deg off the URDF's in {ROBOT_FILE}, "
                          f"{off[UPRIGHT_FILE]:.3f} deg in {UPRIGHT_FILE} (expected 0 and 90)")
