@@ -129,13 +129,11 @@ def run(files: dict, seed: int, wrong_gravity: bool) -> dict:
         rep = diagnose(rob, all_cal, all_val, DiagnosisSettings(seed=seed))
         took = time.perf_counter() - t0
         per = {s: (st.mean_mm, st.max_mm) for s, st in rep.final_sessions.items()}
-        geo = calibrate(rob, all_cal, "kinematic", warn=False)
         out["robots"][label] = {
             "final_model": rep.final_model, "time_s": took, "final_sessions": per,
             "findings": [finding_line(f) for f in rep.findings],
             "records": [f.to_dict() | {"label": finding_line(f)} for f in rep.findings],
             "notes": list(rep.notes), "down_off_deg": down_off_deg(rep.final, rob),
-            "kinematic_down_off_deg": down_off_deg(geo, rob),
         }
     return out
 
@@ -155,15 +153,17 @@ def to_json(x):
 
 def print_run(r: dict) -> None:
     seed = r["seed"]
-    right = r["robots"]["right"]
-    print(f"\nseed {seed}: held-out mean / max (mm) per session, N_cal {N_CAL}")
-    print(f"  {'session':<8} {'n_val':>5}  {'kinematic (per session)':>24}  {'diagnosis (all sessions)':>24}"
-          f"  {'issue: diagnosis / kinematic':>28}")
+    robots = r["robots"]
+    print(f"\nseed {seed}: held-out mean / max (mm) per session, {N_CAL} calibration poses each")
+    head = "".join(f"  {'diagnosis, gravity ' + k:>24}" for k in robots)
+    print(f"  {'session':<8} {'n_val':>5}  {'kinematic (per session)':>24}{head}  {'issue: diagnosis / kinematic':>28}")
     for s, v in r["sessions"].items():
-        k, d = v["kinematic"], right["final_sessions"].get(s, (float("nan"),) * 2)
-        print(f"  {s:<8} {v['n_val']:>5}  {k[0]:>11.3f} / {k[1]:<10.3f}  {d[0]:>11.3f} / {d[1]:<10.3f}"
+        k = v["kinematic"]
+        cells = "".join(f"  {rr['final_sessions'][s][0]:>11.3f} / {rr['final_sessions'][s][1]:<10.3f}"
+                        for rr in robots.values())
+        print(f"  {s:<8} {v['n_val']:>5}  {k[0]:>11.3f} / {k[1]:<10.3f}{cells}"
               f"  {ISSUE_DIAGNOSIS.get(s, float('nan')):>13.2f} / {ISSUE_KINEMATIC.get(s, float('nan')):<12.2f}")
-    for label, rr in r["robots"].items():
+    for label, rr in robots.items():
         print(f"  gravity {label}: final model {rr['final_model']}  ({rr['time_s']:.0f} s)")
         print("    the fitted base pose turns the robot's down from the instrument's by (deg): "
               + ", ".join(f"{s} {v:.1f}" for s, v in rr["down_off_deg"].items()))
@@ -185,8 +185,10 @@ def main() -> None:
     args = ap.parse_args()
     data = find_data(args.data)
     if data is None:
-        print(f"study_column: no column data (give --data PATH/flat.yaml or set {ENV}; fetch "
-              "github.com/Hilti-Research/construction_robot_stationing_datasets, CC BY-NC-SA 3.0): skipped")
+        where = f"{args.data or os.environ.get(ENV)} has no flat.yaml" if args.data or os.environ.get(ENV) \
+            else f"give --data PATH/flat.yaml or set {ENV}"
+        print(f"study_column: no column data ({where}; fetch github.com/Hilti-Research/"
+              "construction_robot_stationing_datasets, CC BY-NC-SA 3.0): skipped")
         return
     warnings.simplefilter("ignore")
     spaces = tuple(args.solution_spaces) if args.solution_spaces else None
