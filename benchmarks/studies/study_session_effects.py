@@ -59,6 +59,8 @@ HEIGHTS = (1.0, 1.6, 2.2, 2.8)
 N_CAL, N_VAL = 60, 100
 NOISE = 20e-6
 FLOOR_MM = 2 * math.sqrt(2 / math.pi) * NOISE * 1000
+#: the column's tilt at the largest moment at the top height (rad)
+MOUNT_TILT = 0.3e-3
 #: the floor's tilt (rad, per axis) and its sensor's noise
 TILT, TILT_NOISE = 2e-3, 20e-6
 #: a joint's own property: one value for the robot, whatever the session (issue 49)
@@ -85,16 +87,16 @@ def sessions(case: str, rng: np.random.Generator) -> list[Session]:
                     unrelated="acc_spare_x") for k in range(4)]
 
 
-def effects(case: str, arm: Arm) -> Effects:
-    """The column: the mount's compliance c0 h (0.3 mrad at the largest moment at the top height) and joint 2's
+def effects(case: str, arm: Arm, tilt: float = MOUNT_TILT) -> Effects:
+    """The column: the mount's compliance c0 h (``tilt`` rad at the largest moment at the top height) and joint 2's
     (0.4 mrad at its largest torque). The floor: nothing of the robot's."""
     if case == "floor":
         return Effects()
     tau, moment = largest(arm)
-    return Effects(stiffness={2: tau[1] / 0.4e-3}, mount_law={"height_m": 0.3e-3 / moment / max(HEIGHTS)})
+    return Effects(stiffness={2: tau[1] / 0.4e-3}, mount_law={"height_m": tilt / moment / max(HEIGHTS)})
 
 
-def make(case: str, doc: dict, seed: int, folder: Path):
+def make(case: str, doc: dict, seed: int, folder: Path, tilt: float = MOUNT_TILT):
     """The robot file, the calibration and the held-out poses (every session, read back from the truth's files), and
     each session's pair of them."""
     from casadical.data import Measurements
@@ -102,7 +104,7 @@ def make(case: str, doc: dict, seed: int, folder: Path):
     from casadical.robot import robot_from_dict
     rng = np.random.default_rng(seed)
     arm = Arm.from_dict(doc)
-    truth = TrueRobot.draw(arm, effects(case, arm), rng)
+    truth = TrueRobot.draw(arm, effects(case, arm, tilt), rng)
     parts = {"cal": [], "val": []}
     for s in sessions(case, rng):
         for kind, n in (("cal", N_CAL), ("val", N_VAL)):
@@ -121,11 +123,11 @@ def finding(f) -> dict:
             **{k: d[k] for k in ("covariate", "effect") if k in d}}
 
 
-def one(case: str, arm_name: str, seed: int, noise_mm: float | None = None) -> dict:
+def one(case: str, arm_name: str, seed: int, noise_mm: float | None = None, tilt: float = MOUNT_TILT) -> dict:
     from casadical import calibrate
     from casadical.diagnosis import DiagnosisSettings, diagnose
     with tempfile.TemporaryDirectory() as tmp:
-        robot, cal, val, pairs = make(case, ARMS[arm_name], seed, Path(tmp))
+        robot, cal, val, pairs = make(case, ARMS[arm_name], seed, Path(tmp), tilt)
         t0 = time.perf_counter()
         rep = diagnose(robot, cal, val, DiagnosisSettings(seed=seed, noise_mm=noise_mm))
         took = time.perf_counter() - t0
@@ -170,6 +172,8 @@ def main() -> None:
     ap.add_argument("--arms", nargs="+", default=list(ARMS), choices=list(ARMS))
     ap.add_argument("--seeds", type=int, nargs="+", default=[0, 1, 2])
     ap.add_argument("--noise-mm", type=float, help="state the noise to the diagnosis (diagnose --noise-mm)")
+    ap.add_argument("--mount-mrad", type=float, default=MOUNT_TILT * 1e3,
+                    help="the column's tilt at the largest moment at the top height, mrad (default %(default)s)")
     ap.add_argument("--json", help="write the results here")
     args = ap.parse_args()
     warnings.simplefilter("ignore")
@@ -177,17 +181,17 @@ def main() -> None:
     for case in args.cases:
         for arm in args.arms:
             for seed in args.seeds:
-                r = one(case, arm, seed, args.noise_mm)
+                r = one(case, arm, seed, args.noise_mm, args.mount_mrad * 1e-3)
                 results.append(r)
                 show(r)
                 sys.stdout.flush()
-    print("\ncase   arm   seed  final/floor  final/kinematic  joint properties of one session  mount named  screen")
+    print("\ncase   arm     seed  final/floor  final/kinematic  joint properties of one session  mount named  screen")
     for r in results:
         kin = np.mean([m for m, _ in r["kinematic_sessions"].values()])
         mount = [f["scope"] + (f" {f['session']}" if f["session"] else "") for f in r["findings"]
                  if f["cause"] == "mount_compliance" and f["in_model"]]
         screen = ",".join(f"{f['covariate']}/{f['effect']}" for f in r["findings"] if "covariate" in f) or "-"
-        print(f"{r['case']:<6} {r['arm']:<5} {r['seed']:>4}  {r['final'][0] / FLOOR_MM:>11.1f}  "
+        print(f"{r['case']:<6} {r['arm']:<7} {r['seed']:>4}  {r['final'][0] / FLOOR_MM:>11.1f}  "
               f"{r['final'][0] / kin:>15.2f}  {r['joint_properties_of_one_session']:>31}  "
               f"{'; '.join(mount) or 'no':>11}  {screen}")
     if args.json:
