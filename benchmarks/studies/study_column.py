@@ -17,6 +17,14 @@ Per split seed, each session is split into 60 calibration poses (drawn with the 
     axis, as the arm's own description has it): what the report says, and how far each session's fitted base pose
     turns the robot's "down" from the levelled total station's.
 
+Before the seeds, what the column's own sensors and a per-session mount compliance say (no split: every pose of
+each session): the column's tilt (the tip accelerometer's less the base's, ``theta_x = a_y / g``, ``theta_y = -a_x /
+g``, the column's frame) against the moment of the weights about the column's top (the robot file's masses, nominal
+geometry), ``theta = theta_0 + C M`` fitted about x and y with its correlation; and ``kinematic+mount_compliance[xy]``
+fitted per session on the seed's 60 poses, unbounded (Levenberg-Marquardt; casadical bounds the compliance at
+``MAX_TILT`` of tilt at the largest moment the arm can make, which the column's exceeds) and bounded (IPOPT), its
+compliances and held-out errors.
+
 Without the data it prints one line saying where to put them and exits 0.
 
 Usage::
@@ -102,6 +110,32 @@ def down_off_deg(result, robot) -> dict[str, float]:
     return out
 
 
+def column_tilt(files: dict) -> dict:
+    """Per session: the column's tilt from its accelerometers (tip less base, mrad) fitted as theta_0 + C M on the
+    moment of the weights about the column's top (the plate frame): C about x and y (urad/(N m)), the correlations,
+    the tilt's range."""
+    from casadical.data import Measurements
+    from casadical.loading import load_robot
+    from casadical.model.kinematics import base_pose_matrix
+    from casadical.terms.mount_compliance import mount_moments
+    robot = load_robot(files[ROBOT_FILE])
+    plate = base_pose_matrix(robot.base_xyz, robot.base_rpy)[:3, :3]      # frame 0 in the plate's frame
+    g = float(np.linalg.norm(robot.gravity))
+    out = {}
+    for name, path in files.items():
+        if not str(path).endswith(".csv"):
+            continue
+        d = Measurements.read_csv(path)
+        M = mount_moments(robot, d.q) @ plate.T
+        tilt = np.column_stack([d.get("acc_column_y") - d.get("acc_base_y"),
+                                -(d.get("acc_column_x") - d.get("acc_base_x"))]) / g
+        fit = [np.polyfit(M[:, k], tilt[:, k], 1)[0] for k in (0, 1)]
+        out[name] = {"C_urad_per_Nm": [c * 1e6 for c in fit],
+                     "r": [float(np.corrcoef(M[:, k], tilt[:, k])[0, 1]) for k in (0, 1)],
+                     "range_mrad": [float(np.ptp(tilt[:, k]) * 1e3) for k in (0, 1)]}
+    return out
+
+
 def run(files: dict, seed: int, wrong_gravity: bool) -> dict:
     from casadical import calibrate
     from casadical.data import Measurements
@@ -120,6 +154,12 @@ def run(files: dict, seed: int, wrong_gravity: bool) -> dict:
         kin = calibrate(robot, cal[name], "kinematic", warn=False)
         out["sessions"][name] = {"kinematic": stats(kin.errors(val[name])), "n_cal": len(cal[name]),
                                  "n_val": len(val[name])}
+        for solver in ("lm", "ipopt"):
+            mount = calibrate(robot, cal[name], "kinematic+mount_compliance[xy]", solver, warn=False)
+            p = {q.name: q for q in mount.parameters}
+            out["sessions"][name][f"mount_{solver}"] = {
+                "held_out": stats(mount.errors(val[name])), "bound_urad_per_Nm": p["cmount_x"].upper * 1e6,
+                "C_urad_per_Nm": [p[k].value * 1e6 for k in ("cmount_x", "cmount_y")]}
     all_cal, all_val = combine(list(cal.values())), combine(list(val.values()))
     for label, file in (("right", ROBOT_FILE), ("wrong", UPRIGHT_FILE)):
         if label == "wrong" and not wrong_gravity:
@@ -155,6 +195,13 @@ def print_run(r: dict) -> None:
     seed = r["seed"]
     robots = r["robots"]
     print(f"\nseed {seed}: held-out mean / max (mm) per session, {N_CAL} calibration poses each")
+    print("  kinematic+mount_compliance[xy] per session: C about x, y (urad/(N m)) and held-out mean / max (mm), "
+          "unbounded (lm) | bounded (ipopt)")
+    for s, v in r["sessions"].items():
+        lm, ip = v["mount_lm"], v["mount_ipopt"]
+        print(f"    {s:<8} C {lm['C_urad_per_Nm'][0]:6.1f} {lm['C_urad_per_Nm'][1]:6.1f}  {lm['held_out'][0]:.3f} / "
+              f"{lm['held_out'][1]:.3f} | C {ip['C_urad_per_Nm'][0]:6.1f} {ip['C_urad_per_Nm'][1]:6.1f} (bound "
+              f"{ip['bound_urad_per_Nm']:.1f})  {ip['held_out'][0]:.3f} / {ip['held_out'][1]:.3f}")
     head = "".join(f"  {'diagnosis, gravity ' + k:>24}" for k in robots)
     print(f"  {'session':<8} {'n_val':>5}  {'kinematic (per session)':>24}{head}  {'issue: diagnosis / kinematic':>28}")
     for s, v in r["sessions"].items():
@@ -195,7 +242,13 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         out = Path(args.out) if args.out else Path(tmp)
         files = convert(data, out, args.urdf, force=True, solution_spaces=spaces)
-        results = []
+        tilt = column_tilt(files)
+        print("the column's tilt from its accelerometers (tip less base) against the moment of the weights about "
+              "its top: C about x, y (urad/(N m)), correlation, the tilt's range (mrad)")
+        for name, t in tilt.items():
+            print(f"  {name:<8} C {t['C_urad_per_Nm'][0]:6.2f} {t['C_urad_per_Nm'][1]:6.2f}  r {t['r'][0]:+.3f} "
+                  f"{t['r'][1]:+.3f}  range {t['range_mrad'][0]:.2f} {t['range_mrad'][1]:.2f}")
+        results = [{"column_tilt": tilt}]
         for seed in args.seeds:
             r = run(files, seed, not args.no_wrong_gravity)
             results.append(r)
