@@ -376,6 +376,10 @@ def test_a_session_column_and_a_mount_compliance_growing_with_it(tmp_path):
     assert np.allclose(own.xyz[0], planar_point(q1 + (4e-6 + c * 2.0) * planar_torques(q1, q2)[0], q2), atol=1e-15)
     with pytest.raises(ValueError, match="height_m"):
         measure(robot, q, session=Session("bare"), noise=0.0)
+    # a law may be any function of the column: a telescoping column's give grows faster than its length
+    cubic = nominal(PLANAR, Effects(mount_law={"height_m": lambda h: 1e-7 * h ** 3}))
+    got = measure(cubic, q, session=high, noise=0.0).xyz[0]
+    assert np.allclose(got, planar_point(q1 + 1e-7 * 3.25 ** 3 * planar_torques(q1, q2)[0], q2), atol=1e-15)
     # a column without a law changes no point
     plain = nominal(PLANAR, Effects(mount_compliance=C0))
     assert np.array_equal(measure(plain, q, session=low, noise=0.0).xyz,

@@ -22,8 +22,8 @@ bad shots, and the measurement CSV of docs/formats.md section 2.
   measured orientation is not turned by them.
 - A session's ``mount_compliance`` (None: the robot's,
   :class:`truth.robot.Effects`) is the compliance of the mount the robot
-  stood on then; the robot's ``Effects.mount_law`` adds ``c x value`` of the
-  session's own ``columns`` to it.
+  stood on then; the robot's ``Effects.mount_law`` adds ``c x value`` (or
+  ``f(value)``) of the session's own ``columns`` to it.
 - A session's ``columns`` (name -> value, e.g. ``{"height_m": 2.4}``: a
   column's height, a payload on a tool changer, a track position) are its
   covariates: constant over its poses, written as columns of its rows.
@@ -191,15 +191,15 @@ def measure(robot: TrueRobot, q: np.ndarray, rng: np.random.Generator | None = N
 
 def mount_of(robot: TrueRobot, session: Session):
     """The mount's compliance in ``session``: its own (None: the robot's) plus the robot's law over the session's
-    columns, ``sum c x value`` (``Effects.mount_law``)."""
-    own = robot.effects.mount_compliance if session.mount_compliance is None else session.mount_compliance
+    columns (``Effects.mount_law``: ``c x value``, or ``f(value)`` for a function)."""
     law = robot.effects.mount_law
     if not law:
         return session.mount_compliance
     missing = sorted(set(law) - set(session.columns))
     if missing:
         raise ValueError(f"the mount law follows {missing}, which session {session.name!r} has no value of")
-    grow = sum(c * float(session.columns[name]) for name, c in law.items())
+    grow = sum(c(float(session.columns[k])) if callable(c) else c * float(session.columns[k]) for k, c in law.items())
+    own = robot.effects.mount_compliance if session.mount_compliance is None else session.mount_compliance
     return np.asarray(own, float) + grow if np.ndim(own) else own + grow
 
 

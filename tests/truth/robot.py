@@ -82,7 +82,7 @@ new terms of casadical/terms must find):
   down). ``Effects.mount_compliance``; a session may have its own
   (``Session.mount_compliance``: the column's height differs), and the
   compliance may follow a law over a session column, ``C = C_0 + sum c_k
-  v_k`` (``Effects.mount_law = {"height_m": c}``, ``v`` the session's
+  v_k`` or ``C_0 + f(v)`` (``Effects.mount_law = {"height_m": c}``, ``v`` the session's
   ``Session.columns["height_m"]``: a column's top tilts by ``M L / (E I)``
   under a moment M, its compliance grows with its length L). The
   torques are those of the untilted arm (the tilt changes gravity's
@@ -128,8 +128,9 @@ class Effects:
     #: rad/(N m): the base tilts by C M (one C) or (Cx M_x, Cy M_y, 0) (a pair)
     mount_compliance: float | tuple[float, float] = 0.0
     #: rad/(N m) per unit of a session column, by its name: in each session the mount's compliance grows by
-    #: ``c0 x value`` (``{"height_m": c0}``: a column bends more the higher the arm sits; truth.campaign.measure)
-    mount_law: dict[str, float] = field(default_factory=dict)
+    #: ``c0 x value`` (``{"height_m": c0}``: a column bends more the higher the arm sits; truth.campaign.measure),
+    #: or by ``f(value)`` for a function (a telescoping column's give grows faster than its length)
+    mount_law: dict[str, float | Callable] = field(default_factory=dict)
     #: m by (joint, "x" | "y"): a linear axis' carriage off its straight line, a function of its position (m)
     straightness: dict[tuple[int, str], Callable] = field(default_factory=dict)
     #: rad by (joint, "roll" | "pitch" | "yaw"): its carriage's turn, a function of its position (m)
