@@ -17,13 +17,13 @@ Per split seed, each session is split into 60 calibration poses (drawn with the 
     axis, as the arm's own description has it): what the report says, and how far each session's fitted base pose
     turns the robot's "down" from the levelled total station's.
 
-Before the seeds, what the column's own sensors and a per-session mount compliance say (no split: every pose of
-each session): the column's tilt (the tip accelerometer's less the base's, ``theta_x = a_y / g``, ``theta_y = -a_x /
-g``, the column's frame) against the moment of the weights about the column's top (the robot file's masses, nominal
-geometry), ``theta = theta_0 + C M`` fitted about x and y with its correlation; and ``kinematic+mount_compliance[xy]``
-fitted per session on the seed's 60 poses, unbounded (Levenberg-Marquardt; casadical bounds the compliance at
-``MAX_TILT`` of tilt at the largest moment the arm can make, which the column's exceeds) and bounded (IPOPT), its
-compliances and held-out errors.
+Before the seeds, what the column's own sensors say (every pose of each session): the column's tilt (the tip
+accelerometer's less the base's, ``theta_x = a_y / g``, ``theta_y = -a_x / g``, the column's frame) against the
+moment of the weights about the column's top (the robot file's masses, nominal geometry), ``theta = theta_0 + C M``
+fitted about x and y, with its correlation. Per seed, beside (a): ``kinematic+mount_compliance[xy]`` fitted on each
+session's 60 poses, unbounded (Levenberg-Marquardt) and bounded (IPOPT: casadical bounds the compliance at
+``MAX_TILT`` of tilt at the largest moment the arm can make, which this column's exceeds), its compliances and
+held-out errors.
 
 Without the data it prints one line saying where to put them and exits 0.
 
@@ -58,7 +58,8 @@ from column_data import ROBOT_FILE, UPRIGHT_FILE, convert  # noqa: E402
 
 ENV = "CASADICAL_COLUMN_DATA"
 N_CAL = 60
-#: the issue's figures (issue 49), seed unknown: held-out mean (mm) per session
+#: the issue's figures (issue 49): held-out mean (mm) per session; its kinematic ones are seed 0's split (the
+#: split of ``casadical split --n 60 --seed 0``)
 ISSUE_DIAGNOSIS = {"c_1.98": 1.32, "c_2.72": 0.98, "c_3.22": 0.99, "c_3.67": 1.72, "c_3.87": 2.77}
 ISSUE_KINEMATIC = {"c_1.98": 1.83, "c_2.72": 1.86, "c_3.22": 2.23, "c_3.67": 3.11, "c_3.87": 4.22}
 
