@@ -19,8 +19,12 @@ and :mod:`truth.campaign` (sessions, orientation, noise, the file). Besides
 the causes of casadical's diagnosis catalogue the truth makes effects
 outside it: a joint's error from another joint's reading (``coupling``,
 ``cross_error``), a tipping axis (``axis_tilt``), a base tilting on a
-compliant mount (``mount_compliance``, per session too) and the tracker's
-own errors (``Session.angle_error``, ``Session.distance_scale``).
+compliant mount (``mount_compliance``, per session too, or growing with a
+session's covariate: ``mount_law`` over ``Session.columns``), a floor
+tilting from pose to pose with a tilt sensor's columns
+(``Session.floor_tilt``, ``tilt_noise``; ``unrelated``: a column that
+follows nothing) and the tracker's own errors (``Session.angle_error``,
+``Session.distance_scale``).
 """
 
 from .arm import Arm, FourBar, Link
