@@ -146,6 +146,7 @@ class MountGive(Cause):
     short = "mount compliance"
     tier = 2
     order = 110
+    session_part = "the mount"
     varies_text = "swing the arm's weight about the base (joint 1 turning, the arm stretched and folded)"
     tell_apart = {
         "joint_compliance": "turn joint 1 with the arm stretched: the base's tilt follows the moment about the mount, "
