@@ -53,6 +53,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..data.covariates import session_covariates
 from ..data.measurements import Measurements
 from ..robot import Robot
 from ..stats.physics import sign_changes
@@ -403,6 +404,12 @@ class Catalogue:
         if key not in self._memo:
             self._memo[key] = make()
         return self._memo[key]
+
+    @property
+    def session_covariates(self) -> dict[str, dict[str, float]]:
+        """The calibration poses' session covariates (columns constant within each session: a column's height),
+        with their value in each session (:func:`casadical.data.covariates.session_covariates`)."""
+        return self.memo("session_covariates", lambda: session_covariates(self.cal))
 
     @property
     def revolute(self) -> list[int]:

@@ -157,6 +157,13 @@ class Cause:
         None by default."""
         return []
 
+    def factors(self, cand: Any, data: Any, cal: Any):
+        """A candidate whose columns are its :attr:`~casadical.diagnosis.candidates.Candidate.carrier`'s at per-pose
+        factors beyond a session's indicator (a law over a session covariate): the factors (N, k) of its k
+        parameters per parameter of the carrier at the poses of ``data`` (``cal``: the calibration poses the law is
+        written over); None by default."""
+        return None
+
     def screenable(self, cand: Any, data: Any) -> bool:
         """Whether ``cand`` can be screened on these poses beyond what :meth:`candidates` knew (a play's sign must
         change in its scope); yes by default."""
