@@ -65,7 +65,8 @@ def stands_in(current: CalibrationResult, lin: Linearized, accepted: list[Candid
     if cand.kind.axis_shape and cand.session is None:
         return _axis_stand_in(current, lin, accepted, cand, scr, alpha)
     own = own_shape(cand)
-    if own is None or cand.session is not None or own not in scr.tried:
+    own = None if own is None else (*own, cand.session)     # a session's own cause: its shape in that session
+    if own is None or own not in scr.tried:
         return None
     cols = [lin.names.index(n) for n in own_parameters(cand, accepted) if n in lin.names]
     if not cols:
@@ -79,7 +80,7 @@ def stands_in(current: CalibrationResult, lin: Linearized, accepted: list[Candid
                      share if np.any(share < 1) else None)
     flexible = scr.columns(*own)
     found = scr.strongest(ask.rest, r0, lin.weights)
-    if found is not None and (found.covariate, found.effect, found.joint) != own:
+    if found is not None and (found.covariate, found.effect, found.joint, found.session) != own:
         # 1. the structure lives elsewhere, beyond what its own shape can take: does the cause add anything?
         if ask.significant(ask.beside(flexible, found.X)):
             test = ask.beside(found.X, ask.mine)
@@ -92,7 +93,7 @@ def stands_in(current: CalibrationResult, lin: Linearized, accepted: list[Candid
         if ask.significant(left) and not ask.significant(adds):
             return found, (f"a flexible term of its own variable takes what it does and more ({left.text()}); "
                            f"beside that term it explains nothing more ({adds.text()})")
-    if scr.cal.sessions is None:
+    if scr.cal.sessions is None and cand.session is None:
         # 3. one session: can it be told from the instrument's own error?
         for pair in (p for p in scr.tried if p[0] in INSTRUMENT):
             X = scr.columns(*pair)
@@ -198,7 +199,7 @@ def drop_stand_ins(run: DiagnosisRun) -> None:
         run.drop_finding(cand)
         run.unexplained.excluded_causes.add(cand)
         where = describe_pair(found.covariate, found.effect, found.joint, found.joint is not None
-                              and run.robot.joints[found.joint - 1].prismatic)
+                              and run.robot.joints[found.joint - 1].prismatic, found.session)
         run.notes.append(f"{cand.label()} was dropped at the end: it is only the closest catalogue approximation of "
                          f"structure it does not explain ({where}; p = {10 ** found.log10_p:.2g}): {why}; the "
                          "structure screen reports that structure and its size")
