@@ -1,8 +1,10 @@
 """What differs between sessions (issue 49), simulated: an arm on a column at four heights, and on a tilting floor.
 
-Each case is made by the independent truth (tests/truth: no casadical code) on arms that are not built in, and
-diagnosed by the casadical on the path with every session at once (``diagnose`` with one base pose per session):
-run it with another commit's code on ``PYTHONPATH`` to put its figures beside these. The cases:
+Each case is made by the independent truth (tests/truth: no casadical code) on arms that are not built in
+(tests/helpers/hidden.py ``session_case``: the hidden-effect matrix's session cases, which
+tests/diagnosis/test_session_effects.py asserts), and diagnosed by the casadical on the path with every session at
+once (``diagnose`` with one base pose per session): run it with another commit's code on ``PYTHONPATH`` to put its
+figures beside these. The cases:
 
 - ``column``: the arm stands on top of a lifting column, measured at four heights (1.0, 1.6, 2.2, 2.8 m), each
   height a session (the tracker stays, the arm's base rises: its own base pose) with the session column
@@ -18,7 +20,8 @@ run it with another commit's code on ``PYTHONPATH`` to put its figures beside th
 
 Per case, arm and seed: 60 calibration and 100 held-out poses per session (noise 20 um per axis: a floor of
 0.0319 mm, the mean norm of the noise); every finding (cause, joint, scope, session), the joint properties named "of
-one session", the final model's held-out mean and max per session against the floor and against a kinematic
+one session", whether the claims are exact (the hidden matrix's judge) and the structure located, the final model's
+held-out mean and max per session against the floor and against a kinematic
 calibration of that session's 60 poses alone, and what the structure screen names (covariate, effect, joint).
 
 Usage::
@@ -39,7 +42,6 @@ import argparse  # noqa: E402
 import json  # noqa: E402
 import math  # noqa: E402
 import sys  # noqa: E402
-import tempfile  # noqa: E402
 import time  # noqa: E402
 import warnings  # noqa: E402
 from pathlib import Path  # noqa: E402
@@ -49,70 +51,28 @@ import numpy as np  # noqa: E402
 ROOT = Path(__file__).resolve().parents[2]
 sys.path.append(str(ROOT))  # the tests' helpers as ``tests.helpers``, after any casadical on PYTHONPATH
 
-from tests.helpers.arms import ARM6, ARM7, ARM7_DH  # noqa: E402
-from tests.truth import Arm, Effects, Session, TrueRobot, measure, sample  # noqa: E402
+from tests.helpers import hidden  # noqa: E402
 
 #: arms that are not built in: 6 axes standard DH (three parallel axes), 7 axes modified DH, 7 axes standard DH
-ARMS = {"arm6": ARM6, "arm7": ARM7, "arm7-dh": ARM7_DH}
-CASES = ("column", "floor")
-HEIGHTS = (1.0, 1.6, 2.2, 2.8)
+ARMS = list(hidden.SESSION_ROBOTS)
+CASES = hidden.SESSION_EFFECTS
 N_CAL, N_VAL = 60, 100
 NOISE = 20e-6
 FLOOR_MM = 2 * math.sqrt(2 / math.pi) * NOISE * 1000
 #: the column's tilt at the largest moment at the top height (rad)
 MOUNT_TILT = 0.3e-3
-#: the floor's tilt (rad, per axis) and its sensor's noise
-TILT, TILT_NOISE = 2e-3, 20e-6
 #: a joint's own property: one value for the robot, whatever the session (issue 49)
 JOINT_CAUSES = ("joint_compliance", "nonlinear_stiffness", "encoder_scale", "joint_periodic", "backlash",
-                "joint_coupling")
+                "joint_coupling", "bearing_compliance")
 
 
-def largest(arm: Arm) -> tuple[np.ndarray, float]:
-    """Each drive's largest gravity torque and the largest moment of the weights about the base (across it), over
-    300 poses of the nominal arm."""
-    t = TrueRobot(arm)
-    s = t.state(sample(t, 300, np.random.default_rng(0), floor_z=None))
-    return np.abs(s.drive_torque).max(axis=0), float(np.linalg.norm(s.moment[:, :2], axis=1).max())
-
-
-def sessions(case: str, rng: np.random.Generator) -> list[Session]:
-    """The case's sessions: the column's four heights (the tracker in one place), or four stations of the mobile
-    base on the tilting floor."""
-    if case == "column":
-        return [Session(f"h{h:.1f}", base_xyz=(1.5, -0.5, h), base_rpy=(0.0, 0.0, math.radians(40.0)),
-                        columns={"height_m": h}) for h in HEIGHTS]
-    return [Session(f"st{k + 1}", base_xyz=tuple(rng.uniform([-2.0, -2.0, -0.5], [2.0, 2.0, 0.5])),
-                    base_rpy=(0.0, 0.0, float(rng.uniform(-np.pi, np.pi))), floor_tilt=TILT, tilt_noise=TILT_NOISE,
-                    unrelated="acc_spare_x") for k in range(4)]
-
-
-def effects(case: str, arm: Arm, tilt: float = MOUNT_TILT) -> Effects:
-    """The column: the mount's compliance c0 h (``tilt`` rad at the largest moment at the top height) and joint 2's
-    (0.4 mrad at its largest torque). The floor: nothing of the robot's."""
-    if case == "floor":
-        return Effects()
-    tau, moment = largest(arm)
-    return Effects(stiffness={2: tau[1] / 0.4e-3}, mount_law={"height_m": tilt / moment / max(HEIGHTS)})
-
-
-def make(case: str, doc: dict, seed: int, folder: Path, tilt: float = MOUNT_TILT):
-    """The robot file, the calibration and the held-out poses (every session, read back from the truth's files), and
-    each session's pair of them."""
-    from casadical.data import Measurements
-    from casadical.data.sessions import combine
-    from casadical.robot import robot_from_dict
-    rng = np.random.default_rng(seed)
-    arm = Arm.from_dict(doc)
-    truth = TrueRobot.draw(arm, effects(case, arm, tilt), rng)
-    parts = {"cal": [], "val": []}
-    for s in sessions(case, rng):
-        for kind, n in (("cal", N_CAL), ("val", N_VAL)):
-            shots = measure(truth, sample(truth, n, rng, floor_z=None), rng, session=s, noise=NOISE)
-            (folder / kind).mkdir(exist_ok=True)
-            parts[kind].append(Measurements.read_csv(shots.write_csv(folder / kind / f"{s.name}.csv",
-                                                                     session_column=True)))
-    return robot_from_dict(doc), combine(parts["cal"]), combine(parts["val"]), list(zip(parts["cal"], parts["val"]))
+def make(case: str, arm: str, seed: int, tilt: float = MOUNT_TILT):
+    """The case (tests/helpers/hidden.session_case), its robot file, calibration and held-out poses (every
+    session, read back from the truth's files), and each session's pair of them."""
+    c = hidden.session_case(arm, case, seed, tilt)
+    robot, cal, val, _ = hidden.make_data(c, n_cal=N_CAL, n_val=N_VAL)
+    pairs = [(cal.subset(cal.sessions == s), val.subset(val.sessions == s)) for s in cal.session_names]
+    return c, robot, cal, val, pairs
 
 
 def finding(f) -> dict:
@@ -126,19 +86,22 @@ def finding(f) -> dict:
 def one(case: str, arm_name: str, seed: int, noise_mm: float | None = None, tilt: float = MOUNT_TILT) -> dict:
     from casadical import calibrate
     from casadical.diagnosis import DiagnosisSettings, diagnose
-    with tempfile.TemporaryDirectory() as tmp:
-        robot, cal, val, pairs = make(case, ARMS[arm_name], seed, Path(tmp), tilt)
-        t0 = time.perf_counter()
-        rep = diagnose(robot, cal, val, DiagnosisSettings(seed=seed, noise_mm=noise_mm))
-        took = time.perf_counter() - t0
-        kin = {}
-        for c, v in pairs:
-            k = calibrate(robot, c, "kinematic", warn=False)
-            e = k.errors(v)
-            kin[c.session_names[0]] = (float(e.mean() * 1000), float(e.max() * 1000))
+    c, robot, cal, val, pairs = make(case, arm_name, seed, tilt)
+    t0 = time.perf_counter()
+    rep = diagnose(robot, cal, val, DiagnosisSettings(seed=seed, noise_mm=noise_mm))
+    took = time.perf_counter() - t0
+    kin = {}
+    for cc, v in pairs:
+        k = calibrate(robot, cc, "kinematic", warn=False)
+        e = k.errors(v)
+        kin[cc.session_names[0]] = (float(e.mean() * 1000), float(e.max() * 1000))
     found = [finding(f) for f in rep.findings]
     own = [f for f in found if f["in_model"] and f["scope"] == "session" and f["cause"] in JOINT_CAUSES]
+    verdict = hidden.judge(rep, c.expected, c.allowed)
+    located = {(f["joint"], f["covariate"], f["effect"]) for f in found if "covariate" in f}
     return {"case": case, "arm": arm_name, "seed": seed, "time_s": took, "final_model": rep.final_model,
+            "exact": verdict.exact, "verdict": verdict.text(), "located": all(x in located for x in c.located),
+            "follows_nothing_unrelated": not any(f.get("covariate") == "acc_spare_x" for f in found),
             "final": (rep.final_validation.mean_mm, rep.final_validation.max_mm),
             "final_sessions": {s: (st.mean_mm, st.max_mm) for s, st in rep.final_sessions.items()},
             "kinematic_sessions": kin, "findings": found, "joint_properties_of_one_session": len(own),
@@ -152,7 +115,8 @@ def show(r: dict) -> None:
           f"{r['final'][0]:.4f} / {r['final'][1]:.4f} mm (mean / max; noise floor {FLOOR_MM:.4f} mm, "
           f"{r['final'][0] / FLOOR_MM:.1f}x)")
     print("  named: " + (", ".join(f"{f['label']} [{f['scope']}]" for f in named) or "nothing"))
-    print(f"  joint properties of one session: {r['joint_properties_of_one_session']}")
+    print(f"  joint properties of one session: {r['joint_properties_of_one_session']}; claims {r['verdict']}; "
+          f"structure located: {'yes' if r['located'] else 'NO'}")
     print("  structure screen: " + ("; ".join(f"{f['covariate']} / {f['effect']} / joint {f['joint'] or '-'}"
                                               for f in screen) or "nothing"))
     other = [f["label"] for f in r["findings"] if f["cause"] == "unexplained" and "covariate" not in f]
@@ -185,13 +149,15 @@ def main() -> None:
                 results.append(r)
                 show(r)
                 sys.stdout.flush()
-    print("\ncase   arm     seed  final/floor  final/kinematic  joint properties of one session  mount named  screen")
+    print("\ncase   arm     seed  exact  located  final/floor  final/kinematic  joint properties of one session  "
+          "mount named  screen")
     for r in results:
         kin = np.mean([m for m, _ in r["kinematic_sessions"].values()])
-        mount = [f["scope"] + (f" {f['session']}" if f["session"] else "") for f in r["findings"]
+        mount = [f["label"] + (f" {f['session']}" if f["session"] else "") for f in r["findings"]
                  if f["cause"] == "mount_compliance" and f["in_model"]]
         screen = ",".join(f"{f['covariate']}/{f['effect']}" for f in r["findings"] if "covariate" in f) or "-"
-        print(f"{r['case']:<6} {r['arm']:<7} {r['seed']:>4}  {r['final'][0] / FLOOR_MM:>11.1f}  "
+        print(f"{r['case']:<6} {r['arm']:<7} {r['seed']:>4}  {'yes' if r['exact'] else 'NO':>5}  "
+              f"{'yes' if r['located'] else 'NO':>7}  {r['final'][0] / FLOOR_MM:>11.1f}  "
               f"{r['final'][0] / kin:>15.2f}  {r['joint_properties_of_one_session']:>31}  "
               f"{'; '.join(mount) or 'no':>11}  {screen}")
     if args.json:

@@ -200,6 +200,9 @@ class DiagnosisReport:
     interval_coverage : float or None
         The share of the validation poses whose measured point lies inside the final model's 95 % interval
         (:func:`casadical.stats.predictive.prediction_interval`); None without a parameter covariance.
+    gravity : dict
+        The robot file's gravity against the levelled instrument's down (:class:`casadical.calibration.gravity.
+        GravityCheck`); empty where it is not checked.
     """
 
     robot: str
@@ -221,6 +224,7 @@ class DiagnosisReport:
     not_tried: list = field(default_factory=list)
     noise: dict = field(default_factory=dict)
     interval_coverage: float | None = None
+    gravity: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         from ..robot import robot_to_dict
@@ -258,6 +262,8 @@ class DiagnosisReport:
             doc["transfer"] = self.transfer
         if self.noise:
             doc["final"]["noise"] = self.noise
+        if self.gravity:
+            doc["gravity"] = self.gravity
         doc["final"]["interval_coverage"] = self.interval_coverage
         doc["robot_description"] = robot_to_dict(self.final.model.robot)   # what plan-poses REPORT.json builds on
         return doc

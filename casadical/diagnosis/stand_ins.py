@@ -46,7 +46,7 @@ from .candidates import Candidate, compose_spec
 from .redundancy import own_parameters
 from .state import DiagnosisRun
 from .statistics import NestedTest, nested_test, set_aside_share
-from .structure import INSTRUMENT, Found, StructureScreen, describe_pair, weighted
+from .structure import INSTRUMENT, MAX_STRUCTURES, Found, StructureScreen, describe_pair, weighted
 from .validation import Linearized
 
 
@@ -81,11 +81,22 @@ def stands_in(current: CalibrationResult, lin: Linearized, accepted: list[Candid
     flexible = scr.columns(*own)
     found = scr.strongest(ask.rest, r0, lin.weights)
     if found is not None and (found.covariate, found.effect, found.joint, found.session) != own:
-        # 1. the structure lives elsewhere, beyond what its own shape can take: does the cause add anything?
-        if ask.significant(ask.beside(flexible, found.X)):
-            test = ask.beside(found.X, ask.mine)
-            if not ask.significant(test):
-                return found, f"beside a flexible term of that structure it explains nothing more ({test.text()})"
+        # 1. the structure lives elsewhere, beyond what its own shape can take: does the cause add anything beside
+        # it, and beside the structures next to it that its own shape cannot take either (a tilting floor read by
+        # two sensors is two structures: a gear error took a part of the second one's beside the first; beside
+        # several, at the screen's level divided among its pairs, as the search's tests are among its candidates)
+        X, tried, gate = found.X, {_pair(found)}, ask.beside(flexible, found.X)
+        while ask.significant(gate):
+            test = ask.beside(X, ask.mine)
+            if not ask.significant(test, scr.level if len(tried) > 1 else None):
+                return found, (f"beside a flexible term of that structure{' and those beside it' * (len(tried) > 1)}"
+                               f" it explains nothing more ({test.text()})")
+            more = scr.strongest(np.concatenate([ask.rest, X], axis=2), r0, lin.weights, skip=tried | {own})
+            if more is None or len(tried) == MAX_STRUCTURES:
+                break
+            # a structure next to it counts where the cause's own shape cannot take it either
+            gate = ask.beside(np.concatenate([X, flexible], axis=2), more.X)
+            X, tried = np.concatenate([X, more.X], axis=2), tried | {_pair(more)}
     elif found is not None and not cand.kind.first_order:
         # 2. structure of its own variable: does the cause follow it?
         left = ask.beside(ask.mine, flexible)
@@ -103,6 +114,10 @@ def stands_in(current: CalibrationResult, lin: Linearized, accepted: list[Candid
                     f"on one session it cannot be told from the instrument's own error ({alone.text()}): beside it "
                     f"it explains nothing more ({test.text()})")
     return None
+
+
+def _pair(found: Found) -> tuple:
+    return found.covariate, found.effect, found.joint, found.session
 
 
 def _axis_stand_in(current: CalibrationResult, lin: Linearized, accepted: list[Candidate], cand: Candidate,
@@ -148,8 +163,8 @@ class _Questions:
     #: the fits made, by the column blocks beside the rest (their ids; the blocks held, so no id is reused)
     fits: dict = field(default_factory=dict)
 
-    def significant(self, test: NestedTest) -> bool:
-        return test.log10_p < self.level and test.delta_bic < 0
+    def significant(self, test: NestedTest, level: float | None = None) -> bool:
+        return test.log10_p < (self.level if level is None else level) and test.delta_bic < 0
 
     def fit(self, blocks: tuple) -> tuple[np.ndarray, int]:
         """:func:`_fit` of ``rw`` on the rest and the column ``blocks`` beside it, in that order; made once: the
