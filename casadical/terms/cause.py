@@ -113,6 +113,11 @@ class Cause:
         to plan for and the question in words; None: the candidate itself, "or something else?"."""
         return None
 
+    def open_question(self, cand: Any) -> str | None:
+        """What a named finding of this cause leaves open that only other sessions can answer (a law over a session
+        covariate: its form between and beyond the values measured), in words; None by default."""
+        return None
+
     @property
     def named(self) -> bool:
         """A cause the diagnosis names (not the geometry, nor what no cause explains)."""
