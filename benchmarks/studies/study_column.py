@@ -22,8 +22,11 @@ accelerometer's less the base's, ``theta_x = a_y / g``, ``theta_y = -a_x / g``, 
 moment of the weights about the column's top (the robot file's masses, nominal geometry), ``theta = theta_0 + C M``
 fitted about x and y, with its correlation. Per seed, beside (a): ``kinematic+mount_compliance[xy]`` fitted on each
 session's 60 poses, unbounded (Levenberg-Marquardt) and bounded (IPOPT: casadical bounds the compliance at
-``MAX_TILT`` of tilt at the largest moment the arm can make, which this column's exceeds), its compliances and
-held-out errors.
+``MAX_TILT`` of tilt at the largest moment the arm can make: 0.01 rad before issue 49, which this column's exceeded;
+0.1 rad since), its compliances and held-out errors.
+
+Per diagnosis it says how many joint properties it names "of one session" (issue 49: none; a joint's own parameter
+is the robot's) and whether the robot file's gravity drew the warning (the wrong one must: 89.4 deg off).
 
 Without the data it prints one line saying where to put them and exits 0.
 
@@ -170,7 +173,10 @@ def run(files: dict, seed: int, wrong_gravity: bool) -> dict:
         rep = diagnose(rob, all_cal, all_val, DiagnosisSettings(seed=seed))
         took = time.perf_counter() - t0
         per = {s: (st.mean_mm, st.max_mm) for s, st in rep.final_sessions.items()}
+        own = [f.candidate.label(short=True) for f in rep.findings if f.in_model and f.candidate.session is not None
+               and f.candidate.kind.session_part is None]
         out["robots"][label] = {
+            "joint_properties_of_one_session": own, "gravity_warning": bool(rep.gravity.get("warning")),
             "final_model": rep.final_model, "time_s": took, "final_sessions": per,
             "findings": [finding_line(f) for f in rep.findings],
             "records": [f.to_dict() | {"label": finding_line(f)} for f in rep.findings],
@@ -213,6 +219,8 @@ def print_run(r: dict) -> None:
               f"  {ISSUE_DIAGNOSIS.get(s, float('nan')):>13.2f} / {ISSUE_KINEMATIC.get(s, float('nan')):<12.2f}")
     for label, rr in robots.items():
         print(f"  gravity {label}: final model {rr['final_model']}  ({rr['time_s']:.0f} s)")
+        print(f"    joint properties of one session: {', '.join(rr['joint_properties_of_one_session']) or 'none'}; "
+              f"gravity warning: {'yes' if rr['gravity_warning'] else 'no'}")
         print("    the fitted base pose turns the robot's down from the instrument's by (deg): "
               + ", ".join(f"{s} {v:.1f}" for s, v in rr["down_off_deg"].items()))
         for line in rr["findings"]:

@@ -153,7 +153,7 @@ class Screen:
             if c.kind.analytic:
                 ps = self._analytic_parameters(c)
             elif c != c.carrier and all(n in names[:n_model] for n in c.carrier.parameter_names()):
-                ps = [replace(self.params[n], name=local) for n, local in zip(_carried(c), own)]
+                ps = c.kind.carried(c, [replace(self.params[n], name=local) for n, local in zip(_carried(c), own)])
             else:
                 continue        # a cause of the model's (found by its names), or one it cannot screen
             self.cols_of[c] = list(range(len(names), len(names) + len(ps)))

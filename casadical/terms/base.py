@@ -181,6 +181,11 @@ class ErrorTerm:
         itself."""
         return [(p.name, None) for p in self.parameters(robot)]
 
+    def session_parameters(self, robot: Robot) -> list[Parameter]:
+        """Its parameters as a term of one session (``NAME@S``, before their names take the session): its own by
+        default (a mount's are bounded as a mount that differs between sessions)."""
+        return self.parameters(robot)
+
     def refer(self, data) -> None:
         """Take from the calibration poses ``data`` what the term is written over (a law: its column's range);
         nothing by default (a :class:`ReferencedTerm` has its reference)."""

@@ -169,6 +169,12 @@ class Cause:
         written over); None by default."""
         return None
 
+    def carried(self, cand: Any, params: list) -> list:
+        """The parameters (:class:`~casadical.model.parameters.Parameter`, named as the candidate's) of a candidate
+        whose columns are its carrier's (a session's own, a law), made from the carrier's: as they are by default (a
+        mount's differ in their bounds)."""
+        return params
+
     def screenable(self, cand: Any, data: Any) -> bool:
         """Whether ``cand`` can be screened on these poses beyond what :meth:`candidates` knew (a play's sign must
         change in its scope); yes by default."""

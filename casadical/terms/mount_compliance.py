@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import math
 import re
+from dataclasses import replace
 
 import casadi as ca
 import numpy as np
@@ -17,13 +18,17 @@ from .base import Context, ErrorTerm, reach, register
 from .cause import Cause, register_cause
 
 #: largest tilt admitted at the largest moment the robot can put on its mount (rad; every mass at full reach, well
-#: beyond any pose's): a lifting column is a compliance too. Trailblazer's column, 3.87 m out, tilts 29.6 urad/(N m)
-#: between its own accelerometers at its base and tip (8.6 mrad over the poses), and its tracked chassis with it:
-#: the arm's base, per session, 40 to 87 urad/(N m) (benchmarks/studies/study_column.py), 0.057 rad at the 658 N m
-#: the arm's masses at full reach would make; 0.01 rad bounded it at 15.2 and named joint compliances "of one
-#: session" for the rest (issue 49). A tenth of a radian (5.7 deg) at that moment is a mount falling over, not a
-#: compliance
-MAX_TILT = 0.1
+#: beyond any pose's), for a mount that is the same in every session (a pedestal, a table, a track's carriage): half
+#: a degree is a mount coming loose, not a compliance
+MAX_TILT = 0.01
+#: the same for a mount that differs between sessions (one compliance per session, or a law over a session column):
+#: a lifting column or a mast, which bends by design and more the further it is out. Trailblazer's column, 3.87 m
+#: out, tilts 29.6 urad/(N m) between its own accelerometers at its base and tip (8.6 mrad over the poses), and its
+#: tracked chassis with it: the arm's base, per session, 40 to 87 urad/(N m) (benchmarks/studies/study_column.py),
+#: 0.057 rad at the 658 N m of the arm's masses at full reach; bounded at MAX_TILT (15.2 urad/(N m)) the column's
+#: give was named joint compliances "of one session" (issue 49). A tenth of a radian (5.7 deg) at that moment is a
+#: mount falling over, not a compliance
+MAX_COLUMN_TILT = 0.1
 
 
 def max_mount_moment(robot: Robot) -> float:
@@ -104,8 +109,8 @@ class MountCompliance(ErrorTerm):
     cause = "mount_compliance"
     bound_meaning = {k: {"lower": " (no positive compliance: the mount is stiffer than these poses can tell, or the "
                               "fit needs the base to tilt away from its weights)",
-                     "upper": " (a tilt of 0.1 rad at the largest moment: a mount falling over, not a "
-                              "compliance)"}
+                     "upper": " (a tilt of 0.01 rad at the largest moment, 0.1 rad for a mount that differs "
+                              "between sessions: a mount coming loose, not a compliance)"}
                      for k in ("cmount", "cmount_x", "cmount_y", "cmount_", "cmount_x_", "cmount_y_")}
     superset_order = 5
     superset_group = "torques"
@@ -213,9 +218,15 @@ class MountCompliance(ErrorTerm):
 
     def parameters(self, robot: Robot) -> list[Parameter]:
         top = max_mount_moment(robot)
+        tilt = MAX_COLUMN_TILT if self.law else MAX_TILT     # a law: the mount differs between sessions
         # a unit step of the scaled variable tilts the base 0.1 mrad at the largest moment
-        return [Parameter(n, 0.0, "rad/(N*m)", 1e-4 / top, self.name, lower=0.0, upper=MAX_TILT / top)
+        return [Parameter(n, 0.0, "rad/(N*m)", 1e-4 / top, self.name, lower=0.0, upper=tilt / top)
                 for n in self.names()]
+
+    def session_parameters(self, robot: Robot) -> list[Parameter]:
+        """One session's own mount differs between sessions: bounded by :data:`MAX_COLUMN_TILT`."""
+        return [replace(p, upper=p.upper * MAX_COLUMN_TILT / MAX_TILT) if not self.law else p
+                for p in self.parameters(robot)]
 
     def compliance(self, ctx: Context, axis: str):
         """The compliance about ``axis`` at the pose: its parameter, or its law's value."""
@@ -334,6 +345,13 @@ class MountGive(Cause):
         if cand.law is None:
             return ["cmount"]
         return [f"cmount_{k}" for k in range(int(cand.law.partition(":")[2] or 1) + 1)]
+
+    def carried(self, cand, params: list) -> list:
+        """A session's own mount or a law differs between sessions: bounded by :data:`MAX_COLUMN_TILT`, not the
+        robot's one compliance's :data:`MAX_TILT`."""
+        if cand.session is None and cand.law is None:
+            return params
+        return [replace(p, upper=p.upper * MAX_COLUMN_TILT / MAX_TILT) for p in params]
 
     def factors(self, cand, data, cal) -> np.ndarray | None:
         """A law's columns are the robot's compliance's at its polynomials of the column (its range over the
