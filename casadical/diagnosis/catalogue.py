@@ -28,9 +28,10 @@ the base) and a moment that changes over the poses (a constant tilt is the
 base pose's). Periodic errors come from the periodogram of the residual's
 joint angle errors over every pose. A drift
 and a warm-up belong to their session by nature: with several sessions only
-their own are tried. Structure that holds in one session only and that no
-cause of a session takes is the structure screen's
-(:mod:`.structure`: an ``unexplained`` finding naming the session).
+their own are tried. Structure of a joint that holds in one session only and
+that no cause of a session takes is an ``unexplained`` finding naming the
+session (:func:`.search.one_session`, and the structure screen's pairs of
+one session, :mod:`.structure`).
 
 A linear axis (a prismatic joint: a track, a column) has its own kinds
 instead of a revolute joint's compliance, progressive stiffness and

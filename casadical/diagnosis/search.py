@@ -11,6 +11,11 @@ statistics but not these checks is kept out of the model (:class:`.findings.Unex
 cause is then fitted in full (the noise scale re-estimated), and must stay significant, physics, and not do
 worse where the model extrapolates (:func:`judge_full_fit`).
 
+With several sessions a cause of the robot's joint that does worse on the leave-one-session-out folds, while its
+copy in one session alone explains it, is not named: a joint's own parameter is the robot's, and that structure is
+what differs between the sessions showing on that joint, kept out as an ``unexplained`` finding of the joint and
+the session (:func:`one_session`).
+
 Reads ``current``, ``accepted``, ``geometric`` (:mod:`.geometry`); sets them to the model the search ends
 with, and ``findings``, ``support``, ``before``, ``history``, ``later``, ``unexplained``, ``not_tried``,
 ``periodograms``, the steps of every candidate fitted.
@@ -259,12 +264,13 @@ def try_tiers(run: DiagnosisRun, scr: Screen, scored: list[Scored], level: float
 def one_session(run: DiagnosisRun, scr: Screen, cand: Candidate, level: float
                 ) -> tuple[Candidate, Evidence] | None:
     """Where a candidate of the robot that does worse on the leave-one-session-out folds lives: its copy of one
-    session alone is significant at ``level``, predicts random held-out poses better, and no other session's is
-    significant (a joint's own parameter is the robot's, one value in every session: structure of its shape in
-    one session only is what differs between the sessions showing on that joint). That copy and its evidence
-    (kept out of the model), or None."""
+    session alone is significant at ``level``, predicts random held-out poses better, and no other session's adds
+    anything beside it (a joint's own parameter is the robot's, one value in every session: structure of its shape
+    in one session only is what differs between the sessions showing on that joint). That copy and its evidence
+    (kept out of the model), or None. Not for a cause of a session (its sessions' own are candidates already), nor
+    a cause of the user's own (whose terms file says its scope)."""
     sessions = run.cal.session_names
-    if cand.session is not None or cand.kind.session_part is not None or len(sessions) < 2:
+    if cand.session is not None or cand.kind.session_part is not None or cand.user or len(sessions) < 2:
         return None
     copies = [replace(cand, session=s) for s in sessions]
     own = scr.with_candidates(copies)
