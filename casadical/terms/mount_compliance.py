@@ -199,7 +199,11 @@ class MountCompliance(ErrorTerm):
                                  "calibration poses: a law over it needs sessions at two values or more")
 
     def _column(self, data) -> np.ndarray:
+        """The law's column at the poses of ``data``; poses casadical made in memory without it (an accuracy map,
+        an export's target poses) take the middle of its range; a file without it is an error naming it."""
         v = data.get(self.law)
+        if v is None and data.path == "<memory>":
+            return np.full(len(data), (self.law_lo + self.law_hi) / 2)
         if v is None:
             raise DataFileError(f"has no numeric {self.law} column, which the {self.spec()} term reads (its mount "
                                 "compliance follows it)", file=data.path, column=self.law)

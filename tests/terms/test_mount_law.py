@@ -80,3 +80,22 @@ def test_what_a_law_refuses(column):
         Model(robot, "kinematic+mount_compliance[height_m:3]", jit=False)
     assert [p.name for p in Model(robot, "kinematic+mount_compliance[xy,height_m:2]", jit=False).parameters
             if p.term == "mount_compliance"] == [f"cmount_{a}_{k}" for a in "xy" for k in range(3)]
+
+
+def test_a_named_law_asks_for_a_session_at_another_value(column):
+    """The diagnosis names the law (its finding's ``law``), and plan-poses REPORT.json asks whether it holds at
+    another height: a question of kind ``law`` on its two coefficients."""
+    from casadical.diagnosis import DiagnosisSettings, diagnose
+    from casadical.planning.questions import open_questions
+
+    robot, cal, val, _ = column
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        rep = diagnose(robot, cal, val, DiagnosisSettings(seed=0))
+    doc = rep.to_dict()
+    law = [f for f in doc["findings"] if f["cause"] == "mount_compliance" and f["in_model"]]
+    assert [f["law"]["column"] for f in law] == ["height_m"], doc["final"]["model"]
+    values = {p.name: p.value for p in rep.final.parameters}
+    qs = [q for q in open_questions(doc, values) if q.kind == "law"]
+    names = [f"cmount_{k}" for k in range(law[0]["law"]["degree"] + 1)]
+    assert len(qs) == 1 and qs[0].interest == names and "another height_m" in qs[0].text, qs
