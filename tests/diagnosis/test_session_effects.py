@@ -93,3 +93,16 @@ def test_a_robot_file_whose_gravity_is_not_the_levelled_instruments_down_is_a_wa
     with pytest.warns(GravityWarning, match="give \\[gravity\\] direction"):
         from casadical.calibration.gravity import warn_gravity
         warn_gravity(single, levelled=True)
+
+
+def test_the_screen_tilts_the_base_about_the_axes_across_gravity():
+    """The structure screen's base tilt and moment are about the two axes across the robot file's gravity: the
+    base's x and y where gravity is along its z (as before), two horizontal axes for an arm on a wall (gravity along
+    its base's x), never about gravity's own line (the moment of vertical weights has no part along it)."""
+    from casadical.diagnosis.structure import across_gravity
+
+    doc = hidden.robot_doc("arm6")
+    assert np.array_equal(across_gravity(robot_from_dict(doc)), np.eye(3)[:2])
+    for g in ((1.0, 0.0, 0.0), (0.0, 0.0, 1.0), (0.3, -0.2, -0.9)):
+        axes = across_gravity(robot_from_dict(_turned(doc, g)))
+        assert np.allclose(axes @ axes.T, np.eye(2)) and np.allclose(axes @ np.asarray(g), 0.0), (g, axes)
