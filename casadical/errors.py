@@ -154,6 +154,11 @@ class ParallelAxesWarning(CasadicalWarning):
     between them cannot be calibrated, and the link's offset along the axes is ill-conditioned."""
 
 
+class GravityWarning(CasadicalWarning):
+    """The robot file's gravity disagrees with the levelled instrument's down as the fitted base pose puts it (the
+    arm described with another mounting: casadical.calibration.gravity)."""
+
+
 class SignificanceWarning(CasadicalWarning):
     """Parameters of an error term are not significant: the poses do not determine what the term models."""
 

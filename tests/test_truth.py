@@ -393,3 +393,85 @@ def test_instrument_angle_and_distance_errors():
         assert np.allclose(turned[i], [x * cos(w) - y * sin(w), x * sin(w) + y * cos(w), z], atol=1e-15)
         assert np.allclose(turned[i] - clean[i], w * np.array([-y, x, 0.0]), atol=1e-8)   # first order (w^2 r)
         assert np.allclose(scaled[i], (1 + s) * clean[i], atol=1e-15)
+
+
+# --- a session's covariates, a mount compliance that follows one, a tilting floor and its sensor ---------------
+
+def test_a_session_column_and_a_mount_compliance_growing_with_it(tmp_path):
+    """A session's ``columns`` are written as constant columns; the mount's compliance is C0 + c h in a session
+    of height h (``Effects.mount_law``): on the planar arm (gravity -y, joint 1's axis the base's z) the whole arm
+    turns about joint 1 by (C0 + c h) tau1, as the hand calculation of the mount test above."""
+    C0, c = 1e-6, 2e-6
+    q = np.radians([[20.0, 30.0], [150.0, -40.0], [-70.0, 100.0]])
+    robot = nominal(PLANAR, Effects(mount_compliance=C0, mount_law={"height_m": c}))
+    low, high = Session("low", columns={"height_m": 1.5}), Session("high", columns={"height_m": 3.25})
+    shots = measure(robot, q, session=low, noise=0.0) + measure(robot, q, session=high, noise=0.0)
+    for i, (q1, q2) in enumerate(np.vstack([q, q])):
+        h = 1.5 if i < 3 else 3.25
+        assert np.allclose(shots.xyz[i], planar_point(q1 + (C0 + c * h) * planar_torques(q1, q2)[0], q2), atol=1e-15)
+    rows = list(csv.DictReader(open(shots.write_csv(tmp_path / "two.csv"))))
+    assert list(rows[0]) == ["q1_deg", "q2_deg", "x_mm", "y_mm", "z_mm", "height_m", "session"]
+    assert [float(r["height_m"]) for r in rows] == [1.5] * 3 + [3.25] * 3
+    # the law adds to a session's own mount too; a session without the law's column is an error
+    own = measure(robot, q, session=Session(mount_compliance=4e-6, columns={"height_m": 2.0}), noise=0.0)
+    q1, q2 = q[0]
+    assert np.allclose(own.xyz[0], planar_point(q1 + (4e-6 + c * 2.0) * planar_torques(q1, q2)[0], q2), atol=1e-15)
+    with pytest.raises(ValueError, match="height_m"):
+        measure(robot, q, session=Session("bare"), noise=0.0)
+    # a law may be any function of the column: a telescoping column's give grows faster than its length
+    cubic = nominal(PLANAR, Effects(mount_law={"height_m": lambda h: 1e-7 * h ** 3}))
+    got = measure(cubic, q, session=high, noise=0.0).xyz[0]
+    assert np.allclose(got, planar_point(q1 + 1e-7 * 3.25 ** 3 * planar_torques(q1, q2)[0], q2), atol=1e-15)
+    # a column without a law changes no point
+    plain = nominal(PLANAR, Effects(mount_compliance=C0))
+    assert np.array_equal(measure(plain, q, session=low, noise=0.0).xyz,
+                          measure(plain, q, session=Session("low"), noise=0.0).xyz)
+
+
+def test_a_tilting_floor_turns_the_base_and_its_sensor_reads_it():
+    """Each pose the base turns about its x and y axes by (t_x, t_y), uniform within +-floor_tilt; the measured
+    point is B R(t) p and the orientation B R(t) R_flange (R(t) by scipy's rotation vector, an independent
+    reading); the columns tilt_x_rad, tilt_y_rad hold t plus the sensor's noise; an unrelated column follows
+    nothing and changes no shot."""
+    from scipy.spatial.transform import Rotation
+    doc = {"name": "one", "convention": "dh", "tool": {"d_m": 0.2},
+           "joint": [{"alpha_deg": 90, "a_m": 1.0, "d_m": 0.3, "mass_kg": 10.0, "com_m": [-0.5, 0, 0]}]}
+    robot = nominal(doc)
+    rng = np.random.default_rng(7)
+    q = rng.uniform(-np.pi, np.pi, (4000, 1))
+    T = 2e-3
+    ses = Session(base_xyz=(2.0, -1.0, 0.5), base_rpy=(0.1, -0.2, 0.7), floor_tilt=T)
+    shots = measure(robot, q, np.random.default_rng(3), session=ses, noise=0.0, orientation_noise=0.0)
+    t = np.column_stack([shots.columns["tilt_x_rad"], shots.columns["tilt_y_rad"]])
+    assert np.abs(t).max() <= T and np.abs(t).min(axis=0).max() < 0.01 * T and (np.abs(t).max(axis=0) > 0.99 * T).all()
+    flat = measure(robot, q, session=Session(base_xyz=(2.0, -1.0, 0.5)), noise=0.0, orientation_noise=0.0)
+    R_t = Rotation.from_rotvec(np.column_stack([t, np.zeros(len(t))])).as_matrix()
+    B = tf.fixed_rpy(0.1, -0.2, 0.7)[0, :3, :3]
+    p = flat.xyz - [2.0, -1.0, 0.5]                                   # the untilted arm's point, base frame
+    assert np.allclose(shots.xyz, np.einsum("ij,njk,nk->ni", B, R_t, p) + [2.0, -1.0, 0.5], atol=1e-14)
+    assert np.allclose(shots.R, np.einsum("ij,njk,nkl->nil", B, R_t, flat.R), atol=1e-14)
+    # by hand at one pose: q = 0 puts the tool at (1, -0.2, 0.3) (Rx(90) turns the tool's z to -y); the floor's
+    # tilt t moves it by t x p to first order (a tilt about y turns x down)
+    one = Session(floor_tilt=T)
+    s = measure(robot, np.zeros((1, 1)), np.random.default_rng(11), session=one, noise=0.0)
+    tx, ty = s.columns["tilt_x_rad"][0], s.columns["tilt_y_rad"][0]
+    p0 = np.array([1.0, -0.2, 0.3])
+    assert np.allclose(s.xyz[0], p0 + np.cross([tx, ty, 0.0], p0), atol=T ** 2)
+    assert s.xyz[0, 2] - 0.3 == pytest.approx(-ty - 0.2 * tx, abs=T ** 2)
+    # the sensor's noise: the same draws otherwise (same shots), its columns off by N(0, sigma)
+    noisy = measure(robot, q, np.random.default_rng(3), session=Session(base_xyz=(2.0, -1.0, 0.5),
+                    base_rpy=(0.1, -0.2, 0.7), floor_tilt=T, tilt_noise=1e-4), noise=0.0, orientation_noise=0.0)
+    assert np.array_equal(noisy.xyz, shots.xyz)
+    err = np.column_stack([noisy.columns["tilt_x_rad"], noisy.columns["tilt_y_rad"]]) - t
+    assert np.std(err) == pytest.approx(1e-4, rel=0.05) and abs(np.mean(err)) < 1e-5
+    # an unrelated column: drawn last (the shots are those without it), in the tilt's range, following nothing
+    decoy = measure(robot, q, np.random.default_rng(3), session=Session(base_xyz=(2.0, -1.0, 0.5),
+                    base_rpy=(0.1, -0.2, 0.7), floor_tilt=T, unrelated="acc_spare_x"), noise=0.0,
+                    orientation_noise=0.0)
+    assert np.array_equal(decoy.xyz, shots.xyz)
+    x = decoy.columns["acc_spare_x"]
+    assert np.abs(x).max() <= T and np.ptp(x) > 1.9 * T
+    assert max(abs(np.corrcoef(x, t[:, k])[0, 1]) for k in range(2)) < 0.1
+    head, _ = decoy.header_and_rows()
+    assert head[1:] == ["x_mm", "y_mm", "z_mm", "tilt_x_rad", "tilt_y_rad", "acc_spare_x", "rx_deg", "ry_deg",
+                        "rz_deg"]

@@ -167,7 +167,6 @@ BLOCKS: dict[str, Block] = {
     "planning-ga": Block("planning", (r"^### D-optimal vs GA",), timing=("D-opt time (s)", "GA time (s, mean)")),
     "next-poses-loop": Block("next-poses", (r"^### The loop",)),
     "next-poses-example": Block("next-poses", (r"^### Worked example: narrow range",)),
-    "next-poses-scope": Block("next-poses", (r"^### Worked example: robot or session",)),
     "next-poses-compliance": Block("next-poses", (r"^### Worked example: compliance or scale",)),
     # docs/diagnosis.md
     "hidden-effects-summary": Block("hidden-effects", (r"^### Exact claims per effect",)),

@@ -26,7 +26,7 @@ sys.path.append(str(Path(__file__).resolve().parents[2]))  # the tests' helpers 
 from tests.helpers.planning_loop import SCENARIOS, loop  # noqa: E402
 
 #: the worked examples the docs quote: scenario -> seed
-EXAMPLES = {"narrow range": 0, "robot or session": 0, "compliance or scale": 1}
+EXAMPLES = {"narrow range": 0, "compliance or scale": 1}
 
 
 def _text(q: dict) -> str:

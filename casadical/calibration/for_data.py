@@ -16,9 +16,11 @@ from ..terms.tool_points import named_points, with_tool_points
 
 def set_references(terms: list[ErrorTerm], data: Measurements) -> None:
     """Terms driven by a covariate take its reference over the data (its mean; a warm-up's start) as their
-    reference (a term of one session: over that session's poses)."""
+    reference (a term of one session: over that session's poses); a term written over a range of a column, that
+    range (:meth:`~casadical.terms.base.ErrorTerm.refer`)."""
     for t in terms:
         inner = t.inner if isinstance(t, SessionLocal) else t
+        inner.refer(data)
         if isinstance(inner, ReferencedTerm):
             col = data.get(inner.reference_covariate)
             if col is not None and isinstance(t, SessionLocal):

@@ -8,6 +8,7 @@ from .common import (
     add_checks,
     add_fixture,
     add_force,
+    add_levelled,
     add_quiet,
     add_row_spacing,
     add_session_tool,
@@ -64,6 +65,7 @@ def register(sub) -> None:
                    help="with a calibration JSON in place of ROBOT: keep its GP compensator (gp_compensator), "
                         "which is dropped otherwise like every term of the session it was fitted on")
     add_session_tool(p)
+    add_levelled(p)
     p.add_argument("--validate", metavar="VAL.csv",
                    help="held-out poses, never fitted: their errors (mean, max, rms mm) are printed, written to "
                         "CAL.json ('validation') and shown in the HTML report")
@@ -115,6 +117,8 @@ def run(args) -> int:
                      fix=tuple(f.strip() for f in args.fix.split(",") if f.strip()), robust=args.robust,
                      session_tools=args.session_tool, position_only=args.position_only,
                      keep_compensator=args.keep_compensator, terms=user_terms(args), **check_options(args))
+    from ..calibration.gravity import warn_gravity
+    warn_gravity(result, args.levelled)
     if val is not None:     # the checks predict makes, then the held-out errors, before anything is written
         result.validate(val, name=f"fitted to {' '.join(args.data)}", **check_options(args))
     result.save(args.out, overwrite=args.force)

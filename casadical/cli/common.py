@@ -285,6 +285,18 @@ def fixtures(args) -> list:
     return args._fixtures
 
 
+def add_levelled(p: argparse.ArgumentParser) -> None:
+    """``--levelled`` / ``--not-levelled``: whether the instrument's z is up (the robot file's gravity is checked
+    against it; by default where every session's base pose agrees on one vertical)."""
+    g = p.add_mutually_exclusive_group()
+    g.add_argument("--levelled", action="store_true", default=None,
+                   help="the instrument was levelled (its z up): warn where the robot file's gravity is more than 5 "
+                        "deg from its down as the fitted base pose puts it, and say the direction to give (by "
+                        "default checked where two sessions or more agree on one vertical)")
+    g.add_argument("--not-levelled", dest="levelled", action="store_false",
+                   help="the instrument was not levelled: no check of the robot file's gravity")
+
+
 def timed(data, args):
     """``data`` as the command's options make it: with the fixtures of ``--fixture``, and with times from its rows
     if ``--row-spacing-s`` was given and it has no ``time_s``."""

@@ -11,6 +11,7 @@ from .common import (
     add_checks,
     add_fixture,
     add_force,
+    add_levelled,
     add_quiet,
     add_row_spacing,
     add_session_tool,
@@ -100,6 +101,7 @@ def register(sub) -> None:
                         "the positions either way)")
     p.add_argument("--seed", type=int, default=0, help="seed of the cross-validation folds (default: %(default)s)")
     add_session_tool(p)
+    add_levelled(p)
     add_row_spacing(p)
     add_checks(p)
     add_quiet(p)
@@ -144,7 +146,8 @@ def run(args) -> int:
                                  transfer_base_poses=args.transfer_base_poses or DiagnosisSettings.transfer_base_poses,
                                  transfer_refit_poses=args.transfer_refit_poses, session_tools=args.session_tool,
                                  structure=not args.no_structure, noise_mm=args.noise_mm,
-                                 worst_case=args.worst_case, solver=args.solver, terms=user_terms(args))
+                                 worst_case=args.worst_case, solver=args.solver, terms=user_terms(args),
+                                 levelled=args.levelled)
     status = Status(args.quiet)
     say = status.timed_line()
     report = diagnose(robot, cal, val, settings, progress=say if args.verbose else _brief(say), other=other,

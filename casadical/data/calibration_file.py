@@ -32,7 +32,7 @@ MAX_COUNT = 2 ** 53
 #: keys of ``statistics`` (the fit's size, noise and information criteria)
 FIT_KEYS = ("n_equations", "n_parameters", "dof", "sigma_mm", "log_likelihood", "aic", "bic", "level", "t_critical")
 #: term settings that may be zero or negative (all other numeric settings must be positive)
-SIGNED_SETTINGS = {"t_ref"}
+SIGNED_SETTINGS = {"t_ref", "law_lo", "law_hi"}
 
 
 def validate_calibration_document(doc: Any, path: str, terms=()) -> None:

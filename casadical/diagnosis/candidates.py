@@ -42,6 +42,11 @@ class Candidate:
     angle : str or None
         For a linear axis' carriage angle: ``roll``, ``pitch`` or ``yaw``
         (``carriage_angle[j:pitch]``).
+    law : str or None
+        For a cause that follows a session covariate by a law (a mount
+        compliance growing with a column's height): the column, and the law's
+        degree after a colon where it is not 1 (``height_m``, ``height_m:2``;
+        ``mount_compliance[height_m]``).
     """
 
     cause: str
@@ -54,10 +59,17 @@ class Candidate:
     source_joint: int | None = None
     direction: str | None = None
     angle: str | None = None
+    law: str | None = None
 
     def shared(self) -> "Candidate":
         """The same cause with one value for every session."""
         return replace(self, session=None)
+
+    @property
+    def carrier(self) -> "Candidate":
+        """The candidate whose columns this one's are at per-pose factors (a session's own: at its session's
+        poses; a law: at its polynomials of the column): the cause with one value for every session."""
+        return replace(self, session=None, law=None)
 
     @property
     def kind(self) -> Cause:
@@ -116,6 +128,9 @@ class Candidate:
             parts.append("(motion)" if short else "(direction of motion)")
         if self.time_constant is not None:
             parts.append(f"{self.time_constant:.3g} s" if short else f"time constant {self.time_constant:.3g} s")
+        if self.law is not None:
+            column, _, degree = self.law.partition(":")
+            parts.append((f"~{column}" if short else f"over {column}") + (f" (degree {degree})" if degree else ""))
         if self.session is not None:
             parts.append(f"@{self.session}" if short else f"in session {self.session}")
         return " ".join(parts)
@@ -140,6 +155,9 @@ class Candidate:
             d["direction"] = self.direction
         if self.angle is not None:
             d["angle"] = self.angle
+        if self.law is not None:
+            column, _, degree = self.law.partition(":")
+            d["law"] = {"column": column, "degree": int(degree or 1)}
         return d
 
     def parameter_names(self) -> list[str]:

@@ -2,9 +2,15 @@
 every kind the data cannot test, with why and what would allow it.
 
 Each kind of cause is a candidate of the robot (one value for every
-session) and, with data of several sessions, of each session alone
-(``... @S``: a gear error, an encoder scale, a compliance or the mount's
-give of one session's set-up). A joint coupling (joint j's angle error
+session). With data of several sessions, only what differs between them
+(a cause's :attr:`~casadical.terms.cause.Cause.session_part`: the mount,
+the instrument's set-up, a drift or a warm-up) is also a candidate of each
+session alone (``... @S``) or follows a law over a session covariate (a
+column constant within each session: a column's height); a joint's own
+parameter (its stiffness, encoder scale, gear error, play, coupling) is a
+property of the robot, one value whatever the session (issue 49: the
+column's give, which grows with its height, was named a compliance of joint
+1 "of session c_3.87"). A joint coupling (joint j's angle error
 proportional to joint k's reading) is screened for every pair of joints
 that move with the source before the joint (k < j): a joint's drive train
 passes through the joints before it (a wrist's motors sit in the forearm),
@@ -19,11 +25,13 @@ weak design of 24 such poses a coupling of joint 3 from joint 1 more than
 doubled the validation error). A mount
 compliance needs the robot file's masses (the moment of the weights about
 the base) and a moment that changes over the poses (a constant tilt is the
-base pose's). Periodic errors come from the periodograms of the residual's
-joint angle errors: the robot's over every pose, each session's over its
-own poses (a gear error of one session is diluted in the others'). A drift
+base pose's). Periodic errors come from the periodogram of the residual's
+joint angle errors over every pose. A drift
 and a warm-up belong to their session by nature: with several sessions only
-their own are tried.
+their own are tried. Structure of a joint that holds in one session only and
+that no cause of a session takes is an ``unexplained`` finding naming the
+session (:func:`.search.one_session`, and the structure screen's pairs of
+one session, :mod:`.structure`).
 
 A linear axis (a prismatic joint: a track, a column) has its own kinds
 instead of a revolute joint's compliance, progressive stiffness and
@@ -31,8 +39,7 @@ coupling (ISO 230-1): its scale per metre, a periodic error per metre from
 :data:`MIN_CYCLES` cycles over the travel the data cover, play by the
 motion (and by the load where gravity pushes along it), its straightness
 across it in x and y and its carriage's roll, pitch and yaw; the robot's
-only (a property of the axis, as a coupling is of the wrist) but for the
-per-joint kinds a session may have on its own.
+only (a property of the axis, as a coupling is of the wrist).
 
 A kind the data cannot test is never skipped in silence: :class:`NotTried`
 says why and what would allow it (the links' masses or a payload column
@@ -47,6 +54,7 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
+from ..data.covariates import session_covariates
 from ..data.measurements import Measurements
 from ..robot import Robot
 from ..stats.physics import sign_changes
@@ -328,7 +336,6 @@ class Catalogue:
         self.robot, self.cal, self.s = robot, cal, settings
         self.sessions = cal.session_names                  # [] for one session
         self.periodograms: list[Periodogram] = []          # the robot's, for the report
-        self._own: dict[str, list[Periodogram]] = {}       # each session's
         self._of = None                                     # the fit they were computed for
         self.mount: list | None = None                      # scopes whose moment changes (None: the robot's)
         self.couples: bool | None = None                    # couplings are tried (the poses move joints together)
@@ -345,39 +352,28 @@ class Catalogue:
         return max_harmonic(self.cal if data is None else data, self.s)
 
     def n_tests(self, cands: list[Candidate]) -> int:
-        """Tests behind a round's candidates: each periodic candidate stands for the harmonics scanned in its
-        scope (the robot's, or one session's)."""
+        """Tests behind a round's candidates: each periodic candidate stands for the harmonics scanned."""
         per = sum(1 for c in cands if c.kind.scanned)
-        scanned = self.robot.n * self.max_harmonic()
-        if len(self.sessions) > 1:
-            scanned += sum(self.robot.n * self.max_harmonic(self.cal.subset(self.cal.sessions == s))
-                           for s in self.sessions)
-        return (len(cands) - per) + scanned
+        return (len(cands) - per) + self.robot.n * self.max_harmonic()
 
     def update_periodograms(self, current) -> None:
-        """Periodograms of the joint angle errors of ``current``'s residual: the robot's and each session's."""
+        """Periodograms of the joint angle errors of ``current``'s residual over every pose (a gear error is the
+        robot's: one in every session)."""
         if self._of is current:
             return
         resid, JA = joint_view(current, self.cal)
-        q = self.cal.q
-
-        def grams(at: np.ndarray) -> list[Periodogram]:
-            h = max_harmonic(self.cal.subset(at), self.s)
-            out = []
-            for j in range(1, self.robot.n + 1):
-                s, w = joint_errors(resid[at], JA[at][:, :, j - 1])
-                out.append(periodogram(phase(self.robot, j, q[at, j - 1]), s, w, j, h))
-            return out
-
-        self.periodograms = grams(np.ones(len(self.cal), bool))
-        self._own = {s: grams(self.cal.sessions == s) for s in self.sessions} if len(self.sessions) > 1 else {}
+        q, h = self.cal.q, max_harmonic(self.cal, self.s)
+        self.periodograms = []
+        for j in range(1, self.robot.n + 1):
+            s, w = joint_errors(resid, JA[:, :, j - 1])
+            self.periodograms.append(periodogram(phase(self.robot, j, q[:, j - 1]), s, w, j, h))
         self._of = current
 
     def candidates(self, current, accepted: list[Candidate], excluded: set, excluded_causes: set,
                    torques) -> list[Candidate]:
         """Every candidate not yet in the model: each cause's (:meth:`~casadical.terms.cause.Cause.candidates`,
-        asked with this catalogue as what the data allow), and of the causes each session may have on its own
-        (:attr:`~casadical.terms.cause.Cause.per_session`) each session's too.
+        asked with this catalogue as what the data allow: the robot's, and a session's own only of a cause that
+        is of a session, :attr:`~casadical.terms.cause.Cause.session_part`).
 
         ``excluded``: periodic ``(joint, harmonic, session)`` not to screen
         again; ``excluded_causes``: other candidates not to screen again;
@@ -394,10 +390,7 @@ class Catalogue:
         self.accepted, self.excluded, self.torques = accepted, excluded, torques
         out: list[Candidate] = []
         for cause in ordered("order"):
-            own = cause.candidates(self)
-            out += own
-            if len(self.sessions) > 1 and cause.per_session:
-                out += [replace(c, session=s) for c in own for s in self.sessions]
+            out += cause.candidates(self)
         out += self.user_candidates()
         have = set(accepted)
         return [c for c in dict.fromkeys(out) if c not in have and c not in excluded_causes
@@ -412,6 +405,12 @@ class Catalogue:
         if key not in self._memo:
             self._memo[key] = make()
         return self._memo[key]
+
+    @property
+    def session_covariates(self) -> dict[str, dict[str, float]]:
+        """The calibration poses' session covariates (columns constant within each session: a column's height),
+        with their value in each session (:func:`casadical.data.covariates.session_covariates`)."""
+        return self.memo("session_covariates", lambda: session_covariates(self.cal))
 
     @property
     def revolute(self) -> list[int]:
@@ -446,10 +445,6 @@ class Catalogue:
     def scopes(self) -> list:
         """The scopes a cause of its session by nature is tried in: each session's, or the only one's (None)."""
         return self.sessions if len(self.sessions) > 1 else [None]
-
-    def periodogram_scopes(self) -> list:
-        """(scope, the periodograms of its poses' joint angle errors): the robot's (None), then each session's."""
-        return [(None, self.periodograms)] + list(self._own.items())
 
     def lowest_harmonic(self, j: int) -> int:
         """The lowest harmonic screened on joint ``j``: the first, on a linear axis :data:`MIN_CYCLES` over its

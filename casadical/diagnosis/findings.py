@@ -8,6 +8,7 @@ import math
 from ..data.measurements import Measurements
 from ..result import CalibrationResult
 from ..terms import UNEXPLAINED
+from ..terms.cause import session_parts
 from .candidates import Candidate
 from .evidence import Evidence, Support
 from .plots import joint_view, residual_plot
@@ -20,33 +21,36 @@ class UnexplainedLog:
 
     It is kept out of the model and reported as one ``unexplained`` finding
     per joint (where it lives, its size, why it cannot be named, what it
-    would give on this series). Its harmonics (or the candidate) are not
-    screened again.
+    would give on this series), and per joint and session for structure
+    that holds in one session only (what differs between the sessions,
+    showing on the joint). Its harmonics (or the candidate, the robot's
+    too) are not screened again.
     """
 
     def __init__(self) -> None:
-        self.by_joint: dict[int, Finding] = {}
+        self.by_joint: dict[tuple, Finding] = {}          # by (joint, session or None)
         self.linear: set[int] = set()                      # the robot's linear axes (their causes in mm)
         self.excluded: set[tuple] = set()                  # periodic (joint, harmonic, session or None)
         self.excluded_causes: set[Candidate] = set()       # other candidates
-        self.strongest: dict[int, Candidate] = {}          # per joint, for the transfer study
+        self.strongest: dict[tuple, Candidate] = {}        # per (joint, session), for the transfer study
 
     def add(self, evidence: Evidence) -> None:
         cand, values, checks = evidence.candidate, evidence.values, evidence.support.checks
         j = cand.joint
         if cand.harmonic is not None:       # a periodic error: its neighbours' band is not screened again
             band = checks["resolution"].band if "resolution" in checks else (cand.harmonic, cand.harmonic)
-            self.excluded.update((j, h, cand.session) for h in range(band[0], band[1] + 1))
+            self.excluded.update((j, h, s) for h in range(band[0], band[1] + 1) for s in {cand.session, None})
         else:
-            self.excluded_causes.add(cand)
+            self.excluded_causes.update({cand, cand.shared()})
         item = cand.kind.unexplained_item(cand, values, j in self.linear)     # a linear axis' in metres
         if cand.harmonic is not None:
             item = {"harmonic": cand.harmonic, "band": list(band), **item}
-        f = self.by_joint.get(j)
+        key = (j, cand.session)
+        f = self.by_joint.get(key)
         if f is None:
-            f = self.by_joint[j] = Finding(Candidate(UNEXPLAINED.name, j), 0.0, "", in_model=False,
-                                           potential_gain_mm=0.0, holds_up={"structures": []})
-            self.strongest[j] = cand
+            f = self.by_joint[key] = Finding(Candidate(UNEXPLAINED.name, j, session=cand.session), 0.0, "",
+                                             in_model=False, potential_gain_mm=0.0, holds_up={"structures": []})
+            self.strongest[key] = cand
         # what was fitted, machine-readable (plan-poses REPORT.json plans the poses that tell it)
         item.update(candidate=cand.to_dict(), values={n: values[n] for n in cand.parameter_names() if n in values},
                     test=evidence.support.test.text(),
@@ -57,10 +61,17 @@ class UnexplainedLog:
         structures.append(item)
         f.potential_gain_mm = max(f.potential_gain_mm or 0.0, evidence.potential_gain_mm)
         f.where = f"joint {j}: " + "; ".join(x["what"] for x in structures)
+        own = ""
+        if cand.session is not None:
+            f.where = f"joint {j}, in session {cand.session} only: " + "; ".join(x["what"] for x in structures)
+            own = (f"; it holds in session {cand.session} only: a joint's own parameter is the robot's, so what "
+                   f"differs between the sessions ({', '.join(session_parts())}, or a load or a temperature the data "
+                   f"do not give) shows on joint {j}")
         f.evidence = (f"structure in joint {j}'s angle error that is significant on the calibration poses but "
                       "cannot be named as a cause: " + " | ".join(f"{x['what']}: {x['why']}" for x in structures)
-                      + f". Alone it would lower this series' validation mean by up to {f.potential_gain_mm:.4f} "
-                      "mm; it is kept out of the final model because it does not hold up as a cause")
+                      + own + f". Alone it would lower this series' validation mean by up to "
+                      f"{f.potential_gain_mm:.4f} mm; it is kept out of the final model because it does not hold up "
+                      "as a cause")
 
 
 def describe(findings: list[Finding], support: dict[Candidate, Support], before: dict,

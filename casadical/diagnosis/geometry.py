@@ -1,6 +1,8 @@
 """Stage ``fit_geometry``: step 2, the geometric (kinematic) calibration, and how weak the design is.
 
-Reads ``nominal``; sets ``kinematic``, the design's assessment (:mod:`.design`: on a weak design the folds get
+Reads ``nominal``; sets ``kinematic``, the check of the robot file's gravity against a levelled instrument's down
+(``gravity``, :mod:`casadical.calibration.gravity`: a note and a warning where they disagree), the design's
+assessment (:mod:`.design`: on a weak design the folds get
 priors of the geometry, and a design of one joint at a time its own folds), the second step, and the model
 the search starts from: ``current`` (the kinematic model where the geometry is supported, else the nominal
 one) and ``geometric``.
@@ -10,6 +12,7 @@ from __future__ import annotations
 
 import math
 
+from ..calibration.gravity import warn_gravity
 from ..terms import GEOMETRIC
 from .candidates import Candidate
 from .design import assess, priors
@@ -22,6 +25,10 @@ def fit_geometry(run: DiagnosisRun) -> None:
     run.say("step 2: geometric (kinematic) calibration")
     nominal = run.nominal
     kin = run.kinematic = run.fit("kinematic")
+    run.gravity = warn_gravity(kin, run.s.levelled)
+    if run.gravity is not None and run.gravity.warns:
+        run.notes.append(run.gravity.text())
+        run.say(f"  {run.notes[-1]}")
     run.design = assess(run.cal, kin, run.n_fit_eq)
     if run.design.weak:
         run.prior = priors(kin)

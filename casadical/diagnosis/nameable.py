@@ -78,7 +78,7 @@ def versus_drift(screen: Screen, cand: Candidate) -> VersusDrift:
     t = screen.cal.get("time_s")
     at = np.ones(len(t)) if cand.session is None else (screen.cal.sessions == cand.session).astype(float)
     drift = np.einsum("i,jk->ijk", t * at, np.eye(3))          # (N, 3, 3): d xyz / d (v_x, v_y, v_z)
-    drop, sigma2 = _drops(screen)
+    drop, sigma2 = drops(screen)
     return VersusDrift((drop(screen.J[:, :, screen.columns(cand)]) - drop(drift)) / max(sigma2, 1e-300))
 
 
@@ -114,7 +114,7 @@ class VersusHarmonics:
                 "(it fits about as well or better): linear or progressive is not told, and not named")
 
 
-def _drops(screen: Screen):
+def drops(screen: Screen):
     """``drop(C)``: the weighted residual sum of squares columns ``C`` (N, 3, k) remove beyond the current
     model, and the residual variance."""
     sw, Q, r_perp = screen.projection()     # the round's basis, made once per linearisation
@@ -132,7 +132,7 @@ def _drops(screen: Screen):
 
 def versus_harmonics(screen: Screen, cand: Candidate) -> VersusHarmonics:
     """A progressive spring's cubic part against every harmonic of its joint the round screens (same scope)."""
-    drop, sigma2 = _drops(screen)
+    drop, sigma2 = drops(screen)
     mine = drop(screen.J[:, :, screen.columns(cand)])
     best, h = -np.inf, None
     for c, cols in screen.cols_of.items():

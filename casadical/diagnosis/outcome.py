@@ -35,4 +35,5 @@ def assemble_report(run: DiagnosisRun) -> None:
                    **({"structure_misses": [{"finding": n, "lines": v} for n, v in run.structure_misses.items()]}
                       if run.structure_misses else {})},
         not_tried=[n.to_dict() for n in run.not_tried], noise=run.noise.to_dict() if run.noise is not None else {},
-        interval_coverage=run.interval_coverage, user_terms=terms)
+        interval_coverage=run.interval_coverage, user_terms=terms,
+        gravity=run.gravity.to_dict() if run.gravity is not None else {})

@@ -205,6 +205,9 @@ class DiagnosisReport:
         of its candidates (:func:`casadical.diagnosis.user_terms.accounts`); [] without a terms file.
     inputs : dict
         What the caller gave, for the record (the command line: the robot, the files, the options as given).
+    gravity : dict
+        The robot file's gravity against the levelled instrument's down (:class:`casadical.calibration.gravity.
+        GravityCheck`); empty where it is not checked.
     """
 
     robot: str
@@ -228,6 +231,7 @@ class DiagnosisReport:
     interval_coverage: float | None = None
     user_terms: list = field(default_factory=list)
     inputs: dict = field(default_factory=dict)
+    gravity: dict = field(default_factory=dict)
 
     def to_dict(self) -> dict:
         from ..robot import robot_to_dict
@@ -269,6 +273,8 @@ class DiagnosisReport:
             doc["transfer"] = self.transfer
         if self.noise:
             doc["final"]["noise"] = self.noise
+        if self.gravity:
+            doc["gravity"] = self.gravity
         doc["final"]["interval_coverage"] = self.interval_coverage
         doc["robot_description"] = robot_to_dict(self.final.model.robot)   # what plan-poses REPORT.json builds on
         return doc

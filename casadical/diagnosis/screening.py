@@ -91,7 +91,7 @@ class Screen:
                  user_terms=()):
         robot = current.model.robot
         self.current, self.cal, self.val, self.accepted = current, cal, val, list(accepted)
-        self.physical = {c.shared() for c in cands if not c.kind.analytic}
+        self.physical = {c.carrier for c in cands if not c.kind.analytic}
         # drift and thermal terms referenced to the calibration poses, as in the fits (current's model)
         self.model = big = model_for(robot, compose_spec(accepted + sorted(self.physical, key=str), geometric), cal,
                                      session_tools=session_tools, user_terms=user_terms)
@@ -127,9 +127,9 @@ class Screen:
         self._set_extra(cands)
 
     def with_candidates(self, cands: list[Candidate]) -> "Screen":
-        """The same linearisation screening ``cands`` (other periodic harmonics, warm-up time constants or
-        sessions' own causes; no new cause of the model's)."""
-        extra = {c.shared() for c in cands if not c.kind.analytic} - self.physical
+        """The same linearisation screening ``cands`` (other periodic harmonics, warm-up time constants, sessions'
+        own causes or laws; no new cause of the model's)."""
+        extra = {c.carrier for c in cands if not c.kind.analytic} - self.physical
         if extra:
             raise ValueError(f"not in this screen's model: {sorted(map(str, extra))}")
         new = copy.copy(self)
@@ -138,7 +138,8 @@ class Screen:
 
     def _set_extra(self, cands: list[Candidate]) -> None:
         """Columns, names, scales and parameters: the model's, then those of each candidate that is not one of
-        the model's columns (a periodic error, a warm-up, a cause of one session)."""
+        the model's columns (a periodic error, a warm-up, a cause of one session, a law over a session
+        covariate)."""
         J, names, scale = self._model_cols
         n_model = len(names)
         self.params = {p.name: p for p in self.model_params}
@@ -151,8 +152,8 @@ class Screen:
                 continue        # in the model already (or given twice)
             if c.kind.analytic:
                 ps = self._analytic_parameters(c)
-            elif c.session is not None and all(n in names[:n_model] for n in c.shared().parameter_names()):
-                ps = [replace(self.params[n], name=local) for n, local in zip(c.shared().parameter_names(), own)]
+            elif c != c.carrier and all(n in names[:n_model] for n in c.carrier.parameter_names()):
+                ps = c.kind.carried(c, [replace(self.params[n], name=local) for n, local in zip(_carried(c), own)])
             else:
                 continue        # a cause of the model's (found by its names), or one it cannot screen
             self.cols_of[c] = list(range(len(names), len(names) + len(ps)))
@@ -181,8 +182,11 @@ class Screen:
         if c.kind.analytic:
             col = c.kind.analytic_column(c, k, d, JA, self.t0, self.model.robot)
             col = col * self.params[c.parameter_names()[k]].scale
-        else:       # a session's own: its cause's column (scaled alike)
-            col = J[:, :, self._model_cols[1].index(c.shared().parameter_names()[k])]
+        else:       # a session's own or a law: its carrier's column (scaled alike) at its factor
+            col = J[:, :, self._model_cols[1].index(_carried(c)[k])]
+            factors = c.kind.factors(c, d, self.cal)
+            if factors is not None:
+                col = col * factors[:, k % factors.shape[1], None]
         if c.session is not None:
             col = col * (d.sessions == c.session).astype(float)[:, None]
         return col
@@ -320,6 +324,15 @@ class Screen:
                     col = columns[key] = proj(self._column(*key, self.val, raw, JA))
                 out += col * d
         return np.linalg.norm(out, axis=1)
+
+
+def _carried(c: Candidate) -> list[str]:
+    """For each parameter of ``c``, its carrier's parameter whose column it is at a factor (a law has several per
+    parameter of its carrier: one per polynomial)."""
+    base = c.carrier.parameter_names()
+    own = c.parameter_names()
+    per = len(own) // len(base)
+    return [base[k // per] for k in range(len(own))]
 
 
 def periodic_columns(direction: np.ndarray, q: np.ndarray, h: int) -> np.ndarray:

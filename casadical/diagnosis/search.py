@@ -11,6 +11,11 @@ statistics but not these checks is kept out of the model (:class:`.findings.Unex
 cause is then fitted in full (the noise scale re-estimated), and must stay significant, physics, and not do
 worse where the model extrapolates (:func:`judge_full_fit`).
 
+With several sessions a cause of the robot's joint that does worse on the leave-one-session-out folds, while its
+copy in one session alone explains it, is not named: a joint's own parameter is the robot's, and that structure is
+what differs between the sessions showing on that joint, kept out as an ``unexplained`` finding of the joint and
+the session (:func:`one_session`).
+
 Reads ``current``, ``accepted``, ``geometric`` (:mod:`.geometry`); sets them to the model the search ends
 with, and ``findings``, ``support``, ``before``, ``history``, ``later``, ``unexplained``, ``not_tried``,
 ``periodograms``, the steps of every candidate fitted.
@@ -28,7 +33,7 @@ from ..stats.physics import value_violations, violations
 from .candidates import TIERS, Candidate, compose_spec, shortlist
 from .catalogue import not_tried
 from .evidence import Evidence, Support
-from .nameable import cause_checks, unjudged
+from .nameable import cause_checks, drops, unjudged
 from .report import Finding, Step
 from .screening import Scored, Screen, ambiguous
 from .state import DiagnosisRun
@@ -218,7 +223,8 @@ def try_tiers(run: DiagnosisRun, scr: Screen, scored: list[Scored], level: float
                 reasons.append(f"BIC does not improve ({test.delta_bic:+.1f})")
             worse = [k for k in not_better(cv0, cv1) if k not in unjudged(cand)]
             # real structure on these poses: significant, and it predicts random held-out poses
-            significant = not reasons and "random" not in worse
+            tested = not reasons
+            significant = tested and "random" not in worse
             if worse:
                 reasons.append(cv_failure(worse, cv0, cv1))
             checks = cause_checks(scr, fit, cand, run.cal, run.s.stability_alpha) if significant else {}
@@ -237,6 +243,12 @@ def try_tiers(run: DiagnosisRun, scr: Screen, scored: list[Scored], level: float
                         parent_mm=cur_val.mean_mm)
             run.steps.append(step)
             support = Support(test, cv0, cv1, checks)
+            if reasons and tested and "session" in worse:
+                alone = one_session(run, scr, cand, level)
+                if alone is not None:       # what differs between the sessions, showing on this joint
+                    run.say(f"    rejected: {step.reason}; it holds in session {alone[0].session} only")
+                    pending.append(alone[1])
+                    continue
             if reasons:
                 run.say(f"    rejected: {step.reason}")
                 # structure of a joint's reading or of its load that a check of its cause refused: kept as evidence
@@ -250,6 +262,49 @@ def try_tiers(run: DiagnosisRun, scr: Screen, scored: list[Scored], level: float
             best = max(passing, key=lambda t: t.gain)
             return _choose(run, best, scored, level, current, cur_val), pending
     return None, pending
+
+
+def one_session(run: DiagnosisRun, scr: Screen, cand: Candidate, level: float
+                ) -> tuple[Candidate, Evidence] | None:
+    """Where a candidate of the robot that does worse on the leave-one-session-out folds lives: its copy of one
+    session alone is significant at ``level``, predicts random held-out poses better, and no other session's adds
+    anything beside it (a joint's own parameter is the robot's, one value in every session: structure of its shape
+    in one session only is what differs between the sessions showing on that joint). That copy and its evidence
+    (kept out of the model), or None. Not for a cause of a session (its sessions' own are candidates already), nor
+    a cause of the user's own (whose terms file says its scope)."""
+    sessions = run.cal.session_names
+    if cand.session is not None or cand.kind.session_part is not None or cand.user or len(sessions) < 2:
+        return None
+    copies = [replace(cand, session=s) for s in sessions]
+    own = scr.with_candidates(copies)
+    scored = own.scores(copies)
+    if not scored or scored[0].log10_p >= level:
+        return None
+    # beside the strongest session's copy, no other session's adds anything (the robot's, fitted to every session,
+    # moves the others' geometry: alone their copies may be significant too)
+    drop, _ = drops(own)
+    r_perp = own.projection()[2]
+    ssr = float(r_perp @ r_perp)
+    mine = own.columns(scored[0].candidate)
+    p0 = len(own.cur) + len(mine)
+    for sc in scored[1:]:
+        other = own.columns(sc.candidate)
+        test = nested_test(ssr - drop(own.J[:, :, mine]), p0, ssr - drop(own.J[:, :, mine + other]),
+                           p0 + len(other), len(r_perp))
+        if test.log10_p < level:
+            return None
+    best = scored[0].candidate
+    fit = own.fit(best)
+    base = own.fit()
+    test = nested_test(base.ssr, base.n_free, fit.ssr, fit.n_free, run.n_eq, noise_ssr(fit.lin))
+    cv0 = by_kind(base.lin.cv(run.schemes, run.prior), run.mask(run.current))
+    cv1 = by_kind(fit.lin.cv(run.schemes, run.prior), run.mask(run.current))
+    if not cv1["random"] < cv0["random"]:
+        return None
+    gain = run.val_stats(run.current).mean_mm - ErrorStats.of(own.validation_errors(fit)).mean_mm
+    why = (f"it holds in session {best.session} only ({test.text()}; the robot's does worse on the "
+           "leave-one-session-out folds): a joint's own parameter is the robot's, one value in every session")
+    return best, Evidence(best, fit.values, Support(test, cv0, cv1, {}), gain, why)
 
 
 def _choose(run: DiagnosisRun, best: Trial, scored: list[Scored], level: float, current: CalibrationResult,

@@ -72,6 +72,10 @@ class DiagnosisSettings:
     terms : tuple of TermDefinition
         Causes of one's own (a terms file's, :func:`casadical.terms.definitions.read_terms_file`): screened
         beside the catalogue's, by the same tests and rules.
+    levelled : bool or None
+        The instrument was levelled (True), was not (False), or infer it where every session's base pose
+        agrees on one vertical (None): the robot file's gravity is checked against its down
+        (:mod:`casadical.calibration.gravity`).
     """
 
     alpha: float = 0.001
@@ -92,6 +96,7 @@ class DiagnosisSettings:
     worst_case: bool = False
     solver: str = "lm"
     terms: tuple = ()
+    levelled: bool | None = None
 
     def record(self) -> dict:
         """The settings for a report (the user terms by their names: their definitions are the report's own)."""

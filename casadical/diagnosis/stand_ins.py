@@ -46,7 +46,7 @@ from .candidates import Candidate, compose_spec
 from .redundancy import own_parameters
 from .state import DiagnosisRun
 from .statistics import NestedTest, nested_test, set_aside_share
-from .structure import INSTRUMENT, Found, StructureScreen, describe_pair, weighted
+from .structure import INSTRUMENT, MAX_STRUCTURES, Found, StructureScreen, describe_pair, weighted
 from .validation import Linearized
 
 
@@ -65,7 +65,8 @@ def stands_in(current: CalibrationResult, lin: Linearized, accepted: list[Candid
     if cand.kind.axis_shape and cand.session is None:
         return _axis_stand_in(current, lin, accepted, cand, scr, alpha)
     own = own_shape(cand)
-    if own is None or cand.session is not None or own not in scr.tried:
+    own = None if own is None else (*own, cand.session)     # a session's own cause: its shape in that session
+    if own is None or own not in scr.tried:
         return None
     cols = [lin.names.index(n) for n in own_parameters(cand, accepted) if n in lin.names]
     if not cols:
@@ -79,12 +80,23 @@ def stands_in(current: CalibrationResult, lin: Linearized, accepted: list[Candid
                      share if np.any(share < 1) else None)
     flexible = scr.columns(*own)
     found = scr.strongest(ask.rest, r0, lin.weights)
-    if found is not None and (found.covariate, found.effect, found.joint) != own:
-        # 1. the structure lives elsewhere, beyond what its own shape can take: does the cause add anything?
-        if ask.significant(ask.beside(flexible, found.X)):
-            test = ask.beside(found.X, ask.mine)
-            if not ask.significant(test):
-                return found, f"beside a flexible term of that structure it explains nothing more ({test.text()})"
+    if found is not None and (found.covariate, found.effect, found.joint, found.session) != own:
+        # 1. the structure lives elsewhere, beyond what its own shape can take: does the cause add anything beside
+        # it, and beside the structures next to it that its own shape cannot take either (a tilting floor read by
+        # two sensors is two structures: a gear error took a part of the second one's beside the first; beside
+        # several, at the screen's level divided among its pairs, as the search's tests are among its candidates)
+        X, tried, gate = found.X, {_pair(found)}, ask.beside(flexible, found.X)
+        while ask.significant(gate):
+            test = ask.beside(X, ask.mine)
+            if not ask.significant(test, scr.level if len(tried) > 1 else None):
+                return found, (f"beside a flexible term of that structure{' and those beside it' * (len(tried) > 1)}"
+                               f" it explains nothing more ({test.text()})")
+            more = scr.strongest(np.concatenate([ask.rest, X], axis=2), r0, lin.weights, skip=tried | {own})
+            if more is None or len(tried) == MAX_STRUCTURES:
+                break
+            # a structure next to it counts where the cause's own shape cannot take it either
+            gate = ask.beside(np.concatenate([X, flexible], axis=2), more.X)
+            X, tried = np.concatenate([X, more.X], axis=2), tried | {_pair(more)}
     elif found is not None and not cand.kind.first_order:
         # 2. structure of its own variable: does the cause follow it?
         left = ask.beside(ask.mine, flexible)
@@ -92,7 +104,7 @@ def stands_in(current: CalibrationResult, lin: Linearized, accepted: list[Candid
         if ask.significant(left) and not ask.significant(adds):
             return found, (f"a flexible term of its own variable takes what it does and more ({left.text()}); "
                            f"beside that term it explains nothing more ({adds.text()})")
-    if scr.cal.sessions is None:
+    if scr.cal.sessions is None and cand.session is None:
         # 3. one session: can it be told from the instrument's own error?
         for pair in (p for p in scr.tried if p[0] in INSTRUMENT):
             X = scr.columns(*pair)
@@ -102,6 +114,10 @@ def stands_in(current: CalibrationResult, lin: Linearized, accepted: list[Candid
                     f"on one session it cannot be told from the instrument's own error ({alone.text()}): beside it "
                     f"it explains nothing more ({test.text()})")
     return None
+
+
+def _pair(found: Found) -> tuple:
+    return found.covariate, found.effect, found.joint, found.session
 
 
 def _axis_stand_in(current: CalibrationResult, lin: Linearized, accepted: list[Candidate], cand: Candidate,
@@ -147,8 +163,8 @@ class _Questions:
     #: the fits made, by the column blocks beside the rest (their ids; the blocks held, so no id is reused)
     fits: dict = field(default_factory=dict)
 
-    def significant(self, test: NestedTest) -> bool:
-        return test.log10_p < self.level and test.delta_bic < 0
+    def significant(self, test: NestedTest, level: float | None = None) -> bool:
+        return test.log10_p < (self.level if level is None else level) and test.delta_bic < 0
 
     def fit(self, blocks: tuple) -> tuple[np.ndarray, int]:
         """:func:`_fit` of ``rw`` on the rest and the column ``blocks`` beside it, in that order; made once: the
@@ -198,7 +214,7 @@ def drop_stand_ins(run: DiagnosisRun) -> None:
         run.drop_finding(cand)
         run.unexplained.excluded_causes.add(cand)
         where = describe_pair(found.covariate, found.effect, found.joint, found.joint is not None
-                              and run.robot.joints[found.joint - 1].prismatic)
+                              and run.robot.joints[found.joint - 1].prismatic, found.session)
         run.notes.append(f"{cand.label()} was dropped at the end: it is only the closest catalogue approximation of "
                          f"structure it does not explain ({where}; p = {10 ** found.log10_p:.2g}): {why}; the "
                          "structure screen reports that structure and its size")

@@ -19,6 +19,7 @@ from typing import TYPE_CHECKING, Callable
 import numpy as np
 
 from ..calibration.for_data import model_for
+from ..calibration.gravity import GravityCheck
 from ..calibration.pipeline import calibrate
 from ..calibration.solve import STD_TOL
 from ..data.measurements import Measurements
@@ -80,6 +81,7 @@ class DiagnosisRun:
     # fit_nominal, fit_geometry: the reference models; how weak the design is
     nominal: CalibrationResult | None = None
     kinematic: CalibrationResult | None = None
+    gravity: GravityCheck | None = None       # the robot file's gravity against a levelled instrument's down
     design: Design | None = None
     prior: dict[str, float] | None = None     # the folds' priors of the geometry on a weak design
     steps: list[Step] = field(default_factory=list)

@@ -2,14 +2,25 @@
 
 The catalogue never holds every cause a robot has. After the named causes, what the model leaves on the
 calibration poses is tested against what an error can vary with (the **covariates**: every joint's reading
-``qK``, every joint's gravity torque ``tauK``, the pose's ``time`` or order, and where the point stands for the
-instrument: ``azimuth``, ``elevation``, ``distance``), in each way an error can show (the **effects**: a
-joint's ``angle``; the point moving in the robot's base frame, ``point_base``; the point moving in the
-measurement frame, ``point_measurement``). Each pair is a flexible smooth term: Legendre polynomials of degree
-1 to :data:`DEGREE` of the covariate scaled to [-1, 1], times the effect's directions (a joint's angle: the
-point's derivative w.r.t. its reading; a frame: its three axes). The model's own parameters are refitted
-beside it (linearised at the final fit, robust weights), so structure the model can already take counts for
-nothing.
+``qK``, every joint's gravity torque ``tauK``, the moment of the weights about the base (``moment``, its two
+components across gravity), the pose's ``time`` or order, where the point stands for the instrument:
+``azimuth``, ``elevation``, ``distance``, and the user's own columns that change from pose to pose: a tilt
+sensor, an accelerometer, a temperature, a motor current, by the column's name,
+:func:`casadical.data.covariates.pose_covariates`), in each way an error can show (the **effects**: a
+joint's ``angle``; a joint's axis or the base tilting, ``tilt``, the base about the two axes across gravity;
+the point moving in the robot's base frame, ``point_base``; the point moving in the measurement frame,
+``point_measurement``). Each pair is a flexible smooth term: Legendre polynomials of degree 1 to
+:data:`DEGREE` of the covariate scaled to [-1, 1], times the effect's directions (a joint's angle: the point's
+derivative w.r.t. its reading; a frame: its three axes). The model's own parameters are refitted beside it
+(linearised at the final fit, robust weights), so structure the model can already take counts for nothing.
+
+With data of several sessions, a joint's angle against its own reading or its gravity torque is also tried in
+each session alone (the pair's columns at that session's poses only): a joint's own parameter is the robot's,
+one value in every session, so structure of that shape in one session only is what differs between the
+sessions (the mount, the instrument's set-up, the warm-up: :func:`casadical.terms.cause.session_parts`, or a
+load or temperature the data do not give) showing on that joint; it is reported with the session named. The
+base's tilt against the moment of the weights in each session alone is the shape of that session's own mount
+compliance (what :mod:`.stand_ins` asks it to explain).
 
 A pair is structure when both hold on the calibration poses:
 
@@ -36,9 +47,11 @@ import numpy as np
 from numpy.polynomial import legendre
 
 from ..data import Measurements
+from ..data.covariates import pose_covariates
 from ..kinematics import Geometry, chain_angles, forward, mount_moment
 from ..result import CalibrationResult
 from ..terms import UNEXPLAINED
+from ..terms.cause import session_parts
 from ..terms.mount_compliance import max_mount_moment
 from .candidates import Candidate
 from .report import Finding
@@ -63,6 +76,7 @@ class Structure:
     covariate: str
     effect: str
     joint: int | None            # the joint whose angle it moves (effect ``angle``)
+    session: str | None          # the session it holds in alone (None: every pose)
     log10_p: float
     test_text: str
     size_mm: float               # mean norm of the fitted term on the validation poses
@@ -77,22 +91,26 @@ class Structure:
     #: its joint is a linear axis: its ``angle`` effect is the axis' position error along it (m; reported as
     #: effect ``position``)
     linear: bool = False
+    #: the two axes across gravity the base tilts about (robot base frame, (2, 3)): its ``tilt`` without a joint
+    across: np.ndarray = field(default_factory=lambda: np.eye(3)[:2])
 
     def words(self) -> str:
         """Where it lives, in words an engineer reads."""
-        return describe_pair(self.covariate, self.effect, self.joint, self.linear)
+        return describe_pair(self.covariate, self.effect, self.joint, self.linear, self.session)
 
     def to_dict(self) -> dict:
         effect = "position" if self.linear and self.effect == "angle" else self.effect
         return {"covariate": self.covariate, "effect": effect, "p_value": 10 ** self.log10_p,
-                "size_mm": self.size_mm, "potential_gain_mm": self.potential_gain_mm}
+                "size_mm": self.size_mm, "potential_gain_mm": self.potential_gain_mm,
+                **({"session": self.session} if self.session is not None else {})}
 
     def term(self, name: str) -> dict:
         """Its flexible term as a table of a terms file (docs/formats.md section 10): the same Legendre
         polynomials of the covariate, scaled to its range on the calibration poses, in the effect of a cause of
         one's own, one parameter per coefficient (``c1``, ...) starting at its fitted value. A place to start
         from (replace it by a physical form), and what ``plan-poses REPORT.json`` plans the poses of."""
-        names = {"moment": ["mx", "my"], "time": [self.time_name]}.get(self.covariate, [self.covariate])
+        names = {"moment": [_along(a, ("mx", "my", "mz")) for a in self.across],
+                 "time": [self.time_name]}.get(self.covariate, [self.covariate])
         c = iter(range(1, len(self.coefficients) + 1))
 
         def series(var: str, rng) -> str:
@@ -121,8 +139,8 @@ class Structure:
             table.update(joint=self.joint, angle=f[0])
         elif self.effect == "tilt" and self.joint is not None:
             table.update(joint=self.joint, frame=["0", "0", "0", f[0], f[1], "0"])
-        elif self.effect == "tilt":
-            table.update(base=["0", "0", "0", f[0], f[1], "0"])
+        elif self.effect == "tilt":      # about the two axes across gravity (the base's x and y where it is along z)
+            table.update(base=["0", "0", "0", *[_along(a, f[:2]) for a in self.across.T]])
         elif self.effect == "point_base":
             table.update(base=[f[0], f[1], f[2], "0", "0", "0"])
         elif self.covariate == "azimuth":
@@ -143,9 +161,26 @@ class Structure:
         return table
 
 
-def describe_pair(covariate: str, effect: str, joint: int | None, linear: bool = False) -> str:
+def _along(weights, names) -> str:
+    """``sum w_k names_k`` as an expression (a name alone where its weight is 1 and the others 0; "0": none)."""
+    terms = [(float(w), n) for w, n in zip(weights, names) if abs(float(w)) > 1e-12]
+    if len(terms) == 1 and terms[0][0] == 1.0:
+        return terms[0][1]
+    return "(" + " + ".join(f"{w:.12g} * {n}" for w, n in terms) + ")" if terms else "0"
+
+
+def describe_pair(covariate: str, effect: str, joint: int | None, linear: bool = False,
+                  session: str | None = None) -> str:
     """A pair of covariate and effect in words an engineer reads (``linear``: the joint is a linear axis, its
-    ``angle`` effect a position error along it, in mm)."""
+    ``angle`` effect a position error along it, in mm; ``session``: it holds in that session alone)."""
+    if session is not None:
+        own = describe_pair(covariate, effect, joint, linear)
+        what = f"what differs between the sessions ({', '.join(session_parts())}, or a load or a temperature the " \
+               "data do not give)"
+        if joint is None:
+            return f"{own}, in session {session} only: {what}"
+        return (f"{own}, in session {session} only: a joint's own parameter is the robot's, so {what} shows on "
+                f"joint {joint}")
     cov = _covariate_words(covariate)
     if effect == "angle" and linear:
         own = covariate == f"q{joint}"
@@ -179,7 +214,9 @@ def _covariate_words(cov: str) -> str:
         return "the moment of the weights about the base"
     if cov == "time":
         return "the time of the pose (its order in the measurements)"
-    return f"the point's {cov} as the instrument sees it"
+    if cov in INSTRUMENT:
+        return f"the point's {cov} as the instrument sees it"
+    return f"{cov} (a column of the data)"
 
 
 def _direction_key(cov: str, effect: str, joint: int | None):
@@ -207,6 +244,20 @@ def _has_masses(robot) -> bool:
     return max_mount_moment(robot) > 0
 
 
+def across_gravity(robot) -> np.ndarray:
+    """Two unit axes across the robot file's gravity, robot base frame (2, 3): the base's x and y where gravity is
+    along its z (a robot on a floor or a ceiling); else the base's x (its y, where x is near gravity's line) made
+    horizontal, and the axis across both, ``up x e1`` (a robot on a wall or on a column's side)."""
+    g = np.asarray(robot.gravity, float)
+    up = -g / np.linalg.norm(g)
+    if np.hypot(up[0], up[1]) < 1e-12:
+        return np.eye(3)[:2].copy()
+    e = next(e for e in np.eye(3)[:2] if np.linalg.norm(e - (e @ up) * up) > 0.1)
+    e1 = e - (e @ up) * up
+    e1 /= np.linalg.norm(e1)
+    return np.array([e1, np.cross(up, e1)])
+
+
 def _frames_function(robot) -> ca.Function:
     """Readings and payload -> the moment of the weights about the base (3), then for each joint its axis (3),
     a point on it (3) and the x axis of the link after it (3), and the tool point (3); robot base frame, nominal
@@ -228,6 +279,7 @@ class Poses:
     measurement frame)."""
 
     moment: np.ndarray      # (N, 3)
+    across: np.ndarray      # (2, 3): the axes across gravity
     axis: np.ndarray        # (N, n, 3)
     origin: np.ndarray      # (N, n, 3)
     link_x: np.ndarray      # (N, n, 3)
@@ -248,19 +300,21 @@ class Poses:
             R = np.empty((N, 3, 3))
             for s in data.session_names:
                 R[data.sessions == s] = res.base_matrix(s)[:3, :3]
-        return cls(out[:, :3], per_joint[:, :, 0], per_joint[:, :, 1], per_joint[:, :, 2], out[:, -3:], R)
+        return cls(out[:, :3], across_gravity(robot), per_joint[:, :, 0], per_joint[:, :, 1], per_joint[:, :, 2],
+                   out[:, -3:], R)
 
 
-def covariates(res: CalibrationResult, data: Measurements, torques: np.ndarray, poses: Poses
-               ) -> dict[str, np.ndarray]:
-    """Every covariate of the screen at ``data``'s poses (rad, N m, s, m); ``moment`` is (N, 2): about the base
-    frame's x and y axes."""
+def covariates(res: CalibrationResult, data: Measurements, torques: np.ndarray, poses: Poses,
+               own: tuple = ()) -> dict[str, np.ndarray]:
+    """Every covariate of the screen at ``data``'s poses (rad, N m, s, m); ``moment`` is (N, 2): about the two
+    axes across gravity (:func:`across_gravity`); ``own``: the columns of one's own the screen tries."""
     out = {f"q{j + 1}": data.q[:, j] for j in range(data.q.shape[1])}
     out.update({f"tau{j + 1}": torques[:, j] for j in range(torques.shape[1])})
     if _has_masses(res.model.robot):
-        out["moment"] = poses.moment[:, :2]
+        out["moment"] = poses.moment @ poses.across.T
     t = data.get("time_s")
     out["time"] = np.asarray(t, float) if t is not None else np.arange(len(data), dtype=float)
+    out.update({c: np.asarray(data.get(c), float) for c in own})
     if data.touches:        # no instrument looks at the rows that touch: no line of sight
         return out
     x, y, z = data.xyz.T
@@ -275,7 +329,8 @@ def directions(res: CalibrationResult, data: Measurements, poses: Poses
     """Each effect's directions at ``data``'s poses, (N, 3, k) in the measurement frame: a joint's angle (the
     point's derivative w.r.t. its reading); a joint's axis tilting (the point turned about the two axes across
     the joint's axis, fixed in the link after it, through a point of the axis); the base tilting on its mount (turned
-    about the base frame's x and y axes); the robot's base frame's axes; the measurement frame's axes."""
+    about the two axes across gravity through the base frame's origin); the robot's base frame's axes; the
+    measurement frame's axes."""
     m, p = res.model, res.parameters
     _, Jq = m.predict_q_jacobian(data.q, p.values, m.covariates(data), res.base0)
     N, n = len(data), Jq.shape[2]
@@ -288,7 +343,7 @@ def directions(res: CalibrationResult, data: Measurements, poses: Poses
         u2 = np.cross(z, u1)
         lever = poses.point - o
         out[("tilt", j + 1)] = np.stack([to_meas(np.cross(u1, lever)), to_meas(np.cross(u2, lever))], axis=2)
-    ex, ey = np.eye(3)[0], np.eye(3)[1]
+    ex, ey = poses.across
     out[("tilt", None)] = np.stack([to_meas(np.cross(np.broadcast_to(ex, (N, 3)), poses.point)),
                                     to_meas(np.cross(np.broadcast_to(ey, (N, 3)), poses.point))], axis=2)
     out[("point_base", None)] = np.ascontiguousarray(poses.R)
@@ -317,9 +372,14 @@ def projection(res: CalibrationResult, data: Measurements):
     return data.layout.projection(res.predict(data))
 
 
-def pairs(n_joints: int, moment: bool, instrument: bool = True) -> list[tuple[str, str, int | None]]:
-    """Every (covariate, effect, joint) the screen tries (``instrument``: its view too, when an instrument
-    measured every row)."""
+
+def pairs(n_joints: int, moment: bool, own: tuple = (), sessions: tuple = (), instrument: bool = True
+          ) -> list[tuple[str, str, int | None, str | None]]:
+    """Every (covariate, effect, joint, session) the screen tries: of every pose (session None); ``own``: the
+    columns of one's own it tries too (a sensor's: the base's tilt, the point in either frame, each joint's angle);
+    ``sessions``: each joint's angle against its reading and its gravity torque, and the base's tilt against the
+    moment of the weights (a session's own mount), in each of these alone; ``instrument``: its view too, when an
+    instrument measured every row."""
     readings = [f"q{j}" for j in range(1, n_joints + 1)]
     robot_cov = readings + [f"tau{j}" for j in range(1, n_joints + 1)] + ["moment"] * moment + ["time"]
     out = [(c, "angle", j) for j in range(1, n_joints + 1) for c in robot_cov]
@@ -327,13 +387,20 @@ def pairs(n_joints: int, moment: bool, instrument: bool = True) -> list[tuple[st
     out += [(c, "tilt", None) for c in ["moment"] * moment + ["time"]]
     out += [(c, "point_base", None) for c in robot_cov]
     out += [(c, "point_measurement", None) for c in INSTRUMENT * instrument + ("time",)]
+    out += [(c, e, None) for c in own for e in ("tilt", "point_base") + ("point_measurement",) * instrument]
+    out += [(c, "angle", j) for c in own for j in range(1, n_joints + 1)]
+    out = [(*p, None) for p in out]
+    out += [(c, "angle", j, s) for s in sessions for j in range(1, n_joints + 1) for c in (f"q{j}", f"tau{j}")]
+    out += [("moment", "tilt", None, s) for s in sessions if moment]
     return out
 
 
-def _columns(cov: np.ndarray, ref, dirs: np.ndarray) -> np.ndarray:
+def _columns(cov: np.ndarray, ref, dirs: np.ndarray, at: np.ndarray | None = None) -> np.ndarray:
     """(N, 3, DEGREE * k): each basis function times each direction. A covariate of two components (the moment
     about x and y): a tilt about the base's x (y) axis by a function of the moment about it; any other effect by
-    functions of each component."""
+    functions of each component. ``at``: the poses of the session it holds in alone (a mask; zeros elsewhere)."""
+    if at is not None:
+        return _columns(cov, ref, dirs) * at[:, None, None]
     if cov.ndim == 2:
         if dirs.shape[2] == 2:     # the base's tilt about x and about y
             return np.concatenate([_columns(cov[:, k], ref[k], dirs[:, :, k:k + 1]) for k in (0, 1)], axis=2)
@@ -390,6 +457,7 @@ class Found:
     covariate: str
     effect: str
     joint: int | None
+    session: str | None
     X: np.ndarray
     log10_p: float
     test_text: str
@@ -400,19 +468,26 @@ class StructureScreen:
     """The structure screen of one fit on the calibration poses: its covariates, effects' directions, folds."""
 
     def __init__(self, res: CalibrationResult, cal: Measurements, torques: np.ndarray, alpha: float,
-                 seed: int = 0):
+                 seed: int = 0, val: Measurements | None = None):
         self.res, self.cal = res, cal
         self.poses = Poses.of(res, cal)
-        self.cov = covariates(res, cal, torques, self.poses)
+        # the columns of one's own the validation poses have too (the size of a structure is judged there)
+        self.own = tuple(c for c in pose_covariates(cal) if val is None or val.get(c) is not None)
+        self.cov = covariates(res, cal, torques, self.poses, self.own)
         self.dirs = directions(res, cal, self.poses)
         self.project = projection(res, cal)
         self.refs = {k: (_range(v)) for k, v in self.cov.items()}
-        self.tried = pairs(cal.q.shape[1], "moment" in self.cov, "azimuth" in self.cov)
+        self.project = projection(res, cal)
+        self.refs = {k: (_range(v)) for k, v in self.cov.items()}
+        sessions = tuple(cal.session_names) if len(cal.session_names) > 1 else ()
+        self.tried = pairs(cal.q.shape[1], "moment" in self.cov, self.own, sessions, "azimuth" in self.cov)
         self.level = math.log10(alpha / len(self.tried))
         self.folds = np.array_split(np.random.default_rng(seed).permutation(len(cal)), FOLDS)
 
-    def columns(self, cov: str, effect: str, joint: int | None) -> np.ndarray:
-        return self.project(_columns(self.cov[cov], self.refs[cov], self.dirs[_direction_key(cov, effect, joint)]))
+    def columns(self, cov: str, effect: str, joint: int | None, session: str | None = None) -> np.ndarray:
+        at = None if session is None else (self.cal.sessions == session).astype(float)
+        return self.project(_columns(self.cov[cov], self.refs[cov], self.dirs[_direction_key(cov, effect, joint)],
+                                     at))
 
     def strongest(self, base: np.ndarray, r: np.ndarray, w: np.ndarray, skip=(), only=None) -> Found | None:
         """The pair that explains most of ``r`` beside the columns ``base`` (N, 3, p) at weights ``w``, if it is
@@ -442,29 +517,32 @@ class StructureScreen:
             scored.append((test.log10_p, pair, test))     # not its columns: 140 pairs of 20,000 poses are 0.8 GB
         scored.sort(key=lambda t: t[0])
         folds = None
-        for log10_p, (cov, effect, joint), test in scored:
+        for log10_p, pair, test in scored:
             if log10_p >= self.level or test.delta_bic >= 0:
                 return None
             folds = folds or _Folds(base, r, w, self.folds)
-            X = self.columns(cov, effect, joint)
+            X = self.columns(*pair)
             share, wins, counted = folds.held_out_share(X)
             if share > 0.5 and _sign_log10_p(wins, counted) < self.level:
-                return Found(cov, effect, joint, X, log10_p, test.text(), share)
+                return Found(*pair, X, log10_p, test.text(), share)
         return None
 
 
 def screen(res: CalibrationResult, lin: Linearized, cal: Measurements, val: Measurements, cal_torques: np.ndarray,
-           val_torques: np.ndarray, alpha: float, seed: int = 0) -> list[Structure]:
+           val_torques: np.ndarray, alpha: float, seed: int = 0, known: frozenset = frozenset()) -> list[Structure]:
     """The structures ``res`` leaves on ``cal`` (see the module; ``lin``: ``res`` linearised on ``cal``), strongest
-    first."""
-    scr = StructureScreen(res, cal, cal_torques, alpha, seed)
+    first; ``known``: (joint, session) of structure of one session the search reported already (its joint's
+    pairs in that session are not tried)."""
+    scr = StructureScreen(res, cal, cal_torques, alpha, seed, val)
     r, w = lin.r, lin.weights
     sw = np.sqrt(np.repeat(w, 3))
     lin_v = dir_v = base_v = cov_v = proj_v = None
     found: list[Structure] = []
     base = lin.J
     while len(found) < MAX_STRUCTURES:
-        s = scr.strongest(base, r, w, skip={(f.covariate, f.effect, f.joint) for f in found})
+        skip = {(f.covariate, f.effect, f.joint, f.session) for f in found} | {
+            (c, "angle", j, s) for j, s in known if s is not None for c in (f"q{j}", f"tau{j}")}
+        s = scr.strongest(base, r, w, skip=skip)
         if s is None:
             break
         # the term fitted with the model's parameters on the calibration poses, taken to the validation poses
@@ -474,10 +552,11 @@ def screen(res: CalibrationResult, lin: Linearized, cal: Measurements, val: Meas
         if lin_v is None:
             poses_v = Poses.of(res, val)
             lin_v, dir_v = Linearized.of(res, val), directions(res, val, poses_v)
-            cov_v = covariates(res, val, val_torques, poses_v)
+            cov_v = covariates(res, val, val_torques, poses_v, scr.own)
             base_v, proj_v = lin_v.J, projection(res, val)
+        at_v = None if s.session is None else (val.sessions == s.session).astype(float)
         Xv = proj_v(_columns(cov_v[s.covariate], scr.refs[s.covariate],
-                                           dir_v[_direction_key(s.covariate, s.effect, s.joint)]))
+                             dir_v[_direction_key(s.covariate, s.effect, s.joint)], at_v))
         base_v = np.concatenate([base_v, Xv], axis=2)
         change = base_v @ x1
         before = np.linalg.norm(lin_v.r, axis=1)
@@ -487,12 +566,13 @@ def screen(res: CalibrationResult, lin: Linearized, cal: Measurements, val: Meas
         left = r - base @ x1
         back = np.flatnonzero((w < 0.5) & (res.loss.weight(np.einsum("ij,ij->i", left, left)) >= 0.5))
         back = np.setdiff1d(back, np.concatenate([f.misses for f in found] + [np.zeros(0, int)]))
-        found.append(Structure(s.covariate, s.effect, s.joint, s.log10_p, s.test_text,
+        found.append(Structure(s.covariate, s.effect, s.joint, s.session, s.log10_p, s.test_text,
                                float(np.mean(np.linalg.norm(change, axis=1)) * 1000),
                                float((before.mean() - after.mean()) * 1000), s.held_out_share, back,
                                x1[-s.X.shape[2]:], scr.refs[s.covariate],
                                "time_s" if cal.get("time_s") is not None else "row", lin_v.r - change,
-                               s.joint is not None and res.model.robot.joints[s.joint - 1].prismatic))
+                               s.joint is not None and res.model.robot.joints[s.joint - 1].prismatic,
+                               scr.poses.across))
     return found
 
 
@@ -502,17 +582,18 @@ def screen_structure(run: DiagnosisRun) -> None:
     if not run.s.structure:
         return
     res = run.current
-    run.say("structure screen: what the named causes leave, against every joint's reading and torque, time"
-            + (" (no instrument looks at rows that touch)" if run.cal.touches else ", and the instrument's view"))
+    run.say("structure screen: what the named causes leave, against every joint's reading and torque, the moment "
+            "of the weights, time" + (" and the data's own columns (no instrument looks at rows that touch)"
+                                      if run.cal.touches else ", the instrument's view and the data's own columns"))
     val_torques = res.model.torques(run.val.q, res.parameters.values, res.model.covariates(run.val))
     found = screen(res, run.linearized(res), run.cal, run.val, run.torques(res), val_torques, run.s.alpha,
-                   run.s.seed)
+                   run.s.seed, frozenset(run.unexplained.by_joint))
     if not found:
         run.say("  nothing the named causes leave is structure")
     for s in found:
         run.say(f"  {s.words()} (p = {10 ** s.log10_p:.2g}; {s.size_mm:.4f} mm on the validation poses)")
         finding = Finding(
-            Candidate(UNEXPLAINED.name, s.joint), 0.0,
+            Candidate(UNEXPLAINED.name, s.joint, session=s.session), 0.0,
             f"structure no cause of the catalogue explains: {s.words()}; {s.test_text} on the calibration poses "
             f"(a flexible term of degree {DEGREE} in the covariate, the model's parameters refitted beside it); it "
             f"predicts {s.held_out_share:.0%} of the left-out calibration poses better; judged on the validation "

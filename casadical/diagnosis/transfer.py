@@ -151,10 +151,10 @@ def findings_study(run: DiagnosisRun, final: CalibrationResult, parametric: Cali
 
     def without(k: int) -> CalibrationResult | None:
         f = run.findings[k]
-        if f.candidate.kind.unexplained and not f.in_model and f.candidate.joint in run.unexplained.strongest:
+        key = (f.candidate.joint, f.candidate.session)
+        if f.candidate.kind.unexplained and not f.in_model and key in run.unexplained.strongest:
             # structure left out: what would it have done there?
-            return run.fit(compose_spec(accepted + [run.unexplained.strongest[f.candidate.joint]], geometric),
-                          start=parametric)
+            return run.fit(compose_spec(accepted + [run.unexplained.strongest[key]], geometric), start=parametric)
         if k not in named:
             return None
         c = f.candidate
@@ -163,8 +163,9 @@ def findings_study(run: DiagnosisRun, final: CalibrationResult, parametric: Cali
         return run.fit(compose_spec(rest, geometric), start=parametric)
 
     # structure kept out that no single cause stood for (the structure screen's, joint None) has no model to try
-    todo = [k for k, f in enumerate(run.findings) if k in named or (f.candidate.kind.unexplained and not f.in_model
-                                                                    and f.candidate.joint in run.unexplained.strongest)]
+    todo = [k for k, f in enumerate(run.findings) if k in named or (
+        f.candidate.kind.unexplained and not f.in_model
+        and (f.candidate.joint, f.candidate.session) in run.unexplained.strongest)]
     labels = [f"{f.label()}: the model without it" if f.in_model else
               f"the structure kept out of joint {f.candidate.joint}: the model with it" for f in run.findings]
     out = study(final, run.kinematic, without, len(run.findings), other, s.transfer_base_poses, n_refit, s.seed,

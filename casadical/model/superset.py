@@ -132,14 +132,16 @@ def frames_key(frames) -> tuple | None:
 @dataclass
 class _Column:
     """Where a model's parameter is in the superset: ``index`` (a parameter, or after them a chain offset);
-    ``session``: the session whose indicator multiplies it; ``harmonic`` and ``kind`` ("s", "c"): a periodic
-    error's; ``kind`` "q" and ``source``: a joint coupling's (a chain offset times the source joint's reading)."""
+    ``session``: the session whose indicator multiplies it; ``factor``: the model's covariate that multiplies it
+    (a mount compliance's law); ``harmonic`` and ``kind`` ("s", "c"): a periodic error's; ``kind`` "q" and
+    ``source``: a joint coupling's (a chain offset times the source joint's reading)."""
 
     index: int
     session: str | None = None
     harmonic: int = 0
     kind: str = ""
     source: int = 0
+    factor: str | None = None
 
 
 class Mapping:
@@ -170,8 +172,9 @@ class Mapping:
                              for gate, s, gp in compensators or []]
         self.shifts = [(covariates.index(name), [(None if s is None else own.index(f"session@{s}"), ref)
                                                  for s, ref in refs]) for name, refs in shifts.items()]
-        # indicator covariate of each column's session (-1: every pose)
-        self.at = np.array([-1 if c.session is None else own.index(f"session@{c.session}") for c in columns])
+        # the covariate that multiplies each column per pose: its session's indicator, or a law's factor (-1: none)
+        self.at = np.array([own.index(c.factor) if c.factor is not None else -1 if c.session is None else
+                            own.index(f"session@{c.session}") for c in columns])
         periodic = np.array([bool(c.kind) for c in columns], dtype=bool)
         self.shared = np.flatnonzero(~periodic & (self.at < 0))
         self.local = np.flatnonzero(~periodic & (self.at >= 0))
@@ -223,10 +226,10 @@ class Mapping:
             if isinstance(inner, JointCoupling):    # c q_k added to joint j's angle: through its chain offset
                 columns += [_Column(len(params) + j - 1, session, kind="q", source=k) for j, k in inner.pairs]
                 continue
-            for p in inner.parameters(robot):
-                if p.name not in index:
+            for name, factor in inner.superset_parameters(robot):
+                if name not in index or (factor is not None and session is not None):
                     return None
-                columns.append(_Column(index[p.name], session))
+                columns.append(_Column(index[name], session, factor=factor))
             if isinstance(inner, Drift):
                 drifts.append((session, inner.t_ref))
             elif isinstance(inner, ThermalExpansion):

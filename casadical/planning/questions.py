@@ -30,6 +30,12 @@ A diagnosis says honestly what it could not resolve (``diagnose --json``):
   other sessions' poses would show it too). The poses that answer it are
   in another session: the candidates' ``session`` column, or
   ``plan-poses --session S``;
+- **law**: a named cause that follows a session covariate by a law (a
+  mount compliance growing with a column's height): does it hold at
+  another value of the column? Model: the final model; tested: the law's
+  parameters. The poses that answer it are those of another session, at a
+  value of the column the data do not have: candidate poses with that
+  column (``height_m``) in the candidates' file;
 - **not significant**: a parameter of a named cause in the final model
   whose t-test does not reject zero. Model: the final model; tested: it.
 
@@ -56,7 +62,7 @@ class Question:
     number : int
         1-based, in report order (``--question N``).
     kind : str
-        ``ambiguous``, ``unexplained``, ``scope`` or ``not significant``.
+        ``ambiguous``, ``unexplained``, ``scope``, ``law`` or ``not significant``.
     text : str
         The question in words.
     extra : list of Candidate
@@ -95,12 +101,16 @@ class Question:
 #: a report's candidate fields -> Candidate's (the fields this casadical knows; others are left out)
 _FIELDS = {f: f for f in ("cause", "joint", "harmonic", "source", "session", "source_joint", "direction",
                           "angle")} | {
-    "time_constant_s": "time_constant"}
+    "time_constant_s": "time_constant", "law": "law"}
 
 
 def _candidate(d: dict, terms: dict) -> Candidate:
     """The candidate of a report's entry ``d`` (``terms``: the user terms' definitions by name)."""
     known = Candidate.__dataclass_fields__
+    d = dict(d)
+    if isinstance(d.get("law"), dict):      # {"column": "height_m", "degree": 2}: "height_m:2"
+        law = d["law"]
+        d["law"] = str(law.get("column")) + (f":{law['degree']}" if law.get("degree", 1) != 1 else "")
     c = Candidate(**{v: d[k] for k, v in _FIELDS.items() if d.get(k) is not None and v in known})
     if d.get("user"):       # a cause of the user's own: its parameters from its definition (--terms FILE)
         definition = terms.get(c.cause)
@@ -176,15 +186,22 @@ def open_questions(report: dict, final_values: dict[str, float], path: str = "",
                 add(kind, f"{text} (finding {k + 1})", [other],
                     names + [n for n in other.parameter_names() if n not in names],
                     {n: final_values[n] for n in names if n in final_values}, level, k)
+            text = a.kind.open_question(a)
+            if text is not None:
+                names = a.parameter_names()
+                add("law", f"{text} (finding {k + 1})", [], names,
+                    {n: final_values[n] for n in names if n in final_values}, alpha, k)
         unexplained = f.get("cause") in CAUSES and CAUSES[f["cause"]].unexplained
         if unexplained and not f.get("in_model", False) and f.get("term"):
             # structure the structure screen found: its flexible term, a cause of one's own, is the question
             d = definitions_from_list([f["term"]], path, key=f"findings[{k}].term")[0]
             defs[d.name] = d
             user = tuple(f"{d.name}.{p}" for p in d.parameter_names)
+            # structure of one session only: its term in that session (a term of one session, ``NAME@S``)
+            own = Candidate(d.name, f.get("joint"), user=user, session=f.get("session"))
             add("unexplained", f"{f.get('where', d.name)}: which form, and how large? (finding {k + 1})",
-                [Candidate(d.name, f.get("joint"), user=user)], list(user),
-                {f"{d.name}.{p.name}": p.start for p in d.parameters}, scan_level, k)
+                [own], own.parameter_names(),
+                {n: p.start for n, p in zip(own.parameter_names(), d.parameters)}, scan_level, k)
             continue
         if unexplained and not f.get("in_model", False):
             periodic_seen: set = set()

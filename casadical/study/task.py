@@ -35,6 +35,7 @@ from ..model.symbolic import Model
 from ..planning import PlanSettings, design_problem, select_poses
 from ..robot import Robot, robot_to_dict
 from .protocol import MethodSpec, PlanSpec, Study
+from .selection import Selection
 from .touch import TouchWorld, draw_touch_world, select_touch_rows, touch_figures
 
 #: The results table: column name and kind (``int``, ``float``, ``str``, ``map``), in order.
@@ -110,16 +111,6 @@ def draw_repetition(study: Study, repetition: int) -> Repetition:
     extra = measured(study.extra_poses, "extra") if study.extra_poses else None
     sizes = sorted({p.pool_size(m) for p, m in study.cells()})
     return Repetition(repetition, truth, validation, extra, {n: measured(n, "pool", n) for n in sizes})
-
-
-@dataclass
-class Selection:
-    """Calibration poses of one plan: rows of its pool, the design criterion and the time."""
-
-    indices: np.ndarray
-    o1: float = float("nan")
-    log_det: float = float("nan")
-    time_s: float = 0.0
 
 
 def select(study: Study, rep: Repetition, plan: PlanSpec, m: int, designs: dict) -> Selection:

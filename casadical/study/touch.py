@@ -185,11 +185,11 @@ def plan_rows(plan, world: TouchWorld, m: int, n_points: int, pool: bool = False
 
 
 def select_touch_rows(study, world: TouchWorld, plan, m: int, designs: dict, seed: int):
-    """``plan``'s ``m`` calibration rows of the repetition: a :class:`~casadical.study.task.Selection`."""
+    """``plan``'s ``m`` calibration rows of the repetition: a :class:`~casadical.study.selection.Selection`."""
     from ..model.symbolic import Model
     from ..planning.selectors import PlanSettings
     from ..planning.touches import select_touches, touch_problem
-    from .task import Selection
+    from .selection import Selection
 
     npts = len(study.touch.points)
     if plan.selector == "random":

@@ -170,7 +170,6 @@ class Play(Cause):
     needs = {"masses": "backlash by the load", "level": "backlash by the load", "idle": "backlash by the load",
              "one_sign": "backlash by the load", "one_way": "backlash by the motion"}
     order = 50
-    per_session = True
     varies_text = "load joint {j} with torques of both signs"
     tell_apart = {
         "backlash": "approach the same poses from both directions of joint {j}: play that follows the motion changes "

@@ -175,6 +175,21 @@ class ErrorTerm:
         """This term (with its settings) is one the superset expresses."""
         return self.superset_order is not None
 
+    def superset_parameters(self, robot: Robot) -> list[tuple[str, str | None]]:
+        """For each of its parameters, the superset's parameter it is and the covariate whose value at a pose
+        multiplies it there (None: none; a mount compliance's law: its polynomial of the column); by default
+        itself."""
+        return [(p.name, None) for p in self.parameters(robot)]
+
+    def session_parameters(self, robot: Robot) -> list[Parameter]:
+        """Its parameters as a term of one session (``NAME@S``, before their names take the session): its own by
+        default (a mount's are bounded as a mount that differs between sessions)."""
+        return self.parameters(robot)
+
+    def refer(self, data) -> None:
+        """Take from the calibration poses ``data`` what the term is written over (a law: its column's range);
+        nothing by default (a :class:`ReferencedTerm` has its reference)."""
+
     def __init__(self, joints: list[int] | None = None):
         self.joints = None if joints is None else sorted({int(j) for j in joints})
 

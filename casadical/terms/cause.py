@@ -42,8 +42,11 @@ class Cause:
     order: ClassVar[int] = 1000
     #: belongs to its measurement session by nature (a drift, a warm-up): its scope is ``session``
     of_session: ClassVar[bool] = False
-    #: the catalogue screens each of its candidates for each session too, as that session's own (``c2@B``)
-    per_session: ClassVar[bool] = False
+    #: what of a measurement session the cause is, where it may differ from one session to the next (``the
+    #: mount``, ``the instrument's set-up``, ``the temperature``): its candidates may be a session's own
+    #: (:meth:`candidates` says which). None: a property of the robot, with one value whatever the session (a
+    #: joint's stiffness, encoder scale, gear error, play, coupling: a physics rule, never a session's own)
+    session_part: ClassVar[str | None] = None
     #: the word before its joint number (``joint 2``; a thermal expansion's ``link 3``)
     joint_word: ClassVar[str] = "joint"
     #: causes a candidate of this one needs in the model too (a progressive spring has a linear part)
@@ -110,6 +113,11 @@ class Cause:
         to plan for and the question in words; None: the candidate itself, "or something else?"."""
         return None
 
+    def open_question(self, cand: Any) -> str | None:
+        """What a named finding of this cause leaves open that only other sessions can answer (a law over a session
+        covariate: its form between and beyond the values measured), in words; None by default."""
+        return None
+
     @property
     def named(self) -> bool:
         """A cause the diagnosis names (not the geometry, nor what no cause explains)."""
@@ -140,8 +148,9 @@ class Cause:
         return []
 
     def candidates(self, data: Any) -> list:
-        """The candidates of this cause the calibration poses can test (the robot's; each session's own are added
-        for :attr:`per_session` causes). ``data`` is the diagnosis' catalogue
+        """The candidates of this cause the calibration poses can test (the robot's, and where the cause is of a
+        session, :attr:`session_part`, each session's own or a law over a session covariate). ``data`` is the
+        diagnosis' catalogue
         (``casadical.diagnosis.catalogue.Catalogue``): what the poses allow (its joints that move, loads,
         sessions, times, periodograms, the causes accepted so far) and ``data.make(name, ...)`` makes a
         candidate. None by default (a cause the search never screens: the geometry)."""
@@ -152,6 +161,19 @@ class Cause:
         (joints, why, what would allow it) each; ``data`` as :meth:`candidates`' (its robot, poses, torques).
         None by default."""
         return []
+
+    def factors(self, cand: Any, data: Any, cal: Any):
+        """A candidate whose columns are its :attr:`~casadical.diagnosis.candidates.Candidate.carrier`'s at per-pose
+        factors beyond a session's indicator (a law over a session covariate): the factors (N, k) of its k
+        parameters per parameter of the carrier at the poses of ``data`` (``cal``: the calibration poses the law is
+        written over); None by default."""
+        return None
+
+    def carried(self, cand: Any, params: list) -> list:
+        """The parameters (:class:`~casadical.model.parameters.Parameter`, named as the candidate's) of a candidate
+        whose columns are its carrier's (a session's own, a law), made from the carrier's: as they are by default (a
+        mount's differ in their bounds)."""
+        return params
 
     def screenable(self, cand: Any, data: Any) -> bool:
         """Whether ``cand`` can be screened on these poses beyond what :meth:`candidates` knew (a play's sign must
@@ -259,6 +281,12 @@ def register_cause(cause: "Cause") -> "Cause":
     """Make ``cause`` known by its name (a term module calls it once, at import)."""
     CAUSES[cause.name] = cause
     return cause
+
+
+def session_parts() -> list[str]:
+    """What can differ from one measurement session to the next, in words (``the mount``, ``the instrument's
+    set-up``, ...): the registered causes' :attr:`Cause.session_part`, in their order, each once."""
+    return list(dict.fromkeys(c.session_part for c in ordered("order") if c.session_part))
 
 
 def ordered(key: str, extra: tuple = ()) -> list["Cause"]:

@@ -81,7 +81,6 @@ class Compliance(Cause):
     needs = {"linear_axis": "joint_compliance", "masses": "joint_compliance", "idle": "joint_compliance"}
     short = "compliance"
     order = 10
-    per_session = True
     varies_text = "load joint {j} over a wider range of torques"
     tell_apart = {
         "backlash": "measure the same poses with two payloads: a compliant joint deflects in proportion to the load, "

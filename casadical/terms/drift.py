@@ -66,6 +66,7 @@ class FrameDrift(Cause):
     tier = 3
     order = 70
     of_session = True
+    session_part = "the instrument's set-up"
 
     def candidates(self, data) -> list:
         return [data.make(self.name, session=s) for s in data.scopes] if data.timed else []

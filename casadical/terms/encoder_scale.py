@@ -53,7 +53,6 @@ class Scale(Cause):
     checks = ("reading_halves",)
     needs = {"still_axis": "encoder_scale", "still": "encoder_scale"}
     order = 40
-    per_session = True
     varies_text = "move joint {j} over a wider range"
     tell_apart = {
         "joint_periodic": "measure joint {j} over a wider range (more than half a turn): a scale error grows with the "

@@ -119,6 +119,8 @@ class Kinematic(Cause):
     geometry = True
     short = "kinematic"
     scope_word = "robot"
+    #: the links and the tool are the robot's; each session has its own base pose
+    session_part = "the instrument's set-up"
 
     def step_label(self, cand) -> str:
         return "kinematic"

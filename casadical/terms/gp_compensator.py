@@ -119,8 +119,9 @@ class Unexplained(Cause):
         return "unexplained structure" + (f" ({finding.where})" if finding.where else "")
 
     def finding_label(self, finding) -> str:
-        j = finding.candidate.joint
-        return "GP compensator" if finding.in_model else f"unexplained j{j}" if j else "unexplained"
+        j, s = finding.candidate.joint, finding.candidate.session
+        own = f" @{s}" if s is not None and not finding.in_model else ""
+        return "GP compensator" if finding.in_model else (f"unexplained j{j}" if j else "unexplained") + own
 
     def where(self, cand, finding) -> str:
         if finding.in_model:
@@ -165,7 +166,8 @@ def structure_where(structure: dict, joint: int | None) -> str:
               "tilt": f"joint {joint}'s axis" if joint else "the base's tilt",
               "point_base": "point, base frame",
               "point_measurement": "point, measurement frame"}.get(structure["effect"], structure["effect"])
-    return f"{effect}, with {structure['covariate']}"
+    return f"{effect}, with {structure['covariate']}" + (f", in session {structure['session']} only"
+                                                         if structure.get("session") else "")
 
 
 UNEXPLAINED = register_cause(Unexplained())

@@ -91,7 +91,7 @@ class SessionLocal(ErrorTerm):
         return f"{name}@{self.session_name}"
 
     def parameters(self, robot: Robot) -> list[Parameter]:
-        return [replace(p, name=self.suffix(p.name)) for p in self.inner.parameters(robot)]
+        return [replace(p, name=self.suffix(p.name)) for p in self.inner.session_parameters(robot)]
 
     def _local(self, ctx: Context, torques: bool = True) -> Context:
         if torques:

@@ -138,20 +138,19 @@ class GearError(Cause):
     varies_text = "move joint {j} over a wider range"
 
     def candidates(self, data) -> list:
-        """From the periodograms of the residual's joint angle errors, the robot's and each session's: a joint's
-        two strongest harmonics not excluded, and its lowest always (over a small range it mimics an encoder
-        scale error, and the ambiguity can only be reported if both are screened)."""
+        """From the periodograms of the residual's joint angle errors over every pose (a gear is the robot's: one
+        in every session): a joint's two strongest harmonics not excluded, and its lowest always (over a small
+        range it mimics an encoder scale error, and the ambiguity can only be reported if both are screened)."""
         out = []
-        for s, grams in data.periodogram_scopes():
-            for j, pg in enumerate(grams, start=1):
-                if j not in data.revolute and np.ptp(data.cal.q[:, j - 1]) <= 0:
-                    continue
-                low = data.lowest_harmonic(j)
-                ranked = [int(h) for h in pg.harmonics[np.argsort(-pg.power)] if (j, int(h), s) not in data.excluded
-                          and h >= low][:2]
-                hs = set(ranked) | ({low} if (j, low, s) not in data.excluded and low <= pg.harmonics.max(initial=0)
-                                    else set())
-                out += [data.make(self.name, j, h, session=s) for h in sorted(hs)]
+        for j, pg in enumerate(data.periodograms, start=1):
+            if j not in data.revolute and np.ptp(data.cal.q[:, j - 1]) <= 0:
+                continue
+            low = data.lowest_harmonic(j)
+            ranked = [int(h) for h in pg.harmonics[np.argsort(-pg.power)] if (j, int(h), None) not in data.excluded
+                      and h >= low][:2]
+            hs = set(ranked) | ({low} if (j, low, None) not in data.excluded and low <= pg.harmonics.max(initial=0)
+                                else set())
+            out += [data.make(self.name, j, h) for h in sorted(hs)]
         return out
 
     def size(self, cand, values, stds, params, linear) -> str:

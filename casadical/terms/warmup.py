@@ -102,6 +102,7 @@ class WarmUp(Cause):
     tier = 3
     order = 80
     of_session = True
+    session_part = "the warm-up"
     tell_apart = {
         "drift": "measure for longer, or repeat the first poses at the end: a warm-up settles, a drift goes on",
         "warmup": "measure for longer, or repeat the first poses at the end: the time constant shows in how fast the "

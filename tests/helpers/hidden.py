@@ -71,6 +71,15 @@ LINEAR_EFFECTS = ("none", "axis scale", "axis pitch error", "axis motion backlas
 EFFECTS = ("none", "compliance", "progressive stiffness", "gear error", "encoder scale", "torque backlash",
            "motion backlash", "thermal expansion", "thermal expansion of a link", "drift", "two sessions", "several",
            "full pose", "bad shots")
+#: arms of the session matrix (:data:`SESSION_EFFECTS`): 6 axes standard DH (three parallel axes), 7 axes MDH and DH
+SESSION_ROBOTS = {"arm6": ARM6, "arm7": ARM7, "arm7-dh": ARM7_DH}
+#: what differs between sessions (issue 49, :func:`session_case`): the arm on a lifting column at four heights
+#: (``column``: the mount's give grows with the session column ``height_m``, beside joint 2's compliance), and on a
+#: floor that tilts from pose to pose at four stations, a tilt sensor's columns in the data (``floor``)
+SESSION_EFFECTS = ("column", "floor")
+#: the column's heights (m), each a session
+HEIGHTS = (1.0, 1.6, 2.2, 2.8)
+
 #: effects outside the diagnosis catalogue (:func:`case` makes them; not in the matrix of EFFECTS): what a diagnosis
 #: may at most call ``unexplained`` (docs/formats.md section 4: ``Case.unexplained`` holds the joint, covariate and
 #: effect its structure screen would name), never a catalogue cause. ``joint coupling`` and ``mount compliance``
@@ -91,6 +100,8 @@ def robot_doc(name: str) -> dict:
         return LINEAR_ROBOTS[name]
     if name in SIX_AXIS:
         return SIX_AXIS[name]
+    if name in SESSION_ROBOTS:
+        return SESSION_ROBOTS[name]
     return ROBOTS[name] if name in ROBOTS else tomllib.loads((ROBOTS_DIR / f"{name}.toml").read_text())
 
 
@@ -118,6 +129,10 @@ class Case:
     unexplained: tuple | None = None
     #: the tracker's own errors in session A (truth.Session's ``angle_error``, ``distance_scale``)
     instrument: dict = field(default_factory=dict)
+    #: the sessions of a case of :data:`SESSION_EFFECTS` (truth Sessions, each measured alike), instead of A (and B)
+    stations: list = field(default_factory=list)
+    #: structures the screen must locate: (joint or None, covariate, effect) each (a tilt sensor's two columns)
+    located: list = field(default_factory=list)
 
     @property
     def label(self) -> str:
@@ -191,6 +206,47 @@ def case(robot: str, effect: str, seed: int) -> Case:
         return Case(robot, effect, seed, Effects(stiffness={2: k2}), {("joint_compliance", 2, None, robot_scope)},
                     bad=3)
     return outside(robot, effect, seed, arm)
+
+
+def largest(arm: Arm) -> tuple[np.ndarray, float]:
+    """Each drive's largest gravity torque and the largest moment of the weights about the base (across it), over
+    300 poses of the nominal arm."""
+    t = TrueRobot(arm)
+    s = t.state(sample(t, 300, np.random.default_rng(0), floor_z=None))
+    return np.abs(s.drive_torque).max(axis=0), float(np.linalg.norm(s.moment[:, :2], axis=1).max())
+
+
+def session_case(robot: str, effect: str, seed: int, mount_tilt: float = 0.3e-3) -> Case:
+    """What differs between sessions (issue 49), on ``robot`` of :data:`SESSION_ROBOTS`.
+
+    ``column``: the arm on top of a lifting column at :data:`HEIGHTS` (each a session with its own base pose, the
+    tracker in one place, the session column ``height_m``); the column bends under the moment of the arm's
+    weights, its compliance growing with the height, ``C = c0 h`` (``mount_tilt`` rad at the largest moment at the
+    top height), beside joint 2's compliance (0.4 mrad at its largest torque). Named: the mount compliance
+    following ``height_m`` and joint 2's compliance, the robot's; no joint property of one session.
+
+    ``floor``: the arm on a mobile base at four stations, the floor tilting from pose to pose about the base's x
+    and y by up to 2 mrad each, read by a tilt sensor (columns ``tilt_x_rad``, ``tilt_y_rad``, noise 20 urad) beside
+    a column that follows nothing (``acc_spare_x``). Nothing of the catalogue to name; the structure screen locates
+    the base tilting with each of the sensor's columns.
+    """
+    arm = Arm.from_dict(robot_doc(robot))
+    rng = np.random.default_rng(10_000 + seed)
+    if effect == "column":
+        tau, moment = largest(arm)
+        stations = [Session(f"h{h:.1f}", base_xyz=(1.5, -0.5, h), base_rpy=(0.0, 0.0, math.radians(40.0)),
+                            columns={"height_m": h}) for h in HEIGHTS]
+        eff = Effects(stiffness={2: tau[1] / 0.4e-3}, mount_law={"height_m": mount_tilt / moment / max(HEIGHTS)})
+        return Case(robot, effect, seed, eff, {("joint_compliance", 2, None, "robot"),
+                                               ("mount_compliance over height_m", None, None, "robot")},
+                    stations=stations)
+    if effect == "floor":
+        stations = [Session(f"st{k + 1}", base_xyz=tuple(rng.uniform([-2.0, -2.0, -0.5], [2.0, 2.0, 0.5])),
+                            base_rpy=(0.0, 0.0, float(rng.uniform(-np.pi, np.pi))), floor_tilt=2e-3, tilt_noise=20e-6,
+                            unrelated="acc_spare_x") for k in range(4)]
+        return Case(robot, effect, seed, Effects(), set(), stations=stations,
+                    located=[(None, "tilt_x_rad", "tilt"), (None, "tilt_y_rad", "tilt")])
+    raise ValueError(f"unknown session effect {effect!r}")
 
 
 def linear_axis(arm: Arm) -> int:
@@ -317,7 +373,8 @@ def temperatures(n: int, rng: np.random.Generator, lo: float = 15.0, hi: float =
 
 def make_data(c: Case, n_cal: int = 80, n_val: int = 200, folder: str | Path | None = None,
               floor_z: float | None = None, doc: dict | None = None):
-    """Calibration and validation files of the case's true robot (the truth's CSV read back by casadical).
+    """Calibration and validation files of the case's true robot (the truth's CSV read back by casadical); of a
+    case with :attr:`Case.stations`, ``n_cal`` and ``n_val`` poses in each (one file of every session each).
 
     ``doc``: the robot file as a dict (default: the case's robot). Returns (robot, cal, val, true):
     casadical's Robot of the robot file, two Measurements, the TrueRobot.
@@ -332,17 +389,17 @@ def make_data(c: Case, n_cal: int = 80, n_val: int = 200, folder: str | Path | N
     with tempfile.TemporaryDirectory(prefix="hidden-") as tmp:    # the files are read whole, then removed
         for name, n in (("cal", n_cal), ("val", n_val)):
             shots = None
-            for s in ("A", "B") if c.sessions else ("A",):
+            for s in c.stations or (("A", "B") if c.sessions else ("A",)):
                 q = sample(true, n, rng, floor_z=floor_z)
                 cond = {}
                 if c.thermal:
                     cond["temperature_c"] = temperatures(n, rng)
                 if any(c.drift):
                     cond["time_s"] = np.arange(n, dtype=float)
-                more = measure(true, q, rng, session=session_of(c, s), orientation_noise=c.orientation_noise,
-                               bad=c.bad if name == "cal" else 0, **cond)
+                more = measure(true, q, rng, session=s if c.stations else session_of(c, s),
+                               orientation_noise=c.orientation_noise, bad=c.bad if name == "cal" else 0, **cond)
                 shots = more if shots is None else shots + more
-            path = shots.write_csv(Path(folder or tmp) / f"{name}.csv")
+            path = shots.write_csv(Path(folder or tmp) / f"{name}.csv", session_column=True if c.stations else None)
             out.append(Measurements.read_csv(path, n_joints=true.arm.n, require_positions=True))
             if name == "cal":
                 c.bad_lines = [int(i) + 2 for i in shots.bad]     # the header is line 1
@@ -403,10 +460,13 @@ def true_spec(c: Case) -> str:
 # --- claims ------------------------------------------------------------------------------------------------
 
 def cause_of(cause: str, source: str | None, source_joint: int | None = None, direction: str | None = None,
-             angle: str | None = None) -> str:
+             angle: str | None = None, law: str | None = None) -> str:
     """A claim's cause: ``backlash_motion`` for a backlash by the last move; ``joint_coupling from 3`` for a
     coupling to joint 3's reading (the source joint is part of the claim); ``straightness x`` and
-    ``carriage_angle pitch`` for a linear axis' (the direction and the angle are part of the claim)."""
+    ``carriage_angle pitch`` for a linear axis' (the direction and the angle are part of the claim); ``mount_compliance
+    over height_m`` for a law over a session covariate (the column is part of the claim, not the law's degree)."""
+    if law is not None:
+        return f"{cause} over {law.partition(':')[0]}"
     if cause == "joint_coupling":
         return f"joint_coupling from {source_joint}"
     if cause == "straightness":
@@ -425,8 +485,8 @@ def claim(f) -> Claim:
     """(cause, joint, harmonic, scope); the scope of a cause of one named session is ``session B``."""
     cand = f.candidate
     scope = f.scope or cand.scope or "robot"
-    return (cause_of(cand.cause, cand.source, cand.source_joint, cand.direction, cand.angle), cand.joint, cand.harmonic,
-            f"{scope} {cand.session}" if cand.session else scope)
+    return (cause_of(cand.cause, cand.source, cand.source_joint, cand.direction, cand.angle, cand.law), cand.joint,
+            cand.harmonic, f"{scope} {cand.session}" if cand.session else scope)
 
 
 def named(report) -> set:

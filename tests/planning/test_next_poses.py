@@ -14,7 +14,7 @@ import pytest
 
 from casadical.cli import main
 from casadical.planning.augment import Criterion, criterion_value, ds_design, relax_ds_cvxpy
-from tests.helpers.planning_loop import SCENARIOS, loop, setup
+from tests.helpers.planning_loop import JOINT_SCOPE, SCENARIOS, diagnose, loop, setup
 
 
 @pytest.mark.parametrize("interest", [[4], [4, 5], list(range(6))])
@@ -67,21 +67,19 @@ def test_planned_poses_resolve_a_narrow_range_random_ones_do_not(tmp_path, capsy
     assert out["plan"]["criterion"]["ds_efficiency"] > 0.95
 
 
-def test_planned_poses_tell_the_robots_cause_from_a_sessions_own(tmp_path, capsys):
-    """Two sessions of a 5-axis DH arm with an encoder scale error of joint 1 (200 ppm, the robot's): session A
-    covers joint 1's range, session B held it within 6 deg, where the scale is a turn of B's base. The report
-    names the scale and declares it ambiguous with session A's own; the poses planned in session B (--session B,
-    15 of 500 candidates move joint 1) let the diagnosis name the robot's alone, 10 random ones do not."""
-    out = loop(SCENARIOS["robot or session"], 0, tmp_path)
-    assert not out["first"], out["first_findings"]
-    q = out["plan"]["questions"][0]
-    assert q["kind"] == "scope" and "the robot's or session A's own" in q["text"], q["text"]
-    assert q["before"]["power"] < 0.05 and q["planned"]["power"] > 0.9 > q["random"]["power"]
-    assert out["far_picked"] >= 5 and out["far_random"] <= 1
-    assert out["planned"], out["planned_findings"]
-    assert not out["random"], out["random_findings"]
-    head = open(tmp_path / "next.csv").readline().strip().split(",")
-    assert head[-1] == "session" and all(r.strip().endswith(",B") for r in open(tmp_path / "next.csv").readlines()[1:])
+@pytest.mark.parametrize("name", list(JOINT_SCOPE))
+def test_a_joints_property_is_the_robots_whatever_a_sessions_poses(tmp_path, name):
+    """Two sessions of a 5-axis DH arm, session B holding joint 1 within 6 deg, where a scale is a turn of B's base.
+    An encoder scale error of joint 1 (200 ppm), the robot's or session A's alone (its drive re-mastered), is named
+    the robot's from the first poses, with no question of its scope: a joint's own parameter is the robot's (issue
+    49), and B's poses cannot say it lacks it (before, the report asked "the robot's or session A's own?" and
+    plan-poses planned B's poses to tell)."""
+    env = setup(JOINT_SCOPE[name], 0, tmp_path)
+    p = env["paths"]
+    first = diagnose(p["robot"], p["cal"], p["val"], str(tmp_path / "first.json"))
+    named = [f for f in first["findings"] if f["in_model"] and f["cause"] not in ("geometric", "unexplained")]
+    assert [(f["cause"], f.get("joint"), f.get("session")) for f in named] == [("encoder_scale", 1, None)], named
+    assert not [a for a in named[0].get("ambiguous_with", []) if a.get("session")], named[0]
 
 
 def test_planned_poses_tell_compliance_from_encoder_scale(tmp_path, capsys):
@@ -191,7 +189,7 @@ def test_session_options_and_a_sessions_own_structure(tmp_path, capsys):
     (an unexplained harmonic of session A, written into a real report of two sessions) asks which harmonic and
     whether it is the robot's, and the poses planned in session B answer the scope question better than random
     ones."""
-    env = setup(SCENARIOS["robot or session"], 0, tmp_path)
+    env = setup(JOINT_SCOPE["robot or session"], 0, tmp_path)
     p = env["paths"]
     rep = tmp_path / "rep.json"
     assert main(["diagnose", p["robot"], *p["cal"], "--validate", *p["val"], "--json", str(rep), "--no-blackbox",

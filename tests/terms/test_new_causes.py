@@ -95,7 +95,8 @@ def test_specifications_parameters_and_errors():
             p.term == "mount_compliance"] == ["cmount"]
     assert Model(robot, "kinematic+mount_compliance@B", jit=False).parameters["cmount@B"].lower == 0.0
     for bad, says in (("joint_coupling[5:5]", "encoder scale"), ("joint_coupling[5]", "joint:source"),
-                      ("joint_coupling[5:9]", "source joints [9]"), ("mount_compliance[z]", "[xy]")):
+                      ("joint_coupling[5:9]", "source joints [9]"), ("mount_compliance[1z]", "[xy]"),
+                      ("mount_compliance[height_m:3]", "degree")):
         with pytest.raises(ModelError, match=says.replace("[", r"\[").replace("]", r"\]")):
             Model(robot, f"kinematic+{bad}", jit=False)
     massless = {**ARM5, "payload": {}, "joint": [{k: v for k, v in r.items() if k not in ("mass_kg", "com_m")}

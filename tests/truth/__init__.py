@@ -19,8 +19,13 @@ and :mod:`truth.campaign` (sessions, orientation, noise, the file). Besides
 the causes of casadical's diagnosis catalogue the truth makes effects
 outside it: a joint's error from another joint's reading (``coupling``,
 ``cross_error``), a tipping axis (``axis_tilt``), a base tilting on a
-compliant mount (``mount_compliance``, per session too) and the tracker's
-own errors (``Session.angle_error``, ``Session.distance_scale``).
+compliant mount (``mount_compliance``, per session too, or growing with a
+session's covariate: ``mount_law`` over ``Session.columns``), a floor
+tilting from pose to pose with a tilt sensor's columns
+(``Session.floor_tilt``, ``tilt_noise``; ``unrelated``: a column that
+follows nothing) and the tracker's own errors (``Session.angle_error``,
+``Session.distance_scale``).
+
 
 :mod:`truth.touch` makes the rows of what the tool touches (docs/formats.md):
 the true robot's tool point put in sockets, on planes, at a draw-wire's

@@ -22,7 +22,23 @@ bad shots, and the measurement CSV of docs/formats.md section 2.
   measured orientation is not turned by them.
 - A session's ``mount_compliance`` (None: the robot's,
   :class:`truth.robot.Effects`) is the compliance of the mount the robot
-  stood on then.
+  stood on then; the robot's ``Effects.mount_law`` adds ``c x value`` (or
+  ``f(value)``) of the session's own ``columns`` to it.
+- A session's ``columns`` (name -> value, e.g. ``{"height_m": 2.4}``: a
+  column's height, a payload on a tool changer, a track position) are its
+  covariates: constant over its poses, written as columns of its rows.
+- A **tilting floor** (a mobile base): each pose, the robot's base frame
+  turns about its own x and y axes at its origin by the rotation vector
+  ``(t_x, t_y, 0)``, each drawn uniform in ``[-floor_tilt, floor_tilt]``
+  (rad), after the mount's tilt and before the base pose: the measured
+  point is ``base pose x R(t) x (the arm's point)``, the orientation ``R_base
+  R(t) R_flange R_mount``. A tilt sensor on the base reads it: columns
+  ``tilt_x_rad``, ``tilt_y_rad``, ``t`` plus Gaussian noise ``tilt_noise``
+  (rad, per axis). The torques are those of the untilted arm (as the
+  mount's). ``unrelated`` names a sensor column that follows nothing: values
+  drawn uniform in the same range (``[-floor_tilt, floor_tilt]``, 2 mrad
+  without a tilt), so a test can tell "follows a sensor" from "follows any
+  column".
 """
 
 from __future__ import annotations
@@ -51,6 +67,10 @@ class Session:
     mount_compliance: float | tuple | None = None   # rad/(N m): the mount's in this session (None: the robot's)
     angle_error: tuple = (0.0, 0.0)             # (A, phi) rad: the tracker's azimuth error A sin(az + phi)
     distance_scale: float = 0.0                 # s: the tracker measures (1 + s) times the distance
+    columns: dict = field(default_factory=dict)  # the session's covariates: name -> value, a constant column
+    floor_tilt: float = 0.0                     # rad: each pose the base tilts about its x and y by up to this
+    tilt_noise: float = 0.0                     # rad per axis: the tilt sensor's (tilt_x_rad, tilt_y_rad) noise
+    unrelated: str = ""                         # the name of a sensor column that follows nothing ("": none)
 
     def base(self) -> np.ndarray:
         return tf.pose(self.base_xyz, self.base_rpy)[0]
@@ -63,7 +83,7 @@ class Shots:
     q: np.ndarray
     xyz: np.ndarray
     R: np.ndarray | None = None
-    columns: dict = field(default_factory=dict)     # payload_kg, temperature_c, time_s: per row
+    columns: dict = field(default_factory=dict)     # payload_kg, temperature_c, time_s, then any other: per row
     session: list | None = None                     # session name per row (a 'session' column) or None
     bad: np.ndarray = field(default_factory=lambda: np.zeros(0, int))   # rows with a gross error
     prismatic: tuple = ()               # per joint: a linear axis (its column qK_mm, mm); empty: none
@@ -87,10 +107,10 @@ class Shots:
         head = [f"q{j + 1}_{'mm' if linear[j] else 'deg'}" for j in range(n)] + ["x_mm", "y_mm", "z_mm"]
         cols = [self.q[:, j] * 1000 if linear[j] else np.degrees(self.q[:, j]) for j in range(n)]
         cols += [self.xyz[:, k] * 1000 for k in range(3)]
-        for name in ("payload_kg", "temperature_c", "time_s"):
-            if name in self.columns:
-                head.append(name)
-                cols.append(np.asarray(self.columns[name], float))
+        known = ("payload_kg", "temperature_c", "time_s")
+        for name in [k for k in known if k in self.columns] + [k for k in self.columns if k not in known]:
+            head.append(name)
+            cols.append(np.asarray(self.columns[name], float))
         if self.R is not None:
             head += ["rx_deg", "ry_deg", "rz_deg"]
             ang = np.degrees(tf.intrinsic_xyz(self.R))
@@ -120,7 +140,8 @@ def measure(robot: TrueRobot, q: np.ndarray, rng: np.random.Generator | None = N
     """Shots of ``robot`` at readings ``q`` (rad, rows in measurement order) in ``session``.
 
     ``payload_kg``, ``temperature_c``, ``time_s``: per row (or one value), written as columns when given
-    (without ``payload_kg`` the robot file's payload is carried); ``orientation_noise`` (rad per axis):
+    (without ``payload_kg`` the robot file's payload is carried), then the session's ``columns``, its tilt
+    sensor's and its ``unrelated`` column (:class:`Session`); ``orientation_noise`` (rad per axis):
     measure the probe's orientation too; ``bad``: the number of bad shots (rows drawn at random) or their
     row indices; ``moves``: the sign of each joint's last move (default: from the readings' order).
     """
@@ -134,10 +155,19 @@ def measure(robot: TrueRobot, q: np.ndarray, rng: np.random.Generator | None = N
             cols[name] = np.broadcast_to(np.asarray(v, float), (N,)).copy()
     if any(session.drift) and "time_s" not in cols:
         raise ValueError("a drift needs the rows' times (time_s)")
+    for name, v in session.columns.items():
+        cols[name] = np.full(N, float(v))
     temp = cols.get("temperature_c")
     state = robot.state(q, cols.get("payload_kg"), temp, last_moves(q) if moves is None else moves,
-                        mount=session.mount_compliance)
+                        mount=mount_of(robot, session))
     point = robot.tool_point(state, temp, np.asarray(session.tool_shift, float))
+    floor = np.tile(np.eye(3), (N, 1, 1))
+    if session.floor_tilt:
+        t = rng.uniform(-session.floor_tilt, session.floor_tilt, (N, 2))
+        floor = tf.rotation_vector_to_matrix(np.column_stack([t, np.zeros(N)]))
+        point = np.einsum("nij,nj->ni", floor, point)
+        sensed = t + rng.normal(0.0, session.tilt_noise, (N, 2))
+        cols["tilt_x_rad"], cols["tilt_y_rad"] = sensed[:, 0], sensed[:, 1]
     B = session.base()
     xyz = point @ B[:3, :3].T + B[:3, 3]
     if any(session.drift):
@@ -147,13 +177,30 @@ def measure(robot: TrueRobot, q: np.ndarray, rng: np.random.Generator | None = N
     R = None
     if orientation_noise is not None:
         mount = tf.fixed_rpy(*session.mount_rpy)[0, :3, :3]
-        R = B[:3, :3] @ state.flange[:, :3, :3] @ mount
+        R = B[:3, :3] @ floor @ state.flange[:, :3, :3] @ mount
         R = R @ tf.rotation_vector_to_matrix(rng.normal(0.0, orientation_noise, (N, 3)))
     rows = np.asarray(rng.choice(N, size=bad, replace=False) if isinstance(bad, int) else bad, int)
     if len(rows):
         u = rng.normal(size=(len(rows), 3))
         xyz[rows] += bad_mm / 1000 * u / np.linalg.norm(u, axis=1)[:, None]
+    if session.unrelated:        # drawn last: the rest of the shots are those without it
+        span = session.floor_tilt or 2e-3
+        cols[session.unrelated] = rng.uniform(-span, span, N)
     return Shots(q, xyz, R, cols, [session.name] * N, np.sort(rows), robot.arm.prismatic)
+
+
+def mount_of(robot: TrueRobot, session: Session):
+    """The mount's compliance in ``session``: its own (None: the robot's) plus the robot's law over the session's
+    columns (``Effects.mount_law``: ``c x value``, or ``f(value)`` for a function)."""
+    law = robot.effects.mount_law
+    if not law:
+        return session.mount_compliance
+    missing = sorted(set(law) - set(session.columns))
+    if missing:
+        raise ValueError(f"the mount law follows {missing}, which session {session.name!r} has no value of")
+    grow = sum(c(float(session.columns[k])) if callable(c) else c * float(session.columns[k]) for k, c in law.items())
+    own = robot.effects.mount_compliance if session.mount_compliance is None else session.mount_compliance
+    return np.asarray(own, float) + grow if np.ndim(own) else own + grow
 
 
 def instrument(xyz: np.ndarray, session: Session) -> np.ndarray:

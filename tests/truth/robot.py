@@ -80,7 +80,11 @@ new terms of casadical/terms must find):
   arm, the tool point and the flange's orientation turn with it. The arm
   tilts *towards* its weights (a weight at +x: ``M_y > 0``, Ry turns +x
   down). ``Effects.mount_compliance``; a session may have its own
-  (``Session.mount_compliance``: the column's height differs). The
+  (``Session.mount_compliance``: the column's height differs), and the
+  compliance may follow a law over a session column, ``C = C_0 + sum c_k
+  v_k`` or ``C_0 + f(v)`` (``Effects.mount_law = {"height_m": c}``, ``v`` the session's
+  ``Session.columns["height_m"]``: a column's top tilts by ``M L / (E I)``
+  under a moment M, its compliance grows with its length L). The
   torques are those of the untilted arm (the tilt changes gravity's
   direction in the arm by theta, 1e-4: second order).
 - **Bearing compliance** (a joint bearing's tilting stiffness): joint j's
@@ -136,6 +140,10 @@ class Effects:
     #: (cx, cy) rad/(N m) by joint: its axis tips by (cx M_x, cy M_y, 0) in its own frame, M the moment of the
     #: weights it carries about its origin
     bearing_compliance: dict[int, tuple[float, float]] = field(default_factory=dict)
+    #: rad/(N m) per unit of a session column, by its name: in each session the mount's compliance grows by
+    #: ``c0 x value`` (``{"height_m": c0}``: a column bends more the higher the arm sits; truth.campaign.measure),
+    #: or by ``f(value)`` for a function (a telescoping column's give grows faster than its length)
+    mount_law: dict[str, float | Callable] = field(default_factory=dict)
     #: m by (joint, "x" | "y"): a linear axis' carriage off its straight line, a function of its position (m)
     straightness: dict[tuple[int, str], Callable] = field(default_factory=dict)
     #: rad by (joint, "roll" | "pitch" | "yaw"): its carriage's turn, a function of its position (m)
