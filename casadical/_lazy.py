@@ -23,4 +23,10 @@ def lazy(package: str, namespace: dict, exports: dict[str, str]) -> tuple[Callab
     def __dir__() -> list[str]:
         return sorted({*namespace, *exports})
 
+    # a public name its module shares (``planning.observability``) is bound now: importing the module later (by
+    # any path) would set the package's attribute to the module, and ``__getattr__`` would never be asked
+    for name, module in exports.items():
+        if name == module:
+            namespace[name] = getattr(import_module(f".{module}", package), name)
+
     return __getattr__, __dir__

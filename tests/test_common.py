@@ -24,6 +24,7 @@ from __future__ import annotations
 import json
 import math
 import warnings
+from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -77,12 +78,14 @@ BUILD = {
         "B": [0, -1, 0, 1, 0, 0, 0, 0, 1, 1.2, -0.8, 0.1]}),
     "gp_compensator": lambda robot, rng: make_term("gp_compensator", gp=_gp(robot, rng)),
     "rbf_compensator": lambda robot, rng: make_term("rbf_compensator", network=_rbf(robot, rng)),
+    "tool_points": lambda robot, rng: make_term("tool_points", names=["smr1", "smr2"]),
 }
 
 #: the model specification a calibration with the term is asked for, where it is not ``kinematic+<term spec>``
 CALIBRATE = {
     "sessions": "kinematic",            # data of two sessions: the calibration adds the term itself
     "joint_periodic": "kinematic+joint_periodic[2:1,3:2]",
+    "tool_points": "kinematic",         # rows naming their tool point: the calibration adds the term itself
 }
 
 #: checks that cannot apply to a term, and why (checks: "sizes", "derivatives", "bounds", "json")
@@ -98,6 +101,8 @@ UNBOUNDED = {
     ("geometric", "base_"): "the base pose is where the tracker stands: any pose",
     ("sessions", "base_"): "each session's base pose is where its tracker stood: any pose",
     ("tool_orientation", "tool_"): "the probe may be mounted at any rotation",
+    ("tool_points", "tool_"): "a tool point the robot file does not declare ([tool.NAME]) may sit anywhere on the "
+                              "tool (a declared one is bounded: its nominal +- the geometry's box)",
     ("nonlinear_stiffness", "cubic"): "a progressive spring may stiffen or soften (either sign, any size); "
                                       "the physics rules judge its value (casadical/stats/physics.py)",
 }
@@ -130,13 +135,17 @@ def campaign():
         d.columns["payload_kg"] = rng.uniform(0, 5, len(d))
     a.path, b.path = "A.csv", "B.csv"
     track, _ = simulate(TRACK, 40, Effects(stiffness={3: 1.5e6}), seed=5)
-    return {"one": a, "two": combine([a, b]), "full": full, "track": track}
+    # a tool of two points, each pose's rows alternating between them (a tool column)
+    tools = replace(a, columns={**a.columns, "tool": np.array(["smr1", "smr2"] * (len(a) // 2), dtype=object)})
+    return {"one": a, "two": combine([a, b]), "full": full, "track": track, "tools": tools}
 
 
 def data_of(name: str, model: Model, campaign: dict):
     """The campaign's data a check of the term ``name`` runs on."""
     if name in ON_TRACK:
         return campaign["track"]
+    if name == "tool_points":
+        return campaign["tools"]
     return campaign["two"] if name == "sessions" else campaign["full"] if model.orientation else campaign["one"]
 
 

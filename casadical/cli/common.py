@@ -293,7 +293,7 @@ def add_levelled(p: argparse.ArgumentParser) -> None:
                    help="the instrument was levelled (its z up): warn where the robot file's gravity is more than 5 "
                         "deg from its down as the fitted base pose puts it, and say the direction to give (by "
                         "default checked where two sessions or more agree on one vertical)")
-    g.add_argument("--not-levelled", dest="levelled", action="store_false",
+    g.add_argument("--not-levelled", dest="levelled", action="store_false", default=None,
                    help="the instrument was not levelled: no check of the robot file's gravity")
 
 

@@ -33,6 +33,7 @@ from ..apply.inverse import MAX_DEG_PER_MM, calibrated_on_orientation, compensat
 from ..data.measurements import Measurements
 from ..model.symbolic import Model, pose_to_base0
 from ..result import CalibrationResult, rotation_angles_between
+from ..terms.geometric import Geometric
 from .program import Program, Target
 
 #: inverse kinematics: random starts per target besides the program's joint targets and the middle of the ranges
@@ -169,7 +170,7 @@ def in_robot_frame(cal: CalibrationResult, tool: np.ndarray, nominal: bool = Fal
         cal = CalibrationResult(model, params, cal.base0)
     params = cal.parameters.copy()
     for p in params:
-        if p.term == "geometric" and p.group == "base":
+        if p.term == Geometric.name and p.group == "base":
             p.value = 0.0
     for k, axis in enumerate("xyz"):
         params[f"tool_{axis}"].value = float(tool[k, 3])

@@ -1,10 +1,10 @@
-"""The sag note and the set-aside tests read the poses chunk by chunk (casadical.problem.pose_chunks) and the
+"""The sag note and the set-aside tests read the poses chunk by chunk (casadical.runtime.chunks.pose_chunks) and the
 angle Jacobian of the set-aside poses alone: the same figures as all poses at once, on arms not built in."""
 
 import numpy as np
 import pytest
 
-import casadical.problem as problem
+import casadical.runtime.chunks as chunks
 from casadical import calibrate
 from casadical.data import Measurements
 from casadical.data.simulate import Effects, simulate
@@ -29,9 +29,9 @@ def test_chunked_sag_and_set_aside_are_those_of_all_poses(arm, seed, monkeypatch
     flagged = np.zeros(len(data), bool)
     flagged[bad] = True
 
-    monkeypatch.setattr(problem, "CHUNK", 10 ** 9)          # one chunk: every pose at once
+    monkeypatch.setattr(chunks, "CHUNK", 10 ** 9)          # one chunk: every pose at once
     sags, leaves = first_order_sag(res, data)
-    monkeypatch.setattr(problem, "CHUNK", 37)               # three chunks of uneven size
+    monkeypatch.setattr(chunks, "CHUNK", 37)               # three chunks of uneven size
     sags_c, leaves_c = first_order_sag(res, data)
     assert sags and leaves > 0
     assert [(s.joint, s.sag_rad, s.leaves_m) for s in sags_c] == [(s.joint, s.sag_rad, s.leaves_m) for s in sags]
