@@ -206,3 +206,9 @@ def shortlist(scored: list, tier: int, level: float, n: int) -> list:
             seen.add(c.family)
             out.append(sc)
     return out[:n]
+
+
+def own_parameters(cand: Candidate, accepted: list[Candidate]) -> list[str]:
+    """The parameters only ``cand`` brings (a progressive stiffness shares its linear part with the compliance)."""
+    others = {n for a in accepted if a != cand for n in a.parameter_names()}
+    return [n for n in cand.parameter_names() if n not in others]

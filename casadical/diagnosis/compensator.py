@@ -10,9 +10,9 @@ model interpolates (random folds; paired, one-sided, at the diagnosis's
 level, and by more than :data:`MIN_GAIN`), not raise it where it must extrapolate (time blocks, joint-range
 blocks, each session left out: there it should know that it does not know,
 and add little), and not raise the worst held-out error of any kind of fold
-by more than :data:`~casadical.diagnosis.never_worse.WORST_SHARE`, like with
+by more than :data:`~casadical.diagnosis.worst.WORST_SHARE`, like with
 like: the poses both models miss by more than the noise (beyond the robust
-loss's half-weight radius, :func:`~casadical.diagnosis.never_worse.noise_band`:
+loss's half-weight radius, :func:`~casadical.diagnosis.worst.noise_band`:
 bad shots, a transient) are left out of that worst case, since what the
 compensator does there says nothing of it; a rise elsewhere vetoes. The
 strength of its shrinkage (:data:`SHRINKS`, the ``p`` of
@@ -44,11 +44,11 @@ from ..prediction import prediction_std
 from ..result import CalibrationResult
 from ..terms import UNEXPLAINED
 from .candidates import Candidate, compose_spec
-from .never_worse import WORST_SHARE, noise_band
 from .report import Finding, Step
 from .state import DiagnosisRun
 from .statistics import paired_gain
 from .validation import EXTRAPOLATING, KINDS
+from .worst import WORST_SHARE, noise_band
 
 #: fewer poses than this (in a session) give no GP compensator
 MIN_POSES = 20

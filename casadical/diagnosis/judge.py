@@ -6,7 +6,7 @@ measured point, :func:`casadical.prediction.prediction_interval`) and ``set_asid
 fit set aside, tested for shared structure before they are called bad measurements: :mod:`casadical.stats.outliers`;
 those the structure screen brings back within the robust loss's limit are the largest misses of that structure,
 ``structure_misses``), and adds the notes: a worst
-validation error above the kinematic model's (:func:`.never_worse.validation_note`), the remaining residual
+validation error above the kinematic model's (:func:`.worst.validation_note`), the remaining residual
 (in units of the instrument's noise where it is known: ``noise``, :mod:`.noise`), the sag the model
 predicts, the set-aside poses.
 """
@@ -21,9 +21,9 @@ from ..result import learning_mask
 from ..stats.outliers import of_fit
 from ..stats.physics import sag_note
 from .gaps import set_aside_note
-from .never_worse import SET_ASIDE_WEIGHT, validation_note
 from .noise import noise_floor
 from .state import DiagnosisRun
+from .worst import SET_ASIDE_WEIGHT, validation_note
 
 
 def judge_final_model(run: DiagnosisRun) -> None:

@@ -21,16 +21,10 @@ import math
 import numpy as np
 
 from ..result import CalibrationResult
-from .candidates import Candidate, compose_spec
+from .candidates import Candidate, compose_spec, own_parameters
 from .state import DiagnosisRun
 from .statistics import NestedTest, nested_test, noise_ssr
 from .validation import Linearized
-
-
-def own_parameters(cand: Candidate, accepted: list[Candidate]) -> list[str]:
-    """The parameters only ``cand`` brings (a progressive stiffness shares its linear part with the compliance)."""
-    others = {n for a in accepted if a != cand for n in a.parameter_names()}
-    return [n for n in cand.parameter_names() if n not in others]
 
 
 def without_tests(current: CalibrationResult, lin: Linearized, accepted: list[Candidate], n_eq: int

@@ -42,8 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..result import CalibrationResult
-from .candidates import Candidate, compose_spec
-from .redundancy import own_parameters
+from .candidates import Candidate, compose_spec, own_parameters
 from .state import DiagnosisRun
 from .statistics import NestedTest, nested_test, set_aside_share
 from .structure import INSTRUMENT, MAX_STRUCTURES, Found, StructureScreen, describe_pair, weighted

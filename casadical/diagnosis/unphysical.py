@@ -9,8 +9,7 @@ the check runs again. Reads and sets ``current`` and ``accepted``; a dropped cau
 from __future__ import annotations
 
 from ..stats.physics import violations
-from .candidates import compose_spec
-from .redundancy import own_parameters
+from .candidates import compose_spec, own_parameters
 from .state import DiagnosisRun
 
 

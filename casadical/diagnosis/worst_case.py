@@ -2,10 +2,10 @@
 corrections to drop to restore it, and what that costs in the mean; with ``worst_case`` that is the final model.
 
 Reads ``final``, ``parametric``, ``kinematic``, ``accepted``, ``geometric`` and ``final_spec``; adds a note when the
-final model's worst validation error is more than :data:`~.never_worse.WORST_SHARE` above the kinematic model's,
+final model's worst validation error is more than :data:`~.worst.WORST_SHARE` above the kinematic model's,
 like with like (the poses both miss by more than the noise, beyond each one's robust loss's half-weight radius
-:func:`~.never_worse.noise_band`, are left out: a bad measurement or a transient no model of the robot predicts,
-which :func:`~.never_worse.validation_note` names). The note names the corrections whose dropping restores it at
+:func:`~.worst.noise_band`, are left out: a bad measurement or a transient no model of the robot predicts,
+which :func:`~.worst.validation_note` names). The note names the corrections whose dropping restores it at
 the least cost in the validation mean, among: the GP compensator alone; the named causes, dropped one at a time
 (backward, each time the one whose dropping lowers the worst error most, at most :data:`MAX_DROPS`; of the
 causes still kept only the :data:`SCREENED` a linearised screen ranks first are refitted in full, :func:`_screened`),
@@ -31,11 +31,10 @@ from ..calibration.per_session import with_gp_compensator
 from ..compensators.gp import ResidualGP
 from ..data.measurements import session_index
 from ..terms import SessionLocal
-from .candidates import compose_spec
-from .never_worse import WORST_SHARE, noise_band
-from .redundancy import own_parameters
+from .candidates import compose_spec, own_parameters
 from .state import DiagnosisRun
 from .validation import Linearized
+from .worst import WORST_SHARE, noise_band
 
 #: the named causes dropped one at a time at most this many times before the kinematic model is the answer
 MAX_DROPS = 4

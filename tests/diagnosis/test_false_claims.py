@@ -31,8 +31,8 @@ import pytest
 
 from casadical.cli import main
 from casadical.diagnosis import DiagnosisSettings, diagnose
-from casadical.diagnosis.never_worse import Held
 from casadical.diagnosis.statistics import nested_test, set_aside_share
+from casadical.diagnosis.worst import Held
 from tests.helpers import hidden
 
 
