@@ -16,6 +16,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..terms.geometric import Geometric
 from .state import CalibrationRun
 
 #: what touches cannot see, in words (docs/formats.md section 11)
@@ -24,6 +25,8 @@ SCALE_WHY = "no known distance"
 
 
 def fix_unobservable(run: CalibrationRun) -> None:
+    """What rows that touch cannot see (:func:`unseen`: the base pose; without a known distance, the scale) held at
+    the robot file's values and said; sets ``run.unobservable``. Nothing for rows an instrument measured."""
     run.unobservable = unseen(run.data, run.params)
     for u in run.unobservable:
         run.params.fix(u["parameters"], f"{u['what']}: {u['why']}")
@@ -50,7 +53,7 @@ def unseen(data, params) -> list[dict]:
     else:
         out += [{"what": f"the base pose of session {s}", "why": BASE_WHY, "parameters": base(s)} for s in blind]
     if not data.layout.known_distance():
-        lengths = [p for p in params if p.term == "geometric" and p.group == "link" and p.unit == "m"
+        lengths = [p for p in params if p.term == Geometric.name and p.group == "link" and p.unit == "m"
                    and not p.fixed]
         if lengths:
             longest = max(lengths, key=lambda p: abs(p.nominal))

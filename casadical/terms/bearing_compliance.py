@@ -217,10 +217,9 @@ class BearingGive(Cause):
             for k, earlier in parallel_to_earlier(data.robot, data.cal.q, j).items():
                 if earlier is not None:
                     found.setdefault(k, []).append((j, earlier))
-        return [([j for j, _ in pairs], f"the tilt of each bearing about its {k} is about the axis of the joint "
-                 f"before ({', '.join(f'joint {e} for {j}' for j, e in pairs)}), whose compliance takes it",
-                 "nothing these poses could change: the two follow nearly the same moment") for k, pairs in
-                found.items()]
+        return [([j for j, _ in pairs], f"each bearing's tilt about its {k} is a turn about the joint before "
+                 f"({', '.join(f'joint {e} for {j}' for j, e in pairs)}), whose compliance takes it",
+                 "no poses could tell them apart") for k, pairs in found.items()]
 
     def parameter_names(self, cand) -> list[str]:
         return [f"cbear{cand.joint}_{cand.direction}"]

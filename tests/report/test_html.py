@@ -693,7 +693,8 @@ def test_readme_quotes_what_the_job_prints_or_says_where_a_figure_comes_from(rea
 def test_readme_summary_findings_first_and_short(readme_job):
     d, r, doc = readme_job
     lines = r.stdout.splitlines()
-    assert max(map(len, lines)) <= 200 and len(lines) <= 70 and len(r.stdout) < 8000, (max(map(len, lines)),
+    # 72 lines: 69 at 22830a8, then the not-tried entry of the bearings' compliance (issue 46)
+    assert max(map(len, lines)) <= 200 and len(lines) <= 72 and len(r.stdout) < 8000, (max(map(len, lines)),
                                                                                      len(lines))
     head = next(k for k, x in enumerate(lines) if x.startswith("findings ("))
     final = next(k for k, x in enumerate(lines) if x.startswith("final model: validation mean"))
