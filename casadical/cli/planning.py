@@ -167,18 +167,25 @@ def cmd_plan_poses(args) -> int:
             raise
         raise InputError(str(e), file=args.candidates) from e
     res.jacobian_time_s = t_jac
+    return _selected(args, robot, data, model, res,
+                     f"model {model.spec} on {robot.name}: {problem.n_parameters} identifiable parameters from {N} "
+                     f"candidates in {args.candidates}")
+
+
+def _selected(args, robot, data, model, res, headline: str, extra: dict | None = None) -> int:
+    """The selection written and said: the rows (with ``--program``, in the order of the measurement run, the
+    program written), the summary, the JSON."""
     indices = _in_run_order(args, robot, data, res.indices)
     lines = _write_rows(args.candidates, indices, args.out, args.force)
     out = human_stream(args.json)         # --json -: standard output holds the JSON alone
-    print(f"model {model.spec} on {robot.name}: {problem.n_parameters} identifiable parameters "
-          f"from {N} candidates in {args.candidates}", file=out)
+    print(headline, file=out)
     print(res.summary(), file=out)
     print(f"selected rows -> {args.out}" + (" (in the order of the measurement run)" if args.program else ""),
           file=out)
     if args.program:
         print(f"measurement run -> {args.program}", file=out)
     if args.json:
-        doc = {"robot": robot.name, "model": model.spec, "candidates": args.candidates,
+        doc = {"robot": robot.name, "model": model.spec, "candidates": args.candidates, **(extra or {}),
                "file_lines": lines, **res.to_dict()}
         if args.program:
             doc["program"] = {"file": args.program, "order": [int(i) for i in indices]}
@@ -232,26 +239,12 @@ def _plan_touches(args, robot, data) -> int:
                          "candidates identify (each point touched takes 3 of a row's equations, and 4 rows of it at "
                          f"least): use a larger -m (3 x {p} = {3 * p} is a good start)", file=args.candidates)
     res.jacobian_time_s = t_jac
-    indices = _in_run_order(args, robot, data, res.indices)
-    lines = _write_rows(args.candidates, indices, args.out, args.force)
-    out = human_stream(args.json)
-    print(f"model {model.spec} on {robot.name}: {p} parameters identified by the {N} candidate rows of "
-          f"{args.candidates}, touching {len(problem.set_names)} point{'s' * (len(problem.set_names) != 1)} or "
-          f"plane{'s' * (len(problem.set_names) != 1)} of their sessions"
-          f"{' (fixture ' + ', '.join(f.name for f in data.fixtures) + ')' if data.fixtures else ''}", file=out)
-    print(res.summary(), file=out)
-    print(f"selected rows -> {args.out}" + (" (in the order of the measurement run)" if args.program else ""),
-          file=out)
-    if args.program:
-        print(f"measurement run -> {args.program}", file=out)
-    if args.json:
-        doc = {"robot": robot.name, "model": model.spec, "candidates": args.candidates,
-               **({"fixture": args.fixture} if args.fixture else {}), "file_lines": lines, **res.to_dict()}
-        if args.program:
-            doc["program"] = {"file": args.program, "order": [int(i) for i in indices]}
-        write_json(args.json, doc, args.force)
-        print(f"summary -> {'standard output' if args.json == '-' else args.json}", file=out)
-    return 0
+    n = len(problem.set_names)
+    fixture = f" (fixture {', '.join(f.name for f in data.fixtures)})" if data.fixtures else ""
+    return _selected(args, robot, data, model, res,
+                     f"model {model.spec} on {robot.name}: {p} parameters identified by the {N} candidate rows of "
+                     f"{args.candidates}, touching {n} point{'s' * (n != 1)} or plane{'s' * (n != 1)} of their "
+                     f"sessions{fixture}", {"fixture": args.fixture} if args.fixture else {})
 
 
 def cmd_plan_report(args) -> int:
