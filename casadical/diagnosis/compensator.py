@@ -45,7 +45,7 @@ from ..result import CalibrationResult
 from ..terms import UNEXPLAINED
 from .candidates import Candidate, compose_spec
 from .report import Finding, Step
-from .state import DiagnosisRun
+from .state import DiagnosisRun, FinalModel
 from .statistics import paired_gain
 from .validation import EXTRAPOLATING, KINDS
 from .worst import WORST_SHARE, noise_band
@@ -213,13 +213,12 @@ def _per_session(data: Measurements, keep: np.ndarray) -> dict[str, int]:
     return {s: int(keep[data.sessions == s].sum()) for s in data.session_names}
 
 
-def add_compensator(run: DiagnosisRun) -> None:
-    """Stage ``add_compensator``: reads the model of the named causes (``current``, ``accepted``, ``geometric``)
-    and sets it as ``parametric``; with ``blackbox`` (the default) fits and judges the GP compensator on it
-    (:func:`compensator_step`); sets ``final`` and ``final_spec`` to the model the diagnosis ends with."""
-    run.parametric = run.current
-    run.final, run.final_spec = run.current, compose_spec(run.accepted, run.geometric)
+def add_compensator(run: DiagnosisRun) -> FinalModel:
+    """Stage ``add_compensator``: reads the model of the named causes (``current``, ``accepted``, ``geometric``);
+    with ``blackbox`` (the default) fits and judges the GP compensator on it (:func:`compensator_step`); returns
+    the model the diagnosis ends with (the pipeline installs it: ``parametric``, ``final``, ``final_spec``)."""
+    final, spec = run.current, compose_spec(run.accepted, run.geometric)
     if run.s.blackbox:
-        run.final, run.final_spec = compensator_step(run.current, run.final_spec, run.cal, run.val, run.schemes,
-                                                     run.s, run.steps, run.findings, run.say,
-                                                     parent=run.step_of(run.current))
+        final, spec = compensator_step(run.current, spec, run.cal, run.val, run.schemes, run.s, run.steps,
+                                       run.findings, run.say, parent=run.step_of(run.current))
+    return FinalModel(run.current, final, spec, tuple(run.accepted), run.geometric)

@@ -26,9 +26,11 @@ session, applied where it knows) takes what no named cause explains;
 :mod:`.transfer` takes the findings to another series.
 
 Each stage is a function ``stage(run)`` of its own module that reads what the stages before it set on the
-:class:`~.state.DiagnosisRun` and sets its own fields; :data:`STAGES` is their order. To add a stage, write
-it in a module of this package (a docstring saying what it reads and sets), give the run the fields it sets,
-and put it in :data:`STAGES` where its inputs are ready.
+:class:`~.state.DiagnosisRun` and sets its own fields; a stage that makes the final model returns it (a
+:class:`~.state.FinalModel`) and the pipeline installs it (:meth:`~.state.DiagnosisRun.install`), so that no
+stage rewrites another's model in place. :data:`STAGES` is their order. To add a stage, write it in a module of
+this package (a docstring saying what it reads and sets, or returns), give the run the fields it sets, and put
+it in :data:`STAGES` where its inputs are ready.
 """
 
 from __future__ import annotations
@@ -52,14 +54,14 @@ from .report import DiagnosisReport
 from .search import search_causes
 from .settings import DiagnosisSettings
 from .stand_ins import drop_stand_ins
-from .state import DiagnosisRun
+from .state import DiagnosisRun, FinalModel
 from .structure import screen_structure
 from .transfer import transfer_findings
 from .unphysical import drop_unphysical
 from .worst_case import keep_worst_case
 
 #: the stages of :func:`diagnose`, in order
-STAGES: tuple[Callable[[DiagnosisRun], None], ...] = (
+STAGES: tuple[Callable[[DiagnosisRun], FinalModel | None], ...] = (
     check_data,         # the poses against the robot, the validation poses held out; equations, folds, sessions
     fit_nominal,        # step 1: the nominal model, its base pose fitted
     fit_geometry,       # step 2: the kinematic calibration; how weak the design is; where the search starts
@@ -113,5 +115,7 @@ def diagnose(robot: Robot, cal: Measurements, val: Measurements, settings: Diagn
     run = DiagnosisRun(robot, cal, val, settings or DiagnosisSettings(), progress or (lambda _: None), other,
                        checks)
     for stage in STAGES:
-        stage(run)
+        made = stage(run)
+        if made is not None:
+            run.install(made)
     return run.report

@@ -52,6 +52,19 @@ if TYPE_CHECKING:
 KEPT_FITS = 2
 
 
+@dataclass(frozen=True)
+class FinalModel:
+    """The model a stage ends the diagnosis with, returned for the pipeline to install (:meth:`DiagnosisRun.install`):
+    the model of the named causes (``parametric``), the final model (it with the GP compensator where one is
+    kept), the final model's specification, and the named causes and geometry it holds."""
+
+    parametric: CalibrationResult
+    final: CalibrationResult
+    spec: str
+    accepted: tuple
+    geometric: bool
+
+
 @dataclass
 class DiagnosisRun:
     """One diagnosis as it goes through the stages.
@@ -111,7 +124,8 @@ class DiagnosisRun:
     # keep_never_worse
     held_text: str = ""            # the final check's worst held-out errors, in words
 
-    # add_compensator: the model of the named causes, and the final model
+    # the final model (add_compensator's, or keep_worst_case's with --worst-case): installed by the pipeline from
+    # the FinalModel the stage returns (install)
     parametric: CalibrationResult | None = None
     final: CalibrationResult | None = None
     final_spec: str = ""
@@ -142,6 +156,13 @@ class DiagnosisRun:
         :func:`.validation.schemes`)."""
         return schemes(self.cal.q, self.cal.rows, self.s.folds, self.s.seed, joint_levers(self.robot, self.cal),
                        sessions=self.cal.sessions, moving=moving)
+
+    def install(self, made: FinalModel) -> None:
+        """The final model a stage returned becomes the run's: ``parametric`` (and ``current``), ``final``,
+        ``final_spec``, ``accepted``, ``geometric`` (the one place they are set after the search)."""
+        self.parametric = self.current = made.parametric
+        self.final, self.final_spec = made.final, made.spec
+        self.accepted, self.geometric = list(made.accepted), made.geometric
 
     def step_of(self, res: CalibrationResult) -> int | None:
         """Index of the step whose model ``res`` is (None for a fit no step holds: a final-check refit)."""

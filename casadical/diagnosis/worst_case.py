@@ -32,7 +32,7 @@ from ..compensators.gp import ResidualGP
 from ..data.measurements import session_index
 from ..terms import SessionLocal
 from .candidates import compose_spec, own_parameters
-from .state import DiagnosisRun
+from .state import DiagnosisRun, FinalModel
 from .validation import Linearized
 from .worst import WORST_SHARE, noise_band
 
@@ -190,7 +190,7 @@ def unchecked_terms(run: DiagnosisRun, i: int, dropped: list) -> str:
     return "; ".join(said)
 
 
-def keep_worst_case(run: DiagnosisRun) -> None:
+def keep_worst_case(run: DiagnosisRun) -> FinalModel | None:
     e_kin, e_final = run.val_errors(run.kinematic) * 1000, run.val_errors(run.final) * 1000
     # beyond each model's own half-weight radius, as validation_note's "miss both models"
     b_kin, b_final = noise_band(run.kinematic) or np.inf, noise_band(run.parametric) or np.inf
@@ -253,9 +253,7 @@ def keep_worst_case(run: DiagnosisRun) -> None:
         new = None
     for a in what_dropped:
         run.drop_finding(a)
-    run.parametric = run.current = fit
-    run.final = with_gp_compensator(fit, new, run.cal, "gp_compensator: the GP compensator (one per session)") \
+    final = with_gp_compensator(fit, new, run.cal, "gp_compensator: the GP compensator (one per session)") \
         if new else fit
-    run.accepted, run.geometric = earlier, geo
     spec = "kinematic" if fit is run.kinematic else compose_spec(earlier, geo)
-    run.final_spec = spec + ("+gp_compensator" if new else "")
+    return FinalModel(fit, final, spec + ("+gp_compensator" if new else ""), tuple(earlier), geo)
