@@ -18,7 +18,7 @@ files: wall time and CPU time (user + system, with its children), median of
 
 Every diagnosis of the same data must give the same report: the script
 compares each run's JSON with the first one's (every number but the run
-time), each HTML page with the first one's (but the run time), and the
+time and the options it records), each HTML page with the first one's (but the run time), and the
 ``--transfer`` runs with each other, and stops if one differs.
 
 It ends with the README's figures as the README says them, with the machine
@@ -114,10 +114,13 @@ def steps(tmp: Path, transfer: bool) -> list[tuple[str, list[str], dict]]:
 
 
 def outputs(tmp: Path, html: bool) -> dict:
-    """A diagnosis' report (every value but the run time) and its HTML page (but the run time)."""
-    out = {"report": {k: v for k, v in json.loads((tmp / "report.json").read_text()).items() if k != "time_s"}}
+    """A diagnosis' report (every value but the run time and the options it records as given) and its HTML page
+    (but the run time)."""
+    out = {"report": {k: v for k, v in json.loads((tmp / "report.json").read_text()).items()
+                      if k not in ("time_s", "inputs")}}
     if html:
-        out["HTML page"] = re.sub(r"Run time [0-9.]+ s", "Run time", (tmp / "report.html").read_text(encoding="utf-8"))
+        page = (tmp / "report.html").read_text(encoding="utf-8")
+        out["HTML page"] = re.sub(r"(Run time|models tried in) [0-9.]+ s", r"\1", page)
     return out
 
 
