@@ -464,6 +464,10 @@ class Found:
     held_out_share: float
 
 
+#: a structure screen keeps its pairs' columns where all of them take less than this (bytes; 300 poses: about 20 MB)
+KEEP_BYTES = 256e6
+
+
 class StructureScreen:
     """The structure screen of one fit on the calibration poses: its covariates, effects' directions, folds."""
 
@@ -477,17 +481,24 @@ class StructureScreen:
         self.dirs = directions(res, cal, self.poses)
         self.project = projection(res, cal)
         self.refs = {k: (_range(v)) for k, v in self.cov.items()}
-        self.project = projection(res, cal)
-        self.refs = {k: (_range(v)) for k, v in self.cov.items()}
         sessions = tuple(cal.session_names) if len(cal.session_names) > 1 else ()
         self.tried = pairs(cal.q.shape[1], "moment" in self.cov, self.own, sessions, "azimuth" in self.cov)
         self.level = math.log10(alpha / len(self.tried))
         self.folds = np.array_split(np.random.default_rng(seed).permutation(len(cal)), FOLDS)
+        self._kept: dict[tuple, np.ndarray] = {}
 
     def columns(self, cov: str, effect: str, joint: int | None, session: str | None = None) -> np.ndarray:
-        at = None if session is None else (self.cal.sessions == session).astype(float)
-        return self.project(_columns(self.cov[cov], self.refs[cov], self.dirs[_direction_key(cov, effect, joint)],
-                                     at))
+        """The pair's columns at the calibration poses (N, 3, k), read-only: kept while every pair's together
+        take less than :data:`KEEP_BYTES` (the stand-in check asks each pair once per named cause)."""
+        X = self._kept.get((cov, effect, joint, session))
+        if X is None:
+            at = None if session is None else (self.cal.sessions == session).astype(float)
+            X = self.project(_columns(self.cov[cov], self.refs[cov], self.dirs[_direction_key(cov, effect, joint)],
+                                      at))
+            X.flags.writeable = False
+            if X.nbytes * len(self.tried) <= KEEP_BYTES:
+                self._kept[cov, effect, joint, session] = X
+        return X
 
     def strongest(self, base: np.ndarray, r: np.ndarray, w: np.ndarray, skip=(), only=None) -> Found | None:
         """The pair that explains most of ``r`` beside the columns ``base`` (N, 3, p) at weights ``w``, if it is
