@@ -80,37 +80,37 @@ class Summary:
                 "repetitions": self.repetitions, "rows": [keep(asdict(r)) for r in self.rows]}
 
     def table(self) -> str:
-        """Markdown table."""
-        if self.touch:
-            return self._touch_table()
+        """Markdown table; a study of touches: placements and rows per socket, the distance error beside the
+        metric (by default the consistency on fresh placements), the true error after the best rigid motion."""
+        columns = _TOUCH_COLUMNS if self.touch else _COLUMNS
         out = [f"study {self.name}: {self.repetitions} repetitions; {self.metric} over the repetitions "
                f"that succeeded; win rate = share of paired repetitions with a lower {self.metric} than "
                f"{self.baseline}", "",
-               f"| plan | poses | method | ok | median | IQR | true error, median | win rate vs {self.baseline} "
-               "| stiffness error, median (%) | fit time, median (s) |",
-               "|---|---|---|---|---|---|---|---|---|---|"]
-        for r in self.rows:
-            win = "-" if r.win_rate is None else f"{100 * r.win_rate:.0f} % of {r.pairs}"
-            out.append(f"| {r.plan} | {r.n_poses} | {r.method} | {r.ok}/{r.runs} | {_num(r.median)} "
-                       f"| {_num(r.q25)} - {_num(r.q75)} | {_num(r.true_median)} | {win} "
-                       f"| {_num(r.stiffness_error_median, 2)} | {_num(r.fit_time_median, 3)} |")
+               "| " + " | ".join(h.format(baseline=self.baseline) for h, _ in columns) + " |",
+               "|" + "---|" * len(columns)]
+        out += ["| " + " | ".join(cell(r) for _, cell in columns) + " |" for r in self.rows]
         return "\n".join(out)
 
-    def _touch_table(self) -> str:
-        """The table of a study of touches: placements and rows per socket, the distance error beside the metric
-        (by default the consistency on fresh placements), the true error after the best rigid motion."""
-        out = [f"study {self.name}: {self.repetitions} repetitions; {self.metric} over the repetitions "
-               f"that succeeded; win rate = share of paired repetitions with a lower {self.metric} than "
-               f"{self.baseline}", "",
-               f"| plan | placements | rows per socket | rows | method | ok | median | IQR | distance error, median "
-               f"| true error, median | win rate vs {self.baseline} | fit time, median (s) |",
-               "|---|---|---|---|---|---|---|---|---|---|---|---|"]
-        for r in self.rows:
-            win = "-" if r.win_rate is None else f"{100 * r.win_rate:.0f} % of {r.pairs}"
-            out.append(f"| {r.plan} | {r.placements} | {r.rows_per_point} | {r.n_poses} | {r.method} | {r.ok}/{r.runs} "
-                       f"| {_num(r.median)} | {_num(r.q25)} - {_num(r.q75)} | {_num(r.distance_error_median)} "
-                       f"| {_num(r.true_median)} | {win} | {_num(r.fit_time_median, 3)} |")
-        return "\n".join(out)
+
+def _win(r: SummaryRow) -> str:
+    return "-" if r.win_rate is None else f"{100 * r.win_rate:.0f} % of {r.pairs}"
+
+
+#: the table's columns, (header, cell of a row), of a study of a tracker's poses and of one of touches
+_COLUMNS = (
+    ("plan", lambda r: r.plan), ("poses", lambda r: str(r.n_poses)), ("method", lambda r: r.method),
+    ("ok", lambda r: f"{r.ok}/{r.runs}"), ("median", lambda r: _num(r.median)),
+    ("IQR", lambda r: f"{_num(r.q25)} - {_num(r.q75)}"), ("true error, median", lambda r: _num(r.true_median)),
+    ("win rate vs {baseline}", _win), ("stiffness error, median (%)", lambda r: _num(r.stiffness_error_median, 2)),
+    ("fit time, median (s)", lambda r: _num(r.fit_time_median, 3)))
+_TOUCH_COLUMNS = (
+    ("plan", lambda r: r.plan), ("placements", lambda r: str(r.placements)),
+    ("rows per socket", lambda r: str(r.rows_per_point)), ("rows", lambda r: str(r.n_poses)),
+    ("method", lambda r: r.method), ("ok", lambda r: f"{r.ok}/{r.runs}"), ("median", lambda r: _num(r.median)),
+    ("IQR", lambda r: f"{_num(r.q25)} - {_num(r.q75)}"),
+    ("distance error, median", lambda r: _num(r.distance_error_median)),
+    ("true error, median", lambda r: _num(r.true_median)), ("win rate vs {baseline}", _win),
+    ("fit time, median (s)", lambda r: _num(r.fit_time_median, 3)))
 
 
 def _num(x: float, digits: int = 4) -> str:
