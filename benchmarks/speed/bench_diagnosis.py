@@ -58,7 +58,7 @@ def main() -> None:
                           for f in rep.findings[1:])
         # round 1 alone: score test of all candidates vs a real fit of each
         dg = DiagnosisRun(robot, cal, val, DiagnosisSettings(), lambda _: None)
-        check_data(dg)
+        dg.install(check_data(dg))
         kin = dg.fit("kinematic")
         t = time.perf_counter()
         cands = dg.candidates(kin, [])

@@ -45,7 +45,7 @@ from ..result import CalibrationResult
 from ..terms import UNEXPLAINED
 from .candidates import Candidate, compose_spec
 from .report import Finding, Step
-from .state import DiagnosisRun, FinalModel
+from .state import DiagnosisRun, FinalModel, StageOutcome
 from .statistics import paired_gain
 from .validation import EXTRAPOLATING, KINDS
 from .worst import WORST_SHARE, noise_band
@@ -213,12 +213,15 @@ def _per_session(data: Measurements, keep: np.ndarray) -> dict[str, int]:
     return {s: int(keep[data.sessions == s].sum()) for s in data.session_names}
 
 
-def add_compensator(run: DiagnosisRun) -> FinalModel:
+def add_compensator(run: DiagnosisRun) -> StageOutcome:
     """Stage ``add_compensator``: reads the model of the named causes (``current``, ``accepted``, ``geometric``);
     with ``blackbox`` (the default) fits and judges the GP compensator on it (:func:`compensator_step`); returns
-    the model the diagnosis ends with (the pipeline installs it: ``parametric``, ``final``, ``final_spec``)."""
+    its step and finding, and the model the diagnosis ends with (the pipeline installs it: ``parametric``,
+    ``final``, ``final_spec``)."""
     final, spec = run.current, compose_spec(run.accepted, run.geometric)
+    steps, findings = [], list(run.findings)
     if run.s.blackbox:
-        final, spec = compensator_step(run.current, spec, run.cal, run.val, run.schemes, run.s, run.steps,
-                                       run.findings, run.say, parent=run.step_of(run.current))
-    return FinalModel(run.current, final, spec, tuple(run.accepted), run.geometric)
+        final, spec = compensator_step(run.current, spec, run.cal, run.val, run.schemes, run.s, steps, findings,
+                                       run.say, parent=run.step_of(run.current))
+    return StageOutcome(steps=tuple(steps), findings=tuple(findings),
+                        final=FinalModel(run.under_way(), final, spec))

@@ -2,22 +2,24 @@
 
 Reads ``findings``, ``support``, ``before``, ``final``, ``not_tried`` and ``unexplained``; fills every accepted
 finding (:func:`.findings.describe`), says where a joint's named cause may be its untried compliance
-(:func:`.gaps.untried_alternatives`), adds the structure that cannot be named (one ``unexplained`` finding per
-joint) and sets each finding's scope: of the robot (one value serves every session) or of one session.
+(:func:`.gaps.untried_alternatives`), sets each finding's scope: of the robot (one value serves every session) or
+of one session; returns the findings with the structure that cannot be named (one ``unexplained`` finding per
+joint).
 """
 
 from __future__ import annotations
 
 from .findings import describe
 from .gaps import untried_alternatives
-from .state import DiagnosisRun
+from .state import DiagnosisRun, StageOutcome
 
 
-def describe_findings(run: DiagnosisRun) -> None:
+def describe_findings(run: DiagnosisRun) -> StageOutcome:
     run.say("findings: their values, evidence and figures in the final model")
     describe(run.findings, run.support, run.before, run.final, run.cal)
     untried_alternatives(run.findings, run.not_tried)      # a joint's named cause may be its untried compliance
-    run.findings += list(run.unexplained.by_joint.values())
-    for f in run.findings:   # of the robot (one value serves every session) or of one session
+    findings = (*run.findings, *run.unexplained.by_joint.values())
+    for f in findings:   # of the robot (one value serves every session) or of one session
         f.scope = f.scope or f.candidate.scope or ("robot" if len(run.sessions) > 1 and f.in_model
                                                    and not f.candidate.kind.unexplained else None)
+    return StageOutcome(findings=findings)

@@ -5,7 +5,7 @@ errors), ``interval_coverage`` (the share of the validation poses inside the fin
 measured point, :func:`casadical.prediction.prediction_interval`) and ``set_aside`` (the poses the final
 fit set aside, tested for shared structure before they are called bad measurements: :mod:`casadical.stats.outliers`;
 those the structure screen brings back within the robust loss's limit are the largest misses of that structure,
-``structure_misses``), and adds the notes: a worst
+``structure_misses``), and returns the notes: a worst
 validation error above the kinematic model's (:func:`.worst.validation_note`), the remaining residual
 (in units of the instrument's noise where it is known: ``noise``, :mod:`.noise`), the sag the model
 predicts, the set-aside poses.
@@ -22,12 +22,13 @@ from ..stats.outliers import of_fit
 from ..stats.physics import sag_note
 from .gaps import set_aside_note
 from .noise import noise_floor
-from .state import DiagnosisRun
+from .state import DiagnosisRun, StageOutcome
 from .worst import SET_ASIDE_WEIGHT, validation_note
 
 
-def judge_final_model(run: DiagnosisRun) -> None:
+def judge_final_model(run: DiagnosisRun) -> StageOutcome:
     final, cal = run.final, run.cal
+    notes = []
     run.final_errors = run.val_errors(final)
     run.final_val = final_val = run.val_stats(final)
     structure = None
@@ -38,24 +39,24 @@ def judge_final_model(run: DiagnosisRun) -> None:
                      next(k for k, f in enumerate(run.findings, 1) if f is finding), finding.where)
     note = validation_note(final, run.kinematic, run.parametric, run.val, run.val_errors, run.held_text, structure)
     if note:
-        run.notes.append(note)
+        notes.append(note)
     if final.uncertainty is not None:
         from ..prediction import prediction_interval
 
         radius = prediction_interval(final, run.val)
         inside = run.final_errors <= radius
         run.interval_coverage = float(inside.mean())
-        run.notes.append(f"95 % intervals of a measured point (predict --std's interval_mm, median "
-                         f"{np.median(radius) * 1000:.4f} mm) hold {int(inside.sum())} of the {len(inside)} "
-                         f"validation poses ({run.interval_coverage:.1%})")
-        run.notes.append(f"remaining calibration residual {final.uncertainty.sigma * 1000:.4f} mm per axis (rms); "
-                         f"validation rms {final_val.rms_mm / math.sqrt(3):.4f} mm per axis")
+        notes.append(f"95 % intervals of a measured point (predict --std's interval_mm, median "
+                     f"{np.median(radius) * 1000:.4f} mm) hold {int(inside.sum())} of the {len(inside)} "
+                     f"validation poses ({run.interval_coverage:.1%})")
+        notes.append(f"remaining calibration residual {final.uncertainty.sigma * 1000:.4f} mm per axis (rms); "
+                     f"validation rms {final_val.rms_mm / math.sqrt(3):.4f} mm per axis")
     run.noise = noise_floor(cal, run.s.noise_mm, final_val.rms_mm)
     if run.noise is not None:
-        run.notes.append(run.noise.text())
+        notes.append(run.noise.text())
     sag = sag_note(final, cal)
     if sag:
-        run.notes.append(sag)
+        notes.append(sag)
     # the poses the final fit set aside: the largest misses of structure the screen found, bad measurements, or
     # structure it lacks (casadical.stats.outliers)
     set_aside = learning_mask(final, cal) == 0
@@ -69,5 +70,6 @@ def judge_final_model(run: DiagnosisRun) -> None:
     run.set_aside.accounted = np.concatenate([np.zeros(0, int), *misses.values()])
     run.structure_misses = {n: [cal.line(int(i)) for i in poses] for n, poses in misses.items()}
     if run.set_aside.n_set_aside:
-        run.notes.append(set_aside_note(run.set_aside, run.not_tried, cal.path, run.structure_misses,
-                                        {n: run.findings[n - 1].where for n in misses}))
+        notes.append(set_aside_note(run.set_aside, run.not_tried, cal.path, run.structure_misses,
+                                    {n: run.findings[n - 1].where for n in misses}))
+    return StageOutcome(notes=tuple(notes))

@@ -22,6 +22,7 @@ model of the robot predicts (beyond the robust loss's limit: a bad measurement o
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -29,7 +30,7 @@ from ..result import CalibrationResult
 from ..terms import GEOMETRIC
 from .candidates import Candidate, compose_spec
 from .report import Finding, Step
-from .state import DiagnosisRun
+from .state import DiagnosisRun, StageOutcome
 from .validation import cv_record, cv_text
 from .worst import Held, noise_band
 
@@ -38,23 +39,39 @@ def held(run: DiagnosisRun, res: CalibrationResult, mask: np.ndarray) -> Held:
     return Held.of(run.held_out(res), mask)
 
 
-def keep_never_worse(run: DiagnosisRun) -> None:
+@dataclass
+class Changes:
+    """What the check changes of the run while it runs, returned at its end: its notes, its step and the fit it
+    holds (``recorded``), the findings."""
+
+    findings: list[Finding]
+    notes: list[str] = field(default_factory=list)
+    steps: list[Step] = field(default_factory=list)
+    recorded: list = field(default_factory=list)
+
+
+def keep_never_worse(run: DiagnosisRun) -> StageOutcome:
     """Stage ``keep_never_worse``: the geometry again with the causes in the model (when it was not supported
     alone), then the final model never worse than the kinematic one on the calibration poses' folds (see the
-    module). Reads ``current``, ``accepted``, ``geometric``, ``kinematic`` and the search's ``history``; sets
-    the three to the final model of the named causes, and ``held_text``."""
+    module). Reads the model under way, ``kinematic`` and the search's ``history``; sets ``held_text``; returns
+    the final model of the named causes, the step of the geometry tried again and its fit, the notes and the
+    findings."""
     run.say("final check: never worse than the kinematic model, in mean and worst case")
-    run.current, run.accepted, run.geometric = _final_model(run, run.current, run.accepted, run.geometric)
+    changes = Changes(list(run.findings))
+    model = run.under_way()
+    current, accepted, geometric = _final_model(run, changes, model.current, list(model.accepted), model.geometric)
+    return StageOutcome(notes=tuple(changes.notes), steps=tuple(changes.steps), recorded=tuple(changes.recorded),
+                        findings=tuple(changes.findings), model=model.holding(current, accepted, geometric))
 
 
-def _final_model(run: DiagnosisRun, current: CalibrationResult, accepted: list[Candidate], geometric: bool
-                 ) -> tuple[CalibrationResult, list[Candidate], bool]:
+def _final_model(run: DiagnosisRun, changes: Changes, current: CalibrationResult, accepted: list[Candidate],
+                 geometric: bool) -> tuple[CalibrationResult, list[Candidate], bool]:
     kin = run.kinematic
     mask = run.mask(current) & run.mask(kin)
     with_geometry = None
     if not geometric and accepted:
         with_geometry = run.fit(compose_spec(accepted, True), start=current)
-        if _geometry_again(run, current, with_geometry, accepted, mask):
+        if _geometry_again(run, changes, current, with_geometry, accepted, mask):
             current, geometric = with_geometry, True
     ref = held(run, kin, mask)
     now = held(run, current, mask)
@@ -63,13 +80,14 @@ def _final_model(run: DiagnosisRun, current: CalibrationResult, accepted: list[C
     bad = now.worse_than(ref, band)
     if not bad:
         if now.traded(ref, band):
-            run.notes.append("the final model's worst held-out error rises where its mean drops, on the calibration "
-                            "poses' folds: " + ", ".join(f"{k} worst {ref.worst[k]:.4f} -> {now.worst[k]:.4f} mm, "
-                                                         f"mean {ref.mean[k]:.4f} -> {now.mean[k]:.4f} mm"
-                                                         for k in now.traded(ref, band))
-                            + " against the kinematic model; the poses of those folds' largest errors are where it "
-                              "extrapolates least surely")
-            run.say(f"  {run.notes[-1]}")
+            changes.notes.append("the final model's worst held-out error rises where its mean drops, on the "
+                                 "calibration poses' folds: "
+                                 + ", ".join(f"{k} worst {ref.worst[k]:.4f} -> {now.worst[k]:.4f} mm, "
+                                             f"mean {ref.mean[k]:.4f} -> {now.mean[k]:.4f} mm"
+                                             for k in now.traded(ref, band))
+                                 + " against the kinematic model; the poses of those folds' largest errors are where "
+                                   "it extrapolates least surely")
+            run.say(f"  {changes.notes[-1]}")
         return current, accepted, geometric
     options = []
     if not geometric and accepted:
@@ -83,19 +101,18 @@ def _final_model(run: DiagnosisRun, current: CalibrationResult, accepted: list[C
             continue
         run.held_text = _worst_text(ref, now)
         dropped = [a for a in accepted if a not in earlier]
-        for a in dropped:
-            run.drop_finding(a)
+        changes.findings = [f for f in changes.findings if f.candidate not in dropped]
         if geo and not geometric:
-            _add_geometry_finding(run, fit, current)
+            _add_geometry_finding(run, changes, fit, current)
         elif geometric and not geo:         # back to a model the geometry was tried again on
-            run.findings = [f for f in run.findings if not f.candidate.kind.geometry]
+            changes.findings = [f for f in changes.findings if not f.candidate.kind.geometry]
         what = ("the kinematic model itself" if fit is kin else
                 "the model with the geometry" if geo and not geometric else "the last model of the search that is not")
-        run.notes.append("never worse than a kinematic calibration: the model with every cause did worse than the "
-                        "kinematic model on the calibration poses' folds (held-out " + ", ".join(bad)
-                        + f"); the final model is {what}"
-                        + (", without " + ", ".join(a.label() for a in dropped) if dropped else ""))
-        run.say(f"  {run.notes[-1]}")
+        changes.notes.append("never worse than a kinematic calibration: the model with every cause did worse than "
+                             "the kinematic model on the calibration poses' folds (held-out " + ", ".join(bad)
+                             + f"); the final model is {what}"
+                             + (", without " + ", ".join(a.label() for a in dropped) if dropped else ""))
+        run.say(f"  {changes.notes[-1]}")
         return fit, earlier, geo
     return current, accepted, geometric     # (not reached: the kinematic model is never worse than itself)
 
@@ -105,8 +122,8 @@ def _worst_text(ref: Held, final: Held) -> str:
             + " (kinematic " + ", ".join(f"{ref.worst[k]:.4f}" for k in ref.worst) + ")")
 
 
-def _geometry_again(run: DiagnosisRun, current: CalibrationResult, fit: CalibrationResult, accepted: list[Candidate],
-                    mask: np.ndarray) -> bool:
+def _geometry_again(run: DiagnosisRun, changes: Changes, current: CalibrationResult, fit: CalibrationResult,
+                    accepted: list[Candidate], mask: np.ndarray) -> bool:
     """The geometry step once more, the causes in the model: the same tests as the first time (F-test, BIC,
     held-out means that drop on every kind of fold); recorded as a step, and as the geometric finding."""
     test = run.compare(current, fit, fit.loss)
@@ -119,25 +136,26 @@ def _geometry_again(run: DiagnosisRun, current: CalibrationResult, fit: Calibrat
                                                                       for k in worse)] * bool(worse))
     parent = run.step_of(current)
     pv, v = run.val_stats(current), run.val_stats(fit)
-    run.steps.append(Step(compose_spec(accepted, True), fit.calibration, v, ok, Candidate(GEOMETRIC.name), test,
-                         cv_record(h0.mean, h1.mean), reason, run.val_angles(fit), parent=parent, parent_mm=pv.mean_mm))
+    changes.steps.append(Step(compose_spec(accepted, True), fit.calibration, v, ok, Candidate(GEOMETRIC.name), test,
+                              cv_record(h0.mean, h1.mean), reason, run.val_angles(fit), parent=parent,
+                              parent_mm=pv.mean_mm))
     if ok:
-        run.record(fit, len(run.steps) - 1, accepted)
-        _add_geometry_finding(run, fit, current, f"{test.text()} on the calibration poses with the causes in the "
-                                               f"model; held-out mean {cv_text(h0.mean, h1.mean)}")
-        run.notes.append("the geometry step, not supported alone, is supported once the causes are in the model "
-                        f"({test.text()}): the final model has it")
+        changes.recorded.append((fit, len(run.steps) + len(changes.steps) - 1, tuple(accepted)))
+        _add_geometry_finding(run, changes, fit, current, f"{test.text()} on the calibration poses with the causes "
+                                                          f"in the model; held-out mean {cv_text(h0.mean, h1.mean)}")
+        changes.notes.append("the geometry step, not supported alone, is supported once the causes are in the model "
+                             f"({test.text()}): the final model has it")
         run.say(f"  geometry again, with the causes: accepted ({test.text()})")
     else:
         run.say(f"  geometry again, with the causes: not supported ({reason})")
     return ok
 
 
-def _add_geometry_finding(run: DiagnosisRun, fit: CalibrationResult, without: CalibrationResult,
+def _add_geometry_finding(run: DiagnosisRun, changes: Changes, fit: CalibrationResult, without: CalibrationResult,
                           evidence: str = "") -> None:
-    if any(f.candidate.kind.geometry for f in run.findings):
+    if any(f.candidate.kind.geometry for f in changes.findings):
         return
     gain = run.val_stats(without).mean_mm - run.val_stats(fit).mean_mm
-    run.findings.insert(0, Finding(Candidate(GEOMETRIC.name), gain, evidence or
-                                  "never worse than a kinematic calibration of the same poses on their folds; "
-                                  "link, base and tool parameters"))
+    changes.findings.insert(0, Finding(Candidate(GEOMETRIC.name), gain, evidence or
+                                       "never worse than a kinematic calibration of the same poses on their folds; "
+                                       "link, base and tool parameters"))

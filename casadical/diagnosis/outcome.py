@@ -26,8 +26,9 @@ def assemble_report(run: DiagnosisRun) -> None:
     if terms:       # the terms file is a setting of the run: the causes it screens beside the catalogue's
         settings["terms"] = sorted({u["file"] for u in terms if u["file"]})
     run.report = DiagnosisReport(
-        run.robot.name, run.steps, run.findings, run.final_spec, run.final_val, final, run.periodograms, plots,
-        run.notes, time.perf_counter() - run.t0, next(st.validation for st in run.steps if st.model == "kinematic"),
+        run.robot.name, run.steps, run.findings, run.final_spec, run.final_val, final, run.catalogue.periodograms,
+        plots, run.notes, time.perf_counter() - run.t0,
+        next(st.validation for st in run.steps if st.model == "kinematic"),
         run.study.to_dict() if run.study is not None else {}, settings,
         final_sessions=final.session_stats(run.val) if len(run.sessions) > 1 else {},
         final_orientation=run.val_angles(final),

@@ -26,11 +26,14 @@ session, applied where it knows) takes what no named cause explains;
 :mod:`.transfer` takes the findings to another series.
 
 Each stage is a function ``stage(run)`` of its own module that reads what the stages before it set on the
-:class:`~.state.DiagnosisRun` and sets its own fields; a stage that makes the final model returns it (a
-:class:`~.state.FinalModel`) and the pipeline installs it (:meth:`~.state.DiagnosisRun.install`), so that no
-stage rewrites another's model in place. :data:`STAGES` is their order. To add a stage, write it in a module of
-this package (a docstring saying what it reads and sets, or returns), give the run the fields it sets, and put
-it in :data:`STAGES` where its inputs are ready.
+:class:`~.state.DiagnosisRun` and sets the fields only it sets; what several stages change (the notes, the steps
+and the fits they hold, the findings, the model under way, the final model) a stage returns in a
+:class:`~.state.StageOutcome` (its model of the named causes a :class:`~.state.ModelUnderWay`, its final model a
+:class:`~.state.FinalModel`), and the pipeline installs it (:meth:`~.state.DiagnosisRun.install`), so that each
+field of the run has one writer and no stage rewrites another's model or log in place
+(``tests/diagnosis/test_stage_writes.py``). :data:`STAGES` is their order. To add a stage, write it in a module
+of this package (a docstring saying what it reads, sets and returns), give the run the fields only it sets,
+return what it adds to the shared ones, and put it in :data:`STAGES` where its inputs are ready.
 """
 
 from __future__ import annotations
@@ -54,14 +57,14 @@ from .report import DiagnosisReport
 from .search import search_causes
 from .settings import DiagnosisSettings
 from .stand_ins import drop_stand_ins
-from .state import DiagnosisRun, FinalModel
+from .state import DiagnosisRun, StageOutcome
 from .structure import screen_structure
 from .transfer import transfer_findings
 from .unphysical import drop_unphysical
 from .worst_case import keep_worst_case
 
 #: the stages of :func:`diagnose`, in order
-STAGES: tuple[Callable[[DiagnosisRun], FinalModel | None], ...] = (
+STAGES: tuple[Callable[[DiagnosisRun], StageOutcome | None], ...] = (
     check_data,         # the poses against the robot, the validation poses held out; equations, folds, sessions
     fit_nominal,        # step 1: the nominal model, its base pose fitted
     fit_geometry,       # step 2: the kinematic calibration; how weak the design is; where the search starts

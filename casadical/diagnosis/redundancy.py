@@ -10,8 +10,8 @@ same corrected level and by BIC. The weakest cause that fails is refitted
 without it for real; if that confirms, it is dropped and the test runs
 again on the new model.
 
-Reads and sets ``current`` and ``accepted`` (with more than one cause); drops
-the findings of the causes it removes, with a note each.
+Reads the model under way (with more than one cause); returns it without the causes it drops, the findings
+without theirs, and a note each (None: nothing to ask).
 """
 
 from __future__ import annotations
@@ -22,7 +22,7 @@ import numpy as np
 
 from ..result import CalibrationResult
 from .candidates import Candidate, compose_spec, own_parameters
-from .state import DiagnosisRun
+from .state import DiagnosisRun, StageOutcome
 from .statistics import NestedTest, nested_test, noise_ssr
 from .validation import Linearized
 
@@ -51,13 +51,14 @@ def without_tests(current: CalibrationResult, lin: Linearized, accepted: list[Ca
     return out
 
 
-def drop_redundant(run: DiagnosisRun) -> None:
+def drop_redundant(run: DiagnosisRun) -> StageOutcome | None:
     """Drop, one at a time, the accepted causes the final model no longer needs (see the module)."""
     if len(run.accepted) <= 1:
-        return
+        return None
     run.say("final check: is every cause still needed?")
-    while run.accepted:
-        current, accepted = run.current, run.accepted
+    model, findings, notes = run.under_way(), run.findings, []
+    while model.accepted:
+        current, accepted = model.current, list(model.accepted)
         level = math.log10(run.s.alpha / max(run.n_tests(run.candidates(current, accepted)), 1))
         tests = without_tests(current, run.linearized(current), accepted, run.n_eq)
         failing = [(c, t) for c, t in tests if not (t.log10_p < level and t.delta_bic < 0)]
@@ -66,14 +67,15 @@ def drop_redundant(run: DiagnosisRun) -> None:
         cand, test = max(failing, key=lambda ct: ct[1].log10_p)
         rest = [a for a in accepted if a != cand]
         run.say(f"  {cand.label()} may no longer be needed: the model refitted without it")
-        refit = run.fit(compose_spec(rest, run.geometric), start=current)
+        refit = run.fit(compose_spec(rest, model.geometric), start=current)
         full = run.compare(refit, current, current.loss)
         if full.log10_p < level and full.delta_bic < 0:
             break       # the one-step estimate was too pessimistic: it is still supported
-        run.drop_finding(cand)
+        findings = [f for f in findings if f.candidate != cand]
         later = [a.label() for a in accepted[accepted.index(cand) + 1:]]
-        run.notes.append(f"{cand.label()} was dropped at the end: with "
-                         + (", ".join(later) if later else "the other causes")
-                         + f" in the model it no longer explains anything ({full.text()})")
+        notes.append(f"{cand.label()} was dropped at the end: with "
+                     + (", ".join(later) if later else "the other causes")
+                     + f" in the model it no longer explains anything ({full.text()})")
         run.say(f"  dropped {cand.label()}: not needed once the later causes are in the model ({full.text()})")
-        run.current, run.accepted = refit, rest
+        model = model.holding(refit, rest)
+    return StageOutcome(notes=tuple(notes), findings=tuple(findings), model=model)

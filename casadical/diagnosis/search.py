@@ -16,15 +16,16 @@ copy in one session alone explains it, is not named: a joint's own parameter is 
 what differs between the sessions showing on that joint, kept out as an ``unexplained`` finding of the joint and
 the session (:func:`one_session`).
 
-Reads ``current``, ``accepted``, ``geometric`` (:mod:`.geometry`); sets them to the model the search ends
-with, and ``findings``, ``support``, ``before``, ``history``, ``later``, ``unexplained``, ``not_tried``,
-``periodograms``, the steps of every candidate fitted.
+Reads the model under way (:mod:`.geometry`); sets ``later``, ``unexplained``, ``not_tried``, ``round`` (and the
+user terms' scores, :func:`.user_terms.record_scores`); keeps what it changes of the run in a :class:`Rounds` while
+it runs, and returns the model the search ends with, the steps of every candidate fitted, the fits of the accepted
+ones, the findings and a note where it stopped at the safety cap.
 """
 
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -36,7 +37,7 @@ from .evidence import Evidence, Support
 from .nameable import cause_checks, drops, unjudged
 from .report import Finding, Step
 from .screening import Scored, Screen, ambiguous
-from .state import DiagnosisRun
+from .state import DiagnosisRun, ModelUnderWay, StageOutcome
 from .statistics import NestedTest, nested_test, noise_ssr
 from .user_terms import record_scores
 from .validation import EXTRAPOLATING, by_kind, cv_failure, cv_record, cv_text, extrapolation_gain, not_better
@@ -91,42 +92,78 @@ class Verdict:
         return len(self.reasons) == 1 and not self.broken and not self.worse
 
 
-def search_causes(run: DiagnosisRun) -> None:
+@dataclass
+class Rounds:
+    """What the search changes of the run while it runs, returned at its end (:meth:`outcome`): the model under way
+    (``current``, ``accepted``, ``geometric``), what is kept for each cause (``support``, ``before``), the findings,
+    the steps it adds (the first of them is the run's step ``first``) and the fits they hold (``recorded``)."""
+
+    current: CalibrationResult
+    accepted: list[Candidate]
+    geometric: bool
+    support: dict
+    before: dict
+    findings: list[Finding]
+    first: int
+    known: tuple               # the run's fits of its steps
+    steps: list[Step] = field(default_factory=list)
+    recorded: list = field(default_factory=list)
+
+    @classmethod
+    def of(cls, run: DiagnosisRun) -> Rounds:
+        return cls(run.current, list(run.accepted), run.geometric, dict(run.support), dict(run.before),
+                   list(run.findings), len(run.steps), tuple(run.fits_of_steps))
+
+    def step_of(self, res: CalibrationResult) -> int | None:
+        """:meth:`.state.DiagnosisRun.step_of`, among the run's steps and the search's."""
+        return next((k for fit, k in (*self.known, *((f, k) for f, k, _ in self.recorded)) if fit is res), None)
+
+    def outcome(self, notes: tuple[str, ...]) -> StageOutcome:
+        return StageOutcome(notes=notes, steps=tuple(self.steps), recorded=tuple(self.recorded),
+                            findings=tuple(self.findings),
+                            model=ModelUnderWay(self.current, tuple(self.accepted), self.geometric, self.support,
+                                                self.before))
+
+
+def search_causes(run: DiagnosisRun) -> StageOutcome:
     run.not_tried = not_tried(run.robot, run.cal, run.torques(run.current), run.s)
+    run.unexplained.linear = {j for j, jt in enumerate(run.robot.joints, start=1) if jt.prismatic}
+    way = Rounds.of(run)
     for rnd in range(run.s.max_rounds):
         run.round = rnd + 1
         run.say(f"round {rnd + 1}: screening candidate causes")
-        chosen = screen_round(run)
+        chosen = screen_round(run, way)
         if chosen is None:
             break
         cand = chosen.candidate
-        step = next(s for s in reversed(run.steps) if s.accepted)
+        step = next(s for s in reversed(way.steps) if s.accepted)
         # the one-step fit decided; the full fit (noise scale re-estimated) must confirm the significance
         run.say(f"  {cand.label()}: the full fit")
-        new_fit = run.fit(compose_spec(run.accepted + [cand], run.geometric), start=chosen.start, parent=run.current)
-        verdict = judge_full_fit(run, cand, new_fit, chosen.level)
+        new_fit = run.fit(compose_spec(way.accepted + [cand], way.geometric), start=chosen.start, parent=way.current)
+        verdict = judge_full_fit(run, way.current, cand, new_fit, chosen.level)
         if verdict.reasons:
-            reject(run, cand, step, new_fit, verdict)
+            reject(run, way, cand, step, new_fit, verdict)
             continue
-        run.before[cand] = run.current
-        run.accepted.append(cand)
-        run.current = new_fit
-        run.record(new_fit, run.steps.index(step), run.accepted)
+        way.before[cand] = way.current
+        way.accepted.append(cand)
+        way.current = new_fit
+        way.recorded.append((new_fit, way.first + way.steps.index(step), tuple(way.accepted)))
         # the step and the finding's gain judge the full fit, not the one-step fit that decided
         full = run.val_stats(new_fit)
-        next(f for f in run.findings if f.candidate == cand).gain_mm += step.validation.mean_mm - full.mean_mm
+        next(f for f in way.findings if f.candidate == cand).gain_mm += step.validation.mean_mm - full.mean_mm
         step.calibration, step.validation = new_fit.calibration, full
         step.orientation = run.val_angles(new_fit)
     else:
         if run.s.max_rounds:
-            run.notes.append(f"stopped at the safety cap of {run.s.max_rounds} rounds while causes were "
-                             "still supported; raise --max-rounds to look further")
+            return way.outcome((f"stopped at the safety cap of {run.s.max_rounds} rounds while causes were "
+                                "still supported; raise --max-rounds to look further",))
+    return way.outcome(())
 
 
-def judge_full_fit(run: DiagnosisRun, cand: Candidate, new_fit: CalibrationResult, level: float) -> Verdict:
-    """The full fit of ``cand`` against the current model: significant at ``level`` and by BIC, physics
+def judge_full_fit(run: DiagnosisRun, current: CalibrationResult, cand: Candidate, new_fit: CalibrationResult,
+                   level: float) -> Verdict:
+    """The full fit of ``cand`` against the ``current`` model: significant at ``level`` and by BIC, physics
     (:func:`casadical.stats.physics.violations`), not worse on the folds where the model extrapolates."""
-    current = run.current
     test = run.compare(current, new_fit, current.loss)
     reasons = []
     if test.log10_p >= level or test.delta_bic >= 0:
@@ -144,16 +181,17 @@ def judge_full_fit(run: DiagnosisRun, cand: Candidate, new_fit: CalibrationResul
     return Verdict(test, reasons, broken, worse)
 
 
-def reject(run: DiagnosisRun, cand: Candidate, step: Step, new_fit: CalibrationResult, verdict: Verdict) -> None:
+def reject(run: DiagnosisRun, way: Rounds, cand: Candidate, step: Step, new_fit: CalibrationResult,
+           verdict: Verdict) -> None:
     """The full fit does not confirm ``cand``: its step and finding are withdrawn; it is screened again later
     (only not significant yet), or never again; real structure that is not this cause is kept as evidence."""
     step.accepted, step.test = False, verdict.test
     step.reason = "; ".join(verdict.reasons)
     run.say(f"    {cand.label()}: {step.reason}")
-    run.findings.pop()
-    support = run.support.pop(cand, None)
+    way.findings.pop()
+    support = way.support.pop(cand, None)
     if verdict.not_yet:
-        run.later[cand] = len(run.accepted)
+        run.later[cand] = len(way.accepted)
     else:
         run.unexplained.excluded_causes.add(cand)
     if verdict.broken and not verdict.reasons[0].startswith("not significant") and cand.joint is not None \
@@ -163,15 +201,15 @@ def reject(run: DiagnosisRun, cand: Candidate, step: Step, new_fit: CalibrationR
                                      step.validation.mean_mm - run.val_stats(new_fit).mean_mm, step.reason))
 
 
-def screen_round(run: DiagnosisRun) -> Chosen | None:
+def screen_round(run: DiagnosisRun, way: Rounds) -> Chosen | None:
     """Screen, fit the best candidates by one step, choose one; None when nothing is supported."""
-    current = run.current
+    current = way.current
     scr = baseline = None
     while True:
-        cands = run.candidates(current, run.accepted)
+        cands = run.candidates(current, way.accepted)
         # screening again (after setting structure aside) reuses the linearisation and the baseline
         if scr is None:
-            scr = Screen(current, run.accepted, cands, run.geometric, run.cal, run.val, run.s.session_tools,
+            scr = Screen(current, way.accepted, cands, way.geometric, run.cal, run.val, run.s.session_tools,
                          run.s.terms)
             mask = run.mask(current)
             base = scr.fit()
@@ -181,13 +219,13 @@ def screen_round(run: DiagnosisRun) -> Chosen | None:
             scr = scr.with_candidates(cands)
         scored = scr.scores(cands)
         level = math.log10(run.s.alpha / max(run.n_tests(cands), 1))
-        record_scores(run, scored, level)       # the user's own terms: each accounted for in the report
+        record_scores(run, scored, level, way.first + len(way.steps))   # the user's own terms: in the report
         if not scored or scored[0].log10_p >= level:
             best = scored[0] if scored else None
             run.say("  no candidate passes the score test" +
                     (f" (best: {best.candidate.label()}, {best.test.text()})" if best else ""))
             return None
-        chosen, pending = try_tiers(run, scr, scored, level, baseline)
+        chosen, pending = try_tiers(run, way, scr, scored, level, baseline)
         if chosen is not None:
             return chosen
         for evidence in pending:
@@ -199,14 +237,14 @@ def screen_round(run: DiagnosisRun) -> Chosen | None:
                 "screens again")
 
 
-def try_tiers(run: DiagnosisRun, scr: Screen, scored: list[Scored], level: float, baseline: Baseline
+def try_tiers(run: DiagnosisRun, way: Rounds, scr: Screen, scored: list[Scored], level: float, baseline: Baseline
               ) -> tuple[Chosen | None, list[Evidence]]:
     """Tiers in order; in a tier, up to ``confirm`` candidates fitted and judged, the best chosen.
 
     Returns the chosen cause (None: none) and the significant structure that cannot be named (kept out of
     the model unless a cause is chosen).
     """
-    current, mask, base, cv0, cur_val = run.current, baseline.mask, baseline.fit, baseline.cv, baseline.validation
+    current, mask, base, cv0, cur_val = way.current, baseline.mask, baseline.fit, baseline.cv, baseline.validation
     pending: list[Evidence] = []
     for tier in TIERS:
         passing: list[Trial] = []
@@ -237,14 +275,14 @@ def try_tiers(run: DiagnosisRun, scr: Screen, scored: list[Scored], level: float
                 reasons.append("not physics: " + "; ".join(v.text for v in broken))
             vstats = ErrorStats.of(scr.validation_errors(fit))
             # its gain is against the model it extends (the current fit), never against a sibling
-            step = Step(compose_spec(run.accepted + [cand], run.geometric),
+            step = Step(compose_spec(way.accepted + [cand], way.geometric),
                         ErrorStats.of(np.linalg.norm(fit.lin.r, axis=1)), vstats, False, cand, test,
-                        cv_record(cv0, cv1), "; ".join(reasons), parent=run.step_of(current),
+                        cv_record(cv0, cv1), "; ".join(reasons), parent=way.step_of(current),
                         parent_mm=cur_val.mean_mm)
-            run.steps.append(step)
+            way.steps.append(step)
             support = Support(test, cv0, cv1, checks)
             if reasons and tested and "session" in worse:
-                alone = one_session(run, scr, cand, level)
+                alone = one_session(run, current, scr, cand, level)
                 if alone is not None:       # what differs between the sessions, showing on this joint
                     run.say(f"    rejected: {step.reason}; it holds in session {alone[0].session} only")
                     pending.append(alone[1])
@@ -260,11 +298,11 @@ def try_tiers(run: DiagnosisRun, scr: Screen, scored: list[Scored], level: float
             passing.append(Trial(extrapolation_gain(cv0, cv1), sc, fit, support, step))
         if passing:
             best = max(passing, key=lambda t: t.gain)
-            return _choose(run, best, scored, level, current, cur_val), pending
+            return _choose(run, way, best, scored, level, cur_val), pending
     return None, pending
 
 
-def one_session(run: DiagnosisRun, scr: Screen, cand: Candidate, level: float
+def one_session(run: DiagnosisRun, current: CalibrationResult, scr: Screen, cand: Candidate, level: float
                 ) -> tuple[Candidate, Evidence] | None:
     """Where a candidate of the robot that does worse on the leave-one-session-out folds lives: its copy of one
     session alone is significant at ``level``, predicts random held-out poses better, and no other session's adds
@@ -297,18 +335,18 @@ def one_session(run: DiagnosisRun, scr: Screen, cand: Candidate, level: float
     fit = own.fit(best)
     base = own.fit()
     test = nested_test(base.ssr, base.n_free, fit.ssr, fit.n_free, run.n_eq, noise_ssr(fit.lin))
-    cv0 = by_kind(base.lin.cv(run.schemes, run.prior), run.mask(run.current))
-    cv1 = by_kind(fit.lin.cv(run.schemes, run.prior), run.mask(run.current))
+    cv0 = by_kind(base.lin.cv(run.schemes, run.prior), run.mask(current))
+    cv1 = by_kind(fit.lin.cv(run.schemes, run.prior), run.mask(current))
     if not cv1["random"] < cv0["random"]:
         return None
-    gain = run.val_stats(run.current).mean_mm - ErrorStats.of(own.validation_errors(fit)).mean_mm
+    gain = run.val_stats(current).mean_mm - ErrorStats.of(own.validation_errors(fit)).mean_mm
     why = (f"it holds in session {best.session} only ({test.text()}; the robot's does worse on the "
            "leave-one-session-out folds): a joint's own parameter is the robot's, one value in every session")
     return best, Evidence(best, fit.values, Support(test, cv0, cv1, {}), gain, why)
 
 
-def _choose(run: DiagnosisRun, best: Trial, scored: list[Scored], level: float, current: CalibrationResult,
-            cur_val: ErrorStats) -> Chosen:
+def _choose(run: DiagnosisRun, way: Rounds, best: Trial, scored: list[Scored], level: float, cur_val: ErrorStats
+            ) -> Chosen:
     """Accept ``best``'s step, record its finding and support; its one-step values start the full fit."""
     sc, sup, step = best.scored, best.support, best.step
     step.accepted = True
@@ -321,6 +359,6 @@ def _choose(run: DiagnosisRun, best: Trial, scored: list[Scored], level: float, 
                           **{k: v.to_dict() for k, v in checks.items()
                              if k in ("resolution", "versus_drift", "versus_harmonics")},
                           **({"halves": [h.to_dict() for h in checks["halves"]]} if "halves" in checks else {})})
-    run.support[sc.candidate] = sup
-    run.findings.append(f)
-    return Chosen(sc.candidate, {**{p.name: p.value for p in current.parameters}, **best.fit.values}, level)
+    way.support[sc.candidate] = sup
+    way.findings.append(f)
+    return Chosen(sc.candidate, {**{p.name: p.value for p in way.current.parameters}, **best.fit.values}, level)

@@ -30,8 +30,8 @@ A cause that fails is only the closest catalogue approximation of that structure
 refitted without it, and the check runs again; a note says what it approximated and why. The structure screen
 then reports the structure itself, with its size.
 
-Reads and sets ``current`` and ``accepted``; drops the findings of the stand-ins and excludes them from the
-search.
+Reads the model under way; returns it without the stand-ins, the findings without theirs, and a note each (None:
+no cause to ask).
 """
 
 from __future__ import annotations
@@ -43,7 +43,7 @@ import numpy as np
 
 from ..result import CalibrationResult
 from .candidates import Candidate, compose_spec, own_parameters
-from .state import DiagnosisRun
+from .state import DiagnosisRun, StageOutcome
 from .statistics import NestedTest, nested_test, set_aside_share
 from .structure import INSTRUMENT, MAX_STRUCTURES, Found, StructureScreen, describe_pair, weighted
 from .validation import Linearized
@@ -202,27 +202,28 @@ def _fit(A: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, int]:
     return b - Uk @ (Uk.T @ b), Uk.shape[1]
 
 
-def drop_stand_ins(run: DiagnosisRun) -> None:
+def drop_stand_ins(run: DiagnosisRun) -> StageOutcome | None:
     if not run.s.structure or not run.accepted:
-        return
+        return None
     run.say("final check: does every named cause explain the structure it stands for?")
-    while run.accepted:
-        scr = StructureScreen(run.current, run.cal, run.torques(run.current), run.s.alpha, run.s.seed)
-        lin = run.linearized(run.current)      # once a round: every cause is asked at the same fit
-        hit = next(((c, h) for c in run.accepted
-                    if (h := stands_in(run.current, lin, run.accepted, c, scr, run.s.alpha)) is not None), None)
+    model, findings, notes = run.under_way(), run.findings, []
+    while model.accepted:
+        current, accepted = model.current, list(model.accepted)
+        scr = StructureScreen(current, run.cal, run.torques(current), run.s.alpha, run.s.seed)
+        lin = run.linearized(current)      # once a round: every cause is asked at the same fit
+        hit = next(((c, h) for c in accepted
+                    if (h := stands_in(current, lin, accepted, c, scr, run.s.alpha)) is not None), None)
         if hit is None:
             break
         cand, (found, why) = hit
-        rest = [a for a in run.accepted if a != cand]
-        run.drop_finding(cand)
-        run.unexplained.excluded_causes.add(cand)
+        rest = [a for a in accepted if a != cand]
+        findings = [f for f in findings if f.candidate != cand]
         where = describe_pair(found.covariate, found.effect, found.joint, found.joint is not None
                               and run.robot.joints[found.joint - 1].prismatic, found.session)
-        run.notes.append(f"{cand.label()} was dropped at the end: it is only the closest catalogue approximation of "
-                         f"structure it does not explain ({where}; p = {10 ** found.log10_p:.2g}): {why}; the "
-                         "structure screen reports that structure and its size")
+        notes.append(f"{cand.label()} was dropped at the end: it is only the closest catalogue approximation of "
+                     f"structure it does not explain ({where}; p = {10 ** found.log10_p:.2g}): {why}; the "
+                     "structure screen reports that structure and its size")
         run.say(f"  dropped {cand.label()}: the closest catalogue approximation of structure it does not explain "
                 f"({where})")
-        run.current = run.fit(compose_spec(rest, run.geometric), start=run.current)
-        run.accepted = rest
+        model = model.holding(run.fit(compose_spec(rest, model.geometric), start=current), rest)
+    return StageOutcome(notes=tuple(notes), findings=tuple(findings), model=model)

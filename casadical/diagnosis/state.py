@@ -4,7 +4,13 @@
 (grouped below by the stage that sets them), and what every stage asks of the calibration poses: a fit of a
 model specification (:meth:`~DiagnosisRun.fit`), a fit's validation errors (computed once per fit), its
 deviance under a loss, the comparison of two nested fits (:meth:`~DiagnosisRun.compare`, the one F-test and
-BIC of the diagnosis), its held-out means on the folds. A stage is a function ``stage(run) -> None``.
+BIC of the diagnosis), its held-out means on the folds.
+
+A stage is a function ``stage(run)`` that sets the fields of its own group, or returns what it adds to the
+fields several stages change (a :class:`StageOutcome`: notes, steps, the fits they hold, the findings, the model of
+the named causes, the final model), which the pipeline installs (:meth:`DiagnosisRun.install`, the one writer of
+those fields). To add a stage, give it a group of fields of its own, or return what it changes of the shared
+ones; ``tests/diagnosis/test_stage_writes.py`` fails where two stage modules write one field.
 
 What a cause's acceptance or rejection carries is in :mod:`.evidence`.
 """
@@ -14,7 +20,7 @@ from __future__ import annotations
 import math
 import time
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Callable
+from typing import TYPE_CHECKING, Callable, Mapping
 
 import numpy as np
 
@@ -31,7 +37,6 @@ from .candidates import Candidate
 from .catalogue import Catalogue
 from .evidence import Support
 from .findings import UnexplainedLog
-from .periodogram import Periodogram
 from .report import Finding, Step
 from .settings import DiagnosisSettings
 from .statistics import NestedTest, nested_test, set_aside_share
@@ -53,16 +58,55 @@ KEPT_FITS = 2
 
 
 @dataclass(frozen=True)
+class ModelUnderWay:
+    """The model of the named causes as a stage leaves it (the search, a final check), for the pipeline to install
+    (:meth:`DiagnosisRun.install`): the fit, the causes it holds in the order accepted, whether it holds the
+    geometry, and what is kept for each cause it holds: the evidence that accepted it (``support``) and the fit
+    before it (``before``)."""
+
+    current: CalibrationResult
+    accepted: tuple[Candidate, ...]
+    geometric: bool
+    support: Mapping[Candidate, Support]
+    before: Mapping[Candidate, CalibrationResult]
+
+    def holding(self, fit: CalibrationResult, accepted, geometric: bool | None = None) -> ModelUnderWay:
+        """``fit``, the model of ``accepted`` (some of these causes; the geometry as here unless ``geometric``
+        says): what was kept for the others goes with them."""
+        return ModelUnderWay(fit, tuple(accepted), self.geometric if geometric is None else geometric,
+                             {c: v for c, v in self.support.items() if c in accepted},
+                             {c: v for c, v in self.before.items() if c in accepted})
+
+
+@dataclass(frozen=True)
 class FinalModel:
     """The model a stage ends the diagnosis with, returned for the pipeline to install (:meth:`DiagnosisRun.install`):
-    the model of the named causes (``parametric``), the final model (it with the GP compensator where one is
-    kept), the final model's specification, and the named causes and geometry it holds."""
+    the model of the named causes (``model``; its fit is ``parametric``), the final model (it with the GP
+    compensator where one is kept) and the final model's specification."""
 
-    parametric: CalibrationResult
+    model: ModelUnderWay
     final: CalibrationResult
     spec: str
-    accepted: tuple
-    geometric: bool
+
+    @property
+    def parametric(self) -> CalibrationResult:
+        return self.model.current
+
+
+@dataclass(frozen=True)
+class StageOutcome:
+    """What a stage returns for the pipeline to install (:meth:`DiagnosisRun.install`), so that each field of the
+    run has one writer: the notes and steps it adds, in order; the fits it records (``recorded``: each fit, the
+    index of the step that holds it in the run's steps or None, and the causes of an accepted model of the search
+    or None: :meth:`DiagnosisRun.step_of`, ``history``); the findings as it leaves them (None: as they were); the
+    model of the named causes it leaves (None: as it was); the final model it makes (None: none)."""
+
+    notes: tuple[str, ...] = ()
+    steps: tuple[Step, ...] = ()
+    recorded: tuple[tuple[CalibrationResult, int | None, tuple | None], ...] = ()
+    findings: tuple[Finding, ...] | None = None
+    model: ModelUnderWay | None = None
+    final: FinalModel | None = None
 
 
 @dataclass
@@ -70,7 +114,8 @@ class DiagnosisRun:
     """One diagnosis as it goes through the stages.
 
     The first fields are what the caller gave; every later group is set by the stage named above it and read
-    by those after it (``None`` until then).
+    by those after it (``None`` until then), except the fields several stages change: those are set only by
+    :meth:`install`, from the :class:`StageOutcome` each stage returns.
     """
 
     robot: Robot
@@ -86,26 +131,32 @@ class DiagnosisRun:
     n_eq: int = 0                  # the screening and its linearised tests: positions
     full_pose: bool = False        # every full fit, and the tests on their losses, on 6 equations a pose
     n_fit_eq: int = 0
-    schemes: list = field(default_factory=list)
     sessions: list = field(default_factory=list)      # [] for one session
     catalogue: Catalogue | None = None
-    notes: list[str] = field(default_factory=list)
 
     # fit_nominal, fit_geometry: the reference models; how weak the design is
     nominal: CalibrationResult | None = None
     kinematic: CalibrationResult | None = None
     gravity: GravityCheck | None = None       # the robot file's gravity against a levelled instrument's down
     design: Design | None = None
+    schemes: list = field(default_factory=list)     # the cross-validation folds (their own on a one-joint design)
     prior: dict[str, float] | None = None     # the folds' priors of the geometry on a weak design
+
+    # installed from what the stages return (install): what the stages say, in order; the steps, the fits they
+    # hold, the findings
+    notes: list[str] = field(default_factory=list)
     steps: list[Step] = field(default_factory=list)
+    history: list[tuple[list[Candidate], CalibrationResult]] = field(default_factory=list)  # accepted models
+    fits_of_steps: list[tuple[CalibrationResult, int]] = field(default_factory=list)      # each fit, its step
     findings: list[Finding] = field(default_factory=list)
 
-    # the model under way (fit_geometry sets it; search_causes and the final checks change it)
+    # the model under way, installed from the ModelUnderWay the stages return (fit_geometry's; search_causes' and
+    # the final checks' change it); what is kept for each cause it holds: the fit before it, the evidence
     current: CalibrationResult | None = None
     accepted: list[Candidate] = field(default_factory=list)
     geometric: bool = False
-    history: list[tuple[list[Candidate], CalibrationResult]] = field(default_factory=list)  # accepted models
-    fits_of_steps: list[tuple[CalibrationResult, int]] = field(default_factory=list)      # each fit, its step
+    before: dict[Candidate, CalibrationResult] = field(default_factory=dict)
+    support: dict[Candidate, Support] = field(default_factory=dict)
 
     # search_causes
     not_tried: list = field(default_factory=list)     # kinds of cause these data cannot test
@@ -114,9 +165,6 @@ class DiagnosisRun:
     round_steps: dict = field(default_factory=dict)   # round -> the number of steps before it (.user_terms)
     later: dict[Candidate, int] = field(default_factory=dict)    # not significant yet: screened again later
     unexplained: UnexplainedLog = field(default_factory=UnexplainedLog)
-    before: dict[Candidate, CalibrationResult] = field(default_factory=dict)   # fit before each finding
-    support: dict[Candidate, Support] = field(default_factory=dict)
-    periodograms: list[Periodogram] = field(default_factory=list)
 
     # screen_structure: what the named causes leave: (structure, its finding), strongest first
     structures: list = field(default_factory=list)
@@ -124,8 +172,8 @@ class DiagnosisRun:
     # keep_never_worse
     held_text: str = ""            # the final check's worst held-out errors, in words
 
-    # the final model (add_compensator's, or keep_worst_case's with --worst-case): installed by the pipeline from
-    # the FinalModel the stage returns (install)
+    # the final model (add_compensator's, or keep_worst_case's with --worst-case): installed from the FinalModel the
+    # stage returns
     parametric: CalibrationResult | None = None
     final: CalibrationResult | None = None
     final_spec: str = ""
@@ -157,12 +205,33 @@ class DiagnosisRun:
         return schemes(self.cal.q, self.cal.rows, self.s.folds, self.s.seed, joint_levers(self.robot, self.cal),
                        sessions=self.cal.sessions, moving=moving)
 
-    def install(self, made: FinalModel) -> None:
-        """The final model a stage returned becomes the run's: ``parametric`` (and ``current``), ``final``,
-        ``final_spec``, ``accepted``, ``geometric`` (the one place they are set after the search)."""
-        self.parametric = self.current = made.parametric
-        self.final, self.final_spec = made.final, made.spec
-        self.accepted, self.geometric = list(made.accepted), made.geometric
+    def install(self, made: StageOutcome) -> None:
+        """What a stage returned becomes the run's (the one place these fields are set): its notes and steps
+        appended, the fits of its steps recorded (``fits_of_steps``; an accepted model of the search in
+        ``history``), its findings; the model under way (``current``, ``accepted``, ``geometric``, ``support``,
+        ``before``) of its ``model``, or of its final model's, which also sets ``parametric``, ``final`` and
+        ``final_spec``."""
+        self.notes += made.notes
+        self.steps += made.steps
+        for res, step, causes in made.recorded:
+            if step is not None:
+                self.fits_of_steps.append((res, step))
+            if causes is not None:
+                self.history.append((list(causes), res))
+        if made.findings is not None:
+            self.findings = list(made.findings)
+        model = made.final.model if made.final is not None else made.model
+        if model is not None:
+            self.current, self.accepted, self.geometric = model.current, list(model.accepted), model.geometric
+            self.support, self.before = dict(model.support), dict(model.before)
+        if made.final is not None:
+            self.parametric = made.final.parametric
+            self.final, self.final_spec = made.final.final, made.final.spec
+
+    def under_way(self) -> ModelUnderWay:
+        """The model under way as it stands (a stage changes it by returning another: :meth:`install`)."""
+        return ModelUnderWay(self.current, tuple(self.accepted), self.geometric, dict(self.support),
+                             dict(self.before))
 
     def step_of(self, res: CalibrationResult) -> int | None:
         """Index of the step whose model ``res`` is (None for a fit no step holds: a final-check refit)."""
@@ -267,23 +336,8 @@ class DiagnosisRun:
     def candidates(self, current: CalibrationResult, accepted: list[Candidate]) -> list[Candidate]:
         """Every candidate not yet in the model (:class:`.catalogue.Catalogue`)."""
         skip = self.unexplained.excluded_causes | {c for c, n in self.later.items() if n == len(accepted)}
-        out = self.catalogue.candidates(current, accepted, self.unexplained.excluded, skip,
-                                        lambda: self.torques(current))
-        self.periodograms = self.catalogue.periodograms
-        return out
+        return self.catalogue.candidates(current, accepted, self.unexplained.excluded, skip,
+                                         lambda: self.torques(current))
 
     def n_tests(self, cands: list[Candidate]) -> int:
         return self.catalogue.n_tests(cands)
-
-    def record(self, res: CalibrationResult, step: int, causes: list[Candidate] | None = None) -> None:
-        """``res`` is the model of step ``step``; with ``causes``, also the accepted model of the search that
-        holds them (a model the final check can fall back to)."""
-        self.fits_of_steps.append((res, step))
-        if causes is not None:
-            self.history.append((list(causes), res))
-
-    def drop_finding(self, cand: Candidate) -> None:
-        """Remove the finding of ``cand`` and what is kept for it."""
-        self.findings = [f for f in self.findings if f.candidate != cand]
-        self.support.pop(cand, None)
-        self.before.pop(cand, None)

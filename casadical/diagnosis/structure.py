@@ -34,7 +34,8 @@ in words, with its ``covariate``, ``effect``, ``p_value``, its size on the valid
 the mean norm of the term fitted on the calibration poses, judge only) and what the flexible term would gain
 there (``potential_gain_mm``). The validation poses never decide.
 
-Reads ``current`` (the model of the named causes), the folds and the level; adds the findings.
+Reads ``current`` (the model of the named causes), the folds and the level; sets ``structures``; returns the
+findings with one for each structure (None: no screen).
 """
 
 from __future__ import annotations
@@ -55,7 +56,7 @@ from ..terms.cause import session_parts
 from ..terms.mount_compliance import max_mount_moment
 from .candidates import Candidate
 from .report import Finding
-from .state import DiagnosisRun
+from .state import DiagnosisRun, StageOutcome
 from .statistics import nested_test
 from .validation import Linearized
 
@@ -587,11 +588,11 @@ def screen(res: CalibrationResult, lin: Linearized, cal: Measurements, val: Meas
     return found
 
 
-def screen_structure(run: DiagnosisRun) -> None:
+def screen_structure(run: DiagnosisRun) -> StageOutcome | None:
     """Stage: screen what the model of the named causes (``current``) leaves; each structure found is an
     ``unexplained`` finding, not in the model."""
     if not run.s.structure:
-        return
+        return None
     res = run.current
     run.say("structure screen: what the named causes leave, against every joint's reading and torque, the moment "
             "of the weights, time" + (" and the data's own columns (no instrument looks at rows that touch)"
@@ -601,6 +602,7 @@ def screen_structure(run: DiagnosisRun) -> None:
                    run.s.seed, frozenset(run.unexplained.by_joint))
     if not found:
         run.say("  nothing the named causes leave is structure")
+    findings = list(run.findings)
     for s in found:
         run.say(f"  {s.words()} (p = {10 ** s.log10_p:.2g}; {s.size_mm:.4f} mm on the validation poses)")
         finding = Finding(
@@ -612,5 +614,6 @@ def screen_structure(run: DiagnosisRun) -> None:
             f"{s.potential_gain_mm:.4f} mm",
             in_model=False, where=s.words(), potential_gain_mm=s.potential_gain_mm,
             structure={**s.to_dict(), "term": s.term(f"structure{len(run.structures) + 1}")})
-        run.findings.append(finding)
+        findings.append(finding)
         run.structures.append((s, finding))
+    return StageOutcome(findings=tuple(findings))

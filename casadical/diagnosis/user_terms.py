@@ -43,9 +43,10 @@ class Score:
                 f"{10 ** self.level:.2g}")
 
 
-def record_scores(run: DiagnosisRun, scored: list, level: float) -> None:
-    """What a round's score test said of each user candidate (by round), and where the round's steps begin."""
-    run.round_steps.setdefault(run.round, len(run.steps))
+def record_scores(run: DiagnosisRun, scored: list, level: float, n_steps: int) -> None:
+    """What a round's score test said of each user candidate (by round), and where the round's steps begin
+    (``n_steps``: the steps so far, the search's own among them)."""
+    run.round_steps.setdefault(run.round, n_steps)
     for sc in scored:
         c = sc.candidate
         if c.user:

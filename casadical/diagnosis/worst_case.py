@@ -32,7 +32,7 @@ from ..compensators.gp import ResidualGP
 from ..data.measurements import session_index
 from ..terms import SessionLocal
 from .candidates import compose_spec, own_parameters
-from .state import DiagnosisRun, FinalModel
+from .state import DiagnosisRun, FinalModel, StageOutcome
 from .validation import Linearized
 from .worst import WORST_SHARE, noise_band
 
@@ -190,16 +190,16 @@ def unchecked_terms(run: DiagnosisRun, i: int, dropped: list) -> str:
     return "; ".join(said)
 
 
-def keep_worst_case(run: DiagnosisRun) -> FinalModel | None:
+def keep_worst_case(run: DiagnosisRun) -> StageOutcome | None:
     e_kin, e_final = run.val_errors(run.kinematic) * 1000, run.val_errors(run.final) * 1000
     # beyond each model's own half-weight radius, as validation_note's "miss both models"
     b_kin, b_final = noise_band(run.kinematic) or np.inf, noise_band(run.parametric) or np.inf
     like = ~((e_kin > b_kin) & (e_final > b_final))
     if not like.any():
-        return
+        return None
     limit = e_kin[like].max() * (1 + WORST_SHARE)
     if e_final[like].max() <= limit:
-        return
+        return None
     gps = _processes(run.final) if run.final is not run.parametric else {}
     # options: (what it drops, the named causes kept, the fit of the named causes, its processes, its errors)
     options = []
@@ -243,17 +243,18 @@ def keep_worst_case(run: DiagnosisRun) -> FinalModel | None:
             + (f"; why: {why}" if why else "")
             + ("; --worst-case made that the final model" if run.s.worst_case else
                "; diagnose --worst-case makes that the final model"))
-    run.notes.append(text)
     run.say(f"  {text}")
     if not run.s.worst_case:
-        return
+        return StageOutcome(notes=(text,))
+    findings = run.findings
     if gps and new is None:
-        run.findings = [f for f in run.findings if not (f.candidate.kind.unexplained and "shrink" in f.holds_up)]
+        findings = [f for f in findings if not (f.candidate.kind.unexplained and "shrink" in f.holds_up)]
     elif not gps:
         new = None
-    for a in what_dropped:
-        run.drop_finding(a)
+    findings = [f for f in findings if f.candidate not in what_dropped]
     final = with_gp_compensator(fit, new, run.cal, "gp_compensator: the GP compensator (one per session)") \
         if new else fit
     spec = "kinematic" if fit is run.kinematic else compose_spec(earlier, geo)
-    return FinalModel(fit, final, spec + ("+gp_compensator" if new else ""), tuple(earlier), geo)
+    return StageOutcome(notes=(text,), findings=tuple(findings),
+                        final=FinalModel(run.under_way().holding(fit, earlier, geo), final,
+                                         spec + ("+gp_compensator" if new else "")))

@@ -20,8 +20,10 @@ def _run(seed):
     data, _ = simulate(robot, 120, Effects(stiffness={2: 3e4}), seed=seed, floor_z=None)
     cal, val = data.subset(np.arange(80)), data.subset(np.arange(80, 120))
     run = DiagnosisRun(robot, cal, val, DiagnosisSettings(seed=seed), lambda _: None, None, {})
-    for stage in (check_data, fit_nominal, fit_geometry):
-        stage(run)
+    for stage in (check_data, fit_nominal, fit_geometry):     # as the pipeline runs them
+        made = stage(run)
+        if made is not None:
+            run.install(made)
     return run
 
 
