@@ -1,6 +1,6 @@
 """``python -m casadical`` and the ``casadical`` command: the command line in a process of its own.
 
-The signal handlers go in first (:func:`casadical.runtime.interrupts.command_process`):
+The signal handlers go in first (:func:`casadical.runtime._interrupts.command_process`):
 a Ctrl-C or SIGTERM while Python still imports the commands is one line
 and exit 130/143 too, as is one that comes while the process ends.
 """
@@ -8,7 +8,7 @@ and exit 130/143 too, as is one that comes while the process ends.
 
 def run() -> None:
     """The ``casadical`` command."""
-    from .runtime import interrupts
+    from .runtime import _interrupts as interrupts
 
     interrupts.command_process()
     from .cli import main

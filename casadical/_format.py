@@ -1,5 +1,5 @@
 """Numbers in the plain-text tables: one formatter for the parameter tables of
-:mod:`casadical.parameters` and :mod:`casadical.stats.significance`; the short forms of the reports' words
+:mod:`casadical.parameters` and :mod:`casadical.stats._significance`; the short forms of the reports' words
 (:func:`g3`, :func:`relative`)."""
 
 from __future__ import annotations

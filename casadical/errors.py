@@ -142,7 +142,7 @@ class ExtrapolationWarning(CasadicalWarning):
 
 
 class PhysicsWarning(CasadicalWarning):
-    """A term of the model that, as fitted, is not the physical cause its name says (casadical.stats.physics)."""
+    """A term of the model that, as fitted, is not the physical cause its name says (casadical.stats._physics)."""
 
 
 class CorrelationWarning(CasadicalWarning):
@@ -156,7 +156,7 @@ class ParallelAxesWarning(CasadicalWarning):
 
 class GravityWarning(CasadicalWarning):
     """The robot file's gravity disagrees with the levelled instrument's down as the fitted base pose puts it (the
-    arm described with another mounting: casadical.calibration.gravity)."""
+    arm described with another mounting: casadical.calibration._gravity)."""
 
 
 class SignificanceWarning(CasadicalWarning):

@@ -71,14 +71,14 @@ class Geometry:
     base: list  # deviation of the base pose: x, y, z, roll, pitch, yaw
     loop: list = field(default_factory=list)  # crank, coupler, rocker
     #: a change of link frames after their link transforms, by 1-based joint: [dx, dy, dz, rx, ry, rz] applied as
-    #: Tx Ty Tz Rz Ry Rx (a user term's ``frame`` effect, casadical.terms.user); none in the catalogue's models
+    #: Tx Ty Tz Rz Ry Rx (a user term's ``frame`` effect, casadical.terms._user); none in the catalogue's models
     links: dict = field(default_factory=dict)
     #: a change of the robot base right after the estimated base pose, [dx, dy, dz, rx, ry, rz] as ``links``
     #: (a user term's ``base`` effect); empty: none
     mount: list = field(default_factory=list)
     #: a linear axis' carriage off its ideal travel, by 1-based joint: [dx, dy, dz, rx, ry, rz] applied as
     #: Tx Ty Tz Rz Ry Rx right after the joint's travel (``Rz(theta) Tz(d + q)``), in that frame: z along the
-    #: travel (the straightness and the carriage's angles, casadical.terms.straightness, .carriage_angle)
+    #: travel (the straightness and the carriage's angles, casadical.terms._straightness, .carriage_angle)
     carriage: dict = field(default_factory=dict)
 
     @classmethod

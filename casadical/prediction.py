@@ -11,7 +11,7 @@ Two parts, independent and added in variance:
   (:func:`covariance_scale`: poses the loss sets aside count in that
   ``sigma`` by their miss);
 - the **GP compensator** (one per session,
-  :mod:`casadical.calibration.per_session`): its Gaussian processes'
+  :mod:`casadical.calibration._per_session`): its Gaussian processes'
   predictive std where they know the residual, their prior std where they
   do not (there the compensator adds nothing and the
   residual the named causes leave is all there is).
@@ -43,7 +43,7 @@ chi_3(95 %)): real residuals have heavier tails than a Gaussian's, and on
 UR10 series A and B the chi_3 factor held 86-90 % of the held-out poses;
 elsewhere, in a diagnosis's final model, the named causes' own factor,
 calibrated on its random folds alike (``uncertainty.interval_k``,
-:func:`fold_interval_k`, :mod:`casadical.diagnosis.intervals`).
+:func:`fold_interval_k`, :mod:`casadical.diagnosis._intervals`).
 ``sigma`` is, with a GP compensator, at the poses of
 its session, its processes' white-noise part (the scatter the joint
 readings do not predict, averaged over the three axes; the calibration's
@@ -59,11 +59,11 @@ from __future__ import annotations
 
 import numpy as np
 
-from .compensators.gp import CHI3_95
-from .data.measurements import Measurements
+from .compensators._gp import CHI3_95
+from .data._measurements import Measurements
 from .errors import InputError
 from .result import CalibrationResult
-from .terms.gp_compensator import fitted_processes
+from .terms._gp_compensator import fitted_processes
 
 
 def prediction_std(result: CalibrationResult, data: Measurements) -> tuple[np.ndarray, np.ndarray | None]:
@@ -138,7 +138,7 @@ def noise_sigma(result: CalibrationResult, data: Measurements) -> np.ndarray:
 
 def compensator_weight(result: CalibrationResult, data: Measurements) -> np.ndarray:
     """The share of its correction the GP compensator applies at each pose of ``data`` (its
-    :meth:`~casadical.compensators.gp.ResidualGP.weight`; 0 where none applies or without one)."""
+    :meth:`~casadical.compensators._gp.ResidualGP.weight`; 0 where none applies or without one)."""
     out = np.zeros(len(data))
     for gp, rows in fitted_processes(result.model.terms, data):
         if len(rows):
@@ -152,8 +152,8 @@ def fold_interval_k(errors: np.ndarray, var: np.ndarray, sigma: np.ndarray, leve
     prediction's variance, m^2, ``sigma`` the noise per axis, m), never below :data:`CHI3_95` (what a model that
     holds every effect gives: the quantile's scatter on few poses must not narrow it; without the floor the GP
     compensator's held 89.5 % of the README split's validation poses). The named causes' factor
-    (:mod:`casadical.diagnosis.intervals`) and the GP compensator's
-    (:meth:`casadical.calibration.per_session.GPCompensatorFolds.interval_k`)."""
+    (:mod:`casadical.diagnosis._intervals`) and the GP compensator's
+    (:meth:`casadical.calibration._per_session.GPCompensatorFolds.interval_k`)."""
     z = np.asarray(errors) / np.sqrt(np.asarray(var) / 3 + np.asarray(sigma) ** 2)
     z = z[np.isfinite(z)]
     return max(CHI3_95, float(np.quantile(z, level))) if len(z) else CHI3_95
@@ -216,7 +216,7 @@ def accuracy_map(result: CalibrationResult, measured_q: np.ndarray | None = None
         raise InputError("an accuracy map needs two joints")
     lim = robot.limits
     if joints is None:
-        from .data.simulate import sample_poses
+        from .data._simulate import sample_poses
 
         q = sample_poses(robot, 400, np.random.default_rng(seed), floor_z=None)
         s = _total(result, q)

@@ -27,13 +27,13 @@ from dataclasses import dataclass, field, replace
 
 import numpy as np
 
-from .data.measurements import Measurements
+from .data._measurements import Measurements
 from .errors import CasadicalError
-from .model.symbolic import Model
+from .model._symbolic import Model
 from .parameters import Parameters
 from .rows import Layout
-from .runtime.chunks import pose_chunks
-from .stats.identifiability import triangular_factor
+from .runtime._chunks import pose_chunks
+from .stats._identifiability import triangular_factor
 
 #: median of the norm of a 3-vector of independent N(0, 1) components (sqrt of chi2(3)'s median)
 CHI3_MEDIAN = 1.5381722544550522
@@ -163,7 +163,7 @@ class CalibrationProblem:
         Plain least squares by default.
     rot : ndarray, shape (N, 3, 3), or None
         Full pose: the measured probe rotations times the transpose of the
-        reference mounting R0 (the model's :meth:`~casadical.model.symbolic.Model.probe_rotation`
+        reference mounting R0 (the model's :meth:`~casadical.model._symbolic.Model.probe_rotation`
         is compared with them); the loss then weighs both parts by
         ``loss.rot_weight``. None: positions only.
     layout : Layout or None

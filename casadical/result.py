@@ -16,20 +16,20 @@ from pathlib import Path
 import numpy as np
 
 from . import __version__
-from .data.calibration_file import restored_terms, user_definitions, validate_calibration_document
-from .data.checks import check_calibration_fits, check_poses
-from .data.measurements import Measurements, session_index
+from .data._calibration_file import restored_terms, user_definitions, validate_calibration_document
+from .data._checks import check_calibration_fits, check_poses
+from .data._measurements import Measurements, session_index
 from .errors import CalibrationFileError, CasadicalError, InputError, listing
 from .kinematics import matrix_to_rpy
-from .model.symbolic import Model, base0_to_pose
+from .model._symbolic import Model, base0_to_pose
 from .parameters import Parameters
 from .problem import RobustLoss
 from .robot import robot_from_dict, robot_to_dict
-from .runtime.files import atomic_write
+from .runtime._files import atomic_write
 from .solvers import SolverResult
-from .stats.coverage import Coverage
-from .stats.identifiability import Identifiability
-from .stats.significance import (
+from .stats._coverage import Coverage
+from .stats._identifiability import Identifiability
+from .stats._significance import (
     LEVEL,
     FitStatistics,
     ParameterTest,
@@ -38,8 +38,8 @@ from .stats.significance import (
     stiffness_interval,
     t_critical,
 )
-from .stats.uncertainty import Uncertainty
-from .terms.definitions import by_name
+from .stats._uncertainty import Uncertainty
+from .terms._definitions import by_name
 
 
 @dataclass
@@ -358,7 +358,7 @@ class CalibrationResult:
         """Each free parameter tested against its nominal value: t, p, significance, interval, relative std.
 
         Student's t with the fit's degrees of freedom (the normal
-        distribution when they are not known); see :mod:`casadical.stats.significance`.
+        distribution when they are not known); see :mod:`casadical.stats._significance`.
         """
         return parameter_tests(self.parameters, self._dof(), level)
 
@@ -384,9 +384,9 @@ class CalibrationResult:
         """Errors on held-out poses, kept in :attr:`validation` (and written to the JSON).
 
         The poses pass the plausibility checks of every command
-        (:func:`casadical.data.checks.check_poses`) and the check ``predict``
+        (:func:`casadical.data._checks.check_poses`) and the check ``predict``
         makes that they belong to this calibration (a mean error a hundred
-        times its own: :func:`casadical.data.checks.check_calibration_fits`).
+        times its own: :func:`casadical.data._checks.check_calibration_fits`).
 
         Parameters
         ----------

@@ -1,7 +1,7 @@
 """Robot descriptions: the TOML contract (docs/formats.md section 1) and built-ins.
 
 A :class:`Robot` holds nominal values only, in SI units (m, rad, kg). The
-symbolic model (:mod:`casadical.model.symbolic`) turns it into CasADi expressions.
+symbolic model (:mod:`casadical.model._symbolic`) turns it into CasADi expressions.
 
 This module imports no reader of another file type: the URDF reader
 (:mod:`casadical.urdf`) builds on it, and loading a robot by file type
@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from .errors import InputError, ParallelAxesWarning, RobotFileError
-from .runtime.files import read_toml
+from .runtime._files import read_toml
 
 GRAVITY = 9.81
 PROBLEMS = Path(__file__).resolve().parent.parent / "problems"

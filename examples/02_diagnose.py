@@ -1,6 +1,6 @@
 """Diagnose: let the data name what the kinematic model gets wrong.
 
-What it teaches: simulate a robot with errors you know (casadical.data.simulate), hide two
+What it teaches: simulate a robot with errors you know (casadical.data._simulate), hide two
 physical effects in it, and run the diagnosis. It screens candidate causes (joint
 compliance, periodic gear errors, encoder scale, backlash, ...), accepts one only
 where held-out folds and the validation poses show it helps, and says what to do
@@ -13,7 +13,7 @@ Run from the repository root:  python examples/02_diagnose.py
 import math
 
 from casadical import load_robot
-from casadical.data.simulate import Effects, simulate
+from casadical.data import Effects, simulate
 from casadical.diagnosis import DiagnosisSettings, diagnose
 
 robot = load_robot("ys100")        # built-in 6-axis arm (the papers' Yaskawa)

@@ -15,7 +15,7 @@ from pathlib import Path
 import numpy as np
 
 from casadical import Measurements, calibrate, load_calibration, load_robot
-from casadical.apply.inverse import compensate
+from casadical.apply import compensate
 
 robot = load_robot("ur10")
 data = Measurements.read_csv("problems/datasets/ur10-ipa/series_b.csv", n_joints=robot.n, require_positions=True)

@@ -16,8 +16,7 @@ from pathlib import Path
 import numpy as np
 
 from casadical import Measurements, calibrate, load_robot
-from casadical.apply.export_geometry import geometric_equivalent
-from casadical.apply.parameter_table import parameter_table
+from casadical.apply import geometric_equivalent, parameter_table
 from casadical.urdf import robot_to_urdf
 
 robot = load_robot("ur10")

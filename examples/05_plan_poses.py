@@ -13,7 +13,7 @@ Run from the repository root:  python examples/05_plan_poses.py
 import numpy as np
 
 from casadical import Model, calibrate, load_robot
-from casadical.data.simulate import Effects, sample_poses, simulate
+from casadical.data import Effects, sample_poses, simulate
 from casadical.planning import select_poses
 
 robot = load_robot("ys100")

@@ -1,6 +1,6 @@
 """Simulate a robot with known errors, calibrate it, and compare what was found with the truth.
 
-What it teaches: casadical.data.simulate draws a "true" robot (nominal geometry plus random
+What it teaches: casadical.data._simulate draws a "true" robot (nominal geometry plus random
 link errors, and whatever Effects you give it: compliance, gear errors, encoder scale,
 backlash, thermal expansion, drift) and measures it with tracker noise. Because the truth
 is known, you can check an identification parameter by parameter, and see that its
@@ -11,7 +11,7 @@ Run from the repository root:  python examples/06_simulate.py
 """
 
 from casadical import calibrate, load_robot
-from casadical.data.simulate import Effects, simulate
+from casadical.data import Effects, simulate
 
 robot = load_robot("ys100")
 effects = Effects(stiffness={2: 2e6, 3: 1.5e6},   # N m/rad; every other joint is rigid

@@ -15,10 +15,10 @@ from pathlib import Path
 import numpy as np
 
 from casadical import load_robot
-from casadical.data.simulate import Effects, simulate
+from casadical.data import Effects, simulate
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.model import Model
-from casadical.terms.definitions import read_terms_file
+from casadical.terms import read_terms_file
 
 robot = load_robot("ys100")
 

@@ -24,8 +24,8 @@ import numpy as np
 
 from casadical import Measurements, calibrate, load_robot
 from casadical.cli import main
-from casadical.model.symbolic import Model, pose_to_base0
-from casadical.programs.program import matrix_rotvec
+from casadical.model import Model, pose_to_base0
+from casadical.programs import matrix_rotvec
 
 robot = load_robot("ur10")
 data = Measurements.read_csv("problems/datasets/ur10-ipa/series_b.csv", n_joints=robot.n, require_positions=True)

@@ -19,9 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from casadical import calibrate, load_robot
-from casadical.calibration.for_data import model_for
-from casadical.data import Measurements
-from casadical.data.simulate import sample_poses
+from casadical.calibration import model_for
+from casadical.data import Measurements, sample_poses
 
 rng = np.random.default_rng(0)
 scratch = tempfile.TemporaryDirectory(prefix="nests-")     # removed when the script ends

@@ -15,10 +15,10 @@ atexit.register(shutil.rmtree, os.environ["CASADICAL_CACHE"], ignore_errors=True
 
 @pytest.fixture(autouse=True)
 def _background_compiles_end_with_the_test():
-    """A test that compiled quickly (casadical.model.jitcache) ends as a process would: the optimised compiles
+    """A test that compiled quickly (casadical.model._jitcache) ends as a process would: the optimised compiles
     it started in the background are waited for and kept in the cache they were started for."""
     yield
-    from casadical.model import jitcache
+    from casadical.model import _jitcache as jitcache
 
     jitcache.finish(kill=False)
 

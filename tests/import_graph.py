@@ -128,7 +128,7 @@ def cycles(g: dict[str, set[str]]) -> list[set[str]]:
 
 
 def unit(module: str) -> str:
-    """The package (or top-level module) a module belongs to: ``casadical.diagnosis.words`` -> ``diagnosis``,
+    """The package (or top-level module) a module belongs to: ``casadical.diagnosis._words`` -> ``diagnosis``,
     ``casadical.result`` -> ``result``; the package's own ``__init__`` -> ``casadical``."""
     parts = module.split(".")
     return parts[1] if len(parts) > 1 else PACKAGE

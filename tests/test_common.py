@@ -31,12 +31,9 @@ import numpy as np
 import pytest
 
 from casadical import calibrate, load_calibration, load_robot
-from casadical.compensators import RBFNetwork
-from casadical.compensators.gp import ResidualGP
-from casadical.data.sessions import combine
-from casadical.data.simulate import Effects, another_session, sample_poses, simulate
-from casadical.methods import MethodResult, method_names, run_method
-from casadical.methods.base import lookup
+from casadical.compensators import RBFNetwork, ResidualGP
+from casadical.data import Effects, another_session, combine, sample_poses, simulate
+from casadical.methods import MethodResult, lookup, method_names, run_method
 from casadical.model import Model
 from casadical.terms import REGISTRY, make_term
 
@@ -104,7 +101,7 @@ UNBOUNDED = {
     ("tool_points", "tool_"): "a tool point the robot file does not declare ([tool.NAME]) may sit anywhere on the "
                               "tool (a declared one is bounded: its nominal +- the geometry's box)",
     ("nonlinear_stiffness", "cubic"): "a progressive spring may stiffen or soften (either sign, any size); "
-                                      "the physics rules judge its value (casadical/stats/physics.py)",
+                                      "the physics rules judge its value (casadical/stats/_physics.py)",
 }
 
 

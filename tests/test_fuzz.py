@@ -20,9 +20,7 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from casadical import calibrate, load_calibration, load_robot
-from casadical.data import Measurements
-from casadical.data.checks import check_poses
-from casadical.data.simulate import Effects, simulate
+from casadical.data import Effects, Measurements, check_poses, simulate
 from casadical.errors import CasadicalError
 from casadical.robot import BUILTIN_DIR, robot_from_dict
 from tests.helpers.arms import ARMS, to_toml

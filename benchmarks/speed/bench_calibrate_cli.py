@@ -152,7 +152,7 @@ def baseline(kind: str, data_csv: str, spec: str, free_json: str, out: str) -> N
         method = "trf"
     x = np.zeros(len(free))
     sigma, c = math.nan, 3.0
-    for _ in range(6):   # casadical.calibration.solve.ROBUST_LOOPS: re-estimate the noise scale until it settles
+    for _ in range(6):   # casadical.calibration._solve.ROBUST_LOOPS: re-estimate the noise scale until it settles
         r = (model.predict(q, values(x), cov, base0) if kind != "figaroh"
              else npm.predict(q, values(x), payload, base0)) - xyz
         new = max(float(np.median(np.linalg.norm(r, axis=1))) / 1.5381722544550522, 1e-12)

@@ -65,10 +65,10 @@ from bench_model import cpu_model, fmt_t  # noqa: E402
 from numpy_model import NumpyModel  # noqa: E402
 
 from casadical.calibration import calibrate  # noqa: E402
-from casadical.data.simulate import Effects, simulate  # noqa: E402
+from casadical.data import Effects, simulate  # noqa: E402
 from casadical.loading import load_robot  # noqa: E402
-from casadical.model import jitcache  # noqa: E402
-from casadical.model.symbolic import Model, compiler_available  # noqa: E402
+from casadical.model import Model, compiler_available  # noqa: E402
+from casadical.model import _jitcache as jitcache  # noqa: E402
 from casadical.problem import CalibrationProblem  # noqa: E402
 from casadical.solvers import make_solver  # noqa: E402
 

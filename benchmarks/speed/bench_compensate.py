@@ -50,9 +50,9 @@ from bench_model import cpu_model  # noqa: E402  (this folder is on sys.path whe
 from scipy.optimize import least_squares  # noqa: E402
 
 from casadical import Measurements, Model, calibrate, load_robot  # noqa: E402
-from casadical.apply.inverse import compensate  # noqa: E402
-from casadical.data.simulate import Effects, sample_poses, simulate  # noqa: E402
-from casadical.model.symbolic import compiler_available  # noqa: E402
+from casadical.apply import compensate  # noqa: E402
+from casadical.data import Effects, sample_poses, simulate  # noqa: E402
+from casadical.model import compiler_available  # noqa: E402
 
 SPEC = "kinematic+compliance"
 EFFECTS = Effects(stiffness={2: 1.73e6, 3: 1.2e6}, base_xyz=(2.0, -0.5, 0.3), base_rpy=(0.01, -0.02, 1.2))

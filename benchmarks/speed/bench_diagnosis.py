@@ -22,13 +22,8 @@ from pathlib import Path
 import numpy as np
 
 from casadical import calibrate, load_robot
-from casadical.data import Measurements
-from casadical.data.simulate import Effects, simulate
-from casadical.diagnosis import DiagnosisSettings, diagnose
-from casadical.diagnosis.candidates import compose_spec
-from casadical.diagnosis.prepare import check_data
-from casadical.diagnosis.screening import Screen
-from casadical.diagnosis.state import DiagnosisRun
+from casadical.data import Effects, Measurements, simulate
+from casadical.diagnosis import DiagnosisRun, DiagnosisSettings, Screen, check_data, compose_spec, diagnose
 
 
 def case(n_cal: int, n_val: int, seed: int = 0):

@@ -43,7 +43,7 @@ from casadical.cli import main
 import casadical.calibration, casadical.diagnosis, casadical.prediction
 t1, c1 = time.perf_counter(), cpu()
 import casadical.html
-from casadical.html import page
+from casadical.html import _page as page
 t2, c2 = time.perf_counter(), cpu()
 spent = []
 draw = page.Page.html

@@ -65,7 +65,7 @@ def functions_table(cache: Path) -> None:
     import casadi as ca
     import numpy as np
 
-    from casadical.model import jitcache
+    from casadical.model import _jitcache as jitcache
 
     # the entries' Functions are not in the cache (only their libraries): build them as the job does,
     # by running it in this process with a hook that keeps every Function compiled

@@ -3,7 +3,7 @@
 On the README job's data (series B of the bundled UR10 data, 300 calibration poses, seed 0; the named causes
 the diagnosis finds there), the GP compensator's Gaussian processes are fitted two ways, in turn:
 
-- ``casadical``: :meth:`casadical.compensators.gp.ResidualGP.fit` (the marginal likelihood and its gradient
+- ``casadical``: :meth:`casadical.compensators._gp.ResidualGP.fit` (the marginal likelihood and its gradient
   from the joints' squared distances, one Cholesky factor and its inverse per evaluation);
 - ``scikit-learn``: :class:`sklearn.gaussian_process.GaussianProcessRegressor` with the same kernel, bounds,
   start, ``normalize_y`` and L-BFGS-B iterations (how fe55b8a fitted them).
@@ -34,14 +34,10 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from casadical import calibrate, load_robot  # noqa: E402
-from casadical.calibration.per_session import (  # noqa: E402
-    gp_compensator_data,
-    gp_compensator_held_out,
-    with_gp_compensator,
-)
-from casadical.compensators.gp import FIT_ITERATIONS, FIT_POSES, LENGTH_BOUNDS, ResidualGP  # noqa: E402
+from casadical.calibration import gp_compensator_data, gp_compensator_held_out, with_gp_compensator
+from casadical.compensators import FIT_ITERATIONS, FIT_POSES, LENGTH_BOUNDS, ResidualGP  # noqa: E402
 from casadical.data import Measurements  # noqa: E402
-from casadical.diagnosis.validation import joint_levers, schemes  # noqa: E402
+from casadical.diagnosis import joint_levers, schemes  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[2] / "problems" / "datasets" / "ur10-ipa"
 #: the model the README job's diagnosis ends with before its GP compensator (docs/diagnosis.md)

@@ -58,10 +58,10 @@ def table(N: int, repeats: int) -> None:
     from casadical import load_robot
     from casadical.calibration import calibrate
     try:
-        from casadical.calibration.solve import _solve
+        from casadical.calibration._solve import _solve
     except ImportError:     # before calibrate() became a pipeline (fe55b8a)
         from casadical.calibration import _solve
-    from casadical.data.simulate import Effects, simulate
+    from casadical.data import Effects, simulate
     from casadical.model import Model
     from casadical.problem import CalibrationProblem
     from casadical.solvers import make_solver

@@ -20,7 +20,8 @@ import casadi as ca
 import numpy as np
 
 from casadical import load_robot
-from casadical.model import Model, jitcache
+from casadical.model import Model
+from casadical.model import _jitcache as jitcache
 
 
 def builtin_jit(fun: ca.Function, name: str, folder: str) -> ca.Function:

@@ -37,7 +37,7 @@ TARGET_MB = 1000.0
 SIMULATE = """
 import sys
 from casadical import load_robot
-from casadical.data.simulate import simulate
+from casadical.data._simulate import simulate
 data, _ = simulate(load_robot("ur10"), int(sys.argv[1]), seed=int(sys.argv[2]))
 data.write_csv(sys.argv[3], overwrite=True)
 """

@@ -40,7 +40,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 from numpy_model import NumpyModel, check  # noqa: E402
 
 from casadical.loading import load_robot  # noqa: E402
-from casadical.model.symbolic import Model, compiler_available  # noqa: E402
+from casadical.model import Model, compiler_available  # noqa: E402
 
 SPEC = "kinematic+compliance"
 SIZES = [10, 100, 1000, 10000, 100000]

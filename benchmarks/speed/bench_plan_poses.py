@@ -20,7 +20,7 @@ the BLAS thread settings a user has by default: ``OPENBLAS_NUM_THREADS``,
 removed from their environment. Each run's certificate is read from its
 ``--json`` summary: the certified D-efficiency must not drop.
 
-Also measures the cost of entering and leaving ``casadical.runtime.threads.limited_threads``.
+Also measures the cost of entering and leaving ``casadical.runtime._threads.limited_threads``.
 
 Usage::
 
@@ -129,7 +129,7 @@ def _entry_cost_us() -> dict:
     import numpy  # noqa: F401
     import scipy.linalg  # noqa: F401
 
-    from casadical.runtime.threads import limited_threads
+    from casadical.runtime import limited_threads
 
     with limited_threads():
         pass  # the first entry scans the process for BLAS libraries

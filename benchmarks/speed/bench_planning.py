@@ -59,7 +59,7 @@ import numpy as np  # noqa: E402
 
 
 def _pool(robot_name: str, model_spec: str, N: int, seed: int):
-    from casadical.data.simulate import sample_poses
+    from casadical.data import sample_poses
     from casadical.loading import load_robot
     from casadical.model import Model
     from casadical.planning import design_problem
@@ -108,8 +108,13 @@ def _run_cvxpy(A: np.ndarray, m: int, timeout: float) -> dict:
 
 
 def main() -> int:
-    from casadical.planning import RelaxationSettings, relax_multiplicative, round_and_exchange, upper_bound
-    from casadical.planning.doptimal import d_efficiency
+    from casadical.planning import (
+        RelaxationSettings,
+        d_efficiency,
+        relax_multiplicative,
+        round_and_exchange,
+        upper_bound,
+    )
 
     args = ARGS
     rows = []

@@ -32,20 +32,20 @@ ROOT = Path(__file__).resolve().parents[2]
 #: the units: (row, module, owner (class or None), function); a call of an inner unit inside an outer call of the
 #: same row is not counted again
 UNITS = [
-    ("full fits (calibrate, robust)", "casadical.diagnosis.state", "DiagnosisRun", "fit"),
-    ("Levenberg-Marquardt solves", "casadical.solvers.lm", "LevenbergMarquardt", "solve"),
+    ("full fits (calibrate, robust)", "casadical.diagnosis._state", "DiagnosisRun", "fit"),
+    ("Levenberg-Marquardt solves", "casadical.solvers._lm", "LevenbergMarquardt", "solve"),
     ("linearisations of every calibration pose", "casadical.problem", "CalibrationProblem", "linearize"),
-    ("screens (a round's linearisation, every candidate scored)", "casadical.diagnosis.screening", "Screen",
+    ("screens (a round's linearisation, every candidate scored)", "casadical.diagnosis._screening", "Screen",
      "scores"),
-    ("candidates fitted by one step (report steps)", "casadical.diagnosis.screening", "Screen", "fit"),
-    ("held-out folds of a fit (35 folds each, linearised)", "casadical.diagnosis.validation", "Linearized", "cv"),
-    ("nameability checks (harmonics, halves, drift)", "casadical.diagnosis.nameable", None, "cause_checks"),
-    ("one-step fits at the validation poses", "casadical.diagnosis.screening", "Screen", "validation_errors"),
+    ("candidates fitted by one step (report steps)", "casadical.diagnosis._screening", "Screen", "fit"),
+    ("held-out folds of a fit (35 folds each, linearised)", "casadical.diagnosis._validation", "Linearized", "cv"),
+    ("nameability checks (harmonics, halves, drift)", "casadical.diagnosis._nameable", None, "cause_checks"),
+    ("one-step fits at the validation poses", "casadical.diagnosis._screening", "Screen", "validation_errors"),
     ("full fits at the validation poses", "casadical.result", "CalibrationResult", "errors"),
-    ("structure searches (140 pairs of covariate and effect each)", "casadical.diagnosis.structure",
+    ("structure searches (140 pairs of covariate and effect each)", "casadical.diagnosis._structure",
      "StructureScreen", "strongest"),
-    ("GP compensator fits (hyperparameters)", "casadical.compensators.gp", "ResidualGP", "fit"),
-    ("GP compensator held-out folds", "casadical.calibration.per_session", None, "gp_compensator_held_out"),
+    ("GP compensator fits (hyperparameters)", "casadical.compensators._gp", "ResidualGP", "fit"),
+    ("GP compensator held-out folds", "casadical.calibration._per_session", None, "gp_compensator_held_out"),
 ]
 
 CHILD = r"""

@@ -115,11 +115,11 @@ def child(method: str, npz: str, N: int, spec: str, free_json: str, out: str) ->
         doc = _scipy(robot, data, spec, json.loads(Path(free_json).read_text()))
     else:
         try:
-            import casadical.calibration.solve as C
+            import casadical.calibration._solve as C
         except ImportError:     # before calibrate() became a pipeline (fe55b8a): PYTHONPATH at that tree
             import casadical.calibration as C
         from casadical.problem import CalibrationProblem
-        from casadical.solvers.ipopt import Ipopt
+        from casadical.solvers import Ipopt
 
         linearize = CalibrationProblem.linearize
         lins = [0]
@@ -199,7 +199,7 @@ def _scipy(robot, data, spec: str, free_doc: dict) -> dict:
 
     x = np.zeros(len(prob.free))
     sigma, nfev = math.nan, []
-    for _ in range(6):   # casadical.calibration.solve.ROBUST_LOOPS: re-estimate the noise scale until it settles
+    for _ in range(6):   # casadical.calibration._solve.ROBUST_LOOPS: re-estimate the noise scale until it settles
         r = npp.fun(x).reshape(-1, 3)
         new = max(float(np.median(np.linalg.norm(r, axis=1))) / CHI3_MEDIAN, 1e-12)
         if math.isfinite(sigma) and abs(new / sigma - 1) < 0.05:
@@ -288,7 +288,7 @@ def main() -> int:
     import casadi
     import scipy
 
-    from casadical.data.simulate import load_protocol
+    from casadical.data import load_protocol
 
     methods = ["ipopt"] + ([] if args.no_before else ["before"]) + ["lm"] + ([] if args.no_scipy else ["scipy"])
     if args.base:   # the base tree's casadical methods, each right after this tree's

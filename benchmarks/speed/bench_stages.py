@@ -1,4 +1,4 @@
-"""Where a diagnosis spends its CPU: each stage of ``diagnose()`` (diagnosis/pipeline.py ``STAGES``), the HTML
+"""Where a diagnosis spends its CPU: each stage of ``diagnose()`` (diagnosis/_pipeline.py ``STAGES``), the HTML
 report, and what is left of the process (start-up, imports, reading and writing files), for the three real jobs,
 side by side with another tree in the same run.
 
@@ -52,14 +52,14 @@ def timed(name, f):
     g.__name__ = getattr(f, "__name__", name)
     return g
 try:                    # a tree before the diagnosis had stages (aebf0e6): its whole process only
-    import casadical.diagnosis.pipeline as P
+    import casadical.diagnosis._pipeline as P
     P.STAGES = tuple(timed(s.__name__, s) for s in P.STAGES)
 except (ImportError, AttributeError):
     pass
 try:
     import casadical.html as H
     H.diagnosis_html = timed("html report", H.diagnosis_html)
-    import casadical.html.diagnosis as HD
+    import casadical.html._diagnosis as HD
     HD.diagnosis_html = H.diagnosis_html
 except ImportError:
     pass

@@ -27,8 +27,12 @@ import time
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")   # as the Dask workers have it
 
-from casadical.study import ResultStore, load_study, run_study  # noqa: E402
-from casadical.study.store import differing_columns  # noqa: E402
+from casadical.study import (  # noqa: E402
+    ResultStore,
+    differing_columns,  # noqa: E402
+    load_study,
+    run_study,
+)
 
 
 def load() -> str:

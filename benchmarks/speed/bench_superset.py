@@ -1,6 +1,6 @@
 """One compiled superset model per robot and data kind (issue 26 item 1): sizes, compile times, evaluation.
 
-The superset (``casadical/model/superset.py``, docs/speed.md) holds every term a model of the robot may have and
+The superset (``casadical/model/_superset.py``, docs/speed.md) holds every term a model of the robot may have and
 a chain-angle offset per pose; every model the diagnosis tries is a mask of it. Reported, per robot and data
 kind (position; full pose):
 
@@ -41,13 +41,15 @@ HERE = Path(__file__).resolve().parent
 sys.path.append(str(HERE.parents[1]))  # the tests' helpers as ``tests.helpers``, after any casadical on PYTHONPATH
 
 from casadical import load_robot  # noqa: E402
-from casadical.data.simulate import sample_poses  # noqa: E402
+from casadical.data import sample_poses  # noqa: E402
 from casadical.model import (
+    Batch,  # noqa: E402
     Model,  # noqa: E402
-    jitcache,
+    superset_for,  # noqa: E402
 )
-from casadical.model._batch import Batch  # noqa: E402
-from casadical.model.superset import superset_for  # noqa: E402
+from casadical.model import (
+    _jitcache as jitcache,
+)
 from casadical.robot import robot_from_dict  # noqa: E402
 
 #: two simple candidates and the README job's final parametric model

@@ -256,7 +256,7 @@ def check(robot_name: str = "ys100", N: int = 200, seed: int = 0, verbose: bool 
     """
     from casadical.kinematics import base_pose_matrix
     from casadical.loading import load_robot
-    from casadical.model.symbolic import Model, pose_to_base0
+    from casadical.model import Model, pose_to_base0
 
     robot = load_robot(robot_name)
     model = Model(robot, "kinematic+compliance", jit=False)

@@ -4,7 +4,7 @@ For each source series (A, B) and seed, on 300 random calibration poses of it (t
 in series, never fitted):
 
 1. ``diagnose`` (the default: full pose, the GP compensator), with ``--transfer`` to the other series;
-2. **rules**: every cause the final model names passes every rule of ``casadical.stats.physics`` (inside its bounds,
+2. **rules**: every cause the final model names passes every rule of ``casadical.stats._physics`` (inside its bounds,
    told from the geometry, significant, meaningful over the data);
 3. **in series**: the final model's mean error on the untouched poses, beside a kinematic calibration of the
    same poses plus a plain Gaussian process of its residual (one length scale per joint and per component,
@@ -44,11 +44,14 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from casadical import calibrate, load_calibration, load_robot  # noqa: E402
-from casadical.compensators.gp import ResidualGP  # noqa: E402
+from casadical.compensators import ResidualGP  # noqa: E402
 from casadical.data import Measurements  # noqa: E402
-from casadical.diagnosis import DiagnosisSettings, diagnose  # noqa: E402
-from casadical.diagnosis.transfer import Split  # noqa: E402
-from casadical.stats.physics import term_causes, violations  # noqa: E402
+from casadical.diagnosis import (  # noqa: E402
+    DiagnosisSettings,
+    Split,  # noqa: E402
+    diagnose,
+)
+from casadical.stats import term_causes, violations  # noqa: E402
 
 DATA = Path(__file__).resolve().parents[2] / "problems" / "datasets" / "ur10-ipa"
 N_BASE = 30
@@ -84,7 +87,7 @@ def across(model, robot, other: Measurements, n: int, seed: int) -> dict:
 
 
 def broken_rules(final, cal: Measurements) -> list[str]:
-    """Every named cause of the robot in ``final`` that breaks a rule of casadical.stats.physics."""
+    """Every named cause of the robot in ``final`` that breaks a rule of casadical.stats._physics."""
     out = []
     for c in term_causes(final):
         free = [n for n in c.parameters if n in final.parameters and not final.parameters[n].fixed]

@@ -121,7 +121,7 @@ def column_tilt(files: dict) -> dict:
     from casadical.data import Measurements
     from casadical.kinematics import base_pose_matrix
     from casadical.loading import load_robot
-    from casadical.terms.mount_compliance import mount_moments
+    from casadical.terms import mount_moments
     robot = load_robot(files[ROBOT_FILE])
     plate = base_pose_matrix(robot.base_xyz, robot.base_rpy)[:3, :3]      # frame 0 in the plate's frame
     g = float(np.linalg.norm(robot.gravity))
@@ -142,8 +142,7 @@ def column_tilt(files: dict) -> dict:
 
 def run(files: dict, seed: int, wrong_gravity: bool) -> dict:
     from casadical import calibrate
-    from casadical.data import Measurements
-    from casadical.data.sessions import combine
+    from casadical.data import Measurements, combine
     from casadical.diagnosis import DiagnosisSettings, diagnose
     from casadical.loading import load_robot
 

@@ -50,7 +50,7 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(ROOT))
 
 from casadical import calibrate, load_robot  # noqa: E402
-from casadical.compensators.gp import ResidualGP  # noqa: E402
+from casadical.compensators import ResidualGP  # noqa: E402
 from casadical.data import Measurements  # noqa: E402
 from casadical.diagnosis import DiagnosisSettings, diagnose  # noqa: E402
 

@@ -38,7 +38,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from casadical import calibrate, load_robot  # noqa: E402
-from casadical.calibration.start import mean_mounting  # noqa: E402
+from casadical.calibration import mean_mounting  # noqa: E402
 from casadical.data import Measurements  # noqa: E402
 from casadical.result import rotation_angles_between  # noqa: E402
 

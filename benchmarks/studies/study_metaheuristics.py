@@ -43,11 +43,13 @@ import numpy as np
 os.environ.setdefault("CASADICAL_JIT", "0")
 
 from casadical.calibration import calibrate  # noqa: E402
-from casadical.data.simulate import load_protocol  # noqa: E402
-from casadical.methods import run_method  # noqa: E402
-from casadical.methods.base import Inputs  # noqa: E402
-from casadical.methods.global_start import global_start  # noqa: E402
-from casadical.methods.two_phase import two_phase  # noqa: E402
+from casadical.data import load_protocol  # noqa: E402
+from casadical.methods import (
+    Inputs,  # noqa: E402
+    global_start,  # noqa: E402
+    run_method,  # noqa: E402
+    two_phase,  # noqa: E402
+)
 from casadical.model import Model  # noqa: E402
 from casadical.terms import make_term  # noqa: E402
 

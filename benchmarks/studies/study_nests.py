@@ -43,7 +43,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[2]))
 from casadical import calibrate  # noqa: E402
 from casadical.diagnosis import DiagnosisSettings, diagnose  # noqa: E402
 from casadical.rows import read_fixture_file  # noqa: E402
-from casadical.stats.physics import inside_bounds  # noqa: E402
+from casadical.stats import inside_bounds  # noqa: E402
 from tests.helpers import hidden  # noqa: E402
 from tests.helpers.nests import three_nests, two_balls  # noqa: E402
 from tests.truth import Effects  # noqa: E402

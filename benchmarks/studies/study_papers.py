@@ -35,9 +35,11 @@ import numpy as np
 
 os.environ.setdefault("CASADICAL_JIT", "0")   # small batches: the VM is faster than compiling
 
-from casadical.data.simulate import load_protocol  # noqa: E402
-from casadical.methods import run_method  # noqa: E402
-from casadical.methods.compare import plot  # noqa: E402
+from casadical.data import load_protocol  # noqa: E402
+from casadical.methods import (
+    plot,  # noqa: E402
+    run_method,  # noqa: E402
+)
 from casadical.model import Model  # noqa: E402
 
 # --- the papers' numbers (docs/papers.md) -------------------------------------------
@@ -186,8 +188,7 @@ def select_ga(robot, pool, seed):
     """The GA paper's pose selection: 20 of the pool by a subset GA on O1 (kinematic Jacobian)."""
     model = Model(robot, "kinematic")
     try:
-        from casadical.planning import PlanSettings, random_o1, select_poses
-        from casadical.planning.observability import design_problem
+        from casadical.planning import PlanSettings, design_problem, random_o1, select_poses
     except ImportError:   # planning not available: nothing to select with
         return None, {}
     problem = design_problem(model, pool.q, model.covariates(pool))
@@ -357,7 +358,7 @@ def experiment_rbf() -> dict:
     The truth is the CA protocol's robot (compliance of joints 2-5, unmodelled
     by KM) in a cell in front of the robot; validation on 200 poses.
     """
-    from casadical.data.simulate import simulate
+    from casadical.data import simulate
 
     say("\n## Why GA-RBF gains little: torque inputs against training poses\n")
     proto = load_protocol("ca-ys100")

@@ -49,11 +49,16 @@ import warnings  # noqa: E402
 
 import numpy as np  # noqa: E402
 
-from casadical.data.simulate import load_protocol, sample_poses, simulate  # noqa: E402
+from casadical.data import load_protocol, sample_poses, simulate  # noqa: E402
 from casadical.model import Model  # noqa: E402
-from casadical.planning import PlanSettings, design_problem, random_o1, select_poses  # noqa: E402
-from casadical.planning.doptimal import d_efficiency  # noqa: E402
-from casadical.planning.observability import o1_batch  # noqa: E402
+from casadical.planning import (  # noqa: E402
+    PlanSettings,
+    d_efficiency,  # noqa: E402
+    design_problem,
+    o1_batch,  # noqa: E402
+    random_o1,
+    select_poses,
+)
 
 PAPER = {"ga_best": 0.0182, "random_max": 0.01613, "random_mean": 0.01357}
 GA_SEEDS = range(5)

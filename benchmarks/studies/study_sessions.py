@@ -6,7 +6,7 @@ three sessions, A1-A3) and series B. For each source session and seed, on 300 ra
 
 1. **in series**: ``diagnose`` (the default: full pose, the GP compensator); the final model's mean and max
    error on the untouched poses, the model the compensator extends (the named causes), a kinematic calibration of the
-   same poses and it plus a plain Gaussian process of its residual (:class:`casadical.compensators.gp.ResidualGP`
+   same poses and it plus a plain Gaussian process of its residual (:class:`casadical.compensators._gp.ResidualGP`
    applied at every pose);
 2. **taken to each other session** as ``calibrate FINAL.json OTHER.csv --model kinematic`` does (the geometry
    refitted on 300 poses there, the rest judging), against a kinematic calibration of the same 300 poses
@@ -37,7 +37,7 @@ from pathlib import Path  # noqa: E402
 import numpy as np  # noqa: E402
 
 from casadical import calibrate, load_robot  # noqa: E402
-from casadical.compensators.gp import ResidualGP  # noqa: E402
+from casadical.compensators import ResidualGP  # noqa: E402
 from casadical.data import Measurements  # noqa: E402
 from casadical.diagnosis import DiagnosisSettings, diagnose  # noqa: E402
 
@@ -115,7 +115,7 @@ def one(robot, name: str, src: Measurements, others: dict, seed: int) -> dict:
 def take(final, data: Measurements):
     """``calibrate FINAL.json OTHER.csv --model kinematic``: the library call the command makes."""
     try:
-        from casadical.apply.carry import carry  # the transfer that judges what it carries
+        from casadical.apply import carry  # the transfer that judges what it carries
     except ImportError:
         return calibrate(final, data, "kinematic", warn=False)
     return carry(final, data, "kinematic", warn=False)

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from casadical import Measurements, calibrate, load_robot
-from casadical.apply.inverse import _Equations
+from casadical.apply._inverse import _Equations
 
 ROOT = Path(__file__).resolve().parents[2]
 DATA = ROOT / "problems" / "datasets" / "ur10-ipa"

@@ -28,8 +28,10 @@ ROOT = Path(__file__).resolve().parents[2]
 sys.path.append(str(ROOT))  # the tests' helpers as ``tests.helpers``, after the casadical on PYTHONPATH
 
 from casadical import calibrate  # noqa: E402
-from casadical.data import Measurements  # noqa: E402
-from casadical.data.sessions import combine  # noqa: E402
+from casadical.data import (
+    Measurements,  # noqa: E402
+    combine,  # noqa: E402
+)
 from casadical.diagnosis import DiagnosisSettings, diagnose  # noqa: E402
 from casadical.robot import robot_from_dict  # noqa: E402
 from tests.helpers.arms import ARM3, ARM4_BETA, ARM5, ARM7, ARM7_DH  # noqa: E402

@@ -26,7 +26,7 @@ import numpy as np
 sys.path.append(str(Path(__file__).resolve().parents[2]))  # the tests' helpers as ``tests.helpers``
 
 from casadical.model import Model  # noqa: E402
-from casadical.planning.touches import schur_log_det, select_touches, short_sets, touch_problem  # noqa: E402
+from casadical.planning import schur_log_det, select_touches, short_sets, touch_problem  # noqa: E402
 from tests.helpers.touch_plan import compare, sockets  # noqa: E402
 
 

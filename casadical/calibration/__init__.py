@@ -23,23 +23,23 @@ like the base pose) and each pose's loss takes its position and orientation
 residuals weighted by their noise scales, both estimated from the data.
 
 The package is :func:`calibrate` as a pipeline of named stages
-(:mod:`.pipeline`, :data:`~.pipeline.STAGES`), a module per stage:
+(:mod:`._pipeline`, :data:`~._pipeline.STAGES`), a module per stage:
 
-- :mod:`.prepare` ``prepare_data``: the poses against the robot, the loss, full pose or positions;
-- :mod:`.spec` ``read_model_spec``: the terms a specification asks for;
-- :mod:`.build` ``build_model``: the model for these data and its free parameters
-  (:mod:`.for_data`: covariate references, a base pose per session; :mod:`.further`:
+- :mod:`._prepare` ``prepare_data``: the poses against the robot, the loss, full pose or positions;
+- :mod:`._spec` ``read_model_spec``: the terms a specification asks for;
+- :mod:`._build` ``build_model``: the model for these data and its free parameters
+  (:mod:`._for_data`: covariate references, a base pose per session; :mod:`._further`:
   a calibration taken further);
-- :mod:`.start` ``start_pose``: base pose and probe mounting in closed form, the poses' plausibility;
-- :mod:`.identify` ``analyse_identifiability``: enough poses, what they cannot identify;
-- :mod:`.solve` ``solve_parameters``: the robust solve, and what the fit tells apart;
-- :mod:`.precision` ``estimate_precision``: standard errors, correlations, significance;
-- :mod:`.outcome` ``note_set_aside``, ``assemble_result``: the poses set aside, the result;
-- :mod:`.physics_notes` ``note_physics``: terms that are not physics as fitted;
-- :mod:`.rbf_compensator` ``add_rbf_compensator``, :mod:`.gp_compensator` ``add_gp_compensator``: the
+- :mod:`._start` ``start_pose``: base pose and probe mounting in closed form, the poses' plausibility;
+- :mod:`._identify` ``analyse_identifiability``: enough poses, what they cannot identify;
+- :mod:`._solve` ``solve_parameters``: the robust solve, and what the fit tells apart;
+- :mod:`._precision` ``estimate_precision``: standard errors, correlations, significance;
+- :mod:`._outcome` ``note_set_aside``, ``assemble_result``: the poses set aside, the result;
+- :mod:`._physics_notes` ``note_physics``: terms that are not physics as fitted;
+- :mod:`._rbf_compensator` ``add_rbf_compensator``, :mod:`._gp_compensator` ``add_gp_compensator``: the
   compensators, learnt after the model.
 
-:mod:`.state` holds what a calibration carries from stage to stage.
+:mod:`._state` holds what a calibration carries from stage to stage.
 """
 
 import typing as _typing
@@ -48,13 +48,42 @@ from .._lazy import lazy
 
 #: public name -> its module (the result's names from casadical.result), imported on first use: a command
 #: that reads a calibration (predict) imports the per-session GP compensator, not the pipeline that fits one
-_EXPORTS = {"STAGES": "pipeline", "calibrate": "pipeline", "CalibrationResult": ".result",
-            "ErrorStats": ".result", "load_calibration": ".result"}
+_EXPORTS = {"STAGES": "_pipeline", "calibrate": "_pipeline", "CalibrationResult": ".result", "ErrorStats": ".result",
+            "load_calibration": ".result", "CalibrationRun": "_state", "DOWNWEIGHT_REPORT": "_outcome",
+            "GPCompensatorFolds": "_per_session", "GravityCheck": "_gravity", "Options": "_state", "STD_TOL": "_solve",
+            "TOLERANCE_DEG": "_gravity", "check_gravity": "_gravity", "fit_gp_compensator": "_per_session",
+            "generic_identifiable": "_identify", "gp_compensator_coverage": "_per_session",
+            "gp_compensator_data": "_per_session", "gp_compensator_held_out": "_per_session",
+            "mean_mounting": "_start", "merge_terms": "_further", "model_for": "_for_data", "unseen": "_unobservable",
+            "warn_gravity": "_gravity", "whole_robot": "_unobservable", "with_gp_compensator": "_per_session"}
 
-__all__ = ["STAGES", "CalibrationResult", "ErrorStats", "calibrate", "load_calibration"]
+__all__ = [
+    "CalibrationResult", "CalibrationRun", "DOWNWEIGHT_REPORT", "ErrorStats", "GPCompensatorFolds", "GravityCheck",
+    "Options", "STAGES", "STD_TOL", "TOLERANCE_DEG", "calibrate", "check_gravity", "fit_gp_compensator",
+    "generic_identifiable", "gp_compensator_coverage", "gp_compensator_data", "gp_compensator_held_out",
+    "load_calibration", "mean_mounting", "merge_terms", "model_for", "unseen", "warn_gravity", "whole_robot",
+    "with_gp_compensator",
+]
 
 if _typing.TYPE_CHECKING:
-    from ..result import CalibrationResult, ErrorStats, load_calibration
-    from .pipeline import STAGES, calibrate
+    from ._for_data import model_for
+    from ._further import merge_terms
+    from ._gravity import TOLERANCE_DEG, GravityCheck, check_gravity, warn_gravity
+    from ._identify import generic_identifiable
+    from ._outcome import DOWNWEIGHT_REPORT
+    from ._per_session import (
+        GPCompensatorFolds,
+        fit_gp_compensator,
+        gp_compensator_coverage,
+        gp_compensator_data,
+        gp_compensator_held_out,
+        with_gp_compensator,
+    )
+    from ._pipeline import STAGES, calibrate
+    from ._solve import STD_TOL
+    from ._start import mean_mounting
+    from ._state import CalibrationRun, Options
+    from ._unobservable import unseen, whole_robot
+    from .result import CalibrationResult, ErrorStats, load_calibration
 else:
     __getattr__, __dir__ = lazy(__name__, globals(), _EXPORTS)

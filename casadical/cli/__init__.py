@@ -5,11 +5,11 @@ and column at fault on bad input. Anything unexpected is one line too, with
 a request to report it; ``--debug`` shows the traceback. Ctrl-C and SIGTERM
 (or SIGHUP) stop any command with one line and exit 130 (143, 129); a
 command's output files appear together when it succeeds, or none of them
-(:func:`casadical.runtime.files.outputs_together`).
+(:func:`casadical.runtime._files.outputs_together`).
 
 Each command lives in a module of this package with one pattern: a
 ``register(sub)`` that adds its parser and sets ``func``; shared helpers are
-in :mod:`casadical.cli.common`.
+in :mod:`casadical.cli._common`.
 """
 
 from __future__ import annotations
@@ -22,13 +22,23 @@ import warnings
 
 from .. import __version__
 from ..errors import CasadicalError, CasadicalWarning
-from ..model.jitcache import announcing
-from ..runtime import interrupts
-from ..runtime.files import outputs_together
-from ..runtime.interrupts import exit_code, handle_signals
-from ..runtime.threads import evaluation_threads, limited_threads
-from . import cache, calibrate, compare, compensate, data, diagnose, export, iso9283, model, planning, study
-from .common import Status
+from ..model._jitcache import announcing
+from ..runtime import _interrupts as interrupts
+from ..runtime._files import outputs_together
+from ..runtime._interrupts import exit_code, handle_signals
+from ..runtime._threads import evaluation_threads, limited_threads
+from . import _cache as cache
+from . import _calibrate as calibrate
+from . import _compare as compare
+from . import _compensate as compensate
+from . import _data as data
+from . import _diagnose as diagnose
+from . import _export as export
+from . import _iso9283 as iso9283
+from . import _model as model
+from . import _planning as planning
+from . import _study as study
+from ._common import Status
 
 #: command modules, in the order ``--help`` lists them
 COMMANDS = (model, calibrate, diagnose, compensate, iso9283, planning, compare, study, data, export, cache)
@@ -87,7 +97,7 @@ def _show_warning(message, category, filename, lineno, file=None, line=None):
 def _check_cache_settings() -> None:
     """A bad CASADICAL_JIT or CASADICAL_CACHE_MAX_MB is said before any work (casadi is imported only if set)."""
     if os.environ.get("CASADICAL_JIT") is not None or os.environ.get("CASADICAL_CACHE_MAX_MB") is not None:
-        from ..model.jitcache import jit_setting, max_bytes
+        from ..model._jitcache import jit_setting, max_bytes
         jit_setting()
         max_bytes()
 
@@ -168,3 +178,6 @@ def _main(argv: list[str] | None) -> int:
         return 3
     finally:
         warnings.showwarning = old
+
+
+__all__ = ["COMMANDS", "UsageError", "build_parser", "main"]

@@ -19,24 +19,27 @@ name                 what it does
 ===================  ===========================================================
 
 >>> from casadical.methods import run_method, method_names
->>> from casadical.data.simulate import load_protocol
+>>> from casadical.data import load_protocol
 >>> proto = load_protocol("ca-ys100")
 >>> sets, truth = proto.generate()
 >>> r = run_method("SKCM-CA", proto.robot, sets["calibration"], sets["validation"])  # doctest: +SKIP
 >>> r.validation.mean_mm, r.stiffness()                                               # doctest: +SKIP
 
 Adding a method means one module in this folder: subclass
-:class:`~casadical.methods.base.Method`, decorate with
-:func:`~casadical.methods.base.register`, and import the module below.
+:class:`~casadical.methods._base.Method`, decorate with
+:func:`~casadical.methods._base.register`, and import the module below.
 """
 
 from __future__ import annotations
 
-from ..data.measurements import Measurements
+import typing as _typing
+
+from .._lazy import lazy
+from ..data._measurements import Measurements
 from ..errors import InputError
 from ..robot import Robot
-from . import ga_rbf, km, nn_skcm, nominal, skcm, skcm_ca, skcm_ga, skcm_ipopt, tlbo_nn_skcm  # noqa: F401  (registration)
-from .base import REGISTRY, Inputs, Method, MethodResult, lookup, method_names, register
+from . import _ga_rbf, _km, _nn_skcm, _nominal, _skcm, _skcm_ca, _skcm_ga, _skcm_ipopt, _tlbo_nn_skcm  # noqa: F401  (registration)
+from ._base import REGISTRY, Inputs, Method, MethodResult, lookup, method_names, register
 
 
 def make_method(name: str, **settings) -> Method:
@@ -82,5 +85,21 @@ def run_method(name: str, robot: Robot, cal: Measurements, val: Measurements | N
     return method.run(Inputs(robot, cal, extra, int(seed)), val)
 
 
-__all__ = ["Inputs", "Method", "MethodResult", "REGISTRY", "make_method", "method_names", "register",
-           "run_method"]
+__all__ = [
+    "Inputs", "Method", "MethodResult", "REGISTRY", "compare", "format_table", "global_start", "lookup", "make_method",
+    "method_names", "new_result", "parse_methods", "plot", "pyplot", "register", "run_method", "save_png", "to_json",
+    "two_phase",
+]
+
+#: public name -> its private module, imported on first use (PEP 562)
+_EXPORTS = {"compare": "_compare", "format_table": "_compare", "global_start": "_global_start", "new_result": "_base",
+            "parse_methods": "_compare", "plot": "_compare", "pyplot": "_compare", "save_png": "_compare",
+            "to_json": "_compare", "two_phase": "_two_phase"}
+
+if _typing.TYPE_CHECKING:
+    from ._base import new_result
+    from ._compare import compare, format_table, parse_methods, plot, pyplot, save_png, to_json
+    from ._global_start import global_start
+    from ._two_phase import two_phase
+else:
+    __getattr__, __dir__ = lazy(__name__, globals(), _EXPORTS)

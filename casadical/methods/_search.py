@@ -24,10 +24,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import CasadicalError, InputError
-from ..model.symbolic import Model, pose_to_base0
+from ..model._symbolic import Model, pose_to_base0
 from ..optim import TLBO, Box, CulturalAlgorithm, GeneticAlgorithm
 from ..parameters import Parameters
-from ..stats.alignment import align
+from ..stats._alignment import align
 
 #: Stiffness search range of the CA paper reproduction (docs/papers.md, A15), N m/rad.
 K_BOUNDS = (1e4, 1e8)

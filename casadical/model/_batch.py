@@ -7,10 +7,10 @@ from concurrent.futures import wait
 import casadi as ca
 import numpy as np
 
-from ..runtime.threads import evaluation_pool, evaluation_threads
+from ..runtime._threads import evaluation_pool, evaluation_threads
 
 #: a batch on CasADi's virtual machine is evaluated in blocks of at least this many poses, one per thread
-#: (casadical.runtime.threads.evaluation_threads); UR10 `fk_jac_angles` on the VM, 2 cores: 300 poses 9.9 -> 5.4 ms,
+#: (casadical.runtime._threads.evaluation_threads); UR10 `fk_jac_angles` on the VM, 2 cores: 300 poses 9.9 -> 5.4 ms,
 #: 150 poses 5.0 ms either way
 BLOCK_MIN = 100
 #: poses per inner map of batches of 2 * MAP_CHUNK poses or more (:func:`mapped`): a flat map of N poses holds

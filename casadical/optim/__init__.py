@@ -27,10 +27,10 @@ Examples
 True
 """
 
-from casadical.optim.base import Algorithm, Box, OptimResult, Problem
-from casadical.optim.cultural import CulturalAlgorithm
-from casadical.optim.genetic import GeneticAlgorithm, SubsetGeneticAlgorithm
-from casadical.optim.tlbo import TLBO
+from casadical.optim._base import Algorithm, Box, OptimResult, Problem
+from casadical.optim._cultural import CulturalAlgorithm
+from casadical.optim._genetic import GeneticAlgorithm, SubsetGeneticAlgorithm
+from casadical.optim._tlbo import TLBO
 
 __all__ = [
     "Algorithm",

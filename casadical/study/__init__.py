@@ -1,12 +1,12 @@
 """Monte Carlo studies: many simulated repetitions of pose plans x calibration methods.
 
-- :mod:`~casadical.study.protocol` -- the study TOML (:func:`load_study`);
-- :mod:`~casadical.study.task` -- one repetition (:func:`run_task`), the
+- :mod:`~casadical.study._protocol` -- the study TOML (:func:`load_study`);
+- :mod:`~casadical.study._task` -- one repetition (:func:`run_task`), the
   task every backend runs, deterministic from the study seed and its index;
-- :mod:`~casadical.study.store` -- the results folder (a Parquet dataset,
+- :mod:`~casadical.study._store` -- the results folder (a Parquet dataset,
   appended as repetitions finish, resumed after an interruption);
-- :mod:`~casadical.study.runner` -- :func:`run_study`, serially or on Dask;
-- :mod:`~casadical.study.summary` -- the comparison table and plots.
+- :mod:`~casadical.study._runner` -- :func:`run_study`, serially or on Dask;
+- :mod:`~casadical.study._summary` -- the comparison table and plots.
 
 Dask and pyarrow are optional (``pip install 'casadical[study]'``) and
 imported only when a study runs or its results are read.
@@ -23,19 +23,23 @@ from .._lazy import lazy
 
 #: public name -> its module, imported on first use (PEP 562): importing one module of the package
 #: imports no other
-_EXPORTS = {"MethodSpec": "protocol", "PlanSpec": "protocol", "Study": "protocol", "load_study": "protocol",
-            "RunReport": "runner", "run_study": "runner", "ResultStore": "store", "Summary": "summary",
-            "plot_summary": "summary", "summarize": "summary", "COLUMNS": "task", "TIME_COLUMNS": "task",
-            "Repetition": "task", "draw_repetition": "task", "run_task": "task"}
+_EXPORTS = {"MethodSpec": "_protocol", "PlanSpec": "_protocol", "Study": "_protocol", "load_study": "_protocol",
+            "RunReport": "_runner", "run_study": "_runner", "ResultStore": "_store", "Summary": "_summary",
+            "plot_summary": "_summary", "summarize": "_summary", "COLUMNS": "_task", "TIME_COLUMNS": "_task",
+            "Repetition": "_task", "draw_repetition": "_task", "run_task": "_task", "CONNECT_TIMEOUT_S": "_runner",
+            "METRICS": "_summary", "STUDY_DIR": "_protocol", "differing_columns": "_store"}
 
-__all__ = ["COLUMNS", "MethodSpec", "PlanSpec", "Repetition", "ResultStore", "RunReport", "Study", "Summary",
-           "TIME_COLUMNS", "draw_repetition", "load_study", "plot_summary", "run_study", "run_task", "summarize"]
+__all__ = [
+    "COLUMNS", "CONNECT_TIMEOUT_S", "METRICS", "MethodSpec", "PlanSpec", "Repetition", "ResultStore", "RunReport",
+    "STUDY_DIR", "Study", "Summary", "TIME_COLUMNS", "differing_columns", "draw_repetition", "load_study",
+    "plot_summary", "run_study", "run_task", "summarize",
+]
 
 if _typing.TYPE_CHECKING:
-    from .protocol import MethodSpec, PlanSpec, Study, load_study
-    from .runner import RunReport, run_study
-    from .store import ResultStore
-    from .summary import Summary, plot_summary, summarize
-    from .task import COLUMNS, TIME_COLUMNS, Repetition, draw_repetition, run_task
+    from ._protocol import STUDY_DIR, MethodSpec, PlanSpec, Study, load_study
+    from ._runner import CONNECT_TIMEOUT_S, RunReport, run_study
+    from ._store import ResultStore, differing_columns
+    from ._summary import METRICS, Summary, plot_summary, summarize
+    from ._task import COLUMNS, TIME_COLUMNS, Repetition, draw_repetition, run_task
 else:
     __getattr__, __dir__ = lazy(__name__, globals(), _EXPORTS)

@@ -14,12 +14,12 @@ from .._lazy import lazy
 
 #: public name -> its module, imported on first use (PEP 562): importing one module of the package
 #: imports no other
-_EXPORTS = {"PARALLEL_TOL_DEG": "read", "robot_from_urdf": "read", "NOT_IN_URDF": "write", "robot_to_urdf": "write"}
+_EXPORTS = {"PARALLEL_TOL_DEG": "_read", "robot_from_urdf": "_read", "NOT_IN_URDF": "_write", "robot_to_urdf": "_write"}
 
 __all__ = ["NOT_IN_URDF", "PARALLEL_TOL_DEG", "robot_from_urdf", "robot_to_urdf"]
 
 if _typing.TYPE_CHECKING:
-    from .read import PARALLEL_TOL_DEG, robot_from_urdf
-    from .write import NOT_IN_URDF, robot_to_urdf
+    from ._read import PARALLEL_TOL_DEG, robot_from_urdf
+    from ._write import NOT_IN_URDF, robot_to_urdf
 else:
     __getattr__, __dir__ = lazy(__name__, globals(), _EXPORTS)

@@ -18,9 +18,9 @@ import numpy as np
 import pytest
 
 from casadical import calibrate, load_robot
-from casadical.apply.inverse import compensate
+from casadical.apply import compensate
 from casadical.data import Measurements
-from casadical.importers.iso_cubes import convert_iso_cubes
+from casadical.importers import convert_iso_cubes
 from tests.helpers.arms import ARM6, to_toml
 from tests.helpers.cli import cli, one_error
 from tests.truth import Arm, Effects, Session, TrueRobot, measure, sample

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from casadical import Measurements, calibrate, load_calibration, load_robot
-from casadical.data.simulate import Effects, simulate
+from casadical.data import Effects, simulate
 from casadical.errors import ConvergenceWarning, CorrelationWarning, IdentifiabilityError, IdentifiabilityWarning
 
 UR10_B = Path(__file__).resolve().parents[2] / "problems" / "datasets" / "ur10-ipa" / "series_b.csv"
@@ -183,7 +183,7 @@ SUM_TOLERANCES = {"tol": 1e-8, "acceptable_tol": 1e-6, "compl_inf_tol": 1e-4, "a
 
 def _record_ipopt(monkeypatch) -> list:
     """(status, iterations, objective evaluations) of every IPOPT solve from now on, the noise-scale loop's too."""
-    from casadical.solvers.ipopt import Ipopt
+    from casadical.solvers import Ipopt
 
     solves = []
     solve = Ipopt.solve
@@ -247,7 +247,7 @@ def test_ipopt_line_search_trials_evaluate_the_loss_alone(monkeypatch, position_
     IPOPT backtracks is the machine's arithmetic (issue 47): where it does not, the rest is asserted and the test
     skipped with its figures."""
     from casadical.problem import CalibrationProblem
-    from casadical.solvers.ipopt import Ipopt
+    from casadical.solvers import Ipopt
 
     robot = load_robot("ur10")
     data = Measurements.read_csv(UR10_B, n_joints=6, require_positions=True)
@@ -297,7 +297,7 @@ def test_ipopt_tolerances_are_per_pose(monkeypatch):
     per-pose value, so the 6,000 poses are the 300's problem scaled by 20 and IPOPT ends both at the same
     optimum, converged. (Not asserted: iteration and evaluation counts, which are the CPU's arithmetic near the
     optimum, where the objective's rounding decides a line search; issue 47.)"""
-    from casadical.solvers.ipopt import Ipopt
+    from casadical.solvers import Ipopt
 
     given = []
     options = Ipopt._options

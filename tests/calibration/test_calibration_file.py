@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from casadical import calibrate, load_calibration, load_robot
-from casadical.data.simulate import Effects, simulate
+from casadical.data import Effects, simulate
 from casadical.errors import CalibrationFileError
 from tests.helpers.cli import cli, one_error
 

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from casadical import calibrate, load_calibration
-from casadical.apply.inverse import compensate
+from casadical.apply import compensate
 from casadical.cli import main
 from casadical.data import Measurements
 from casadical.errors import DataFileError

@@ -1,16 +1,14 @@
-"""The sag note and the set-aside tests read the poses chunk by chunk (casadical.runtime.chunks.pose_chunks) and the
+"""The sag note and the set-aside tests read the poses chunk by chunk (casadical.runtime._chunks.pose_chunks) and the
 angle Jacobian of the set-aside poses alone: the same figures as all poses at once, on arms not built in."""
 
 import numpy as np
 import pytest
 
-import casadical.runtime.chunks as chunks
+import casadical.runtime._chunks as chunks
 from casadical import calibrate
-from casadical.data import Measurements
-from casadical.data.simulate import Effects, simulate
+from casadical.data import Effects, Measurements, simulate
 from casadical.robot import robot_from_dict
-from casadical.stats.outliers import of_model, set_aside_structure
-from casadical.stats.physics import first_order_sag
+from casadical.stats import first_order_sag, of_model, set_aside_structure
 from tests.helpers.arms import ARM4, ARM5
 
 

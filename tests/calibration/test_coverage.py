@@ -9,8 +9,8 @@ import pytest
 
 from casadical import calibrate, load_robot
 from casadical.cli import main
-from casadical.data.simulate import Effects, simulate
-from casadical.stats.coverage import Coverage
+from casadical.data import Effects, simulate
+from casadical.stats import Coverage
 
 
 def _narrow(robot, j, lo, hi):

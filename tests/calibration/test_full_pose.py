@@ -16,8 +16,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from casadical import calibrate, load_calibration
-from casadical.data import Measurements
-from casadical.data.simulate import Effects, simulate
+from casadical.data import Effects, Measurements, simulate
 from casadical.errors import CalibrationFileError, InputError
 from casadical.robot import robot_from_dict
 from tests.helpers.arms import ARM5, ARM7, to_toml
@@ -124,7 +123,7 @@ def test_the_loss_alone_is_the_linearisations_to_the_bit(monkeypatch, full_pose)
     a sum per chunk, and the orientation's share as ``k^2 |r_o|^2``: 1-2 ulp apart at most points)."""
     from casadical.problem import CalibrationProblem
 
-    monkeypatch.setattr("casadical.runtime.chunks.CHUNK", 16)
+    monkeypatch.setattr("casadical.runtime._chunks.CHUNK", 16)
     robot = robot_from_dict(ARM7, "arm")
     data, _ = simulate(robot, 60, EFFECTS, seed=4, floor_z=-10.0)
     res = calibrate(robot, data, "kinematic", "lm", warn=False, position_only=not full_pose)
@@ -245,7 +244,7 @@ def test_tool_orientation_without_orientation_data_is_an_error():
 def test_compensate_holds_the_targets_probe_orientation():
     """Targets that are full poses the calibrated model reaches at known joints: compensate finds those joints."""
     from casadical import load_robot
-    from casadical.apply.inverse import compensate
+    from casadical.apply import compensate
     robot = load_robot("ur10")
     eff = Effects(noise=20e-6, orientation_noise=math.radians(0.005), tool_rpy=(0.0, 0.0, -1.5708))
     data, truth = simulate(robot, 80, eff, seed=1)

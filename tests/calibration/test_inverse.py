@@ -10,11 +10,11 @@ import numpy as np
 import pytest
 
 from casadical import Measurements, Model, calibrate, load_calibration, load_robot
-from casadical.apply.inverse import TargetError, compensate
+from casadical.apply import TargetError, compensate
 from casadical.cli import main
-from casadical.data.simulate import Effects, sample_poses, simulate
+from casadical.data import Effects, sample_poses, simulate
 from casadical.errors import ConvergenceWarning, InputError
-from casadical.model.symbolic import pose_to_base0
+from casadical.model import pose_to_base0
 from casadical.robot import robot_from_dict
 
 SEEDS = [0, 1, 2]

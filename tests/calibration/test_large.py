@@ -1,4 +1,4 @@
-"""A large calibration's reduced procedure (casadical.calibration.solve: the noise-scale loop's first solve
+"""A large calibration's reduced procedure (casadical.calibration._solve: the noise-scale loop's first solve
 started from the same solve on a subsample, every later solve started warm, Levenberg-Marquardt stopped in
 standard-error units) gives the full procedure's answer: on data of the independent truth (tests/truth) with
 compliances and bad shots hidden in them, several seeds, both solvers, positions and full pose, an exact model
@@ -9,7 +9,7 @@ is lowered so that a few thousand poses take the large path."""
 import numpy as np
 import pytest
 
-import casadical.calibration.solve as solve
+import casadical.calibration._solve as solve
 from casadical import calibrate
 from casadical.data import Measurements
 from casadical.problem import CalibrationProblem

@@ -8,7 +8,7 @@ import numpy as np
 import pytest
 
 from casadical import load_robot
-from casadical.data.simulate import Effects, simulate
+from casadical.data import Effects, simulate
 from casadical.model import Model
 from casadical.problem import MEMO_NUMBERS, CalibrationProblem, RobustLoss
 

@@ -7,7 +7,7 @@ import pytest
 
 from casadical import calibrate, load_robot
 from casadical.cli import main
-from casadical.data.simulate import Effects, simulate
+from casadical.data import Effects, simulate
 from casadical.problem import RobustLoss
 from casadical.robot import robot_from_dict
 from tests.helpers.arms import ARM4_BETA

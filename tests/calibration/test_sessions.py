@@ -9,8 +9,7 @@ import pytest
 
 from casadical import calibrate
 from casadical.cli import main
-from casadical.data.sessions import combine
-from casadical.data.simulate import Effects, another_session, simulate
+from casadical.data import Effects, another_session, combine, simulate
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.robot import robot_from_dict
 from tests.helpers.arms import ARM5, ARM7_DH, to_toml
@@ -135,7 +134,7 @@ def test_the_base_reference_is_shown_wherever_the_base_parameters_are(tmp_path, 
     section and the exported table say which, and the base pose it gives."""
     import math
 
-    from casadical.apply.parameter_table import parameter_table
+    from casadical.apply import parameter_table
     from casadical.html import calibration_html
 
     robot, cal, _, _ = two_sessions(ARM7_DH, 2e4, 3, drift=(0.0, 0.0, 0.0))
@@ -169,7 +168,7 @@ def test_a_left_out_session_keeps_the_robot_and_fits_its_own_base():
     """The session fold of the linearised cross-validation: the robot's parameters come from the other
     sessions, the left-out session's own (its base pose) from its own poses, exactly as two least-squares
     fits in turn give them."""
-    from casadical.diagnosis.validation import linear_cv, session_scheme
+    from casadical.diagnosis import linear_cv, session_scheme
 
     rng = np.random.default_rng(0)
     n = 40
@@ -195,7 +194,7 @@ def test_terms_of_one_session_in_a_calibration():
     import tempfile
 
     from casadical import load_calibration
-    from casadical.stats.physics import term_causes
+    from casadical.stats import term_causes
 
     robot, cal, val, _ = two_sessions(ARM7_DH, 2e4, 0)
     res = calibrate(robot, cal, "kinematic+compliance[2]+joint_periodic[2:3]@B+drift@B", "lm", warn=False,

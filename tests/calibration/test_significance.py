@@ -19,19 +19,11 @@ import pytest
 
 from casadical.calibration import calibrate, load_calibration
 from casadical.cli import main
-from casadical.data import Measurements
-from casadical.data.simulate import Effects, simulate
+from casadical.data import Effects, Measurements, simulate
 from casadical.errors import SignificanceWarning
 from casadical.loading import load_robot
 from casadical.robot import robot_from_dict
-from casadical.stats.significance import (
-    FitStatistics,
-    betainc,
-    parameter_tests,
-    stiffness_interval,
-    t_critical,
-    t_two_sided_p,
-)
+from casadical.stats import FitStatistics, betainc, parameter_tests, stiffness_interval, t_critical, t_two_sided_p
 from tests.helpers.arms import ARM4, to_toml
 
 SEEDS = range(5)
@@ -83,7 +75,7 @@ def test_relative_std_interval_and_stiffness_interval_by_hand():
 def test_notes_name_what_to_drop_for_each_kind_of_term():
     """By hand, no fit: a joint, a harmonic, a whole term; the geometry is never the subject of a note."""
     from casadical.model import Model
-    from casadical.stats.significance import significance_notes
+    from casadical.stats import significance_notes
 
     model = Model(robot_from_dict(ARM4), "kinematic+compliance[2,3]+periodic[2:1,2:17,3:2]+encoder_scale[3]+drift")
     params = model.parameters.copy()

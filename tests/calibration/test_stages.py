@@ -9,8 +9,8 @@ import numpy as np
 import pytest
 
 from casadical import calibrate
-from casadical.calibration import pipeline
-from casadical.data.simulate import Effects, simulate
+from casadical.calibration import _pipeline as pipeline
+from casadical.data import Effects, simulate
 from casadical.errors import ConvergenceWarning
 from casadical.robot import robot_from_dict
 from tests.helpers.arms import ARM4

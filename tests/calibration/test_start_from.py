@@ -8,9 +8,9 @@ import numpy as np
 import pytest
 
 from casadical import calibrate
-from casadical.calibration import pipeline
-from casadical.calibration.state import CalibrationRun, Options
-from casadical.data.simulate import Effects, simulate
+from casadical.calibration import CalibrationRun, Options
+from casadical.calibration import _pipeline as pipeline
+from casadical.data import Effects, simulate
 from casadical.errors import InputError
 from casadical.robot import robot_from_dict
 from tests.calibration.test_sessions import two_sessions

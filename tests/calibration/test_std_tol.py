@@ -7,8 +7,8 @@ import warnings
 import pytest
 
 from casadical import calibrate
-from casadical.calibration.solve import STD_TOL
-from casadical.data.simulate import Effects, simulate
+from casadical.calibration import STD_TOL
+from casadical.data import Effects, simulate
 from casadical.robot import robot_from_dict
 from tests.helpers.arms import ARM5, ARM7_DH
 

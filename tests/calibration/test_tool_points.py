@@ -18,7 +18,7 @@ from casadical import calibrate
 from casadical.errors import CorrelationWarning, DataWarning
 from casadical.result import load_calibration
 from casadical.rows import read_fixture_file
-from casadical.stats.physics import inside_bounds
+from casadical.stats import inside_bounds
 from tests.helpers.cli import cli, one_error
 from tests.helpers.nests import NESTS, robot_toml, three_nests, two_balls
 

@@ -8,7 +8,7 @@ import pytest
 
 from casadical import calibrate, load_calibration, load_robot
 from casadical.cli import main
-from casadical.data.simulate import Effects, simulate
+from casadical.data import Effects, simulate
 from casadical.robot import robot_from_dict
 from tests.helpers.arms import ARM7_DH
 
@@ -18,7 +18,7 @@ def _series(robot, truth, n, seed, base_xyz, base_rpy):
     from dataclasses import replace
 
     from casadical.kinematics import base_pose_matrix
-    from casadical.model.symbolic import pose_to_base0
+    from casadical.model import pose_to_base0
     t2 = replace(truth, base0=pose_to_base0(base_pose_matrix(base_xyz, base_rpy)))
     data, _ = simulate(robot, n, truth=t2, seed=seed, floor_z=None)
     return data

@@ -14,8 +14,7 @@ import pytest
 from casadical.cli import main
 from casadical.data import Measurements
 from casadical.loading import load_robot
-from casadical.methods import method_names
-from casadical.methods.compare import compare
+from casadical.methods import compare, method_names
 from tests.helpers.arms import ARMS, to_toml
 
 K2 = 5e5
@@ -131,7 +130,7 @@ def test_compare_command(arm, capsys):
 @pytest.mark.parametrize("name", ["arm4", "arm7"])
 def test_every_method(name, tmp_path):
     """All methods of ``compare`` on a 4-axis and a 7-axis arm (quick settings for the slow ones)."""
-    from casadical.data.simulate import Effects, simulate
+    from casadical.data import Effects, simulate
     from casadical.robot import robot_from_dict
     robot = robot_from_dict(ARMS[name], name)
     cal, truth = simulate(robot, 30, Effects(stiffness={2: K2}), seed=1, floor_z=None)

@@ -12,7 +12,7 @@ import pytest
 
 from casadical import load_robot
 from casadical.cli import main
-from casadical.data.simulate import Effects, simulate
+from casadical.data import Effects, simulate
 from casadical.errors import DataFileError
 from casadical.robot import robot_from_dict
 from tests.helpers.arms import ARM5
@@ -85,7 +85,7 @@ def test_a_scheduler_that_cannot_be_reached_leaves_nothing(study_results, tmp_pa
 def test_a_refused_scheduler_says_it_is_trying_and_leaves_nothing(study_results, tmp_path, capsys, monkeypatch):
     """A TCP address nothing listens at: Dask retries until the timeout, and the user is told so at once."""
     pytest.importorskip("distributed")
-    from casadical.study import runner
+    from casadical.study import _runner as runner
 
     monkeypatch.setattr(runner, "CONNECT_TIMEOUT_S", 1)
     protocol, _ = study_results

@@ -46,11 +46,11 @@ def test_commands_without_a_model_start_without_casadi(tmp_path):
             f"'--out-val', {str(tmp_path / 'v.csv')!r}])\n"
             "print(sorted(m for m in ('casadi', 'casadical.methods', 'casadical.calibration') if m in sys.modules))\n"
             "print(all(getattr(casadical, n) is not None for n in casadical.__all__), 'Model' in dir(casadical),\n"
-            "      casadical.data.simulate.__name__)\n")
+            "      casadical.data._simulate.__name__)\n")
     (tmp_path / "d.csv").write_text("q1_deg,q2_deg,x_mm,y_mm,z_mm\n" + "".join(f"{k},0,1,2,3\n" for k in range(5)))
     r = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
-    assert r.stdout.splitlines()[-2:] == ["[]", "True True casadical.data.simulate"]   # submodules too, as before
+    assert r.stdout.splitlines()[-2:] == ["[]", "True True casadical.data._simulate"]   # submodules too, as before
     import casadical
 
     assert set(casadical.__all__) == set(casadical._EXPORTS) | {"__version__"}
@@ -124,7 +124,7 @@ def test_every_option_has_help_with_its_default():
 def poses(tmp_path_factory):
     """Calibration and validation poses of the YS100 with a compliant joint, and candidate poses."""
     from casadical import load_robot
-    from casadical.data.simulate import Effects, simulate
+    from casadical.data import Effects, simulate
 
     d = tmp_path_factory.mktemp("poses")
     robot = load_robot("ys100")

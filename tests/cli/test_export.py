@@ -10,9 +10,9 @@ import pytest
 import yourdfpy
 
 from casadical import calibrate, load_calibration, load_robot
-from casadical.apply.parameter_table import COLUMNS, parameter_table
+from casadical.apply import COLUMNS, parameter_table
 from casadical.cli import main
-from casadical.data.simulate import Effects, simulate
+from casadical.data import Effects, simulate
 from casadical.robot import robot_from_dict
 from tests.helpers.arms import ARM7_DH
 

@@ -258,7 +258,7 @@ def test_calibrate_validate_on_full_pose_data_says_the_orientation_error_and_a_z
 def test_the_html_report_reads_a_scale_in_ppm_and_counts_what_it_lists(tmp_path, capsys):
     """An encoder scale is shown in ppm in the report's parameter table (before: unit '1', 0.000123); the
     legend of short labels counts labels, not 'each of the N models' beside 'M models tried'."""
-    from casadical.html.page import FOLD_FOOTNOTES, Page
+    from casadical.html import FOLD_FOOTNOTES, Page
 
     cal = tmp_path / "cal.csv"
     assert cli(capsys, "split", SERIES_B, "-n", 150, "--seed", 0, "--out-cal", cal, "--out-val",

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy.linalg import cho_factor, cho_solve
 
-from casadical.compensators.gp import JITTER, ResidualGP
+from casadical.compensators import JITTER, ResidualGP
 
 SEEDS = [0, 1, 2, 3]
 

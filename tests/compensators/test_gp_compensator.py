@@ -1,5 +1,5 @@
 """The GP compensator (one per session): a Gaussian process of the residual that knows where it holds
-(casadical.calibration.per_session)."""
+(casadical.calibration._per_session)."""
 
 import json
 import math
@@ -9,8 +9,8 @@ import pytest
 
 from casadical import calibrate, load_calibration
 from casadical.cli import main
-from casadical.compensators.gp import ResidualGP
-from casadical.data.simulate import Effects, another_session, simulate
+from casadical.compensators import ResidualGP
+from casadical.data import Effects, another_session, simulate
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.robot import robot_from_dict
 from tests.helpers.arms import ARM5, ARM7_DH, to_toml
@@ -168,8 +168,8 @@ def test_the_correction_shrinks_with_what_it_knows():
 def test_the_worst_case_judge_compares_like_with_like():
     """The GP compensator's worst held-out error leaves out the poses both models miss by more than the noise:
     a rise there does not veto a real gain; a rise elsewhere does."""
-    from casadical.calibration.per_session import GPCompensatorFolds
-    from casadical.diagnosis.compensator import judge
+    from casadical.calibration import GPCompensatorFolds
+    from casadical.diagnosis import judge
 
     rng = np.random.default_rng(0)
     n = 200

@@ -8,10 +8,9 @@ import numpy as np
 import pytest
 
 from casadical import calibrate
-from casadical.compensators.gp import FIT_ITERATIONS, LENGTH_BOUNDS, ResidualGP, log_likelihood, squared_differences
+from casadical.compensators import FIT_ITERATIONS, LENGTH_BOUNDS, ResidualGP, log_likelihood, squared_differences
 from casadical.data import Measurements
-from casadical.diagnosis import DiagnosisSettings, diagnose
-from casadical.diagnosis.compensator import SHRINKS
+from casadical.diagnosis import SHRINKS, DiagnosisSettings, diagnose
 from casadical.robot import robot_from_dict
 from tests.helpers.arms import ARM7_DH
 from tests.truth import Arm, Effects, TrueRobot, measure, sample
@@ -87,7 +86,7 @@ def test_paired_gain_is_scipys_wilcoxon():
     without importing scipy.stats for large samples."""
     from scipy import stats
 
-    from casadical.diagnosis.statistics import paired_gain
+    from casadical.diagnosis import paired_gain
 
     rng = np.random.default_rng(0)
     for n in (20, 51, 120, 300):

@@ -15,9 +15,8 @@ import pytest
 
 from casadical import load_robot
 from casadical.cli import main
-from casadical.data import Measurements
-from casadical.data.simulate import Effects as SimEffects
-from casadical.data.simulate import simulate
+from casadical.data import Effects as SimEffects
+from casadical.data import Measurements, simulate
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from tests.helpers import hidden
 from tests.helpers.arms import ARM3
@@ -272,7 +271,7 @@ def test_periodogram_is_each_harmonics_least_squares():
     degenerate with the trend (a short range)."""
     import numpy as np
 
-    from casadical.diagnosis.periodogram import periodogram
+    from casadical.diagnosis import periodogram
 
     rng = np.random.default_rng(4)
     for span in (2.5, 0.05):

@@ -30,9 +30,7 @@ import numpy as np
 import pytest
 
 from casadical.cli import main
-from casadical.diagnosis import DiagnosisSettings, diagnose
-from casadical.diagnosis.statistics import nested_test, set_aside_share
-from casadical.diagnosis.worst import Held
+from casadical.diagnosis import DiagnosisSettings, Held, diagnose, nested_test, set_aside_share
 from tests.helpers import hidden
 
 

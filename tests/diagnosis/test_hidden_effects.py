@@ -62,8 +62,7 @@ def test_a_claim_is_exact_only_when_every_cause_joint_harmonic_and_scope_is():
     """The judge itself: a cause of the right kind on another joint, another harmonic, another scope, or one
     more cause is not exact (the per-type check it replaces passed compliance of joints 2 and 3 for joint 3);
     an ambiguity counts only where the test allows it and the report declares it."""
-    from casadical.diagnosis.candidates import Candidate
-    from casadical.diagnosis.report import Finding
+    from casadical.diagnosis import Candidate, Finding
 
     class Report:
         def __init__(self, *findings):

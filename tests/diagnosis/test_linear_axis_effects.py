@@ -16,9 +16,7 @@ import warnings
 import numpy as np
 import pytest
 
-from casadical.diagnosis import DiagnosisSettings, diagnose
-from casadical.diagnosis.catalogue import not_tried
-from casadical.diagnosis.structure import describe_pair
+from casadical.diagnosis import DiagnosisSettings, describe_pair, diagnose, not_tried
 from tests.helpers import hidden
 from tests.truth import Arm, Effects
 
@@ -65,8 +63,7 @@ def test_the_fast_set_covers_every_effect_and_robot():
 
 def test_a_claim_names_the_direction_and_the_angle():
     """The judge: a straightness in the other direction, or another angle of the carriage, is not exact."""
-    from casadical.diagnosis.candidates import Candidate
-    from casadical.diagnosis.report import Finding
+    from casadical.diagnosis import Candidate, Finding
 
     class Report:
         def __init__(self, *cands):
@@ -107,7 +104,7 @@ def test_a_position_error_outside_the_catalogue_is_located_along_the_axis_in_mm(
 def test_what_the_catalogue_cannot_try_on_a_linear_axis():
     """The axis' own errors are tried; a revolute joint's (compliance, coupling) are said not to be; a periodic
     error is screened from two cycles over the travel the data cover (one cycle over a 1 m column is a bow)."""
-    from casadical.diagnosis.settings import DiagnosisSettings as S
+    from casadical.diagnosis import DiagnosisSettings as S
     c = hidden.linear_case("column", "none", 0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")

@@ -13,8 +13,7 @@ import warnings
 import numpy as np
 import pytest
 
-from casadical.diagnosis import DiagnosisSettings, diagnose
-from casadical.diagnosis.validation import random_scheme, schemes
+from casadical.diagnosis import DiagnosisSettings, diagnose, random_scheme, schemes
 from tests.helpers import hidden
 from tests.helpers.cli import cli
 from tests.helpers.nests import three_nests

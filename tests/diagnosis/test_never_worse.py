@@ -109,7 +109,7 @@ def test_a_worst_fold_error_that_rises_is_worse_unless_the_mean_drops_as_much():
     unless the same kind's mean drops by more than 5 % (a trade the report states: two sessions, one holding
     joint 1 within 6 deg, made its encoder scale look worse on the other session's fold while the validation mean
     fell from 0.136 to 0.032 mm; tests/planning/test_next_poses.py's robot-or-session loop runs that case)."""
-    from casadical.diagnosis.worst import Held
+    from casadical.diagnosis import Held
 
     kin = Held({"random": 0.10, "session": 0.12}, {"random": 0.40, "session": 0.46})
     assert Held({"random": 0.09, "session": 0.10}, {"random": 0.40, "session": 0.49}).worse_than(kin) == []

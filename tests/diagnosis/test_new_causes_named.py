@@ -14,8 +14,7 @@ import warnings
 
 import pytest
 
-from casadical.diagnosis import DiagnosisSettings, diagnose
-from casadical.diagnosis.candidates import Candidate
+from casadical.diagnosis import Candidate, DiagnosisSettings, diagnose
 from tests.helpers import hidden
 
 ROBOTS = ("arm4", "arm5", "arm7-dh")
@@ -62,7 +61,7 @@ def test_a_new_cause_is_named_exactly_on_every_arm(robot, effect):
 
 def test_the_source_joint_is_part_of_the_claim():
     """A coupling from another joint than the truth's is a false claim and a miss, not a match."""
-    from casadical.diagnosis.report import Finding
+    from casadical.diagnosis import Finding
 
     class Report:
         def __init__(self, *findings):
@@ -81,9 +80,8 @@ def test_the_catalogue_offers_them_where_the_data_can_test_them():
     import numpy as np
 
     from casadical import calibrate
-    from casadical.data.simulate import sample_poses, simulate
-    from casadical.diagnosis.catalogue import Catalogue, not_tried
-    from casadical.diagnosis.settings import DiagnosisSettings
+    from casadical.data import sample_poses, simulate
+    from casadical.diagnosis import Catalogue, DiagnosisSettings, not_tried
     from casadical.robot import robot_from_dict
     from tests.helpers.arms import ARM5
 
@@ -124,7 +122,7 @@ def test_the_catalogue_offers_them_where_the_data_can_test_them():
 def test_plan_poses_asks_their_questions():
     """A named coupling ambiguous with an encoder scale, and a mount compliance not significant: plan-poses's
     questions carry the coupling's source joint and the mount's parameter."""
-    from casadical.planning.questions import open_questions
+    from casadical.planning import open_questions
 
     doc = {"findings": [
         {"cause": "joint_coupling", "joint": 5, "source_joint": 4, "in_model": True,

@@ -20,9 +20,8 @@ import pytest
 from casadical import calibrate
 from casadical.cli import main
 from casadical.data import Measurements
-from casadical.diagnosis import DiagnosisSettings, diagnose
-from casadical.diagnosis.noise import repeated_sigma
-from casadical.terms.definitions import definitions_from_list, read_terms_file
+from casadical.diagnosis import DiagnosisSettings, diagnose, repeated_sigma
+from casadical.terms import definitions_from_list, read_terms_file
 from tests.helpers import hidden
 from tests.helpers.arms import to_toml
 from tests.truth import Arm, Effects, TrueRobot, measure, sample

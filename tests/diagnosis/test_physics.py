@@ -1,5 +1,5 @@
 """A named cause must be physics: inside its bounds, told apart from the geometry, significant, and
-meaningful over the data (casadical.stats.physics, its use by the diagnosis)."""
+meaningful over the data (casadical.stats._physics, its use by the diagnosis)."""
 
 import math
 from dataclasses import replace
@@ -9,11 +9,10 @@ import numpy as np
 import pytest
 
 from casadical import calibrate, load_robot
-from casadical.data import Measurements
-from casadical.data.simulate import Effects, simulate
+from casadical.data import Effects, Measurements, simulate
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.robot import robot_from_dict
-from casadical.stats.physics import term_causes, value_violations, violations
+from casadical.stats import term_causes, value_violations, violations
 from tests.helpers.arms import ARM3, ARM4
 
 SEEDS = [0, 1, 2]

@@ -6,11 +6,8 @@ bit, for each fit asked in any order, and again after the folds or the prior cha
 import numpy as np
 import pytest
 
-from casadical.data.simulate import Effects, simulate
-from casadical.diagnosis import DiagnosisSettings
-from casadical.diagnosis.pipeline import check_data, fit_geometry, fit_nominal
-from casadical.diagnosis.state import DiagnosisRun
-from casadical.diagnosis.validation import Linearized
+from casadical.data import Effects, simulate
+from casadical.diagnosis import DiagnosisRun, DiagnosisSettings, Linearized, check_data, fit_geometry, fit_nominal
 from casadical.robot import robot_from_dict
 from tests.helpers.arms import ARM5
 

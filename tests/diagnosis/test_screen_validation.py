@@ -6,11 +6,10 @@ import numpy as np
 import pytest
 
 from casadical import calibrate
-from casadical.data.simulate import Effects, simulate
-from casadical.diagnosis.candidates import Candidate
-from casadical.diagnosis.screening import Screen, periodic_columns
+from casadical.data import Effects, simulate
+from casadical.diagnosis import Candidate, Screen, periodic_columns
 from casadical.robot import robot_from_dict
-from casadical.terms.periodic import phase
+from casadical.terms import phase
 from tests.helpers.arms import ARM5
 
 

@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from casadical import calibrate
-from casadical.calibration.gravity import TOLERANCE_DEG, check_gravity
+from casadical.calibration import TOLERANCE_DEG, check_gravity
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.errors import GravityWarning
 from casadical.robot import robot_from_dict
@@ -91,7 +91,7 @@ def test_a_robot_file_whose_gravity_is_not_the_levelled_instruments_down_is_a_wa
     assert check_gravity(single) is None                 # one session: nothing says the instrument is levelled
     assert check_gravity(single, levelled=True).warns    # unless the user does
     with pytest.warns(GravityWarning, match="give \\[gravity\\] direction"):
-        from casadical.calibration.gravity import warn_gravity
+        from casadical.calibration import warn_gravity
         warn_gravity(single, levelled=True)
 
 
@@ -99,7 +99,7 @@ def test_the_screen_tilts_the_base_about_the_axes_across_gravity():
     """The structure screen's base tilt and moment are about the two axes across the robot file's gravity: the
     base's x and y where gravity is along its z (as before), two horizontal axes for an arm on a wall (gravity along
     its base's x), never about gravity's own line (the moment of vertical weights has no part along it)."""
-    from casadical.diagnosis.structure import across_gravity
+    from casadical.diagnosis import across_gravity
 
     doc = hidden.robot_doc("arm6")
     assert np.array_equal(across_gravity(robot_from_dict(doc)), np.eye(3)[:2])

@@ -1,4 +1,4 @@
-"""The hypergeometric tail of the set-aside tests (casadical.stats.outliers.hypergeom_tail) is scipy.stats'
+"""The hypergeometric tail of the set-aside tests (casadical.stats._outliers.hypergeom_tail) is scipy.stats'
 (``hypergeom.sf(k - 1, ...)``), which calibrate no longer imports (0.5-0.6 s of CPU whenever two poses are set
 aside)."""
 
@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 from scipy import stats
 
-from casadical.stats.outliers import hypergeom_tail
+from casadical.stats import hypergeom_tail
 
 
 @pytest.mark.parametrize("seed", range(5))

@@ -1,6 +1,6 @@
 """Each field of a diagnosis run has one writer (issue 46): a field is set by the one stage whose field it is, or,
 where several stages change it (the notes, the steps, the findings, the model under way, the final model), only by
-the pipeline installing what each stage returns (:meth:`casadical.diagnosis.state.DiagnosisRun.install`).
+the pipeline installing what each stage returns (:meth:`casadical.diagnosis._state.DiagnosisRun.install`).
 
 The modules of :mod:`casadical.diagnosis` are read with ``ast``: a write is an assignment to ``run.<field>`` (or to
 an item or attribute of it, ``+=`` too), a call of a method that changes it in place (``run.notes.append``,

@@ -5,9 +5,8 @@ asking, with column blocks collinear with the rest and with fresh arrays of the 
 import numpy as np
 import pytest
 
-from casadical.diagnosis.stand_ins import _Questions
-from casadical.diagnosis.statistics import nested_test
-from casadical.diagnosis.structure import weighted
+from casadical.diagnosis import nested_test, weighted
+from casadical.diagnosis._stand_ins import _Questions
 
 SEEDS = [0, 1, 2, 3]
 

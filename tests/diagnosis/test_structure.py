@@ -14,13 +14,12 @@ import pytest
 
 from casadical import calibrate
 from casadical.cli import main
-from casadical.data import Measurements
-from casadical.data.sessions import combine
+from casadical.data import Measurements, combine
 from casadical.diagnosis import DiagnosisSettings, diagnose
 from casadical.errors import ParallelAxesWarning
 from casadical.loading import load_robot
 from casadical.robot import robot_from_dict
-from casadical.stats.outliers import direction_test, order_test, session_test, set_aside_structure
+from casadical.stats import direction_test, order_test, session_test, set_aside_structure
 from tests.helpers.arms import ARM3, ARM4, ARM4_BETA, ARM5, ARM7, ARM7_DH, to_toml
 from tests.truth import Arm, Effects, Session, TrueRobot, measure, sample
 

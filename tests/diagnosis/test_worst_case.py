@@ -55,7 +55,7 @@ def test_the_screened_search_names_what_the_whole_search_names(monkeypatch):
     """The search refits in full only the causes its linearised screen ranks first (worst_case.SCREENED); on UR10
     series A (seed 2: 7 named causes, the note applies) it names the same drop at the same cost as refitting
     every kept cause in full."""
-    from casadical.diagnosis import worst_case
+    from casadical.diagnosis import _worst_case as worst_case
 
     robot = load_robot("ur10")
     src = Measurements.read_csv(DATA / "series_a.csv", n_joints=6)

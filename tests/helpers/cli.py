@@ -6,7 +6,7 @@ import functools
 from pathlib import Path
 
 from casadical.cli import main
-from casadical.data.simulate import Effects, simulate
+from casadical.data import Effects, simulate
 from casadical.robot import robot_from_dict
 from tests.helpers.arms import ARM4, ARM5, to_toml
 

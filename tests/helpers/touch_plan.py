@@ -14,7 +14,7 @@ import numpy as np
 from casadical import calibrate
 from casadical.data import Measurements
 from casadical.model import Model
-from casadical.planning.touches import random_rows, schur_log_det, select_touches, touch_problem
+from casadical.planning import random_rows, schur_log_det, select_touches, touch_problem
 from casadical.robot import robot_from_dict
 from casadical.rows import read_fixture_file
 from tests.helpers import hidden

@@ -1,4 +1,4 @@
-"""``casadical import``: any tracker file with a column mapping (casadical.importers.mapped).
+"""``casadical import``: any tracker file with a column mapping (casadical.importers._mapped).
 
 The main test writes a tracker file the way public UR5 / WAM data come
 (target + deviation, ';' separated, decimal comma, radians and metres, a BOM,
@@ -21,8 +21,7 @@ import pytest
 
 from casadical import calibrate
 from casadical.cli import main
-from casadical.data import Measurements
-from casadical.data.simulate import Effects, simulate
+from casadical.data import Effects, Measurements, simulate
 from casadical.errors import ColumnMapError, DataFileError, DataWarning
 from casadical.importers import import_file, load_column_map, read_mapped
 from casadical.model import Model

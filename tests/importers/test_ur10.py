@@ -1,4 +1,4 @@
-"""Tests of the UR10 (IPA) raw-format importer, casadical.importers.ur10."""
+"""Tests of the UR10 (IPA) raw-format importer, casadical.importers._ur10."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import pytest
 
 from casadical.data import Measurements
 from casadical.errors import DataFileError, DataWarning, InputError
-from casadical.importers.ur10 import convert_ur10, read_ur10
+from casadical.importers import convert_ur10, read_ur10
 
 DATASET = Path(__file__).resolve().parents[2] / "problems" / "datasets" / "ur10-ipa"
 RAW_A = DATASET / "raw" / "Series_A" / "measurements_grid.csv"

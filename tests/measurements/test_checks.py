@@ -20,9 +20,7 @@ import numpy as np
 import pytest
 
 from casadical import calibrate, load_calibration, load_robot
-from casadical.data import Measurements
-from casadical.data.checks import check_poses
-from casadical.data.simulate import Effects, simulate
+from casadical.data import Effects, Measurements, check_poses, simulate
 from casadical.errors import DataFileError, DataWarning
 from casadical.robot import PROBLEMS, robot_from_dict
 from tests.helpers.arms import ARMS
@@ -226,8 +224,7 @@ def test_predict_reports_errors_and_refuses_another_robots_poses(ys, tmp_path, c
     (["calibrate", "ys100", "{cal}", "--out", "{out}", "--model", "kinematic+periodic[2]"], "joint:harmonic"),
 ])
 def test_options_out_of_their_domain(ys, tmp_path, capsys, monkeypatch, args, what):
-    from casadical.solvers.ipopt import Ipopt
-    from casadical.solvers.lm import LevenbergMarquardt
+    from casadical.solvers import Ipopt, LevenbergMarquardt
 
     def solve(*_):
         raise AssertionError("a solver ran: the option was not refused before the work")

@@ -3,8 +3,7 @@ from pose to pose a sensor's; neither is a reading, a measured value, the time o
 
 import numpy as np
 
-from casadical.data import Measurements
-from casadical.data.covariates import own_columns, pose_covariates, session_covariates
+from casadical.data import Measurements, own_columns, pose_covariates, session_covariates
 
 
 def data(sessions=("A", "A", "B", "B", "C", "C")) -> Measurements:

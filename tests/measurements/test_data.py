@@ -78,7 +78,7 @@ def test_no_file():
 def test_rows_read_in_chunks_keep_every_value_and_name_the_bad_row(tmp_path, monkeypatch, seed):
     """Chunks of 4 rows: numbers, a column of words that appear only after the first chunk (kept as
     written), blank lines, and a bad value far down named by its file line."""
-    import casadical.data.measurements as data_module
+    import casadical.data._measurements as data_module
     monkeypatch.setattr(data_module, "READ_CHUNK", 4)
     rng = np.random.default_rng(seed)
     n = 23

@@ -1,5 +1,5 @@
 """Measured orientations in a measurement file (rx_deg, ry_deg, rz_deg): all three or none, numbers, intrinsic XYZ
-rotations that follow their columns (casadical/data/measurements.py). Full-pose calibration:
+rotations that follow their columns (casadical/data/_measurements.py). Full-pose calibration:
 tests/calibration/test_full_pose.py.
 """
 

@@ -1,12 +1,12 @@
 """A fit that does not fit is an error: another robot's poses, or positions in the wrong unit, are refused by every
-command that fits or predicts, and the rule never fires on real data (casadical/data/checks.py; issue 21).
+command that fits or predicts, and the rule never fires on real data (casadical/data/_checks.py; issue 21).
 """
 
 
 import numpy as np
 import pytest
 
-from casadical.data.simulate import Effects, simulate
+from casadical.data import Effects, simulate
 from casadical.robot import robot_from_dict
 from tests.helpers.arms import ARM4
 from tests.helpers.cli import arm_files, cli, one_error
@@ -94,12 +94,10 @@ def test_the_mismatch_rule_never_fires_on_real_data():
     """The bundled UR10 series, every seed-paper protocol's pose sets and the test arms' simulated poses
     pass (with a margin of 10 to the rule), as does a calibration of series B taken to series A."""
     from casadical import calibrate, load_robot
-    from casadical.data import Measurements
-    from casadical.data.checks import REACH_SHARE, base_fitted_errors, check_poses
-    from casadical.data.simulate import load_protocol
+    from casadical.data import REACH_SHARE, Measurements, base_fitted_errors, check_poses, load_protocol
     from casadical.model import Model
     from casadical.robot import PROBLEMS
-    from casadical.terms.base import reach
+    from casadical.terms import reach
     from tests.helpers.arms import ARM3, ARM4_BETA, ARM7_DH, ARMS
 
     cases = [(load_robot("ur10"), Measurements.read_csv(PROBLEMS / "datasets" / "ur10-ipa" / f"series_{s}.csv"))

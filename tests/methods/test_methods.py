@@ -8,11 +8,10 @@ import numpy as np
 import pytest
 
 from casadical import cli
-from casadical.data.simulate import Effects, simulate
+from casadical.data import Effects, simulate
 from casadical.errors import InputError
 from casadical.loading import load_robot
-from casadical.methods import MethodResult, method_names, run_method
-from casadical.methods.compare import compare, format_table
+from casadical.methods import MethodResult, compare, format_table, method_names, run_method
 from casadical.model import Model
 from casadical.terms import make_term
 

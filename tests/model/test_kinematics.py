@@ -168,7 +168,7 @@ def test_compliance_deflects_along_torque():
 def test_hh800_loop_reduces_to_linear_coupling():
     robot = load_robot("hh800")
     linear = replace(robot, loop=None)
-    from casadical.data.simulate import sample_poses
+    from casadical.data import sample_poses
     q = sample_poses(robot, 40, np.random.default_rng(5), floor_z=None)
     np.testing.assert_allclose(Model(robot, "nominal").predict(q), Model(linear, "nominal").predict(q),
                                atol=1e-12)

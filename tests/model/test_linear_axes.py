@@ -9,7 +9,7 @@ import pytest
 
 from casadical.errors import ModelError
 from casadical.kinematics import base_pose_matrix
-from casadical.model.symbolic import Model, pose_to_base0
+from casadical.model import Model, pose_to_base0
 from casadical.robot import robot_from_dict
 from tests.helpers.arms import ARM4_TRACK, ARM_COLUMN
 from tests.truth import Arm, Effects, Session, TrueRobot, measure, sample

@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from casadical import Model, load_robot
-from casadical.data.simulate import Effects, load_protocol, sample_poses, simulate
+from casadical.data import Effects, load_protocol, sample_poses, simulate
 from tests.helpers.cli import cli, one_error
 
 

@@ -17,14 +17,11 @@ import sys
 import numpy as np
 import pytest
 
-from casadical.data.simulate import Effects, sample_poses, simulate
+from casadical.data import Effects, sample_poses, simulate
 from casadical.kinematics import base_pose_matrix
-from casadical.model._batch import batch
-from casadical.model.superset import Mapping, outputs, superset_for
-from casadical.model.symbolic import Model, parse_spec, pose_to_base0
+from casadical.model import Mapping, Model, batch, outputs, parse_spec, pose_to_base0, superset_for
 from casadical.robot import robot_from_dict
-from casadical.terms import make_term
-from casadical.terms.mount_compliance import max_mount_moment
+from casadical.terms import make_term, max_mount_moment
 from tests.helpers.arms import ARM3, ARM4, ARM5, ARM7, to_toml
 
 #: every term the superset expresses, shared and of one session (two sessions, B with its own tool)
@@ -117,8 +114,8 @@ def test_session_compensators_map_onto_the_superset(arm, orientation, block, mon
     the base pose) gives the model's own graph's positions, orientation residuals and Jacobians, where its
     gate and its session say it applies and nowhere else; also where the poses are evaluated in blocks (``block``:
     the processes' predictions are made at every pose of their session once, then taken block by block)."""
-    from casadical.compensators.gp import ResidualGP
-    from casadical.model import superset
+    from casadical.compensators import ResidualGP
+    from casadical.model import _superset as superset
     from casadical.terms import SessionLocal
 
     if block is not None:
@@ -288,7 +285,7 @@ def test_the_quick_compile_only_where_a_core_is_free(tmp_path, monkeypatch, spar
     """A core free (jitcache.spare_core): the superset's Jacobian is compiled quickly, used at once, and
     optimised in the background, which a later evaluation takes when ready and the cache keeps; a loaded
     machine compiles it optimised at once. Either way the VM's bits."""
-    from casadical.model import jitcache
+    from casadical.model import _jitcache as jitcache
 
     monkeypatch.setenv("CASADICAL_CACHE", str(tmp_path / "cache"))
     monkeypatch.setattr(jitcache, "QUICK_MIN_INSTRUCTIONS", 0)          # the test arm's Functions are small

@@ -19,7 +19,7 @@ import pytest
 
 from casadical.data import Measurements
 from casadical.kinematics import base_pose_matrix
-from casadical.model.symbolic import Model, pose_to_base0
+from casadical.model import Model, pose_to_base0
 from casadical.robot import robot_from_dict
 from tests.helpers.arms import ARM4, ARM5, ARM5_COUPLED, ARM7
 from tests.truth import Arm, Effects, Session, TrueRobot, measure, sample
@@ -252,14 +252,14 @@ def test_coupled_arm_calibrates_on_the_truth_and_old_files_keep_their_convention
                                      ("hh800 (MDH, four-bar)", 0.6e-3)])
 def test_what_the_first_order_leaves_is_the_truths_equilibrium(arm, sag, tmp_path):
     """casadical's compliance takes the torques of the undeflected arm; the truth's arm is in equilibrium. The
-    second-order term casadical.stats.physics.first_order_sag estimates from a fit is what the model misses of the
+    second-order term casadical.stats._physics.first_order_sag estimates from a fit is what the model misses of the
     truth at the true values (within 10 %); calibrate says so in a note (PhysicsWarning) where it exceeds half
     the noise, and not at a realistic sag."""
     import warnings
 
     from casadical import calibrate
     from casadical.errors import PhysicsWarning
-    from casadical.stats.physics import first_order_sag
+    from casadical.stats import first_order_sag
 
     doc = ARMS[arm]
     rng = np.random.default_rng(3)

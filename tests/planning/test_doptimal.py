@@ -13,7 +13,7 @@ import pytest
 from threadpoolctl import threadpool_limits
 
 from casadical import cli
-from casadical.data.simulate import load_protocol, sample_poses
+from casadical.data import load_protocol, sample_poses
 from casadical.errors import IdentifiabilityError, IdentifiabilityWarning, InputError
 from casadical.loading import load_robot
 from casadical.model import Model
@@ -26,17 +26,18 @@ from casadical.planning import (
     log_det_information,
     o1_batch,
     observability,
+    pool_jacobian,
     random_o1,
     relax_cvxpy,
     relax_multiplicative,
     select_poses,
     upper_bound,
 )
-from casadical.planning.doptimal import _Pool, _swap_ratios
-from casadical.planning.observability import _analyse_pool, pool_jacobian
+from casadical.planning._doptimal import _Pool, _swap_ratios
+from casadical.planning._observability import _analyse_pool
 from casadical.robot import PROBLEMS, robot_from_dict
-from casadical.runtime.threads import set_threads
-from casadical.stats.identifiability import analyse
+from casadical.runtime import set_threads
+from casadical.stats import analyse
 
 
 def _random_pool(N: int, p: int, seed: int, r: int = 3) -> np.ndarray:

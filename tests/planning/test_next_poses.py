@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from casadical.cli import main
-from casadical.planning.augment import Criterion, criterion_value, ds_design, relax_ds_cvxpy
+from casadical.planning import Criterion, criterion_value, ds_design, relax_ds_cvxpy
 from tests.helpers.planning_loop import JOINT_SCOPE, SCENARIOS, diagnose, loop, setup
 
 
@@ -166,7 +166,7 @@ def test_every_kind_of_question_is_read_and_planned(tmp_path, capsys):
         if e["name"] == "escale2":
             e["significant"] = False
     rep.write_text(json.dumps(doc))
-    from casadical.planning.questions import open_questions
+    from casadical.planning import open_questions
 
     qs = open_questions(doc, {"escale2": 6e-4})
     assert [q.kind for q in qs] == ["ambiguous", "ambiguous", "not significant"], [q.text for q in qs]
@@ -218,7 +218,7 @@ def test_session_options_and_a_sessions_own_structure(tmp_path, capsys):
     doc["findings"].append({"cause": "unexplained", "joint": 3, "in_model": False, "holds_up": {"structures": [
         {"candidate": cand, "band": [7, 8], "values": {"gear3_s7@A": 2e-5, "gear3_c7@A": -1e-5}}]}})
     rep.write_text(json.dumps(doc))
-    from casadical.planning.questions import open_questions
+    from casadical.planning import open_questions
 
     qs = open_questions(doc, {})
     texts = [(q.kind, q.text.split(" (finding")[0]) for q in qs]

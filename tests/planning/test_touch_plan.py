@@ -1,4 +1,4 @@
-"""Planning rows that touch (casadical/planning/touches.py): the Ds criterion on candidates the independent truth
+"""Planning rows that touch (casadical/planning/_touches.py): the Ds criterion on candidates the independent truth
 puts in sockets (tests/truth/touch.py), its certificate against every subset of a small pool, the selection
 against random ones in what a user relies on (the held-out consistency of the calibration), the command."""
 
@@ -15,7 +15,7 @@ from casadical import calibrate
 from casadical.cli import main
 from casadical.data import Measurements
 from casadical.model import Model
-from casadical.planning.touches import schur_log_det, select_touches, short_sets, touch_problem
+from casadical.planning import schur_log_det, select_touches, short_sets, touch_problem
 from casadical.robot import robot_from_dict
 from tests.helpers import hidden
 from tests.helpers.arms import to_toml
@@ -171,7 +171,7 @@ def test_plan_poses_from_a_report_on_touch_data(tmp_path, capsys):
         counts[(s, p)] = counts.get((s, p), 0) + 1
     assert len(picked) == 12 and min(counts.values()) >= 4, counts
     # the picked rows measured (they are the truth's): the calibration's own standard error of c2 falls
-    from casadical.data.sessions import combine
+    from casadical.data import combine
     from casadical.rows import read_fixture_file
 
     fx = read_fixture_file(tmp_path / "fx.toml")

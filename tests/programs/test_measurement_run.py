@@ -9,8 +9,10 @@ import pytest
 
 from casadical.data import Measurements
 from casadical.loading import load_robot
-from casadical.planning.order import measurement_order, path_length
-from casadical.programs import krl, rapid, urscript
+from casadical.planning import measurement_order, path_length
+from casadical.programs import _krl as krl
+from casadical.programs import _rapid as rapid
+from casadical.programs import _urscript as urscript
 from casadical.robot import BUILTIN_DIR
 from tests.helpers.arms import ARM6, to_toml
 from tests.helpers.cli import cli, one_error

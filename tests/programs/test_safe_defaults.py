@@ -15,7 +15,7 @@ import numpy as np
 import pytest
 
 from casadical import calibrate, load_robot
-from casadical.apply.inverse import compensate
+from casadical.apply import compensate
 from casadical.data import Measurements
 from casadical.robot import BUILTIN_DIR
 from tests.helpers.cli import cli

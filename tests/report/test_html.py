@@ -22,10 +22,8 @@ import pytest
 
 from casadical.calibration import calibrate
 from casadical.cli import main
-from casadical.data import Measurements
-from casadical.data.simulate import Effects, simulate
-from casadical.diagnosis import DiagnosisSettings, Finding, diagnose
-from casadical.diagnosis.candidates import Candidate
+from casadical.data import Effects, Measurements, simulate
+from casadical.diagnosis import Candidate, DiagnosisSettings, Finding, diagnose
 from casadical.html import calibration_html, diagnosis_html
 from casadical.robot import robot_from_dict
 from tests.helpers.arms import ARM4, ARM5, ARM7, to_toml
@@ -595,8 +593,8 @@ def test_awkward_figures_stay_readable_in_a_browser(browser, tmp_path):
     """The layout is computed from estimated text widths: on awkward data (legends that wrap, large negative
     numbers, tiny ones, a two-line axis label, long rotated categories, a grid of panels) every text stays
     inside its figure and off every other text, in a real browser."""
-    from casadical.html.page import Page as Document
-    from casadical.html.svg import SERIES, figure
+    from casadical.html import SERIES, figure
+    from casadical.html import Page as Document
 
     rng = np.random.default_rng(5)
 

@@ -11,7 +11,7 @@ import math
 import numpy as np
 import pytest
 
-from casadical.html.svg import bands, colour_at, nice_ticks, text_width, tick_labels
+from casadical.html import bands, colour_at, nice_ticks, text_width, tick_labels
 
 RNG = np.random.default_rng(37)
 RANGES = [tuple(sorted(RNG.normal(0, 10.0 ** e, 2))) for e in RNG.uniform(-5, 6, 300)]

@@ -4,8 +4,7 @@ Jacobian is projected away from, checked against what they must be, not against 
 import numpy as np
 import pytest
 
-from casadical.rows.fixture import FIXTURE_POINTS, Fixture
-from casadical.rows.layout import Group
+from casadical.rows import FIXTURE_POINTS, Fixture, Group
 
 
 def _rotation(v: np.ndarray) -> np.ndarray:

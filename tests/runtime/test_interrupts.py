@@ -1,5 +1,5 @@
 """Interrupts stop the work: a signal at any moment of a command is one line, and its outputs appear all or none
-(casadical/runtime/interrupts.py, casadical/runtime/files.py; issues 21 and 10).
+(casadical/runtime/_interrupts.py, casadical/runtime/_files.py; issues 21 and 10).
 
 Signals are sent to real ``casadical`` processes at a moment where the work
 runs (IPOPT iterating, the report's figures drawn, gcc compiling); robots that matter are arms
@@ -21,8 +21,7 @@ import pytest
 
 from casadical import load_robot
 from casadical.data import Measurements
-from casadical.runtime.files import atomic_write, outputs_together
-from casadical.runtime.interrupts import handle_signals
+from casadical.runtime import atomic_write, handle_signals, outputs_together
 from tests.helpers.cli import arm_files, cli, one_error
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -359,7 +358,7 @@ def test_ctrl_c_while_the_model_compiles_leaves_no_compiler_behind(tmp_path, poi
     robot_file, data_file = arm_files(str(tmp_path), "arm5", 300, 0)
     fifo = tmp_path / "hold"
     os.mkfifo(fifo)
-    run = (f"from casadical.model import jitcache; jitcache.spare_core = lambda: {quick}; "
+    run = (f"from casadical.model import _jitcache as jitcache; jitcache.spare_core = lambda: {quick}; "
            "from casadical.__main__ import run; run()")     # the ``casadical`` command
     p = subprocess.Popen([sys.executable, "-c", run, "calibrate", robot_file, data_file, "--model",
                           "kinematic+compliance", "--out", str(tmp_path / "cal.json")], cwd=tmp_path,

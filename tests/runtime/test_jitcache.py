@@ -14,8 +14,9 @@ import pytest
 
 from casadical.calibration import calibrate
 from casadical.cli import main
-from casadical.data.simulate import Effects, simulate
-from casadical.model import Model, jitcache
+from casadical.data import Effects, simulate
+from casadical.model import Model
+from casadical.model import _jitcache as jitcache
 from casadical.robot import robot_from_dict
 from tests.helpers.arms import ARM3
 
@@ -102,7 +103,7 @@ def test_concurrent_writers_end_with_one_valid_entry(cache, tmp_path):
     go = tmp_path / "go"
     code = ("import os, sys, time\n"
             "from pathlib import Path\n"
-            "from casadical.model import jitcache\n"
+            "from casadical.model import _jitcache as jitcache\n"
             "from casadical.model import Model\n"
             "from casadical.robot import robot_from_dict\n"
             f"fun = Model(robot_from_dict({ARM3!r}), 'kinematic', jit=False).per_pose_function('fk')\n"
@@ -171,7 +172,7 @@ def test_cache_command_info_and_clear(cache, capsys):
 def test_calibration_is_the_same_with_compiled_cached_code(cache, arm, spec, effects):
     """Hidden geometric errors (and a compliant joint 2): the VM, a fresh compile and the cached code
     calibrate to the same parameters with IPOPT (bounds) and LM, over two seeds; what is compiled is the
-    robot's superset (casadical.model.superset), never a function of one model."""
+    robot's superset (casadical.model._superset), never a function of one model."""
     robot = robot_from_dict(arm)
     for seed in (3, 4):
         data, truth = simulate(robot, 120, effects, seed=seed, floor_z=None)
@@ -194,8 +195,8 @@ def test_calibration_is_the_same_with_compiled_cached_code(cache, arm, spec, eff
 
 def test_no_compiler_means_the_vm_and_no_cache_folder(cache, tmp_path):
     code = ("import numpy as np\n"
-            "from casadical.model import jitcache\n"
-            "from casadical.model.symbolic import Model, compiler_available\n"
+            "from casadical.model import _jitcache as jitcache\n"
+            "from casadical.model._symbolic import Model, compiler_available\n"
             "from casadical.loading import load_robot\n"
             "m = Model(load_robot('ys100'), 'kinematic')\n"
             "m.predict(np.zeros((400, 6)))\n"
@@ -285,7 +286,7 @@ def test_a_calibration_without_a_compiler_is_the_compiled_ones(cache, tmp_path):
     code = ("import json, sys\n"
             "from casadical import calibrate\n"
             "from casadical.data import Measurements\n"
-            "from casadical.model import jitcache\n"
+            "from casadical.model import _jitcache as jitcache\n"
             "from casadical.robot import robot_from_dict\n"
             "assert jitcache.compiler() is None\n"
             f"res = calibrate(robot_from_dict({ARM5!r}), Measurements.read_csv(sys.argv[1], n_joints=5), "

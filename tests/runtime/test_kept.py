@@ -6,7 +6,7 @@ import threading
 
 import numpy as np
 
-from casadical.runtime.kept import Kept, array_key
+from casadical.runtime import Kept, array_key
 
 
 def test_equal_arrays_share_a_key_and_different_ones_do_not():

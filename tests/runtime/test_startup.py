@@ -10,7 +10,7 @@ import sys
 
 import pytest
 
-from casadical.data.simulate import Effects, simulate
+from casadical.data import Effects, simulate
 from casadical.robot import robot_from_dict
 from tests.helpers.arms import ARM4
 
@@ -52,11 +52,11 @@ def files(tmp_path_factory):
 def test_calibrate_imports_no_planning_no_compensator_no_scipy(files):
     """A kinematic calibration of positions: no scipy (its linear algebra comes with the GP compensator, its
     rotations with measured orientations), no planning, importers or compensators (the GP compensator's
-    casadical.calibration.per_session among them)."""
+    casadical.calibration._per_session among them)."""
     mods = _imported(["calibrate", str(files / "arm.toml"), str(files / "poses.csv"), "--model", "kinematic",
                       "--out", str(files / "cal.json"), "--force", "--quiet"], files)
     assert "casadical.calibration" in mods
-    assert _packages(mods, NEVER + ("scipy", "casadical.compensators", "casadical.calibration.per_session")) == []
+    assert _packages(mods, NEVER + ("scipy", "casadical.compensators", "casadical.calibration._per_session")) == []
 
 
 def test_predict_imports_no_calibration_pipeline(files):
@@ -68,14 +68,14 @@ def test_predict_imports_no_calibration_pipeline(files):
     mods = _imported(["predict", str(files / "cal.json"), str(files / "poses.csv"), "--out",
                       str(files / "p.csv"), "--force"], files)
     assert "casadical.result" in mods
-    assert _packages(mods, NEVER + ("scipy", "casadical.calibration.pipeline", "casadical.calibration.solve",
-                                    "casadical.data.simulate")) == []
+    assert _packages(mods, NEVER + ("scipy", "casadical.calibration._pipeline", "casadical.calibration._solve",
+                                    "casadical.data._simulate")) == []
 
 
 def test_split_imports_no_model_no_planning(files):
     mods = _imported(["split", str(files / "poses.csv"), "-n", "20", "--out-cal", str(files / "c.csv"),
                       "--out-val", str(files / "v.csv"), "--force"], files)
-    assert _packages(mods, NEVER + ("casadi", "casadical.model.symbolic", "casadical.stats.identifiability")) \
+    assert _packages(mods, NEVER + ("casadi", "casadical.model._symbolic", "casadical.stats._identifiability")) \
         == []
 
 
@@ -91,11 +91,11 @@ def test_calibrate_that_sets_poses_aside_imports_no_scipy_stats(files, tmp_path)
     mods = _imported(["calibrate", "arm.toml", "shots.csv", "--model", "kinematic", "--out", "cal.json", "--force",
                       "--quiet"], tmp_path)
     assert json.loads((tmp_path / "cal.json").read_text())
-    assert "casadical.stats.outliers" in mods and "scipy.stats" not in mods
+    assert "casadical.stats._outliers" in mods and "scipy.stats" not in mods
 
 
 def test_html_reports_import_no_plotting_library(files, tmp_path):
-    """The figures of both HTML reports are written as SVG by casadical.html.svg (issue 37): ``calibrate --html``
+    """The figures of both HTML reports are written as SVG by casadical.html._svg (issue 37): ``calibrate --html``
     and ``diagnose --html`` import casadical.html and never matplotlib (0.42 s to import, before)."""
     (tmp_path / "arm.toml").write_text((files / "arm.toml").read_text())
     robot = robot_from_dict(ARM4)
@@ -105,6 +105,6 @@ def test_html_reports_import_no_plotting_library(files, tmp_path):
                  ["diagnose", "arm.toml", "cal.csv", "--validate", "val.csv", "--html", "d.html", "--out", "d.json",
                   "--no-blackbox", "--max-rounds", "1", "--quiet"]):
         mods = _imported(args + ["--force"], tmp_path)
-        assert "casadical.html.svg" in mods and (tmp_path / args[args.index("--html") + 1]).read_text().count(
+        assert "casadical.html._svg" in mods and (tmp_path / args[args.index("--html") + 1]).read_text().count(
             "<svg") >= 3
         assert "matplotlib" not in mods, args[0]

@@ -1,4 +1,4 @@
-"""casadical.runtime.threads: the BLAS/OpenMP limit is in force inside, restored after, and can be overridden; large
+"""casadical.runtime._threads: the BLAS/OpenMP limit is in force inside, restored after, and can be overridden; large
 batches of poses are evaluated in blocks, side by side, to the same bits."""
 
 from __future__ import annotations
@@ -13,7 +13,7 @@ from threadpoolctl import threadpool_limits
 from casadical import cli
 from casadical.errors import SettingError
 from casadical.loading import load_robot
-from casadical.runtime.threads import (
+from casadical.runtime import (
     ENV,
     EVAL_ENV,
     EVAL_MAX,
@@ -125,7 +125,7 @@ def test_cli_bad_environment_is_one_line(monkeypatch, capsys, tmp_path, variable
 
 def test_cli_commands_run_limited(monkeypatch, tmp_path):
     seen = []
-    import casadical.cli.planning as planning
+    import casadical.cli._planning as planning
 
     real = planning.cmd_candidates
 
@@ -185,8 +185,8 @@ def test_blocks_give_the_same_bits_as_one_batch(monkeypatch, name):
 
 
 def test_small_batches_and_compiled_code_stay_in_one_block(monkeypatch):
-    from casadical.model import jitcache
-    from casadical.model.symbolic import BLOCK_MIN, Model
+    from casadical.model import BLOCK_MIN, Model
+    from casadical.model import _jitcache as jitcache
     from casadical.robot import robot_from_dict
     from tests.helpers.arms import ARM3
 
@@ -238,7 +238,8 @@ def test_a_block_that_fails_is_waited_for(monkeypatch):
     that, and the block ends by itself (``returned`` still unset); a call that did not wait sets it first."""
     import threading
 
-    from casadical.model.symbolic import Model, _Batch
+    from casadical.model import Model
+    from casadical.model._symbolic import _Batch
 
     monkeypatch.setenv(EVAL_ENV, "2")
     model = Model(load_robot("ur10"), "kinematic", jit=False)
@@ -302,7 +303,7 @@ def test_blocks_after_a_fork(monkeypatch):
 
 def test_stacked_eigendecompositions_in_threads_give_the_same_bits(monkeypatch):
     """The cross-validation's stacked solve (every fold of every scheme) is shared among the threads."""
-    from casadical.diagnosis.validation import solve_identified
+    from casadical.diagnosis import solve_identified
 
     rng = np.random.default_rng(5)
     X = rng.normal(size=(37, 90, 12)) * np.logspace(0, -4, 12)   # some directions poorly determined

@@ -22,8 +22,7 @@ import pytest
 
 from casadical.cli import main
 from casadical.errors import InputError
-from casadical.study import TIME_COLUMNS, ResultStore, load_study, run_study, run_task, summarize
-from casadical.study.store import differing_columns
+from casadical.study import TIME_COLUMNS, ResultStore, differing_columns, load_study, run_study, run_task, summarize
 
 ARM4_DH = """
 name = "four-axis DH arm"
@@ -200,7 +199,7 @@ def test_bad_protocol_is_one_line(tmp_path):
 
 
 def test_bundled_studies_load():
-    from casadical.study.protocol import STUDY_DIR
+    from casadical.study import STUDY_DIR
     names = sorted(p.stem for p in STUDY_DIR.glob("*.toml"))
     assert names
     for n in names:
@@ -298,7 +297,7 @@ def test_results_folder_resumes_extends_and_refuses(tmp_path):
 
 
 def test_one_run_per_folder(tmp_path):
-    from casadical.study.store import ResultStore as Store
+    from casadical.study import ResultStore as Store
     study = load_study(write_study(tmp_path, reps=1))
     with Store.for_study(tmp_path / "r", study):
         with pytest.raises(InputError, match="another casadical study"):

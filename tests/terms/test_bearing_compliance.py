@@ -14,8 +14,9 @@ import warnings
 import numpy as np
 import pytest
 
-from casadical.diagnosis import DiagnosisSettings, diagnose, words
-from casadical.terms.bearing_compliance import bearing_moments
+from casadical.diagnosis import DiagnosisSettings, diagnose
+from casadical.diagnosis import _words as words
+from casadical.terms import bearing_moments
 from tests.helpers import hidden
 from tests.truth import Arm, Effects, TrueRobot, sample
 

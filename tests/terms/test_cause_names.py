@@ -1,5 +1,5 @@
 """No cause's name is compared as a string outside its own module (issue 46): what a cause is lives in one object
-of its term's module (:mod:`casadical.terms.cause`); the rest of the package asks it."""
+of its term's module (:mod:`casadical.terms._cause`); the rest of the package asks it."""
 
 import ast
 from pathlib import Path

@@ -11,7 +11,7 @@ from casadical import calibrate
 from casadical.errors import DataFileError, ModelError
 from casadical.model import Model
 from casadical.result import load_calibration
-from casadical.terms.mount_compliance import bernstein
+from casadical.terms import bernstein
 from tests.helpers import hidden
 
 
@@ -86,7 +86,7 @@ def test_a_named_law_asks_for_a_session_at_another_value(column):
     """The diagnosis names the law (its finding's ``law``), and plan-poses REPORT.json asks whether it holds at
     another height: a question of kind ``law`` on its two coefficients."""
     from casadical.diagnosis import DiagnosisSettings, diagnose
-    from casadical.planning.questions import open_questions
+    from casadical.planning import open_questions
 
     robot, cal, val, _ = column
     with warnings.catch_warnings():

@@ -4,7 +4,7 @@
 ``M`` the weights' moment about the mount): the truth hides each effect on arms that are not built in (MDH
 and DH), three seeds each; a calibration with the term finds the true value within a few standard errors
 and reaches the noise on held-out poses, which the kinematic model alone does not; on data without the
-effect the term's parameter breaks a rule of casadical.stats.physics (not significant, or at its bound): no cause.
+effect the term's parameter breaks a rule of casadical.stats._physics (not significant, or at its bound): no cause.
 """
 
 import math
@@ -16,7 +16,7 @@ from casadical import calibrate
 from casadical.errors import ModelError
 from casadical.model import Model, parse_spec
 from casadical.robot import robot_from_dict
-from casadical.stats.physics import violations
+from casadical.stats import violations
 from tests.helpers.arms import ARM4, ARM5
 from tests.helpers.hidden import CATALOGUED, OUTSIDE, Case, case, make_data, noise_free
 from tests.truth import Arm, Effects, TrueRobot, sample
@@ -104,7 +104,7 @@ def test_specifications_parameters_and_errors():
     with pytest.raises(ModelError, match="no masses"):
         Model(robot_from_dict(massless), "kinematic+mount_compliance", jit=False)
     # both are the diagnosis catalogue's (tests/diagnosis/test_new_causes_named.py)
-    from casadical.diagnosis.candidates import Candidate, compose_spec
+    from casadical.diagnosis import Candidate, compose_spec
     assert compose_spec([Candidate("joint_coupling", 6, source_joint=5), Candidate("mount_compliance"),
                          Candidate("mount_compliance", session="B")]) == (
         "kinematic+joint_coupling[6:5]+mount_compliance+mount_compliance@B")
@@ -159,7 +159,7 @@ def test_each_session_its_own_mount(tmp_path):
 
 
 def test_a_calibration_taken_further_joins_the_couplings():
-    from casadical.calibration.further import merge_terms
+    from casadical.calibration import merge_terms
 
     out, named = merge_terms(parse_spec("kinematic+joint_coupling[4:3]"), parse_spec("joint_coupling[3:2]"))
     assert [t.spec() for t in out][1:] == ["joint_coupling[3:2,4:3]"] and named == {"joint_coupling"}
@@ -167,7 +167,7 @@ def test_a_calibration_taken_further_joins_the_couplings():
 
 def test_a_mount_at_its_bound_says_what_that_means():
     from casadical.parameters import Parameter
-    from casadical.stats.physics import inside_bounds
+    from casadical.stats import inside_bounds
 
     p = {"cmount": Parameter("cmount", 0.0, "rad/(N*m)", 1e-8, "mount_compliance", lower=0.0, upper=1e-5,
                              value=-1e-9),

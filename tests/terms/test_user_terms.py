@@ -13,14 +13,12 @@ import numpy as np
 import pytest
 
 from casadical.cli import main
-from casadical.data import Measurements
-from casadical.data.simulate import Effects, sample_poses, simulate
+from casadical.data import Effects, Measurements, sample_poses, simulate
 from casadical.errors import DataFileError, ModelError, TermsFileError
 from casadical.loading import load_robot
 from casadical.model import Model, parse_spec
-from casadical.terms import REGISTRY
-from casadical.terms import expression as ex
-from casadical.terms.definitions import read_terms_file
+from casadical.terms import REGISTRY, read_terms_file
+from casadical.terms import _expression as ex
 
 ROOT = Path(__file__).resolve().parents[2]
 EXAMPLE = ROOT / "problems" / "terms" / "axis_wobble.toml"

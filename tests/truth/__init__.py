@@ -1,6 +1,6 @@
 """An independent truth for the tests: measured-like data of a robot, made without casadical.
 
-casadical's simulator (:mod:`casadical.data.simulate`) evaluates the very terms
+casadical's simulator (:mod:`casadical.data._simulate`) evaluates the very terms
 the calibration and the diagnosis fit, so a wrong sign, phase, unit or
 convention in a term would be shared by the data and the fit. This package
 writes the robot and each effect again from its physical definition, in

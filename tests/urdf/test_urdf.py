@@ -14,10 +14,10 @@ import yourdfpy
 
 from casadical import Model, calibrate, load_robot
 from casadical.cli import main
-from casadical.data.simulate import Effects, sample_poses, simulate
+from casadical.data import Effects, sample_poses, simulate
 from casadical.errors import ModelError, RobotFileError
 from casadical.robot import robot_from_dict
-from casadical.stats.alignment import align
+from casadical.stats import align
 from casadical.urdf import PARALLEL_TOL_DEG, robot_from_urdf, robot_to_urdf
 from tests.helpers.arms import ARM4_TRACK, ARM_COLUMN
 
