@@ -100,8 +100,8 @@ def test_the_graph_reader_sees_lazy_imports(tmp_path):
     (pkg / "robot.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from .model import M\n"
                                   "def load(p):\n    from .urdf import read\n    return read(p)\n")
     (pkg / "model.py").write_text("from .robot import load\n")
-    (pkg / "urdf" / "__init__.py").write_text("from .read import read\n")
-    (pkg / "urdf" / "read.py").write_text("from ..robot import load\n")
+    (pkg / "urdf" / "__init__.py").write_text("from ._read import read\n")
+    (pkg / "urdf" / "_read.py").write_text("from ..robot import load\n")
     g = import_graph.graph(pkg)
     assert g["casadical.robot"] == {"casadical.urdf", "casadical.urdf._read"}
     assert import_graph.cycles(g) == [{"casadical.robot", "casadical.urdf", "casadical.urdf._read"}]
