@@ -98,7 +98,7 @@ def test_the_graph_reader_sees_lazy_imports(tmp_path):
     (pkg / "urdf").mkdir(parents=True)
     (pkg / "__init__.py").write_text("")
     (pkg / "robot.py").write_text("from typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from .model import M\n"
-                                  "def load(p):\n    from .urdf import read\n    return read(p)\n")
+                                  "def load(p):\n    from .urdf import _read\n    return _read.read(p)\n")
     (pkg / "model.py").write_text("from .robot import load\n")
     (pkg / "urdf" / "__init__.py").write_text("from ._read import read\n")
     (pkg / "urdf" / "_read.py").write_text("from ..robot import load\n")
