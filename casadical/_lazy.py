@@ -7,13 +7,14 @@ from typing import Callable
 
 def lazy(package: str, namespace: dict, exports: dict[str, str]) -> tuple[Callable, Callable]:
     """The ``__getattr__`` and ``__dir__`` of ``package`` (its ``globals()`` as ``namespace``): a public name of
-    ``exports`` (name -> its module, relative to the package) or a submodule, imported on first use and kept."""
+    ``exports`` (name -> its module, relative to the package) or a submodule (``_name``: the modules of a subpackage
+    are private), imported on first use and kept."""
 
     def __getattr__(name: str):
         module = exports.get(name)
         if module is not None:
             value = getattr(import_module(f".{module}", package), name)
-        elif not name.startswith("_") and find_spec(f"{package}.{name}") is not None:
+        elif not name.startswith("__") and find_spec(f"{package}.{name}") is not None:   # (private ones too)
             value = import_module(f".{name}", package)
         else:
             raise AttributeError(f"module {package!r} has no attribute {name!r}")
