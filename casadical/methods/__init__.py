@@ -25,7 +25,7 @@ name                 what it does
 >>> r = run_method("SKCM-CA", proto.robot, sets["calibration"], sets["validation"])  # doctest: +SKIP
 >>> r.validation.mean_mm, r.stiffness()                                               # doctest: +SKIP
 
-Adding a method means one module in this folder: subclass
+Adding a method means one private module (``_name.py``) in this folder: subclass
 :class:`~casadical.methods._base.Method`, decorate with
 :func:`~casadical.methods._base.register`, and import the module below.
 """
