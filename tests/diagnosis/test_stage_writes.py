@@ -84,20 +84,20 @@ def several(found: dict) -> list[str]:
 
 
 def test_each_field_of_the_run_has_one_writer():
-    methods = run_methods(PACKAGE / "state.py")
-    found = writers([p for p in sorted(PACKAGE.glob("*.py")) if p.stem != "state"], methods)
+    methods = run_methods(PACKAGE / "_state.py")
+    found = writers([p for p in sorted(PACKAGE.glob("*.py")) if p.stem != "_state"], methods)
     bad = several(found)
     assert not bad, "fields of the run written by more than one module of casadical.diagnosis:\n" + "\n".join(bad)
 
 
 def test_the_shared_fields_are_the_pipelines():
     """What several stages change is installed by the pipeline, from what each stage returns."""
-    methods = run_methods(PACKAGE / "state.py")
+    methods = run_methods(PACKAGE / "_state.py")
     shared = {"notes", "steps", "findings", "fits_of_steps", "history", "current", "accepted", "geometric",
               "support", "before", "parametric", "final", "final_spec"}
     assert methods["install"] == shared
     found = writers(sorted(PACKAGE.glob("*.py")), methods)
-    assert {name: set(by) for name, by in found.items() if name in shared} == {name: {"pipeline"} for name in shared}
+    assert {name: set(by) for name, by in found.items() if name in shared} == {name: {"_pipeline"} for name in shared}
 
 
 def test_the_check_sees_a_second_writer():
@@ -115,4 +115,4 @@ def test_the_check_sees_a_second_writer():
         assert {n: {m: lines for m, lines in by.items()} for n, by in found.items()} == {
             "notes": {"a": [2]}, "current": {"a": [3], "b": [2]}, "unexplained": {"a": [4]}, "support": {"b": [2]}}
         assert several(found) == ["current: a.py:3; b.py:2"]
-    assert run_methods(PACKAGE / "state.py")["install"] >= {"notes", "current"}
+    assert run_methods(PACKAGE / "_state.py")["install"] >= {"notes", "current"}
