@@ -27,11 +27,25 @@ KEY = {
 }
 
 
+#: examples a test of what they teach runs instead (the same work once, not twice), and checks their key line
+RUN_BY = {
+    # its two diagnoses are the worst-case test's: that test runs the example and checks its reports
+    "08_trust.py": "tests/diagnosis/test_worst_case.py",
+}
+
+
 def test_every_example_has_a_key_line():
     assert EXAMPLES and {p.name for p in EXAMPLES} == set(KEY)
 
 
-@pytest.mark.parametrize("script", EXAMPLES, ids=lambda p: p.name)
+def test_an_example_run_by_another_test_is_run_there():
+    """The test that runs an example instead of this module names the example and checks its key line."""
+    for name, test in RUN_BY.items():
+        text = (ROOT / test).read_text(encoding="utf-8")
+        assert f'"examples" / "{name}"' in text and KEY[name] in text, (name, test)
+
+
+@pytest.mark.parametrize("script", [p for p in EXAMPLES if p.name not in RUN_BY], ids=lambda p: p.name)
 def test_example_runs(script):
     env = {**os.environ, "PYTHONPATH": str(ROOT), "CASADICAL_JIT": os.environ.get("CASADICAL_JIT", "0")}
     run = subprocess.run([sys.executable, str(script.relative_to(ROOT))], cwd=ROOT, env=env,
