@@ -51,18 +51,21 @@ def timed(name, f):
                                                                             - c.ru_utime - c.ru_stime)
     g.__name__ = getattr(f, "__name__", name)
     return g
-try:                    # a tree before the diagnosis had stages (aebf0e6): its whole process only
-    import casadical.diagnosis._pipeline as P
+import importlib
+def module(*names):     # a tree before its modules were private (22830a8) names them without the underscore
+    for name in names:
+        try:
+            return importlib.import_module(name)
+        except ImportError:
+            pass
+P = module("casadical.diagnosis._pipeline", "casadical.diagnosis.pipeline")
+if hasattr(P, "STAGES"):     # a tree before the diagnosis had stages (aebf0e6): its whole process only
     P.STAGES = tuple(timed(s.__name__, s) for s in P.STAGES)
-except (ImportError, AttributeError):
-    pass
-try:
-    import casadical.html as H
-    H.diagnosis_html = timed("html report", H.diagnosis_html)
-    import casadical.html._diagnosis as HD
+import casadical.html as H
+H.diagnosis_html = timed("html report", H.diagnosis_html)
+HD = module("casadical.html._diagnosis", "casadical.html.diagnosis")
+if HD is not None:
     HD.diagnosis_html = H.diagnosis_html
-except ImportError:
-    pass
 from casadical.cli import main
 main(sys.argv[1:])
 me, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
