@@ -48,8 +48,9 @@ class Geometric(ErrorTerm):
     noted = False
 
     def superset_member(self) -> bool:
-        """The superset expresses it (its geometry and sessions come first)."""
-        return True
+        """The superset expresses it (its geometry and sessions come first) with the drives' convention; files
+        older than it (``drive_errors=False``) run on their model's own graph."""
+        return self.drive_errors
 
     def __init__(self, joints=None, length_box: float = LENGTH_BOX, angle_box: float = ANGLE_BOX,
                  drive_errors: bool = True):

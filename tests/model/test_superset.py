@@ -21,8 +21,8 @@ from casadical.data import Effects, sample_poses, simulate
 from casadical.kinematics import base_pose_matrix
 from casadical.model import Mapping, Model, batch, outputs, parse_spec, pose_to_base0, superset_for
 from casadical.robot import robot_from_dict
-from casadical.terms import make_term, max_mount_moment
-from tests.helpers.arms import ARM3, ARM4, ARM5, ARM7, to_toml
+from casadical.terms import REGISTRY, make_term, max_mount_moment
+from tests.helpers.arms import ARM3, ARM4, ARM5, ARM5_COUPLED, ARM7, to_toml
 
 #: every term the superset expresses, shared and of one session (two sessions, B with its own tool)
 SPEC = ("kinematic+joint_compliance+nonlinear_stiffness[2]+encoder_scale[1,3]+backlash[2]+backlash_motion[1]"
@@ -178,6 +178,32 @@ def test_a_model_of_one_session_broadcasts_its_parameters(spec):
 def test_what_the_superset_cannot_express_runs_on_the_models_own_graph(terms):
     model = Model(robot_from_dict(ARM4), terms())
     assert Mapping.of(model) is None and model._mapping is None
+
+
+@pytest.mark.parametrize("cls", sorted({c for c in REGISTRY.values() if getattr(c, "LEGACY", None)},
+                                       key=lambda c: c.name), ids=lambda c: c.name)
+def test_a_calibration_file_older_than_a_convention_is_not_predicted_by_the_new_one(cls):
+    """A term as a file older than one of its settings reads it (its class' LEGACY) either maps onto the
+    superset with the model's own positions and Jacobian, or runs on its own graph: on the coupled arm, where
+    the conventions differ, the superset (which has the new ones) must never stand in for it."""
+    robot = robot_from_dict(ARM5_COUPLED)
+    joints = [2] if cls.name != "geometric" else None
+    terms = [make_term("geometric", **(cls.LEGACY if cls.name == "geometric" else {})),
+             make_term("joint_compliance", joints=[2]), make_term("encoder_scale", joints=[2])]
+    if cls.name != "geometric":
+        terms.append(make_term(cls.name, joints=joints, **cls.LEGACY))
+    model = Model(robot, terms)
+    if model._mapping is None:
+        return
+    own = Model(robot, terms, jit=False)
+    rng = np.random.default_rng(4)
+    q = sample_poses(robot, 30, rng, floor_z=None)
+    values = model.parameters.values + 0.1 * rng.normal(size=len(model.parameters)) * model.parameters.scales
+    cov = model.default_covariates(30)
+    xyz, J = own.predict_jacobian(q, values, cov)
+    y, Js, _ = outputs(model, "jac", q, values, cov, model.base0_nominal(), compile=False)
+    assert_close(xyz, y, "positions")
+    assert_close(J, Js, "Jacobian")
 
 
 def test_a_model_without_jit_never_maps():
