@@ -23,7 +23,8 @@ import numpy as np
 
 from casadical import calibrate, load_robot
 from casadical.data import Effects, Measurements, simulate
-from casadical.diagnosis import DiagnosisRun, DiagnosisSettings, Screen, check_data, compose_spec, diagnose
+from casadical.diagnosis import DiagnosisRun, DiagnosisSettings, Screen, check_data, compose_terms, diagnose
+from casadical.model import Model
 
 
 def case(n_cal: int, n_val: int, seed: int = 0):
@@ -54,14 +55,14 @@ def main() -> None:
         # round 1 alone: score test of all candidates vs a real fit of each
         dg = DiagnosisRun(robot, cal, val, DiagnosisSettings(), lambda _: None)
         dg.install(check_data(dg))
-        kin = dg.fit("kinematic")
+        kin = dg.fit(compose_terms([]))
         t = time.perf_counter()
         cands = dg.candidates(kin, [])
         Screen(kin, [], cands, True, cal, val).scores(cands)
         t_score = time.perf_counter() - t
         t = time.perf_counter()
         for c in cands:
-            calibrate(robot, cal, compose_spec([c]), "lm", warn=False)
+            calibrate(robot, cal, Model(robot, compose_terms([c])), "lm", warn=False)
         t_all = time.perf_counter() - t
         print(f"{n_cal:>5}+{n_val:<6} {t_diag:>11.1f} {found:<72} {t_score:>16.2f} {t_all:>18.2f} "
               f"{t_all / t_score:>6.1f}")

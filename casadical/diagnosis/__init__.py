@@ -10,7 +10,7 @@ _EXPORTS = {"Candidate": "_candidates", "STAGES": "_pipeline", "diagnose": "_pip
             "Finding": "_report", "Step": "_report", "DiagnosisSettings": "_settings", "Catalogue": "_catalogue",
             "DiagnosisRun": "_state", "Held": "_worst", "Linearized": "_validation", "SHRINKS": "_compensator",
             "Screen": "_screening", "Split": "_transfer", "across_gravity": "_structure", "by_kind": "_validation",
-            "check_data": "_prepare", "compose_spec": "_candidates", "describe_pair": "_structure",
+            "check_data": "_prepare", "compose_terms": "_candidates", "describe_pair": "_structure",
             "fit_geometry": "_pipeline", "fit_nominal": "_pipeline", "joint_levers": "_validation",
             "judge": "_compensator", "linear_cv": "_validation", "nested_test": "_statistics",
             "not_tried": "_catalogue", "paired_gain": "_statistics", "periodic_columns": "_screening",
@@ -20,14 +20,14 @@ _EXPORTS = {"Candidate": "_candidates", "STAGES": "_pipeline", "diagnose": "_pip
 
 __all__ = [
     "Candidate", "Catalogue", "DiagnosisReport", "DiagnosisRun", "DiagnosisSettings", "Finding", "Held", "Linearized",
-    "SHRINKS", "STAGES", "Screen", "Split", "Step", "across_gravity", "by_kind", "check_data", "compose_spec",
+    "SHRINKS", "STAGES", "Screen", "Split", "Step", "across_gravity", "by_kind", "check_data", "compose_terms",
     "describe_pair", "diagnose", "fit_geometry", "fit_nominal", "joint_levers", "judge", "linear_cv", "nested_test",
     "not_tried", "paired_gain", "periodic_columns", "periodogram", "random_scheme", "repeated_sigma", "schemes",
     "session_scheme", "set_aside_share", "solve_identified", "weighted",
 ]
 
 if _typing.TYPE_CHECKING:
-    from ._candidates import Candidate, compose_spec
+    from ._candidates import Candidate, compose_terms
     from ._catalogue import Catalogue, not_tried
     from ._compensator import SHRINKS, judge
     from ._noise import repeated_sigma

@@ -1,10 +1,12 @@
-"""Candidate extensions of the model, and how to compose them into a model specification."""
+"""Candidate extensions of the model, and how they become the terms of a model."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
+from typing import Any
 
-from ..terms import CAUSES, Cause, ordered
+from ..model import spec_of
+from ..terms import CAUSES, Cause, ErrorTerm, SessionLocal, make_term, ordered
 from ..terms._user import USER
 
 #: the tiers of :attr:`Candidate.tier`, in the order a round tries them
@@ -47,6 +49,9 @@ class Candidate:
         compliance growing with a column's height): the column, and the law's
         degree after a colon where it is not 1 (``height_m``, ``height_m:2``;
         ``mount_compliance[height_m]``).
+    definition : TermDefinition or None
+        For a cause of the user's own: its term's definition (what its term
+        is made of; not part of what the candidate is, as its name is).
     """
 
     cause: str
@@ -60,6 +65,7 @@ class Candidate:
     direction: str | None = None
     angle: str | None = None
     law: str | None = None
+    definition: Any = field(default=None, compare=False, repr=False)
 
     def shared(self) -> "Candidate":
         """The same cause with one value for every session."""
@@ -167,18 +173,24 @@ class Candidate:
         return self.kind.parameter_names(self)
 
 
-def compose_spec(candidates: list[Candidate], geometric: bool = True) -> str:
-    """Model specification holding every candidate (same terms merged; a session's own terms ``...@s``)."""
-    parts = ["kinematic" if geometric else "nominal"] + _terms([c for c in candidates if c.session is None])
+def compose_terms(candidates: list[Candidate], geometric: bool = True) -> list[ErrorTerm]:
+    """The terms of a model holding every candidate (a cause's candidates of one scope in one term; a session's
+    own in terms of that session, :class:`~casadical.terms.SessionLocal`), with the geometry free (``geometric``)
+    or nominal. New terms at each call: a model binds its terms and sets their references."""
+    terms = ([make_term("geometric")] if geometric else []) + _terms([c for c in candidates if c.session is None])
     for s in dict.fromkeys(c.session for c in candidates if c.session is not None):
-        parts += [f"{t}@{s}" for t in _terms([c.shared() for c in candidates if c.session == s])]
-    return "+".join(parts)
+        terms += [SessionLocal(t, s) for t in _terms([c.shared() for c in candidates if c.session == s])]
+    return terms
 
 
-def _terms(candidates: list[Candidate]) -> list[str]:
-    """The term specifications of candidates of one scope, each cause's in its order
-    (:attr:`~casadical.terms._cause.Cause.order`)."""
-    return [spec for cause in ordered("order", (USER,)) for spec in cause.specs(candidates)]
+def model_spec(candidates: list[Candidate], geometric: bool = True) -> str:
+    """The specification of :func:`compose_terms`' model (a step's name in reports and the final model's)."""
+    return spec_of(compose_terms(candidates, geometric), geometric)
+
+
+def _terms(candidates: list[Candidate]) -> list[ErrorTerm]:
+    """The terms of candidates of one scope, each cause's in its order (:attr:`~casadical.terms._cause.Cause.order`)."""
+    return [term for cause in ordered("order", (USER,)) for term in cause.terms(candidates)]
 
 
 def tell_apart(a: Candidate, b: Candidate) -> str:

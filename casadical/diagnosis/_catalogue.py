@@ -458,7 +458,7 @@ class Catalogue:
         out = []
         for d in self.s.terms:
             cand = Candidate(d.name, d.joints[0] if d.one_joint else None,
-                             user=tuple(f"{d.name}.{p}" for p in d.parameter_names))
+                             user=tuple(f"{d.name}.{p}" for p in d.parameter_names), definition=d)
             several = len(self.sessions) > 1
             if d.scope == "robot" or not several:
                 out.append(cand)

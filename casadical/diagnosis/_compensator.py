@@ -43,7 +43,7 @@ from ..errors import InputError
 from ..prediction import prediction_std
 from ..result import CalibrationResult
 from ..terms import UNEXPLAINED
-from ._candidates import Candidate, compose_spec
+from ._candidates import Candidate, model_spec
 from ._report import Finding, Step
 from ._state import DiagnosisRun, FinalModel, StageOutcome
 from ._statistics import paired_gain
@@ -218,7 +218,7 @@ def add_compensator(run: DiagnosisRun) -> StageOutcome:
     with ``blackbox`` (the default) fits and judges the GP compensator on it (:func:`compensator_step`); returns
     its step and finding, and the model the diagnosis ends with (the pipeline installs it: ``parametric``,
     ``final``, ``final_spec``)."""
-    final, spec = run.current, compose_spec(run.accepted, run.geometric)
+    final, spec = run.current, model_spec(run.accepted, run.geometric)
     steps, findings = [], list(run.findings)
     if run.s.blackbox:
         final, spec = compensator_step(run.current, spec, run.cal, run.val, run.schemes, run.s, steps, findings,

@@ -14,7 +14,7 @@ import math
 
 from ..calibration._gravity import warn_gravity
 from ..terms import GEOMETRIC
-from ._candidates import Candidate
+from ._candidates import Candidate, compose_terms
 from ._design import assess, priors
 from ._report import Finding, Step
 from ._state import DiagnosisRun, ModelUnderWay, StageOutcome
@@ -24,7 +24,7 @@ from ._validation import cv_failure, cv_record, cv_text, not_better
 def fit_geometry(run: DiagnosisRun) -> StageOutcome:
     run.say("step 2: geometric (kinematic) calibration")
     nominal = run.nominal
-    kin = run.kinematic = run.fit("kinematic")
+    kin = run.kinematic = run.fit(compose_terms([]))
     notes = []
     run.gravity = warn_gravity(kin, run.s.levelled)
     if run.gravity is not None and run.gravity.warns:

@@ -28,7 +28,7 @@ import numpy as np
 
 from ..result import CalibrationResult
 from ..terms import GEOMETRIC
-from ._candidates import Candidate, compose_spec
+from ._candidates import Candidate, compose_terms, model_spec
 from ._report import Finding, Step
 from ._state import DiagnosisRun, StageOutcome
 from ._validation import cv_record, cv_text
@@ -70,7 +70,7 @@ def _final_model(run: DiagnosisRun, changes: Changes, current: CalibrationResult
     mask = run.mask(current) & run.mask(kin)
     with_geometry = None
     if not geometric and accepted:
-        with_geometry = run.fit(compose_spec(accepted, True), start=current)
+        with_geometry = run.fit(compose_terms(accepted, True), start=current)
         if _geometry_again(run, changes, current, with_geometry, accepted, mask):
             current, geometric = with_geometry, True
     ref = held(run, kin, mask)
@@ -136,7 +136,7 @@ def _geometry_again(run: DiagnosisRun, changes: Changes, current: CalibrationRes
                                                                       for k in worse)] * bool(worse))
     parent = run.step_of(current)
     pv, v = run.val_stats(current), run.val_stats(fit)
-    changes.steps.append(Step(compose_spec(accepted, True), fit.calibration, v, ok, Candidate(GEOMETRIC.name), test,
+    changes.steps.append(Step(model_spec(accepted, True), fit.calibration, v, ok, Candidate(GEOMETRIC.name), test,
                               cv_record(h0.mean, h1.mean), reason, run.val_angles(fit), parent=parent,
                               parent_mm=pv.mean_mm))
     if ok:

@@ -21,7 +21,7 @@ import math
 import numpy as np
 
 from ..result import CalibrationResult
-from ._candidates import Candidate, compose_spec, own_parameters
+from ._candidates import Candidate, compose_terms, own_parameters
 from ._state import DiagnosisRun, StageOutcome
 from ._statistics import NestedTest, nested_test, noise_ssr
 from ._validation import Linearized
@@ -67,7 +67,7 @@ def drop_redundant(run: DiagnosisRun) -> StageOutcome | None:
         cand, test = max(failing, key=lambda ct: ct[1].log10_p)
         rest = [a for a in accepted if a != cand]
         run.say(f"  {cand.label()} may no longer be needed: the model refitted without it")
-        refit = run.fit(compose_spec(rest, model.geometric), start=current)
+        refit = run.fit(compose_terms(rest, model.geometric), start=current)
         full = run.compare(refit, current, current.loss)
         if full.log10_p < level and full.delta_bic < 0:
             break       # the one-step estimate was too pessimistic: it is still supported

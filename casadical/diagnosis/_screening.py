@@ -27,7 +27,7 @@ import numpy as np
 from ..calibration._for_data import model_for
 from ..data._measurements import Measurements
 from ..result import CalibrationResult
-from ._candidates import Candidate, compose_spec, tell_apart
+from ._candidates import Candidate, compose_terms, tell_apart
 from ._statistics import NestedTest, nested_test, set_aside_share
 from ._validation import Linearized, fold_grams, solve_identified, switch_off
 
@@ -87,14 +87,13 @@ class Screen:
     """
 
     def __init__(self, current: CalibrationResult, accepted: list[Candidate], cands: list[Candidate],
-                 geometric: bool, cal: Measurements, val: Measurements, session_tools: bool = False,
-                 user_terms=()):
+                 geometric: bool, cal: Measurements, val: Measurements, session_tools: bool = False):
         robot = current.model.robot
         self.current, self.cal, self.val, self.accepted = current, cal, val, list(accepted)
         self.physical = {c.carrier for c in cands if not c.kind.analytic}
         # drift and thermal terms referenced to the calibration poses, as in the fits (current's model)
-        self.model = big = model_for(robot, compose_spec(accepted + sorted(self.physical, key=str), geometric), cal,
-                                     session_tools=session_tools, user_terms=user_terms)
+        self.model = big = model_for(robot, compose_terms(accepted + sorted(self.physical, key=str), geometric), cal,
+                                     session_tools=session_tools)
         frames = big.term("sessions")
         if frames is not None:      # each session's reference pose: the current fit's
             frames.references = dict(current.model.term("sessions").references)

@@ -31,7 +31,7 @@ import numpy as np
 
 from ..result import CalibrationResult, ErrorStats
 from ..stats._physics import value_violations, violations
-from ._candidates import TIERS, Candidate, compose_spec, shortlist
+from ._candidates import TIERS, Candidate, compose_terms, model_spec, shortlist
 from ._catalogue import not_tried
 from ._evidence import Evidence, Support
 from ._nameable import cause_checks, drops, unjudged
@@ -139,7 +139,7 @@ def search_causes(run: DiagnosisRun) -> StageOutcome:
         step = next(s for s in reversed(way.steps) if s.accepted)
         # the one-step fit decided; the full fit (noise scale re-estimated) must confirm the significance
         run.say(f"  {cand.label()}: the full fit")
-        new_fit = run.fit(compose_spec(way.accepted + [cand], way.geometric), start=chosen.start, parent=way.current)
+        new_fit = run.fit(compose_terms(way.accepted + [cand], way.geometric), start=chosen.start, parent=way.current)
         verdict = judge_full_fit(run, way.current, cand, new_fit, chosen.level)
         if verdict.reasons:
             reject(run, way, cand, step, new_fit, verdict)
@@ -209,8 +209,7 @@ def screen_round(run: DiagnosisRun, way: Rounds) -> Chosen | None:
         cands = run.candidates(current, way.accepted)
         # screening again (after setting structure aside) reuses the linearisation and the baseline
         if scr is None:
-            scr = Screen(current, way.accepted, cands, way.geometric, run.cal, run.val, run.s.session_tools,
-                         run.s.terms)
+            scr = Screen(current, way.accepted, cands, way.geometric, run.cal, run.val, run.s.session_tools)
             mask = run.mask(current)
             base = scr.fit()
             baseline = Baseline(mask, base, by_kind(base.lin.cv(run.schemes, run.prior), mask),
@@ -275,7 +274,7 @@ def try_tiers(run: DiagnosisRun, way: Rounds, scr: Screen, scored: list[Scored],
                 reasons.append("not physics: " + "; ".join(v.text for v in broken))
             vstats = ErrorStats.of(scr.validation_errors(fit))
             # its gain is against the model it extends (the current fit), never against a sibling
-            step = Step(compose_spec(way.accepted + [cand], way.geometric),
+            step = Step(model_spec(way.accepted + [cand], way.geometric),
                         ErrorStats.of(np.linalg.norm(fit.lin.r, axis=1)), vstats, False, cand, test,
                         cv_record(cv0, cv1), "; ".join(reasons), parent=way.step_of(current),
                         parent_mm=cur_val.mean_mm)

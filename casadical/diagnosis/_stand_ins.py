@@ -42,7 +42,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..result import CalibrationResult
-from ._candidates import Candidate, compose_spec, own_parameters
+from ._candidates import Candidate, compose_terms, own_parameters
 from ._state import DiagnosisRun, StageOutcome
 from ._statistics import NestedTest, nested_test, set_aside_share
 from ._structure import INSTRUMENT, MAX_STRUCTURES, Found, StructureScreen, describe_pair, weighted
@@ -225,5 +225,5 @@ def drop_stand_ins(run: DiagnosisRun) -> StageOutcome | None:
                      "structure screen reports that structure and its size")
         run.say(f"  dropped {cand.label()}: the closest catalogue approximation of structure it does not explain "
                 f"({where})")
-        model = model.holding(run.fit(compose_spec(rest, model.geometric), start=current), rest)
+        model = model.holding(run.fit(compose_terms(rest, model.geometric), start=current), rest)
     return StageOutcome(notes=tuple(notes), findings=tuple(findings), model=model)

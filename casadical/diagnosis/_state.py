@@ -33,6 +33,7 @@ from ..problem import RobustLoss
 from ..result import AngleStats, CalibrationResult, ErrorStats, touch_stats
 from ..robot import Robot
 from ..runtime._kept import Kept
+from ..terms import ErrorTerm, make_term
 from ._candidates import Candidate
 from ._catalogue import Catalogue
 from ._evidence import Support
@@ -237,14 +238,15 @@ class DiagnosisRun:
         """Index of the step whose model ``res`` is (None for a fit no step holds: a final-check refit)."""
         return next((k for fit, k in self.fits_of_steps if fit is res), None)
 
-    def fit(self, spec: str, start: CalibrationResult | dict | None = None, loss: RobustLoss | None = None,
-            parent: CalibrationResult | None = None) -> CalibrationResult:
-        """Calibrate ``spec`` on the calibration poses (the settings' solver, LM by default), from ``start``'s
-        values (a result, or a dict of ``parent``'s parameters as one step moved them), warm: from the base pose
-        and probe mounting of the fit the values are of (``calibrate(start_from=...)``), so the solve starts at
-        its solution."""
-        model = model_for(self.robot, spec + ("+tool_orientation" if self.full_pose else ""), self.cal,
-                          session_tools=self.s.session_tools, user_terms=self.s.terms)
+    def fit(self, terms: list[ErrorTerm], start: CalibrationResult | dict | None = None,
+            loss: RobustLoss | None = None, parent: CalibrationResult | None = None) -> CalibrationResult:
+        """Calibrate the model of ``terms`` (new ones: the model binds them,
+        :func:`~casadical.diagnosis._candidates.compose_terms`) on the calibration poses (the settings' solver, LM
+        by default), from ``start``'s values (a result, or a dict of ``parent``'s parameters as one step moved
+        them), warm: from the base pose and probe mounting of the fit the values are of
+        (``calibrate(start_from=...)``), so the solve starts at its solution."""
+        model = model_for(self.robot, list(terms) + ([make_term("tool_orientation")] if self.full_pose else []),
+                          self.cal, session_tools=self.s.session_tools)
         st = origin = None
         if start is not None:
             origin = start if isinstance(start, CalibrationResult) else parent

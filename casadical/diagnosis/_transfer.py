@@ -24,7 +24,7 @@ from ..calibration import calibrate
 from ..data._measurements import Measurements
 from ..errors import InputError
 from ..result import CalibrationResult
-from ._candidates import Candidate, compose_spec
+from ._candidates import Candidate, compose_terms
 from ._state import DiagnosisRun
 from ._words import gain_words
 
@@ -154,13 +154,13 @@ def findings_study(run: DiagnosisRun, final: CalibrationResult, parametric: Cali
         key = (f.candidate.joint, f.candidate.session)
         if f.candidate.kind.unexplained and not f.in_model and key in run.unexplained.strongest:
             # structure left out: what would it have done there?
-            return run.fit(compose_spec(accepted + [run.unexplained.strongest[key]], geometric), start=parametric)
+            return run.fit(compose_terms(accepted + [run.unexplained.strongest[key]], geometric), start=parametric)
         if k not in named:
             return None
         c = f.candidate
         # without the cause, and without those that need it (a progressive spring its joint's compliance)
         rest = [a for a in accepted if a != c and not (c.cause in a.kind.requires and a.joint == c.joint)]
-        return run.fit(compose_spec(rest, geometric), start=parametric)
+        return run.fit(compose_terms(rest, geometric), start=parametric)
 
     # structure kept out that no single cause stood for (the structure screen's, joint None) has no model to try
     todo = [k for k, f in enumerate(run.findings) if k in named or (

@@ -9,7 +9,7 @@ theirs, and a note each saying why it went (None: no cause to ask).
 from __future__ import annotations
 
 from ..stats._physics import violations
-from ._candidates import compose_spec, own_parameters
+from ._candidates import compose_terms, own_parameters
 from ._state import DiagnosisRun, StageOutcome
 
 
@@ -33,5 +33,5 @@ def drop_unphysical(run: DiagnosisRun) -> StageOutcome | None:
         text = "; ".join(v.text for v in vs)
         notes.append(f"{cand.label()} was dropped at the end: in the final model it is not physics ({text})")
         run.say(f"  dropped {cand.label()}: {text}")
-        model = model.holding(run.fit(compose_spec(rest, model.geometric), start=model.current), rest)
+        model = model.holding(run.fit(compose_terms(rest, model.geometric), start=model.current), rest)
     return StageOutcome(notes=tuple(notes), findings=tuple(findings), model=model)

@@ -67,7 +67,7 @@ def accounts(run: DiagnosisRun) -> list[dict]:
                                            *(f.candidate for f in run.findings)]) if c.user and c.cause == d.name]
         if not cands:
             cands = [Candidate(d.name, d.joints[0] if d.one_joint else None,
-                               user=tuple(f"{d.name}.{p}" for p in d.parameter_names))]
+                               user=tuple(f"{d.name}.{p}" for p in d.parameter_names), definition=d)]
         doc = d.to_dict()
         doc["file"] = d.file
         doc["screen"] = [_outcome(run, c) for c in cands]

@@ -31,7 +31,7 @@ from ..calibration._per_session import with_gp_compensator
 from ..compensators._gp import ResidualGP
 from ..data._measurements import session_index
 from ..terms import SessionLocal
-from ._candidates import compose_spec, own_parameters
+from ._candidates import compose_terms, model_spec, own_parameters
 from ._state import DiagnosisRun, FinalModel, StageOutcome
 from ._validation import Linearized
 from ._worst import WORST_SHARE, noise_band
@@ -212,7 +212,7 @@ def keep_worst_case(run: DiagnosisRun) -> StageOutcome | None:
         tried = []
         for a in _screened(run, at, gps, kept, like):
             rest = [b for b in kept if b is not a]
-            fit = run.fit(compose_spec(rest, run.geometric), start=run.parametric)
+            fit = run.fit(compose_terms(rest, run.geometric), start=run.parametric)
             new = _reconditioned(gps, fit, run.cal) if gps else None
             tried.append((dropped + [a], rest, fit, new, _errors(run, fit, new)))
             if gps:
@@ -254,7 +254,7 @@ def keep_worst_case(run: DiagnosisRun) -> StageOutcome | None:
     findings = [f for f in findings if f.candidate not in what_dropped]
     final = with_gp_compensator(fit, new, run.cal, "gp_compensator: the GP compensator (one per session)") \
         if new else fit
-    spec = "kinematic" if fit is run.kinematic else compose_spec(earlier, geo)
+    spec = "kinematic" if fit is run.kinematic else model_spec(earlier, geo)
     return StageOutcome(notes=(text,), findings=tuple(findings),
                         final=FinalModel(run.under_way().holding(fit, earlier, geo), final,
                                          spec + ("+gp_compensator" if new else "")))

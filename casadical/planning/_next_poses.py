@@ -21,7 +21,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..data._measurements import Measurements
-from ..diagnosis._candidates import compose_spec
+from ..diagnosis._candidates import compose_terms
 from ..errors import IdentifiabilityError, InputError, listing
 from ..model._symbolic import Model, parse_spec
 from ..robot import Robot
@@ -281,8 +281,8 @@ def build_problem(robot: Robot, base_spec: str, q: Question, final_values: dict[
     """
     have = set(Model(robot, base_spec, jit=False, user_terms=q.terms).parameters.names)
     extra = [c for c in q.extra if not set(c.parameter_names()) <= have]
-    model = Model(robot, "+".join([base_spec] + [compose_spec([c]).split("+", 1)[1] for c in extra]), jit=False,
-                  user_terms=q.terms)
+    model = Model(robot, parse_spec(base_spec, q.terms) + [t for c in extra for t in compose_terms([c], False)],
+                  jit=False)
     params = model.parameters
     values = np.array([final_values.get(p.name, p.value) for p in params])
     order = measured.session_names

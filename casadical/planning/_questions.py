@@ -117,7 +117,7 @@ def _candidate(d: dict, terms: dict) -> Candidate:
         if definition is None:
             raise InputError(f"the report names {c.cause!r}, a cause of your own: give its terms file with --terms "
                              "FILE")
-        c = replace(c, user=tuple(f"{c.cause}.{p}" for p in definition.parameter_names))
+        c = replace(c, user=tuple(f"{c.cause}.{p}" for p in definition.parameter_names), definition=definition)
     return c
 
 
@@ -198,7 +198,7 @@ def open_questions(report: dict, final_values: dict[str, float], path: str = "",
             defs[d.name] = d
             user = tuple(f"{d.name}.{p}" for p in d.parameter_names)
             # structure of one session only: its term in that session (a term of one session, ``NAME@S``)
-            own = Candidate(d.name, f.get("joint"), user=user, session=f.get("session"))
+            own = Candidate(d.name, f.get("joint"), user=user, session=f.get("session"), definition=d)
             add("unexplained", f"{f.get('where', d.name)}: which form, and how large? (finding {k + 1})",
                 [own], own.parameter_names(),
                 {n: p.start for n, p in zip(own.parameter_names(), d.parameters)}, scan_level, k)

@@ -232,13 +232,13 @@ class Play(Cause):
     def parameter_names(self, cand) -> list[str]:
         return [f"backlash{cand.joint}" if cand.source != "motion" else f"backlash_m{cand.joint}"]
 
-    def specs(self, cands) -> list[str]:
+    def terms(self, cands) -> list[ErrorTerm]:
         mine = self.mine(cands)
         out = []
-        for kind, motion in (("backlash", False), ("backlash_motion", True)):
+        for kind, motion in ((Backlash, False), (BacklashMotion, True)):
             joints = sorted({c.joint for c in mine if (c.source == "motion") == motion})
             if joints:
-                out.append(f"{kind}[{','.join(map(str, joints))}]")
+                out.append(kind(joints=joints))
         return out
 
     def varies(self, cand) -> str:

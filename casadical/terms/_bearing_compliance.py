@@ -224,9 +224,9 @@ class BearingGive(Cause):
     def parameter_names(self, cand) -> list[str]:
         return [f"cbear{cand.joint}_{cand.direction}"]
 
-    def specs(self, cands) -> list[str]:
+    def terms(self, cands) -> list[ErrorTerm]:
         pairs = sorted({(c.joint, c.direction) for c in self.mine(cands)})
-        return [f"bearing_compliance[{','.join(f'{j}:{k}' for j, k in pairs)}]"] if pairs else []
+        return [BearingCompliance(pairs=pairs)] if pairs else []
 
     def place(self, cand) -> str:
         return f"joint {cand.joint}'s bearing, about its {cand.direction}"

@@ -6,7 +6,7 @@ import numpy as np
 
 from ..parameters import Parameter
 from ..robot import Robot
-from ._base import linear_axes, register
+from ._base import ErrorTerm, linear_axes, register
 from ._cause import Cause, register_cause
 from ._straightness import AxisTerm, travel_curve
 
@@ -104,9 +104,9 @@ class CarriageTurn(Cause):
     def parameter_names(self, cand) -> list[str]:
         return [f"{cand.angle}{cand.joint}_p{k}" for k in DEGREES]
 
-    def specs(self, cands) -> list[str]:
+    def terms(self, cands) -> list[ErrorTerm]:
         axis = sorted({(c.joint, c.angle) for c in self.mine(cands)})
-        return [f"carriage_angle[{','.join(f'{j}:{k}' for j, k in axis)}]"] if axis else []
+        return [CarriageAngle(pairs=axis)] if axis else []
 
 
 CARRIAGE_ANGLE = register_cause(CarriageTurn())

@@ -142,9 +142,9 @@ class Cause:
         """The names of the parameters a candidate adds to a model (the robot's; a session's own add ``@S``)."""
         raise NotImplementedError(f"cause {self.name} adds no parameters")
 
-    def specs(self, cands: list) -> list[str]:
-        """The term specifications of the candidates of one scope that are this cause's (``cands``: all of the
-        scope, for causes that take another's joints: a compliance those of a progressive spring)."""
+    def terms(self, cands: list) -> list:
+        """The error terms of the candidates of one scope that are this cause's, as a model holds them (``cands``:
+        all of the scope, for causes that take another's joints: a compliance those of a progressive spring)."""
         return []
 
     def candidates(self, data: Any) -> list:

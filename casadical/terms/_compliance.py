@@ -114,10 +114,10 @@ class Compliance(Cause):
     def parameter_names(self, cand) -> list[str]:
         return [f"c{cand.joint}"]
 
-    def specs(self, cands) -> list[str]:
+    def terms(self, cands) -> list[ErrorTerm]:
         # the joints of this cause and of those that need it (a progressive spring has a linear part)
         joints = sorted({c.joint for c in cands if c.kind is self or self.name in c.kind.requires})
-        return [f"joint_compliance[{','.join(map(str, joints))}]"] if joints else []
+        return [JointCompliance(joints=joints)] if joints else []
 
 
 COMPLIANCE = register_cause(Compliance())

@@ -10,7 +10,7 @@ import numpy as np
 from .._format import g3, relative
 from ..parameters import Parameter
 from ..robot import Robot
-from ._base import ReferencedTerm, register
+from ._base import ErrorTerm, ReferencedTerm, register
 from ._cause import Cause, register_cause
 
 
@@ -92,8 +92,8 @@ class FrameDrift(Cause):
     def parameter_names(self, cand) -> list[str]:
         return ["drift_x", "drift_y", "drift_z"]
 
-    def specs(self, cands) -> list[str]:
-        return ["drift"] if self.mine(cands) else []
+    def terms(self, cands) -> list[ErrorTerm]:
+        return [Drift()] if self.mine(cands) else []
 
 
 DRIFT = register_cause(FrameDrift())

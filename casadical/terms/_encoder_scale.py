@@ -96,9 +96,9 @@ class Scale(Cause):
     def parameter_names(self, cand) -> list[str]:
         return [f"escale{cand.joint}"]
 
-    def specs(self, cands) -> list[str]:
+    def terms(self, cands) -> list[ErrorTerm]:
         joints = sorted({c.joint for c in self.mine(cands)})
-        return [f"encoder_scale[{','.join(map(str, joints))}]"] if joints else []
+        return [EncoderScale(joints=joints)] if joints else []
 
 
 ENCODER_SCALE = register_cause(Scale())

@@ -152,9 +152,9 @@ class Coupling(Cause):
     def parameter_names(self, cand) -> list[str]:
         return [f"cpl{cand.joint}_{cand.source_joint}"]
 
-    def specs(self, cands) -> list[str]:
+    def terms(self, cands) -> list[ErrorTerm]:
         cpl = sorted({(c.joint, c.source_joint) for c in self.mine(cands)})
-        return [f"joint_coupling[{','.join(f'{j}:{k}' for j, k in cpl)}]"] if cpl else []
+        return [JointCoupling(pairs=cpl)] if cpl else []
 
 
 JOINT_COUPLING = register_cause(Coupling())

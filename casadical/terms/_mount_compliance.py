@@ -366,10 +366,11 @@ class MountGive(Cause):
         ref = cal.get(column)
         return bernstein(int(degree or 1), data.get(column), float(np.min(ref)), float(np.max(ref)))
 
-    def specs(self, cands) -> list[str]:
+    def terms(self, cands) -> list[ErrorTerm]:
         mine = self.mine(cands)
-        return (["mount_compliance"] if any(c.law is None for c in mine) else []) + [
-            f"mount_compliance[{law}]" for law in dict.fromkeys(c.law for c in mine if c.law is not None)]
+        laws = [law.partition(":") for law in dict.fromkeys(c.law for c in mine if c.law is not None)]
+        return ([MountCompliance()] if any(c.law is None for c in mine) else []) + [
+            MountCompliance(law=column, degree=int(degree or 1)) for column, _, degree in laws]
 
 
 def law_term(model, cand) -> "MountCompliance | None":

@@ -109,9 +109,9 @@ class ProgressiveStiffness(Cause):
     def parameter_names(self, cand) -> list[str]:
         return [f"c{cand.joint}", f"cubic{cand.joint}"]     # a progressive spring has a linear part too
 
-    def specs(self, cands) -> list[str]:
+    def terms(self, cands) -> list[ErrorTerm]:
         joints = sorted({c.joint for c in self.mine(cands)})
-        return [f"nonlinear_stiffness[{','.join(map(str, joints))}]"] if joints else []
+        return [NonlinearStiffness(joints=joints)] if joints else []
 
 
 PROGRESSIVE_STIFFNESS = register_cause(ProgressiveStiffness())

@@ -198,9 +198,9 @@ class GearError(Cause):
     def parameter_names(self, cand) -> list[str]:
         return [f"gear{cand.joint}_s{cand.harmonic}", f"gear{cand.joint}_c{cand.harmonic}"]
 
-    def specs(self, cands) -> list[str]:
+    def terms(self, cands) -> list[ErrorTerm]:
         per = sorted({(c.joint, c.harmonic) for c in self.mine(cands)})
-        return [f"joint_periodic[{','.join(f'{j}:{h}' for j, h in per)}]"] if per else []
+        return [JointPeriodic(harmonics=per)] if per else []
 
 
 JOINT_PERIODIC = register_cause(GearError())

@@ -190,9 +190,9 @@ class AxisStraightness(Cause):
     def parameter_names(self, cand) -> list[str]:
         return [f"straight{cand.joint}{cand.direction}_p{k}" for k in DEGREES]
 
-    def specs(self, cands) -> list[str]:
+    def terms(self, cands) -> list[ErrorTerm]:
         axis = sorted({(c.joint, c.direction) for c in self.mine(cands)})
-        return [f"straightness[{','.join(f'{j}:{k}' for j, k in axis)}]"] if axis else []
+        return [Straightness(pairs=axis)] if axis else []
 
 
 STRAIGHTNESS = register_cause(AxisStraightness())

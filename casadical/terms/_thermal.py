@@ -9,7 +9,7 @@ from ..errors import ModelError
 from ..kinematics import Geometry
 from ..parameters import Parameter
 from ..robot import Robot
-from ._base import Context, ReferencedTerm, register
+from ._base import Context, ErrorTerm, ReferencedTerm, register
 from ._cause import Cause, register_cause
 
 
@@ -114,11 +114,11 @@ class Expansion(Cause):
     def parameter_names(self, cand) -> list[str]:
         return ["thermal_alpha" if cand.joint is None else f"thermal_alpha{cand.joint}"]
 
-    def specs(self, cands) -> list[str]:
+    def terms(self, cands) -> list[ErrorTerm]:
         mine = self.mine(cands)
         links = sorted({c.joint for c in mine if c.joint is not None})
-        return ((["thermal_expansion"] if any(c.joint is None for c in mine) else [])
-                + ([f"thermal_expansion[{','.join(map(str, links))}]"] if links else []))
+        return (([ThermalExpansion()] if any(c.joint is None for c in mine) else [])
+                + ([ThermalExpansion(joints=links)] if links else []))
 
 
 THERMAL_EXPANSION = register_cause(Expansion())

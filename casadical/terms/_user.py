@@ -247,8 +247,10 @@ class UserCauses(Cause):
     def parameter_names(self, cand) -> list[str]:
         return list(cand.user)
 
-    def specs(self, cands) -> list[str]:
-        return sorted({c.cause for c in self.mine(cands)})     # by their names
+    def terms(self, cands) -> list[ErrorTerm]:
+        """Each user term of ``cands`` once, by their names (each candidate carries its term's definition)."""
+        definitions = {c.cause: c.definition for c in self.mine(cands)}
+        return [UserTerm(definitions[name]) for name in sorted(definitions)]
 
 
 #: the causes of the user's own (not in :data:`~casadical.terms._cause.CAUSES`: their names are the user's)

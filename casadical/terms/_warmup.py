@@ -11,7 +11,7 @@ import numpy as np
 from ..errors import ModelError
 from ..parameters import Parameter
 from ..robot import Robot
-from ._base import ReferencedTerm, register
+from ._base import ErrorTerm, ReferencedTerm, register
 from ._cause import Cause, register_cause
 
 
@@ -141,8 +141,8 @@ class WarmUp(Cause):
     def parameter_names(self, cand) -> list[str]:
         return ["warmup_x", "warmup_y", "warmup_z"]
 
-    def specs(self, cands) -> list[str]:
-        return [f"warmup[{c.time_constant:g}]" for c in self.mine(cands)][:1]
+    def terms(self, cands) -> list[ErrorTerm]:
+        return [Warmup(time_constant_s=c.time_constant) for c in self.mine(cands)][:1]
 
 
 WARMUP = register_cause(WarmUp())

@@ -8,6 +8,7 @@ import pytest
 
 from casadical.data import Effects, simulate
 from casadical.diagnosis import DiagnosisRun, DiagnosisSettings, Linearized, check_data, fit_geometry, fit_nominal
+from casadical.model import parse_spec
 from casadical.robot import robot_from_dict
 from tests.helpers.arms import ARM5
 
@@ -33,7 +34,7 @@ def _same(a, b):
 @pytest.mark.parametrize("seed", [0, 1])
 def test_kept_per_fit_and_the_same_as_made_afresh(seed):
     run = _run(seed)
-    fits = [run.kinematic, run.nominal, run.fit("kinematic+compliance", start=run.kinematic)]
+    fits = [run.kinematic, run.nominal, run.fit(parse_spec("kinematic+compliance"), start=run.kinematic)]
     for res in fits + fits[::-1]:
         lin = run.linearized(res)
         assert run.linearized(res) is lin

@@ -104,10 +104,10 @@ def test_specifications_parameters_and_errors():
     with pytest.raises(ModelError, match="no masses"):
         Model(robot_from_dict(massless), "kinematic+mount_compliance", jit=False)
     # both are the diagnosis catalogue's (tests/diagnosis/test_new_causes_named.py)
-    from casadical.diagnosis import Candidate, compose_spec
-    assert compose_spec([Candidate("joint_coupling", 6, source_joint=5), Candidate("mount_compliance"),
-                         Candidate("mount_compliance", session="B")]) == (
-        "kinematic+joint_coupling[6:5]+mount_compliance+mount_compliance@B")
+    from casadical.diagnosis import Candidate, compose_terms
+    model = Model(robot, compose_terms([Candidate("joint_coupling", 5, source_joint=4), Candidate("mount_compliance"),
+                                        Candidate("mount_compliance", session="B")]), jit=False)
+    assert model.spec == "kinematic+joint_coupling[5:4]+mount_compliance+mount_compliance@B"
     assert [t.spec() for t in parse_spec("joint_coupling[6:5]+mount_compliance")] == ["joint_coupling[6:5]",
                                                                                       "mount_compliance"]
 
