@@ -2,15 +2,17 @@
 
 A *cause* is what a diagnosis names (docs/formats.md section 4: ``joint_compliance``, ``joint_periodic``, ...).
 Its :class:`Cause` object holds everything the rest of the package needs to know of it: the parameters a
-candidate of it adds, its words (a short label, where it acts, its size, how to tell it from another cause), its
-place in the search (tier, order in a model specification), whether each session may have its own, and which
-checks its acceptance asks. The diagnosis, the reports, the planning and the physics rules ask these objects; none
-of them compares a cause's name. A term module defines its cause beside its :class:`~._base.ErrorTerm` and
-registers it with :func:`register_cause`, so that adding a cause means writing one module.
+candidate of it adds and the error terms its candidates become (:meth:`Cause.terms`), its words (a short label,
+where it acts, its size, how to tell it from another cause), its place in the search (tier, order among a
+model's terms), whether each session may have its own, and which checks its acceptance asks. The diagnosis,
+the reports, the planning and the physics rules ask these objects; none of them compares a cause's name. A term
+module defines its cause beside its :class:`~._base.ErrorTerm` and registers it with :func:`register_cause`, so
+that adding a cause means writing one module.
 
 A :class:`Candidate`-like object (``casadical.diagnosis._candidates.Candidate``) carries the cause's name and its
 arguments (``joint``, ``harmonic``, ``source``, ``session``, ``time_constant``, ``source_joint``, ``direction``,
-``angle``, ``user``); the hooks below read them.
+``angle``, ``law``, ``user`` and a user term's ``definition``); the hooks below read them. No candidate becomes a
+string the model parses back: its cause makes its terms.
 """
 
 from __future__ import annotations

@@ -55,3 +55,17 @@ def test_the_count_sees_a_comparison():
             "e = ['encoder_scale', 'drift']\nf = make('drift')\ng = ('a phrase', 'backlash')\n")
     assert [n for _, n in comparisons(ast.parse(code), _cause_names())] == ["drift", "warmup", "backlash",
                                                                             "drift", "encoder_scale"]
+
+
+def test_the_diagnosis_makes_its_models_from_terms_never_from_a_string():
+    """A candidate becomes terms (its cause's ``terms``, ``compose_terms``): no module of the diagnosis reads a
+    model specification back (``parse_spec``)."""
+    hits = []
+    for path in sorted((PACKAGE / "diagnosis").glob("*.py")):
+        for node in ast.walk(ast.parse(path.read_text())):
+            name = node.id if isinstance(node, ast.Name) else node.name if isinstance(node, ast.alias) else None
+            if name == "parse_spec":
+                hits.append(f"{path.name}:{getattr(node, 'lineno', '?')}")
+    assert hits == []
+    text = "from ..model import parse_spec\nterms = parse_spec('kinematic')\n"     # the check can fail
+    assert sum(isinstance(n, ast.Name) and n.id == "parse_spec" for n in ast.walk(ast.parse(text))) == 1
