@@ -18,6 +18,10 @@ are counted with them (``RUSAGE_CHILDREN``). Jobs:
                                                                        # its HTML report and whole process)
     python benchmarks/speed/bench_stages.py --jobs readme --repeats 5
     python benchmarks/speed/bench_stages.py --base /work/base --jobs readme readme-no-goal --repeats 5
+    python benchmarks/speed/bench_stages.py --base /work/base --without bearing_compliance --jobs readme
+
+``--without CAUSE`` runs this tree a second time with one cause of the catalogue left out (its candidates and its
+terms in the superset: what screening it costs; the report may differ where the cause is named).
 """
 
 from __future__ import annotations
@@ -66,6 +70,12 @@ H.diagnosis_html = timed("html report", H.diagnosis_html)
 HD = module("casadical.html._diagnosis", "casadical.html.diagnosis")
 if HD is not None:
     HD.diagnosis_html = H.diagnosis_html
+import os
+if os.environ.get("BENCH_WITHOUT"):     # --without: the cause left out of the catalogue and the superset
+    from casadical.terms import CAUSES, REGISTRY
+    name = os.environ["BENCH_WITHOUT"]
+    type(CAUSES[name]).candidates = lambda self, data: []
+    REGISTRY[name].superset = classmethod(lambda cls, robot: [])
 from casadical.cli import main
 main(sys.argv[1:])
 me, kids = resource.getrusage(resource.RUSAGE_SELF), resource.getrusage(resource.RUSAGE_CHILDREN)
@@ -115,11 +125,14 @@ def main() -> int:
     ap.add_argument("--jobs", nargs="+", default=["readme", "real2000", "sessions"],
                     choices=["readme", "readme-no-goal", "real2000", "sessions"])
     ap.add_argument("--base", help="another tree to run beside this one (aebf0e6's checkout)")
+    ap.add_argument("--without", metavar="CAUSE", help="also this tree with CAUSE left out (bearing_compliance)")
     ap.add_argument("--repeats", type=int, default=3)
     args = ap.parse_args()
     trees = {"this tree": str(ROOT)}
     if args.base:
         trees["base"] = str(Path(args.base).resolve())
+    if args.without:
+        trees[f"without {args.without}"] = str(ROOT)
     print(f"{os.cpu_count()} cores, load average {os.getloadavg()[0]:.2f}; CPU seconds, median of {args.repeats} "
           f"runs in turn\n")
     with tempfile.TemporaryDirectory(prefix="stages-") as tmp:
@@ -128,6 +141,8 @@ def main() -> int:
                 for i, (k, v) in enumerate(trees.items())}
         for env in envs.values():
             env.pop("PYTHONDONTWRITEBYTECODE", None)
+        if args.without:
+            envs[f"without {args.without}"]["BENCH_WITHOUT"] = args.without
         for job in args.jobs:
             folder = Path(tmp) / job
             folder.mkdir()
@@ -143,17 +158,17 @@ def main() -> int:
                    for k, runs in got.items()}
             tot = {k: statistics.median(r["total"] for r in runs) for k, runs in got.items()}
             print(f"**{job}**\n")
-            print("| step | " + " | ".join(trees) + (" | ratio |" if len(trees) > 1 else ""))
-            print("|---|" + "---:|" * (len(trees) + (len(trees) > 1)))
+            others = [k for k in trees if k != "this tree"]
+            print("| step | " + " | ".join(trees) + "".join(f" | this / {k}" for k in others) + " |")
+            print("|---|" + "---:|" * (len(trees) + len(others)))
             rows = [(n, {k: med[k][n] for k in trees}) for n in names]
             rows.append(("the rest of the process (start-up, imports, files)",
                          {k: tot[k] - sum(med[k].values()) for k in trees}))
             rows.append(("**the whole process**", tot))
             for n, v in rows:
                 cells = " | ".join(f"{v[k]:.2f}" for k in trees)
-                ratio = f" | {v['this tree'] / v['base']:.2f}" if len(trees) > 1 and v["base"] > 0.005 else (
-                    " | -" if len(trees) > 1 else "")
-                print(f"| {n} | {cells}{ratio} |")
+                ratios = "".join(f" | {v['this tree'] / v[k]:.2f}" if v[k] > 0.005 else " | -" for k in others)
+                print(f"| {n} | {cells}{ratios} |")
             print(flush=True)
     print(f"load average {os.getloadavg()[0]:.2f}")
     return 0
