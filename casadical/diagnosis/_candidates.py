@@ -50,8 +50,8 @@ class Candidate:
         degree after a colon where it is not 1 (``height_m``, ``height_m:2``;
         ``mount_compliance[height_m]``).
     definition : TermDefinition or None
-        For a cause of the user's own: its term's definition (what its term
-        is made of; not part of what the candidate is, as its name is).
+        For a cause of the user's own: its term's definition, what its term
+        is made of (candidates compare by the cause's name, not by it).
     """
 
     cause: str
