@@ -11,6 +11,10 @@ from ._periodogram import Periodogram
 from ._statistics import NestedTest
 from ._words import action, gain, gain_words, label, scope, size, table, where, wrap, wrap_spec
 
+#: the most characters a finding's place or size takes on a line of the terminal's findings table (a longer one,
+#: an unexplained part's words, wraps within its column, so the table stays within a terminal's width)
+CELL_WIDTH = 44
+
 
 def finite(x: float | None) -> float | None:
     return float(x) if x is not None and math.isfinite(x) else None
@@ -302,7 +306,8 @@ class DiagnosisReport:
         if not rows:
             lines.append("  none")
         else:
-            grid = table(["#", "finding", "where", "size", "gain on validation", "scope"], rows, right=(0,))
+            grid = table(["#", "finding", "where", "size", "gain on validation", "scope"], rows, right=(0,),
+                         widest={2: CELL_WIDTH, 3: CELL_WIDTH})
             lines.append(grid[0])
             for line, row in zip(grid[1:], decided):      # each finding, and what to do under it
                 lines.append(line)

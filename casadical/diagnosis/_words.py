@@ -157,11 +157,19 @@ def _name(path: str) -> str:
     return path.replace("\\", "/").rsplit("/", 1)[-1]
 
 
-def table(header: list[str], rows: list[list[str]], indent: str = "  ", right: tuple[int, ...] = ()) -> list[str]:
-    """A plain-text table: columns as wide as their widest cell (``right``: right-aligned columns)."""
-    widths = [max(len(str(x)) for x in col) for col in zip(header, *rows)]
+def table(header: list[str], rows: list[list[str]], indent: str = "  ", right: tuple[int, ...] = (),
+          widest: dict[int, int] | None = None) -> list[str]:
+    """A plain-text table, one string per row (the header first): columns as wide as their widest cell
+    (``right``: right-aligned columns); ``widest``: column -> the most characters a cell of it takes on a line, a
+    longer cell wrapped on lines of its own below, the row's other cells blank there (the row's string then holds
+    several lines)."""
+    widest = widest or {}
+    cells = [[wrap(str(x), width=widest[k]) if k in widest else [str(x)] for k, x in enumerate(r)]
+             for r in [header, *rows]]
+    widths = [max(len(x) for r in cells for x in r[k]) for k in range(len(header))]
 
-    def line(cells):
-        return indent + "  ".join(str(x).rjust(w) if k in right else str(x).ljust(w)
-                                  for k, (x, w) in enumerate(zip(cells, widths))).rstrip()
-    return [line(header)] + [line(r) for r in rows]
+    def line(parts):
+        return indent + "  ".join(x.rjust(w) if k in right else x.ljust(w)
+                                  for k, (x, w) in enumerate(zip(parts, widths))).rstrip()
+    return ["\n".join(line([c[i] if i < len(c) else "" for c in r]) for i in range(max(map(len, r))))
+            for r in cells]
