@@ -14,6 +14,7 @@ stores each repetition once, whichever worker finished it.
 
 from __future__ import annotations
 
+import gc
 import itertools
 import logging
 import secrets
@@ -145,12 +146,23 @@ CONNECT_TIMEOUT_S = 20
 
 
 def _connect(scheduler: str):
-    """A client of the running Dask cluster at ``scheduler``."""
+    """A client of the running Dask cluster at ``scheduler``.
+
+    A client that fails to connect is freed here. Its exception's frames hold it, and left to the garbage collector
+    its ``__del__`` runs whenever a collection comes. That may be inside another client's start, which holds the
+    one lock of Dask's loop runners (``distributed.utils.LoopRunner._lock``) that the dying client's close takes:
+    the process hangs (a test suite did, on the test after an unreachable scheduler's)."""
     distributed = _distributed()
     try:
         return distributed.Client(scheduler, timeout=f"{CONNECT_TIMEOUT_S}s")
     except (OSError, TimeoutError, ValueError) as e:
-        raise InputError(f"cannot reach the Dask scheduler: {e}", file=scheduler) from e
+        cause = e
+    error, link = InputError(f"cannot reach the Dask scheduler: {cause}", file=scheduler), cause
+    while link is not None:         # the exception and those it came from, without their frames
+        link.__traceback__ = None
+        link = link.__cause__ or link.__context__
+    gc.collect()                    # the failed client is garbage now: its close runs here, holding no lock
+    raise error from cause
 
 
 def _run(study: Study, out: Path, backend: str, workers, scheduler, client, force: bool, progress, flush_s: float,
