@@ -312,12 +312,12 @@ class MountGive(Cause):
     def words(self, cand, params, robot, data, linear) -> str:
         M = np.linalg.norm(mount_moments(robot, data.q, data.get("payload_kg")), axis=1).max(initial=0.0)
         if cand.law is not None:
-            column, _, degree = cand.law.partition(":")
+            column, degree = law_parts(cand.law)
             v = data.get(column)
             if v is None:
                 return ""
             lo, hi = float(np.min(v)), float(np.max(v))
-            per = int(degree or 1) + 1
+            per = degree + 1
             ends = [(params[k].value, params[k + per - 1].value) for k in range(0, len(params), per)]
             return (f"the mount's compliance follows {column} (a {'straight line' if per == 2 else 'parabola'} over "
                     f"its sessions' values): " + "; ".join(f"{a:.3g} rad/(N m) at {lo:.4g}, {b:.3g} at {hi:.4g}"
@@ -340,15 +340,15 @@ class MountGive(Cause):
         asks whether it holds there."""
         if cand.law is None:
             return None
-        column, _, degree = cand.law.partition(":")
-        return (f"the mount's compliance over {column}: does the {'straight line' if not degree else 'parabola'} "
+        column, degree = law_parts(cand.law)
+        return (f"the mount's compliance over {column}: does the {'straight line' if degree == 1 else 'parabola'} "
                 f"hold between and beyond the sessions' values? Measure a session at another {column} (candidate "
                 f"poses with that {column})")
 
     def parameter_names(self, cand) -> list[str]:
         if cand.law is None:
             return ["cmount"]
-        return [f"cmount_{k}" for k in range(int(cand.law.partition(":")[2] or 1) + 1)]
+        return [f"cmount_{k}" for k in range(law_parts(cand.law)[1] + 1)]
 
     def carried(self, cand, params: list) -> list:
         """A session's own mount or a law differs between sessions: bounded by :data:`MAX_COLUMN_TILT`, not the
@@ -362,24 +362,31 @@ class MountGive(Cause):
         calibration poses ``cal``), (N, degree + 1) at the poses of ``data``."""
         if cand.law is None:
             return None
-        column, _, degree = cand.law.partition(":")
+        column, degree = law_parts(cand.law)
         ref = cal.get(column)
-        return bernstein(int(degree or 1), data.get(column), float(np.min(ref)), float(np.max(ref)))
+        return bernstein(degree, data.get(column), float(np.min(ref)), float(np.max(ref)))
 
     def terms(self, cands) -> list[ErrorTerm]:
         mine = self.mine(cands)
-        laws = [law.partition(":") for law in dict.fromkeys(c.law for c in mine if c.law is not None)]
+        laws = [law_parts(law) for law in dict.fromkeys(c.law for c in mine if c.law is not None)]
         return ([MountCompliance()] if any(c.law is None for c in mine) else []) + [
-            MountCompliance(law=column, degree=int(degree or 1)) for column, _, degree in laws]
+            MountCompliance(law=column, degree=degree) for column, degree in laws]
+
+
+def law_parts(law: str) -> tuple[str, int]:
+    """A candidate's law, its column and degree: ``height_m`` -> (``height_m``, 1), ``height_m:2`` -> (``height_m``,
+    2)."""
+    column, _, degree = law.partition(":")
+    return column, int(degree or 1)
 
 
 def law_term(model, cand) -> "MountCompliance | None":
     """The term of ``model`` that is the law of candidate ``cand`` (None: ``cand`` is not a law, or not there)."""
     if cand.law is None:
         return None
-    column, _, degree = cand.law.partition(":")
+    column, degree = law_parts(cand.law)
     return next((t for t in model.terms if isinstance(t, MountCompliance) and t.law == column
-                 and t.degree == int(degree or 1)), None)
+                 and t.degree == degree), None)
 
 
 MOUNT_COMPLIANCE = register_cause(MountGive())
